@@ -1,0 +1,1 @@
+"""planter_ros: design and drive the planting unit of a seedling transplanter."""

@@ -1,0 +1,65 @@
+"""Entry point of `planter`: builds the sub-command tree and turns bad input into exit code 2.
+
+Each sub-command lives in its own module with `add_arguments(parser)` and `run(args) -> int`;
+those modules import numpy/scipy/matplotlib/rclpy only inside run(), so `planter --help` and a
+five-bar design never load what they do not use.
+"""
+
+import argparse
+import importlib
+import sys
+
+# (command words) -> (module, one-line help)
+COMMANDS = {
+    ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
+                             'reverse-design a geared five-bar from depth and spacing'),
+}
+
+EXIT_BAD_INPUT = 2
+
+
+class BadInput(Exception):
+    """A user error the command line reports as one line with exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports errors in one line (no usage dump, no traceback)."""
+
+    def error(self, message):
+        raise BadInput(f'{self.prog}: {message}')
+
+
+def build_parser():
+    parser = _Parser(prog='planter', description='Design and drive a transplanter planting unit.')
+    top = parser.add_subparsers(dest='command', required=True, parser_class=_Parser)
+    groups = {}
+    for words, (module_name, help_text) in COMMANDS.items():
+        if len(words) == 1:
+            sub = top.add_parser(words[0], help=help_text)
+        else:
+            if words[0] not in groups:
+                grp = top.add_parser(words[0], help=f'{words[0]} a mechanism')
+                groups[words[0]] = grp.add_subparsers(dest='mechanism', required=True,
+                                                      parser_class=_Parser)
+            sub = groups[words[0]].add_parser(words[1], help=help_text)
+        module = importlib.import_module(module_name)
+        module.add_arguments(sub)
+        sub.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv=None):
+    from planter_ros.kinematics.errors import DesignError
+    try:
+        args = build_parser().parse_args(argv)
+        return int(args._run(args) or 0)
+    except (BadInput, DesignError) as exc:
+        print(f'planter: error: {exc}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print('planter: interrupted', file=sys.stderr)
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,37 @@
+"""The one error type of the core: a bad or infeasible input, said in one line."""
+
+import math
+
+import numpy as np
+
+
+class DesignError(ValueError):
+    """An input outside the domain where the design exists.
+
+    The message is one line naming the value and its allowed range, so a command line can print
+    it as is and a node can refuse a parameter update with it.
+    """
+
+    def __init__(self, parameter, value, allowed, reason=''):
+        self.parameter = parameter
+        self.value = value
+        self.allowed = allowed
+        text = f'{parameter} = {value:.6g}' if isinstance(value, (int, float)) else \
+            f'{parameter} = {value}'
+        text += f' is out of range: allowed {allowed}'
+        if reason:
+            text += f' ({reason})'
+        super().__init__(text)
+
+
+def require_positive_finite(name, value, unit=''):
+    """Raise DesignError unless value is a finite number > 0 (scalars and arrays alike)."""
+    if isinstance(value, (int, float)):
+        if not (math.isfinite(value) and value > 0):
+            raise DesignError(name, value, f'finite and > 0{(" " + unit) if unit else ""}')
+        return
+    arr = np.asarray(value, dtype=float)
+    bad = ~(np.isfinite(arr) & (arr > 0))
+    if np.any(bad):
+        first = float(arr[bad].flat[0]) if arr.ndim else float(arr)
+        raise DesignError(name, first, f'finite and > 0{(" " + unit) if unit else ""}')

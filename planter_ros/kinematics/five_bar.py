@@ -1,0 +1,452 @@
+"""Geared five-bar planting mechanism (paper 1): exact reverse design and forward kinematics.
+
+Conventions (REP 103 style, SI units): the mechanism plane has x along the row (the direction of
+travel, forward) and y vertical (up). Angles in rad. The sun bar AB (l1) turns about A at ω1; the
+planet bar BC (l2) is fixed to the planet gear, gear ratio ω2/ω1 = -2, so the nozzle tip C moves
+on the ellipse x = (l2-l1) sin θ, y = (l1+l2) cos θ about A (θ = ω1 t, θ = 0 at the top).
+
+In the soil frame the bottom of the trajectory is y = 0 and the soil surface is y = D:
+    x = (l2-l1) sin θ + v t,   y = (l1+l2)(1 + cos θ).
+With `advance` = v/ω1 (metres travelled per radian of the sun bar) the speed ratio is
+λ = (l2-l1)/advance; λ = 1 is zero-speed planting, v = d ω1 / 2π for one plant per revolution.
+
+Reverse design: the hole (entry-exit distance) at depth D is exactly t = (d/π)(ψ - sin ψ) with
+ψ = arccos(1 - D/(l1+l2)); the paper replaces ψ - sin ψ by ψ³/6 (method 'paper'), which
+designs holes 1-7 % smaller than asked. Method 'exact' solves ψ - sin ψ = π k D / d to round-off.
+
+Passive dyad: C-D (l3) and D-E (l4) with the frame pivot E on the horizontal through A at
+distance l5 (the paper's right triangle A-C-E at the top position). Behind or ahead of A gives
+mirror-image cycles (x is odd in θ), so the closure checks are the same for both.
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from .errors import DesignError, require_positive_finite
+
+TWO_PI = 2.0 * math.pi
+PAPER_DYAD_RATIOS = (1.4, 1.5, 1.3)
+METHODS = ('exact', 'paper')
+
+# Horner denominators of ψ - sin ψ = ψ³/6 (1 - z/20 (1 - z/42 (1 - ...))), z = ψ²;
+# ten terms make the series exact to < 1e-19 relative for ψ < 1.
+_SERIES_DENOMS = (420.0, 342.0, 272.0, 210.0, 156.0, 110.0, 72.0, 42.0, 20.0)
+_SERIES_LIMIT = 1.0
+
+
+def _series_psi_minus_sin(psi):
+    z = psi * psi
+    acc = 1.0
+    for den in _SERIES_DENOMS:
+        acc = 1.0 - z / den * acc
+    return psi * z / 6.0 * acc
+
+
+def psi_minus_sin(psi):
+    """ψ - sin ψ to full relative precision (series below 1 rad, where the difference cancels)."""
+    if isinstance(psi, float):
+        return _series_psi_minus_sin(psi) if abs(psi) < _SERIES_LIMIT else psi - math.sin(psi)
+    psi = np.asarray(psi, dtype=float)
+    small = np.abs(psi) < _SERIES_LIMIT
+    return np.where(small, _series_psi_minus_sin(np.where(small, psi, 0.0)), psi - np.sin(psi))
+
+
+def _one_minus_cos(psi, sin):
+    s = sin(0.5 * psi)
+    return 2.0 * s * s
+
+
+def solve_psi(c):
+    """Solve ψ - sin ψ = c for ψ in (0, π]; c in (0, π] (scalar or array).
+
+    Three Halley steps from the series inverse s + s³/60 (s = cbrt(6c)) reach round-off over the
+    whole domain (checked against mpmath in the tests and `planter bench`); the residual uses
+    the cancellation-free series, so tiny ψ keeps full relative precision. A fixed step count
+    keeps the batch path free of data-dependent loops.
+    """
+    scalar = isinstance(c, float)
+    sin = math.sin if scalar else np.sin
+    psi = _initial_psi(c if scalar else np.asarray(c, dtype=float))
+    psi = min(psi, math.pi) if scalar else np.minimum(psi, math.pi)
+    for _ in range(3):
+        g = psi_minus_sin(psi) - c
+        g1 = _one_minus_cos(psi, sin)
+        den = 2.0 * g1 * g1 - g * sin(psi)
+        if scalar:
+            if den > 0.0:
+                psi = min(psi - 2.0 * g * g1 / den, math.pi)
+        else:
+            psi = np.minimum(psi - np.where(den > 0, 2.0 * g * g1 / np.where(den > 0, den, 1.0),
+                                            0.0), math.pi)
+    return psi
+
+
+def _initial_psi(c):
+    # Inverse of ψ³/6 (1 - ψ²/20): s + s³/60 with s = cbrt(6c); lies below the root for c < 1.
+    s = np.cbrt(6.0 * c) if isinstance(c, np.ndarray) else (6.0 * c) ** (1.0 / 3.0)
+    return s + s ** 3 / 60.0
+
+
+def depth_angle(depth, total_length):
+    """ψ with cos ψ = 1 - D/(l1+l2): half the crank angle spent below the soil surface.
+
+    Written as 2·atan2(√D, √(2L - D)) so it keeps full precision for shallow holes (where
+    arccos(1 - x) loses half the digits) and needs D <= 2L (soil line inside the trajectory).
+    """
+    if isinstance(depth, float) and isinstance(total_length, float):
+        return 2.0 * math.atan2(math.sqrt(depth), math.sqrt(max(2.0 * total_length - depth, 0.0)))
+    depth = np.asarray(depth, dtype=float)
+    total_length = np.asarray(total_length, dtype=float)
+    return 2.0 * np.arctan2(np.sqrt(depth), np.sqrt(np.maximum(2.0 * total_length - depth, 0.0)))
+
+
+def hole_ratio_limit(depth, spacing):
+    """Largest feasible k = t/D for (D, d): k·D < d and l1 > 0 (scalar or array)."""
+    depth = np.asarray(depth, dtype=float)
+    spacing = np.asarray(spacing, dtype=float)
+    k_geom = spacing / depth
+    # l1 = 0 where 1 - cos ψ = 2πD/d; no such ψ < π when 2πD/d >= 2.
+    x = TWO_PI * depth / spacing
+    psi_l1 = 2.0 * np.arcsin(np.sqrt(np.minimum(x, 2.0) / 2.0))
+    k_l1 = np.where(x < 2.0, spacing * psi_minus_sin(psi_l1) / (math.pi * depth), np.inf)
+    out = np.minimum(k_geom, k_l1)
+    return float(out) if out.ndim == 0 else out
+
+
+@dataclass(frozen=True)
+class FiveBarDesign:
+    """A five-bar design; every length in m, angles in rad (fields are arrays for a batch)."""
+
+    depth: object
+    spacing: object
+    hole_ratio: object
+    method: str
+    l1: object
+    l2: object
+    l3: object
+    l4: object
+    l5: object
+    psi: object                      # half crank angle below the soil surface
+    hole_width: object               # hole (entry-exit distance) this design achieves at λ = 1
+    assemblable: object              # dyad closes over the whole cycle, no branch flip
+    min_transmission_angle: object   # min over the cycle of min(μ, π - μ), 0 if not assemblable
+    dyad_ratios: tuple = PAPER_DYAD_RATIOS
+
+    @property
+    def requested_hole(self):
+        return self.hole_ratio * self.depth
+
+    @property
+    def advance(self):
+        """Designed travel per radian of sun bar, d/2π (m/rad)."""
+        return self.spacing / TWO_PI
+
+    def sun_bar_speed(self, ground_speed):
+        """ω1 = 2π v / d (rad/s) that keeps zero-speed planting at ground speed v (m/s)."""
+        return sun_bar_speed(ground_speed, self.spacing)
+
+    def as_dict(self):
+        """Plain SI dict (JSON-ready for scalars)."""
+        out = {k: _plain(getattr(self, k)) for k in (
+            'l1', 'l2', 'l3', 'l4', 'l5', 'hole_width', 'assemblable', 'min_transmission_angle',
+            'depth', 'spacing', 'hole_ratio', 'psi')}
+        out['method'] = self.method
+        out['requested_hole'] = _plain(self.requested_hole)
+        out['dyad_ratios'] = list(self.dyad_ratios)
+        return out
+
+
+def _plain(v):
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (np.bool_, bool)):
+        return bool(v)
+    return float(v)
+
+
+def sun_bar_speed(ground_speed, spacing, plants_per_revolution=1):
+    """ω = 2π v / (n d) (rad/s): the paper's v = d ω1 / 2π for n plants per revolution."""
+    return TWO_PI * np.asarray(ground_speed) / (plants_per_revolution * np.asarray(spacing)) \
+        if isinstance(ground_speed, np.ndarray) or isinstance(spacing, np.ndarray) \
+        else TWO_PI * ground_speed / (plants_per_revolution * spacing)
+
+
+def design_five_bar(depth, spacing, hole_ratio=0.05, method='exact',
+                    dyad_ratios=PAPER_DYAD_RATIOS):
+    """Reverse design from planting depth D (m), plant spacing d (m) and hole ratio k = t/D.
+
+    Scalars give a scalar design in a few microseconds; arrays (broadcast together) give a batch.
+    Raises DesignError (one line, naming the limit) for non-finite, non-positive or infeasible
+    input: the exact design exists iff k·D < d and l1 > 0 (see hole_ratio_limit).
+    """
+    if method not in METHODS:
+        raise DesignError('method', method, ' or '.join(METHODS))
+    require_positive_finite('depth', depth, 'm')
+    require_positive_finite('spacing', spacing, 'm')
+    require_positive_finite('hole_ratio', hole_ratio)
+    if len(dyad_ratios) != 3:
+        raise DesignError('dyad_ratios', dyad_ratios, 'three ratios (l3, l4, l5)/(l1+l2)')
+    for name, r in zip(('l3_ratio', 'l4_ratio', 'l5_ratio'), dyad_ratios):
+        require_positive_finite(name, r)
+    if not all(isinstance(v, (int, float)) for v in (depth, spacing, hole_ratio)):
+        depth, spacing, hole_ratio = np.broadcast_arrays(
+            *(np.asarray(v, dtype=float) for v in (depth, spacing, hole_ratio)))
+        return _design_batch(depth, spacing, hole_ratio, method, tuple(dyad_ratios))
+    return _design_scalar(float(depth), float(spacing), float(hole_ratio), method,
+                          tuple(float(r) for r in dyad_ratios))
+
+
+def _infeasible(depth, spacing, hole_ratio, why):
+    k_max = hole_ratio_limit(depth, spacing)
+    return DesignError('hole_ratio', hole_ratio, f'0 < k < {k_max:.6g} for D = {depth:.6g} m, '
+                       f'd = {spacing:.6g} m', why)
+
+
+def _design_scalar(depth, spacing, k, method, ratios):
+    c = math.pi * k * depth / spacing
+    if method == 'exact':
+        if not c < math.pi:
+            raise _infeasible(depth, spacing, k, 'needs k·D < d')
+        psi = solve_psi(c)
+    else:
+        psi = (6.0 * c) ** (1.0 / 3.0)          # the paper: ψ³/6 = π k D / d
+        if not psi < math.pi:
+            raise _infeasible(depth, spacing, k, "the paper's formula needs k·D/d < π²/6")
+    s = math.sin(0.5 * psi)
+    total = depth / (2.0 * s * s) if s > 0.0 else math.inf   # l1 + l2 = D / (1 - cos ψ)
+    if not math.isfinite(total):
+        raise DesignError('hole_ratio', k, '> 0 such that l1 + l2 stays finite',
+                          'the hole is too small for a mechanism of finite size')
+    half_gap = spacing / (2.0 * TWO_PI)        # (l2 - l1)/2 = d/4π
+    l1 = 0.5 * total - half_gap
+    if not l1 > 0.0:
+        raise _infeasible(depth, spacing, k, 'needs l1 > 0')
+    l2 = 0.5 * total + half_gap
+    l3, l4, l5 = (r * total for r in ratios)
+    psi_a = depth_angle(depth, l1 + l2)
+    hole = spacing / math.pi * psi_minus_sin(psi_a)
+    ok, mu = dyad_closure(l1, l2, l3, l4, l5)
+    return FiveBarDesign(depth, spacing, k, method, l1, l2, l3, l4, l5, psi_a, hole, ok, mu,
+                         ratios)
+
+
+def _design_batch(depth, spacing, k, method, ratios):
+    c = math.pi * k * depth / spacing
+    if method == 'exact':
+        bad = ~(c < math.pi)
+        if bad.any():
+            i = np.flatnonzero(bad.ravel())[0]
+            raise _batch_error(depth, spacing, k, i, bad.sum(), 'needs k·D < d')
+        psi = solve_psi(c)
+    else:
+        psi = np.cbrt(6.0 * c)
+        bad = ~(psi < math.pi)
+        if bad.any():
+            i = np.flatnonzero(bad.ravel())[0]
+            raise _batch_error(depth, spacing, k, i, bad.sum(),
+                               "the paper's formula needs k·D/d < π²/6")
+    s = np.sin(0.5 * psi)
+    with np.errstate(divide='ignore', over='ignore'):
+        total = depth / (2.0 * s * s)
+    bad = ~np.isfinite(total)
+    if bad.any():
+        i = np.flatnonzero(bad.ravel())[0]
+        raise DesignError('hole_ratio', float(k.flat[i]), '> 0 such that l1 + l2 stays finite',
+                          f'at batch index {i}: the hole is too small for a finite mechanism')
+    half_gap = spacing / (2.0 * TWO_PI)
+    l1 = 0.5 * total - half_gap
+    bad = ~(l1 > 0.0)
+    if bad.any():
+        i = np.flatnonzero(bad.ravel())[0]
+        raise _batch_error(depth, spacing, k, i, bad.sum(), 'needs l1 > 0')
+    l2 = 0.5 * total + half_gap
+    l3, l4, l5 = (r * total for r in ratios)
+    psi_a = depth_angle(depth, l1 + l2)
+    hole = spacing / math.pi * psi_minus_sin(psi_a)
+    ok, mu = dyad_closure(l1, l2, l3, l4, l5)
+    return FiveBarDesign(depth, spacing, k, method, l1, l2, l3, l4, l5, psi_a, hole, ok, mu,
+                         ratios)
+
+
+def _batch_error(depth, spacing, k, i, count, why):
+    err = _infeasible(float(depth.flat[i]), float(spacing.flat[i]), float(k.flat[i]), why)
+    err.args = (f'{err.args[0]} at batch index {i} ({count} infeasible)',)
+    return err
+
+
+# --- passive dyad -----------------------------------------------------------------------------
+
+def _distance_range(l1, l2, l5):
+    """Min and max over the cycle of |CE| with E = (±l5, 0).
+
+    |CE|² = (a s ∓ l5)² + L²(1 - s²) with s = sin θ is a quadratic in s on [-1, 1], so the
+    extremes are at s = ±1 or at the vertex s* = a l5 / (L² - a²) — closed form, no sampling.
+    """
+    a = l2 - l1
+    L = l1 + l2
+    def r2(s):
+        return (a * s - l5) ** 2 + L * L * (1.0 - s * s)
+    ends_lo = r2(1.0)
+    ends_hi = r2(-1.0)
+    denom = L * L - a * a                       # = 4 l1 l2 > 0 for a real design
+    if isinstance(denom, np.ndarray):
+        vertex = np.where(denom > 0, a * l5 / np.where(denom > 0, denom, 1.0), 2.0)
+        inside = np.abs(vertex) < 1.0
+        rv = np.where(inside, r2(np.clip(vertex, -1.0, 1.0)), ends_lo)
+        lo = np.minimum(np.minimum(ends_lo, ends_hi), np.where(inside, rv, np.inf))
+        hi = np.maximum(np.maximum(ends_lo, ends_hi), np.where(inside, rv, -np.inf))
+        return np.sqrt(lo), np.sqrt(hi)
+    vals = [ends_lo, ends_hi]
+    if denom > 0:
+        vertex = a * l5 / denom
+        if abs(vertex) < 1.0:
+            vals.append(r2(vertex))
+    return math.sqrt(max(min(vals), 0.0)), math.sqrt(max(vals))
+
+
+def dyad_closure(l1, l2, l3, l4, l5):
+    """(assemblable, min transmission angle) of the dyad C-D-E over a full sun-bar turn.
+
+    Assemblable: |l3 - l4| < |CE| < l3 + l4 at every angle, so point D exists and its two
+    branches never meet (no branch flip). Transmission angle μ at D: cos μ = (l3² + l4² - r²) /
+    (2 l3 l4), increasing in r = |CE|; the worst value of min(μ, π - μ) is at an extreme of r.
+    """
+    rmin, rmax = _distance_range(l1, l2, l5)
+    if isinstance(rmin, np.ndarray):
+        ok = (rmax < l3 + l4) & (rmin > np.abs(l3 - l4))
+        mu_lo = np.arccos(np.clip(_cos_mu(l3, l4, rmin), -1.0, 1.0))
+        mu_hi = np.arccos(np.clip(_cos_mu(l3, l4, rmax), -1.0, 1.0))
+        return ok, np.where(ok, np.minimum(mu_lo, math.pi - mu_hi), 0.0)
+    ok = rmax < l3 + l4 and rmin > abs(l3 - l4)
+    if not ok:
+        return False, 0.0
+    mu_lo = math.acos(min(max(_cos_mu(l3, l4, rmin), -1.0), 1.0))
+    mu_hi = math.acos(min(max(_cos_mu(l3, l4, rmax), -1.0), 1.0))
+    return True, min(mu_lo, math.pi - mu_hi)
+
+
+def _cos_mu(l3, l4, r):
+    return (l3 * l3 + l4 * l4 - r * r) / (2.0 * l3 * l4)
+
+
+def dyad_positions(design, theta, branch=1):
+    """Point D (x, y relative to A, m) and transmission angle μ (rad) at sun-bar angles θ.
+
+    E = (-l5, 0) (behind A). branch = +1 or -1 picks one of the two assembly modes. Raises
+    DesignError where the dyad cannot close.
+    """
+    theta = np.asarray(theta, dtype=float)
+    cx, cy = static_trajectory(design.l1, design.l2, theta)
+    ex, ey = -design.l5, 0.0
+    dx, dy = ex - cx, ey - cy
+    r = np.hypot(dx, dy)
+    l3, l4 = design.l3, design.l4
+    if np.any(r >= l3 + l4) or np.any(r <= abs(l3 - l4)):
+        raise DesignError('dyad', f'l3={l3:.4g} m, l4={l4:.4g} m', '|l3-l4| < |CE| < l3+l4',
+                          'the passive dyad cannot close at some angle')
+    along = (l3 * l3 - l4 * l4 + r * r) / (2.0 * r)
+    h = np.sqrt(np.maximum(l3 * l3 - along * along, 0.0))
+    ux, uy = dx / r, dy / r
+    px, py = cx + along * ux, cy + along * uy
+    # left normal of C->E is (-uy, ux); for E behind and below C that points up
+    x = px - branch * h * uy
+    y = py + branch * h * ux
+    return x, y, np.arccos(np.clip(_cos_mu(l3, l4, r), -1.0, 1.0))
+
+
+# --- forward kinematics -----------------------------------------------------------------------
+
+def chain_kinematics(alpha, omega1, l1, l2, gear_ratio=-2.0, theta1=0.5 * math.pi, theta2=0.0):
+    """The paper's formula (3): a 2R chain with α2 = gear_ratio·α1 + θ2 (general case).
+
+    alpha: sun-bar rotation ω1 t (rad, array). Returns (position, velocity, acceleration), each
+    (x, y) in the frame of A, for constant ω1 (rad/s). With the defaults (ratio -2, θ1 = π/2,
+    θ2 = 0) this is the static ellipse of static_trajectory.
+    """
+    alpha = np.asarray(alpha, dtype=float)
+    a1 = alpha + theta1
+    a12 = (1.0 + gear_ratio) * alpha + theta1 + theta2
+    w12 = (1.0 + gear_ratio) * omega1
+    pos = (l2 * np.cos(a12) + l1 * np.cos(a1), l2 * np.sin(a12) + l1 * np.sin(a1))
+    vel = (-l2 * w12 * np.sin(a12) - l1 * omega1 * np.sin(a1),
+           l2 * w12 * np.cos(a12) + l1 * omega1 * np.cos(a1))
+    acc = (-l2 * w12 ** 2 * np.cos(a12) - l1 * omega1 ** 2 * np.cos(a1),
+           -l2 * w12 ** 2 * np.sin(a12) - l1 * omega1 ** 2 * np.sin(a1))
+    return pos, vel, acc
+
+
+def static_trajectory(l1, l2, theta):
+    """Nozzle tip C relative to A (m): x = (l2-l1) sin θ, y = (l1+l2) cos θ."""
+    return (l2 - l1) * np.sin(theta), (l1 + l2) * np.cos(theta)
+
+
+def soil_trajectory(l1, l2, theta, advance):
+    """Tip in the soil frame (m): bottom of the path at y = 0, soil surface at y = D.
+
+    advance = v/ω1 (m travelled per rad of sun bar; d/2π when in sync; any sign).
+    """
+    theta = np.asarray(theta, dtype=float)
+    return (l2 - l1) * np.sin(theta) + advance * theta, (l1 + l2) * (1.0 + np.cos(theta))
+
+
+def soil_velocity(l1, l2, theta, omega1, ground_speed):
+    """Tip velocity in the soil frame (m/s) at constant ω1 (rad/s) and ground speed v (m/s)."""
+    return ((l2 - l1) * omega1 * np.cos(theta) + ground_speed,
+            -(l1 + l2) * omega1 * np.sin(theta))
+
+
+def soil_acceleration(l1, l2, theta, omega1):
+    """Tip acceleration (m/s²) at constant ω1 and v: the frame's ellipse acceleration."""
+    return (-(l2 - l1) * omega1 ** 2 * np.sin(theta), -(l1 + l2) * omega1 ** 2 * np.cos(theta))
+
+
+@dataclass(frozen=True)
+class Hole:
+    """Where the nozzle is below the soil surface, along the row, relative to the bottom point."""
+
+    psi: object          # half crank angle below the surface (rad): entry at π-ψ, exit at π+ψ
+    entry_x: object      # m
+    exit_x: object       # m
+    min_x: object        # m, rearmost point of the path below the surface
+    max_x: object        # m, foremost point
+    width: object        # m, swept extent max_x - min_x (what the soil sees)
+
+    @property
+    def entry_exit(self):
+        return np.abs(self.exit_x - self.entry_x)
+
+
+def hole_geometry(l1, l2, depth, advance):
+    """Hole at depth D for any speed ratio λ = (l2-l1)/advance, in closed form (no sampling).
+
+    Below the surface the path relative to its bottom is h(φ) = advance·φ - a sin φ, φ in
+    [-ψ, ψ], a = l2 - l1. It is odd, so the extent is 2·max|h| over φ = ψ and the stationary
+    point cos φ* = advance/a (exists when |advance| <= a: λ >= 1 loops backwards). λ < 1 drags
+    the nozzle forwards: h is monotone and the extent is the entry-exit distance.
+    """
+    a = l2 - l1
+    psi = depth_angle(depth, l1 + l2)
+    arrays = any(isinstance(v, np.ndarray) for v in (l1, l2, depth, advance))
+    sin = np.sin if arrays else math.sin
+    def h(phi):
+        # advance·φ - a sin φ written to avoid cancellation when advance ≈ a and φ is small
+        return advance * psi_minus_sin(phi) + (advance - a) * sin(phi)
+    h_end = h(psi)
+    if arrays:
+        ratio_ok = np.abs(advance) <= np.abs(a)
+        a_safe = np.where(a != 0, a, 1.0)
+        phi_star = 2.0 * np.arctan2(np.sqrt(np.maximum(a_safe - advance, 0.0)),
+                                    np.sqrt(np.maximum(a_safe + advance, 0.0)))
+        inside = ratio_ok & (phi_star < psi) & (a > 0)
+        h_star = np.where(inside, np.abs(h(np.where(inside, phi_star, 0.0))), 0.0)
+        half = np.maximum(np.abs(h_end), h_star)
+    else:
+        half = abs(h_end)
+        if a > 0 and abs(advance) <= a:
+            phi_star = 2.0 * math.atan2(math.sqrt(max(a - advance, 0.0)),
+                                        math.sqrt(max(a + advance, 0.0)))
+            if phi_star < psi:
+                half = max(half, abs(h(phi_star)))
+    return Hole(psi, -h_end, h_end, -half, half, 2.0 * half)
