@@ -13,6 +13,7 @@ import sys
 COMMANDS = {
     ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
                              'reverse-design a geared five-bar from depth and spacing'),
+    ('bench',): ('planter_ros.cli.bench', 'run time next to error against an mpmath reference'),
 }
 
 EXIT_BAD_INPUT = 2

@@ -1,0 +1,230 @@
+"""Five-bar rows: reverse design (exact vs paper, scalar and batched), hole width (closed form vs
+root-finding vs dense sampling) and trajectory throughput, each against an mpmath reference."""
+
+import math
+
+import numpy as np
+
+from ..registry import Row, Target, bench_case
+
+DESIGN_TIME_TARGET = 20e-6     # PRODUCT.md §5: a five-bar design <= 20 µs scalar
+DESIGN_RATE_TARGET = 1e6       # ... and >= 1e6 designs/s batched
+ACCURACY_TARGET = 1e-9         # exact design and hole width <= 1e-9 relative
+TOMATO = (0.045, 0.2, 0.05)    # the paper's tomato scene: D, d, k
+HOLE_ERROR_OF = ('max |hole of the computed bars − k·D| / k·D over the checked designs; '
+                 'hole of the bars and k·D in mpmath')
+WIDTH_ERROR_OF = 'max relative error of the swept hole width vs mpmath (same design, same λ)'
+
+
+def design_domain(rng, n):
+    """n random agronomic scenes: D 20-100 mm, d 0.15-0.6 m, k up to half its feasible limit."""
+    from planter_ros.kinematics.five_bar import hole_ratio_limit
+    depth = rng.uniform(0.02, 0.10, n)
+    spacing = rng.uniform(0.15, 0.6, n)
+    k = rng.uniform(0.01, 0.5, n) * hole_ratio_limit(depth, spacing)
+    return depth, spacing, k
+
+
+def _design_errors(l1, l2, depth, spacing, k, refs):
+    """(max hole error, max length error) of computed bars against the mpmath references."""
+    from mpmath import mp, mpf
+    from ..reference import DIGITS, hole_reference, rel_error
+    hole_err = 0.0
+    len_err = 0.0
+    for i, (r1, r2) in enumerate(refs):
+        achieved, _ = hole_reference(l1[i], l2[i], depth[i], spacing[i] / (2 * math.pi))
+        with mp.workdps(DIGITS + 10):
+            asked = mpf(k[i]) * mpf(depth[i])
+            hole_err = max(hole_err, float(abs(achieved - asked) / asked))
+            len_err = max(len_err, float(max(abs(mpf(l1[i]) - r1), abs(mpf(l2[i]) - r2))
+                                         / (r1 + r2)))
+    return hole_err, len_err
+
+
+@bench_case('five-bar reverse design')
+def five_bar_design(ctx):
+    from planter_ros.kinematics.five_bar import design_five_bar
+    from ..reference import design_reference
+
+    rng = np.random.default_rng(ctx.seed)
+    sizes = ctx.n((1, 1000, 1_000_000), (1, 10, 100))
+    n_ref = ctx.n(1000, 10)
+    depth, spacing, k = design_domain(rng, max(sizes[-1], n_ref))
+    ctx.progress(f'  mpmath reference designs ({n_ref}) ...')
+    refs = [design_reference(depth[i], spacing[i], k[i]) for i in range(n_ref)]
+
+    for method in ('exact', 'paper'):
+        # scalar: plain floats, one call per design, cycling through n_ref different scenes
+        args = [(float(depth[i]), float(spacing[i]), float(k[i])) for i in range(n_ref)]
+        t = ctx.measure(lambda: [design_five_bar(a, b, c, method) for a, b, c in args]).per(n_ref)
+        designs = [design_five_bar(a, b, c, method) for a, b, c in args]
+        l1 = [d.l1 for d in designs]
+        l2 = [d.l2 for d in designs]
+        hole_err, len_err = _design_errors(l1, l2, depth, spacing, k, refs)
+        yield _design_row(method, 'scalar', 1, t, hole_err, len_err, n_ref)
+        for n in sizes:
+            ctx.progress(f'  {method} batch of {n} ...')
+            D, d, kk = depth[:n].copy(), spacing[:n].copy(), k[:n].copy()
+            t = ctx.measure(lambda: design_five_bar(D, d, kk, method),
+                            repeats=5 if n >= 100_000 else None)
+            out = design_five_bar(D, d, kk, method)
+            m = min(n, n_ref)
+            hole_err, len_err = _design_errors(out.l1[:m], out.l2[:m], depth, spacing, k,
+                                               refs[:m])
+            yield _design_row(method, 'batched', n, t, hole_err, len_err, m)
+
+
+def _design_row(method, how, n, t, hole_err, len_err, checked):
+    targets = []
+    if how == 'scalar':
+        targets.append(Target('≤ 20 µs', t.median <= DESIGN_TIME_TARGET))
+    elif n >= 1_000_000:
+        targets.append(Target('≥ 1e6/s', n / t.median >= DESIGN_RATE_TARGET))
+    if method == 'exact':
+        targets.append(Target('err ≤ 1e-9', hole_err <= ACCURACY_TARGET))
+    name = {'exact': 'exact (ψ − sin ψ solved)', 'paper': 'paper (ψ³/6 ≈ ψ − sin ψ)'}[method]
+    return Row('five-bar reverse design', f'{name}, {how}', n, 'design', t, error=hole_err,
+               error_of=HOLE_ERROR_OF, targets=targets,
+               note=f'checked {checked} designs; bar lengths vs mpmath exact design: '
+                    f'{len_err:.1e} of l1+l2',
+               series=f'design, {method}' if how == 'scalar' else '',
+               extra={'length_error': len_err, 'checked': checked})
+
+
+# --- hole width -----------------------------------------------------------------------------
+
+def hole_by_sampling(l1, l2, depth, advance, samples):
+    """The naive way: sample one sun-bar turn, keep the points below the soil surface, take the
+    extent along the row. Error shrinks like 1/samples (the surface crossing is missed by up to
+    one step)."""
+    from planter_ros.kinematics.five_bar import soil_trajectory
+    theta = np.linspace(0.0, 2.0 * math.pi, samples)
+    x, y = soil_trajectory(l1, l2, theta, advance)
+    below = x[y <= depth]
+    return float(below.max() - below.min()) if below.size > 1 else 0.0
+
+
+def hole_by_root_finding(l1, l2, depth, advance):
+    """The generic way: scipy brentq for the surface crossings y(θ) = D and the turning points
+    dx/dθ = 0 between them, then the extent of x over those angles."""
+    from scipy.optimize import brentq
+    total, a = l1 + l2, l2 - l1
+    def y(th):
+        return total * (1.0 + math.cos(th)) - depth
+    def x(th):
+        return a * math.sin(th) + advance * th
+    def dx(th):
+        return a * math.cos(th) + advance
+    t_in = brentq(y, 0.0, math.pi)
+    t_out = brentq(y, math.pi, 2.0 * math.pi)
+    angles = [t_in, t_out]
+    for lo, hi in ((t_in, math.pi), (math.pi, t_out)):
+        if dx(lo) * dx(hi) < 0.0:
+            angles.append(brentq(dx, lo, hi))
+    xs = [x(th) for th in angles]
+    return max(xs) - min(xs)
+
+
+def _speed_ratios(a):
+    """Advances v/ω1 covering dragging, in sync, slight and strong overspeed, and reversing."""
+    return [a / lam for lam in (0.5, 0.9, 1.0, 1.05, 1.2, 2.0, 10.0)] + [-0.5 * a]
+
+
+@bench_case('hole width')
+def hole_width(ctx):
+    from planter_ros.kinematics.five_bar import design_five_bar, hole_geometry
+    from ..reference import hole_reference, rel_error
+
+    design = design_five_bar(*TOMATO)
+    l1, l2, depth = design.l1, design.l2, design.depth
+    advances = _speed_ratios(l2 - l1)
+    refs = [hole_reference(l1, l2, depth, adv)[1] for adv in advances]
+    count = len(advances)
+
+    def max_err(widths):
+        return max(rel_error(w, r) for w, r in zip(widths, refs))
+
+    t = ctx.measure(lambda: [hole_geometry(l1, l2, depth, adv) for adv in advances]).per(count)
+    err = max_err([hole_geometry(l1, l2, depth, adv).width for adv in advances])
+    yield Row('hole width', 'closed form (hole_geometry), scalar', 1, 'hole', t, error=err,
+              error_of=WIDTH_ERROR_OF, series='hole width, closed form',
+              targets=[Target('err ≤ 1e-9', err <= ACCURACY_TARGET)],
+              note=f'tomato design, {count} speed ratios λ from -2 to 10')
+
+    rng = np.random.default_rng(ctx.seed + 1)
+    n_ref = ctx.n(500, 10)
+    for n in ctx.n((1000, 1_000_000), (10,)):
+        ctx.progress(f'  closed form, batch of {n} ...')
+        D, d, k = design_domain(rng, n)
+        batch = design_five_bar(D, d, k)
+        adv = (batch.l2 - batch.l1) / rng.uniform(0.5, 2.0, n)
+        t = ctx.measure(lambda: hole_geometry(batch.l1, batch.l2, D, adv),
+                        repeats=5 if n >= 100_000 else None)
+        widths = hole_geometry(batch.l1, batch.l2, D, adv).width
+        m = min(n, n_ref)
+        err = max(rel_error(widths[i], hole_reference(batch.l1[i], batch.l2[i], D[i],
+                                                      adv[i])[1]) for i in range(m))
+        yield Row('hole width', 'closed form (hole_geometry), batched', n, 'hole', t,
+                  error=err, error_of=WIDTH_ERROR_OF,
+                  targets=[Target('err ≤ 1e-9', err <= ACCURACY_TARGET)],
+                  note=f'random designs, λ 0.5-2; checked {m}')
+
+    t = ctx.measure(lambda: [hole_by_root_finding(l1, l2, depth, adv)
+                             for adv in advances]).per(count)
+    err = max_err([hole_by_root_finding(l1, l2, depth, adv) for adv in advances])
+    yield Row('hole width', 'root-finding (scipy brentq)', 1, 'hole', t, error=err,
+              error_of=WIDTH_ERROR_OF, series='hole width, root-finding',
+              note='crossings and turning points by brentq, default tolerances')
+
+    for samples in ctx.n((100, 1000, 10_000, 100_000, 1_000_000), (100, 1000)):
+        ctx.progress(f'  dense sampling, {samples} samples ...')
+        t = ctx.measure(lambda: [hole_by_sampling(l1, l2, depth, adv, samples)
+                                 for adv in advances],
+                        repeats=5 if samples >= 100_000 else None).per(count)
+        err = max_err([hole_by_sampling(l1, l2, depth, adv, samples) for adv in advances])
+        yield Row('hole width', f'dense sampling, {samples:,} samples/turn', 1, 'hole', t,
+                  error=err, error_of=WIDTH_ERROR_OF, series='hole width, dense sampling',
+                  extra={'samples': samples})
+
+
+# --- trajectory -----------------------------------------------------------------------------
+
+@bench_case('trajectory evaluation')
+def trajectory(ctx):
+    from planter_ros.kinematics.five_bar import chain_kinematics, design_five_bar, soil_trajectory
+    from ..reference import chain_reference, soil_point_reference
+
+    design = design_five_bar(*TOMATO)
+    l1, l2, adv = design.l1, design.l2, design.advance
+    total = l1 + l2
+    rng = np.random.default_rng(ctx.seed + 2)
+    n_ref = ctx.n(200, 10)
+    error_of = 'max position error / (l1+l2) vs mpmath'
+    for n in ctx.n((1000, 1_000_000), (100,)):
+        theta = np.sort(rng.uniform(0.0, 6.0 * math.pi, n))
+        t = ctx.measure(lambda: soil_trajectory(l1, l2, theta, adv),
+                        repeats=5 if n >= 100_000 else None)
+        x, y = soil_trajectory(l1, l2, theta, adv)
+        idx = rng.choice(n, min(n, n_ref), replace=False)
+        err = 0.0
+        for i in idx:
+            rx, ry = soil_point_reference(l1, l2, theta[i], adv)
+            err = max(err, float(abs(x[i] - rx) / total), float(abs(y[i] - ry) / total))
+        yield Row('trajectory evaluation', 'soil_trajectory (x, y)', n, 'point', t, error=err,
+                  error_of=error_of, note=f'tomato design, θ over 3 turns; checked {len(idx)}')
+
+    omega = 2.0 * math.pi
+    n = ctx.n(1_000_000, 100)
+    alpha = np.sort(rng.uniform(0.0, 6.0 * math.pi, n))
+    t = ctx.measure(lambda: chain_kinematics(alpha, omega, l1, l2), repeats=5 if n > 1000 else None)
+    pos, vel, acc = chain_kinematics(alpha, omega, l1, l2)
+    err = 0.0
+    for i in rng.choice(n, min(n, n_ref), replace=False):
+        rp, rv, ra = chain_reference(alpha[i], omega, l1, l2, -2.0, 0.5 * math.pi, 0.0)
+        for got, ref, scale in ((pos, rp, total), (vel, rv, total * omega),
+                                (acc, ra, total * omega ** 2)):
+            err = max(err, float(abs(got[0][i] - ref[0]) / scale),
+                      float(abs(got[1][i] - ref[1]) / scale))
+    yield Row('trajectory evaluation', 'chain_kinematics (pos, vel, acc)', n, 'point', t,
+              error=err, error_of='max error / (l1+l2)·ω^j (j = 0, 1, 2) vs mpmath',
+              note='paper formula 3, ω1 = 2π rad/s')

@@ -1,0 +1,111 @@
+"""High-precision references (mpmath) for the five-bar core, computed from the same float inputs.
+
+Every function works at DIGITS significant digits *after* cancellation: where a formula
+subtracts nearly equal numbers (ψ - sin ψ for small ψ, advance·φ - a sin φ near λ = 1) the
+working precision is raised by the digits the subtraction loses, so the reference keeps at least
+DIGITS correct digits. Inputs are taken as the exact binary floats they are.
+"""
+
+import math
+
+import mpmath
+from mpmath import mp, mpf
+
+DIGITS = 40
+
+
+def _extra_digits(small):
+    """Digits lost by ψ - sin ψ ≈ ψ³/6 against ψ (≈ log10(6/ψ²)), for ψ ≈ small."""
+    small = abs(float(small))
+    if small == 0.0 or small >= 1.0:
+        return 5
+    return int(2 * -math.log10(small)) + 10
+
+
+def solve_psi_reference(c):
+    """ψ in (0, π] with ψ - sin ψ = c, by Newton in mpmath (c an exact float, 0 < c <= π)."""
+    guess = min((6.0 * float(c)) ** (1.0 / 3.0), math.pi)
+    with mp.workdps(DIGITS + _extra_digits(guess)):
+        c = mpf(c)
+        psi = min(mpf(6) * c, mpf(mp.pi) ** 3) ** (mpf(1) / 3)    # below the root (ψ³/6 > ψ - sin ψ)
+        tol = mpf(10) ** (-(DIGITS + 5))
+        for _ in range(400):
+            step = (psi - mpmath.sin(psi) - c) / (1 - mpmath.cos(psi))
+            psi -= step
+            if abs(step) <= tol * psi:
+                break
+        else:
+            raise ArithmeticError(f'reference Newton did not converge for c = {c}')
+        return +psi
+
+
+def design_reference(depth, spacing, hole_ratio):
+    """(l1, l2) of the exact design, as mpf: ψ - sin ψ = πkD/d, l1 + l2 = D/(1 - cos ψ)."""
+    with mp.workdps(DIGITS + 20):
+        c = mp.pi * mpf(hole_ratio) * mpf(depth) / mpf(spacing)
+    psi = solve_psi_reference(c)
+    with mp.workdps(DIGITS + _extra_digits(float(psi))):
+        total = mpf(depth) / (2 * mpmath.sin(psi / 2) ** 2)
+        half_gap = mpf(spacing) / (4 * mp.pi)
+        return +(total / 2 - half_gap), +(total / 2 + half_gap)
+
+
+def depth_angle_reference(depth, total_length):
+    """ψ with 1 - cos ψ = D/(l1+l2), i.e. sin(ψ/2)² = D/(2L) (needs D <= 2L)."""
+    with mp.workdps(DIGITS + 10):
+        return 2 * mpmath.asin(mpmath.sqrt(mpf(depth) / (2 * mpf(total_length))))
+
+
+def hole_reference(l1, l2, depth, advance):
+    """(entry-exit distance, swept extent) of the hole at depth D for advance = v/ω1 (mpf, m).
+
+    Below the surface the path relative to its bottom is h(φ) = advance·φ - a sin φ on
+    [-ψ, ψ], a = l2 - l1; the extent is 2·max|h| over φ = ψ and the stationary point
+    cos φ* = advance/a (if it lies inside), found here with mpmath.findroot on h'(φ) = 0.
+    """
+    psi = depth_angle_reference(depth, mpf(l1) + mpf(l2))
+    with mp.workdps(DIGITS + _extra_digits(float(psi)) + 20):
+        a = mpf(l2) - mpf(l1)
+        adv = mpf(advance)
+
+        def h(phi):
+            return adv * phi - a * mpmath.sin(phi)
+        end = abs(h(psi))
+        half = end
+        if a != 0 and abs(adv) <= abs(a):
+            guess = mpmath.acos(adv / a)
+            if guess < psi and guess > 0:
+                phi = mpmath.findroot(lambda p: adv - a * mpmath.cos(p), guess)
+                half = max(half, abs(h(phi)))
+        return +(2 * end), +(2 * half)
+
+
+def soil_point_reference(l1, l2, theta, advance):
+    """Soil-frame tip position (x, y) as mpf: x = (l2-l1) sin θ + advance·θ, y = L(1+cos θ)."""
+    with mp.workdps(DIGITS + 10):
+        th = mpf(theta)
+        return ((mpf(l2) - mpf(l1)) * mpmath.sin(th) + mpf(advance) * th,
+                (mpf(l1) + mpf(l2)) * (1 + mpmath.cos(th)))
+
+
+def chain_reference(alpha, omega1, l1, l2, gear_ratio, theta1, theta2):
+    """Position, velocity, acceleration of the paper's 2R chain (formula 3), as mpf tuples."""
+    with mp.workdps(DIGITS + 10):
+        al, w1, l1, l2 = mpf(alpha), mpf(omega1), mpf(l1), mpf(l2)
+        a1 = al + mpf(theta1)
+        a12 = (1 + mpf(gear_ratio)) * al + mpf(theta1) + mpf(theta2)
+        w12 = (1 + mpf(gear_ratio)) * w1
+        pos = (l2 * mpmath.cos(a12) + l1 * mpmath.cos(a1), l2 * mpmath.sin(a12) + l1 * mpmath.sin(a1))
+        vel = (-l2 * w12 * mpmath.sin(a12) - l1 * w1 * mpmath.sin(a1),
+               l2 * w12 * mpmath.cos(a12) + l1 * w1 * mpmath.cos(a1))
+        acc = (-l2 * w12 ** 2 * mpmath.cos(a12) - l1 * w1 ** 2 * mpmath.cos(a1),
+               -l2 * w12 ** 2 * mpmath.sin(a12) - l1 * w1 ** 2 * mpmath.sin(a1))
+        return pos, vel, acc
+
+
+def rel_error(value, reference):
+    """|value - reference| / |reference| as a float (value a float, reference an mpf)."""
+    with mp.workdps(DIGITS + 10):
+        ref = mpf(reference)
+        diff = abs(mpf(value) - ref)
+        return float(diff / abs(ref)) if ref != 0 else float(diff)

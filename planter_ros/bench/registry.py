@@ -1,0 +1,164 @@
+"""Bench cases: one function per group of rows, registered with `@bench_case`.
+
+A case is `fn(ctx) -> iterable of Row`. It imports what it measures inside the function, so a
+case whose module is not installed (another branch not merged yet) reports one honest
+"not available" row instead of failing the whole bench; a case that raises reports one
+"FAILED" row and makes `planter bench` exit non-zero.
+
+Adding a row group is one function in a module listed in CASE_MODULES:
+
+    @bench_case('three-arm cycle', requires=('planter_ros.kinematics.three_arm',))
+    def three_arm_cycle(ctx):
+        from planter_ros.kinematics.three_arm import ...
+        t = ctx.measure(lambda: ...)
+        yield Row('three-arm cycle', 'exact', 1, 'cycle', t, error=..., error_of='...')
+"""
+
+from dataclasses import dataclass, field
+import importlib
+import importlib.util
+import sys
+import time
+import traceback
+
+from .timing import measure
+
+# modules whose import registers cases, in table order
+CASE_MODULES = (
+    'planter_ros.bench.cases.five_bar',
+    'planter_ros.bench.cases.footprint',
+)
+
+
+@dataclass(frozen=True)
+class Target:
+    """A quality bar of PRODUCT.md §5 and whether this run met it (measured, not asserted)."""
+
+    text: str
+    met: bool
+
+    def __str__(self):
+        return f"{self.text} {'met' if self.met else 'NOT MET'}"
+
+
+@dataclass
+class Row:
+    """One method at one size: what it computes, how long it took, how wrong it was."""
+
+    what: str                   # the quantity computed (groups rows in the table)
+    method: str
+    size: object                # items per timed call (int) or None
+    unit: str                   # what one item is: 'design', 'hole', 'point', 'run', ...
+    timing: object = None       # Timing (seconds per timed call) or None
+    error: object = None        # max relative error vs the reference, or None if not defined
+    error_of: str = ''          # how `error` is defined (printed once per group)
+    targets: list = field(default_factory=list)
+    note: str = ''
+    series: str = ''            # non-empty: plotted on the error-vs-time trade-off chart
+    extra: dict = field(default_factory=dict)
+    status: str = 'ok'          # 'ok', 'not available', 'FAILED'
+
+    @property
+    def per_item(self):
+        if self.timing is None or not self.size:
+            return None
+        return self.timing.median / self.size
+
+    @property
+    def throughput(self):
+        if self.timing is None or not self.size or self.timing.median <= 0:
+            return None
+        return self.size / self.timing.median
+
+    def as_dict(self):
+        out = {'what': self.what, 'method': self.method, 'size': self.size, 'unit': self.unit,
+               'status': self.status, 'error': self.error, 'error_of': self.error_of,
+               'per_item_s': self.per_item, 'throughput_per_s': self.throughput,
+               'targets': [{'target': t.text, 'met': t.met} for t in self.targets],
+               'note': self.note}
+        if self.timing is not None:
+            out.update(self.timing.as_dict())
+        out.update(self.extra)
+        return out
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    fn: object
+    requires: tuple
+
+
+CASES = []
+
+
+def bench_case(name, requires=()):
+    """Register fn(ctx) as the case `name`; `requires` are modules it cannot run without."""
+    def register(fn):
+        CASES.append(Case(name, fn, tuple(requires)))
+        return fn
+    return register
+
+
+@dataclass
+class BenchContext:
+    """What a case needs from the runner: size choice, timing settings, progress."""
+
+    quick: bool = False
+    verbose: bool = True
+    seed: int = 20240601
+
+    def n(self, full, quick):
+        """The size to use: `full` for a real run, `quick` for the CI smoke run."""
+        return quick if self.quick else full
+
+    def measure(self, fn, repeats=None, min_time=None):
+        if self.quick:
+            return measure(fn, repeats=3, min_time=0.0)
+        return measure(fn, repeats=repeats or 9, min_time=0.05 if min_time is None else min_time)
+
+    def progress(self, text):
+        if self.verbose:
+            print(f'bench: {text}', file=sys.stderr, flush=True)
+
+
+def load_cases():
+    for name in CASE_MODULES:
+        importlib.import_module(name)
+    return list(CASES)
+
+
+def _missing(modules):
+    out = []
+    for name in modules:
+        try:
+            if importlib.util.find_spec(name) is None:
+                out.append(name)
+        except ModuleNotFoundError:
+            out.append(name)
+    return out
+
+
+def run_cases(ctx, only=None):
+    """Run every registered case (or those whose name contains `only`); returns the rows."""
+    rows = []
+    for case in load_cases():
+        if only and only.lower() not in case.name.lower():
+            continue
+        missing = _missing(case.requires)
+        if missing:
+            rows.append(Row(case.name, '—', None, '', status='not available',
+                            note=f"not available: {', '.join(missing)} not on this branch"))
+            ctx.progress(f'{case.name}: not available ({", ".join(missing)})')
+            continue
+        t0 = time.perf_counter()
+        ctx.progress(f'{case.name} ...')
+        try:
+            rows.extend(case.fn(ctx))
+        except Exception as exc:   # one broken case must not hide the others' figures
+            rows.append(Row(case.name, '—', None, '', status='FAILED',
+                            note=f'FAILED: {type(exc).__name__}: {exc}'))
+            if ctx.verbose:
+                traceback.print_exc(file=sys.stderr)
+        ctx.progress(f'{case.name} done in {time.perf_counter() - t0:.1f} s')
+    return rows

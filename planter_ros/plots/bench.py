@@ -1,0 +1,42 @@
+"""Error against run time (log-log) for the bench methods that trade one for the other."""
+
+from planter_ros.bench.machine import machine_line
+
+ERROR_FLOOR = 1e-18   # an exact 0 error is drawn here (log axes), marked in the legend
+
+
+def plot_tradeoff(machine, rows, path):
+    """One series per row.series (e.g. dense sampling at growing sample counts)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    series = {}
+    for r in rows:
+        if r.series and r.status == 'ok' and r.error is not None and r.per_item:
+            series.setdefault(r.series, []).append(r)
+    fig, ax = plt.subplots(figsize=(9, 6))
+    markers = 'osD^v<>ph*'
+    for i, (name, members) in enumerate(sorted(series.items())):
+        members.sort(key=lambda r: r.per_item)
+        x = [r.per_item for r in members]
+        y = [max(r.error, ERROR_FLOOR) for r in members]
+        ax.plot(x, y, marker=markers[i % len(markers)], ls='-' if len(members) > 1 else '',
+                label=name)
+        for r, xi, yi in zip(members, x, y):
+            if 'samples' in r.extra:
+                ax.annotate(f"{r.extra['samples']:.0e}", (xi, yi), textcoords='offset points',
+                            xytext=(5, 5), fontsize=8)
+    ax.set_xscale('log')
+    ax.set_yscale('log')
+    ax.axhline(1e-9, color='gray', ls=':', label='accuracy target 1e-9 (PRODUCT.md §5)')
+    ax.set(xlabel='run time per item (s, median)',
+           ylabel=f'max relative error vs mpmath (0 drawn at {ERROR_FLOOR:g})',
+           title='planter bench: error against run time')
+    ax.grid(True, which='both', alpha=0.3)
+    ax.legend(fontsize=8, loc='best')
+    fig.text(0.01, 0.01, machine_line(machine), fontsize=7, color='gray')
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
