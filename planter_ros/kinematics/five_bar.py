@@ -281,54 +281,74 @@ def _batch_error(depth, spacing, k, i, count, why):
 def _distance_range(l1, l2, l5):
     """Min and max over the cycle of |CE| with E = (±l5, 0).
 
-    |CE|² = (a s ∓ l5)² + L²(1 - s²) with s = sin θ is a quadratic in s on [-1, 1], so the
-    extremes are at s = ±1 or at the vertex s* = a l5 / (L² - a²) — closed form, no sampling.
+    |CE|² = (a s ∓ l5)² + L²(1 - s²) with s = sin θ is a quadratic in s on [-1, 1] (concave,
+    as L > |a|), so the extremes are at s = ±1 or at its vertex s* = ∓a l5 / (L² - a²) —
+    closed form, no sampling. Worked in units of L, so squares neither overflow nor underflow at
+    any scale; L² - a² is written 4 l1 l2 (no cancellation when l1 is small).
     """
-    a = l2 - l1
-    L = l1 + l2
+    total = l1 + l2
+    a = (l2 - l1) / total
+    e = l5 / total
     def r2(s):
-        return (a * s - l5) ** 2 + L * L * (1.0 - s * s)
+        u = a * s - e
+        return u * u + (1.0 - s) * (1.0 + s)
     ends_lo = r2(1.0)
     ends_hi = r2(-1.0)
-    denom = L * L - a * a                       # = 4 l1 l2 > 0 for a real design
-    if isinstance(denom, np.ndarray):
-        vertex = np.where(denom > 0, a * l5 / np.where(denom > 0, denom, 1.0), 2.0)
+    denom = 4.0 * (l1 / total) * (l2 / total)          # = 1 - a², > 0 for l1, l2 > 0
+    if isinstance(denom, np.ndarray) or isinstance(a, np.ndarray):
+        denom = np.asarray(denom)
+        vertex = np.where(denom > 0, -a * e / np.where(denom > 0, denom, 1.0), 2.0)
         inside = np.abs(vertex) < 1.0
         rv = np.where(inside, r2(np.clip(vertex, -1.0, 1.0)), ends_lo)
         lo = np.minimum(np.minimum(ends_lo, ends_hi), np.where(inside, rv, np.inf))
         hi = np.maximum(np.maximum(ends_lo, ends_hi), np.where(inside, rv, -np.inf))
-        return np.sqrt(lo), np.sqrt(hi)
+        return total * np.sqrt(lo), total * np.sqrt(hi)
     vals = [ends_lo, ends_hi]
     if denom > 0:
-        vertex = a * l5 / denom
+        vertex = -a * e / denom
         if abs(vertex) < 1.0:
             vals.append(r2(vertex))
-    return math.sqrt(max(min(vals), 0.0)), math.sqrt(max(vals))
+    return total * math.sqrt(max(min(vals), 0.0)), total * math.sqrt(max(vals))
 
 
 def dyad_closure(l1, l2, l3, l4, l5):
     """(assemblable, min transmission angle) of the dyad C-D-E over a full sun-bar turn.
 
     Assemblable: |l3 - l4| < |CE| < l3 + l4 at every angle, so point D exists and its two
-    branches never meet (no branch flip). Transmission angle μ at D: cos μ = (l3² + l4² - r²) /
-    (2 l3 l4), increasing in r = |CE|; the worst value of min(μ, π - μ) is at an extreme of r.
+    branches never meet (no branch flip). The transmission angle μ at D grows with r = |CE|;
+    the worst value of min(μ, π - μ) is at an extreme of r (see transmission_angle).
     """
     rmin, rmax = _distance_range(l1, l2, l5)
     if isinstance(rmin, np.ndarray):
         ok = (rmax < l3 + l4) & (rmin > np.abs(l3 - l4))
-        mu_lo = np.arccos(np.clip(_cos_mu(l3, l4, rmin), -1.0, 1.0))
-        mu_hi = np.arccos(np.clip(_cos_mu(l3, l4, rmax), -1.0, 1.0))
-        return ok, np.where(ok, np.minimum(mu_lo, math.pi - mu_hi), 0.0)
+        mu = np.minimum(transmission_angle(l3, l4, rmin),
+                        transmission_angle(l3, l4, rmax, supplement=True))
+        return ok, np.where(ok, mu, 0.0)
     ok = rmax < l3 + l4 and rmin > abs(l3 - l4)
     if not ok:
         return False, 0.0
-    mu_lo = math.acos(min(max(_cos_mu(l3, l4, rmin), -1.0), 1.0))
-    mu_hi = math.acos(min(max(_cos_mu(l3, l4, rmax), -1.0), 1.0))
-    return True, min(mu_lo, math.pi - mu_hi)
+    return True, min(transmission_angle(l3, l4, rmin),
+                     transmission_angle(l3, l4, rmax, supplement=True))
 
 
-def _cos_mu(l3, l4, r):
-    return (l3 * l3 + l4 * l4 - r * r) / (2.0 * l3 * l4)
+def transmission_angle(l3, l4, r, supplement=False):
+    """Angle μ at D between D-C (l3) and D-E (l4) for |CE| = r, or π - μ with supplement.
+
+    tan²(μ/2) = (r² - (l3-l4)²) / ((l3+l4)² - r²), each factor written as a product of sums
+    and differences of the given lengths, so μ keeps full relative precision as the dyad
+    approaches its stretched (μ → π) or folded (μ → 0) position, where arccos of the law of
+    cosines loses half the digits and rounds to 0 or π. Requires |l3-l4| <= r <= l3+l4.
+    """
+    diff = abs(l3 - l4)
+    total = l3 + l4
+    scale = total
+    if isinstance(r, np.ndarray) or isinstance(scale, np.ndarray):
+        sqrt, atan2, clip = np.sqrt, np.arctan2, lambda v: np.maximum(v, 0.0)
+    else:
+        sqrt, atan2, clip = math.sqrt, math.atan2, lambda v: max(v, 0.0)
+    open_ = sqrt(clip((r - diff) / scale) * clip((r + diff) / scale))
+    shut = sqrt(clip((total - r) / scale) * clip((total + r) / scale))
+    return 2.0 * (atan2(shut, open_) if supplement else atan2(open_, shut))
 
 
 def dyad_positions(design, theta, branch=1):
@@ -346,14 +366,16 @@ def dyad_positions(design, theta, branch=1):
     if np.any(r >= l3 + l4) or np.any(r <= abs(l3 - l4)):
         raise DesignError('dyad', f'l3={l3:.4g} m, l4={l4:.4g} m', '|l3-l4| < |CE| < l3+l4',
                           'the passive dyad cannot close at some angle')
-    along = (l3 * l3 - l4 * l4 + r * r) / (2.0 * r)
-    h = np.sqrt(np.maximum(l3 * l3 - along * along, 0.0))
+    along = (l3 - l4) * ((l3 + l4) / r) / 2.0 + r / 2.0
+    # height of D over C-E (Heron): products of sums and differences, exact near singular
+    h = np.sqrt(np.maximum((l3 + l4 - r) / r, 0.0) * np.maximum((r + l3 - l4) / r, 0.0)
+                * np.maximum((r - l3 + l4) / r, 0.0) * np.maximum((r + l3 + l4) / r, 0.0)) * r / 2.0
     ux, uy = dx / r, dy / r
     px, py = cx + along * ux, cy + along * uy
     # left normal of C->E is (-uy, ux); for E behind and below C that points up
     x = px - branch * h * uy
     y = py + branch * h * ux
-    return x, y, np.arccos(np.clip(_cos_mu(l3, l4, r), -1.0, 1.0))
+    return x, y, transmission_angle(l3, l4, r)
 
 
 # --- forward kinematics -----------------------------------------------------------------------
