@@ -446,29 +446,35 @@ def hole_geometry(l1, l2, depth, advance):
     Below the surface the path relative to its bottom is h(φ) = advance·φ - a sin φ, φ in
     [-ψ, ψ], a = l2 - l1. It is odd, so the extent is 2·max|h| over φ = ψ and the stationary
     point cos φ* = advance/a (exists when |advance| <= a: λ >= 1 loops backwards). λ < 1 drags
-    the nozzle forwards: h is monotone and the extent is the entry-exit distance.
+    the nozzle forwards: h is monotone and the extent is the entry-exit distance. Any l1, l2 > 0
+    (l1 > l2 too) and any advance, including 0 and reversing.
     """
     a = l2 - l1
     psi = depth_angle(depth, l1 + l2)
     arrays = any(isinstance(v, np.ndarray) for v in (l1, l2, depth, advance))
     sin = np.sin if arrays else math.sin
-    def h(phi):
-        # advance·φ - a sin φ written to avoid cancellation when advance ≈ a and φ is small
-        return advance * psi_minus_sin(phi) + (advance - a) * sin(phi)
-    h_end = h(psi)
+    def h(phi, adv, a):
+        # adv·φ - a sin φ written to avoid cancellation when adv ≈ a and φ is small
+        return adv * psi_minus_sin(phi) + (adv - a) * sin(phi)
+    h_end = h(psi, advance, a)
+    # l1 > l2 runs the ellipse the other way: (a, advance) -> (-a, -advance) flips the sign of
+    # h only, so the turning points are those of (|a|, ±advance)
     if arrays:
-        ratio_ok = np.abs(advance) <= np.abs(a)
-        a_safe = np.where(a != 0, a, 1.0)
-        phi_star = 2.0 * np.arctan2(np.sqrt(np.maximum(a_safe - advance, 0.0)),
-                                    np.sqrt(np.maximum(a_safe + advance, 0.0)))
-        inside = ratio_ok & (phi_star < psi) & (a > 0)
-        h_star = np.where(inside, np.abs(h(np.where(inside, phi_star, 0.0))), 0.0)
+        flip = np.where(a < 0, -1.0, 1.0)
+        a_abs, adv = np.abs(a), flip * advance
+        ratio_ok = np.abs(adv) <= a_abs
+        a_safe = np.where(a_abs > 0, a_abs, 1.0)
+        phi_star = 2.0 * np.arctan2(np.sqrt(np.maximum(a_safe - adv, 0.0)),
+                                    np.sqrt(np.maximum(a_safe + adv, 0.0)))
+        inside = ratio_ok & (phi_star < psi) & (a_abs > 0)
+        h_star = np.where(inside, np.abs(h(np.where(inside, phi_star, 0.0), adv, a_abs)), 0.0)
         half = np.maximum(np.abs(h_end), h_star)
     else:
+        a_abs, adv = (-a, -advance) if a < 0 else (a, advance)
         half = abs(h_end)
-        if a > 0 and abs(advance) <= a:
-            phi_star = 2.0 * math.atan2(math.sqrt(max(a - advance, 0.0)),
-                                        math.sqrt(max(a + advance, 0.0)))
+        if a_abs > 0 and abs(adv) <= a_abs:
+            phi_star = 2.0 * math.atan2(math.sqrt(max(a_abs - adv, 0.0)),
+                                        math.sqrt(max(a_abs + adv, 0.0)))
             if phi_star < psi:
-                half = max(half, abs(h(phi_star)))
+                half = max(half, abs(h(phi_star, adv, a_abs)))
     return Hole(psi, -h_end, h_end, -half, half, 2.0 * half)
