@@ -102,6 +102,22 @@ def depth_angle(depth, total_length):
     return 2.0 * np.arctan2(np.sqrt(depth), np.sqrt(np.maximum(2.0 * total_length - depth, 0.0)))
 
 
+def bars_depth_angle(l1, l2, depth):
+    """depth_angle for the bars l1, l2 themselves, not their rounded sum.
+
+    Near ψ = π (the soil line near the top of the path) ψ ≈ π - 2√((2L - D)/D) is infinitely
+    sensitive to 2L - D, so the rounding of l1 + l2 is carried along (Knuth's TwoSum) and
+    2L - D is formed from the exact sum.
+    """
+    total = l1 + l2
+    b = total - l1
+    lost = (l1 - (total - b)) + (l2 - b)          # l1 + l2 = total + lost exactly
+    gap = (2.0 * total - depth) + 2.0 * lost       # 2L - D
+    if isinstance(gap, float):
+        return 2.0 * math.atan2(math.sqrt(depth), math.sqrt(max(gap, 0.0)))
+    return 2.0 * np.arctan2(np.sqrt(depth), np.sqrt(np.maximum(gap, 0.0)))
+
+
 def hole_ratio_limit(depth, spacing):
     """Largest feasible k = t/D for (D, d): k·D < d and l1 > 0 (scalar or array)."""
     depth = np.asarray(depth, dtype=float)
@@ -225,11 +241,48 @@ def _design_scalar(depth, spacing, k, method, ratios):
         raise _infeasible(depth, spacing, k, 'needs l1 > 0')
     l2 = 0.5 * total + half_gap
     l3, l4, l5 = (r * total for r in ratios)
-    psi_a = depth_angle(depth, l1 + l2)
-    hole = spacing / math.pi * psi_minus_sin(psi_a)
+    psi_a = bars_depth_angle(l1, l2, depth)
+    ideal, slip = _achieved_hole(l1, l2, spacing, psi_a, math.sin)
+    if not (abs(slip) <= ROUND_OFF_LIMIT * ideal and ideal >= _TINY):
+        raise _unrepresentable(depth, spacing, k, l1 + l2, slip, ideal)
     ok, mu = dyad_closure(l1, l2, l3, l4, l5)
-    return FiveBarDesign(depth, spacing, k, method, l1, l2, l3, l4, l5, psi_a, hole, ok, mu,
-                         ratios)
+    return FiveBarDesign(depth, spacing, k, method, l1, l2, l3, l4, l5, psi_a, ideal + slip, ok,
+                         mu, ratios)
+
+
+# A design is delivered as float bar lengths; refuse it when their round-off alone moves the
+# hole by more than this (PRODUCT.md §5 accuracy bar), instead of reporting a hole they miss.
+ROUND_OFF_LIMIT = 1e-9
+_TINY = 2.2250738585072014e-308     # smallest normal float: below it the hole has no precision
+
+
+def _achieved_hole(l1, l2, spacing, psi, sin):
+    """(ideal, slip): the hole the float bars achieve at advance d/2π is ideal + slip.
+
+    Entry-exit distance 2h(ψ), h = adv·ψ - a sin ψ = adv(ψ - sin ψ) + (adv - a) sin ψ with
+    a = l2 - l1; `slip` is the second term, nonzero only by the round-off of the bars.
+    """
+    adv = spacing / TWO_PI
+    return 2.0 * adv * psi_minus_sin(psi), 2.0 * (adv - (l2 - l1)) * sin(psi)
+
+
+def min_hole_ratio(depth, spacing):
+    """About the smallest k whose design's bars, as floats, still achieve k·D to 1e-9.
+
+    Leading order: the bars round off by ε(l1+l2), moving the hole by 6ε(l1+l2)/(aψ²) relative
+    with l1+l2 ≈ 2D/ψ², a = d/2π; solved for ψ and mapped to k by ψ³/6 = πkD/d.
+    """
+    eps = 2.220446049250313e-16
+    psi = (12.0 * eps * depth * TWO_PI / (spacing * ROUND_OFF_LIMIT)) ** 0.25
+    return psi ** 3 / 6.0 * spacing / (math.pi * depth)
+
+
+def _unrepresentable(depth, spacing, k, total, slip, ideal):
+    moved = f'{abs(slip) / ideal:.1e} of it' if ideal >= _TINY else 'all of it'
+    return DesignError('hole_ratio', k, f'k ≳ {min_hole_ratio(depth, spacing):.3g} for '
+                       f'D = {depth:.6g} m, d = {spacing:.6g} m',
+                       f'the hole is too small for bars of {total:.3g} m: at finite precision '
+                       f'their round-off alone would move the hole by {moved}')
 
 
 def _design_batch(depth, spacing, k, method, ratios):
@@ -263,11 +316,19 @@ def _design_batch(depth, spacing, k, method, ratios):
         raise _batch_error(depth, spacing, k, i, bad.sum(), 'needs l1 > 0')
     l2 = 0.5 * total + half_gap
     l3, l4, l5 = (r * total for r in ratios)
-    psi_a = depth_angle(depth, l1 + l2)
-    hole = spacing / math.pi * psi_minus_sin(psi_a)
+    psi_a = bars_depth_angle(l1, l2, depth)
+    ideal, slip = _achieved_hole(l1, l2, spacing, psi_a, np.sin)
+    bad = ~((np.abs(slip) <= ROUND_OFF_LIMIT * ideal) & (ideal >= _TINY))
+    if bad.any():
+        i = np.flatnonzero(bad.ravel())[0]
+        err = _unrepresentable(float(depth.flat[i]), float(spacing.flat[i]), float(k.flat[i]),
+                               float(l1.flat[i] + l2.flat[i]), float(slip.flat[i]),
+                               float(ideal.flat[i]))
+        err.args = (f'{err.args[0]} at batch index {i} ({bad.sum()} refused)',)
+        raise err
     ok, mu = dyad_closure(l1, l2, l3, l4, l5)
-    return FiveBarDesign(depth, spacing, k, method, l1, l2, l3, l4, l5, psi_a, hole, ok, mu,
-                         ratios)
+    return FiveBarDesign(depth, spacing, k, method, l1, l2, l3, l4, l5, psi_a, ideal + slip, ok,
+                         mu, ratios)
 
 
 def _batch_error(depth, spacing, k, i, count, why):
@@ -363,7 +424,10 @@ def dyad_positions(design, theta, branch=1):
     dx, dy = ex - cx, ey - cy
     r = np.hypot(dx, dy)
     l3, l4 = design.l3, design.l4
-    if np.any(r >= l3 + l4) or np.any(r <= abs(l3 - l4)):
+    # beyond the closure limits by more than round-off: the dyad cannot close (within it, a
+    # design dyad_closure calls assemblable touches its singular position and is drawn there)
+    slack = 64.0 * np.finfo(float).eps
+    if np.any(r > (l3 + l4) * (1.0 + slack)) or np.any(r < abs(l3 - l4) * (1.0 - slack)):
         raise DesignError('dyad', f'l3={l3:.4g} m, l4={l4:.4g} m', '|l3-l4| < |CE| < l3+l4',
                           'the passive dyad cannot close at some angle')
     along = (l3 - l4) * ((l3 + l4) / r) / 2.0 + r / 2.0
@@ -450,7 +514,7 @@ def hole_geometry(l1, l2, depth, advance):
     (l1 > l2 too) and any advance, including 0 and reversing.
     """
     a = l2 - l1
-    psi = depth_angle(depth, l1 + l2)
+    psi = bars_depth_angle(l1, l2, depth)
     arrays = any(isinstance(v, np.ndarray) for v in (l1, l2, depth, advance))
     sin = np.sin if arrays else math.sin
     def h(phi, adv, a):
