@@ -50,10 +50,12 @@ def design_reference(depth, spacing, hole_ratio):
         return +(total / 2 - half_gap), +(total / 2 + half_gap)
 
 
-def depth_angle_reference(depth, total_length):
-    """ψ with 1 - cos ψ = D/(l1+l2), i.e. sin(ψ/2)² = D/(2L) (needs D <= 2L)."""
+def depth_angle_reference(depth, l1, l2):
+    """ψ with 1 - cos ψ = D/(l1+l2), i.e. sin(ψ/2)² = D/(2L); π when D >= 2L (the soil line at
+    or above the top of the path, the core's convention). l1 + l2 is summed exactly."""
     with mp.workdps(DIGITS + 10):
-        return 2 * mpmath.asin(mpmath.sqrt(mpf(depth) / (2 * mpf(total_length))))
+        ratio = mpf(depth) / (2 * (mpf(l1) + mpf(l2)))
+        return +mp.pi if ratio >= 1 else 2 * mpmath.asin(mpmath.sqrt(ratio))
 
 
 def hole_reference(l1, l2, depth, advance):
@@ -63,7 +65,7 @@ def hole_reference(l1, l2, depth, advance):
     [-ψ, ψ], a = l2 - l1; the extent is 2·max|h| over φ = ψ and the stationary point
     cos φ* = advance/a (if it lies inside), found here with mpmath.findroot on h'(φ) = 0.
     """
-    psi = depth_angle_reference(depth, mpf(l1) + mpf(l2))
+    psi = depth_angle_reference(depth, l1, l2)
     with mp.workdps(DIGITS + _extra_digits(float(psi)) + 20):
         a = mpf(l2) - mpf(l1)
         adv = mpf(advance)
@@ -109,3 +111,29 @@ def rel_error(value, reference):
         ref = mpf(reference)
         diff = abs(mpf(value) - ref)
         return float(diff / abs(ref)) if ref != 0 else float(diff)
+
+
+def dyad_reference(l1, l2, l3, l4, l5):
+    """(min |CE|, max |CE|, min transmission angle or None if the dyad cannot close), as mpf.
+
+    C = ((l2-l1) sin θ, (l1+l2) cos θ), E = (±l5, 0): |CE|² = (a s ∓ l5)² + L²(1 - s²) with
+    s = sin θ, a quadratic in s whose extremes are at s = ±1 or its vertex; the transmission
+    angle at D follows from the law of cosines at those extremes.
+    """
+    with mp.workdps(DIGITS + 30):
+        l1, l2, l3, l4, l5 = (mpf(v) for v in (l1, l2, l3, l4, l5))
+        a, big = l2 - l1, l1 + l2
+
+        def r2(s):
+            return (a * s - l5) ** 2 + big ** 2 * (1 - s ** 2)
+        values = [r2(mpf(1)), r2(mpf(-1))]
+        vertex = a * l5 / (a ** 2 - big ** 2)
+        if abs(vertex) < 1:
+            values.append(r2(vertex))
+        rmin, rmax = mpmath.sqrt(min(values)), mpmath.sqrt(max(values))
+        if not (rmax < l3 + l4 and rmin > abs(l3 - l4)):
+            return +rmin, +rmax, None
+
+        def mu(r):
+            return mpmath.acos((l3 ** 2 + l4 ** 2 - r ** 2) / (2 * l3 * l4))
+        return +rmin, +rmax, +min(mu(rmin), mp.pi - mu(rmax))
