@@ -78,7 +78,12 @@ def error_notes(rows):
 
 
 def row_notes(rows):
-    return [f'  {r.what} / {r.method}: {r.note}' for r in rows if r.status == 'ok' and r.note]
+    out = []
+    for r in rows:
+        line = f'  {r.what} / {r.method}: {r.note}'
+        if r.status == 'ok' and r.note and line not in out:
+            out.append(line)
+    return out
 
 
 def format_table(machine, rows):
