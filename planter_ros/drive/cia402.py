@@ -200,8 +200,8 @@ class Cia402Drive:
             raise self._fail(step, f'no SDO answer writing 0x{index:04X} ({exc})') from None
         except (SdoAbortedError, KeyError) as exc:
             raise self._fail(step, f'drive refused 0x{index:04X}={value} ({exc})') from None
-        except (can.CanError, OSError) as exc:
-            raise self._fail(step, f'CAN send failed: {exc}') from None
+        except Exception as exc:             # python-can: CanError, OSError, ValueError...
+            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
 
     def _sdo_read(self, step: str, index: int, subindex: int | None = None, optional=False):
         try:
@@ -215,8 +215,8 @@ class Cia402Drive:
             if optional:
                 return None
             raise self._fail(step, f'drive refused reading 0x{index:04X} ({exc})') from None
-        except (can.CanError, OSError) as exc:
-            raise self._fail(step, f'CAN send failed: {exc}') from None
+        except Exception as exc:             # python-can: CanError, OSError, ValueError...
+            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
 
     def _send(self, what: str, send) -> None:
         """Run one frame-sending call; any CAN/bus failure becomes a one-line DriveError."""
@@ -429,8 +429,8 @@ class Cia402Drive:
             raise self._fail(step, f'no SDO answer ({exc})') from None
         except SdoAbortedError as exc:
             raise self._fail(step, f'drive refused the mapping ({exc})') from None
-        except (can.CanError, OSError) as exc:
-            raise self._fail(step, f'CAN send failed: {exc}') from None
+        except Exception as exc:             # python-can: CanError, OSError, ValueError...
+            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
         # our callbacks after BaseNode402's (which keeps node.tpdo_values for node.state)
         node.setup_pdos(upload=False)
         for number in (1, 2):
