@@ -181,6 +181,12 @@ class Cia402Drive:
         #: measured at the last connect_and_enable (s)
         self.enable_duration = math.nan
 
+    @property
+    def node(self) -> BaseNode402 | None:
+        """The canopen node (diagnostics and benchmarks; its SDO calls block: never from a
+        callback or the control loop)."""
+        return self._node
+
     # ------------------------------------------------------------------ helpers
     def _counts_per_s(self, speed: float) -> int:
         counts = round(speed / self._rad_per_count)
@@ -619,6 +625,10 @@ class Cia402Drive:
                 next_heartbeat = now + self.config.heartbeat_period
             status = self.status()
             if done(status):
+                return
+            if status.heartbeat_lost:
+                log.warning('drive node %d: shutdown: drive heartbeat lost, not waiting for it',
+                            self.config.node_id)
                 return
             if now > deadline:
                 log.warning('drive node %d: shutdown: %s (%s, %.3f rad/s)', self.config.node_id,
