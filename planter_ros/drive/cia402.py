@@ -437,10 +437,11 @@ class Cia402Drive:
             raise self._fail(step, f'drive refused the mapping ({exc})') from None
         except Exception as exc:             # python-can: CanError, OSError, ValueError...
             raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
-        # our callbacks after BaseNode402's (which keeps node.tpdo_values for node.state)
-        node.setup_pdos(upload=False)
-        for number in (1, 2):
-            if self._on_status_tpdo not in node.tpdo[number].callbacks:
+        # our callback after BaseNode402's (which keeps node.tpdo_values); once per node,
+        # a second enable attempt in the same session must not add them again
+        if self._on_status_tpdo not in node.tpdo[1].callbacks:
+            node.setup_pdos(upload=False)
+            for number in (1, 2):
                 node.tpdo[number].add_callback(self._on_status_tpdo)
         self._rpdo = rpdo
 
