@@ -13,6 +13,10 @@ import sys
 COMMANDS = {
     ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
                              'reverse-design a geared five-bar from depth and spacing'),
+    ('design', 'three-arm'): ('planter_ros.cli.design_three_arm',
+                              'score a three-arm non-circular gear design against eight goals'),
+    ('optimize', 'three-arm'): ('planter_ros.cli.optimize_three_arm',
+                                'search a three-arm design meeting all eight goals'),
 }
 
 EXIT_BAD_INPUT = 2
