@@ -58,8 +58,11 @@ def score(vector, base, margin=MARGIN):
     return float(sum(g.violation(margin) for g in goals)), goals
 
 
-def optimize(base, seed=1, max_time=60.0, popsize=12, progress=None):
-    """Run differential evolution from the scene `base`; returns (params, goals, info)."""
+def optimize(base, seed=1, max_time=60.0, popsize=12, progress=None, max_generations=None):
+    """Run differential evolution from the scene `base`; returns (params, goals, info).
+
+    Stopping on `max_generations` (not on time) makes a run reproducible to the bit.
+    """
     from scipy.optimize import differential_evolution
     n = len(base['control_angles'])
     bounds = [RADIUS_BOUNDS] * n + list(INSTALL_BOUNDS.values())
@@ -80,6 +83,9 @@ def optimize(base, seed=1, max_time=60.0, popsize=12, progress=None):
             progress(elapsed, state['generation'], state['best'], passing, max_time)
         if state['best'] <= 0.0:
             state['stop'] = 'all goals met'
+            return True
+        if max_generations is not None and state['generation'] >= max_generations:
+            state['stop'] = 'generation limit'
             return True
         if elapsed >= max_time:
             state['stop'] = 'time limit'
