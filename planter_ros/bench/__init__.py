@@ -1,0 +1,1 @@
+"""Measurements that print figures (performance is measured here, never asserted in tests)."""
