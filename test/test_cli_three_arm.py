@@ -50,7 +50,8 @@ def test_optimize_writes_a_params_file_design_reads(tmp_path):
 def test_five_bar_never_imports_three_arm():
     code = ('import sys; from planter_ros.cli.main import main; '
             'main(["design", "five-bar", "--depth", "0.045", "--spacing", "0.2", "--json"]); '
-            'heavy = [m for m in sys.modules if "three_arm" in m and not m.startswith("planter_ros.cli")]; '
+            'heavy = [m for m in sys.modules '
+            'if "three_arm" in m and not m.startswith("planter_ros.cli")]; '
             'assert not heavy, heavy')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=REPO)
     assert out.returncode == 0, out.stderr

@@ -22,7 +22,8 @@ def _median_time(fn, repeat):
 def measure(scene=SCENE, repeat=200):
     import mpmath
 
-    from planter_ros.kinematics.three_arm import PitchCurve, ThreeArmMechanism, solve_centre_distance
+    from planter_ros.kinematics.three_arm import (
+        PitchCurve, ThreeArmMechanism, solve_centre_distance)
     from planter_ros.scene import load_scene
 
     params = load_scene(scene)
@@ -59,7 +60,8 @@ def measure(scene=SCENE, repeat=200):
 
 def main():
     r = measure()
-    print(f"closure reference a = {r['reference_centre_distance'] * 1e3:.12f} mm (mpmath, 30 digits)")
+    print(f"closure reference a = {r['reference_centre_distance'] * 1e3:.12f} mm "
+          '(mpmath, 30 digits)')
     print(f"{'method':<18}{'a (mm)':>20}{'rel. error':>12}{'residual':>12}{'samples':>9}"
           f"{'time':>11}")
     for c in r['closure']:

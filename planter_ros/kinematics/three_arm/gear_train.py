@@ -10,7 +10,7 @@ Reading of the paper's ambiguous parts (also in README):
   and β0 are measured in the carrier's sense of rotation (clockwise), like θ itself. That is
   what eq 7 says for the sun (the sun point at polar angle θ is in mesh at carrier angle θ), and
   with it the published set plants at the lowest point near θ = 191° as the paper's Table 1
-  states (with γ0, β0 counter-clockwise the lowest point falls at 146°).
+  states (at 194.5°; with γ0, β0 counter-clockwise it falls at 107°).
 * Gears: sun S = ρ(θ); intermediate I = the conjugate a − ρ at polar angle ψ = Ψ(θ),
   Ψ(θ) = ∫₀^θ ρ/(a−ρ) (eqs 2, 3, 7); planet P meshes with I at the same centre distance (eq 13),
   so its curve is a − (a − ρ) = ρ: the planet is a copy of the sun. Eq 9 is read as pure rolling
