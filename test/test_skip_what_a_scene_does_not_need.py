@@ -14,7 +14,7 @@ HEAVY = ('scipy', 'matplotlib', 'rclpy', 'mpmath', 'hypothesis', 'yaml', 'can', 
 FIVE_BAR_MODULES = {'planter_ros', 'planter_ros.kinematics', 'planter_ros.kinematics.errors',
                     'planter_ros.kinematics.five_bar'}
 CLI_MODULES = FIVE_BAR_MODULES | {'planter_ros.cli', 'planter_ros.cli.main',
-                                  'planter_ros.cli.design_five_bar', 'planter_ros.cli.bench'}
+                                  'planter_ros.cli.design_five_bar'}
 
 
 def modules_after(code):

@@ -14,6 +14,10 @@ COMMANDS = {
     ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
                              'reverse-design a geared five-bar from depth and spacing'),
     ('bench',): ('planter_ros.cli.bench', 'run time next to error against an mpmath reference'),
+    ('design', 'three-arm'): ('planter_ros.cli.design_three_arm',
+                              'score a three-arm non-circular gear design against eight goals'),
+    ('optimize', 'three-arm'): ('planter_ros.cli.optimize_three_arm',
+                                'search a three-arm design meeting all eight goals'),
 }
 
 EXIT_BAD_INPUT = 2
@@ -30,7 +34,19 @@ class _Parser(argparse.ArgumentParser):
         raise BadInput(f'{self.prog}: {message}')
 
 
-def build_parser():
+def _selected(argv):
+    """The COMMANDS key the arguments name, if any (only its module gets imported)."""
+    words = tuple(a for a in argv[:2] if not a.startswith('-'))
+    for key in COMMANDS:
+        if words[:len(key)] == key:
+            return key
+    return None
+
+
+def build_parser(argv=()):
+    """The full command tree; only the selected sub-command's module is imported, so a run
+    never loads the code (and the imports) of the commands it does not use."""
+    selected = _selected(list(argv))
     parser = _Parser(prog='planter', description='Design and drive a transplanter planting unit.')
     top = parser.add_subparsers(dest='command', required=True, parser_class=_Parser)
     groups = {}
@@ -43,16 +59,18 @@ def build_parser():
                 groups[words[0]] = grp.add_subparsers(dest='mechanism', required=True,
                                                       parser_class=_Parser)
             sub = groups[words[0]].add_parser(words[1], help=help_text)
-        module = importlib.import_module(module_name)
-        module.add_arguments(sub)
-        sub.set_defaults(_run=module.run)
+        if words == selected:
+            module = importlib.import_module(module_name)
+            module.add_arguments(sub)
+            sub.set_defaults(_run=module.run)
     return parser
 
 
 def main(argv=None):
     from planter_ros.kinematics.errors import DesignError
     try:
-        args = build_parser().parse_args(argv)
+        argv = sys.argv[1:] if argv is None else list(argv)
+        args = build_parser(argv).parse_args(argv)
         return int(args._run(args) or 0)
     except (BadInput, DesignError) as exc:
         print(f'planter: error: {exc}', file=sys.stderr)

@@ -1,0 +1,80 @@
+"""`planter design three-arm --params FILE`: the eight goals of a three-arm scene."""
+
+import json
+import math
+
+
+def add_arguments(parser):
+    parser.add_argument('--params', required=True, metavar='FILE',
+                        help='ROS 2 parameter file of a three_arm scene, e.g. '
+                             'config/rice_three_arm.yaml')
+    parser.add_argument('--json', action='store_true', help='print JSON (SI units) for machines')
+    parser.add_argument('--plot', metavar='FILE.png',
+                        help='draw pitch curves, trajectories and arm angles')
+
+
+def load_params(path):
+    """Scene dict of a three-arm parameter file; BadInput for anything else."""
+    from planter_ros.cli.main import BadInput
+    from planter_ros.scene import SceneError, load_scene
+    try:
+        params = load_scene(path)
+    except SceneError as exc:
+        raise BadInput(str(exc)) from None
+    mechanism = params.get('mechanism')
+    if mechanism != 'three_arm':
+        raise BadInput(f'--params {path}: mechanism = {mechanism} is out of range: allowed '
+                       'three_arm')
+    return params
+
+
+def run(args):
+    from planter_ros.cli.main import BadInput
+    from planter_ros.kinematics.three_arm import ThreeArmMechanism, design_summary
+
+    if args.plot and not args.plot.lower().endswith('.png'):
+        raise BadInput(f'--plot = {args.plot} is not a .png file name')
+    params = load_params(args.params)
+    mech = ThreeArmMechanism.from_parameters(params)
+    result = design_summary(params, mech)
+    result['params'] = str(args.params)
+    if args.plot:
+        from planter_ros.plots.three_arm import plot_design
+        plot_design(mech, params, args.plot)
+        result['plot'] = args.plot
+    print(json.dumps(result, indent=2) if args.json else format_table(result))
+    return 0
+
+
+def _show(value, unit):
+    if value is None:
+        return '—'
+    if unit == 'rad':
+        return f'{math.degrees(value):.2f} deg'
+    return f'{value * 1000:.2f} mm'
+
+
+def format_table(r):
+    """Human table: mm and degrees, labelled."""
+    lines = [f"scene {r['params']}: three-arm, {r['interpolant']} pitch curve",
+             f"centre distance a      {r['centre_distance'] * 1000:.6f} mm "
+             f"(closure residual {r['closure_residual']:.2g}, {r['closure_method']})",
+             f"pitch radius range     {r['pitch_radius_range'][0] * 1000:.2f} … "
+             f"{r['pitch_radius_range'][1] * 1000:.2f} mm",
+             '']
+    rows = [('goal', 'value', 'lower', 'upper', 'pass')]
+    for g in r['goals']:
+        rows.append((g['name'], _show(g['value'], g['unit']), _show(g['lower'], g['unit']),
+                     _show(g['upper'], g['unit']), 'yes' if g['passed'] else 'NO'))
+    widths = [max(len(row[i]) for row in rows) for i in range(5)]
+    for row in rows:
+        lines.append('  '.join(c.ljust(w) if i == 0 else c.rjust(w)
+                               for i, (c, w) in enumerate(zip(row, widths))))
+    lines.append(f"goals passed           {r['goals_passed']} of {len(r['goals'])}")
+    if 'carrier_speed' in r:
+        lines.append(f"carrier speed          {r['carrier_speed']:.4f} rad/s at "
+                     f"{r['nominal_ground_speed']:.3g} m/s "
+                     f"({r['carrier_speed'] * 60 / (2 * math.pi):.2f} r/min)")
+    if 'plot' in r:
+        lines.append(f"plot                   {r['plot']}")
+    return '\n'.join(lines)

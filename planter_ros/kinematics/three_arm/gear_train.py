@@ -1,0 +1,240 @@
+"""The planetary train of seven non-circular gears and the three arms (paper 2, §3 eqs 4–14).
+
+Frame (as the five-bar): origin at the carrier centre O1, x forward along the row, y up; absolute
+angles in rad counter-clockwise from +x. The carrier turns clockwise: φ_H = Φ0 − θ (eq 4) with
+θ the carrier angle (the drive's joint angle). The sun gear is fixed (eq 5).
+
+Reading of the paper's ambiguous parts (also in README):
+
+* One convention for every angle the paper attaches to the gears: pitch-curve polar angles, γ0
+  and β0 are measured in the carrier's sense of rotation (clockwise), like θ itself. That is
+  what eq 7 says for the sun (the sun point at polar angle θ is in mesh at carrier angle θ), and
+  with it the published set plants at the lowest point near θ = 191° as the paper's Table 1
+  states (at 194.5°; with γ0, β0 counter-clockwise it falls at 107°).
+* Gears: sun S = ρ(θ); intermediate I = the conjugate a − ρ at polar angle ψ = Ψ(θ),
+  Ψ(θ) = ∫₀^θ ρ/(a−ρ) (eqs 2, 3, 7); planet P meshes with I at the same centre distance (eq 13),
+  so its curve is a − (a − ρ) = ρ: the planet is a copy of the sun. Eq 9 is read as pure rolling
+  of I on P: with Θ = Ψ⁻¹ the planet's pitch point is w(θ) = Θ(Ψ(θ) + c) and the planet turns
+  φ_3H = w(θ) − w(0) relative to the carrier, where c = π − γ0 is the intermediate's polar angle
+  of the I–P line (the paper writes the limits from γ0, i.e. from the other end of the line).
+  Eq 10's φ_30 = Θ(c) is the planet's mesh phase at θ = 0.
+* Planet absolute angle (eq 8 with the phase made explicit): the planet's polar axis points at
+  φ3 = φ_H − γ0 + π + w(θ), so its pitch point w sits on the line O3→O2; the arm, mounted at
+  planet polar angle β0, points at α = φ3 − β0 (eq 14). The tip is D = O3 + S·e(α).
+* Arm k (k = 0, 1, 2 for I, II, III) sits 2πk/3 ahead on the carrier (counter-clockwise), so its
+  sun mesh point is u_k = θ − 2πk/3 and it passes every pose 120° of carrier later than arm I
+  (Table 1: picking at 20°, 140°, 260°). Each arm is evaluated from its own gear mesh, not by
+  shifting arm I, so the 120° symmetry is a tested property, not an assumption.
+* H1 (pusher offset): the seedling pusher slides along the line through the tip at distance H1
+  from O3, i.e. the arm line turned clockwise about D by δ = asin(H1/S). Its angle to the
+  horizontal is the arm attitude of the picking and pushing goals.
+
+Ψ and Θ are tabulated once per design on the interpolant's analytic pieces (Gauss–Legendre
+cumulative integrals, values plus first and second derivatives in quintic Hermite form), so an
+evaluation never rebuilds the spline or re-solves the closure.
+"""
+
+import math
+
+import numpy as np
+
+from ..errors import DesignError
+from .pitch_curve import TWO_PI, PitchCurve, leggauss, solve_centre_distance, subdivide
+
+ARMS = 3
+ARM_PHASE = TWO_PI / ARMS
+_TABLE_SPLITS = 4           # 2**4 Hermite intervals per analytic piece of ρ
+
+
+class GearTrain:
+    """Sun/intermediate/planet pitch curves and the mesh maps Ψ (sun→intermediate), Θ = Ψ⁻¹."""
+
+    def __init__(self, curve, closure_method='gauss'):
+        self.curve = curve
+        self.closure = solve_centre_distance(curve, closure_method)
+        a = self.a = self.closure.a
+        # nodes: the analytic pieces of ρ, each split evenly; cumulative Ψ by Gauss per interval
+        nodes = subdivide(curve.pieces, 2 ** _TABLE_SPLITS)
+        x, w = leggauss(12)
+        lo, hi = nodes[:-1, None], nodes[1:, None]
+        half = 0.5 * (hi - lo)
+        q = lo + half * (x + 1.0)
+        rq = curve(q)
+        inc = np.sum(half * w * rq / (a - rq), axis=1)
+        psi = np.r_[0.0, np.cumsum(inc)]
+        psi *= TWO_PI / psi[-1]     # remove the last ulp-level closure error (residual ~1e-15)
+        rho, d1 = curve(nodes), curve(nodes, 1)
+        f = rho / (a - rho)                       # dΨ/dθ
+        f1 = a * d1 / (a - rho) ** 2              # d²Ψ/dθ²
+        self._psi = quintic_hermite(nodes, psi, f, f1)
+        g = 1.0 / f                                # dΘ/dψ
+        g1 = -f1 / f ** 3                          # d²Θ/dψ²
+        self._theta = quintic_hermite(psi, nodes, g, g1)
+        self.ratio_range = (float(f.min()), float(f.max()))
+
+    def psi(self, u):
+        """Intermediate polar angle in mesh with the sun's polar angle u (any real u)."""
+        u = np.asarray(u, dtype=float)
+        turns = np.floor(u / TWO_PI)
+        return self._psi(u - turns * TWO_PI) + turns * TWO_PI
+
+    def theta(self, p):
+        """Inverse of psi: the sun (or planet) polar angle in mesh with intermediate angle p."""
+        p = np.asarray(p, dtype=float)
+        turns = np.floor(p / TWO_PI)
+        return self._theta(p - turns * TWO_PI) + turns * TWO_PI
+
+    def conjugate_curve(self, samples=720):
+        """Intermediate pitch curve as (polar angle ψ, radius a − ρ) over one turn."""
+        u = np.linspace(0.0, TWO_PI, samples + 1)
+        return self.psi(u), self.a - self.curve(u)
+
+
+class ThreeArmMechanism:
+    """A built three-arm mechanism: gear train plus installation parameters (SI units).
+
+    Build once (`from_parameters`), then evaluate any number of carrier angles; all methods take
+    numpy arrays of carrier angles θ (rad) and an arm index 0, 1, 2.
+    """
+
+    def __init__(self, curve, carrier_initial_angle, arm_initial_angle, arm_length,
+                 pusher_offset, planet_carrier_angle, closure_method='gauss'):
+        values = dict(carrier_initial_angle=carrier_initial_angle,
+                      arm_initial_angle=arm_initial_angle, arm_length=arm_length,
+                      pusher_offset=pusher_offset, planet_carrier_angle=planet_carrier_angle)
+        for name, value in values.items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise DesignError(name, value, 'a finite number')
+        if not arm_length > 0:
+            raise DesignError('arm_length', arm_length, '> 0 m')
+        if not 0 <= pusher_offset < arm_length:
+            raise DesignError('pusher_offset', pusher_offset, f'0 ≤ H1 < arm_length '
+                              f'({arm_length:g} m)')
+        self.phi0 = float(carrier_initial_angle)
+        self.beta0 = float(arm_initial_angle)
+        self.arm_length = float(arm_length)
+        self.pusher_offset = float(pusher_offset)
+        self.gamma0 = float(planet_carrier_angle)
+        self.delta = math.asin(self.pusher_offset / self.arm_length)
+        self.train = GearTrain(curve, closure_method)
+        self.a = self.train.a
+        self._c = math.pi - self.gamma0
+        self._w0 = [float(self.train.theta(self.train.psi(-k * ARM_PHASE) + self._c))
+                    for k in range(ARMS)]
+
+    @classmethod
+    def from_parameters(cls, params):
+        """Build from a scene's parameter dict (names as in config/rice_three_arm.yaml)."""
+        missing = [k for k in PARAMETER_NAMES if k not in params]
+        if missing:
+            raise DesignError(missing[0], 'missing', 'present in the scene (three_arm)')
+        curve = PitchCurve(_floats(params, 'control_radii'), _floats(params, 'control_angles'),
+                           params.get('interpolant', 'periodic_cubic'))
+        return cls(curve, **{k: _float(params, k) for k in PARAMETER_NAMES[2:]})
+
+    # --- angles --------------------------------------------------------------------------
+    def carrier_angle(self, theta, arm=0):
+        """Absolute angle of the carrier line O1→O2 of the arm (eq 4 plus the arm's phase)."""
+        return self.phi0 - np.asarray(theta, dtype=float) + arm * ARM_PHASE
+
+    def intermediate_angle(self, theta, arm=0):
+        """Rotation of the arm's intermediate gear relative to the carrier (clockwise > 0)."""
+        u = np.asarray(theta, dtype=float) - arm * ARM_PHASE
+        return self.train.psi(u) - self.train.psi(-arm * ARM_PHASE)
+
+    def planet_mesh_angle(self, theta, arm=0):
+        """w(θ): the planet's polar angle in mesh with its intermediate gear."""
+        u = np.asarray(theta, dtype=float) - arm * ARM_PHASE
+        return self.train.theta(self.train.psi(u) + self._c)
+
+    def planet_relative_angle(self, theta, arm=0):
+        """φ_3H: planet rotation relative to the carrier since θ = 0 (counter-clockwise > 0)."""
+        return self.planet_mesh_angle(theta, arm) - self._w0[arm]
+
+    def attitude(self, theta, arm=0):
+        """Absolute angle α of the arm line O3→D (rad, counter-clockwise from +x)."""
+        return self.carrier_angle(theta, arm) - self.gamma0 + math.pi \
+            + self.planet_mesh_angle(theta, arm) - self.beta0
+
+    def pusher_attitude(self, theta, arm=0):
+        """Absolute angle of the pusher axis (towards the tip): α − asin(H1/S)."""
+        return self.attitude(theta, arm) - self.delta
+
+    # --- positions -----------------------------------------------------------------------
+    def centres(self, theta, arm=0):
+        """(O2, O3): intermediate and planet centres, each an (x, y) pair of arrays (eqs 12, 13)."""
+        ph = self.carrier_angle(theta, arm)
+        o2 = (self.a * np.cos(ph), self.a * np.sin(ph))
+        o3 = (o2[0] + self.a * np.cos(ph - self.gamma0), o2[1] + self.a * np.sin(ph - self.gamma0))
+        return o2, o3
+
+    def tip(self, theta, arm=0):
+        """Tip D of the arm in the frame (absolute, static machine): (x, y) in m (eq 14)."""
+        ph = self.carrier_angle(theta, arm)
+        alpha = self.attitude(theta, arm)
+        a, s, g = self.a, self.arm_length, self.gamma0
+        x = a * (np.cos(ph) + np.cos(ph - g)) + s * np.cos(alpha)
+        y = a * (np.sin(ph) + np.sin(ph - g)) + s * np.sin(alpha)
+        return x, y
+
+    def tip_relative(self, theta, arm=0):
+        """Tip in the carrier frame (coordinates that turn with the carrier, equal at θ = 0)."""
+        theta = np.asarray(theta, dtype=float)
+        x, y = self.tip(theta, arm)
+        c, s = np.cos(theta), np.sin(theta)
+        return c * x - s * y, s * x + c * y
+
+    def tip_ground(self, theta, plant_spacing, arm=0):
+        """Tip relative to the ground while the machine advances 3·d per carrier turn."""
+        x, y = self.tip(theta, arm)
+        return x + (ARMS * plant_spacing / TWO_PI) * np.asarray(theta, dtype=float), y
+
+    def cycle(self, samples=360):
+        """One carrier revolution of all three arms: θ (n,), tips (3, 2, n), attitudes (3, n)."""
+        theta = np.linspace(0.0, TWO_PI, samples, endpoint=False)
+        th = theta[None, :] - (np.arange(ARMS) * ARM_PHASE)[:, None]     # u_k per arm
+        train = self.train
+        w = train.theta(train.psi(th) + self._c)
+        ph = self.phi0 - theta[None, :] + (np.arange(ARMS) * ARM_PHASE)[:, None]
+        alpha = ph - self.gamma0 + math.pi + w - self.beta0
+        a, s, g = self.a, self.arm_length, self.gamma0
+        x = a * (np.cos(ph) + np.cos(ph - g)) + s * np.cos(alpha)
+        y = a * (np.sin(ph) + np.sin(ph - g)) + s * np.sin(alpha)
+        return theta, np.stack([x, y], axis=1), alpha
+
+
+def quintic_hermite(x, y, dy, d2y):
+    """Piecewise quintic through values, slopes and second derivatives (scipy PPoly, C¹…C²).
+
+    The vectorised twin of scipy's BPoly.from_derivatives for this one case, which builds a
+    polynomial per interval in Python and would dominate the build time.
+    """
+    from scipy.interpolate import PPoly
+    h = np.diff(x)
+    dy0, dy1 = dy[:-1] * h, dy[1:] * h
+    s0, s1 = d2y[:-1] * h * h, d2y[1:] * h * h
+    dd = y[1:] - y[:-1]
+    c3 = 10.0 * dd - 6.0 * dy0 - 4.0 * dy1 - 0.5 * (3.0 * s0 - s1)
+    c4 = -15.0 * dd + 8.0 * dy0 + 7.0 * dy1 + 0.5 * (3.0 * s0 - 2.0 * s1)
+    c5 = 6.0 * dd - 3.0 * (dy0 + dy1) + 0.5 * (s1 - s0)
+    coef = np.array([c5 / h ** 5, c4 / h ** 4, c3 / h ** 3, 0.5 * s0 / h ** 2, dy0 / h, y[:-1]])
+    return PPoly(coef, x, extrapolate=True)
+
+
+PARAMETER_NAMES = ('control_radii', 'control_angles', 'carrier_initial_angle',
+                   'arm_initial_angle', 'arm_length', 'pusher_offset', 'planet_carrier_angle')
+
+
+def _float(params, key):
+    value = params[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise DesignError(key, value, 'a number (SI units)')
+    return float(value)
+
+
+def _floats(params, key):
+    value = params[key]
+    if not isinstance(value, (list, tuple, np.ndarray)) or \
+            any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+        raise DesignError(key, value, 'a list of numbers (SI units)')
+    return np.asarray(value, dtype=float)

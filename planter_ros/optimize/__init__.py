@@ -1,0 +1,1 @@
+"""Design optimisers (scipy), one module per mechanism."""

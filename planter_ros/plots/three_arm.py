@@ -1,0 +1,118 @@
+"""Three-arm design figure: pitch curves, relative and absolute trajectories, arm angles."""
+
+import math
+
+import numpy as np
+
+from planter_ros.kinematics.three_arm.gear_train import ARMS
+from planter_ros.kinematics.three_arm.goals import evaluate_goals, goal_settings
+
+COLOURS = ('tab:blue', 'tab:orange', 'tab:green')
+ARM_NAMES = ('I', 'II', 'III')
+
+
+def plot_design(mech, params, path):
+    """Write a 2×2 PNG: gears at θ = 0, carrier-frame and frame trajectories, arm angles."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    mm = 1000.0
+    cfg = goal_settings(params)
+    goals = {g.name: g for g in evaluate_goals(mech, params)}
+    theta = np.linspace(0.0, 2.0 * math.pi, 721)
+    fig, axes = plt.subplots(2, 2, figsize=(13, 11))
+
+    # (a) the three gear kinds in mesh at θ = 0 (arm I's intermediate and planet)
+    ax = axes[0, 0]
+    u = np.linspace(0.0, 2.0 * math.pi, 721)
+    rho = mech.train.curve(u)
+    phi0, a = mech.phi0, mech.a
+    ax.plot(rho * np.cos(phi0 - u) * mm, rho * np.sin(phi0 - u) * mm, 'k', label='sun (fixed)')
+    (o2x, o2y), (o3x, o3y) = mech.centres(0.0)
+    d_int = phi0 + math.pi + mech.train.psi(u)
+    ax.plot((o2x + (a - rho) * np.cos(d_int)) * mm, (o2y + (a - rho) * np.sin(d_int)) * mm,
+            'tab:red', label='intermediate (a − ρ)')
+    phi3 = mech.attitude(0.0) + mech.beta0
+    ax.plot((o3x + rho * np.cos(phi3 - u)) * mm, (o3y + rho * np.sin(phi3 - u)) * mm,
+            'tab:purple', label='planet (= sun curve)')
+    for (cx, cy), name in (((0.0, 0.0), 'O1'), ((o2x, o2y), 'O2'), ((o3x, o3y), 'O3')):
+        ax.plot(cx * mm, cy * mm, 'k+')
+        ax.annotate(name, (cx * mm, cy * mm), textcoords='offset points', xytext=(4, 4))
+    ax.set_title(f'Pitch curves in mesh at θ = 0 (a = {a * mm:.3f} mm, module '
+                 f'{goals["gear_module"].value * mm:.2f} mm)')
+    _finish(ax, 'x (mm)', 'y (mm)', equal=True)
+
+    # (b) relative trajectories (carrier frame)
+    ax = axes[0, 1]
+    for k in range(ARMS):
+        x, y = mech.tip_relative(theta, k)
+        ax.plot(x * mm, y * mm, color=COLOURS[k], label=f'arm {ARM_NAMES[k]}')
+    ax.plot(0, 0, 'k+')
+    ax.set_title('Tip relative to the carrier (carrier frame, θ = 0 orientation)')
+    _finish(ax, 'x (mm)', 'y (mm)', equal=True)
+
+    # (c) absolute trajectories in the frame with attitudes at picking and pushing
+    ax = axes[1, 0]
+    th_s = np.linspace(0.0, 2.0 * math.pi, 720, endpoint=False)
+    y0 = mech.tip(th_s, 0)[1]
+    marks = {'picking': th_s[int(np.argmax(y0))], 'planting': th_s[int(np.argmin(y0))]}
+    for k in range(ARMS):
+        x, y = mech.tip(theta, k)
+        ax.plot(x * mm, y * mm, color=COLOURS[k], lw=3.0 - k, alpha=0.8,
+                label=f'arm {ARM_NAMES[k]}')
+    ground = float(y0.min()) + cfg['planting_depth']
+    ax.axhline(ground * mm, color='saddlebrown', lw=1, label='ground')
+    for label, th in marks.items():
+        (_, _), (cx, cy) = mech.centres(th)
+        tx, ty = mech.tip(th)
+        pa = mech.pusher_attitude(th)
+        length = mech.arm_length * math.cos(mech.delta)
+        ax.plot([cx * mm, tx * mm], [cy * mm, ty * mm], 'k-', lw=2)
+        ax.plot([(tx - length * math.cos(pa)) * mm, tx * mm],
+                [(ty - length * math.sin(pa)) * mm, ty * mm], 'r--', lw=1.5)
+        name = 'picking_angle' if label == 'picking' else 'pushing_angle'
+        ax.annotate(f'{label}\nθ = {math.degrees(th):.1f}°\n'
+                    f'{math.degrees(goals[name].value):.1f}° below horizontal',
+                    (tx * mm, ty * mm), textcoords='offset points', xytext=(8, -30 if label ==
+                    'picking' else 8), fontsize=8)
+    ax.plot([], [], 'k-', lw=2, label='arm O3→tip')
+    ax.plot([], [], 'r--', label='pusher axis')
+    ax.plot(0, 0, 'k+')
+    ax.set_title(f'Tip in the frame (static machine); height '
+                 f'{goals["trajectory_height"].value * mm:.1f} mm')
+    _finish(ax, 'x forward (mm)', 'y up (mm)', equal=True)
+
+    # (d) arm angle against carrier angle
+    ax = axes[1, 1]
+    deg = np.degrees(theta)
+    for k in range(ARMS):
+        alpha = np.degrees(np.unwrap(mech.attitude(theta, k)))
+        alpha -= 360.0 * round(alpha[0] / 360.0)
+        ax.plot(deg, alpha, color=COLOURS[k], label=f'arm {ARM_NAMES[k]} absolute')
+    ax.plot(deg, np.degrees(mech.planet_relative_angle(theta, 0)), 'k:',
+            label='arm I relative to carrier')
+    for label, th in marks.items():
+        ax.axvline(math.degrees(th), color='grey', lw=0.8)
+        ax.annotate(label, (math.degrees(th), ax.get_ylim()[1]), fontsize=8, rotation=90,
+                    va='top', ha='right')
+    ax.set_xlim(0, 360)
+    ax.set_xticks(range(0, 361, 60))
+    ax.set_title('Arm angle (O3→tip) against carrier angle θ')
+    _finish(ax, 'carrier angle θ (deg)', 'angle (deg)')
+
+    passed = sum(g.passed for g in goals.values())
+    fig.suptitle(f'Three-arm non-circular planetary mechanism — {passed}/8 goals pass',
+                 fontsize=13)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _finish(ax, xlabel, ylabel, equal=False):
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3)
+    if equal:
+        ax.set_aspect('equal', adjustable='datalim')
+    ax.legend(fontsize=8, loc='best')

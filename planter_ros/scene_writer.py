@@ -1,0 +1,20 @@
+"""Write a scene dict as a ROS 2 parameter file (the format load_scene reads)."""
+
+from pathlib import Path
+
+
+def write_scene(path, params, comment=''):
+    """Write `params` under `/**: ros__parameters:`; floats keep full precision."""
+    import yaml
+    data = {'/**': {'ros__parameters': {k: _plain(v) for k, v in params.items()}}}
+    text = yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=100)
+    head = ''.join(f'# {line}\n' for line in comment.splitlines()) if comment else ''
+    Path(path).write_text(head + text)
+
+
+def _plain(value):
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if hasattr(value, 'item'):          # numpy scalars
+        return value.item()
+    return value

@@ -1,0 +1,57 @@
+"""`planter design three-arm` and `planter optimize three-arm` as a user runs them."""
+import json
+import subprocess
+import sys
+
+from cli_helpers import REPO, run_planter
+
+SCENE = REPO / 'config' / 'rice_three_arm.yaml'
+
+
+def test_design_json_has_goals_centre_distance_and_residual():
+    out = run_planter('design', 'three-arm', '--params', SCENE, '--json')
+    assert out.returncode == 0, out.stderr
+    r = json.loads(out.stdout)
+    assert len(r['goals']) == 8
+    for g in r['goals']:
+        assert set(g) == {'name', 'value', 'lower', 'upper', 'unit', 'passed'}
+    assert 0.05 < r['centre_distance'] < 0.15 and r['closure_residual'] < 1e-12
+
+
+def test_design_table_and_plot(tmp_path):
+    png = tmp_path / 'rice.png'
+    out = run_planter('design', 'three-arm', '--params', SCENE, '--plot', png)
+    assert out.returncode == 0, out.stderr
+    assert 'picking_angle' in out.stdout and 'deg' in out.stdout and 'goals passed' in out.stdout
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_bad_scene_is_one_line_exit_2(tmp_path):
+    out = run_planter('design', 'three-arm', '--params', REPO / 'config' / 'tomato_five_bar.yaml')
+    assert out.returncode == 2 and 'three_arm' in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text(SCENE.read_text().replace('arm_length: 0.145', 'arm_length: -0.1'))
+    out = run_planter('design', 'three-arm', '--params', bad)
+    assert out.returncode == 2 and 'arm_length' in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
+
+
+def test_optimize_writes_a_params_file_design_reads(tmp_path):
+    target = tmp_path / 'opt.yaml'
+    out = run_planter('optimize', 'three-arm', '--seed', 2, '--max-time', 2, '--out', target)
+    assert out.returncode == 0, out.stderr
+    assert 'goals passing' in out.stderr
+    again = run_planter('design', 'three-arm', '--params', target, '--json')
+    assert again.returncode == 0, again.stderr
+    assert len(json.loads(again.stdout)['goals']) == 8
+
+
+def test_five_bar_never_imports_three_arm():
+    code = ('import sys; from planter_ros.cli.main import main; '
+            'main(["design", "five-bar", "--depth", "0.045", "--spacing", "0.2", "--json"]); '
+            'heavy = [m for m in sys.modules '
+            'if "three_arm" in m and not m.startswith("planter_ros.cli")]; '
+            'assert not heavy, heavy')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, cwd=REPO)
+    assert out.returncode == 0, out.stderr

@@ -1,0 +1,151 @@
+"""The eight goals: definitions, the paper's set, and stress with degenerate pitch curves."""
+import math
+
+from hypothesis import HealthCheck, given, settings, strategies as st
+import numpy as np
+import pytest
+
+from planter_ros.kinematics.errors import DesignError
+from planter_ros.kinematics.three_arm import ThreeArmMechanism, design_summary, evaluate_goals
+from planter_ros.kinematics.three_arm.goals import GOAL_NAMES, gear_module_limit
+from planter_ros.optimize.three_arm import optimize
+from planter_ros.scene import load_scene
+
+from cli_helpers import REPO
+
+DEG = math.pi / 180
+
+
+@pytest.fixture(scope='module')
+def params():
+    return load_scene(REPO / 'config' / 'rice_three_arm.yaml')
+
+
+@pytest.fixture(scope='module')
+def mech(params):
+    return ThreeArmMechanism.from_parameters(params)
+
+
+@pytest.fixture(scope='module')
+def goals(mech, params):
+    return {g.name: g for g in evaluate_goals(mech, params)}
+
+
+def test_eight_named_goals_with_bounds_and_units(goals):
+    assert tuple(goals) == GOAL_NAMES and len(goals) == 8
+    for g in goals.values():
+        assert g.unit in ('m', 'rad') and math.isfinite(g.value)
+        assert g.lower is not None or g.upper is not None
+        inside = (g.lower is None or g.value >= g.lower) and (g.upper is None or g.value <= g.upper)
+        assert g.passed == inside
+
+
+def test_paper_bounds(goals):
+    assert goals['picking_angle'].lower == pytest.approx(-5 * DEG)
+    assert goals['pushing_angle'].upper == pytest.approx(65 * DEG)
+    assert goals['angle_difference'].lower == pytest.approx(50 * DEG)
+    assert goals['gearbox_clearance'].lower == 0.02
+    assert goals['trajectory_height'].lower == 0.26
+    assert goals['gear_module'].lower == 0.0025
+
+
+def test_heights_and_angles_follow_their_definitions(mech, goals):
+    theta = np.linspace(0, 2 * math.pi, 20000, endpoint=False)
+    x, y = mech.tip(theta)
+    assert goals['trajectory_height'].value == pytest.approx(y.max() - y.min(), abs=1e-7)
+    pick = mech.pusher_attitude(theta[np.argmax(y)])
+    below = -math.atan2(math.sin(pick), abs(math.cos(pick)))
+    assert goals['picking_angle'].value == pytest.approx(below, abs=1e-3)
+    assert goals['angle_difference'].value == pytest.approx(
+        goals['pushing_angle'].value - goals['picking_angle'].value)
+
+
+def test_paper_set_plants_near_table_1_angle(mech):
+    """Paper Table 1: arm I plants at θ = 191°, arm II at 311°, arm III at 71°."""
+    theta = np.linspace(0, 2 * math.pi, 3600, endpoint=False)
+    for arm, table in ((0, 191), (1, 311), (2, 71)):
+        low = math.degrees(theta[np.argmin(mech.tip(theta, arm)[1])])
+        assert abs(math.remainder(low - table, 360)) < 6
+
+
+def test_ground_and_seedling_settings_move_the_goals(mech, params):
+    base = {g.name: g.value for g in evaluate_goals(mech, params)}
+    deeper = {g.name: g.value for g in evaluate_goals(mech, dict(params, planting_depth=0.05))}
+    assert deeper['gearbox_clearance'] == pytest.approx(base['gearbox_clearance'] - 0.02)
+    wide = {g.name: g for g in evaluate_goals(mech, dict(params, arm_width=1.0))}
+    assert not wide['arm_clearance'].passed
+
+
+def test_module_of_a_circular_gear_is_its_radius_times_sin2_alpha():
+    r = 0.04
+    p = dict(control_radii=[r] * 8, control_angles=list(np.arange(8) * math.pi / 4),
+             carrier_initial_angle=0.0, arm_initial_angle=0.0, arm_length=0.15,
+             pusher_offset=0.05, planet_carrier_angle=0.0)
+    mech = ThreeArmMechanism.from_parameters(p)
+    assert mech.a == pytest.approx(2 * r, rel=1e-12)
+    module, length, rmin = gear_module_limit(mech)
+    assert rmin == pytest.approx(r, rel=1e-9) and length == pytest.approx(2 * math.pi * r)
+    limit = r * math.sin(20 * DEG) ** 2
+    teeth = length / (math.pi * module)
+    assert module <= limit and teeth == pytest.approx(round(teeth)) and \
+        length / (math.pi * (round(teeth) - 1)) > limit
+
+
+def test_summary_is_json_ready_si(params, mech):
+    import json
+    s = json.loads(json.dumps(design_summary(params, mech)))
+    assert s['mechanism'] == 'three_arm' and s['plants_per_revolution'] == 3
+    assert s['plant_spacing'] == 0.18 and s['planting_depth'] == 0.03
+    assert len(s['goals']) == 8 and set(s['goals'][0]) == {'name', 'value', 'lower', 'upper',
+                                                           'unit', 'passed'}
+    assert s['carrier_speed'] == pytest.approx(2 * math.pi * 0.54 / (3 * 0.18))
+
+
+radii = st.floats(min_value=1e-6, max_value=1.0)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(r=st.lists(radii, min_size=4, max_size=14),
+       start=st.floats(0, 2 * math.pi), jitter=st.floats(0, 0.9),
+       phi0=st.floats(-10, 10), beta0=st.floats(-10, 10), s=st.floats(1e-3, 2.0),
+       h=st.floats(0, 0.999), gamma0=st.floats(-4, 4), seed=st.integers(0, 2 ** 16))
+def test_stress_gives_goals_or_a_clear_error_never_nan(r, start, jitter, phi0, beta0, s, h,
+                                                       gamma0, seed):
+    n = len(r)
+    rng = np.random.default_rng(seed)
+    angles = start + (np.arange(n) + jitter * rng.uniform(-0.5, 0.5, n)) * 2 * math.pi / n
+    p = dict(control_radii=r, control_angles=list(np.sort(angles)), carrier_initial_angle=phi0,
+             arm_initial_angle=beta0, arm_length=s, pusher_offset=h * s,
+             planet_carrier_angle=gamma0)
+    try:
+        mech = ThreeArmMechanism.from_parameters(p)
+        goals = evaluate_goals(mech, p, samples=180)
+    except DesignError as err:
+        assert '\n' not in str(err) and 'out of range' in str(err)
+        return
+    assert len(goals) == 8 and all(math.isfinite(g.value) for g in goals)
+    assert math.isfinite(mech.a) and mech.a > max(r) * 0.999
+    _, tips, alphas = mech.cycle(90)
+    assert np.all(np.isfinite(tips)) and np.all(np.isfinite(alphas))
+
+
+def test_extreme_curves_are_flagged_by_the_module_goal():
+    # a needle-like but positive pitch curve: builds, and the module goal fails
+    r = [0.05, 0.05, 0.002, 0.05, 0.05, 0.05, 0.05, 0.05]
+    p = dict(control_radii=r, control_angles=list(np.arange(8) * math.pi / 4 + 0.1),
+             carrier_initial_angle=0.0, arm_initial_angle=0.0, arm_length=0.15,
+             pusher_offset=0.05, planet_carrier_angle=0.3)
+    try:
+        mech = ThreeArmMechanism.from_parameters(p)
+    except DesignError as err:
+        assert 'control_radii' in str(err)
+        return
+    goals = {g.name: g for g in evaluate_goals(mech, p)}
+    assert not goals['gear_module'].passed
+
+
+def test_optimiser_is_deterministic_for_a_seed(params):
+    a = optimize(params, seed=5, max_time=1e9, max_generations=2, popsize=4)
+    b = optimize(params, seed=5, max_time=1e9, max_generations=2, popsize=4)
+    assert a[0] == b[0] and a[2]['evaluations'] == b[2]['evaluations']
+    assert a[2]['stopped'] == 'generation limit'
