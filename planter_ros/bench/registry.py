@@ -26,6 +26,7 @@ from .timing import measure
 # modules whose import registers cases, in table order
 CASE_MODULES = (
     'planter_ros.bench.cases.five_bar',
+    'planter_ros.bench.cases.three_arm',
     'planter_ros.bench.cases.footprint',
 )
 
