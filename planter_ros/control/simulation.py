@@ -24,29 +24,43 @@ class DriveModel:
     speed_scale: float = 1.0          # achieved / commanded speed in steady state
 
 
-def field_profile(duration, cruise, change=1.5, start=2.0, stop=2.0):
-    """A transplanter run as a function t -> v (m/s): ramp up over `start` s, cruise, a speed
-    change to `change`·cruise at 45 % of the run (over 1 s), and a ramp to a stop ending 1 s
-    before `duration`."""
-    t_change = 0.45 * duration
-    t_stop_end = duration - 1.0
-    t_stop = t_stop_end - stop
+class FieldProfile:
+    """A transplanter run, callable t -> v (m/s): ramp up over `start` s, cruise, a speed change
+    to `change`·cruise at 45 % of the run (over 1 s), and a ramp to a stop (over `stop` s)
+    ending 1 s before `duration`. The phase boundaries are attributes (s)."""
 
-    def v(t):
-        if t <= 0.0 or t >= t_stop_end:
+    def __init__(self, duration, cruise, change=1.5, start=2.0, stop=2.0):
+        self.duration, self.cruise, self.change = duration, cruise, change
+        self.start, self.stop = start, stop
+        self.t_change = 0.45 * duration
+        self.t_stop_end = duration - 1.0
+        self.t_stop = self.t_stop_end - stop
+
+    def __call__(self, t):
+        if t <= 0.0 or t >= self.t_stop_end:
             return 0.0
-        if t < start:
-            base = cruise * t / start
-        elif t < t_change:
-            base = cruise
-        elif t < t_change + 1.0:
-            base = cruise * (1.0 + (change - 1.0) * (t - t_change))
+        if t < self.start:
+            base = self.cruise * t / self.start
+        elif t < self.t_change:
+            base = self.cruise
+        elif t < self.t_change + 1.0:
+            base = self.cruise * (1.0 + (self.change - 1.0) * (t - self.t_change))
         else:
-            base = cruise * change
-        if t > t_stop:
-            base *= (t_stop_end - t) / stop
+            base = self.cruise * self.change
+        if t > self.t_stop:
+            base *= (self.t_stop_end - t) / self.stop
         return base
-    return v
+
+    def distance(self, t, dt=1e-3):
+        """True travelled distance (m) at times t (array), by the trapezoid rule on a fine grid."""
+        grid = np.arange(0.0, max(float(np.max(t)), 0.0) + 2 * dt, dt)
+        v = np.array([self(x) for x in grid])
+        s = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)))
+        return np.interp(t, grid, s)
+
+
+def field_profile(duration, cruise, change=1.5, start=2.0, stop=2.0):
+    return FieldProfile(duration, cruise, change, start, stop)
 
 
 @dataclass

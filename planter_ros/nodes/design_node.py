@@ -95,7 +95,7 @@ def main(args=None):
     rclpy.init(args=args)
     node = None
     try:
-        node = DesignNode()
+        node = DesignNode(namespace=interfaces.NAMESPACE)
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
