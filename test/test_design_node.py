@@ -4,10 +4,12 @@ import json
 import subprocess
 import sys
 
+import pytest
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 
 from planter_ros import interfaces
+from planter_ros.kinematics.errors import DesignError
 from planter_ros.nodes.design_node import DesignNode
 from planter_ros.nodes.qos import DESIGN_QOS
 from ros_fixtures import ros  # noqa: F401  (fixture)
@@ -77,12 +79,22 @@ def test_parameters_have_descriptions_and_ranges(ros):
 def test_three_arm_scene_is_routed_to_the_three_arm_model(ros):
     node = ros.add(DesignNode(context=ros.context))
     res = node.set_parameters([Parameter('mechanism', value='three_arm')])[0]
+    assert not res.successful                     # five-bar scene: no three-arm parameters
     if importlib.util.find_spec('planter_ros.kinematics.three_arm') is None:
-        assert not res.successful and 'three-arm model' in res.reason
-        assert node.design['mechanism'] == 'five_bar'
+        assert 'three-arm model' in res.reason
     else:
-        assert res.successful, res.reason
-        assert node.design['plants_per_revolution'] == 3
+        assert 'control_radii' in res.reason
+    assert node.design['mechanism'] == 'five_bar'
+
+
+def test_three_arm_scene_declares_its_parameters(ros):
+    overrides = [Parameter('mechanism', value='three_arm')]
+    if importlib.util.find_spec('planter_ros.kinematics.three_arm') is None:
+        with pytest.raises(DesignError, match='three-arm model'):
+            DesignNode(context=ros.context, parameter_overrides=overrides)
+        return
+    with pytest.raises(DesignError, match='control_radii'):
+        DesignNode(context=ros.context, parameter_overrides=overrides)
 
 
 def test_five_bar_scene_never_imports_the_gear_train():

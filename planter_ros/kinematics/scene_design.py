@@ -68,4 +68,4 @@ def _three_arm(params):
         raise DesignError('mechanism', 'three_arm', 'five_bar in this build',
                           'the three-arm model planter_ros.kinematics.three_arm is not '
                           'available') from None
-    return three_arm.design_for_scene(params)
+    return three_arm.design_summary(params)

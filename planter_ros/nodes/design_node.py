@@ -2,16 +2,18 @@
 
 Every parameter update is validated by computing the design first: an infeasible one is refused
 with the core's one-line reason and the last good design stays published. A five-bar scene
-never imports the three-arm gear train.
+never imports the three-arm gear train; the three-arm parameters are declared only when the
+scene's `mechanism` is three_arm.
 """
 
 import json
 import sys
 
 import rclpy
-from rclpy.exceptions import ParameterException
+from rclpy.exceptions import ParameterException, ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from std_msgs.msg import String
 
@@ -42,6 +44,29 @@ SCENE_PARAMETERS = {
 }
 
 
+# declared only for a three-arm scene (names of planter_ros.kinematics.three_arm); no
+# defaults: a scene that lacks one is refused by the model, naming it
+THREE_ARM_PARAMETERS = {
+    'control_radii': (Parameter.Type.DOUBLE_ARRAY, 'pitch-curve control radii r_i (m)', None),
+    'control_angles': (Parameter.Type.DOUBLE_ARRAY, 'pitch-curve control angles θ_i (rad)',
+                       None),
+    'interpolant': (Parameter.Type.STRING, 'pitch-curve interpolant between control points '
+                    '(periodic_cubic by default)', None),
+    'carrier_initial_angle': (Parameter.Type.DOUBLE, 'carrier initial angle (rad)', None),
+    'arm_initial_angle': (Parameter.Type.DOUBLE, 'planting arm initial angle (rad)', None),
+    'arm_length': (Parameter.Type.DOUBLE, 'planting arm length (m)', _range(0.01, 1.0)),
+    'pusher_offset': (Parameter.Type.DOUBLE, 'pusher offset H1 from the arm line (m)',
+                      _range(0.0, 0.5)),
+    'planet_carrier_angle': (Parameter.Type.DOUBLE, 'planet-carrier angle (rad)', None),
+    'seedling_height': (Parameter.Type.DOUBLE, 'seedling height (m), for the design goals',
+                        _range(0.01, 1.0)),
+    'arm_width': (Parameter.Type.DOUBLE, 'planting arm width (m), for the design goals',
+                  _range(0.001, 0.2)),
+}
+
+ARRAY_PARAMETERS = ('dyad_ratios', 'control_radii', 'control_angles')
+
+
 class DesignNode(Node):
     """Publishes the design of the scene in its parameters; refuses infeasible updates."""
 
@@ -52,6 +77,14 @@ class DesignNode(Node):
             if fp_range:
                 descriptor.floating_point_range = fp_range
             self.declare_parameter(name, default, descriptor)
+        self._names = list(SCENE_PARAMETERS)
+        if self.get_parameter('mechanism').value == 'three_arm':
+            for name, (ptype, description, fp_range) in THREE_ARM_PARAMETERS.items():
+                descriptor = ParameterDescriptor(description=description)
+                if fp_range:
+                    descriptor.floating_point_range = fp_range
+                self.declare_parameter(name, ptype, descriptor)
+                self._names.append(name)
         self._publisher = self.create_publisher(String, interfaces.DESIGN, DESIGN_QOS)
         self.design = design_for_scene(self._values())      # DesignError: bad scene at start
         self._pending = None
@@ -62,14 +95,21 @@ class DesignNode(Node):
                                f"{self.design['crop'] or 'unnamed crop'} published")
 
     def _values(self):
-        return {name: self.get_parameter(name).value for name in SCENE_PARAMETERS}
+        values = {}
+        for name in self._names:
+            try:
+                value = self.get_parameter(name).value
+            except ParameterUninitializedException:       # a three-arm value the scene lacks
+                continue
+            values[name] = list(value) if name in ARRAY_PARAMETERS else value
+        return values
 
     def _validate(self, parameters):
         values = self._values()
         changed = False
         for p in parameters:
-            if p.name in SCENE_PARAMETERS:
-                values[p.name] = list(p.value) if p.name == 'dyad_ratios' else p.value
+            if p.name in self._names:
+                values[p.name] = list(p.value) if p.name in ARRAY_PARAMETERS else p.value
                 changed = True
         if not changed:
             return SetParametersResult(successful=True)
