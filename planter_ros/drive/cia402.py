@@ -1,0 +1,646 @@
+"""CiA 402 servo drive master over CANopen (profile velocity mode), on a python-can bus.
+
+The one CAN protocol module of planter_ros. It uses the `canopen` library (Network on a
+python-can bus, BaseNode402 with the drive's EDS) for SDO, NMT, PDO encoding, EMCY and the
+statusword decoding, and keeps every blocking call out of the real-time path:
+
+* ``connect_and_enable()`` and ``shutdown()`` block (SDO, waits with timeouts): call them at
+  node start-up / shutdown or from a worker thread, never from a ROS or CAN callback.
+* ``send_velocity()``, ``send_heartbeat()``, ``status()`` and ``request_fault_reset()`` never
+  block: one CAN frame at most, or a snapshot of what the bus callbacks collected.
+
+canopen's BaseNode402 blocking helpers are not used for the same reason: its ``state`` setter
+busy-waits, ``reset_from_fault()`` always waits its full timeout, and the ``op_mode`` setter
+logs instead of raising (we write 0x6060 and read 0x6061 back ourselves).
+
+Drive-side watchdog (the motor stops if this process dies or hangs), both reacting with the
+abort connection option 0x6007 = 3 (quick stop):
+* RPDO deadline monitoring: the RPDO's event timer 0x1400:5 = ``command_timeout``; the drive
+  expects a command frame at least that often (CiA 301 deadline monitoring, EMCY 0x8250).
+* heartbeat consumer 0x1016:1 watches our heartbeat (node ``master_node_id``) with
+  ``master_heartbeat_timeout`` (EMCY 0x8130).
+Both are armed by the first frame they see, so a control loop must start sending within
+``command_timeout`` after ``connect_and_enable()`` returns. No ``send_periodic`` anywhere:
+on SocketCAN it is a kernel job that keeps sending while the process hangs.
+
+Units: mechanism rad and rad/s at the API; on the bus 0x60FF / 0x606C are encoder increments
+per second and 0x6064 increments (``counts_per_motor_rev`` per motor revolution,
+``motor_gear_ratio`` motor revolutions per mechanism revolution).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import can
+import canopen
+from canopen.pdo.base import PDO_NOT_VALID
+from canopen.profiles.p402 import BaseNode402, State402
+from canopen.sdo import SdoAbortedError, SdoCommunicationError
+
+from planter_ros.drive.eds import default_eds_path
+
+log = logging.getLogger(__name__)
+
+PROFILE_VELOCITY = 3
+CW_DISABLE_VOLTAGE = State402.CW_DISABLE_VOLTAGE      # 0x00
+CW_QUICK_STOP = State402.CW_QUICK_STOP                # 0x02
+CW_SHUTDOWN = State402.CW_SHUTDOWN                    # 0x06
+CW_SWITCH_ON = State402.CW_SWITCH_ON                  # 0x07
+CW_ENABLE_OPERATION = State402.CW_OPERATION_ENABLED   # 0x0F
+CW_FAULT_RESET = 0x80
+ABORT_OPTION_QUICK_STOP = 3
+EMCY_HEARTBEAT = 0x8130
+OPERATION_ENABLED = 'OPERATION ENABLED'
+_INT32 = (-2**31, 2**31 - 1)
+
+# Fault-reset / re-enable: the controlword that moves each state one step towards
+# OPERATION ENABLED (fault state handled separately: one reset edge per request).
+_REENABLE_STEP = {
+    'SWITCH ON DISABLED': CW_SHUTDOWN,
+    'READY TO SWITCH ON': CW_SWITCH_ON,
+    'SWITCHED ON': CW_ENABLE_OPERATION,
+    'QUICK STOP ACTIVE': CW_DISABLE_VOLTAGE,      # via SWITCH ON DISABLED (always allowed)
+    'NOT READY TO SWITCH ON': CW_DISABLE_VOLTAGE,
+    'FAULT REACTION ACTIVE': CW_DISABLE_VOLTAGE,
+}
+
+
+class DriveError(RuntimeError):
+    """A drive operation failed (timeout, CAN send error, bad configuration): one line."""
+
+
+@dataclass(frozen=True)
+class DriveConfig:
+    interface: str = 'virtual'                 # python-can interface: 'socketcan' on a machine
+    channel: str = 'planter0'                  # 'can0' on a machine; unique per test on virtual
+    bitrate: int = 500_000
+    node_id: int = 1
+    motor_gear_ratio: float = 1.0              # motor revolutions per mechanism revolution
+    counts_per_motor_rev: int = 4096           # encoder resolution (0x6064 units)
+    heartbeat_period: float = 0.1              # s, our (master) heartbeat, sent from the control loop
+    drive_heartbeat_timeout: float = 0.35      # s, drive heartbeat older than this = lost
+    command_timeout: float = 0.2               # s, drive-side watchdog (0x6007 quick stop action)
+    step_timeout: float = 0.5                  # s, per enable/disable state-machine step
+    # Additions beyond the shared contract (defaults keep the contract's behaviour):
+    drive_heartbeat_period: float = 0.1        # s, the drive's heartbeat producer (0x1017)
+    master_heartbeat_timeout: float = 0.3      # s, the drive's consumer timeout for ours (0x1016)
+    master_node_id: int = 127                  # our node id (heartbeat COB-ID 0x700 + id)
+    feedback_period: float = 0.01              # s, TPDO event timer (statusword + motion)
+    reset_timeout: float = 1.0                 # s, a fault reset not done by then is abandoned
+    eds_path: str = ''                         # '' = config/planter_drive.eds
+
+    def validate(self) -> None:
+        """Raise DriveError naming the first bad value and its allowed range."""
+        def bad(name, value, allowed):
+            raise DriveError(f'drive config: {name}={value!r} is out of range (allowed: {allowed})')
+        for name in ('node_id', 'master_node_id'):
+            value = getattr(self, name)
+            if not isinstance(value, int) or not 1 <= value <= 127:
+                bad(name, value, 'integer 1..127')
+        if self.node_id == self.master_node_id:
+            bad('master_node_id', self.master_node_id, f'any 1..127 except node_id={self.node_id}')
+        if not isinstance(self.counts_per_motor_rev, int) or self.counts_per_motor_rev < 1:
+            bad('counts_per_motor_rev', self.counts_per_motor_rev, 'integer >= 1')
+        if not isinstance(self.bitrate, int) or self.bitrate <= 0:
+            bad('bitrate', self.bitrate, 'integer > 0 bit/s')
+        if not (math.isfinite(self.motor_gear_ratio) and self.motor_gear_ratio > 0):
+            bad('motor_gear_ratio', self.motor_gear_ratio, 'finite > 0')
+        for f in fields(self):
+            if f.name.endswith(('_period', '_timeout')):
+                value = getattr(self, f.name)
+                if not (math.isfinite(value) and 0.001 <= value <= 65.535):
+                    bad(f.name, value, '0.001..65.535 s (16-bit ms objects)')
+        if self.drive_heartbeat_timeout <= self.drive_heartbeat_period:
+            bad('drive_heartbeat_timeout', self.drive_heartbeat_timeout,
+                f'> drive_heartbeat_period={self.drive_heartbeat_period} s')
+        if self.master_heartbeat_timeout <= self.heartbeat_period:
+            bad('master_heartbeat_timeout', self.master_heartbeat_timeout,
+                f'> heartbeat_period={self.heartbeat_period} s')
+        if not self.interface or not self.channel:
+            bad('interface/channel', (self.interface, self.channel), 'non-empty strings')
+
+
+@dataclass(frozen=True)
+class DriveStatus:                             # snapshot, built without blocking
+    state: str                                 # CiA 402 state name, canopen's names ('OPERATION ENABLED', 'FAULT', ...)
+    statusword: int
+    fault: bool                                # statusword bit 3 or an EMCY since the last reset
+    error_code: int                            # 0x603F / last EMCY code, 0 if none
+    position: float                            # mechanism angle (rad, unwrapped, from 0x6064 / gear ratio)
+    velocity: float                            # mechanism speed (rad/s, from 0x606C)
+    heartbeat_age: float                       # s since the drive's last heartbeat (inf if never)
+    stamp: float                               # time.monotonic() of the last feedback TPDO
+    # Additions beyond the shared contract:
+    fault_reason: str = ''                     # why `fault` is set ('' when not), for diagnostics
+    heartbeat_lost: bool = False               # heartbeat_age > drive_heartbeat_timeout
+    resetting: bool = False                    # a requested fault reset is in progress
+    enabled: bool = False                      # connected, OPERATION ENABLED and accepting commands
+    commanded_velocity: float = 0.0            # mechanism rad/s in the last RPDO sent
+
+
+class Cia402Drive:
+    """Master for one CiA 402 drive in profile velocity mode (see the module docstring)."""
+
+    def __init__(self, config: DriveConfig, bus: can.BusABC | None = None):
+        config.validate()
+        self.config = config
+        self._given_bus = bus
+        self._bus: can.BusABC | None = None
+        self._network: canopen.Network | None = None
+        self._node: BaseNode402 | None = None
+        self._rpdo = None
+        self._connected = False       # bus open, PDOs configured, drive operational
+        self._enabled = False         # enable sequence finished (cleared by shutdown)
+        self._lock = threading.Lock()             # feedback and fault fields
+        self._tx_lock = threading.Lock()          # the RPDO buffer and its frame
+        self._feedback = threading.Condition(self._lock)
+        self._rad_per_count = 2.0 * math.pi / (config.counts_per_motor_rev * config.motor_gear_ratio)
+        # feedback (written by bus callbacks)
+        self._statusword = 0
+        self._sw_received = False
+        self._status_stamp = 0.0
+        self._error_code = 0
+        self._raw_position: int | None = None
+        self._position_counts = 0
+        self._velocity_counts = 0
+        self._motion_stamp = 0.0
+        # latched faults (cleared only by request_fault_reset)
+        self._emcy_code = 0
+        self._latched_reason = ''
+        # reset sequence
+        self._reset_requested = False
+        self._reset_deadline = 0.0
+        self._reset_edge_sent = False
+        self._last_controlword = 0
+        self._commanded = 0.0
+        #: measured at the last connect_and_enable (s)
+        self.enable_duration = math.nan
+
+    # ------------------------------------------------------------------ helpers
+    def _counts_per_s(self, speed: float) -> int:
+        counts = round(speed / self._rad_per_count)
+        if not _INT32[0] <= counts <= _INT32[1]:
+            limit = _INT32[1] * self._rad_per_count
+            raise DriveError(f'speed {speed!r} rad/s is out of range (allowed: |speed| <= {limit:.6g} rad/s)')
+        return counts
+
+    def _fail(self, step: str, detail: str) -> DriveError:
+        return DriveError(f'drive node {self.config.node_id}: {step}: {detail}')
+
+    def _sdo_write(self, step: str, index: int, subindex: int | None, value: int) -> None:
+        try:
+            var = self._node.sdo[index] if subindex is None else self._node.sdo[index][subindex]
+            var.raw = value
+        except SdoCommunicationError as exc:
+            raise self._fail(step, f'no SDO answer writing 0x{index:04X} ({exc})') from None
+        except (SdoAbortedError, KeyError) as exc:
+            raise self._fail(step, f'drive refused 0x{index:04X}={value} ({exc})') from None
+        except (can.CanError, OSError) as exc:
+            raise self._fail(step, f'CAN send failed: {exc}') from None
+
+    def _sdo_read(self, step: str, index: int, subindex: int | None = None, optional=False):
+        try:
+            var = self._node.sdo[index] if subindex is None else self._node.sdo[index][subindex]
+            return var.raw
+        except SdoCommunicationError as exc:
+            raise self._fail(step, f'no SDO answer reading 0x{index:04X} '
+                                   f'(is the drive on {self.config.channel} as node '
+                                   f'{self.config.node_id}? {exc})') from None
+        except (SdoAbortedError, KeyError) as exc:
+            if optional:
+                return None
+            raise self._fail(step, f'drive refused reading 0x{index:04X} ({exc})') from None
+        except (can.CanError, OSError) as exc:
+            raise self._fail(step, f'CAN send failed: {exc}') from None
+
+    def _send(self, what: str, send) -> None:
+        """Run one frame-sending call; any CAN/bus failure becomes a one-line DriveError."""
+        try:
+            send()
+        except DriveError:
+            raise
+        except Exception as exc:            # python-can raises CanError, OSError, ValueError...
+            raise DriveError(f'drive node {self.config.node_id}: CAN send of {what} failed on '
+                             f'{self.config.interface}:{self.config.channel}: '
+                             f'{type(exc).__name__}: {exc}') from None
+
+    def _state_of(self, statusword: int) -> str:
+        for name, (mask, bits) in State402.SW_MASK.items():
+            if statusword & mask == bits:
+                return name
+        return 'UNKNOWN'
+
+    # ------------------------------------------------------------------ bus callbacks
+    def _on_status_tpdo(self, pdo_map) -> None:
+        now = time.monotonic()
+        values = {var.index: var.raw for var in pdo_map}
+        with self._feedback:
+            if 0x6041 in values:
+                self._statusword = values[0x6041]
+                self._sw_received = True
+                self._status_stamp = now
+                if (self._enabled and not self._reset_requested and not self._latched_reason
+                        and self._state_of(self._statusword) != OPERATION_ENABLED):
+                    self._latched_reason = ('drive left OPERATION ENABLED '
+                                            f'({self._state_of(self._statusword)})')
+            if 0x603F in values:
+                self._error_code = values[0x603F]
+            if 0x6064 in values:
+                raw = values[0x6064]
+                if self._raw_position is None:
+                    self._position_counts = raw
+                else:                               # unwrap the 32-bit counter
+                    self._position_counts += (raw - self._raw_position + 2**31) % 2**32 - 2**31
+                self._raw_position = raw
+                self._motion_stamp = now
+            if 0x606C in values:
+                self._velocity_counts = values[0x606C]
+                self._motion_stamp = now
+            self._feedback.notify_all()
+
+    def _on_emcy(self, entry) -> None:
+        if entry.code & 0xFF00 == 0:                # "error reset / no error"
+            return
+        with self._lock:
+            self._emcy_code = entry.code
+            if not self._latched_reason:
+                self._latched_reason = f'EMCY 0x{entry.code:04X} ({entry.get_desc() or "drive error"})'
+
+    def _heartbeat_age(self) -> float:
+        stamp = self._node.nmt.timestamp if self._node is not None else None
+        if stamp is None:
+            return math.inf
+        return max(0.0, time.time() - stamp)   # frame timestamps are wall-clock (python-can)
+
+    # ------------------------------------------------------------------ blocking: enable
+    def connect_and_enable(self) -> None:
+        """Open the bus, configure the drive and enable it (BLOCKING; raises DriveError).
+
+        NMT pre-operational; SDO: identify (0x1000, 0x6502, 0x608F), PDO mapping, heartbeat
+        both ways, watchdog (0x1400:5 deadline, 0x6007 = quick stop), 0x60FF = 0, mode 3
+        confirmed via 0x6061; NMT operational; then 0x06 -> 0x07 -> 0x0F, each step waiting
+        at most step_timeout for the statusword. A drive found in FAULT is only reset if
+        request_fault_reset() was called first. After this returns, the control loop must call
+        send_velocity() at least every command_timeout and send_heartbeat() every
+        heartbeat_period, or the drive's watchdog quick-stops the motor.
+        """
+        if self._enabled:
+            return
+        cfg = self.config
+        t_start = time.monotonic()
+        self._open()
+        step = 'NMT pre-operational'
+        self._send('NMT pre-operational', lambda: setattr(self._node.nmt, 'state', 'PRE-OPERATIONAL'))
+
+        step = 'identify (SDO 0x1000 device type)'
+        device_type = self._sdo_read(step, 0x1000)
+        if device_type & 0xFFFF != 402:
+            raise self._fail(step, f'device type 0x{device_type:08X} is not a CiA 402 drive')
+        step = 'check profile velocity support (0x6502)'
+        modes = self._sdo_read(step, 0x6502, optional=True)
+        if modes is not None and not modes & 0x04:
+            raise self._fail(step, f'supported drive modes 0x{modes:08X} lack profile velocity (bit 2)')
+        step = 'check encoder resolution (0x608F)'
+        increments = self._sdo_read(step, 0x608F, 1, optional=True)
+        revolutions = self._sdo_read(step, 0x608F, 2, optional=True)
+        if increments and revolutions and increments / revolutions != cfg.counts_per_motor_rev:
+            raise self._fail(step, f'drive counts {increments}/{revolutions} increments per motor '
+                                   f'rev but counts_per_motor_rev={cfg.counts_per_motor_rev}')
+
+        self._configure_pdos()
+
+        step = 'heartbeat (0x1017 producer, 0x1016 consumer)'
+        hb_written = time.time()
+        self._sdo_write(step, 0x1017, None, round(cfg.drive_heartbeat_period * 1000))
+        self._sdo_write(step, 0x1016, 1, (cfg.master_node_id << 16)
+                        | round(cfg.master_heartbeat_timeout * 1000))
+        step = 'watchdog (0x6007 abort connection option = quick stop)'
+        self._sdo_write(step, 0x6007, None, ABORT_OPTION_QUICK_STOP)
+        step = 'target velocity 0 (0x60FF)'
+        self._sdo_write(step, 0x60FF, None, 0)
+
+        step = 'mode of operation (0x6060 = 3, confirmed by 0x6061)'
+        self._sdo_write(step, 0x6060, None, PROFILE_VELOCITY)
+        deadline = time.monotonic() + cfg.step_timeout
+        while (mode := self._sdo_read(step, 0x6061)) != PROFILE_VELOCITY:
+            if time.monotonic() > deadline:
+                raise self._fail(step, f'0x6061 reads {mode} after writing 3 (profile velocity) '
+                                       f'for {cfg.step_timeout:.2f} s')
+            time.sleep(0.005)
+
+        step = 'drive heartbeat'
+        wait = max(cfg.step_timeout, 2.5 * cfg.drive_heartbeat_period)
+        deadline = time.monotonic() + wait
+        while (self._node.nmt.timestamp or 0.0) < hb_written:
+            if time.monotonic() > deadline:
+                raise self._fail(step, f'no heartbeat within {wait:.2f} s after '
+                                       f'setting 0x1017 = {round(cfg.drive_heartbeat_period * 1000)} ms')
+            time.sleep(0.002)
+
+        step = 'NMT operational (first statusword TPDO)'
+        with self._lock:
+            self._sw_received = False
+        self._send('NMT operational', lambda: setattr(self._node.nmt, 'state', 'OPERATIONAL'))
+        self._connected = True
+        self._wait_state(step, lambda state: self._sw_received, 'no statusword TPDO')
+
+        state = self.status().state
+        if state in ('FAULT', 'FAULT REACTION ACTIVE'):
+            if not self._reset_requested:
+                raise self._fail('enable', f'drive is in FAULT (error code 0x{self._error_code:04X}); '
+                                           'call request_fault_reset() and connect again')
+            self._transmit(CW_DISABLE_VOLTAGE, 0)
+            self._wait_step('fault reset (0x80)', CW_FAULT_RESET, 'SWITCH ON DISABLED')
+        elif state not in ('SWITCH ON DISABLED', 'READY TO SWITCH ON'):
+            # left enabled (or quick-stopped) by an earlier session: start from the bottom
+            self._wait_step('disable voltage (0x00)', CW_DISABLE_VOLTAGE, 'SWITCH ON DISABLED')
+        self._wait_step('shutdown (0x06)', CW_SHUTDOWN, 'READY TO SWITCH ON')
+        self._wait_step('switch on (0x07)', CW_SWITCH_ON, 'SWITCHED ON')
+        self._wait_step('enable operation (0x0F)', CW_ENABLE_OPERATION, OPERATION_ENABLED)
+        with self._lock:
+            self._reset_requested = False
+            self._latched_reason = ''
+            self._emcy_code = 0
+            self._enabled = True
+        self.enable_duration = time.monotonic() - t_start
+        log.info('drive node %d enabled in %.1f ms', cfg.node_id, 1000 * self.enable_duration)
+
+    def _open(self) -> None:
+        if self._network is not None:
+            return
+        cfg = self.config
+        try:
+            if self._given_bus is not None:
+                self._bus = self._given_bus
+            else:
+                self._bus = can.Bus(interface=cfg.interface, channel=cfg.channel, bitrate=cfg.bitrate)
+        except Exception as exc:
+            raise self._fail('open bus', f'{cfg.interface}:{cfg.channel}: {type(exc).__name__}: {exc}') from None
+        eds = cfg.eds_path or str(default_eds_path())
+        if not Path(eds).is_file():
+            raise self._fail('load EDS', f'{eds} is not a file')
+        network = canopen.Network(self._bus)
+        network.NOTIFIER_CYCLE = 0.05                 # stop() waits at most this long
+        node = BaseNode402(cfg.node_id, eds)
+        node.sdo.RESPONSE_TIMEOUT = cfg.step_timeout
+        network.add_node(node)
+        node.emcy.add_callback(self._on_emcy)
+        network.connect()
+        self._network, self._node = network, node
+
+    def _configure_pdos(self) -> None:
+        """RPDO1 = controlword + target velocity; TPDO1 = statusword + error code,
+        TPDO2 = position + velocity actual; every other PDO disabled."""
+        cfg, node = self.config, self._node
+        step = 'configure PDOs (0x1400/0x1600, 0x1800/0x1A00)'
+        feedback_ms = max(1, round(cfg.feedback_period * 1000))
+        try:
+            rpdo = node.rpdo[1]
+            rpdo.clear()
+            rpdo.add_variable(0x6040)
+            rpdo.add_variable(0x60FF)
+            rpdo.cob_id = 0x200 + cfg.node_id
+            rpdo.trans_type = 255
+            rpdo.event_timer = round(cfg.command_timeout * 1000)    # deadline monitoring
+            rpdo.enabled = True
+            rpdo.save()
+            for number, entries in ((1, (0x6041, 0x603F)), (2, (0x6064, 0x606C))):
+                tpdo = node.tpdo[number]
+                tpdo.clear()
+                for index in entries:
+                    tpdo.add_variable(index)
+                tpdo.cob_id = 0x80 + 0x100 * number + cfg.node_id
+                tpdo.trans_type = 255
+                tpdo.inhibit_time = 0
+                tpdo.event_timer = feedback_ms
+                tpdo.enabled = True
+                tpdo.save()
+            for maps, first_free, base in ((node.rpdo.map, 2, 0x200), (node.tpdo.map, 3, 0x180)):
+                for number in range(first_free, len(maps) + 1):
+                    cob_id = base + 0x100 * (number - 1) + cfg.node_id if number <= 4 else 0
+                    maps[number].com_record[1].raw = PDO_NOT_VALID | cob_id
+                    maps[number].enabled = False
+        except SdoCommunicationError as exc:
+            raise self._fail(step, f'no SDO answer ({exc})') from None
+        except SdoAbortedError as exc:
+            raise self._fail(step, f'drive refused the mapping ({exc})') from None
+        except (can.CanError, OSError) as exc:
+            raise self._fail(step, f'CAN send failed: {exc}') from None
+        # our callbacks after BaseNode402's (which keeps node.tpdo_values for node.state)
+        node.setup_pdos(upload=False)
+        for number in (1, 2):
+            if self._on_status_tpdo not in node.tpdo[number].callbacks:
+                node.tpdo[number].add_callback(self._on_status_tpdo)
+        self._rpdo = rpdo
+
+    def _transmit(self, controlword: int, counts: int) -> None:
+        """One RPDO frame: controlword + target velocity (counts/s)."""
+        def send():
+            with self._tx_lock:
+                self._rpdo[0x6040].raw = controlword
+                self._rpdo[0x60FF].raw = counts
+                self._rpdo.transmit()
+                self._last_controlword = controlword
+        self._send(f'RPDO (controlword 0x{controlword:04X}, 0x60FF {counts})', send)
+
+    def _wait_state(self, step: str, done, what: str, resend=None) -> None:
+        deadline = time.monotonic() + self.config.step_timeout
+        next_send = 0.0
+        while True:
+            with self._feedback:
+                state = self._state_of(self._statusword)
+                if done(state):
+                    return
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    sw = self._statusword
+                    break
+                if resend is None:
+                    self._feedback.wait(min(remaining, 0.02))
+            if resend is not None:
+                now = time.monotonic()
+                if now >= next_send:            # repeat the command: keeps the RPDO deadline fed
+                    resend()
+                    next_send = now + 0.02
+                with self._feedback:
+                    self._feedback.wait(min(max(deadline - time.monotonic(), 0.0), 0.005))
+        seen = f'state stays {state} (statusword 0x{sw:04X})' if self._sw_received else what
+        raise self._fail(f'enable step {step!r}',
+                         f'timed out after {self.config.step_timeout:.2f} s: {seen}')
+
+    def _wait_step(self, step: str, controlword: int, target_state: str) -> None:
+        self._wait_state(step, lambda state: state == target_state, 'no statusword',
+                         resend=lambda: self._transmit(controlword, 0))
+
+    # ------------------------------------------------------------------ non-blocking
+    def send_velocity(self, speed: float) -> None:
+        """Send one RPDO: controlword + 0x60FF for `speed` (mechanism rad/s). NON-BLOCKING.
+
+        While the drive is faulted (statusword bit 3, EMCY, lost heartbeat, unexpected state)
+        the frame carries 0 and no state change; after request_fault_reset() the frames carry
+        the reset edge and the re-enable steps, one per call, then speeds again.
+        Raises DriveError for a non-finite speed, before connect, or on a CAN send error.
+        """
+        if not self._connected or self._rpdo is None:
+            raise DriveError(f'drive node {self.config.node_id}: not connected '
+                             '(call connect_and_enable first)')
+        if not math.isfinite(speed):
+            raise DriveError(f'speed {speed!r} rad/s is not finite (allowed: a finite number)')
+        counts = self._counts_per_s(speed)
+        now = time.monotonic()
+        with self._lock:
+            self._latch_heartbeat_loss()
+            state = self._state_of(self._statusword)
+            if self._reset_requested:
+                controlword = self._reset_step(state, now)
+                counts = 0
+            elif self._latched_reason or state != OPERATION_ENABLED:
+                # refuse: zero speed, and a controlword that causes no transition towards
+                # enabled (0x0F holds an enabled drive at zero speed; quick stop elsewhere)
+                controlword = CW_ENABLE_OPERATION if state == OPERATION_ENABLED else CW_QUICK_STOP
+                counts = 0
+            else:
+                controlword = CW_ENABLE_OPERATION
+            self._commanded = counts * self._rad_per_count
+        self._transmit(controlword, counts)
+
+    def _reset_step(self, state: str, now: float) -> int:
+        """Controlword for the next frame of an explicit fault reset (lock held)."""
+        if now > self._reset_deadline:
+            self._reset_requested = False
+            self._latched_reason = self._latched_reason or f'fault reset failed (state {state})'
+            log.warning('drive node %d: fault reset abandoned in state %s', self.config.node_id, state)
+            return CW_ENABLE_OPERATION if state == OPERATION_ENABLED else CW_QUICK_STOP
+        if state == 'FAULT':
+            if self._reset_edge_sent:
+                return CW_FAULT_RESET                   # hold: one edge per request, no loop
+            if self._last_controlword & CW_FAULT_RESET:
+                return CW_DISABLE_VOLTAGE               # need a 0 first for the rising edge
+            self._reset_edge_sent = True
+            return CW_FAULT_RESET
+        if state == OPERATION_ENABLED:
+            self._reset_requested = False
+            return CW_ENABLE_OPERATION
+        return _REENABLE_STEP.get(state, CW_DISABLE_VOLTAGE)
+
+    def _latch_heartbeat_loss(self) -> None:
+        if self._enabled and not self._latched_reason and not self._reset_requested:
+            if self._heartbeat_age() > self.config.drive_heartbeat_timeout:
+                self._latched_reason = 'drive heartbeat lost'
+                self._emcy_code = self._emcy_code or EMCY_HEARTBEAT
+
+    def send_heartbeat(self) -> None:
+        """Our heartbeat frame (NMT state operational), for the drive's consumer. NON-BLOCKING."""
+        if self._network is None:
+            raise DriveError(f'drive node {self.config.node_id}: not connected '
+                             '(call connect_and_enable first)')
+        cob_id = 0x700 + self.config.master_node_id
+        self._send('heartbeat', lambda: self._network.send_message(cob_id, b'\x05'))
+
+    def status(self) -> DriveStatus:
+        """Snapshot of the drive as the bus callbacks last saw it. NON-BLOCKING."""
+        age = self._heartbeat_age()
+        with self._lock:
+            self._latch_heartbeat_loss()
+            sw = self._statusword
+            state = self._state_of(sw) if self._sw_received else 'UNKNOWN'
+            fault_bit = bool(sw & 0x08) and self._sw_received
+            reason = self._latched_reason or ('statusword fault bit' if fault_bit else '')
+            error_code = self._error_code or self._emcy_code
+            return DriveStatus(
+                state=state, statusword=sw, fault=bool(reason), error_code=error_code,
+                position=self._position_counts * self._rad_per_count,
+                velocity=self._velocity_counts * self._rad_per_count,
+                heartbeat_age=age, stamp=self._motion_stamp,
+                fault_reason=reason,
+                heartbeat_lost=age > self.config.drive_heartbeat_timeout,
+                resetting=self._reset_requested,
+                enabled=(self._enabled and self._connected and not reason
+                         and not self._reset_requested and state == OPERATION_ENABLED),
+                commanded_velocity=self._commanded)
+
+    def request_fault_reset(self) -> None:
+        """Ask for one fault reset: the next send_velocity frames carry the reset edge (0x80)
+        and the steps back to OPERATION ENABLED. NON-BLOCKING; never done automatically."""
+        with self._lock:
+            self._reset_requested = True
+            self._reset_edge_sent = False
+            self._reset_deadline = time.monotonic() + self.config.reset_timeout
+            self._latched_reason = ''
+            self._emcy_code = 0
+
+    # ------------------------------------------------------------------ blocking: shutdown
+    def shutdown(self) -> None:
+        """0x60FF = 0 (wait for standstill), disable (0x06), NMT pre-operational, close.
+
+        BLOCKING (at most about 2 x step_timeout), idempotent, never raises: a failing step is
+        logged and the next one still runs."""
+        if self._network is None:
+            return
+        cfg = self.config
+        if self._connected and self._rpdo is not None:
+            try:
+                state = self.status().state
+                with self._lock:
+                    self._enabled = False
+                    self._commanded = 0.0
+                hold = CW_ENABLE_OPERATION if state == OPERATION_ENABLED else CW_QUICK_STOP
+                # 0x60FF = 0 and wait for standstill (frames and our heartbeat keep the
+                # drive's watchdog fed meanwhile), then disable and wait for the state
+                self._shutdown_wait(hold, lambda st: st.state != OPERATION_ENABLED
+                                    or abs(st.velocity) < 0.01, 'still turning')
+                self._shutdown_wait(CW_SHUTDOWN, lambda st: st.state in (
+                    'READY TO SWITCH ON', 'SWITCH ON DISABLED', 'FAULT'), 'not disabled')
+            except DriveError as exc:
+                log.warning('%s', exc)
+        try:
+            self._node.nmt.state = 'PRE-OPERATIONAL'
+            if self._heartbeat_age() < cfg.drive_heartbeat_timeout:
+                self._node.sdo[0x1016][1].raw = 0   # stop watching our heartbeat: we leave
+        except Exception as exc:                    # best effort: the bus may be gone
+            log.warning('drive node %d: shutdown: %s: %s', cfg.node_id, type(exc).__name__, exc)
+        self._connected = False
+        self._enabled = False
+        self._close()
+
+    def _shutdown_wait(self, controlword: int, done, complaint: str) -> None:
+        deadline = time.monotonic() + self.config.step_timeout
+        next_heartbeat = 0.0
+        while True:
+            self._transmit(controlword, 0)
+            now = time.monotonic()
+            if now >= next_heartbeat:
+                self.send_heartbeat()
+                next_heartbeat = now + self.config.heartbeat_period
+            status = self.status()
+            if done(status):
+                return
+            if now > deadline:
+                log.warning('drive node %d: shutdown: %s (%s, %.3f rad/s)', self.config.node_id,
+                            complaint, status.state, status.velocity)
+                return
+            with self._feedback:
+                self._feedback.wait(0.01)
+
+    def _close(self) -> None:
+        network, self._network = self._network, None
+        if network is not None:
+            if network.notifier is not None:
+                network.notifier.stop(1.0)
+            if self._node is not None and self._node.id in network:
+                del network[self._node.id]
+        if self._given_bus is None and self._bus is not None:
+            self._bus.shutdown()
+        self._bus = None
+        self._rpdo = None
+
+    def __enter__(self) -> 'Cia402Drive':
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.shutdown()

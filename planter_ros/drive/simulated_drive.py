@@ -1,0 +1,593 @@
+"""A simulated CiA 402 servo drive on a python-can bus (canopen LocalNode).
+
+The simulator is what tests and the demo drive instead of a real servo: the object dictionary
+comes from ``config/planter_drive.eds``, SDO is served by canopen's ``LocalNode``, and
+everything ``LocalNode`` does not do is done here, in one thread plus the bus callbacks:
+
+* the CiA 402 state machine (controlword -> state, statusword), profile velocity mode only;
+* received RPDOs are decoded with canopen's ``PdoMap`` (with the mapping the master wrote by
+  SDO) and copied into the object dictionary, because ``LocalNode`` does not do that;
+* TPDOs are filled from the live values and sent by this thread at their event timer (and at
+  once when the statusword changes), because ``LocalNode`` does not send them;
+* a motor model: first-order lag towards the target speed plus an acceleration limit,
+  an encoder that integrates the speed into increments (0x6064);
+* the heartbeat producer (0x1017), sent from this thread (no ``send_periodic``);
+* the drive's own command watchdog: RPDO deadline monitoring (event timer 0x1400:5) and the
+  heartbeat consumer (0x1016) trigger the abort connection option (0x6007), e.g. quick stop;
+* faults and EMCY on demand, and a switch to silence the heartbeat.
+
+Units inside: increments (counts) and counts/s, as on the bus; the introspection properties
+for tests are SI (motor shaft rad, rad/s).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import struct
+import threading
+import time
+from pathlib import Path
+
+import can
+import canopen
+from canopen.emcy import EMCY_STRUCT
+
+from planter_ros.drive.eds import default_eds_path
+
+log = logging.getLogger(__name__)
+
+# CiA 402 state names exactly as canopen's State402 spells them.
+NOT_READY = 'NOT READY TO SWITCH ON'
+SWITCH_ON_DISABLED = 'SWITCH ON DISABLED'
+READY_TO_SWITCH_ON = 'READY TO SWITCH ON'
+SWITCHED_ON = 'SWITCHED ON'
+OPERATION_ENABLED = 'OPERATION ENABLED'
+QUICK_STOP_ACTIVE = 'QUICK STOP ACTIVE'
+FAULT_REACTION_ACTIVE = 'FAULT REACTION ACTIVE'
+FAULT = 'FAULT'
+
+# Statusword bits 0-6 per state (bit 4 "voltage enabled" set whenever the power stage is on).
+_STATUS_BITS = {
+    NOT_READY: 0x00,
+    SWITCH_ON_DISABLED: 0x40,
+    READY_TO_SWITCH_ON: 0x31,
+    SWITCHED_ON: 0x33,
+    OPERATION_ENABLED: 0x37,
+    QUICK_STOP_ACTIVE: 0x17,
+    FAULT_REACTION_ACTIVE: 0x1F,
+    FAULT: 0x08,
+}
+SW_REMOTE = 1 << 9
+SW_TARGET_REACHED = 1 << 10
+SW_SPEED_ZERO = 1 << 12         # profile velocity mode: "speed = 0"
+
+PROFILE_VELOCITY = 3
+EMCY_RPDO_TIMEOUT = 0x8250      # CiA 301: RPDO timeout (deadline monitoring)
+EMCY_HEARTBEAT = 0x8130         # CiA 301: life guard or heartbeat error
+EMCY_ERROR_RESET = 0x0000
+
+_NMT_CODE = {'INITIALISING': 0x00, 'STOPPED': 0x04, 'OPERATIONAL': 0x05, 'PRE-OPERATIONAL': 0x7F}
+
+
+def _next_state(state: str, controlword: int, quick_stop_option: int) -> str:
+    """One CiA 402 device-control transition for a controlword (bit 7 handled by the caller)."""
+    if not controlword & 0x02:                                   # disable voltage
+        if state in (READY_TO_SWITCH_ON, SWITCHED_ON, OPERATION_ENABLED, QUICK_STOP_ACTIVE):
+            return SWITCH_ON_DISABLED
+        return state
+    if not controlword & 0x04:                                   # quick stop
+        return {READY_TO_SWITCH_ON: SWITCH_ON_DISABLED, SWITCHED_ON: SWITCH_ON_DISABLED,
+                OPERATION_ENABLED: QUICK_STOP_ACTIVE}.get(state, state)
+    if not controlword & 0x01:                                   # shutdown
+        if state in (SWITCH_ON_DISABLED, SWITCHED_ON, OPERATION_ENABLED):
+            return READY_TO_SWITCH_ON
+        return state
+    if controlword & 0x08:                                       # (switch on +) enable operation
+        if state == QUICK_STOP_ACTIVE:                           # transition 16: options 5..8 only
+            return OPERATION_ENABLED if 5 <= quick_stop_option <= 8 else state
+        return {READY_TO_SWITCH_ON: SWITCHED_ON, SWITCHED_ON: OPERATION_ENABLED}.get(state, state)
+    return {READY_TO_SWITCH_ON: SWITCHED_ON, OPERATION_ENABLED: SWITCHED_ON}.get(state, state)
+
+
+class SimulatedDrive:
+    """A CiA 402 profile-velocity drive on the bus, with a motor model and its own watchdog."""
+
+    def __init__(self, bus_or_channel: can.BusABC | str, node_id: int = 1,
+                 time_constant: float = 0.05, max_acceleration: float = 2000.0,
+                 counts_per_motor_rev: int = 4096, *, interface: str = 'virtual',
+                 eds_path: str | Path | None = None, tick: float = 0.002,
+                 supported_modes: tuple[int, ...] = (PROFILE_VELOCITY,),
+                 coast_time_constant: float = 0.5):
+        """Build the drive (no thread yet, call start()).
+
+        bus_or_channel: a python-can bus this drive uses (left open on stop()), or a channel
+        name for a bus of `interface` that the drive opens and closes itself.
+        time_constant: s, first-order lag of the speed loop. max_acceleration: motor rad/s^2.
+        counts_per_motor_rev: encoder increments per motor revolution (0x608F).
+        supported_modes: modes the drive accepts in 0x6060 (0x6061 keeps its old value
+        otherwise, as many drives do). coast_time_constant: s, speed decay with power off.
+        """
+        if time_constant <= 0 or max_acceleration <= 0 or counts_per_motor_rev <= 0 or tick <= 0:
+            raise ValueError('time_constant, max_acceleration, counts_per_motor_rev and tick '
+                             'must be > 0')
+        if isinstance(bus_or_channel, str):
+            self._bus = can.Bus(interface=interface, channel=bus_or_channel)
+            self._owns_bus = True
+        else:
+            self._bus = bus_or_channel
+            self._owns_bus = False
+        self.node_id = node_id
+        self.time_constant = float(time_constant)
+        self.max_acceleration = float(max_acceleration)
+        self.counts_per_motor_rev = int(counts_per_motor_rev)
+        self.coast_time_constant = float(coast_time_constant)
+        self.supported_modes = tuple(supported_modes)
+        self.tick = float(tick)
+
+        self._lock = threading.RLock()
+        self._stop_event = threading.Event()
+        self._thread: threading.Thread | None = None
+
+        self.network = canopen.Network(self._bus)
+        self.network.NOTIFIER_CYCLE = 0.05        # short, so stop() does not wait a second
+        self.node = canopen.LocalNode(node_id, str(eds_path or default_eds_path()))
+        # The heartbeat is sent by our thread, never by a send_periodic task: drop the NMT
+        # slave's 0x1017 write hook that would start one.
+        self.node._write_callbacks.remove(self.node.nmt.on_write)
+        self.node.add_write_callback(self._on_write)
+        self.node.add_read_callback(self._on_read)
+        self.network.add_node(self.node)
+        self.network.subscribe(0, self._on_nmt)   # after LocalNode's own NMT handler
+        for pdo_map in self.node.rpdo.map.values():
+            pdo_map.add_callback(self._on_rpdo)
+        self._tx_lock = threading.Lock()          # one TPDO buffer, two sending threads
+
+        self._reset_application()
+        self._hb_enabled = True
+        self._nmt_operational = False
+        self._last_hb_sent = -math.inf
+        self._tpdo_last_sent: dict[int, float] = {}
+        self._consumed_heartbeat: float | None = None    # monotonic time of the master's last one
+        self._sent_statusword: int | None = None
+        #: Communication watchdog trips, newest last: (reason, emcy code).
+        self.watchdog_trips: list[tuple[str, int]] = []
+        #: Frames counted for tests and the demo summary.
+        self.rpdo_count = 0
+        self.tpdo_count = 0
+
+    # ---------------------------------------------------------------- life cycle
+    def _reset_application(self) -> None:
+        with self._lock:
+            self.node.data_store.clear()
+            self.node.data_store.setdefault(0x608F, {})[1] = struct.pack(
+                '<I', self.counts_per_motor_rev)
+            self._state = NOT_READY
+            self._controlword = 0
+            self._mode = 0
+            self._target = 0                  # counts/s, 0x60FF
+            self._velocity = 0.0              # counts/s
+            self._position = 0.0              # counts
+            self._fault_code = 0
+            self._fault_persistent = False
+            self._error_code = 0              # 0x603F
+            self._quick_stopped = False
+            self._hold_state: str | None = None
+            self._target_at_enable: int | None = None
+            self._last_rpdo: float | None = None
+            self._rpdo_deadline = 0.0         # s, 0 = off
+            self._consumer_node = 0
+            self._consumer_timeout = 0.0      # s, 0 = off
+            self._heartbeat_period = self._od_default(0x1017) / 1000.0
+            self._abort_option = self._od_default(0x6007)
+            self._quick_stop_option = self._od_default(0x605A)
+
+    def _od_default(self, index: int, subindex: int = 0) -> int:
+        obj = self.node.object_dictionary[index]
+        if subindex:
+            obj = obj[subindex]
+        return int(obj.default or 0)
+
+    def start(self) -> None:
+        """Boot (boot-up message, pre-operational, SWITCH ON DISABLED) and start the thread."""
+        if self._thread is not None:
+            return
+        self.network.connect()
+        self._boot()
+        self._thread = threading.Thread(target=self._run, name=f'sim-drive-{self.node_id}',
+                                        daemon=True)
+        self._thread.start()
+
+    def _boot(self) -> None:
+        self.node.nmt.state = 'INITIALISING'          # sends the boot-up frame
+        self.node.nmt.state = 'PRE-OPERATIONAL'
+        self.node.nmt.stop_heartbeat()                # our thread produces the heartbeat
+        with self._lock:
+            self._nmt_operational = False
+            self._state = SWITCH_ON_DISABLED          # transition 1 after self-test
+
+    def stop(self) -> None:
+        """Stop the thread and the bus listener; close the bus if this drive opened it."""
+        self._stop_event.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        if self.network.notifier is not None:
+            self.network.notifier.stop(1.0)
+            self.network.notifier = None
+        if self._owns_bus:
+            self._bus.shutdown()
+
+    # ---------------------------------------------------------------- test / demo knobs
+    def inject_fault(self, error_code: int = 0x7500, persistent: bool = False) -> None:
+        """Fault now: fault reaction (quick-stop ramp) -> FAULT, 0x603F and an EMCY.
+
+        A persistent fault survives fault-reset requests (the cause is still there)."""
+        with self._lock:
+            self._fault_code = int(error_code)
+            self._fault_persistent = persistent
+            self._error_code = int(error_code)
+            powered = self._state in (OPERATION_ENABLED, QUICK_STOP_ACTIVE)
+            self._state = FAULT_REACTION_ACTIVE if powered else FAULT
+        self._send_emcy(error_code, register=0x01)
+        self._send_state_tpdos()
+
+    def clear_persistent_fault(self) -> None:
+        """The fault cause went away: the next fault-reset edge clears it."""
+        with self._lock:
+            self._fault_persistent = False
+
+    def send_emcy(self, error_code: int) -> None:
+        """An EMCY without a state change (a warning-class event such as over-temperature)."""
+        self._send_emcy(error_code, register=0x01)
+
+    def set_heartbeat_enabled(self, on: bool) -> None:
+        """Switch the heartbeat producer off/on (simulates a drive whose heartbeat is lost)."""
+        with self._lock:
+            self._hb_enabled = bool(on)
+
+    def hold_state(self, state: str | None) -> None:
+        """Refuse every transition out of `state` (e.g. STO active keeps SWITCHED ON)."""
+        with self._lock:
+            self._hold_state = state
+
+    # ---------------------------------------------------------------- introspection (SI)
+    @property
+    def state(self) -> str:
+        return self._state
+
+    @property
+    def statusword(self) -> int:
+        with self._lock:
+            return self._statusword()
+
+    @property
+    def controlword(self) -> int:
+        return self._controlword
+
+    @property
+    def nmt_state(self) -> str:
+        return self.node.nmt.state
+
+    @property
+    def mode_display(self) -> int:
+        return self._mode
+
+    @property
+    def motor_velocity(self) -> float:
+        """Motor shaft speed, rad/s."""
+        return self._velocity * 2.0 * math.pi / self.counts_per_motor_rev
+
+    @property
+    def motor_position(self) -> float:
+        """Motor shaft angle, rad."""
+        return self._position * 2.0 * math.pi / self.counts_per_motor_rev
+
+    @property
+    def target_velocity(self) -> float:
+        """Target velocity 0x60FF as last received, motor rad/s."""
+        return self._target * 2.0 * math.pi / self.counts_per_motor_rev
+
+    @property
+    def target_counts(self) -> int:
+        """Target velocity 0x60FF as last received, counts/s."""
+        return self._target
+
+    @property
+    def target_at_enable(self) -> int | None:
+        """0x60FF (counts/s) at the moment the drive last entered OPERATION ENABLED."""
+        return self._target_at_enable
+
+    @property
+    def quick_stopped(self) -> bool:
+        """A quick stop happened since the drive was last in OPERATION ENABLED."""
+        return self._quick_stopped
+
+    @property
+    def error_code(self) -> int:
+        return self._error_code
+
+    @property
+    def heartbeat_period(self) -> float:
+        return self._heartbeat_period
+
+    # ---------------------------------------------------------------- object dictionary hooks
+    def _statusword(self) -> int:
+        sw = _STATUS_BITS[self._state] | SW_REMOTE
+        if self._state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
+            if abs(self._velocity - self._target) <= max(1.0, 0.01 * abs(self._target)):
+                sw |= SW_TARGET_REACHED
+            if abs(self._velocity) < 1.0:
+                sw |= SW_SPEED_ZERO
+        return sw
+
+    def _on_read(self, index: int, subindex: int, od):
+        """Live values for SDO uploads and TPDO filling."""
+        with self._lock:
+            if index == 0x6041:
+                return self._statusword()
+            if index == 0x6040:
+                return self._controlword
+            if index == 0x6061:
+                return self._mode
+            if index == 0x6064:
+                return _wrap_i32(round(self._position))
+            if index == 0x606C:
+                return _clip_i32(round(self._velocity))
+            if index == 0x60FF:
+                return self._target
+            if index == 0x603F:
+                return self._error_code
+            if index == 0x1001:
+                return 0x01 if self._state in (FAULT, FAULT_REACTION_ACTIVE) else 0x00
+        return None
+
+    def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
+        """SDO downloads and decoded RPDO entries land here before they are stored."""
+        value = od.decode_raw(data)
+        if index == 0x6040:
+            self._apply_controlword(value)
+        elif index == 0x60FF:
+            with self._lock:
+                self._target = value
+        elif index == 0x6060:
+            with self._lock:
+                if value in self.supported_modes:
+                    self._mode = value
+        elif index == 0x1017:
+            with self._lock:
+                self._heartbeat_period = value / 1000.0
+        elif index == 0x1016 and subindex == 1:
+            with self._lock:
+                self._consumer_node = (value >> 16) & 0x7F
+                self._consumer_timeout = (value & 0xFFFF) / 1000.0
+                self._consumed_heartbeat = None
+            if self._consumer_node:
+                self.network.subscribe(0x700 + self._consumer_node, self._on_consumed_heartbeat)
+        elif index == 0x6007:
+            with self._lock:
+                self._abort_option = value
+        elif index == 0x605A:
+            with self._lock:
+                self._quick_stop_option = value
+
+    def _on_consumed_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
+        if (can_id & 0x7F) == self._consumer_node:
+            self._consumed_heartbeat = time.monotonic()
+
+    # ---------------------------------------------------------------- NMT and PDO
+    def _on_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:
+        """React to an NMT command LocalNode has already applied to node.nmt."""
+        state = self.node.nmt.state
+        if state == 'INITIALISING':                  # reset node / reset communication
+            if data[0] == 0x81:
+                self._reset_application()
+            self._boot()
+            return
+        operational = state == 'OPERATIONAL'
+        if operational and not self._nmt_operational:
+            self._load_pdo_configuration()
+            self._tpdo_last_sent.clear()           # send every TPDO at the next tick
+            self._sent_statusword = None
+            self._nmt_operational = True
+            self._send_state_tpdos()
+        elif not operational:
+            self._nmt_operational = False
+
+    def _load_pdo_configuration(self) -> None:
+        """Read the PDO mapping the master wrote (from our own object dictionary)."""
+        self.node.rpdo.read()
+        self.node.tpdo.read()
+        deadline = 0.0
+        for pdo_map in self.node.rpdo.map.values():
+            if pdo_map.enabled and pdo_map.event_timer:
+                deadline = pdo_map.event_timer / 1000.0
+        with self._lock:
+            self._rpdo_deadline = deadline
+            self._last_rpdo = None                 # monitoring starts at the next RPDO
+
+    def _on_rpdo(self, pdo_map) -> None:
+        """Decode a received RPDO and copy it into the object dictionary (controlword last)."""
+        if not self._nmt_operational:
+            return
+        self.rpdo_count += 1
+        with self._lock:
+            self._last_rpdo = time.monotonic()
+        entries = sorted(pdo_map, key=lambda var: var.index == 0x6040)
+        try:
+            for var in entries:
+                self.node.set_data(var.index, var.subindex, var.get_data())
+        except canopen.SdoAbortedError as exc:
+            log.warning('simulated drive: RPDO entry refused: %s', exc)
+
+    def _send_tpdo(self, pdo_map) -> None:
+        with self._tx_lock:
+            for var in pdo_map:
+                var.set_data(self.node.get_data(var.index, var.subindex))
+            pdo_map.transmit()
+            self.tpdo_count += 1
+
+    def _send_state_tpdos(self) -> None:
+        """Change-of-state event: send the TPDOs carrying the statusword now."""
+        if not self._nmt_operational:
+            return
+        with self._lock:
+            sw = self._statusword()
+            if sw == self._sent_statusword:
+                return
+            self._sent_statusword = sw
+        try:
+            for number, pdo_map in self.node.tpdo.map.items():
+                if pdo_map.enabled and any(var.index == 0x6041 for var in pdo_map):
+                    self._send_tpdo(pdo_map)
+                    self._tpdo_last_sent[number] = time.monotonic()
+        except (can.CanError, RuntimeError, OSError) as exc:
+            log.debug('simulated drive: TPDO send failed: %s', exc)
+
+    # ---------------------------------------------------------------- state machine
+    def _apply_controlword(self, controlword: int) -> None:
+        with self._lock:
+            rising_reset = bool(controlword & 0x80) and not self._controlword & 0x80
+            self._controlword = controlword
+            state = self._state
+            reset_done = False
+            if state == FAULT:
+                if rising_reset and not self._fault_persistent:
+                    self._fault_code = 0
+                    self._error_code = 0
+                    self._state = SWITCH_ON_DISABLED
+                    reset_done = True
+            elif state not in (NOT_READY, FAULT_REACTION_ACTIVE):
+                for _ in range(3):
+                    new = _next_state(state, controlword, self._quick_stop_option)
+                    if new == state or state == self._hold_state:
+                        break
+                    state = new
+                    if state == OPERATION_ENABLED:
+                        self._target_at_enable = self._target
+                        self._quick_stopped = False
+                    elif state == QUICK_STOP_ACTIVE:
+                        self._quick_stopped = True
+                self._state = state
+        if reset_done:
+            self._send_emcy(EMCY_ERROR_RESET, register=0)
+        self._send_state_tpdos()
+
+    def _comm_error(self, reason: str, code: int) -> None:
+        """Abort connection option code 0x6007: 0 none, 1 fault, 2 disable voltage, 3 quick stop."""
+        with self._lock:
+            self.watchdog_trips.append((reason, code))
+            self._error_code = code
+            option = self._abort_option
+            if option == 1:
+                self._fault_code = code
+                self._state = FAULT_REACTION_ACTIVE
+            elif option == 2:
+                self._state = SWITCH_ON_DISABLED
+            elif option == 3:
+                self._state = QUICK_STOP_ACTIVE
+                self._quick_stopped = True
+        log.info('simulated drive: %s -> abort connection option %d', reason, option)
+        self._send_emcy(code, register=0x10)
+        self._send_state_tpdos()
+
+    def _send_emcy(self, code: int, register: int) -> None:
+        try:
+            self.network.send_message(0x80 + self.node_id,
+                                      EMCY_STRUCT.pack(code, register, b''))
+        except (can.CanError, RuntimeError, OSError) as exc:
+            log.debug('simulated drive: EMCY send failed: %s', exc)
+
+    # ---------------------------------------------------------------- the thread
+    def _run(self) -> None:
+        last = time.monotonic()
+        next_tick = last
+        while not self._stop_event.is_set():
+            next_tick += self.tick
+            delay = next_tick - time.monotonic()
+            if delay > 0:
+                self._stop_event.wait(delay)
+            else:
+                next_tick = time.monotonic()      # fell behind (loaded machine): no burst
+            now = time.monotonic()
+            dt, last = now - last, now
+            try:
+                self._step_motor(dt)
+                self._check_watchdogs(now)
+                self._send_state_tpdos()
+                self._send_cyclic(now)
+            except (can.CanError, RuntimeError, OSError) as exc:
+                if self._stop_event.is_set():
+                    break
+                log.warning('simulated drive: bus error: %s', exc)
+
+    def _step_motor(self, dt: float) -> None:
+        to_counts = self.counts_per_motor_rev / (2.0 * math.pi)
+        with self._lock:
+            state = self._state
+            v = self._velocity
+            limit = self.max_acceleration * to_counts
+            if state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
+                accel = self._od_value(0x6083 if abs(self._target) >= abs(v) else 0x6084)
+                limit = min(limit, accel)
+                wanted = v + (self._target - v) * (1.0 - math.exp(-dt / self.time_constant))
+            elif state in (QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE):
+                limit = min(limit, self._od_value(0x6085))
+                wanted = 0.0
+            else:                                   # power stage off: the load coasts down
+                wanted = v * math.exp(-dt / self.coast_time_constant)
+            dv = max(-limit * dt, min(limit * dt, wanted - v))
+            self._velocity = v + dv
+            self._position += 0.5 * (v + self._velocity) * dt
+            stopped = abs(self._velocity) < 0.5
+            if stopped and state == FAULT_REACTION_ACTIVE:
+                self._state = FAULT
+            elif stopped and state == QUICK_STOP_ACTIVE and self._quick_stop_option in (1, 2, 3, 4):
+                self._state = SWITCH_ON_DISABLED
+
+    def _od_value(self, index: int) -> float:
+        raw = self.node.data_store.get(index, {}).get(0)
+        if raw is None:
+            return float(self._od_default(index))
+        return float(self.node.object_dictionary[index].decode_raw(raw))
+
+    def _check_watchdogs(self, now: float) -> None:
+        with self._lock:
+            if self._state != OPERATION_ENABLED:
+                return
+            rpdo_late = (self._rpdo_deadline > 0 and self._last_rpdo is not None
+                         and now - self._last_rpdo > self._rpdo_deadline)
+            hb = self._consumed_heartbeat
+            hb_late = self._consumer_timeout > 0 and hb is not None and now - hb > self._consumer_timeout
+            if rpdo_late:
+                self._last_rpdo = None              # re-armed by the next RPDO
+            if hb_late:
+                self._consumed_heartbeat = None     # re-armed by the next heartbeat
+        if rpdo_late:
+            self._comm_error('RPDO deadline (0x1400:5) expired', EMCY_RPDO_TIMEOUT)
+        elif hb_late:
+            self._comm_error('master heartbeat (0x1016) lost', EMCY_HEARTBEAT)
+
+    def _send_cyclic(self, now: float) -> None:
+        with self._lock:
+            hb_due = (self._hb_enabled and self._heartbeat_period > 0
+                      and now - self._last_hb_sent >= self._heartbeat_period)
+        if hb_due:
+            self._last_hb_sent = now
+            self.network.send_message(0x700 + self.node_id,
+                                      bytes([_NMT_CODE.get(self.node.nmt.state, 0x7F)]))
+        if not self._nmt_operational:
+            return
+        for number, pdo_map in self.node.tpdo.map.items():
+            if not pdo_map.enabled or not pdo_map.event_timer:
+                continue
+            if now - self._tpdo_last_sent.get(number, -math.inf) >= pdo_map.event_timer / 1000.0:
+                self._tpdo_last_sent[number] = now
+                self._send_tpdo(pdo_map)
+
+
+def _wrap_i32(value: int) -> int:
+    return (value + 2**31) % 2**32 - 2**31
+
+
+def _clip_i32(value: int) -> int:
+    return max(-2**31, min(2**31 - 1, value))
