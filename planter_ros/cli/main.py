@@ -13,6 +13,7 @@ import sys
 COMMANDS = {
     ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
                              'reverse-design a geared five-bar from depth and spacing'),
+    ('demo',): ('planter_ros.cli.demo', 'run the whole machine on a simulated CAN bus'),
 }
 
 EXIT_BAD_INPUT = 2
