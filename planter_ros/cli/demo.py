@@ -62,7 +62,7 @@ class Demo:
 
         import rclpy
         from rclpy.context import Context
-        from rclpy.executors import MultiThreadedExecutor
+        from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
 
         from planter_ros import interfaces
@@ -87,9 +87,9 @@ class Demo:
         sim.start()
         context = Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-        executor = MultiThreadedExecutor(num_threads=3, context=context)
+        executor = SingleThreadedExecutor(context=context)
         nodes = []
-        sync = None
+        sync = spinner = None
         interrupted = False
         try:
             ns = interfaces.NAMESPACE
@@ -131,12 +131,14 @@ class Demo:
             print('\ninterrupted: stopping', flush=True)
         finally:
             executor.shutdown(timeout_sec=2.0)
+            if spinner is not None:
+                spinner.join(timeout=2.0)
             for node in reversed(nodes):
                 node.destroy_node()          # the sync node shuts the drive down first
             context.try_shutdown()
             sim.stop()
         if sync is not None and 'observer' in locals() and observer.start is not None:
-            print(self.summary(profile, sync, observer))
+            print(self.summary(profile, sync, observer, sim))
         return 130 if interrupted else 0
 
     def _progress(self, t, profile, sync, observer):
@@ -146,7 +148,7 @@ class Demo:
                 f'rad/s  measured = {status.velocity if status else 0.0:6.3f} rad/s  '
                 f'plants = {n:3d}  drive: {status.state if status else "-"}')
 
-    def summary(self, profile, sync, observer):
+    def summary(self, profile, sync, observer, sim):
         import numpy as np
 
         from planter_ros.control.simulation import spacing_stats
@@ -175,6 +177,8 @@ class Demo:
         lines.append(f'  phase slips              {law.phase_slips}; CAN send errors '
                      f'{sync.send_errors}; mode '
                      f"{'phase-locked' if law.config.phase_lock else 'speed-only'}")
+        trips = ', '.join(f'{why} (0x{code:04X})' for why, code in sim.watchdog_trips)
+        lines.append(f"  drive watchdog trips     {trips or 'none'}")
         return '\n'.join(lines)
 
 

@@ -58,7 +58,11 @@ DRIVE_PARAMETERS = {
     'heartbeat_period': (0.1, 'our CANopen heartbeat period (s), sent from the control loop',
                          _f(0.01, 1.0)),
     'drive_heartbeat_timeout': (0.35, "drive heartbeat older than this (s) = drive lost: "
-                                'command 0 and report ERROR', _f(0.05, 5.0)),
+                                'command 0, report ERROR, wait for reset_fault',
+                                _f(0.05, 5.0)),
+    'master_heartbeat_timeout': (0.3, "the drive's timeout for our heartbeat (s, 0x1016): "
+                                 'it stops the motor if this process dies or hangs',
+                                 _f(0.02, 5.0)),
     'command_timeout': (0.2, "drive-side command watchdog (s): the drive quick-stops if our "
                         'frames stop (process dead or hung)', _f(0.02, 5.0)),
     'step_timeout': (0.5, 'timeout of each enable/disable state-machine step (s)',
@@ -104,6 +108,7 @@ class SyncNode(Node):
             node_id=p['drive_node_id'], motor_gear_ratio=p['motor_gear_ratio'],
             counts_per_motor_rev=p['counts_per_motor_rev'],
             heartbeat_period=p['heartbeat_period'],
+            master_heartbeat_timeout=p['master_heartbeat_timeout'],
             drive_heartbeat_timeout=p['drive_heartbeat_timeout'],
             command_timeout=p['command_timeout'], step_timeout=p['step_timeout'])
         self.hardware_id = (f"{p['can_interface']}:{p['can_channel']} "
@@ -173,12 +178,6 @@ class SyncNode(Node):
     def _on_control(self):
         now = time.monotonic()
         with self._lock:
-            if self._enabled and now - self._last_heartbeat >= self.drive_config.heartbeat_period:
-                self._last_heartbeat = now
-                try:
-                    self.drive.send_heartbeat()
-                except DriveError as exc:
-                    self._send_failed(now, exc)
             self._step(now)
             status, joint = self._status, self._joint
         if status is not None and joint is not None and _has_feedback(status):
@@ -241,6 +240,12 @@ class SyncNode(Node):
         """One command: feedback in, law (or 0 when halted), one RPDO out. Caller holds lock."""
         if not self._enabled:
             return
+        if now - self._last_heartbeat >= self.drive_config.heartbeat_period:
+            self._last_heartbeat = now          # due: from whichever path runs first
+            try:
+                self.drive.send_heartbeat()
+            except DriveError as exc:
+                self._send_failed(now, exc)
         status = self.drive.status()
         self._status = status
         if _has_feedback(status):
