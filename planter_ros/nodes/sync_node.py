@@ -157,10 +157,11 @@ class SyncNode(Node):
             if self._shut_down:
                 return
             self._shut_down = True
-            self._enabled = False
+            was_enabled, self._enabled = self._enabled, False
         try:
             self.drive.shutdown()
-            self.get_logger().info('drive shut down (target 0, disabled, pre-operational)')
+            if was_enabled:
+                self.get_logger().info('drive shut down (target 0, disabled, pre-operational)')
         except DriveError as exc:
             self.get_logger().error(f'drive shutdown: {exc}')
 
