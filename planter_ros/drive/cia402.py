@@ -181,6 +181,12 @@ class Cia402Drive:
         #: measured at the last connect_and_enable (s)
         self.enable_duration = math.nan
 
+    @property
+    def node(self) -> BaseNode402 | None:
+        """The canopen node (diagnostics and benchmarks; its SDO calls block: never from a
+        callback or the control loop)."""
+        return self._node
+
     # ------------------------------------------------------------------ helpers
     def _counts_per_s(self, speed: float) -> int:
         counts = round(speed / self._rad_per_count)
@@ -200,8 +206,8 @@ class Cia402Drive:
             raise self._fail(step, f'no SDO answer writing 0x{index:04X} ({exc})') from None
         except (SdoAbortedError, KeyError) as exc:
             raise self._fail(step, f'drive refused 0x{index:04X}={value} ({exc})') from None
-        except (can.CanError, OSError) as exc:
-            raise self._fail(step, f'CAN send failed: {exc}') from None
+        except Exception as exc:             # python-can: CanError, OSError, ValueError...
+            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
 
     def _sdo_read(self, step: str, index: int, subindex: int | None = None, optional=False):
         try:
@@ -215,8 +221,8 @@ class Cia402Drive:
             if optional:
                 return None
             raise self._fail(step, f'drive refused reading 0x{index:04X} ({exc})') from None
-        except (can.CanError, OSError) as exc:
-            raise self._fail(step, f'CAN send failed: {exc}') from None
+        except Exception as exc:             # python-can: CanError, OSError, ValueError...
+            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
 
     def _send(self, what: str, send) -> None:
         """Run one frame-sending call; any CAN/bus failure becomes a one-line DriveError."""
@@ -429,12 +435,13 @@ class Cia402Drive:
             raise self._fail(step, f'no SDO answer ({exc})') from None
         except SdoAbortedError as exc:
             raise self._fail(step, f'drive refused the mapping ({exc})') from None
-        except (can.CanError, OSError) as exc:
-            raise self._fail(step, f'CAN send failed: {exc}') from None
-        # our callbacks after BaseNode402's (which keeps node.tpdo_values for node.state)
-        node.setup_pdos(upload=False)
-        for number in (1, 2):
-            if self._on_status_tpdo not in node.tpdo[number].callbacks:
+        except Exception as exc:             # python-can: CanError, OSError, ValueError...
+            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
+        # our callback after BaseNode402's (which keeps node.tpdo_values); once per node,
+        # a second enable attempt in the same session must not add them again
+        if self._on_status_tpdo not in node.tpdo[1].callbacks:
+            node.setup_pdos(upload=False)
+            for number in (1, 2):
                 node.tpdo[number].add_callback(self._on_status_tpdo)
         self._rpdo = rpdo
 
@@ -619,6 +626,10 @@ class Cia402Drive:
                 next_heartbeat = now + self.config.heartbeat_period
             status = self.status()
             if done(status):
+                return
+            if status.heartbeat_lost:
+                log.warning('drive node %d: shutdown: drive heartbeat lost, not waiting for it',
+                            self.config.node_id)
                 return
             if now > deadline:
                 log.warning('drive node %d: shutdown: %s (%s, %.3f rad/s)', self.config.node_id,

@@ -1,0 +1,106 @@
+"""Shared fixtures and helpers for the CAN drive tests (python-can `virtual` bus).
+
+Every test gets its own virtual channel (uuid) and every bus is closed in a fixture teardown:
+virtual channels are process-wide and an unclosed bus queues frames forever.
+"""
+from __future__ import annotations
+
+import struct
+import time
+import uuid
+
+import can
+import pytest
+
+from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
+from planter_ros.drive.simulated_drive import SimulatedDrive
+
+NODE_ID = 1
+RPDO1 = 0x200 + NODE_ID
+SDO_RX = 0x600 + NODE_ID
+
+
+@pytest.fixture
+def channel():
+    return f'planter-test-{uuid.uuid4().hex}'
+
+
+@pytest.fixture
+def spy(channel):
+    """A separate listener on the same virtual channel: sees every frame anyone sends."""
+    bus = can.Bus(interface='virtual', channel=channel)
+    yield bus
+    bus.shutdown()
+
+
+@pytest.fixture
+def sim(channel):
+    drive = SimulatedDrive(channel, node_id=NODE_ID)
+    drive.start()
+    yield drive
+    drive.stop()
+
+
+@pytest.fixture
+def make_drive(channel):
+    """Factory for masters on the test channel; every one is shut down at teardown."""
+    made = []
+
+    def make(bus=None, **overrides) -> Cia402Drive:
+        overrides.setdefault('channel', channel)
+        overrides.setdefault('node_id', NODE_ID)
+        overrides.setdefault('step_timeout', 0.3)
+        drive = Cia402Drive(DriveConfig(**overrides), bus=bus)
+        made.append(drive)
+        return drive
+
+    yield make
+    for drive in reversed(made):
+        drive.shutdown()
+
+
+@pytest.fixture
+def enabled(sim, make_drive):
+    """(master, simulated drive), enabled, gear ratio 12.5."""
+    drive = make_drive(motor_gear_ratio=12.5)
+    drive.connect_and_enable()
+    return drive, sim
+
+
+def drain(bus: can.BusABC) -> list[can.Message]:
+    frames = []
+    while (msg := bus.recv(timeout=0)) is not None:
+        frames.append(msg)
+    return frames
+
+
+def rpdo_frames(frames):
+    """(controlword, target velocity counts/s) of every RPDO1 frame, in order."""
+    return [struct.unpack_from('<Hi', bytes(m.data)) for m in frames if m.arbitration_id == RPDO1]
+
+
+def control_loop(drive: Cia402Drive, speed: float, until=None, timeout: float = 3.0,
+                 period: float = 0.01) -> bool:
+    """Run a control loop like sync_node's (command every period, heartbeat every 0.1 s)
+    until `until()` is true (returns True) or `timeout` s passed (returns False)."""
+    deadline = time.monotonic() + timeout
+    next_heartbeat = 0.0
+    while time.monotonic() < deadline:
+        drive.send_velocity(speed)
+        now = time.monotonic()
+        if now >= next_heartbeat:
+            drive.send_heartbeat()
+            next_heartbeat = now + drive.config.heartbeat_period
+        if until is not None and until():
+            return True
+        time.sleep(period)
+    return until is None
+
+
+def wait_until(condition, timeout: float = 3.0, period: float = 0.005) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(period)
+    return condition()
