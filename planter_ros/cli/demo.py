@@ -168,9 +168,10 @@ class Demo:
             cmd = observer.window('command', a, b)
             meas = observer.window('velocity', a, b)
             if cmd.size and meas.size:
-                lines.append(f'  {label} speed            expected {expected:.3f} rad/s, '
+                rms = np.sqrt(np.mean((meas - expected) ** 2))
+                lines.append(f"  {label + ' speed':<24} expected {expected:.3f} rad/s, "
                              f'commanded {np.mean(cmd):.3f}, measured {np.mean(meas):.3f} '
-                             f'(rms meas - expected {np.sqrt(np.mean((meas - expected) ** 2)):.3f})')
+                             f'(rms measured - expected {rms:.3f})')
         law = sync.law
         lines.append(f"  ground-speed samples     {law.accepted} accepted, rejected "
                      + ', '.join(f'{k} {v}' for k, v in law.rejected.items()))

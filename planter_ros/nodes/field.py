@@ -1,8 +1,9 @@
 """The simulated field of the demo: a ground-speed sensor and an observer of the mechanism.
 
-GroundSpeedSource publishes TwistStamped along a field profile. The profile is a function t -> true speed (m/s); the sensor adds Gaussian noise and, at given
-times, the glitches real wheel/radar sensors produce (a spike, a NaN), which the sync node must
-reject. It also keeps the true travelled distance, the reference for the demo's spacing figures.
+GroundSpeedSource publishes TwistStamped along a field profile (t -> true speed, m/s) with
+Gaussian noise and, at given times, the glitches real wheel/radar sensors produce (a spike, a
+NaN) that the sync node must reject. The profile's exact travelled distance is the reference
+for the demo's spacing figures; Observer collects the measured mechanism angle to compare.
 """
 
 
