@@ -18,6 +18,7 @@ COMMANDS = {
                               'score a three-arm non-circular gear design against eight goals'),
     ('optimize', 'three-arm'): ('planter_ros.cli.optimize_three_arm',
                                 'search a three-arm design meeting all eight goals'),
+    ('demo',): ('planter_ros.cli.demo', 'run the whole machine on a simulated CAN bus'),
 }
 
 EXIT_BAD_INPUT = 2

@@ -1,0 +1,39 @@
+"""Launch the planting unit on a ROS machine: design, sync (CAN drive) and monitor nodes.
+
+    ros2 launch planter_ros planter.launch.py scene:=/path/to/scene.yaml can_channel:=can0
+
+Every node reads the same scene file (`/**` parameters); the sync node additionally gets the
+CAN interface and channel. Topics live in the /planter namespace (planter_ros/interfaces.py).
+"""
+
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch_ros.actions import Node
+from launch_ros.substitutions import FindPackageShare
+
+PACKAGE = 'planter_ros'
+NAMESPACE = 'planter'          # planter_ros.interfaces.NAMESPACE
+
+
+def generate_launch_description():
+    scene = LaunchConfiguration('scene')
+    return LaunchDescription([
+        DeclareLaunchArgument(
+            'scene', description='scene parameter file (crop + mechanism)',
+            default_value=PathJoinSubstitution([FindPackageShare(PACKAGE), 'config',
+                                                'tomato_five_bar.yaml'])),
+        DeclareLaunchArgument('can_interface', default_value='socketcan',
+                              description="python-can interface ('socketcan' on the machine)"),
+        DeclareLaunchArgument('can_channel', default_value='can0', description='CAN channel'),
+        DeclareLaunchArgument('drive_node_id', default_value='1',
+                              description='CANopen node id of the servo drive'),
+        Node(package=PACKAGE, executable='design_node', namespace=NAMESPACE,
+             parameters=[scene], output='screen'),
+        Node(package=PACKAGE, executable='sync_node', namespace=NAMESPACE, output='screen',
+             parameters=[scene, {'can_interface': LaunchConfiguration('can_interface'),
+                                 'can_channel': LaunchConfiguration('can_channel'),
+                                 'drive_node_id': LaunchConfiguration('drive_node_id')}]),
+        Node(package=PACKAGE, executable='monitor_node', namespace=NAMESPACE,
+             parameters=[scene], output='screen'),
+    ])

@@ -1,0 +1,42 @@
+"""`planter demo` as a user runs it: bad input is one line; Ctrl-C stops cleanly with a summary."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from cli_helpers import REPO, run_planter
+
+
+def test_bad_duration_and_scene_are_one_line_errors(tmp_path):
+    out = run_planter('demo', '--duration', '2')
+    assert out.returncode == 2 and out.stderr.count('\n') == 1
+    assert '--duration = 2.0 is out of range: allowed 8..3600 s' in out.stderr
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('/**:\n  ros__parameters:\n    mechanism: five_bar\n    planting_depth: 0.045\n'
+                   '    plant_spacing: 0.2\n    hole_ratio: 1.9\n    nominal_ground_speed: 0.2\n')
+    out = run_planter('demo', '--scene', bad)
+    assert out.returncode == 2 and 'hole_ratio = 1.9 is out of range' in out.stderr
+    assert 'Traceback' not in out.stderr
+
+
+def test_ctrl_c_stops_the_demo_cleanly_with_a_summary():
+    env = dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    proc = subprocess.Popen([sys.executable, '-m', 'planter_ros.cli', 'demo', '--duration', '60'],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                            cwd=REPO)
+    lines = []
+    deadline = time.monotonic() + 60
+    for line in proc.stdout:                       # wait until plants are being placed
+        lines.append(line)
+        if line.startswith('t =   4.0 s') or time.monotonic() > deadline:
+            break
+    proc.send_signal(signal.SIGINT)
+    rest, _ = proc.communicate(timeout=30)
+    out = ''.join(lines) + rest
+    assert proc.returncode == 130, out
+    assert 'interrupted: stopping' in out
+    assert 'drive shut down (target 0, disabled, pre-operational)' in out
+    assert 'Traceback' not in out
+    placed = next(l for l in out.splitlines() if 'plants placed' in l)
+    assert int(placed.split()[-1]) >= 1
