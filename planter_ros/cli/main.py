@@ -13,6 +13,7 @@ import sys
 COMMANDS = {
     ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
                              'reverse-design a geared five-bar from depth and spacing'),
+    ('replay',): ('planter_ros.cli.replay', 're-run the monitor\'s model on a recorded bag'),
 }
 
 EXIT_BAD_INPUT = 2
