@@ -351,7 +351,7 @@ def _at_speed(t_e, t0, t1, v0, v1, s0):
     return v_e, s_e
 
 
-def _plant_values(model, settings, omega, v):
+def plant_values(model, settings, omega, v):
     """λ, hole width, tilt and upright flag for arrays of shaft speed ω > 0 and ground speed v."""
     omega = np.asarray(omega, dtype=float)
     v = np.asarray(v, dtype=float)
@@ -398,7 +398,7 @@ def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
 
 
 def _assemble(model, settings, t_e, omega, v_e, s_e, index0, prev_position, recent):
-    ratio, hole, tilt, upright = _plant_values(model, settings, omega, v_e)
+    ratio, hole, tilt, upright = plant_values(model, settings, omega, v_e)
     n = t_e.size
     spacing = np.diff(np.concatenate(([prev_position], s_e)))
     # rolling rate over the last `window` plants, continuing from `recent` flags

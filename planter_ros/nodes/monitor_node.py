@@ -202,6 +202,11 @@ class MonitorNode(Node):
         ]
         for topic, type_name, q in topics:
             self.recorder.add_topic(self.resolve_topic_name(topic), type_name, q)
+        # the settings replay needs to reproduce these predictions
+        self.recorder.add_metadata('planter_monitor', {
+            'nozzle_width': repr(self.settings.nozzle_width),
+            'upright_threshold': repr(self.settings.upright_threshold),
+            'window': str(self.settings.window)})
         self.get_logger().info(f'recording to {self.recorder.path}')
 
     def _record(self, topic, data, log_ns, publish_ns=None, message=None):

@@ -213,6 +213,7 @@ class Recorder:
         self._monotonic = monotonic
         self._topics = {}
         self._definitions = {}
+        self._metadata = {}
         self.files = []            # finished and current file paths, in order
         self._file_info = []       # per finished file: dict for metadata
         self._writer = None
@@ -237,6 +238,12 @@ class Recorder:
         entry = _Topic(topic, type_name, definition, hash_, qos_yaml(qos))
         self._topics[topic] = entry
         self._register(entry)
+
+    def add_metadata(self, name, values):
+        """An MCAP Metadata record (string key/values), repeated in every split file."""
+        values = {str(k): str(v) for k, v in values.items()}
+        self._metadata[name] = values
+        self._writer.add_metadata(name, values)
 
     def write(self, topic, data, log_time, publish_time=None):
         """Record one CDR message (bytes) received at `log_time` ns, sent at `publish_time`."""
@@ -349,6 +356,8 @@ class Recorder:
         for entry in self._topics.values():
             entry.file_count = 0
             self._register(entry)
+        for name, values in self._metadata.items():
+            self._writer.add_metadata(name, values)
         self._last_flush = self._monotonic()
 
     def _register(self, entry):
