@@ -27,7 +27,8 @@ import numpy as np
 from planter_ros import interfaces
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.plant_prediction import (
-    PLANT_FIELDS, Plants, PredictionSettings, planting_model_from_design, predict_plants, summarize)
+    PLANT_FIELDS, Plants, PredictionSettings, planting_model_from_design, predict_plants,
+    summarize)
 
 MAGIC = b'\x89MCAP0\r\n'
 TYPES = {
@@ -477,11 +478,11 @@ def format_table(result):
     def mm(v):
         return 'n/a' if v is None else f'{v * 1e3:.2f} mm'
     rate = 'n/a' if s['uprightness_rate'] is None else f'{100 * s["uprightness_rate"]:.1f} %'
+    threshold = math.degrees(result.settings.upright_threshold)
     lines += ['',
               f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
               f'spacing error: mean {mm(s["spacing_error_mean"])}, sigma '
               f'{mm(s["spacing_error_std"])}, max |error| {mm(s["spacing_error_max"])}',
               f'hole width: mean {mm(s["hole_width_mean"])}, max {mm(s["hole_width_max"])}',
-              f'uprightness: {rate} (threshold {math.degrees(result.settings.upright_threshold):.1f}'
-              ' deg to the ground)']
+              f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)']
     return '\n'.join(lines)

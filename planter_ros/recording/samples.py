@@ -154,9 +154,9 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0, domain_i
     """Run the real monitor node on `run` over ROS and let it record `bag_path`.
 
     It runs in a DDS domain of its own (`domain_id`) so other ROS processes on the machine
-    cannot mix into the sample. Simulated time (use_sim_time, /clock) advances in lock-step with the stream: each sample is
-    published and the monitor is spun until it has taken it, so nothing is dropped and the bag's
-    log times are the simulated receive times. Returns the list of plant tables the monitor
+    cannot mix into the sample. Simulated time (use_sim_time, /clock) advances in lock-step
+    with the stream: each sample is published and the monitor is spun until it has taken it,
+    so nothing is dropped and the bag's log times are the simulated receive times. Returns the list of plant tables the monitor
     published (its live predictions), in order.
     """
     import rclpy
