@@ -235,7 +235,7 @@ class MonitorNode(Node):
 
     # -- inputs --------------------------------------------------------------------------
     def _raw_callback(self, topic, msg_type, handler):
-        def callback(raw, _info):
+        def callback(raw):
             now = self.get_clock().now().nanoseconds
             msg = deserialize_message(raw, msg_type)
             stamp = _stamp_ns(msg.header.stamp) if hasattr(msg, 'header') else 0
