@@ -19,6 +19,7 @@ COMMANDS = {
     ('optimize', 'three-arm'): ('planter_ros.cli.optimize_three_arm',
                                 'search a three-arm design meeting all eight goals'),
     ('demo',): ('planter_ros.cli.demo', 'run the whole machine on a simulated CAN bus'),
+    ('replay',): ('planter_ros.cli.replay', 're-run the monitor\'s model on a recorded bag'),
 }
 
 EXIT_BAD_INPUT = 2

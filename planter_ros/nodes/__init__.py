@@ -1,1 +1,1 @@
-"""ROS 2 nodes: thin shells that translate parameters, topics and CAN into calls of the core."""
+"""ROS 2 nodes: thin shells that turn parameters, topics and CAN into calls of the core."""

@@ -1,0 +1,505 @@
+"""Per-plant predictions from what the machine measured: where each seedling went, how wide its
+hole is and whether it stands upright.
+
+Inputs are measurements, never commands: ground speed samples (t, v) and mechanism shaft samples
+(t, θ unwrapped, ω) from drive feedback. A plant is set each time the shaft passes a planting
+angle θ_k = phase + 2πk/n (n plants per revolution: the five-bar's bottom θ ≡ π, or each arm of
+the three-arm at its lowest point). For each plant:
+
+* position: travelled distance at that instant (trapezoid integral of the measured speed,
+  interpolated), spacing to the previous plant and its error against the design spacing d;
+* speed ratio λ = A0·ω/v with A0 the synchronous advance (five-bar: l2 - l1 = d/2π);
+* hole width: the nozzle tip's swept horizontal extent below the soil line at depth D for the
+  actual advance v/ω (five-bar: closed form `five_bar.hole_geometry`), plus the nozzle's width;
+* tilt: the seedling's root ball is released at the bottom of the path; while the nozzle climbs
+  back to the surface (shaft angle ψ_exit) it moves along the row relative to the soil by
+  (v/ω - A_r)·ψ_exit more than the synchronous path does (A_r: the advance with zero horizontal
+  nozzle speed at release; five-bar A_r = l2 - l1). The stem, held at the surface, is dragged by
+  that slip Δx while the root ball stays put: tilt = atan2(Δx, D) from vertical, positive =
+  top leaning forward (direction of travel). Zero at perfect sync; dragging (λ < 1) leans the
+  plant forward, overspeed (λ > 1) backward. Assumptions are listed in the README.
+* upright: the stem's angle to the ground, π/2 - |tilt|, at least `upright_threshold`;
+  and a rolling uprightness rate over the last N plants.
+
+`predict_plants` does a whole recording at once (vectorised, used by replay); `PlantPredictor`
+does the same sample by sample (the live monitor) with the same arithmetic, so both agree.
+Pure numpy/scipy: no ROS here.
+"""
+
+from collections import deque
+from dataclasses import dataclass, fields
+import math
+
+import numpy as np
+
+from .errors import DesignError
+from .five_bar import depth_angle, hole_geometry
+
+TWO_PI = 2.0 * math.pi
+
+# Per-plant record, in this order everywhere (topic layout, JSON keys, replay tables). SI units.
+PLANT_FIELDS = (
+    'index',             # plant number since the start of the stream (0, 1, ...)
+    'time',              # s, measurement time of the planting instant (source clock)
+    'position',          # m, travelled distance along the row since the first speed sample
+    'spacing',           # m, distance to the previous plant (NaN for the first plant)
+    'spacing_error',     # m, spacing - design spacing d (NaN for the first plant)
+    'speed_ratio',       # λ = A0·ω/v (1 = in sync; inf when v = 0)
+    'ground_speed',      # m/s, measured ground speed at the planting instant
+    'shaft_speed',       # rad/s, measured mechanism shaft speed at the planting instant
+    'hole_width',        # m, swept extent of the nozzle below the soil + nozzle width
+    'tilt',              # rad from vertical, + = top leans forward (direction of travel)
+    'upright',           # 1 if the stem's angle to the ground >= upright_threshold, else 0
+    'uprightness_rate',  # fraction upright over the last `window` plants (this one included)
+)
+
+
+# ----------------------------------------------------------------------------- mechanisms
+
+class FiveBarPlanting:
+    """The geared five-bar's planting geometry (paper 1), closed form: one plant per revolution
+    at θ ≡ π (the bottom of the path, θ = 0 at the top)."""
+
+    plants_per_revolution = 1
+
+    def __init__(self, l1, l2, depth, spacing, planting_phase=math.pi):
+        for name, value in (('l1', l1), ('l2', l2), ('planting_depth', depth),
+                            ('plant_spacing', spacing)):
+            _require_positive(name, value)
+        if not l2 > l1:
+            raise DesignError('l2', l2, f'> l1 = {l1:.6g} m', 'the nozzle must loop')
+        if not depth < 2.0 * (l1 + l2):
+            raise DesignError('planting_depth', depth, f'< 2(l1 + l2) = {2 * (l1 + l2):.6g} m')
+        self.l1, self.l2 = float(l1), float(l2)
+        self.depth, self.spacing = float(depth), float(spacing)
+        self.planting_phase = float(planting_phase)
+        # nozzle tip speed in the frame at the bottom is (l2 - l1)·ω backwards
+        self.sync_advance = self.l2 - self.l1
+        self.release_advance = self.sync_advance
+        self.exit_angle = depth_angle(self.depth, self.l1 + self.l2)
+
+    def hole_width(self, advance):
+        """Swept extent (m) below the soil for advance v/ω (m/rad, array)."""
+        advance = np.asarray(advance, dtype=float)
+        return np.asarray(hole_geometry(self.l1, self.l2, self.depth, advance).width)
+
+
+class PathPlanting:
+    """Any mechanism given by one nozzle tip's closed path in the mechanism frame (the three-arm
+    through its tip trajectory): x forward, y up, as functions of the shaft (carrier) angle over
+    one revolution; n plants per revolution, each arm the same path shifted by 2π/n.
+
+    The samples are joined by a periodic cubic spline; the planting instant is the lowest point
+    (or `planting_phase` if given); the hole is the tip's swept extent in the soil frame between
+    the surface crossings around it, taken on `samples` points of that arc.
+    """
+
+    def __init__(self, angle, x, y, plants_per_revolution, depth, spacing, planting_phase=None,
+                 samples=2048):
+        from scipy.interpolate import CubicSpline
+        from scipy.optimize import brentq, minimize_scalar
+
+        _require_positive('planting_depth', depth)
+        _require_positive('plant_spacing', spacing)
+        n = int(plants_per_revolution)
+        if n < 1 or n != plants_per_revolution:
+            raise DesignError('plants_per_revolution', plants_per_revolution, 'integer >= 1')
+        angle = np.asarray(angle, dtype=float)
+        x = np.asarray(x, dtype=float)
+        y = np.asarray(y, dtype=float)
+        if not (angle.ndim == 1 and angle.shape == x.shape == y.shape and angle.size >= 8):
+            raise DesignError('tip_path', f'{angle.size} samples', '>= 8 samples of equal length '
+                              'angle, x, y')
+        if not (np.all(np.isfinite(angle)) and np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+            raise DesignError('tip_path', 'non-finite samples', 'finite angle, x, y')
+        if not (np.all(np.diff(angle) > 0) and angle[-1] - angle[0] < TWO_PI):
+            raise DesignError('tip_path', 'angle samples', 'increasing, spanning < 2π rad')
+        ext = np.append(angle, angle[0] + TWO_PI)
+        self._x = CubicSpline(ext, np.append(x, x[0]), bc_type='periodic')
+        self._y = CubicSpline(ext, np.append(y, y[0]), bc_type='periodic')
+        self._angle0 = angle[0]
+        self.plants_per_revolution = n
+        self.depth, self.spacing = float(depth), float(spacing)
+
+        if planting_phase is None:
+            grid = np.linspace(angle[0], angle[0] + TWO_PI, 4096, endpoint=False)
+            i = int(np.argmin(self._y(grid)))
+            step = TWO_PI / grid.size
+            planting_phase = minimize_scalar(self._y, bracket=None,
+                                             bounds=(grid[i] - step, grid[i] + step),
+                                             method='bounded', options={'xatol': 1e-12}).x
+        phi_p = float(planting_phase)
+        self.planting_phase = phi_p
+        y_soil = float(self._y(phi_p)) + self.depth
+        if float(np.max(self._y(np.linspace(phi_p, phi_p + TWO_PI, 4096)))) <= y_soil:
+            raise DesignError('planting_depth', depth, '< the height of the tip path',
+                              'the nozzle never leaves the soil')
+
+        def below(phi):
+            return float(self._y(phi)) - y_soil
+
+        def crossing(direction):
+            # first surface crossing from the planting point in `direction`
+            grid = phi_p + direction * np.linspace(0.0, math.pi, 4097)[1:]
+            above = np.nonzero(self._y(grid) > y_soil)[0]
+            if above.size == 0:
+                raise DesignError('planting_depth', depth, '< the tip path height within half a '
+                                  'revolution of the planting point')
+            j = above[0]
+            lo = phi_p if j == 0 else grid[j - 1]
+            return brentq(below, min(lo, grid[j]), max(lo, grid[j]), xtol=1e-14)
+
+        phi_in, phi_out = crossing(-1.0), crossing(+1.0)
+        self.exit_angle = phi_out - phi_p
+        self._arc = np.linspace(phi_in, phi_out, int(samples)) - phi_p
+        self._arc_x = self._x(self._arc + phi_p)
+        # frame velocity of the tip along x at release: zero slip when v/ω = -dx/dφ
+        self.release_advance = -float(self._x(phi_p, 1))
+        self.sync_advance = n * self.spacing / TWO_PI
+
+    def hole_width(self, advance):
+        advance = np.asarray(advance, dtype=float)
+        xs = self._arc_x + advance[..., None] * self._arc
+        return xs.max(axis=-1) - xs.min(axis=-1)
+
+
+def planting_model_from_design(design):
+    """Build the planting geometry from the `design` topic's JSON dict (SI units).
+
+    five_bar: l1, l2, planting_depth (or depth), plant_spacing (or spacing).
+    three_arm (or any mechanism): tip_path = {angle, x, y} of one arm over one revolution,
+    plants_per_revolution, planting_depth, plant_spacing, optional planting_phase.
+    """
+    if not isinstance(design, dict):
+        raise DesignError('design', type(design).__name__, 'a JSON object')
+    mechanism = design.get('mechanism', 'five_bar')
+    depth = _first(design, 'planting_depth', 'depth')
+    spacing = _first(design, 'plant_spacing', 'spacing')
+    phase = design.get('planting_phase')
+    if mechanism == 'five_bar' and 'tip_path' not in design:
+        l1, l2 = design.get('l1'), design.get('l2')
+        if l1 is None or l2 is None:
+            raise DesignError('design', 'five_bar without l1/l2', 'keys l1, l2 (m)')
+        return FiveBarPlanting(l1, l2, depth, spacing,
+                               math.pi if phase is None else float(phase))
+    path = design.get('tip_path')
+    if not isinstance(path, dict) or not all(k in path for k in ('angle', 'x', 'y')):
+        raise DesignError('design', f'{mechanism} without tip_path',
+                          'tip_path = {angle, x, y} (rad, m, m) of one nozzle tip per revolution')
+    n = design.get('plants_per_revolution', 1)
+    return PathPlanting(path['angle'], path['x'], path['y'], n, depth, spacing, phase)
+
+
+def _first(design, *keys):
+    for key in keys:
+        if design.get(key) is not None:
+            return design[key]
+    raise DesignError('design', f'no {keys[0]}', f'key {keys[0]} (m)')
+
+
+def _require_positive(name, value):
+    try:
+        ok = math.isfinite(float(value)) and float(value) > 0
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise DesignError(name, value, 'finite and > 0 m')
+
+
+# ----------------------------------------------------------------------------- settings
+
+@dataclass(frozen=True)
+class PredictionSettings:
+    """User choices of the monitor (SI). No standard upright threshold is confirmed: the
+    literature counts a seedling at < 30° to the ground as fallen, hence the default."""
+
+    nozzle_width: float = 0.0                      # m, added to the tip's swept extent
+    upright_threshold: float = math.radians(30.0)  # rad, minimum stem angle to the ground
+    window: int = 20                               # plants in the rolling uprightness rate
+
+    def __post_init__(self):
+        if not (math.isfinite(self.nozzle_width) and 0.0 <= self.nozzle_width <= 1.0):
+            raise DesignError('nozzle_width', self.nozzle_width, '[0, 1] m')
+        if not (math.isfinite(self.upright_threshold)
+                and 0.0 <= self.upright_threshold <= 0.5 * math.pi):
+            raise DesignError('upright_threshold', self.upright_threshold, '[0, π/2] rad')
+        if not (isinstance(self.window, int) and 1 <= self.window <= 100000):
+            raise DesignError('window', self.window, 'integer in [1, 100000] plants')
+
+
+# ----------------------------------------------------------------------------- results
+
+@dataclass
+class Plants:
+    """Per-plant arrays (one entry per plant, fields as in PLANT_FIELDS)."""
+
+    index: np.ndarray
+    time: np.ndarray
+    position: np.ndarray
+    spacing: np.ndarray
+    spacing_error: np.ndarray
+    speed_ratio: np.ndarray
+    ground_speed: np.ndarray
+    shaft_speed: np.ndarray
+    hole_width: np.ndarray
+    tilt: np.ndarray
+    upright: np.ndarray
+    uprightness_rate: np.ndarray
+
+    def __len__(self):
+        return int(self.index.size)
+
+    def table(self):
+        """(n_plants, n_fields) float array in PLANT_FIELDS order."""
+        return np.column_stack([np.asarray(getattr(self, f), dtype=float) for f in PLANT_FIELDS]) \
+            if len(self) else np.zeros((0, len(PLANT_FIELDS)))
+
+    def rows(self):
+        """List of dicts, JSON-ready: non-finite values become None."""
+        return [{f: _json_value(v) for f, v in zip(PLANT_FIELDS, row)} for row in self.table()]
+
+    @classmethod
+    def from_table(cls, table):
+        table = np.asarray(table, dtype=float).reshape(-1, len(PLANT_FIELDS))
+        return cls(**{f: table[:, i].copy() for i, f in enumerate(PLANT_FIELDS)})
+
+    @classmethod
+    def concatenate(cls, parts):
+        parts = list(parts)
+        if not parts:
+            return cls.from_table(np.zeros((0, len(PLANT_FIELDS))))
+        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                      for f in fields(cls)})
+
+
+def _json_value(v):
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def summarize(plants, spacing):
+    """Summary figures (SI) of a run: plant count, spacing error, hole width, uprightness."""
+    err = plants.spacing_error[np.isfinite(plants.spacing_error)]
+    hole = plants.hole_width
+    return {
+        'plants': len(plants),
+        'design_spacing': float(spacing),
+        'spacing_error_mean': float(err.mean()) if err.size else None,
+        'spacing_error_std': float(err.std()) if err.size else None,
+        'spacing_error_max': float(np.abs(err).max()) if err.size else None,
+        'hole_width_mean': float(hole.mean()) if hole.size else None,
+        'hole_width_max': float(hole.max()) if hole.size else None,
+        'tilt_max': float(np.abs(plants.tilt).max()) if hole.size else None,
+        'uprightness_rate': float(plants.upright.mean()) if hole.size else None,
+    }
+
+
+# ----------------------------------------------------------------------------- the model
+
+def clean_samples(t, *values):
+    """Drop samples with a non-finite time or first value, and samples whose time does not
+    increase (out-of-order or repeated stamps). Both paths apply the same rule."""
+    t = np.asarray(t, dtype=float)
+    values = [np.asarray(v, dtype=float) for v in values]
+    ok = np.isfinite(t) & np.isfinite(values[0])
+    t = t[ok]
+    values = [v[ok] for v in values]
+    if t.size:
+        prev_max = np.concatenate(([-np.inf], np.maximum.accumulate(t)[:-1]))
+        keep = t > prev_max
+        t = t[keep]
+        values = [v[keep] for v in values]
+    return (t, *values)
+
+
+def travelled_distance(t, v):
+    """Trapezoid integral of the ground speed from the first sample (m)."""
+    inc = 0.5 * (v[:-1] + v[1:]) * (t[1:] - t[:-1])
+    return np.concatenate(([0.0], np.cumsum(inc)))
+
+
+def _threshold(model, k):
+    return model.planting_phase + k * (TWO_PI / model.plants_per_revolution)
+
+
+def _first_k(model, theta0):
+    """Smallest planting index k whose angle lies strictly beyond theta0."""
+    n = model.plants_per_revolution
+    k = math.floor((theta0 - model.planting_phase) * n / TWO_PI)
+    while _threshold(model, k) > theta0:
+        k -= 1
+    while _threshold(model, k) <= theta0:
+        k += 1
+    return k
+
+
+def _crossing(theta_k, t0, t1, th0, th1, w0, w1):
+    """Instant and shaft speed where the running-maximum shaft angle reaches theta_k."""
+    frac = (theta_k - th0) / (th1 - th0)
+    t_e = t0 + frac * (t1 - t0)
+    slope = (th1 - th0) / (t1 - t0)
+    w = w0 + frac * (w1 - w0)
+    omega = np.where(np.isfinite(w) & (w > 0), w, slope)
+    return t_e, omega
+
+
+def _at_speed(t_e, t0, t1, v0, v1, s0):
+    """Ground speed and travelled distance at t_e inside the speed sample interval [t0, t1)."""
+    g = (t_e - t0) / (t1 - t0)
+    v_e = v0 + g * (v1 - v0)
+    s_e = s0 + 0.5 * (v0 + v_e) * (t_e - t0)
+    return v_e, s_e
+
+
+def plant_values(model, settings, omega, v):
+    """λ, hole width, tilt and upright flag for arrays of shaft speed ω > 0 and ground speed v."""
+    omega = np.asarray(omega, dtype=float)
+    v = np.asarray(v, dtype=float)
+    advance = v / omega
+    with np.errstate(divide='ignore'):
+        ratio = np.where(v != 0, model.sync_advance * omega / np.where(v != 0, v, 1.0), np.inf)
+    hole = model.hole_width(advance) + settings.nozzle_width
+    slip = (advance - model.release_advance) * model.exit_angle
+    tilt = np.arctan2(slip, model.depth)
+    upright = (0.5 * math.pi - np.abs(tilt) >= settings.upright_threshold).astype(float)
+    return ratio, hole, tilt, upright
+
+
+def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
+                   settings=PredictionSettings()):
+    """All plants of a recording at once (vectorised). Times in s (same clock for both inputs),
+    speeds m/s, shaft angle rad (unwrapped), shaft speed rad/s (NaN or empty = not measured)."""
+    joint_vel = np.asarray(joint_vel, dtype=float)
+    if joint_vel.size != np.size(joint_t):
+        joint_vel = np.full(np.size(joint_t), np.nan)
+    st, sv = clean_samples(speed_t, speed_v)
+    jt, jp, jw = clean_samples(joint_t, joint_pos, joint_vel)
+    empty = Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
+    if st.size < 2 or jt.size < 2:
+        return empty
+    ss = travelled_distance(st, sv)
+    theta = np.maximum.accumulate(jp)
+
+    k0 = _first_k(model, theta[0])
+    k1 = _first_k(model, theta[-1])          # first index not yet reached
+    ks = np.arange(k0, k1)
+    if ks.size == 0:
+        return empty
+    theta_k = _threshold(model, ks.astype(float))
+    i = np.searchsorted(theta, theta_k, side='left')
+    t_e, omega = _crossing(theta_k, jt[i - 1], jt[i], theta[i - 1], theta[i], jw[i - 1], jw[i])
+
+    j = np.searchsorted(st, t_e, side='right')
+    located = (j >= 1) & (j < st.size)
+    t_e, omega, j = t_e[located], omega[located], j[located]
+    v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
+    return _assemble(model, settings, t_e, omega, v_e, s_e, index0=0, prev_position=np.nan,
+                     recent=())
+
+
+def _assemble(model, settings, t_e, omega, v_e, s_e, index0, prev_position, recent):
+    ratio, hole, tilt, upright = plant_values(model, settings, omega, v_e)
+    n = t_e.size
+    spacing = np.diff(np.concatenate(([prev_position], s_e)))
+    # rolling rate over the last `window` plants, continuing from `recent` flags
+    window = settings.window
+    history = np.concatenate((np.asarray(recent, dtype=float), upright))
+    csum = np.concatenate(([0.0], np.cumsum(history)))
+    end = np.arange(len(recent), len(recent) + n) + 1
+    start = np.maximum(end - window, 0)
+    rate = (csum[end] - csum[start]) / (end - start) if n else np.zeros(0)
+    return Plants(index=np.arange(index0, index0 + n, dtype=float), time=t_e, position=s_e,
+                  spacing=spacing, spacing_error=spacing - model.spacing, speed_ratio=ratio,
+                  ground_speed=v_e, shaft_speed=omega, hole_width=hole, tilt=tilt,
+                  upright=upright, uprightness_rate=rate)
+
+
+class PlantPredictor:
+    """The same model fed one sample at a time (the live monitor). `add_speed` and `add_joint`
+    return the plants completed by that sample (a Plants, often empty). A plant is completed
+    once a ground speed sample later than its planting instant has arrived."""
+
+    SPEED_HISTORY = 4096      # speed samples kept to locate plants reported late by the drive
+
+    def __init__(self, model, settings=PredictionSettings()):
+        self.model = model
+        self.settings = settings
+        self._speed = deque(maxlen=self.SPEED_HISTORY)   # (t, v, s)
+        self._joint = None                               # last (t, θmax, ω)
+        self._next_k = None
+        self._pending = []                               # (t_e, ω)
+        self._count = 0
+        self._prev_position = math.nan
+        self._recent = deque(maxlen=settings.window)
+
+    def add_speed(self, t, v):
+        t, v = float(t), float(v)
+        if not (math.isfinite(t) and math.isfinite(v)):
+            return self._nothing()
+        if self._speed:
+            t0, v0, s0 = self._speed[-1]
+            if not t > t0:
+                return self._nothing()
+            s = s0 + 0.5 * (v0 + v) * (t - t0)
+        else:
+            s = 0.0
+        self._speed.append((t, v, s))
+        return self._resolve()
+
+    def add_joint(self, t, position, velocity=math.nan):
+        t, position = float(t), float(position)
+        velocity = float(velocity) if velocity is not None else math.nan
+        if not (math.isfinite(t) and math.isfinite(position)):
+            return self._nothing()
+        if self._joint is None:
+            self._joint = (t, position, velocity)
+            self._next_k = _first_k(self.model, position)
+            return self._nothing()
+        t0, th0, w0 = self._joint
+        if not t > t0:
+            return self._nothing()
+        th1 = max(th0, position)
+        while _threshold(self.model, float(self._next_k)) <= th1:
+            theta_k = _threshold(self.model, float(self._next_k))
+            t_e, omega = _crossing(theta_k, t0, t, th0, th1, w0, velocity)
+            self._pending.append((float(t_e), float(omega)))
+            self._next_k += 1
+        self._joint = (t, th1, velocity)
+        return self._resolve()
+
+    def _resolve(self):
+        if not self._pending or len(self._speed) < 2:
+            return self._nothing()
+        first_t, last_t = self._speed[0][0], self._speed[-1][0]
+        done, keep = [], []
+        for t_e, omega in self._pending:
+            if t_e >= last_t:
+                keep.append((t_e, omega))
+            elif t_e >= first_t:
+                done.append((t_e, omega))
+            # else: before the first speed sample: no position, dropped (as in replay)
+        self._pending = keep
+        if not done:
+            return self._nothing()
+        times = [s[0] for s in self._speed]
+        rows = []
+        for t_e, omega in done:
+            j = _bisect_right(times, t_e)
+            (t0, v0, s0), (t1, v1, _) = self._speed[j - 1], self._speed[j]
+            v_e, s_e = _at_speed(np.float64(t_e), t0, t1, v0, v1, s0)
+            rows.append((t_e, omega, float(v_e), float(s_e)))
+        t_e, omega, v_e, s_e = (np.array(c) for c in zip(*rows))
+        plants = _assemble(self.model, self.settings, t_e, omega, v_e, s_e, self._count,
+                           self._prev_position, tuple(self._recent))
+        self._count += len(plants)
+        self._prev_position = float(plants.position[-1])
+        self._recent.extend(plants.upright.tolist())
+        return plants
+
+    def _nothing(self):
+        return Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
+
+
+def _bisect_right(a, x):
+    import bisect
+    return bisect.bisect_right(a, x)

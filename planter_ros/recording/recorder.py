@@ -1,0 +1,406 @@
+"""The one MCAP recorder (monitor and demo): rosbag2's layout, crash-safe, split by size/time.
+
+Layout (what `ros2 bag`, Foxglove and `rosbags` expect from rosbag2's MCAP storage):
+* header profile `ros2`; one schema per message type, named `pkg/msg/Type`, encoding `ros2msg`,
+  data = the type's .msg text followed, for each dependency (depth first, each once), by a line
+  of 80 `=`, a line `MSG: pkg/Type` and that type's text (rosbag2's LocalMessageDefinitionSource
+  format), read from the .msg files the ROS wheels ship in share/<pkg>/msg;
+* channels with message encoding `cdr` and metadata `offered_qos_profiles` (YAML, rosbag2 v9
+  style) and `topic_type_hash` (RIHS01, from the shipped .json);
+* message log time = receive time, publish time = the sender's source time;
+* zstd chunks, closed about once a second (`flush_period`) so a SIGKILL loses at most that;
+* on close: a `rosbag2` Metadata record with `serialized_metadata`, then the summary (schemas,
+  channels, statistics, chunk and message indexes); a bag directory also gets metadata.yaml.
+
+A path ending in `.mcap` is a single-file bag. Any other path is a rosbag2 bag directory holding
+`<name>_0.mcap`, `<name>_1.mcap`, ... (split by size and/or duration). Without a path the bag is
+`bags/planter_<YYYY_MM_DD-HH_MM_SS>/`. An existing bag is never overwritten.
+
+Messages are written as the CDR bytes they arrived in (raw subscriptions); only messages the
+caller publishes itself are serialised (`write_message`, rclpy.serialization).
+"""
+
+import json
+import os
+from pathlib import Path
+import re
+import sys
+import time
+
+import yaml
+
+PROFILE = 'ros2'
+SCHEMA_ENCODING = 'ros2msg'
+MESSAGE_ENCODING = 'cdr'
+DELIMITER = '=' * 80 + '\n'
+PRIMITIVE_TYPES = frozenset((
+    'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
+    'uint32', 'int64', 'uint64', 'string', 'wstring'))
+# rosbag2's field-type pattern: "foo_msgs/Bar" in "foo_msgs/Bar[] bar" at a line start
+_FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
+# rosbag2's infinite duration in QoS YAML
+_INFINITE = {'sec': 9223372036, 'nsec': 854775807}
+
+
+class RecorderError(RuntimeError):
+    """A bag that cannot be written as asked (one line: the path or value and why)."""
+
+
+# ----------------------------------------------------------------------------- definitions
+
+def _share_dir(package):
+    os.environ.setdefault('AMENT_PREFIX_PATH', sys.prefix)
+    from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
+    try:
+        return Path(get_package_share_directory(package))
+    except PackageNotFoundError:
+        raise RecorderError(f'message package {package} not found (AMENT_PREFIX_PATH='
+                            f'{os.environ.get("AMENT_PREFIX_PATH")})') from None
+
+
+def _split_type(type_name):
+    parts = type_name.split('/')
+    if len(parts) == 2:
+        return parts[0], 'msg', parts[1]
+    if len(parts) == 3:
+        return tuple(parts)
+    raise RecorderError(f'message type {type_name!r} is not pkg/msg/Type')
+
+
+def message_definition(type_name):
+    """rosbag2's full ros2msg text of `pkg/msg/Type` (dependencies appended, each once)."""
+    seen = set()
+
+    def text_of(name):
+        package, namespace, base = _split_type(name)
+        path = _share_dir(package) / namespace / f'{base}.msg'
+        try:
+            return path.read_text(), package
+        except OSError:
+            raise RecorderError(f'no message definition {path} for {name}') from None
+
+    def append(name):
+        text, package = text_of(name)
+        deps = set()
+        for match in _FIELD_TYPE.finditer(text):
+            dep = match.group(1)
+            if dep in PRIMITIVE_TYPES:
+                continue
+            deps.add(dep if '/' in dep else f'{package}/{dep}')
+        out = text
+        for dep in sorted(deps):
+            if dep not in seen:
+                seen.add(dep)
+                out += '\n' + DELIMITER + f'MSG: {dep}\n' + append(dep)
+        return out
+
+    return append(type_name)
+
+
+def type_hash(type_name):
+    """RIHS01 hash of a type from the .json the wheels ship next to the .msg ('' if absent)."""
+    package, namespace, base = _split_type(type_name)
+    try:
+        data = json.loads((_share_dir(package) / namespace / f'{base}.json').read_text())
+    except (OSError, ValueError):
+        return ''
+    for entry in data.get('type_hashes', ()):
+        if entry.get('type_name') == f'{package}/{namespace}/{base}':
+            return entry.get('hash_string', '')
+    return ''
+
+
+def qos_yaml(qos):
+    """offered_qos_profiles YAML (rosbag2 v9 style) of an rclpy QoSProfile or a ready dict."""
+    if qos is None:
+        profiles = []
+    elif isinstance(qos, dict):
+        profiles = [qos]
+    else:
+        profiles = [_qos_dict(qos)]
+    return yaml.safe_dump(profiles, default_flow_style=False, sort_keys=False)
+
+
+def _qos_dict(qos):
+    def duration(d):
+        ns = d.nanoseconds
+        if ns >= 2 ** 63 - 1:
+            return dict(_INFINITE)
+        return {'sec': ns // 1_000_000_000, 'nsec': ns % 1_000_000_000}
+
+    def word(enum_value):
+        return enum_value.name.lower()
+
+    return {
+        'history': word(qos.history),
+        'depth': int(qos.depth),
+        'reliability': word(qos.reliability),
+        'durability': word(qos.durability),
+        'deadline': duration(qos.deadline),
+        'lifespan': duration(qos.lifespan),
+        'liveliness': word(qos.liveliness),
+        'liveliness_lease_duration': duration(qos.liveliness_lease_duration),
+        'avoid_ros_namespace_conventions': bool(qos.avoid_ros_namespace_conventions),
+    }
+
+
+# ----------------------------------------------------------------------------- recorder
+
+class _Topic:
+    __slots__ = ('name', 'type_name', 'definition', 'hash', 'qos', 'channel', 'count',
+                 'file_count')
+
+    def __init__(self, name, type_name, definition, hash_, qos):
+        self.name, self.type_name, self.definition = name, type_name, definition
+        self.hash, self.qos = hash_, qos
+        self.channel = None
+        self.count = 0          # whole bag
+        self.file_count = 0     # current file
+
+
+def default_bag_path(bags_dir='bags', prefix='planter', now=None):
+    """`bags/planter_<YYYY_MM_DD-HH_MM_SS>` (a free name: `-1`, `-2`, ... appended if taken)."""
+    stamp = time.strftime('%Y_%m_%d-%H_%M_%S', time.localtime(now))
+    base = Path(bags_dir) / f'{prefix}_{stamp}'
+    path, n = base, 0
+    while path.exists() or path.with_suffix('.mcap').exists():
+        n += 1
+        path = base.with_name(f'{base.name}-{n}')
+    return path
+
+
+class Recorder:
+    """Write CDR messages into an MCAP bag in rosbag2's layout.
+
+    Parameters (SI): `split_size` bytes per file (0 = no size split), `split_duration` seconds
+    of log time per file (0 = none), `flush_period` seconds between chunk flushes (the most a
+    SIGKILL can lose), `chunk_size` bytes of uncompressed chunk that force an earlier flush.
+    Times passed to `write` are integer nanoseconds.
+    """
+
+    def __init__(self, path=None, *, split_size=0, split_duration=0.0, flush_period=1.0,
+                 chunk_size=1 << 20, bags_dir='bags', monotonic=time.monotonic):
+        if not (isinstance(split_size, int) and split_size >= 0):
+            raise RecorderError(f'split_size = {split_size!r} is out of range: allowed integer '
+                                '>= 0 bytes (0 = no split)')
+        if not (split_duration >= 0 and split_duration < float('inf')):
+            raise RecorderError(f'split_duration = {split_duration!r} is out of range: allowed '
+                                '[0, inf) s (0 = no split)')
+        if not (0 < flush_period <= 60):
+            raise RecorderError(f'flush_period = {flush_period!r} is out of range: allowed '
+                                '(0, 60] s')
+        path = default_bag_path(bags_dir) if path in (None, '') else Path(path)
+        self.single_file = path.suffix == '.mcap'
+        if self.single_file and (split_size or split_duration):
+            raise RecorderError(f'bag {path}: splitting needs a bag directory path '
+                                '(without .mcap)')
+        if path.exists():
+            raise RecorderError(f'bag {path} already exists: choose another path '
+                                '(recordings are never overwritten)')
+        try:
+            if self.single_file:
+                path.parent.mkdir(parents=True, exist_ok=True)
+            else:
+                path.mkdir(parents=True, exist_ok=False)
+        except OSError as exc:
+            raise RecorderError(f'cannot create bag {path}: {exc.strerror or exc}') from None
+        self.path = path
+        self.name = path.stem if self.single_file else path.name
+        self.split_size = split_size
+        self.split_duration_ns = int(round(split_duration * 1e9))
+        self.flush_period = float(flush_period)
+        self.chunk_size = int(chunk_size)
+        self._monotonic = monotonic
+        self._topics = {}
+        self._definitions = {}
+        self._metadata = {}
+        self.files = []            # finished and current file paths, in order
+        self._file_info = []       # per finished file: dict for metadata
+        self._writer = None
+        self._stream = None
+        self._schema_ids = {}
+        self._file_start = None    # first log time in the current file
+        self._file_end = None
+        self._bag_start = None
+        self._bag_end = None
+        self._last_flush = monotonic()
+        self.closed = False
+        self._open_file()
+
+    # -- public API --------------------------------------------------------------------
+    def add_topic(self, topic, type_name, qos=None):
+        """Declare a topic (`/ns/name`, `pkg/msg/Type`, rclpy QoSProfile or v9 dict)."""
+        if topic in self._topics:
+            return
+        if type_name not in self._definitions:
+            self._definitions[type_name] = (message_definition(type_name), type_hash(type_name))
+        definition, hash_ = self._definitions[type_name]
+        entry = _Topic(topic, type_name, definition, hash_, qos_yaml(qos))
+        self._topics[topic] = entry
+        self._register(entry)
+
+    def add_metadata(self, name, values):
+        """An MCAP Metadata record (string key/values), repeated in every split file."""
+        values = {str(k): str(v) for k, v in values.items()}
+        self._metadata[name] = values
+        self._writer.add_metadata(name, values)
+
+    def write(self, topic, data, log_time, publish_time=None):
+        """Record one CDR message (bytes) received at `log_time` ns, sent at `publish_time`."""
+        if self.closed:
+            raise RecorderError(f'bag {self.path} is closed')
+        entry = self._topics.get(topic)
+        if entry is None:
+            raise RecorderError(f'topic {topic} was not added to bag {self.path}')
+        log_time = int(log_time)
+        self._maybe_split(log_time)
+        self._writer.add_message(entry.channel, log_time, bytes(data),
+                                 int(log_time if publish_time is None else publish_time))
+        entry.count += 1
+        entry.file_count += 1
+        if self._file_start is None or log_time < self._file_start:
+            self._file_start = log_time
+        self._file_end = log_time if self._file_end is None else max(self._file_end, log_time)
+        self._bag_start = log_time if self._bag_start is None else min(self._bag_start, log_time)
+        self._bag_end = log_time if self._bag_end is None else max(self._bag_end, log_time)
+        self.tick()
+
+    def write_message(self, topic, msg, log_time, publish_time=None):
+        """Serialise a message this process publishes (rclpy.serialization) and record it."""
+        from rclpy.serialization import serialize_message
+        self.write(topic, serialize_message(msg), log_time, publish_time)
+
+    def tick(self):
+        """Close the open chunk if `flush_period` has passed (call from a timer too)."""
+        if self._writer is not None and self._monotonic() - self._last_flush >= self.flush_period:
+            self.flush()
+
+    def flush(self):
+        """Close the open chunk and hand it to the OS (survives a SIGKILL of this process)."""
+        if self._writer is not None:
+            self._writer.flush()
+        self._last_flush = self._monotonic()
+
+    def close(self):
+        """Finalise: rosbag2 metadata record, summary with statistics; metadata.yaml for a bag
+        directory. Safe to call twice."""
+        if self.closed:
+            return
+        self._close_file()
+        self.closed = True
+        if not self.single_file:
+            text = yaml.safe_dump({'rosbag2_bagfile_information': self.metadata()},
+                                  default_flow_style=False, sort_keys=False)
+            tmp = self.path / 'metadata.yaml.tmp'
+            tmp.write_text(text)
+            tmp.replace(self.path / 'metadata.yaml')
+
+    @property
+    def message_count(self):
+        return sum(t.count for t in self._topics.values())
+
+    def metadata(self):
+        """rosbag2 BagMetadata (version 9) of everything written so far."""
+        files = list(self._file_info)
+        if self._writer is not None:
+            files.append(self._current_file_info())
+        start = self._bag_start or 0
+        return {
+            'version': 9,
+            'storage_identifier': 'mcap',
+            'duration': {'nanoseconds': (self._bag_end - start) if self._bag_end else 0},
+            'starting_time': {'nanoseconds_since_epoch': start},
+            'message_count': self.message_count,
+            'topics_with_message_count': [{
+                'topic_metadata': {
+                    'name': t.name, 'type': t.type_name, 'serialization_format': 'cdr',
+                    'offered_qos_profiles': yaml.safe_load(t.qos) or [],
+                    'type_description_hash': t.hash,
+                },
+                'message_count': t.count,
+            } for t in self._topics.values()],
+            'compression_format': '',
+            'compression_mode': '',
+            'relative_file_paths': [f['path'] for f in files],
+            'files': files,
+            'custom_data': {},
+            'ros_distro': os.environ.get('ROS_DISTRO', 'jazzy'),
+        }
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # -- files -------------------------------------------------------------------------
+    def _file_path(self, index):
+        return self.path if self.single_file else self.path / f'{self.name}_{index}.mcap'
+
+    def _open_file(self):
+        from mcap.writer import CompressionType, Writer
+        path = self._file_path(len(self.files))
+        try:
+            raw = open(path, 'xb')
+        except FileExistsError:
+            raise RecorderError(f'bag file {path} already exists (recordings are never '
+                                'overwritten)') from None
+        except OSError as exc:
+            raise RecorderError(f'cannot create bag file {path}: {exc.strerror or exc}') from None
+        self._stream = raw
+        self._writer = Writer(raw, chunk_size=self.chunk_size, compression=CompressionType.ZSTD)
+        self._writer.start(profile=PROFILE, library='planter_ros recorder (mcap python)')
+        self.files.append(path)
+        self._schema_ids = {}
+        self._file_start = self._file_end = None
+        for entry in self._topics.values():
+            entry.file_count = 0
+            self._register(entry)
+        for name, values in self._metadata.items():
+            self._writer.add_metadata(name, values)
+        self._last_flush = self._monotonic()
+
+    def _register(self, entry):
+        schema = self._schema_ids.get(entry.type_name)
+        if schema is None:
+            schema = self._writer.register_schema(entry.type_name, SCHEMA_ENCODING,
+                                                  entry.definition.encode())
+            self._schema_ids[entry.type_name] = schema
+        metadata = {'offered_qos_profiles': entry.qos}
+        if entry.hash:
+            metadata['topic_type_hash'] = entry.hash
+        entry.channel = self._writer.register_channel(entry.name, MESSAGE_ENCODING, schema,
+                                                      metadata)
+
+    def _current_file_info(self):
+        start = self._file_start or 0
+        return {
+            'path': self._file_path(len(self.files) - 1).name,
+            'starting_time': {'nanoseconds_since_epoch': start},
+            'duration': {'nanoseconds': (self._file_end - start) if self._file_end else 0},
+            'message_count': sum(t.file_count for t in self._topics.values()),
+        }
+
+    def _close_file(self):
+        info = self._current_file_info()
+        metadata = self.metadata()
+        self._writer.add_metadata('rosbag2', {
+            'serialized_metadata': yaml.safe_dump(metadata, default_flow_style=False,
+                                                  sort_keys=False)})
+        self._writer.finish()
+        self._stream.close()
+        self._file_info.append(info)
+        self._writer = self._stream = None
+
+    def _maybe_split(self, log_time):
+        if self.single_file or self._file_start is None:
+            return
+        by_time = self.split_duration_ns and log_time - self._file_start >= self.split_duration_ns
+        by_size = self.split_size and self._stream.tell() >= self.split_size
+        if by_time or by_size:
+            self._close_file()
+            self._open_file()
+
+
+__all__ = ['Recorder', 'RecorderError', 'default_bag_path', 'message_definition', 'qos_yaml',
+           'type_hash']

@@ -1,0 +1,209 @@
+"""Per-plant prediction model: sync behaviour, hole and tilt against λ, streaming = batch."""
+import math
+
+import numpy as np
+import pytest
+
+from planter_ros.kinematics.errors import DesignError
+from planter_ros.kinematics.five_bar import design_five_bar
+from planter_ros.kinematics.plant_prediction import (
+    FiveBarPlanting, PathPlanting, PlantPredictor, Plants, PredictionSettings,
+    plant_values, planting_model_from_design, predict_plants)
+from planter_ros.recording.samples import five_bar_design_message, simulate_run
+
+TOMATO = design_five_bar(0.045, 0.2, 0.05)
+
+
+def tomato_model():
+    return FiveBarPlanting(TOMATO.l1, TOMATO.l2, 0.045, 0.2)
+
+
+def constant_run(lam, v=0.2, duration=5.0, rate=100.0, theta0=0.3):
+    """Measured samples of a machine at constant speed ratio λ (ω = λ v / (l2 - l1))."""
+    model = tomato_model()
+    omega = lam * v / model.sync_advance
+    t = np.arange(0.0, duration, 1.0 / rate)
+    return t, np.full_like(t, v), t, theta0 + omega * t, np.full_like(t, omega)
+
+
+def test_perfect_sync_gives_the_designed_hole_zero_tilt_and_exact_spacing():
+    model = tomato_model()
+    settings = PredictionSettings(nozzle_width=0.03)
+    plants = predict_plants(*constant_run(1.0), model, settings)
+    assert len(plants) == 5
+    assert np.allclose(plants.speed_ratio, 1.0, rtol=1e-12)
+    assert np.allclose(plants.hole_width, TOMATO.hole_width + 0.03, rtol=1e-9)
+    assert np.allclose(plants.tilt, 0.0, atol=1e-12)
+    assert np.all(plants.upright == 1.0)
+    assert np.allclose(plants.spacing_error[1:], 0.0, atol=1e-9)
+    # the plant is set where the shaft passes π: θ0 + ω t = π + 2πk
+    omega = 0.2 / model.sync_advance
+    assert plants.time[0] == pytest.approx((math.pi - 0.3) / omega, rel=1e-9)
+    assert math.isnan(plants.spacing[0])
+
+
+def test_dragging_widens_the_hole_monotonically_and_tilts_forward():
+    model = tomato_model()
+    lams = np.array([0.3, 0.5, 0.7, 0.9, 0.99, 1.0])
+    ratio, hole, tilt, _ = plant_values(model, PredictionSettings(), lams * 0.2 /
+                                        model.sync_advance, np.full(lams.size, 0.2))
+    assert np.allclose(ratio, lams, rtol=1e-12)
+    assert np.all(np.diff(hole) < 0)                 # narrower as λ rises towards 1
+    assert np.all(tilt[:-1] > 0) and tilt[-1] == pytest.approx(0.0, abs=1e-15)
+    assert np.all(np.diff(tilt) < 0)                 # |tilt| grows with |λ - 1|
+
+
+def test_overspeed_first_narrows_the_hole_then_widens_it_and_tilts_backward():
+    """The issue asked 'hole width grows monotonically with |λ - 1|'; the kinematics say
+    otherwise just above λ = 1 (the backward loop pulls entry and exit together): minimum near
+    λ ≈ 1.05, monotone on both sides of it. The tilt is monotone in |λ - 1| throughout."""
+    model = tomato_model()
+    lams = np.linspace(1.0, 2.0, 2001)
+    _, hole, tilt, _ = plant_values(model, PredictionSettings(), lams * 0.2 / model.sync_advance,
+                                    np.full(lams.size, 0.2))
+    i = int(np.argmin(hole))
+    assert 1.01 < lams[i] < 1.1
+    assert np.all(np.diff(hole[:i]) < 0) and np.all(np.diff(hole[i + 1:]) > 0)
+    assert hole[-1] > hole[0]
+    assert np.all(tilt[1:] < 0) and np.all(np.diff(tilt) < 0)
+
+
+def test_tilt_is_the_slip_over_the_exit_climb_against_depth():
+    model = tomato_model()
+    lam = 0.5
+    advance = model.sync_advance / lam
+    _, _, tilt, _ = plant_values(model, PredictionSettings(), np.array([0.2 / advance]),
+                                 np.array([0.2]))
+    slip = (advance - model.sync_advance) * model.exit_angle
+    assert tilt[0] == pytest.approx(math.atan2(slip, 0.045), rel=1e-12)
+
+
+def test_upright_threshold_is_the_stem_angle_to_the_ground():
+    model = tomato_model()
+    lams = np.array([0.05, 0.2, 0.5, 1.0])
+    omega = lams * 0.2 / model.sync_advance
+    v = np.full(lams.size, 0.2)
+    _, _, tilt, upright = plant_values(model, PredictionSettings(), omega, v)
+    to_ground = 0.5 * math.pi - np.abs(tilt)
+    assert np.array_equal(upright, (to_ground >= math.radians(30)).astype(float))
+    assert upright[0] == 0.0 and upright[-1] == 1.0
+    _, _, _, strict = plant_values(model, PredictionSettings(upright_threshold=math.radians(80)),
+                                   omega, v)
+    assert strict.sum() < upright.sum()
+
+
+def test_rolling_uprightness_rate_counts_the_last_window_plants():
+    model = tomato_model()
+    # stall: the shaft crawls through one planting angle at λ = 0.05 (fallen), then recovers
+    t = np.arange(0.0, 12.0, 0.01)
+    omega = np.where((t > 2.4) & (t < 6.0), 0.05, 1.0) * 0.2 / model.sync_advance
+    theta = 0.3 + np.concatenate(([0.0], np.cumsum(0.5 * (omega[1:] + omega[:-1]) * 0.01)))
+    plants = predict_plants(t, np.full_like(t, 0.2), t, theta, omega, model,
+                            PredictionSettings(window=3))
+    fallen = np.nonzero(plants.upright == 0)[0]
+    assert fallen.size == 1
+    k = fallen[0]
+    expected = [np.mean(plants.upright[max(0, i - 2):i + 1]) for i in range(len(plants))]
+    assert np.allclose(plants.uprightness_rate, expected)
+    assert plants.uprightness_rate[k] == pytest.approx(2 / 3)
+
+
+def test_live_stream_gives_the_same_plants_as_the_batch_model():
+    run = simulate_run(five_bar_design_message(), duration=20.0, seed=3)
+    model = planting_model_from_design(run.design)
+    rng = np.random.default_rng(7)
+    # messy inputs: a NaN, a repeated stamp and an out-of-order sample in each stream
+    st, sv = run.speed_t.copy(), run.speed_v.copy()
+    jt, jp, jw = run.joint_t.copy(), run.joint_pos.copy(), run.joint_vel.copy()
+    sv[50] = np.nan
+    st[60] = st[59]
+    jt[300] = jt[290]
+    jw[400] = np.nan
+    batch = predict_plants(st, sv, jt, jp, jw, model)
+    # delivery: joint feedback arrives 0-30 ms late (in its own order), interleaved with the
+    # speed samples
+    late = np.maximum.accumulate(run.joint_t + rng.uniform(0, 0.03, jt.size))
+    arrivals = sorted([(t, 0, i) for i, t in enumerate(run.speed_t)]
+                      + [(t, 1, i) for i, t in enumerate(late)])
+    live = PlantPredictor(model)
+    parts = [live.add_speed(st[i], sv[i]) if kind == 0 else live.add_joint(jt[i], jp[i], jw[i])
+             for _, kind, i in arrivals]
+    streamed = Plants.concatenate(parts)
+    assert len(batch) > 15
+    assert np.allclose(streamed.table(), batch.table(), rtol=0, atol=1e-12, equal_nan=True)
+
+
+def test_spacing_error_stays_bounded_through_a_speed_step_when_phase_locked():
+    design = five_bar_design_message()
+    locked = simulate_run(design, duration=30.0, step=1.4, seed=4)
+    free = simulate_run(design, duration=30.0, step=1.4, seed=4, phase_gain=0.0)
+    model = planting_model_from_design(design)
+
+    def drift(run):
+        p = predict_plants(run.speed_t, run.speed_v, run.joint_t, run.joint_pos, run.joint_vel,
+                           model)
+        k = np.round((p.position - 0.1) / 0.2)
+        return p, np.abs(p.position - (0.1 + 0.2 * k))
+
+    p_locked, d_locked = drift(locked)
+    p_free, d_free = drift(free)
+    cruise = (p_locked.time - p_locked.time[0] > 3) & (p_locked.time - p_locked.time[0] < 27)
+    assert np.nanmax(np.abs(p_locked.spacing_error[cruise])) < 0.05 * 0.2
+    assert d_locked[cruise].max() < 0.05 * 0.2
+    assert d_free.max() > 2 * d_locked[cruise].max()
+
+
+def test_three_plants_per_revolution_are_set_at_each_arms_planting_angle():
+    """The generic tip-path model (three-arm plug-in) finds 3 plants per shaft revolution and
+    reproduces the five-bar's closed form when given the five-bar's own path."""
+    a, b = TOMATO.l2 - TOMATO.l1, TOMATO.l1 + TOMATO.l2
+    phi = np.linspace(0.0, 2 * math.pi, 720, endpoint=False)
+    path = PathPlanting(phi, a * np.sin(phi), b * np.cos(phi), 1, 0.045, 0.2)
+    closed = tomato_model()
+    assert path.planting_phase == pytest.approx(math.pi, abs=1e-9)
+    assert path.exit_angle == pytest.approx(closed.exit_angle, rel=1e-9)
+    assert path.release_advance == pytest.approx(closed.release_advance, rel=1e-6)
+    adv = np.linspace(-0.02, 0.2, 12)
+    assert np.allclose(path.hole_width(adv), closed.hole_width(adv), rtol=1e-6)
+
+    three = planting_model_from_design({
+        'mechanism': 'three_arm', 'plants_per_revolution': 3, 'plant_spacing': 0.2,
+        'planting_depth': 0.03,
+        'tip_path': {'angle': phi.tolist(), 'x': (0.1 * np.sin(phi)).tolist(),
+                     'y': (0.2 * np.cos(phi)).tolist()}})
+    t = np.arange(0.0, 3.0, 0.01)
+    omega = 2 * math.pi / 3 * 0.2 / 0.2          # in sync: ω = 2π v / (3 d)
+    plants = predict_plants(t, np.full_like(t, 0.2), t, omega * t, np.full_like(t, omega),
+                            three)
+    assert np.allclose(np.diff(plants.time), 1.0, rtol=1e-9)   # one plant per 1/3 rev
+    assert np.allclose(plants.spacing[1:], 0.2, rtol=1e-9)
+    assert np.allclose(plants.speed_ratio, 1.0)
+
+
+@pytest.mark.parametrize('design, word', [
+    ({'mechanism': 'five_bar', 'plant_spacing': 0.2, 'planting_depth': 0.045}, 'l1'),
+    ({'mechanism': 'five_bar', 'l1': 0.1, 'l2': 0.13, 'plant_spacing': -0.2,
+      'planting_depth': 0.045}, 'plant_spacing'),
+    ({'mechanism': 'three_arm', 'plant_spacing': 0.2, 'planting_depth': 0.03}, 'tip_path'),
+    ([1, 2], 'design'),
+])
+def test_unusable_designs_are_one_line_errors(design, word):
+    with pytest.raises(DesignError) as err:
+        planting_model_from_design(design)
+    assert word in str(err.value) and '\n' not in str(err.value)
+
+
+@pytest.mark.parametrize('kwargs', [dict(nozzle_width=-0.01), dict(nozzle_width=math.nan),
+                                    dict(upright_threshold=2.0), dict(window=0)])
+def test_settings_out_of_range_are_refused(kwargs):
+    with pytest.raises(DesignError):
+        PredictionSettings(**kwargs)
+
+
+def test_stopped_machine_and_reversing_give_finite_figures():
+    model = tomato_model()
+    ratio, hole, tilt, upright = plant_values(model, PredictionSettings(), np.array([6.0, 6.0]),
+                                              np.array([0.0, -0.1]))
+    assert ratio[0] == math.inf and ratio[1] < 0
+    assert np.all(np.isfinite(hole)) and np.all(np.isfinite(tilt))
+    assert np.all(tilt < 0)                  # nozzle moves backwards relative to the soil
