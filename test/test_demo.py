@@ -20,11 +20,19 @@ def test_bad_duration_and_scene_are_one_line_errors(tmp_path):
     assert 'Traceback' not in out.stderr
 
 
-def test_ctrl_c_stops_the_demo_cleanly_with_a_summary():
+def test_an_existing_bag_is_never_overwritten(tmp_path):
+    bag = tmp_path / 'run.mcap'
+    bag.write_bytes(b'precious')
+    out = run_planter('demo', '--bag', bag)
+    assert out.returncode == 2 and out.stderr.count('\n') == 1 and 'never overwritten' in out.stderr
+    assert bag.read_bytes() == b'precious'
+
+
+def test_ctrl_c_stops_the_demo_cleanly_with_a_summary_and_a_finalised_bag(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     proc = subprocess.Popen([sys.executable, '-m', 'planter_ros.cli', 'demo', '--duration', '60'],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
-                            cwd=REPO)
+                            cwd=tmp_path)
     lines = []
     deadline = time.monotonic() + 60
     for line in proc.stdout:                       # wait until plants are being placed
@@ -40,3 +48,10 @@ def test_ctrl_c_stops_the_demo_cleanly_with_a_summary():
     assert 'Traceback' not in out
     placed = next(l for l in out.splitlines() if 'plants placed' in l)
     assert int(placed.split()[-1]) >= 1
+    # the default bag lands under ./bags, finalised, and the demo ends with its replay
+    bags = list((tmp_path / 'bags').glob('planter_*'))
+    assert len(bags) == 1
+    assert f'recorded bags/{bags[0].name}' in out
+    replayed = next(l for l in out.splitlines() if l.strip().startswith('plants:'))
+    assert int(replayed.split()[1]) >= 1
+    assert 'spacing error: mean' in out and 'uprightness:' in out

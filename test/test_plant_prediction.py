@@ -207,3 +207,26 @@ def test_stopped_machine_and_reversing_give_finite_figures():
     assert ratio[0] == math.inf and ratio[1] < 0
     assert np.all(np.isfinite(hole)) and np.all(np.isfinite(tilt))
     assert np.all(tilt < 0)                  # nozzle moves backwards relative to the soil
+
+
+def test_implausible_ground_speed_samples_do_not_move_plants_live_or_in_replay():
+    """A 25 m/s spike, a NaN and a reversing blip must not shift the plants' positions: the
+    monitor believes the same samples as the sync node (control.ground_speed_filter)."""
+    model = tomato_model()
+    clean = constant_run(1.0, duration=6.0)
+    speed_t, speed_v = clean[0].copy(), clean[1].copy()
+    speed_v[150] = 25.0           # a spike
+    speed_v[300] = math.nan       # a dropout
+    speed_v[450] = 3.5            # faster than any transplanter
+    batch_clean = predict_plants(*clean, model)
+    batch = predict_plants(speed_t, speed_v, *clean[2:], model)
+    assert len(batch) == len(batch_clean) == 6
+    np.testing.assert_allclose(batch.position, batch_clean.position, atol=0.002)
+    assert np.max(np.abs(batch.spacing_error[1:])) < 0.002
+    live = PlantPredictor(model)
+    rows = []
+    for i in range(speed_t.size):
+        rows.append(live.add_joint(clean[2][i], clean[3][i], clean[4][i]))
+        rows.append(live.add_speed(speed_t[i], speed_v[i]))
+    np.testing.assert_allclose(Plants.concatenate(rows).table(), batch.table(), rtol=1e-12,
+                               atol=1e-12)

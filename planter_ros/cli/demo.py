@@ -1,11 +1,13 @@
 """`planter demo`: the whole machine in one process, on a simulated CAN bus.
 
-design_node + sync_node (+ the monitor when this build has it) + a simulated ground-speed
-sensor, and the simulated CiA 402 drive on a python-can virtual bus with a channel of its own.
+design_node + sync_node + monitor_node + a simulated ground-speed sensor, and the simulated
+CiA 402 drive on a python-can virtual bus with a channel of its own.
 The sensor follows a field run (start, cruise with noise, a speed change, a stop, and two
 glitches the sync node must reject). At the end it prints plants placed, spacing error (from the
 measured mechanism angle in joint_states against the true travelled distance), and commanded
-against measured speed. Ctrl-C stops it cleanly (drive shut down, bus closed) with a summary.
+against measured speed. The monitor records the run (bags/planter_<date-time> unless --bag says
+otherwise); the demo ends by replaying that bag offline and printing the replay summary.
+Ctrl-C stops it cleanly (drive shut down, bus closed, bag finalised) with a summary.
 """
 
 import math
@@ -23,7 +25,8 @@ def add_arguments(parser):
     parser.add_argument('--duration', type=float, default=30.0, metavar='S',
                         help='length of the field run in seconds, 8..3600 (default 30)')
     parser.add_argument('--bag', metavar='PATH',
-                        help='record the run to this MCAP bag (needs the monitor node)')
+                        help='record the run to this bag: a .mcap file or a rosbag2 bag '
+                             'directory (default: bags/planter_<date-time>; never overwrites)')
     parser.add_argument('--speed-only', action='store_true',
                         help='turn phase lock off (feed-forward speed only), for comparison')
     parser.add_argument('--seed', type=int, default=0, help='sensor noise seed (default 0)')
@@ -48,6 +51,8 @@ def run(args):
         scene = load_scene(args.scene or default_scene(), 'design_node')
     except SceneError as exc:
         raise BadInput(str(exc)) from None
+    if args.bag and os.path.exists(args.bag):
+        raise BadInput(f'--bag = {args.bag} exists: a recording is never overwritten')
     design = design_for_scene(scene)          # a bad scene fails here, before anything starts
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     return Demo(scene, design, args).run()
@@ -66,7 +71,6 @@ class Demo:
         from rclpy.signals import SignalHandlerOptions
 
         from planter_ros import interfaces
-        from planter_ros.cli.main import BadInput
         from planter_ros.control.simulation import FieldProfile
         from planter_ros.drive.simulated_drive import SimulatedDrive
         from planter_ros.nodes.design_node import DesignNode
@@ -74,10 +78,7 @@ class Demo:
         from planter_ros.nodes.sync_node import SyncNode
 
         args, design = self.args, self.design
-        monitor_cls = _monitor_class()
-        if args.bag and monitor_cls is None:
-            raise BadInput('--bag needs the monitor node (planter_ros.nodes.monitor_node), '
-                           'which this build does not have yet')
+        from planter_ros.nodes.monitor_node import MonitorNode
         channel = f'planter_demo_{os.getpid()}_{time.monotonic_ns() % 1_000_000}'
         profile = FieldProfile(args.duration, design['nominal_ground_speed'])
         glitches = [(0.3 * args.duration, 25.0), (0.6 * args.duration, math.nan)]
@@ -89,7 +90,7 @@ class Demo:
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
         executor = SingleThreadedExecutor(context=context)
         nodes = []
-        sync = spinner = None
+        sync = spinner = monitor = None
         interrupted = False
         try:
             ns = interfaces.NAMESPACE
@@ -101,8 +102,9 @@ class Demo:
             nodes.append(sync)
             observer = Observer(context=context, namespace=ns)
             nodes.append(observer)
-            if monitor_cls is not None:          # per-plant predictions and the bag
-                nodes.append(monitor_cls(context=context, namespace=ns, **_monitor_kwargs(args)))
+            monitor = MonitorNode(context=context, namespace=ns, parameter_overrides=(
+                [_param('bag_path', args.bag)] if args.bag else []))
+            nodes.append(monitor)                # per-plant predictions and the bag
             print(f"planter demo: {design['crop']} {design['mechanism']}, d = "
                   f"{design['plant_spacing']:.3f} m, cruise {profile.cruise:.2f} -> "
                   f"{profile.cruise * profile.change:.2f} m/s, {args.duration:g} s, "
@@ -139,7 +141,22 @@ class Demo:
             sim.stop()
         if sync is not None and 'observer' in locals() and observer.start is not None:
             print(self.summary(profile, sync, observer, sim))
+        if monitor is not None and monitor.recorder is not None:
+            print(self.replay_summary(monitor.recorder.path))
         return 130 if interrupted else 0
+
+    @staticmethod
+    def replay_summary(bag):
+        """Re-read the finished bag offline, as `planter replay` would, and summarise it."""
+        from planter_ros.recording.replay import ReplayError, format_summary, replay
+        try:
+            result = replay(bag)
+        except ReplayError as exc:
+            return f'\nreplay of {bag} failed: {exc}'
+        lines = [f'\nrecorded {bag}; replay (`planter replay {bag}`):']
+        lines += [f'  {line}' for line in format_summary(result).splitlines()]
+        lines += [f'  warning: {w}' for w in result.warnings]
+        return '\n'.join(lines)
 
     def _progress(self, t, profile, sync, observer):
         status = sync._status
@@ -192,18 +209,6 @@ def _param(name, value):
             'planting_depth', 'plant_spacing', 'hole_ratio', 'nominal_ground_speed'):
         value = float(value)
     return Parameter(name, value=value)
-
-
-def _monitor_class():
-    try:
-        from planter_ros.nodes.monitor_node import MonitorNode
-    except ImportError:
-        return None
-    return MonitorNode
-
-
-def _monitor_kwargs(args):
-    return {'parameter_overrides': [_param('bag_path', args.bag)]} if args.bag else {}
 
 
 if __name__ == '__main__':

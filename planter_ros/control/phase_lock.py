@@ -11,12 +11,10 @@ from the phase error e = θ_target − θ_measured, so the angle converges back 
 Choices the papers leave open, made here on purpose:
 * The command is never negative: a stopped or reversing machine does not plant backwards; a
   mechanism ahead of its target waits.
-* Ground-speed samples that are NaN/inf, faster than `max_ground_speed`, or jump further from
-  the last accepted sample than `max_ground_acceleration` allows (plus a noise tolerance) are
-  rejected and counted. A persistent genuine step is accepted once the allowance, growing with
-  the time since the last accepted sample, covers it. A plausible negative sample (reversing,
-  or noise around standstill) is counted as rejected and read as "not moving forward": the
-  feed-forward is 0 and distance is not integrated backwards.
+* Ground-speed samples pass the same plausibility rule as the monitor's
+  (`ground_speed_filter`): NaN/inf, too fast and spikes are rejected and counted; a plausible
+  negative sample (reversing, or noise around standstill) is counted and read as "not moving
+  forward": the feed-forward is 0 and distance is not integrated backwards.
 * No accepted sample for `ground_speed_timeout`: the travelled distance stops growing, the
   target speed is 0, the command ramps down at the acceleration limit and then halts.
 * The law never tries to make up more than one plant: when |e| exceeds one plant pitch 2π/n
@@ -29,8 +27,9 @@ Time is passed in explicitly (monotonic seconds), so the law is deterministic an
 from dataclasses import dataclass, fields
 import math
 
+from .ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits
+
 TWO_PI = 2.0 * math.pi
-REJECT_REASONS = ('non_finite', 'too_fast', 'spike', 'negative')
 # measured angle is extrapolated with the measured speed for at most this long (s)
 _MAX_FEEDBACK_EXTRAPOLATION = 0.05
 # the acceleration limit never integrates over a gap longer than this (s)
@@ -77,14 +76,13 @@ class PhaseLock:
         self.config = config or PhaseLockConfig()
         self.spacing = None                 # d (m), None until a design is known
         self.plants_per_revolution = 1
-        self.rejected = {r: 0 for r in REJECT_REASONS}
-        self.accepted = 0
+        self.filter = GroundSpeedFilter(GroundSpeedLimits(
+            self.config.max_ground_speed, self.config.max_ground_acceleration,
+            self.config.ground_speed_tolerance))
         self.phase_slips = 0                # whole plant pitches given up (fault, stale gap)
         self._v = 0.0                       # last accepted forward speed (m/s)
         self._t_sample = None               # time of the last accepted (or negative) sample
         self._s = 0.0                       # travelled distance at _t_sample (m)
-        self._ref_v = None                  # spike-check reference (last sample taken)
-        self._ref_t = None
         self._fb = None                     # (angle rad, speed rad/s, stamp s)
         self._anchor = None                 # (θ at anchor, s at anchor)
         self._cmd = 0.0
@@ -105,30 +103,24 @@ class PhaseLock:
         self._anchor = None
         self._try_anchor(now)
 
+    @property
+    def rejected(self):
+        """Rejected ground-speed samples by reason."""
+        return self.filter.rejected
+
+    @property
+    def accepted(self):
+        return self.filter.accepted
+
     def ground_speed(self, v, now):
         """Offer a ground-speed sample (m/s, forward > 0). Returns None or the rejection reason."""
-        cfg = self.config
-        reason = None
-        if not isinstance(v, (int, float)) or not math.isfinite(v):
-            reason = 'non_finite'
-        elif abs(v) > cfg.max_ground_speed:
-            reason = 'too_fast'
-        elif self._ref_v is not None and abs(v - self._ref_v) > (
-                cfg.ground_speed_tolerance + cfg.max_ground_acceleration * (now - self._ref_t)):
-            reason = 'spike'
-        elif v < 0.0:
-            reason = 'negative'
-        if reason is not None:
-            self.rejected[reason] += 1
-            if reason != 'negative':
-                return reason
-        # accepted, or a plausible negative sample: the machine is not moving forward
+        used, reason = self.filter.check(v, now)
+        if used is None:
+            return reason
+        # accepted, or a plausible negative sample read as 0 (not moving forward)
         self._s = self.travelled(now)
-        self._v = max(float(v), 0.0)
+        self._v = used
         self._t_sample = now
-        self._ref_v, self._ref_t = float(v), now
-        if reason is None:
-            self.accepted += 1
         return reason
 
     def feedback(self, angle, speed, stamp):

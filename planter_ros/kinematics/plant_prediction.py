@@ -32,6 +32,9 @@ import math
 
 import numpy as np
 
+from planter_ros.control.ground_speed_filter import (
+    GroundSpeedFilter, GroundSpeedLimits, filter_ground_speed)
+
 from .errors import DesignError
 from .five_bar import depth_angle, hole_geometry
 
@@ -216,6 +219,8 @@ class PredictionSettings:
     nozzle_width: float = 0.0                      # m, added to the tip's swept extent
     upright_threshold: float = math.radians(30.0)  # rad, minimum stem angle to the ground
     window: int = 20                               # plants in the rolling uprightness rate
+    # which ground-speed samples to believe: the sync node's rule (spikes, NaN, too fast)
+    speed_limits: GroundSpeedLimits = GroundSpeedLimits()
 
     def __post_init__(self):
         if not (math.isfinite(self.nozzle_width) and 0.0 <= self.nozzle_width <= 1.0):
@@ -373,6 +378,8 @@ def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
     if joint_vel.size != np.size(joint_t):
         joint_vel = np.full(np.size(joint_t), np.nan)
     st, sv = clean_samples(speed_t, speed_v)
+    st, sv = (np.asarray(a, dtype=float) for a in filter_ground_speed(st, sv,
+                                                                       settings.speed_limits))
     jt, jp, jw = clean_samples(joint_t, joint_pos, joint_vel)
     empty = Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
     if st.size < 2 or jt.size < 2:
@@ -424,7 +431,9 @@ class PlantPredictor:
     def __init__(self, model, settings=PredictionSettings()):
         self.model = model
         self.settings = settings
-        self._speed = deque(maxlen=self.SPEED_HISTORY)   # (t, v, s)
+        self._speed = deque(maxlen=self.SPEED_HISTORY)   # (t, v, s) of the samples kept
+        self._speed_filter = GroundSpeedFilter(settings.speed_limits)
+        self._speed_seen = -math.inf                     # latest finite sample time
         self._joint = None                               # last (t, θmax, ω)
         self._next_k = None
         self._pending = []                               # (t_e, ω)
@@ -434,12 +443,14 @@ class PlantPredictor:
 
     def add_speed(self, t, v):
         t, v = float(t), float(v)
-        if not (math.isfinite(t) and math.isfinite(v)):
+        if not (math.isfinite(t) and math.isfinite(v)) or not t > self._speed_seen:
+            return self._nothing()
+        self._speed_seen = t
+        v, _ = self._speed_filter.check(v, t)
+        if v is None:
             return self._nothing()
         if self._speed:
             t0, v0, s0 = self._speed[-1]
-            if not t > t0:
-                return self._nothing()
             s = s0 + 0.5 * (v0 + v) * (t - t0)
         else:
             s = 0.0

@@ -473,16 +473,20 @@ def format_table(result):
         lines.append(f'{int(p.index[i]):>5} {p.time[i] - t0:>8.3f} {p.position[i]:>8.3f} '
                      f'{spacing:>12} {err:>10} {lam:>7} {p.hole_width[i] * 1e3:>9.2f} '
                      f'{math.degrees(p.tilt[i]):>10.2f} {"yes" if p.upright[i] else "NO":>7}')
+    return '\n'.join(lines + [''] + format_summary(result).splitlines())
+
+
+def format_summary(result):
+    """The replay summary for people: plants, spacing error, hole width, uprightness."""
     s = result.summary
 
     def mm(v):
         return 'n/a' if v is None else f'{v * 1e3:.2f} mm'
     rate = 'n/a' if s['uprightness_rate'] is None else f'{100 * s["uprightness_rate"]:.1f} %'
     threshold = math.degrees(result.settings.upright_threshold)
-    lines += ['',
-              f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
-              f'spacing error: mean {mm(s["spacing_error_mean"])}, sigma '
-              f'{mm(s["spacing_error_std"])}, max |error| {mm(s["spacing_error_max"])}',
-              f'hole width: mean {mm(s["hole_width_mean"])}, max {mm(s["hole_width_max"])}',
-              f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)']
-    return '\n'.join(lines)
+    return '\n'.join([
+        f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
+        f'spacing error: mean {mm(s["spacing_error_mean"])}, sigma '
+        f'{mm(s["spacing_error_std"])}, max |error| {mm(s["spacing_error_max"])}',
+        f'hole width: mean {mm(s["hole_width_mean"])}, max {mm(s["hole_width_max"])}',
+        f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)'])
