@@ -230,3 +230,29 @@ def test_implausible_ground_speed_samples_do_not_move_plants_live_or_in_replay()
         rows.append(live.add_speed(speed_t[i], speed_v[i]))
     np.testing.assert_allclose(Plants.concatenate(rows).table(), batch.table(), rtol=1e-12,
                                atol=1e-12)
+
+
+def test_three_arm_design_topic_carries_what_the_monitor_needs():
+    """The rice scene's design JSON builds a three-plants-per-turn path model whose planting
+    instants are the arms' lowest points (paper Table 1: arm I plants near 191°)."""
+    import json
+    from pathlib import Path
+
+    from planter_ros.kinematics.scene_design import design_for_scene
+    from planter_ros.scene import load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / 'config' / 'rice_three_arm.yaml')
+    design = json.loads(json.dumps(design_for_scene(scene)))       # as it travels on the topic
+    model = planting_model_from_design(design)
+    assert isinstance(model, PathPlanting) and model.plants_per_revolution == 3
+    assert abs(math.degrees(model.planting_phase) - 191.0) < 6.0
+    path = design['tip_path']
+    assert min(path['y']) == pytest.approx(float(model._y(model.planting_phase)), abs=1e-4)
+    # one carrier turn at the synchronous speed sets three plants, d apart
+    omega = 2 * math.pi
+    v = model.sync_advance * omega
+    t = np.arange(0.0, 1.5, 0.005)
+    plants = predict_plants(t, np.full_like(t, v), t, omega * t, np.full_like(t, omega), model)
+    assert len(plants) == 4
+    np.testing.assert_allclose(plants.spacing[1:], design['plant_spacing'], rtol=1e-6)
+    assert np.all(np.isfinite(plants.hole_width)) and np.all(np.isfinite(plants.tilt))

@@ -61,11 +61,19 @@ def _five_bar(params, spacing):
     return design.as_dict()
 
 
+TIP_PATH_SAMPLES = 360     # one per degree of carrier angle, like the paper's own tables
+
+
 def _three_arm(params):
-    try:
-        from . import three_arm
-    except ImportError:
-        raise DesignError('mechanism', 'three_arm', 'five_bar in this build',
-                          'the three-arm model planter_ros.kinematics.three_arm is not '
-                          'available') from None
-    return three_arm.design_summary(params)
+    import numpy as np
+
+    from . import three_arm
+    mech = three_arm.ThreeArmMechanism.from_parameters(params)
+    out = three_arm.design_summary(params, mech)
+    # what the monitor needs to predict each plant: arm I's tip over one carrier turn (frame,
+    # x forward, y up); arms II and III follow the same path 2π/3 and 4π/3 later
+    angle = np.linspace(0.0, 2.0 * math.pi, TIP_PATH_SAMPLES, endpoint=False)
+    x, y = mech.tip(angle, 0)
+    out['tip_path'] = {'angle': angle.tolist(), 'x': np.asarray(x).tolist(),
+                       'y': np.asarray(y).tolist()}
+    return out

@@ -18,7 +18,6 @@ import math
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
 from rclpy.serialization import deserialize_message
@@ -29,6 +28,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 
 from planter_ros import interfaces
+from planter_ros.nodes import qos
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.plant_prediction import (
     PLANT_FIELDS, PlantPredictor, PredictionSettings, planting_model_from_design)
@@ -38,25 +38,10 @@ PLANTS_LABEL = ','.join(PLANT_FIELDS)
 
 
 def input_qos():
-    """QoS of the monitor's subscriptions (recorded as the topics' offered profiles).
-
-    design: latched (reliable, transient_local, depth 1) as the contract says. ground_speed:
-    best effort, the sensor-data choice of the speed publisher (a best-effort reader also
-    matches a reliable writer), with a deep reader queue so a busy second loses nothing on
-    loopback. joint_states, speed_command, /diagnostics: reliable, deep enough to ride out a
-    second of a busy executor at 100 Hz (compatible with any reliable or best-effort depth).
-    """
-    return {
-        'design': QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                             history=HistoryPolicy.KEEP_LAST),
-        'speed': QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT,
-                            durability=DurabilityPolicy.VOLATILE,
-                            history=HistoryPolicy.KEEP_LAST),
-        'stream': QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.VOLATILE,
-                             history=HistoryPolicy.KEEP_LAST),
-    }
+    """QoS of the monitor's subscriptions (recorded as the topics' offered profiles): the
+    graph's profiles (planter_ros.nodes.qos) with queues deep enough for a recorder."""
+    return {'design': qos.DESIGN_QOS, 'speed': qos.deep(qos.GROUND_SPEED_QOS),
+            'stream': qos.deep(qos.STATE_QOS)}
 
 
 def plants_message(plants):
@@ -130,22 +115,22 @@ class MonitorNode(Node):
         self._last_input = None
         self._rate = None
 
-        qos = input_qos()
-        self._out_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        qos_in = input_qos()
+        self._out_qos = qos.deep(qos.STATE_QOS)
         self._pub_plants = self.create_publisher(Float64MultiArray, interfaces.PLANTS,
                                                  self._out_qos)
         self._pub_rate = self.create_publisher(Float64, interfaces.UPRIGHTNESS_RATE,
                                                self._out_qos)
         self._pub_diag = self.create_publisher(DiagnosticArray, interfaces.DIAGNOSTICS, 10)
         if self.get_parameter('record').value:
-            self._start_recorder(qos)
+            self._start_recorder(qos_in)
         # (topic, type, QoS, handler, time source for publish time)
         subs = [
-            (interfaces.DESIGN, String, qos['design'], self._on_design),
-            (interfaces.GROUND_SPEED, TwistStamped, qos['speed'], self._on_speed),
-            (interfaces.JOINT_STATES, JointState, qos['stream'], self._on_joint),
-            (interfaces.SPEED_COMMAND, Float64, qos['stream'], self._on_command),
-            (interfaces.DIAGNOSTICS, DiagnosticArray, qos['stream'], self._on_diagnostics),
+            (interfaces.DESIGN, String, qos_in['design'], self._on_design),
+            (interfaces.GROUND_SPEED, TwistStamped, qos_in['speed'], self._on_speed),
+            (interfaces.JOINT_STATES, JointState, qos_in['stream'], self._on_joint),
+            (interfaces.SPEED_COMMAND, Float64, qos_in['stream'], self._on_command),
+            (interfaces.DIAGNOSTICS, DiagnosticArray, qos_in['stream'], self._on_diagnostics),
         ]
         self._subs = [self.create_subscription(
             msg_type, topic, self._raw_callback(topic, msg_type, handler), q, raw=True)
@@ -179,7 +164,7 @@ class MonitorNode(Node):
         return SetParametersResult(successful=True)
 
     # -- recording -----------------------------------------------------------------------
-    def _start_recorder(self, qos):
+    def _start_recorder(self, qos_in):
         from planter_ros.recording.recorder import Recorder, RecorderError
         try:
             self.recorder = Recorder(
@@ -192,11 +177,11 @@ class MonitorNode(Node):
             self.get_logger().error(f'not recording: {exc}')
             return
         topics = [
-            (interfaces.DESIGN, 'std_msgs/msg/String', qos['design']),
-            (interfaces.GROUND_SPEED, 'geometry_msgs/msg/TwistStamped', qos['speed']),
-            (interfaces.JOINT_STATES, 'sensor_msgs/msg/JointState', qos['stream']),
-            (interfaces.SPEED_COMMAND, 'std_msgs/msg/Float64', qos['stream']),
-            (interfaces.DIAGNOSTICS, 'diagnostic_msgs/msg/DiagnosticArray', qos['stream']),
+            (interfaces.DESIGN, 'std_msgs/msg/String', qos_in['design']),
+            (interfaces.GROUND_SPEED, 'geometry_msgs/msg/TwistStamped', qos_in['speed']),
+            (interfaces.JOINT_STATES, 'sensor_msgs/msg/JointState', qos_in['stream']),
+            (interfaces.SPEED_COMMAND, 'std_msgs/msg/Float64', qos_in['stream']),
+            (interfaces.DIAGNOSTICS, 'diagnostic_msgs/msg/DiagnosticArray', qos_in['stream']),
             (interfaces.PLANTS, 'std_msgs/msg/Float64MultiArray', self._out_qos),
             (interfaces.UPRIGHTNESS_RATE, 'std_msgs/msg/Float64', self._out_qos),
         ]

@@ -22,3 +22,10 @@ STATE_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
 DIAGNOSTICS_QOS = STATE_QOS
+
+
+def deep(profile, depth=100):
+    """`profile` with a deeper queue: a recorder rides out a busy second at 100 Hz on it, and
+    the offered/requested compatibility (reliability, durability) stays that of `profile`."""
+    return QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST,
+                      reliability=profile.reliability, durability=profile.durability)

@@ -13,8 +13,6 @@ so that the result passes with some slack; a design the core refuses (DesignErro
 import math
 import time
 
-import numpy as np
-
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.three_arm.gear_train import ThreeArmMechanism
 from planter_ros.kinematics.three_arm.goals import evaluate_goals

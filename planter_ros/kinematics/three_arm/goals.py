@@ -151,7 +151,7 @@ def evaluate_goals(mech, params=None, samples=720):
     """The eight goals for a built mechanism; params gives the scene values (defaults if None)."""
     cfg = goal_settings(params or {})
     theta, tips, _ = mech.cycle(samples)
-    x, y = tips[:, 0, :], tips[:, 1, :]
+    y = tips[:, 1, :]
     goals = {}
 
     # 1. non-interference between arms
