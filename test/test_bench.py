@@ -31,6 +31,20 @@ def test_quick_bench_runs_and_reports_every_row_with_time_and_error(tmp_path):
     footprint = [r for r in ok if r['method'].startswith('import five_bar')][0]
     assert footprint['heavy_modules'] == [] and footprint['peak_rss_bytes'] > 0
     assert plot.stat().st_size > 10_000
+    # the node-graph rows: latencies with their tail, replay speed and its error vs live
+    sync = [r for r in ok if r['what'].startswith('sync loop')]
+    assert sync and all(r['median_s'] <= r['p99_s'] and r['matched'] > 0 for r in sync)
+    assert all(t['target'].startswith('p99 ≤ 2 ms') for r in sync for t in r['targets'])
+    drive = [r for r in ok if r['what'].startswith('CAN drive')]
+    assert {'SDO round trip (6041h upload)', 'RPDO latency, send_velocity() → drive decoded it'} \
+        <= {r['method'] for r in drive}
+    assert all(r['median_s'] <= r['p99_s'] and r['error'] is None for r in drive)
+    replay = [r for r in ok if r['what'].startswith('replay')]
+    generated = [r for r in replay if r['method'].startswith('generated')]
+    recorded = [r for r in replay if 'live monitor' in r['method']]
+    assert generated and generated[0]['error'] is None            # no live predictions in it
+    assert generated[0]['times_real_time'] > 0 and generated[0]['targets']
+    assert recorded and all(r['error'] < 1e-9 for r in recorded)  # replay reproduces the monitor
 
 
 def test_bench_table_names_the_machine_and_targets():

@@ -27,6 +27,9 @@ from .timing import measure
 CASE_MODULES = (
     'planter_ros.bench.cases.five_bar',
     'planter_ros.bench.cases.three_arm',
+    'planter_ros.bench.cases.sync',
+    'planter_ros.bench.cases.replay',
+    'planter_ros.bench.cases.drive',
     'planter_ros.bench.cases.footprint',
 )
 

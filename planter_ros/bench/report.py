@@ -31,29 +31,31 @@ def fmt_size(n):
     return f'{n:.0e}'.replace('e+0', 'e') if n >= 10_000 else str(n)
 
 
-HEADER = ('method', 'n', 'time/call', 'p10–p90', 'per item', 'throughput', 'error',
+HEADER = ('method', 'n', 'time/call', 'p10–p90', 'p99', 'per item', 'throughput', 'error',
           'target (§5)')
+LEFT = (0, len(HEADER) - 1)      # columns aligned left: method, target
 
 
 def table_lines(rows):
     cells = []
     for r in rows:
         if r.status != 'ok':
-            cells.append((r.what, (r.note, '', '', '', '', '', '', '')))
+            cells.append((r.what, (r.note,) + ('',) * (len(HEADER) - 1)))
             continue
         t = r.timing
         spread = f'{fmt_time(t.p10)}–{fmt_time(t.p90)}' if t else '—'
+        tail = fmt_time(t.p99) if t and t.p99 is not None else ''
         per = fmt_time(r.per_item) if r.size and r.size > 1 else ''
         rate = fmt_rate(r.throughput, r.unit) if r.size and r.size > 1 else ''
         cells.append((r.what, (r.method, fmt_size(r.size), fmt_time(t.median if t else None),
-                               spread, per, rate, fmt_error(r.error),
+                               spread, tail, per, rate, fmt_error(r.error),
                                '; '.join(str(x) for x in r.targets))))
     widths = [max(len(HEADER[i]), *(len(c[1][i]) for c in cells if c[1][1] or i == 0))
               for i in range(len(HEADER))]
     widths[0] = max(len(HEADER[0]), *(len(c[1][0]) for c in cells if c[1][1]))
 
     def line(values):
-        return '  ' + '  '.join(v.ljust(w) if i in (0, 7) else v.rjust(w)
+        return '  ' + '  '.join(v.ljust(w) if i in LEFT else v.rjust(w)
                                 for i, (v, w) in enumerate(zip(values, widths))).rstrip()
 
     out = [line(HEADER)]
@@ -90,7 +92,9 @@ def format_table(machine, rows):
     lines = [f'planter bench · {machine_line(machine)}', '']
     lines += table_lines(rows)
     lines += ['', 'time/call: median of repeats (p10–p90 spread); per item = time/call ÷ n. '
-              'Errors are relative, against mpmath at 40 digits computed by this run.']
+              'Latency rows: median, p10–p90 and p99 over single events (count in the notes).',
+              'error: relative, against mpmath at 40 digits computed by this run, unless its line '
+              'below says otherwise; — where no error is defined.']
     lines += error_notes(rows)
     lines += ['notes:']
     lines += row_notes(rows)

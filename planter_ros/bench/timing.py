@@ -1,4 +1,5 @@
-"""Run time of a callable: median of repeats with the 10th-90th percentile spread.
+"""Run time of a callable: median of repeats with the 10th-90th percentile spread (and the
+99th percentile for latencies measured event by event, see `from_samples`).
 
 Each repeat runs the callable `loops` times (calibrated so one repeat lasts at least
 `min_time`), so sub-microsecond calls are not swamped by the timer's own resolution. The
@@ -19,14 +20,19 @@ class Timing:
     p90: float
     repeats: int
     loops: int
+    p99: float = None           # tail of a latency (many single events), else None
 
     def per(self, n):
         """The same timing divided over n calls made inside each timed call."""
-        return Timing(self.median / n, self.p10 / n, self.p90 / n, self.repeats, self.loops * n)
+        return Timing(self.median / n, self.p10 / n, self.p90 / n, self.repeats, self.loops * n,
+                      None if self.p99 is None else self.p99 / n)
 
     def as_dict(self):
-        return {'median_s': self.median, 'p10_s': self.p10, 'p90_s': self.p90,
-                'repeats': self.repeats, 'loops': self.loops}
+        out = {'median_s': self.median, 'p10_s': self.p10, 'p90_s': self.p90,
+               'repeats': self.repeats, 'loops': self.loops}
+        if self.p99 is not None:
+            out['p99_s'] = self.p99
+        return out
 
 
 def percentile(sorted_values, q):
@@ -68,7 +74,11 @@ def measure(fn, repeats=7, min_time=0.05, max_loops=1 << 20):
                   repeats, loops)
 
 
-def from_samples(samples):
-    """Timing of already measured per-event seconds (e.g. one subprocess each)."""
+def from_samples(samples, tail=False):
+    """Timing of already measured per-event seconds (e.g. one subprocess each); `tail` adds
+    the 99th percentile (latencies: many events, the tail is the figure that matters)."""
     s = sorted(samples)
-    return Timing(percentile(s, 50), percentile(s, 10), percentile(s, 90), len(s), 1)
+    if not s:
+        raise ValueError('no samples to summarise')
+    return Timing(percentile(s, 50), percentile(s, 10), percentile(s, 90), len(s), 1,
+                  percentile(s, 99) if tail else None)

@@ -1,0 +1,84 @@
+"""Replay rows: `replay()` of a generated input bag (throughput, × real time) and of the
+committed sample bags, whose live-monitor predictions give replay an error to report.
+
+The generated bag (`simulate_run` → `write_input_bag`, 100 Hz joint states, 20 Hz ground speed,
+100 Hz speed command) goes to a temporary directory and is deleted. It holds no live
+predictions, so its rows have no error; the sample bags were recorded by the real monitor node
+and hold its per-plant table, which replay must reproduce.
+"""
+
+import os
+from pathlib import Path
+import tempfile
+
+import numpy as np
+
+from ..registry import Row, Target, bench_case
+
+WHAT = 'replay (planter replay)'
+REAL_TIME_TARGET = 1000.0      # PRODUCT.md §5: replay >= 1000x real time
+BAGS = Path(__file__).resolve().parents[3] / 'bags'
+SAMPLE_BAGS = ('sample_tomato.mcap', 'sample_pepper_stall.mcap')
+ERROR_OF = ('max |replayed − live monitor prediction| over every field of every plant (SI: s, '
+            'm, m/s, rad/s, rad), absolute; — for a generated bag (no live predictions in it)')
+
+
+def _replay_row(ctx, path, label, result, bag_messages, error=None, target=False, note=''):
+    from planter_ros.recording.replay import replay
+
+    t = ctx.measure(lambda: replay(path))
+    speed = result.duration / t.median
+    targets = ([Target(f'≥ 1000× real time (run: {speed:.0f}×)', speed >= REAL_TIME_TARGET)]
+               if target else [])
+    used = result.messages['ground_speed'] + result.messages['joint_states']
+    extra = {'bag_duration_s': result.duration, 'bag_messages': bag_messages,
+             'bag_bytes': os.path.getsize(path), 'messages_used': used,
+             'plants': result.summary['plants'], 'times_real_time': speed,
+             'used_messages_per_s': used / t.median}
+    note = (f'{speed:.0f}× real time; {result.duration:.0f} s bag, {bag_messages} messages, '
+            f'{extra["bag_bytes"] / 1e6:.2f} MB, {result.summary["plants"]} plants; '
+            f'{used / t.median / 1e3:.0f} k decoded input messages/s' + (f'; {note}' if note else ''))
+    return Row(WHAT, label, bag_messages, 'message', t, error=error, error_of=ERROR_OF,
+               targets=targets, note=note, extra=extra)
+
+
+def _live_error(result, path):
+    """Max |replayed − recorded live prediction| over the plant table (NaN must match NaN)."""
+    replayed = result.plants.table()
+    live = result.recorded_plants
+    if live.shape != replayed.shape:
+        raise RuntimeError(f'{path.name}: replay found {replayed.shape[0]} plants, the live '
+                           f'monitor recorded {live.shape[0]}')
+    if not np.array_equal(np.isnan(live), np.isnan(replayed)):
+        raise RuntimeError(f'{path.name}: replay and the live monitor disagree on which fields '
+                           'are undefined (NaN)')
+    finite = ~np.isnan(live)
+    return float(np.max(np.abs(replayed[finite] - live[finite]), initial=0.0))
+
+
+@bench_case('replay',
+            requires=('rosbags', 'mcap', 'rclpy', 'planter_ros.recording.replay'))
+def replay_throughput(ctx):
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    from planter_ros.recording.replay import replay
+    from planter_ros.recording.samples import (five_bar_design_message, simulate_run,
+                                               write_input_bag)
+
+    duration = ctx.n(600.0, 20.0)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / 'bench.mcap'
+        ctx.progress(f'  generating a {duration:.0f} s input bag ...')
+        rec = write_input_bag(simulate_run(five_bar_design_message(), duration=duration), path)
+        result = replay(path)
+        yield _replay_row(ctx, path, f'generated {duration:.0f} s input bag', result,
+                          rec.message_count, target=True,
+                          note='tomato five-bar, speed step +25 %')
+    for name in SAMPLE_BAGS:
+        path = BAGS / name
+        if not path.exists():
+            yield Row(WHAT, name, None, '', status='not available',
+                      note=f'not available: {path} is missing')
+            continue
+        result = replay(path, with_recorded=True)
+        yield _replay_row(ctx, path, f'bags/{name} (live monitor recording)', result,
+                          result.messages['total_read'], error=_live_error(result, path))
