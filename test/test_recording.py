@@ -16,9 +16,9 @@ MONITOR_PARAMS = {'nozzle_width': 0.012, 'window': 5}
 
 @pytest.fixture(scope='module')
 def live_bag(tmp_path_factory):
-    """The real monitor node on a 6 s stream with a drive stall, recording its bag."""
-    run = simulate_run(five_bar_design_message(), duration=6.0, stall_at=2.3, stall_for=2.0,
-                       stall_level=0.1, seed=5)
+    """The real monitor node on a 7 s stream with a drive stall, recording its bag."""
+    run = simulate_run(five_bar_design_message(), duration=7.0, stall_at=2.3, stall_for=1.5,
+                       stall_level=0.05, seed=5)
     path = tmp_path_factory.mktemp('live') / 'live.mcap'
     tables = record_sample(run, path, MONITOR_PARAMS)
     return run, np.vstack(tables), path

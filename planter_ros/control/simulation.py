@@ -78,19 +78,22 @@ def simulate(law, profile, duration, drive=DriveModel(), dt=0.001, sample_period
 
     `profile(t)` is the true ground speed; the law sees it every `sample_period` with Gaussian
     `noise` (m/s). `drive_change = (t, DriveModel)` swaps the drive model mid-run (a drive that
-    gets slower under load). Commands are computed on every sample and every feedback period,
-    as the sync node does. `sensor(t, v)`, if given, turns the true speed into the reading
+    gets slower under load); a list of such pairs, in time order, swaps it several times.
+    Commands are computed on every sample and every feedback period, as the sync node does. `sensor(t, v)`, if given, turns the true speed into the reading
     (drop-outs, spikes) instead of the Gaussian noise.
     """
     rng = np.random.default_rng(seed)
+    changes = list(drive_change or ())
+    if changes and isinstance(changes[0], (int, float)):
+        changes = [tuple(changes)]             # one (t, DriveModel) pair
     steps = int(round(duration / dt))
     out = {k: np.empty(steps + 1) for k in ('t', 'distance', 'angle', 'command', 'speed')}
     s = theta = omega = cmd = 0.0
     next_sample = next_feedback = 0.0
     for i in range(steps + 1):
         t = i * dt
-        if drive_change is not None and t >= drive_change[0]:
-            drive = drive_change[1]
+        while changes and t >= changes[0][0]:
+            drive = changes.pop(0)[1]
         if t >= next_feedback - 1e-12:
             law.feedback(theta, omega, t)
             cmd = law.command(t)

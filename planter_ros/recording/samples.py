@@ -1,8 +1,8 @@
 """Sample recordings: a realistic measured input stream and the bags made from it.
 
-`simulate_run` is a small stand-in for the machine: a ground-speed profile (start, cruise with
-noise, a speed step, stop) and a planting shaft that follows the phase-locked target through a
-drive lag, measured by an encoder (quantised angle, noisy speed). `record_sample` feeds that
+`simulate_run` is the machine without ROS: a ground-speed profile (start, cruise with noise, a
+speed step, stop), the sync node's phase-locked law and the drive model of control.simulation,
+measured as an encoder and a speed sensor would (quantised angle, noisy speeds). `record_sample` feeds that
 stream to the real monitor node over ROS (simulated clock, lock-step, so a 30 s run records in
 a few seconds) and lets it record its bag — the committed `bags/sample_*.mcap` come from
 `python -m planter_ros.recording.samples` (see README). `write_input_bag` writes only the input
@@ -58,42 +58,54 @@ def simulate_run(design, duration=30.0, cruise=0.2, speed_rate=20.0, joint_rate=
                  step=1.25, stall_at=None, stall_for=0.8, stall_level=0.2, seed=1):
     """Measured stream of a planting run (see module doc). Deterministic for a given seed.
 
-    `stall_at` (s) makes the drive lose most of its torque for `stall_for` s (it reaches at
-    most `stall_level` of the cruise shaft speed): the shaft drags behind the ground, then
-    the phase lock catches up.
+    The machine is the sync node's own law (control.phase_lock; `phase_gain` = 0 is speed-only)
+    against the drive model of control.simulation, sampled as the drive and sensor would:
+    joint states at `joint_rate` (encoder-quantised angle, noisy speed), ground speed at
+    `speed_rate` with relative noise `speed_noise`. `stall_at` (s) makes the drive lose most of
+    its torque for `stall_for` s (it reaches `stall_level` of what is commanded): the shaft
+    drags behind the ground, then the phase lock catches up.
     """
+    from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
+    from planter_ros.control.simulation import DriveModel, simulate
+
     rng = np.random.default_rng(seed)
     n = design['plants_per_revolution']
     spacing = design['plant_spacing']
+    law = PhaseLock(PhaseLockConfig(phase_gain=phase_gain, phase_lock=phase_gain > 0,
+                                    max_acceleration=200.0, max_correction=20.0))
+    law.set_design(spacing, n, 0.0)
+
+    def true_speed(t):
+        # slow true speed variation (soil, slip) on top of the profile
+        wobble = 1.0 + 0.03 * math.sin(2 * math.pi * t / 7.0) \
+            + 0.02 * math.sin(2 * math.pi * t / 2.3)
+        return float(speed_profile(t, cruise, duration, step=step)) * wobble
+
+    readings = []
+
+    def sensor(t, v):
+        reading = v * (1.0 + rng.normal(0.0, speed_noise))
+        readings.append((t, reading))
+        return reading
+
+    nominal = DriveModel(time_constant=drive_lag, max_acceleration=1e3)
+    changes = [] if stall_at is None else [
+        (stall_at, DriveModel(time_constant=drive_lag, max_acceleration=1e3,
+                              speed_scale=stall_level)),
+        (stall_at + stall_for, nominal)]
     dt = 1.0 / joint_rate
-    t = np.arange(0.0, duration + 0.5 * dt, dt)
-    # slow true speed variation (soil, slip) on top of the profile
-    wobble = 1.0 + 0.03 * np.sin(2 * math.pi * t / 7.0) + 0.02 * np.sin(2 * math.pi * t / 2.3)
-    v_true = speed_profile(t, cruise, duration, step=step) * wobble
-    s_true = np.concatenate(([0.0], np.cumsum(0.5 * (v_true[1:] + v_true[:-1]) * dt)))
-    gain = 2 * math.pi / (n * spacing)            # rad of shaft per m travelled
-    theta = np.empty_like(t)
-    omega = np.empty_like(t)
-    command = np.empty_like(t)
-    th, w = 0.0, 0.0
-    for i in range(t.size):
-        # phase-locked target: plant k at travelled distance k·d
-        cmd = gain * v_true[i] + phase_gain * (gain * s_true[i] - th)
-        cmd = max(cmd, 0.0)
-        command[i] = cmd
-        theta[i], omega[i] = th, w
-        stalled = stall_at is not None and stall_at <= t[i] < stall_at + stall_for
-        w += ((min(cmd, stall_level * gain * cruise) if stalled else cmd) - w) * (dt / drive_lag)
-        th += w * dt
+    sim = simulate(law, true_speed, duration, drive=nominal, dt=dt / 4, sample_period=1.0 /
+                   speed_rate, feedback_period=dt, sensor=sensor, drive_change=changes)
+    every = 4                                    # feedback samples on the integration grid
+    t = sim.t[::every]
     quantum = 2 * math.pi / encoder_counts
-    joint_pos = np.round(theta / quantum) * quantum
-    joint_vel = omega + rng.normal(0.0, 0.01 * gain * cruise, omega.size)
-    every = max(int(round(joint_rate / speed_rate)), 1)
-    speed_t = t[::every]
-    speed_v = v_true[::every] * (1.0 + rng.normal(0.0, speed_noise, speed_t.size))
+    joint_pos = np.round(sim.angle[::every] / quantum) * quantum
+    joint_vel = sim.speed[::every] + rng.normal(0.0, 0.01 * 2 * math.pi * cruise /
+                                                (n * spacing), t.size)
+    speed_t, speed_v = (np.array(c) for c in zip(*readings))
     return Run(design=design, speed_t=SIM_EPOCH + speed_t, speed_v=speed_v,
                joint_t=SIM_EPOCH + t, joint_pos=joint_pos, joint_vel=joint_vel,
-               command=command)
+               command=sim.command[::every])
 
 
 def _topic(name):
@@ -248,9 +260,7 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0, domain_i
 
 
 SAMPLES = {
-    # name: (design kwargs, simulate_run kwargs)
-    'tomato': (dict(depth=0.045, spacing=0.2, hole_ratio=0.05),
-               dict(duration=30.0, cruise=0.2, step=1.25, seed=1)),
+    # name: (design kwargs, simulate_run kwargs); the demo records the other samples
     'pepper_stall': (dict(depth=0.06, spacing=0.3, hole_ratio=0.05),
                      dict(duration=20.0, cruise=0.3, step=1.6, drive_lag=0.25, phase_gain=1.0,
                           stall_at=7.0, stall_for=3.5, stall_level=0.1, seed=2)),
