@@ -18,13 +18,20 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 
 stamp="$VENV/.planter-stamp"
-want=$(cat requirements.txt setup.py setup.cfg package.xml | sha256sum | cut -d' ' -f1)
+want=$(cat requirements.txt setup.py setup.cfg package.xml scripts/bootstrap.sh | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "bootstrap: installing requirements into $VENV (first run takes about a minute)" >&2
   # (this workplace's pip config warns about every missing local index folder: filter that noise)
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r requirements.txt \
     2> >(grep -v 'is ignored: it is neither a file nor a directory' >&2)
-  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps --config-settings editable_mode=compat -e . \
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps --use-pep517 -e . \
     2> >(grep -v 'is ignored: it is neither a file nor a directory' >&2)
   echo "$want" > "$stamp"
 fi
+# the README's commands run these console scripts from the venv
+for exe in planter design_node sync_node monitor_node; do
+  if [ ! -x "$VENV/bin/$exe" ]; then
+    echo "bootstrap: $VENV/bin/$exe is missing after the install (delete $VENV and re-run)" >&2
+    exit 1
+  fi
+done
