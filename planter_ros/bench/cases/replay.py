@@ -18,7 +18,6 @@ from ..registry import Row, Target, bench_case
 WHAT = 'replay (planter replay)'
 REAL_TIME_TARGET = 1000.0      # PRODUCT.md §5: replay >= 1000x real time
 BAGS = Path(__file__).resolve().parents[3] / 'bags'
-SAMPLE_BAGS = ('sample_tomato.mcap', 'sample_pepper_stall.mcap')
 ERROR_OF = ('max |replayed − live monitor prediction| over every field of every plant (SI: s, '
             'm, m/s, rad/s, rad), absolute; — for a generated bag (no live predictions in it)')
 
@@ -73,12 +72,12 @@ def replay_throughput(ctx):
         yield _replay_row(ctx, path, f'generated {duration:.0f} s input bag', result,
                           rec.message_count, target=True,
                           note='tomato five-bar, speed step +25 %')
-    for name in SAMPLE_BAGS:
-        path = BAGS / name
-        if not path.exists():
-            yield Row(WHAT, name, None, '', status='not available',
-                      note=f'not available: {path} is missing')
-            continue
+    samples = sorted(BAGS.glob('sample_*.mcap'))
+    if not samples:
+        yield Row(WHAT, 'sample bags', None, '', status='not available',
+                  note=f'not available: no {BAGS}/sample_*.mcap')
+    for path in samples:
+        name = path.name
         result = replay(path, with_recorded=True)
         yield _replay_row(ctx, path, f'bags/{name} (live monitor recording)', result,
                           result.messages['total_read'], error=_live_error(result, path))
