@@ -50,9 +50,10 @@ class PhaseLockConfig:
     max_correction: float = 2.0             # rad/s, bound of the phase correction
     phase_lock: bool = True                 # False: speed-only (feed-forward) mode
     ground_speed_timeout: float = 0.5       # s without an accepted sample -> stale
-    max_ground_speed: float = 3.0           # m/s, faster samples are implausible
-    max_ground_acceleration: float = 3.0    # m/s², larger jumps are spikes
-    ground_speed_tolerance: float = 0.05    # m/s, sensor noise allowed on top of that
+    # which ground-speed samples are believed (see ground_speed_filter)
+    max_ground_speed: float = GroundSpeedLimits.max_ground_speed
+    max_ground_acceleration: float = GroundSpeedLimits.max_ground_acceleration
+    ground_speed_tolerance: float = GroundSpeedLimits.ground_speed_tolerance
 
     def __post_init__(self):
         for f in fields(self):
