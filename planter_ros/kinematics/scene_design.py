@@ -8,10 +8,11 @@ infeasible one, so a node never publishes it.
 
 import math
 
+from planter_ros.interfaces import PLANTS_PER_REVOLUTION
+
 from .errors import DesignError, require_positive_finite
 
-MECHANISMS = ('five_bar', 'three_arm')
-PLANTS_PER_REVOLUTION = {'five_bar': 1, 'three_arm': 3}
+MECHANISMS = tuple(PLANTS_PER_REVOLUTION)
 
 
 def design_for_scene(params):

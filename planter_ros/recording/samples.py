@@ -34,14 +34,13 @@ class Run:
     command: np.ndarray          # shaft speed command at joint_t (rad/s)
 
 
-def five_bar_design_message(depth=0.045, spacing=0.2, hole_ratio=0.05, method='exact'):
-    """The design topic's dict for a five-bar scene (tomato defaults)."""
-    from planter_ros.kinematics.five_bar import design_five_bar
-    design = design_five_bar(depth, spacing, hole_ratio, method)
-    out = {'mechanism': 'five_bar', 'plants_per_revolution': 1, 'plant_spacing': spacing,
-           'planting_depth': depth}
-    out.update(design.as_dict())
-    return out
+def five_bar_design_message(depth=0.045, spacing=0.2, hole_ratio=0.05, method='exact',
+                            ground_speed=0.2):
+    """The design topic's dict for a five-bar scene (tomato defaults), as design_node makes it."""
+    from planter_ros.kinematics.scene_design import design_for_scene
+    return design_for_scene({'mechanism': 'five_bar', 'planting_depth': depth,
+                             'plant_spacing': spacing, 'hole_ratio': hole_ratio,
+                             'design_method': method, 'nominal_ground_speed': ground_speed})
 
 
 def speed_profile(t, cruise, duration, step_at=None, step=1.25, ramp=2.0):
@@ -261,7 +260,7 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0, domain_i
 
 SAMPLES = {
     # name: (design kwargs, simulate_run kwargs); the demo records the other samples
-    'pepper_stall': (dict(depth=0.06, spacing=0.3, hole_ratio=0.05),
+    'pepper_stall': (dict(depth=0.06, spacing=0.3, hole_ratio=0.05, ground_speed=0.3),
                      dict(duration=20.0, cruise=0.3, step=1.6, drive_lag=0.25, phase_gain=1.0,
                           stall_at=7.0, stall_for=3.5, stall_level=0.1, seed=2)),
 }

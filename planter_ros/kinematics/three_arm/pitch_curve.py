@@ -31,6 +31,7 @@ TWO_PI = 2.0 * math.pi
 CLOSURE_METHODS = ('gauss', 'trapezoid', 'paper')
 _GL_NODES = 16
 _GL_TOL = 1e-14
+_END_MERGE = 1e-9          # rad: knots this close to 0 or 2π join the end piece
 _GL_MAX_SPLITS = 9          # at most 2**9 sub-pieces per knot interval
 
 
@@ -160,7 +161,11 @@ class PitchCurve:
         self.radii, self.angles = _check_control_points(radii, angles)
         self.interpolant = interpolant
         self._f = INTERPOLANTS[interpolant](self.radii, self.angles)
-        self._pieces = np.unique(np.r_[self._f.breakpoints, 0.0, TWO_PI])
+        # knots within 1e-9 rad of the ends 0 and 2π would make pieces of ~0 width (their
+        # quintic tables divide by width⁵); a kink that close to an end changes no integral
+        knots = np.asarray(self._f.breakpoints, dtype=float)
+        knots = knots[(knots > _END_MERGE) & (knots < TWO_PI - _END_MERGE)]
+        self._pieces = np.unique(np.r_[0.0, knots, TWO_PI])
         self.rho_min, self.rho_max = self._range()
         if not self.rho_min > 0.0:
             raise DesignError('control_radii', float(self.radii.min()), 'a pitch curve that '
