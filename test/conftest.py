@@ -1,7 +1,7 @@
 """Test set-up shared by every test module.
 
-DDS discovery must stay on loopback in this workplace (and in CI): the variable is set here,
-before any test module can call rclpy.init().
+DDS discovery must stay on loopback in this workplace (and in CI), and each test session gets a
+DDS domain of its own: both are set here, before any test module can call rclpy.init().
 """
 import os
 import sys
@@ -12,6 +12,12 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
+
+# Every test graph runs in a DDS domain of this test session's own: a second test run, a demo
+# or any other ROS process on the host can neither see nor disturb it.
+from planter_ros.dds_domain import isolate_environment  # noqa: E402
+
+isolate_environment()
 
 # CI runs the property tests derandomized: the same examples every run, so a red build is a
 # reproducible finding, not luck; locally they keep exploring new examples.

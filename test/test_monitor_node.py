@@ -6,13 +6,12 @@ import rclpy
 from rclpy.parameter import Parameter
 
 from planter_ros.nodes.monitor_node import MonitorNode
-from planter_ros.recording.samples import private_domain_id
 
 
 @pytest.fixture
 def node():
     context = rclpy.Context()
-    rclpy.init(context=context, domain_id=private_domain_id())
+    rclpy.init(context=context)
     n = MonitorNode(context=context, parameter_overrides=[Parameter('record', value=False)])
     yield n
     n.destroy_node()

@@ -155,12 +155,6 @@ def write_input_bag(run, path, **recorder_options):
     return rec
 
 
-def private_domain_id():
-    """A DDS domain of this process's own (other ROS processes on the machine stay out)."""
-    import os
-    return 100 + os.getpid() % 100
-
-
 def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0, domain_id=None):
     """Run the real monitor node on `run` over ROS and let it record `bag_path`.
 
@@ -179,12 +173,13 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0, domain_i
     from geometry_msgs.msg import TwistStamped
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64, String
+    from planter_ros.dds_domain import claim_private_domain
     from planter_ros.nodes.monitor_node import MonitorNode, input_qos
     import time
 
     context = rclpy.Context()
     rclpy.init(context=context,
-               domain_id=private_domain_id() if domain_id is None else domain_id)
+               domain_id=claim_private_domain() if domain_id is None else domain_id)
     params = [Parameter('use_sim_time', value=True), Parameter('bag_path', value=str(bag_path))]
     for name, value in (monitor_parameters or {}).items():
         params.append(Parameter(name, value=value))

@@ -45,11 +45,11 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0):
     from planter_ros.drive.simulated_drive import SimulatedDrive
     from planter_ros.nodes.qos import DESIGN_QOS, GROUND_SPEED_QOS
     from planter_ros.nodes.sync_node import SyncNode
-    from planter_ros.recording.samples import private_domain_id
+    from planter_ros.dds_domain import claim_private_domain
 
     channel = f'planter-bench-sync-{uuid.uuid4().hex}'
     context = Context()
-    rclpy.init(context=context, domain_id=private_domain_id(),
+    rclpy.init(context=context, domain_id=claim_private_domain(),
                signal_handler_options=SignalHandlerOptions.NO)
     sim = sync = source = ex = listener = None
     frames = []

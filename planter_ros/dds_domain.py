@@ -1,0 +1,78 @@
+"""A DDS domain of this process's own: graphs started for the product's own purposes (demo,
+bench, sample and season generators, tests) must be unreachable from any other graph on the host.
+
+ROS 2 graphs in different DDS domains never see each other. A domain counts as free when no
+process of ours holds its lock file and no participant on the host has bound its first unicast
+ports (Fast DDS and the other DDS vendors bind 7410 + 250·domain + 2·participant and the port
+after it for each participant, on every interface). The lock is held until the process exits, so
+two runs started at the same instant never pick the same domain. Domain 0 (everybody's default)
+is never chosen. Pure Python: no ROS import.
+"""
+
+import fcntl
+import os
+import socket
+import tempfile
+
+# 1..101: the domain ids whose ports stay below Linux's ephemeral range (32768 and up)
+CANDIDATES = range(1, 102)
+PARTICIPANTS_PROBED = 5
+_held = {}            # domain -> open lock file, kept for the life of the process
+
+
+class NoFreeDomainError(RuntimeError):
+    """Every candidate domain is in use on this host (one line)."""
+
+
+def unicast_ports(domain, participants=PARTICIPANTS_PROBED):
+    """The metatraffic and user unicast ports of the first `participants` participants."""
+    base = 7400 + 250 * domain
+    return [base + 10 + 2 * i + k for i in range(participants) for k in (0, 1)]
+
+
+def ports_free(domain):
+    """True when no participant of `domain` has bound its unicast ports on this host."""
+    for port in unicast_ports(domain):
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            try:
+                sock.bind(('127.0.0.1', port))
+            except OSError:
+                return False
+    return True
+
+
+def _lock_path(domain):
+    return os.path.join(tempfile.gettempdir(), f'planter_ros-dds-domain-{domain}.lock')
+
+
+def claim_private_domain():
+    """Claim a free DDS domain for this process and return its id (cached: one per process)."""
+    if _held:
+        return next(iter(_held))
+    start = os.getpid() % len(CANDIDATES)
+    order = list(CANDIDATES[start:]) + list(CANDIDATES[:start])
+    for domain in order:
+        try:
+            handle = open(_lock_path(domain), 'a')
+        except OSError:
+            continue
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.close()
+            continue
+        if ports_free(domain):
+            _held[domain] = handle
+            return domain
+        handle.close()
+    raise NoFreeDomainError(f'no free DDS domain among {CANDIDATES.start}..{CANDIDATES.stop - 1} '
+                            'on this host')
+
+
+def isolate_environment(environ=os.environ):
+    """Point ROS_DOMAIN_ID at a private domain (and keep discovery on the host unless the
+    environment already chose a range); returns the domain id."""
+    domain = claim_private_domain()
+    environ['ROS_DOMAIN_ID'] = str(domain)
+    environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    return domain
