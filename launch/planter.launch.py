@@ -3,7 +3,7 @@
     ros2 launch planter_ros planter.launch.py scene:=/path/to/scene.yaml can_channel:=can0
 
 Every node reads the same scene file (`/**` parameters); the sync node additionally gets the
-CAN interface and channel. Topics live in the /planter namespace (planter_ros/interfaces.py).
+CAN interface and channel. Topics live in the /planter namespace (planter_ros.interfaces).
 """
 
 from launch import LaunchDescription
@@ -12,8 +12,9 @@ from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
+from planter_ros.interfaces import NAMESPACE
+
 PACKAGE = 'planter_ros'
-NAMESPACE = 'planter'          # planter_ros.interfaces.NAMESPACE
 
 
 def generate_launch_description():

@@ -1,27 +1,139 @@
-"""The user's contract in one place: topic names, message types, joint names and units.
+"""The user's contract in one table: every topic's name, message type and QoS, and the joints.
 
-Standard message types only (no custom interfaces package). Every node and the recorder take
-names from here, so a rename is one edit. Default namespace: /planter (topics are relative).
+Standard message types only (no custom interfaces package). Every publisher, subscriber,
+recorder channel and replay lookup takes its topic from here, so a rename is one edit. Topics
+are relative (default namespace /planter) except the ROS-wide ones (/diagnostics, /clock).
+
+QoS, chosen on purpose:
+* design: reliable + transient_local + depth 1 ("latched"): a node that starts late (the sync
+  node after a restart, the monitor, a recorder) still gets the active design at once.
+* ground_speed: the sensor-data profile (best effort, volatile, keep last 5). A late or resent
+  speed sample is worse than none (the law integrates distance from receive times and holds the
+  last sample), a best-effort subscription also matches a reliable publisher, and a lost sample
+  costs one 20-50 ms update. The sync node never waits on a retransmission.
+* joint_states, speed_command, /diagnostics: reliable, keep last 10 (the monitor computes plant
+  positions from joint states: losing one loses a plant crossing).
+* plants, uprightness_rate: reliable, keep last 100 (a viewer that falls behind for a second
+  still gets every plant).
+A recorder subscribes with the same reliability and durability but a deeper queue
+(`Topic.recording_qos`), so it rides out a busy second at 100 Hz.
 """
 
+from dataclasses import dataclass, replace
+import importlib
+
 NAMESPACE = 'planter'
+RECORDING_DEPTH = 100
 
-# geometry_msgs/TwistStamped, input: twist.linear.x = measured ground speed (m/s, forward > 0)
-GROUND_SPEED = 'ground_speed'
-# std_msgs/String, latched (reliable, transient_local, depth 1): JSON of the active design in SI
-# units; keys at least `mechanism` (five_bar | three_arm), `plants_per_revolution` (1 | 3),
-# `plant_spacing` (m), `planting_depth` (m), then the mechanism's own fields.
-DESIGN = 'design'
-# sensor_msgs/JointState from drive feedback: name = [MECHANISM_JOINT[mechanism]],
-# position = mechanism shaft angle (rad, unwrapped, increasing forward), velocity (rad/s)
-JOINT_STATES = 'joint_states'
-# std_msgs/Float64: commanded mechanism shaft speed (rad/s) sent to the drive
-SPEED_COMMAND = 'speed_command'
-# per-plant predictions and the rolling uprightness rate (monitor; see README for the fields)
-PLANTS = 'plants'
-UPRIGHTNESS_RATE = 'uprightness_rate'
-# diagnostic_msgs/DiagnosticArray, absolute name as diagnostic_aggregator expects
-DIAGNOSTICS = '/diagnostics'
 
+@dataclass(frozen=True)
+class Qos:
+    """A QoS profile as plain data (keep-last history); `profile()` gives rclpy's."""
+
+    reliability: str            # 'reliable' | 'best_effort'
+    durability: str             # 'volatile' | 'transient_local'
+    depth: int
+
+    def deeper(self, depth=RECORDING_DEPTH):
+        return replace(self, depth=depth)
+
+    def profile(self):
+        from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile,
+                               ReliabilityPolicy)
+        return QoSProfile(depth=self.depth, history=HistoryPolicy.KEEP_LAST,
+                          reliability=ReliabilityPolicy[self.reliability.upper()],
+                          durability=DurabilityPolicy[self.durability.upper()])
+
+
+LATCHED = Qos('reliable', 'transient_local', 1)
+SENSOR_DATA = Qos('best_effort', 'volatile', 5)
+STATE = Qos('reliable', 'volatile', 10)
+OUTPUT = Qos('reliable', 'volatile', 100)
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One topic of the contract: `name` (relative unless it starts with '/'), `type_name`
+    (`pkg/msg/Type`), the QoS its publishers offer and its subscribers ask for."""
+
+    name: str
+    type_name: str
+    qos: Qos
+    doc: str
+
+    def msg_class(self):
+        package, kind, base = self.type_name.split('/')
+        return getattr(importlib.import_module(f'{package}.{kind}'), base)
+
+    def recording_qos(self):
+        """What a recorder subscribes with: a latched topic's last sample, else a deep queue."""
+        return self.qos if self.qos.durability == 'transient_local' else self.qos.deeper()
+
+    def publisher(self, node, qos=None):
+        """`node`'s publisher of this topic (the contract's QoS unless `qos` is given)."""
+        return node.create_publisher(self.msg_class(), self.name, (qos or self.qos).profile())
+
+    def subscribe(self, node, callback, qos=None, **kwargs):
+        """`node`'s subscription to this topic (kwargs: raw, callback_group, ...)."""
+        return node.create_subscription(self.msg_class(), self.name, callback,
+                                        (qos or self.qos).profile(), **kwargs)
+
+    def resolved(self, namespace=NAMESPACE):
+        """The absolute name in `namespace` (as recorded in bags)."""
+        return self.name if self.name.startswith('/') else f'/{namespace}/{self.name}'
+
+
+GROUND_SPEED = Topic(
+    'ground_speed', 'geometry_msgs/msg/TwistStamped', SENSOR_DATA,
+    'input: twist.linear.x = measured ground speed (m/s, forward > 0)')
+DESIGN = Topic(
+    'design', 'std_msgs/msg/String', LATCHED,
+    'JSON of the active design in SI units; keys at least mechanism (five_bar | three_arm), '
+    'plants_per_revolution (1 | 3), plant_spacing (m), planting_depth (m), then the '
+    "mechanism's own fields")
+JOINT_STATES = Topic(
+    'joint_states', 'sensor_msgs/msg/JointState', STATE,
+    'drive feedback: name = [MECHANISM_JOINT[mechanism]], position = mechanism shaft angle '
+    '(rad, unwrapped, increasing forward), velocity (rad/s), stamped when the drive measured it')
+SPEED_COMMAND = Topic(
+    'speed_command', 'std_msgs/msg/Float64', STATE,
+    'commanded mechanism shaft speed (rad/s) sent to the drive')
+PLANTS = Topic(
+    'plants', 'std_msgs/msg/Float64MultiArray', OUTPUT,
+    "per-plant predictions: dim[0] 'plant' x dim[1] labelled with the field names (SI)")
+UPRIGHTNESS_RATE = Topic(
+    'uprightness_rate', 'std_msgs/msg/Float64', OUTPUT,
+    'rolling fraction (0..1) of upright plants over the last `window` plants')
+DIAGNOSTICS = Topic(
+    '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', STATE,
+    'node health, ~1 Hz, absolute as diagnostic_aggregator expects')
+CLOCK = Topic(
+    '/clock', 'rosgraph_msgs/msg/Clock', Qos('reliable', 'volatile', 100),
+    'simulated time, published only by the lock-step sample feeder (use_sim_time)')
+
+TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, PLANTS, UPRIGHTNESS_RATE,
+          DIAGNOSTICS, CLOCK)
+# what the monitor records: its inputs as they arrived, then its own outputs
+MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, DIAGNOSTICS)
+MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE)
+RECORDED = MONITOR_INPUTS + MONITOR_OUTPUTS
+# MCAP metadata record of a monitor's bag holding its prediction settings (name -> repr)
+PREDICTION_SETTINGS_RECORD = 'planter_monitor'
+
+
+@dataclass(frozen=True)
+class Service:
+    name: str
+    type_name: str
+    doc: str
+
+    def srv_class(self):
+        package, kind, base = self.type_name.split('/')
+        return getattr(importlib.import_module(f'{package}.{kind}'), base)
+
+
+RESET_FAULT = Service('reset_fault', 'std_srvs/srv/Trigger',
+                      'sync node: the only way out of a drive fault')
+
+# the mechanism's shaft in joint_states, per mechanism
 MECHANISM_JOINT = {'five_bar': 'sun_bar', 'three_arm': 'carrier'}
-PLANTS_PER_REVOLUTION = {'five_bar': 1, 'three_arm': 3}

@@ -26,3 +26,8 @@ from hypothesis import settings  # noqa: E402
 settings.register_profile('ci', derandomize=True)
 if os.environ.get('CI'):
     settings.load_profile('ci')
+
+# the rclpy fixture (a fresh Context and executor per test), for every test module
+from ros_fixtures import ros  # noqa: E402, F401
+# the CAN drive fixtures (a virtual channel per test, the simulated drive, masters)
+from drive_helpers import channel, enabled, make_drive, sim, spy  # noqa: E402, F401

@@ -47,8 +47,8 @@ def make_drive(channel):
     made = []
 
     def make(bus=None, **overrides) -> Cia402Drive:
-        overrides.setdefault('channel', channel)
-        overrides.setdefault('node_id', NODE_ID)
+        overrides.setdefault('can_channel', channel)
+        overrides.setdefault('drive_node_id', NODE_ID)
         overrides.setdefault('step_timeout', 0.3)
         drive = Cia402Drive(DriveConfig(**overrides), bus=bus)
         made.append(drive)

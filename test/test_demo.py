@@ -24,7 +24,8 @@ def test_an_existing_bag_is_never_overwritten(tmp_path):
     bag = tmp_path / 'run.mcap'
     bag.write_bytes(b'precious')
     out = run_planter('demo', '--bag', bag)
-    assert out.returncode == 2 and out.stderr.count('\n') == 1 and 'never overwritten' in out.stderr
+    assert out.returncode == 2 and out.stderr.count('\n') == 1
+    assert 'never overwritten' in out.stderr
     assert bag.read_bytes() == b'precious'
 
 
@@ -46,12 +47,12 @@ def test_ctrl_c_stops_the_demo_cleanly_with_a_summary_and_a_finalised_bag(tmp_pa
     assert 'interrupted: stopping' in out
     assert 'drive shut down (target 0, disabled, pre-operational)' in out
     assert 'Traceback' not in out
-    placed = next(l for l in out.splitlines() if 'plants placed' in l)
+    placed = next(line for line in out.splitlines() if 'plants placed' in line)
     assert int(placed.split()[-1]) >= 1
     # the default bag lands under ./bags, finalised, and the demo ends with its replay
     bags = list((tmp_path / 'bags').glob('planter_*'))
     assert len(bags) == 1
     assert f'recorded bags/{bags[0].name}' in out
-    replayed = next(l for l in out.splitlines() if l.strip().startswith('plants:'))
+    replayed = next(line for line in out.splitlines() if line.strip().startswith('plants:'))
     assert int(replayed.split()[1]) >= 1
     assert 'spacing error: mean' in out and 'uprightness:' in out

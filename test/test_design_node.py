@@ -1,24 +1,20 @@
 """design_node: latched design, validated parameter updates, only what the scene needs."""
-import importlib.util
 import json
 import subprocess
 import sys
 
 import pytest
 from rclpy.parameter import Parameter
-from std_msgs.msg import String
 
 from planter_ros import interfaces
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.nodes.design_node import DesignNode
-from planter_ros.nodes.qos import DESIGN_QOS
-from ros_fixtures import ros  # noqa: F401  (fixture)
+
 
 
 def subscribe(ros, name):
     got = []
-    ros.node(name).create_subscription(String, interfaces.DESIGN,
-                                       lambda m: got.append(json.loads(m.data)), DESIGN_QOS)
+    interfaces.DESIGN.subscribe(ros.node(name), lambda m: got.append(json.loads(m.data)))
     return got
 
 
@@ -80,19 +76,12 @@ def test_three_arm_scene_is_routed_to_the_three_arm_model(ros):
     node = ros.add(DesignNode(context=ros.context))
     res = node.set_parameters([Parameter('mechanism', value='three_arm')])[0]
     assert not res.successful                     # five-bar scene: no three-arm parameters
-    if importlib.util.find_spec('planter_ros.kinematics.three_arm') is None:
-        assert 'three-arm model' in res.reason
-    else:
-        assert 'control_radii' in res.reason
+    assert 'control_radii' in res.reason
     assert node.design['mechanism'] == 'five_bar'
 
 
 def test_three_arm_scene_declares_its_parameters(ros):
     overrides = [Parameter('mechanism', value='three_arm')]
-    if importlib.util.find_spec('planter_ros.kinematics.three_arm') is None:
-        with pytest.raises(DesignError, match='three-arm model'):
-            DesignNode(context=ros.context, parameter_overrides=overrides)
-        return
     with pytest.raises(DesignError, match='control_radii'):
         DesignNode(context=ros.context, parameter_overrides=overrides)
 

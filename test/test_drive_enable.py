@@ -4,8 +4,7 @@ import struct
 import can
 import pytest
 
-from drive_helpers import (NODE_ID, RPDO1, SDO_RX, channel, drain, enabled, make_drive,  # noqa: F401
-                           rpdo_frames, sim, spy)
+from drive_helpers import RPDO1, SDO_RX, drain, rpdo_frames
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig, DriveError
 from planter_ros.drive.simulated_drive import SimulatedDrive
 
@@ -36,7 +35,8 @@ def test_target_velocity_is_zero_before_enable(sim, make_drive, spy):
     drive.connect_and_enable()
     frames = drain(spy)
     sdo_60ff = [i for i, m in enumerate(frames) if m.arbitration_id == SDO_RX
-                and m.data[0] & 0xE0 == 0x20 and struct.unpack_from('<H', bytes(m.data), 1)[0] == 0x60FF]
+                and m.data[0] & 0xE0 == 0x20
+                and struct.unpack_from('<H', bytes(m.data), 1)[0] == 0x60FF]
     assert sdo_60ff, 'no SDO download of 0x60FF'
     assert struct.unpack_from('<i', bytes(frames[sdo_60ff[0]].data), 4)[0] == 0
     first_rpdo = next(i for i, m in enumerate(frames) if m.arbitration_id == RPDO1)
@@ -47,7 +47,8 @@ def test_target_velocity_is_zero_before_enable(sim, make_drive, spy):
     assert all(v == 0 for _, v in enable_frames)
     assert sim.target_at_enable == 0
     # the NMT start comes after 0x60FF = 0 and the mode confirmation
-    nmt_start = next(i for i, m in enumerate(frames) if m.arbitration_id == 0 and m.data[0] == 0x01)
+    nmt_start = next(i for i, m in enumerate(frames)
+                     if m.arbitration_id == 0 and m.data[0] == 0x01)
     assert sdo_60ff[0] < nmt_start < first_rpdo
 
 
@@ -96,7 +97,8 @@ def test_missing_drive_heartbeat_fails_enable(sim, make_drive):
 
 def test_encoder_resolution_mismatch_is_refused(sim, make_drive):
     drive = make_drive(counts_per_motor_rev=10_000)
-    with pytest.raises(DriveError, match=r'4096/1 increments per motor rev but counts_per_motor_rev=10000'):
+    with pytest.raises(DriveError, match=r'4096/1 increments per motor rev but '
+                                         r'counts_per_motor_rev=10000'):
         drive.connect_and_enable()
 
 
@@ -133,13 +135,14 @@ def test_a_drive_left_enabled_by_a_dead_master_is_re_enabled_from_the_bottom(
 
 
 @pytest.mark.parametrize('field, value, allowed', [
-    ('node_id', 0, '1..127'),
-    ('motor_gear_ratio', float('nan'), 'finite > 0'),
-    ('motor_gear_ratio', -2.0, 'finite > 0'),
-    ('counts_per_motor_rev', 0, '>= 1'),
-    ('command_timeout', 0.0, '0.001..65.535 s'),
+    ('drive_node_id', 0, '1..127'),
+    ('motor_gear_ratio', float('nan'), '0.01..1000'),
+    ('motor_gear_ratio', -2.0, '0.01..1000'),
+    ('counts_per_motor_rev', 0, '1..16777216'),
+    ('command_timeout', 0.0, '0.02..5 s'),
     ('drive_heartbeat_timeout', 0.05, '> drive_heartbeat_period'),
-    ('master_node_id', 1, 'except node_id=1'),
+    ('master_node_id', 1, 'except drive_node_id=1'),
+    ('can_channel', '', 'a non-empty name'),
 ])
 def test_bad_config_is_a_one_line_error_naming_value_and_range(field, value, allowed):
     with pytest.raises(DriveError) as err:
@@ -149,7 +152,7 @@ def test_bad_config_is_a_one_line_error_naming_value_and_range(field, value, all
 
 
 def test_unknown_interface_is_a_drive_error():
-    drive = Cia402Drive(DriveConfig(interface='no-such-interface', channel='x'))
+    drive = Cia402Drive(DriveConfig(can_interface='no-such-interface', can_channel='x'))
     with pytest.raises(DriveError, match=r'open bus: no-such-interface:x'):
         drive.connect_and_enable()
     drive.shutdown()

@@ -1,12 +1,10 @@
 """Faults, EMCY, explicit reset, lost heartbeats, the drive's watchdog and CAN send errors."""
-import math
 
 import can
 import pytest
 from can.interfaces.virtual import VirtualBus
 
-from drive_helpers import (channel, control_loop, drain, enabled, make_drive, rpdo_frames,  # noqa: F401
-                           sim, spy, wait_until)
+from drive_helpers import control_loop, drain, rpdo_frames, wait_until
 from planter_ros.drive.cia402 import DriveError
 
 
@@ -127,7 +125,8 @@ class FailingBus(VirtualBus):
 
     def send(self, msg, timeout=None):
         if self.failing:
-            raise can.CanOperationError('Failed to transmit: No buffer space available [Error Code 105]')
+            raise can.CanOperationError('Failed to transmit: No buffer space available '
+                                        '[Error Code 105]')
         super().send(msg, timeout)
 
 
@@ -170,5 +169,6 @@ def test_send_error_in_sdo_configuration_names_the_step(sim, make_drive, failing
             raise can.CanOperationError('bus-off')
         VirtualBus.send(failing_bus, msg, timeout)
     monkeypatch.setattr(failing_bus, 'send', send)
-    with pytest.raises(DriveError, match=r'identify \(SDO 0x1000 device type\): CAN send failed.*bus-off'):
+    with pytest.raises(DriveError,
+                       match=r'identify \(SDO 0x1000 device type\): CAN send failed.*bus-off'):
         drive.connect_and_enable()

@@ -3,8 +3,7 @@ import math
 
 import pytest
 
-from drive_helpers import (channel, control_loop, drain, enabled, make_drive, rpdo_frames,  # noqa: F401
-                           sim, spy, wait_until)
+from drive_helpers import control_loop, drain, rpdo_frames
 from planter_ros.drive.cia402 import DriveError
 
 

@@ -1,8 +1,7 @@
 """Clean shutdown of the CiA 402 master, as seen on the bus."""
 import pytest
 
-from drive_helpers import (NODE_ID, channel, control_loop, drain, enabled, make_drive,  # noqa: F401
-                           rpdo_frames, sim, spy, wait_until)
+from drive_helpers import NODE_ID, control_loop, drain, rpdo_frames
 from planter_ros.drive.cia402 import DriveError
 
 

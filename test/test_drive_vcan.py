@@ -45,7 +45,8 @@ def vcan_sim():
 
 @pytest.fixture
 def vcan_drive():
-    drive = Cia402Drive(DriveConfig(interface='socketcan', channel=VCAN, node_id=NODE_ID,
+    drive = Cia402Drive(DriveConfig(can_interface='socketcan', can_channel=VCAN,
+                                    drive_node_id=NODE_ID,
                                     motor_gear_ratio=12.5))
     yield drive
     drive.shutdown()

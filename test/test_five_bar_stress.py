@@ -139,7 +139,8 @@ def test_distance_range_is_the_true_extreme_of_the_cycle(depth, spacing, frac, r
     for ex in (l5, -l5):                   # E ahead of or behind A: the same range
         x, y = static_trajectory(l1, l2, theta)
         r = np.hypot(x - ex, y)
-        assert r.max() <= float(rmax_ref) * (1 + 1e-12) and r.min() >= float(rmin_ref) * (1 - 1e-12)
+        assert r.max() <= float(rmax_ref) * (1 + 1e-12)
+        assert r.min() >= float(rmin_ref) * (1 - 1e-12)
         assert r.max() >= float(rmax_ref) * (1 - 1e-6) and r.min() <= float(rmin_ref) * (1 + 1e-6)
     # the design's own dyad (paper ratios for l3, l4) against the reference
     l3, l4 = 1.4 * (l1 + l2), 1.5 * (l1 + l2)

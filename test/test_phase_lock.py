@@ -5,14 +5,16 @@ import math
 import pytest
 
 from planter_ros.control.phase_lock import ControlConfigError, PhaseLock, PhaseLockConfig
-from planter_ros.control.simulation import (DriveModel, field_profile, plant_positions,
-                                            run_comparison, simulate, spacing_stats)
+from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
+from planter_ros.sim.closed_loop import DriveModel, run_comparison, simulate
+from planter_ros.sim.field import field_profile
+from planter_ros.sim.spacing import plant_positions, spacing_stats
 
 D = 0.2            # tomato spacing (m)
 
 
-def tracking_law(v=0.2, **cfg):
-    law = PhaseLock(PhaseLockConfig(**cfg))
+def tracking_law(v=0.2, limits=None, **cfg):
+    law = PhaseLock(PhaseLockConfig(**cfg), limits)
     law.set_design(D, 1, 0.0)
     law.feedback(0.0, 0.0, 0.0)
     law.ground_speed(v, 0.0)
@@ -91,7 +93,8 @@ def test_bad_samples_rejected_counted_and_not_followed(bad, reason):
 
 
 def test_persistent_genuine_step_is_accepted_after_plausible_time():
-    law = tracking_law(max_ground_acceleration=2.0, ground_speed_tolerance=0.05)
+    law = tracking_law(limits=GroundSpeedLimits(max_ground_acceleration=2.0,
+                                                 ground_speed_tolerance=0.05))
     run_constant(law, 0.2, 0.0, 1.0)
     t, verdicts = 1.0, []
     for _ in range(20):                 # a real jump to 0.6 m/s, sampled at 50 Hz

@@ -9,7 +9,7 @@ from planter_ros.kinematics.five_bar import design_five_bar
 from planter_ros.kinematics.plant_prediction import (
     FiveBarPlanting, PathPlanting, PlantPredictor, Plants, PredictionSettings,
     plant_values, planting_model_from_design, predict_plants)
-from planter_ros.recording.samples import five_bar_design_message, simulate_run
+from planter_ros.sim.runs import five_bar_design_message, simulate_run
 
 TOMATO = design_five_bar(0.045, 0.2, 0.05)
 
@@ -211,7 +211,7 @@ def test_stopped_machine_and_reversing_give_finite_figures():
 
 def test_implausible_ground_speed_samples_do_not_move_plants_live_or_in_replay():
     """A 25 m/s spike, a NaN and a reversing blip must not shift the plants' positions: the
-    monitor believes the same samples as the sync node (control.ground_speed_filter)."""
+    monitor believes the same samples as the sync node (sensing.ground_speed_filter)."""
     model = tomato_model()
     clean = constant_run(1.0, duration=6.0)
     speed_t, speed_v = clean[0].copy(), clean[1].copy()

@@ -12,7 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planter_ros.recording.replay import MAGIC, decode_ground_speed, read_recording
+from planter_ros import interfaces
+from planter_ros.recording.bag_reader import MAGIC, read_recording
+from planter_ros.recording.cdr import decode_ground_speed
 
 REPO = Path(__file__).resolve().parents[1]
 RATE = 500.0          # messages per second written by the child
@@ -37,8 +39,7 @@ while True:
 
 
 def child_env():
-    return dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-                ROS_DOMAIN_ID=str(100 + os.getpid() % 100))
+    return dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
 
 
 def test_sigkill_loses_at_most_about_one_second(tmp_path):
@@ -56,9 +57,9 @@ def test_sigkill_loses_at_most_about_one_second(tmp_path):
         child.wait(timeout=10)
     rest = child.stdout.read().split()
     written = int(rest[-1]) if rest else reported      # at least this many were written
-    rec = read_recording(bag)
+    rec = read_recording(bag, (interfaces.GROUND_SPEED,))
     assert any('not finalised' in w for w in rec.warnings)
-    raws = rec.topics['ground_speed'].raw
+    raws = rec.topics[interfaces.GROUND_SPEED].raw
     _, values = decode_ground_speed(raws)
     recovered = len(values)
     assert np.array_equal(values, np.arange(recovered))          # an intact prefix

@@ -8,8 +8,9 @@ import yaml
 from planter_ros.kinematics.plant_prediction import PLANT_FIELDS
 from planter_ros.recording.recorder import DELIMITER, Recorder, RecorderError, message_definition
 from planter_ros.recording.replay import replay
-from planter_ros.recording.samples import (five_bar_design_message, record_sample, simulate_run,
-                                           write_input_bag)
+from planter_ros.cli.samples import record_sample
+from planter_ros.sim.bags import write_input_bag
+from planter_ros.sim.runs import five_bar_design_message, simulate_run
 
 MONITOR_PARAMS = {'nozzle_width': 0.012, 'window': 5}
 
@@ -64,7 +65,7 @@ def test_rosbags_decodes_every_message_to_the_published_values(live_bag):
     store = get_typestore(Stores.ROS2_JAZZY)
     got = {}
     with Reader(path) as reader:
-        for conn, log_time, raw in reader.messages():
+        for conn, _, raw in reader.messages():
             got.setdefault(conn.topic, []).append(store.deserialize_cdr(raw, conn.msgtype))
     speed = got['/planter/ground_speed']
     assert np.array_equal([m.twist.linear.x for m in speed], run.speed_v)
@@ -93,7 +94,7 @@ def test_mcap_reader_decodes_every_message_to_the_published_values(live_bag):
     run, _, path = live_bag
     speeds, joints = [], []
     with open(path, 'rb') as f:
-        for schema, channel, message in make_reader(f).iter_messages():
+        for _, channel, message in make_reader(f).iter_messages():
             if channel.topic == '/planter/ground_speed':
                 speeds.append(deserialize_message(message.data, TwistStamped))
                 stamp = speeds[-1].header.stamp

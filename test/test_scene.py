@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from planter_ros.interfaces import PLANTS_PER_REVOLUTION
+from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
 from planter_ros.scene import SceneError, load_scene
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'

@@ -11,8 +11,8 @@ from cli_helpers import REPO
 HEAVY = ('scipy', 'matplotlib', 'rclpy', 'mpmath', 'hypothesis', 'yaml', 'can', 'canopen',
          'mcap', 'rosbags')
 # the only planter_ros modules a five-bar design may load (a new module here is a new cost)
-FIVE_BAR_MODULES = {'planter_ros', 'planter_ros.kinematics', 'planter_ros.kinematics.errors',
-                    'planter_ros.kinematics.five_bar'}
+FIVE_BAR_MODULES = {'planter_ros', 'planter_ros.config', 'planter_ros.kinematics',
+                    'planter_ros.kinematics.errors', 'planter_ros.kinematics.five_bar'}
 CLI_MODULES = FIVE_BAR_MODULES | {'planter_ros.cli', 'planter_ros.cli.main',
                                   'planter_ros.cli.design_five_bar'}
 

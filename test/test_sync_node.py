@@ -11,15 +11,13 @@ import pytest
 from rclpy.parameter import Parameter
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
-from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from planter_ros import interfaces
 from planter_ros.drive.simulated_drive import SimulatedDrive
-from planter_ros.nodes.qos import DESIGN_QOS, GROUND_SPEED_QOS, STATE_QOS
 from planter_ros.nodes.sync_node import SyncNode
-from ros_fixtures import ros, unique_channel  # noqa: F401  (fixture)
+from ros_fixtures import unique_channel
 
 D = 0.2
 TOMATO = {'mechanism': 'five_bar', 'plants_per_revolution': 1, 'plant_spacing': D,
@@ -49,12 +47,10 @@ class Rig:
         self.sync.enable_drive()
         ros.add(self.sync)
         self.io = ros.node('test_io')
-        self.speed_pub = self.io.create_publisher(TwistStamped, interfaces.GROUND_SPEED,
-                                                  GROUND_SPEED_QOS)
-        self.design_pub = self.io.create_publisher(String, interfaces.DESIGN, DESIGN_QOS)
+        self.speed_pub = interfaces.GROUND_SPEED.publisher(self.io)
+        self.design_pub = interfaces.DESIGN.publisher(self.io)
         self.joints = []
-        self.io.create_subscription(JointState, interfaces.JOINT_STATES, self.joints.append,
-                                    STATE_QOS)
+        interfaces.JOINT_STATES.subscribe(self.io, self.joints.append)
         self.design_pub.publish(String(data=json.dumps(TOMATO)))
         assert ros.spin_until(lambda: self.sync.law.spacing == D)
 

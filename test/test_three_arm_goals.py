@@ -36,7 +36,8 @@ def test_eight_named_goals_with_bounds_and_units(goals):
     for g in goals.values():
         assert g.unit in ('m', 'rad') and math.isfinite(g.value)
         assert g.lower is not None or g.upper is not None
-        inside = (g.lower is None or g.value >= g.lower) and (g.upper is None or g.value <= g.upper)
+        inside = ((g.lower is None or g.value >= g.lower)
+                  and (g.upper is None or g.value <= g.upper))
         assert g.passed == inside
 
 

@@ -27,7 +27,8 @@ def solve_psi_reference(c):
     guess = min((6.0 * float(c)) ** (1.0 / 3.0), math.pi)
     with mp.workdps(DIGITS + _extra_digits(guess)):
         c = mpf(c)
-        psi = min(mpf(6) * c, mpf(mp.pi) ** 3) ** (mpf(1) / 3)    # below the root (ψ³/6 > ψ - sin ψ)
+        # below the root (ψ³/6 > ψ - sin ψ)
+        psi = min(mpf(6) * c, mpf(mp.pi) ** 3) ** (mpf(1) / 3)
         tol = mpf(10) ** (-(DIGITS + 5))
         for _ in range(400):
             step = (psi - mpmath.sin(psi) - c) / (1 - mpmath.cos(psi))
@@ -97,7 +98,8 @@ def chain_reference(alpha, omega1, l1, l2, gear_ratio, theta1, theta2):
         a1 = al + mpf(theta1)
         a12 = (1 + mpf(gear_ratio)) * al + mpf(theta1) + mpf(theta2)
         w12 = (1 + mpf(gear_ratio)) * w1
-        pos = (l2 * mpmath.cos(a12) + l1 * mpmath.cos(a1), l2 * mpmath.sin(a12) + l1 * mpmath.sin(a1))
+        pos = (l2 * mpmath.cos(a12) + l1 * mpmath.cos(a1),
+               l2 * mpmath.sin(a12) + l1 * mpmath.sin(a1))
         vel = (-l2 * w12 * mpmath.sin(a12) - l1 * w1 * mpmath.sin(a1),
                l2 * w12 * mpmath.cos(a12) + l1 * w1 * mpmath.cos(a1))
         acc = (-l2 * w12 ** 2 * mpmath.cos(a12) - l1 * w1 ** 2 * mpmath.cos(a1),

@@ -4,7 +4,8 @@ import json
 
 
 def add_arguments(parser):
-    parser.add_argument('--json', action='store_true', help='print JSON (seconds, SI) for machines')
+    parser.add_argument('--json', action='store_true',
+                        help='print JSON (seconds, SI) for machines')
     parser.add_argument('--quick', action='store_true',
                         help='tiny sizes and few repeats: checks the bench works (CI), '
                              'figures are not meaningful')

@@ -71,18 +71,18 @@ class Demo:
         from rclpy.signals import SignalHandlerOptions
 
         from planter_ros import interfaces
-        from planter_ros.control.simulation import FieldProfile
         from planter_ros.drive.simulated_drive import SimulatedDrive
         from planter_ros.nodes.design_node import DesignNode
-        from planter_ros.nodes.field import GroundSpeedSource, Observer
         from planter_ros.nodes.sync_node import SyncNode
+        from planter_ros.sim.field import FieldProfile
+        from planter_ros.sim.ros_field import GroundSpeedSource, Observer
 
         args, design = self.args, self.design
         from planter_ros.nodes.monitor_node import MonitorNode
         channel = f'planter_demo_{os.getpid()}_{time.monotonic_ns() % 1_000_000}'
         profile = FieldProfile(args.duration, design['nominal_ground_speed'])
         glitches = [(0.3 * args.duration, 25.0), (0.6 * args.duration, math.nan)]
-        ros_scene = [_param(k, v) for k, v in self.scene.items()]
+        ros_scene = _scene_parameters(self.scene)
 
         sim = SimulatedDrive(channel, node_id=1)
         sim.start()
@@ -148,7 +148,8 @@ class Demo:
     @staticmethod
     def replay_summary(bag):
         """Re-read the finished bag offline, as `planter replay` would, and summarise it."""
-        from planter_ros.recording.replay import ReplayError, format_summary, replay
+        from planter_ros.cli.replay import format_summary
+        from planter_ros.recording.replay import ReplayError, replay
         try:
             result = replay(bag)
         except ReplayError as exc:
@@ -168,7 +169,7 @@ class Demo:
     def summary(self, profile, sync, observer, sim):
         import numpy as np
 
-        from planter_ros.control.simulation import spacing_stats
+        from planter_ros.sim.spacing import spacing_stats
         d = self.design['plant_spacing']
         positions = observer.plant_positions(profile, self.design)
         stats = spacing_stats(positions, d)
@@ -202,13 +203,16 @@ class Demo:
 
 def _param(name, value):
     from rclpy.parameter import Parameter
-    if isinstance(value, list):
-        value = [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
-                 for v in value]
-    elif isinstance(value, int) and not isinstance(value, bool) and name in (
-            'planting_depth', 'plant_spacing', 'hole_ratio', 'nominal_ground_speed'):
-        value = float(value)
     return Parameter(name, value=value)
+
+
+def _scene_parameters(scene):
+    """The scene as ROS parameters, each value of its declared type (YAML writes 1 for 1.0)."""
+    from planter_ros.config import coerce, specs
+    from planter_ros.kinematics.scene_settings import scene_classes
+    known = {spec.name: spec for cls in scene_classes(scene.get('mechanism'))
+             for spec in specs(cls)}
+    return [_param(k, coerce(known[k], v) if k in known else v) for k, v in scene.items()]
 
 
 if __name__ == '__main__':

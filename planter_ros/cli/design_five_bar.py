@@ -1,4 +1,4 @@
-"""`planter design five-bar`: agronomic needs (D, d, k) -> bar lengths, as a table, JSON or plot."""
+"""`planter design five-bar`: agronomic needs (D, d, k) -> bar lengths: table, JSON or plot."""
 
 import json
 import math
@@ -31,7 +31,8 @@ def run(args):
         raise BadInput(f'--plot = {args.plot} is not a .png file name')
     design = design_five_bar(args.depth, args.spacing, args.hole_ratio, args.method)
     result = design.as_dict()
-    result['hole_width_error'] = (design.hole_width - design.requested_hole) / design.requested_hole
+    result['hole_width_error'] = ((design.hole_width - design.requested_hole)
+                                  / design.requested_hole)
     if args.speed is not None:
         result['ground_speed'] = args.speed
         result['sun_bar_speed'] = sun_bar_speed(args.speed, args.spacing)

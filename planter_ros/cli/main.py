@@ -69,12 +69,12 @@ def build_parser(argv=()):
 
 
 def main(argv=None):
-    from planter_ros.kinematics.errors import DesignError
+    from planter_ros.config import ConfigError
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
         args = build_parser(argv).parse_args(argv)
         return int(args._run(args) or 0)
-    except (BadInput, DesignError) as exc:
+    except (BadInput, ConfigError) as exc:
         print(f'planter: error: {exc}', file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

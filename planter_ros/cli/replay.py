@@ -7,7 +7,10 @@ warning on stderr.
 """
 
 import json
+import math
 import sys
+
+from planter_ros import interfaces
 
 
 def add_arguments(parser):
@@ -26,7 +29,7 @@ def add_arguments(parser):
 
 def run(args):
     from planter_ros.cli.main import BadInput
-    from planter_ros.recording.replay import ReplayError, format_table, replay
+    from planter_ros.recording.replay import ReplayError, replay
     try:
         result = replay(args.bag, {'upright_threshold': args.upright_threshold,
                                    'nozzle_width': args.nozzle_width, 'window': args.window})
@@ -44,3 +47,39 @@ def run(args):
         if not args.json:
             print(f'plot written to {args.plot}')
     return 0
+
+
+def format_table(result):
+    """Per-plant rows and the summary for people (mm and degrees, labelled)."""
+    p = result.plants
+    t0 = float(p.time[0]) if len(p) else 0.0
+    messages = result.messages
+    lines = [f'bag {result.path}: {messages[interfaces.GROUND_SPEED.name]} ground speed and '
+             f'{messages[interfaces.JOINT_STATES.name]} joint state messages over '
+             f'{result.duration:.1f} s',
+             f'{"plant":>5} {"t [s]":>8} {"x [m]":>8} {"spacing [mm]":>12} {"error [mm]":>10} '
+             f'{"lambda":>7} {"hole [mm]":>9} {"tilt [deg]":>10} {"upright":>7}']
+    for i in range(len(p)):
+        spacing = '' if not math.isfinite(p.spacing[i]) else f'{p.spacing[i] * 1e3:.1f}'
+        err = '' if not math.isfinite(p.spacing_error[i]) else f'{p.spacing_error[i] * 1e3:+.1f}'
+        lam = f'{p.speed_ratio[i]:.3f}' if math.isfinite(p.speed_ratio[i]) else 'inf'
+        lines.append(f'{int(p.index[i]):>5} {p.time[i] - t0:>8.3f} {p.position[i]:>8.3f} '
+                     f'{spacing:>12} {err:>10} {lam:>7} {p.hole_width[i] * 1e3:>9.2f} '
+                     f'{math.degrees(p.tilt[i]):>10.2f} {"yes" if p.upright[i] else "NO":>7}')
+    return '\n'.join(lines + [''] + format_summary(result).splitlines())
+
+
+def format_summary(result):
+    """The replay summary for people: plants, spacing error, hole width, uprightness."""
+    s = result.summary
+
+    def mm(v):
+        return 'n/a' if v is None else f'{v * 1e3:.2f} mm'
+    rate = 'n/a' if s['uprightness_rate'] is None else f'{100 * s["uprightness_rate"]:.1f} %'
+    threshold = math.degrees(result.settings.upright_threshold)
+    return '\n'.join([
+        f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
+        f'spacing error: mean {mm(s["spacing_error_mean"])}, sigma '
+        f'{mm(s["spacing_error_std"])}, max |error| {mm(s["spacing_error_max"])}',
+        f'hole width: mean {mm(s["hole_width_mean"])}, max {mm(s["hole_width_max"])}',
+        f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)'])

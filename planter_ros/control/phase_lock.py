@@ -12,9 +12,9 @@ Choices the papers leave open, made here on purpose:
 * The command is never negative: a stopped or reversing machine does not plant backwards; a
   mechanism ahead of its target waits.
 * Ground-speed samples pass the same plausibility rule as the monitor's
-  (`ground_speed_filter`): NaN/inf, too fast and spikes are rejected and counted; a plausible
-  negative sample (reversing, or noise around standstill) is counted and read as "not moving
-  forward": the feed-forward is 0 and distance is not integrated backwards.
+  (`planter_ros.sensing.ground_speed_filter`): NaN/inf, too fast and spikes are rejected and
+  counted; a plausible negative sample (reversing, or noise around standstill) is counted and
+  read as "not moving forward": the feed-forward is 0 and distance is not integrated backwards.
 * No accepted sample for `ground_speed_timeout`: the travelled distance stops growing, the
   target speed is 0, the command ramps down at the acceleration limit and then halts.
 * The law never tries to make up more than one plant: when |e| exceeds one plant pitch 2π/n
@@ -24,10 +24,11 @@ Choices the papers leave open, made here on purpose:
 Time is passed in explicitly (monotonic seconds), so the law is deterministic and testable.
 """
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 import math
 
-from .ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits
+from planter_ros.config import ConfigError, check, setting
+from planter_ros.sensing.ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits
 
 TWO_PI = 2.0 * math.pi
 # measured angle is extrapolated with the measured speed for at most this long (s)
@@ -36,50 +37,40 @@ _MAX_FEEDBACK_EXTRAPOLATION = 0.05
 _MAX_RATE_STEP = 0.1
 
 
-class ControlConfigError(ValueError):
+class ControlConfigError(ConfigError):
     """A control parameter outside its allowed range; the message is one line."""
 
 
 @dataclass(frozen=True)
 class PhaseLockConfig:
-    """Limits and gains of the law; SI units, mechanism shaft speeds in rad/s."""
+    """Limits and gains of the law (SI; mechanism shaft speeds in rad/s): parameters of the
+    sync node, changeable at run time."""
 
-    max_speed: float = 20.0                 # rad/s, mechanism shaft
-    max_acceleration: float = 20.0          # rad/s², mechanism shaft
-    phase_gain: float = 4.0                 # 1/s, correction per rad of phase error
-    max_correction: float = 2.0             # rad/s, bound of the phase correction
-    phase_lock: bool = True                 # False: speed-only (feed-forward) mode
-    ground_speed_timeout: float = 0.5       # s without an accepted sample -> stale
-    # which ground-speed samples are believed (see ground_speed_filter)
-    max_ground_speed: float = GroundSpeedLimits.max_ground_speed
-    max_ground_acceleration: float = GroundSpeedLimits.max_ground_acceleration
-    ground_speed_tolerance: float = GroundSpeedLimits.ground_speed_tolerance
+    max_speed: float = setting(20.0, 'mechanism speed limit', unit='rad/s', range=(0.1, 100.0))
+    max_acceleration: float = setting(20.0, 'mechanism acceleration limit', unit='rad/s²',
+                                      range=(0.1, 1000.0))
+    phase_gain: float = setting(4.0, 'phase correction gain: rad/s of correction per rad of '
+                                'phase error', unit='1/s', range=(0.0, 50.0))
+    max_correction: float = setting(2.0, 'bound of the phase correction', unit='rad/s',
+                                    range=(0.0, 50.0))
+    phase_lock: bool = setting(True, 'true: phase-locked to travelled distance; false: '
+                               'speed-only (feed-forward)')
+    ground_speed_timeout: float = setting(0.5, 'no accepted ground-speed sample for this long '
+                                          '= stale: ramp to 0, then halt', unit='s',
+                                          range=(0.05, 10.0))
 
     def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name == 'phase_lock':
-                continue
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ControlConfigError(f'{f.name} = {value} is out of range: allowed finite '
-                                         'and >= 0')
-        for name in ('max_speed', 'max_acceleration', 'ground_speed_timeout',
-                     'max_ground_speed', 'max_ground_acceleration'):
-            if getattr(self, name) <= 0:
-                raise ControlConfigError(f'{name} = {getattr(self, name)} is out of range: '
-                                         'allowed finite and > 0')
+        check(self, ControlConfigError)
 
 
 class PhaseLock:
     """Ground speed + measured mechanism angle -> mechanism speed command (rad/s)."""
 
-    def __init__(self, config=None):
+    def __init__(self, config=None, limits=None):
         self.config = config or PhaseLockConfig()
         self.spacing = None                 # d (m), None until a design is known
         self.plants_per_revolution = 1
-        self.filter = GroundSpeedFilter(GroundSpeedLimits(
-            self.config.max_ground_speed, self.config.max_ground_acceleration,
-            self.config.ground_speed_tolerance))
+        self.filter = GroundSpeedFilter(limits or GroundSpeedLimits())
         self.phase_slips = 0                # whole plant pitches given up (fault, stale gap)
         self._v = 0.0                       # last accepted forward speed (m/s)
         self._t_sample = None               # time of the last accepted (or negative) sample
@@ -91,6 +82,11 @@ class PhaseLock:
         self.last_error = 0.0               # phase error at the last command (rad)
 
     # ------------------------------------------------------------------ inputs
+    def configure(self, config, limits):
+        """New gains, limits and sample plausibility rule (a parameter update at run time)."""
+        self.config = config
+        self.filter.limits = limits
+
     def set_design(self, spacing, plants_per_revolution, now):
         """Use a new spacing d (m) and plants per revolution n; re-anchors the phase."""
         if not (math.isfinite(spacing) and spacing > 0):

@@ -1,1 +1,3 @@
-"""CAN drive: the CiA 402 master (cia402) and a simulated drive (simulated_drive). No ROS here."""
+"""CAN drive, no ROS: the one CiA 402 master (`cia402`), its settings (`config`), its exception
+family (`errors`), the CiA 402 names and codes (`states`) and a simulated drive
+(`simulated_drive`) for tests and the demo."""

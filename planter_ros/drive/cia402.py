@@ -29,117 +29,61 @@ per second and 0x6064 increments (``counts_per_motor_rev`` per motor revolution,
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import logging
 import math
+from pathlib import Path
 import threading
 import time
-from dataclasses import dataclass, fields
-from pathlib import Path
 
 import can
 import canopen
 from canopen.pdo.base import PDO_NOT_VALID
-from canopen.profiles.p402 import BaseNode402, State402
+from canopen.profiles.p402 import BaseNode402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
+from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.eds import default_eds_path
+from planter_ros.drive.errors import (BusError, DriveConfigError, DriveError,
+                                      DriveRefusedError, DriveTimeoutError, NotConnectedError)
+from planter_ros.drive.states import (
+    ABORT_OPTION_QUICK_STOP, CW_DISABLE_VOLTAGE, CW_ENABLE_OPERATION, CW_FAULT_RESET,
+    CW_QUICK_STOP, CW_SHUTDOWN, CW_SWITCH_ON, EMCY_HEARTBEAT, FAULT, FAULT_REACTION_ACTIVE,
+    NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY, PROFILE_VELOCITY_SUPPORTED,
+    QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON, state_of)
+
+__all__ = ['Cia402Drive', 'DriveConfig', 'DriveError', 'DriveStatus']
 
 log = logging.getLogger(__name__)
 
-PROFILE_VELOCITY = 3
-CW_DISABLE_VOLTAGE = State402.CW_DISABLE_VOLTAGE      # 0x00
-CW_QUICK_STOP = State402.CW_QUICK_STOP                # 0x02
-CW_SHUTDOWN = State402.CW_SHUTDOWN                    # 0x06
-CW_SWITCH_ON = State402.CW_SWITCH_ON                  # 0x07
-CW_ENABLE_OPERATION = State402.CW_OPERATION_ENABLED   # 0x0F
-CW_FAULT_RESET = 0x80
-ABORT_OPTION_QUICK_STOP = 3
-EMCY_HEARTBEAT = 0x8130
-OPERATION_ENABLED = 'OPERATION ENABLED'
 _INT32 = (-2**31, 2**31 - 1)
 
 # Fault-reset / re-enable: the controlword that moves each state one step towards
 # OPERATION ENABLED (fault state handled separately: one reset edge per request).
 _REENABLE_STEP = {
-    'SWITCH ON DISABLED': CW_SHUTDOWN,
-    'READY TO SWITCH ON': CW_SWITCH_ON,
-    'SWITCHED ON': CW_ENABLE_OPERATION,
-    'QUICK STOP ACTIVE': CW_DISABLE_VOLTAGE,      # via SWITCH ON DISABLED (always allowed)
-    'NOT READY TO SWITCH ON': CW_DISABLE_VOLTAGE,
-    'FAULT REACTION ACTIVE': CW_DISABLE_VOLTAGE,
+    SWITCH_ON_DISABLED: CW_SHUTDOWN,
+    READY_TO_SWITCH_ON: CW_SWITCH_ON,
+    SWITCHED_ON: CW_ENABLE_OPERATION,
+    QUICK_STOP_ACTIVE: CW_DISABLE_VOLTAGE,      # via SWITCH ON DISABLED (always allowed)
+    NOT_READY: CW_DISABLE_VOLTAGE,
+    FAULT_REACTION_ACTIVE: CW_DISABLE_VOLTAGE,
 }
-
-
-class DriveError(RuntimeError):
-    """A drive operation failed (timeout, CAN send error, bad configuration): one line."""
-
-
-@dataclass(frozen=True)
-class DriveConfig:
-    interface: str = 'virtual'                 # python-can interface: 'socketcan' on a machine
-    channel: str = 'planter0'                  # 'can0' on a machine; unique per test on virtual
-    bitrate: int = 500_000
-    node_id: int = 1
-    motor_gear_ratio: float = 1.0              # motor revolutions per mechanism revolution
-    counts_per_motor_rev: int = 4096           # encoder resolution (0x6064 units)
-    heartbeat_period: float = 0.1              # s, our (master) heartbeat, sent from the control loop
-    drive_heartbeat_timeout: float = 0.35      # s, drive heartbeat older than this = lost
-    command_timeout: float = 0.2               # s, drive-side watchdog (0x6007 quick stop action)
-    step_timeout: float = 0.5                  # s, per enable/disable state-machine step
-    # Additions beyond the shared contract (defaults keep the contract's behaviour):
-    drive_heartbeat_period: float = 0.1        # s, the drive's heartbeat producer (0x1017)
-    master_heartbeat_timeout: float = 0.3      # s, the drive's consumer timeout for ours (0x1016)
-    master_node_id: int = 127                  # our node id (heartbeat COB-ID 0x700 + id)
-    feedback_period: float = 0.01              # s, TPDO event timer (statusword + motion)
-    reset_timeout: float = 1.0                 # s, a fault reset not done by then is abandoned
-    eds_path: str = ''                         # '' = config/planter_drive.eds
-
-    def validate(self) -> None:
-        """Raise DriveError naming the first bad value and its allowed range."""
-        def bad(name, value, allowed):
-            raise DriveError(f'drive config: {name}={value!r} is out of range (allowed: {allowed})')
-        for name in ('node_id', 'master_node_id'):
-            value = getattr(self, name)
-            if not isinstance(value, int) or not 1 <= value <= 127:
-                bad(name, value, 'integer 1..127')
-        if self.node_id == self.master_node_id:
-            bad('master_node_id', self.master_node_id, f'any 1..127 except node_id={self.node_id}')
-        if not isinstance(self.counts_per_motor_rev, int) or self.counts_per_motor_rev < 1:
-            bad('counts_per_motor_rev', self.counts_per_motor_rev, 'integer >= 1')
-        if not isinstance(self.bitrate, int) or self.bitrate <= 0:
-            bad('bitrate', self.bitrate, 'integer > 0 bit/s')
-        if not (math.isfinite(self.motor_gear_ratio) and self.motor_gear_ratio > 0):
-            bad('motor_gear_ratio', self.motor_gear_ratio, 'finite > 0')
-        for f in fields(self):
-            if f.name.endswith(('_period', '_timeout')):
-                value = getattr(self, f.name)
-                if not (math.isfinite(value) and 0.001 <= value <= 65.535):
-                    bad(f.name, value, '0.001..65.535 s (16-bit ms objects)')
-        if self.drive_heartbeat_timeout <= self.drive_heartbeat_period:
-            bad('drive_heartbeat_timeout', self.drive_heartbeat_timeout,
-                f'> drive_heartbeat_period={self.drive_heartbeat_period} s')
-        if self.master_heartbeat_timeout <= self.heartbeat_period:
-            bad('master_heartbeat_timeout', self.master_heartbeat_timeout,
-                f'> heartbeat_period={self.heartbeat_period} s')
-        if not self.interface or not self.channel:
-            bad('interface/channel', (self.interface, self.channel), 'non-empty strings')
 
 
 @dataclass(frozen=True)
 class DriveStatus:                             # snapshot, built without blocking
-    state: str                                 # CiA 402 state name, canopen's names ('OPERATION ENABLED', 'FAULT', ...)
+    state: str                                 # CiA 402 state name (drive.states) or 'UNKNOWN'
     statusword: int
     fault: bool                                # statusword bit 3 or an EMCY since the last reset
     error_code: int                            # 0x603F / last EMCY code, 0 if none
-    position: float                            # mechanism angle (rad, unwrapped, from 0x6064 / gear ratio)
+    position: float                            # mechanism angle (rad, unwrapped, from 0x6064)
     velocity: float                            # mechanism speed (rad/s, from 0x606C)
     heartbeat_age: float                       # s since the drive's last heartbeat (inf if never)
     stamp: float                               # time.monotonic() of the last feedback TPDO
-    # Additions beyond the shared contract:
     fault_reason: str = ''                     # why `fault` is set ('' when not), for diagnostics
     heartbeat_lost: bool = False               # heartbeat_age > drive_heartbeat_timeout
     resetting: bool = False                    # a requested fault reset is in progress
-    enabled: bool = False                      # connected, OPERATION ENABLED and accepting commands
+    enabled: bool = False                      # connected, OPERATION ENABLED, taking commands
     commanded_velocity: float = 0.0            # mechanism rad/s in the last RPDO sent
 
 
@@ -147,7 +91,6 @@ class Cia402Drive:
     """Master for one CiA 402 drive in profile velocity mode (see the module docstring)."""
 
     def __init__(self, config: DriveConfig, bus: can.BusABC | None = None):
-        config.validate()
         self.config = config
         self._given_bus = bus
         self._bus: can.BusABC | None = None
@@ -159,7 +102,8 @@ class Cia402Drive:
         self._lock = threading.Lock()             # feedback and fault fields
         self._tx_lock = threading.Lock()          # the RPDO buffer and its frame
         self._feedback = threading.Condition(self._lock)
-        self._rad_per_count = 2.0 * math.pi / (config.counts_per_motor_rev * config.motor_gear_ratio)
+        self._rad_per_count = 2.0 * math.pi / (config.counts_per_motor_rev
+                                              * config.motor_gear_ratio)
         # feedback (written by bus callbacks)
         self._statusword = 0
         self._sw_received = False
@@ -192,22 +136,26 @@ class Cia402Drive:
         counts = round(speed / self._rad_per_count)
         if not _INT32[0] <= counts <= _INT32[1]:
             limit = _INT32[1] * self._rad_per_count
-            raise DriveError(f'speed {speed!r} rad/s is out of range (allowed: |speed| <= {limit:.6g} rad/s)')
+            raise DriveError(f'speed {speed!r} rad/s is out of range (allowed: |speed| <= '
+                             f'{limit:.6g} rad/s)')
         return counts
 
-    def _fail(self, step: str, detail: str) -> DriveError:
-        return DriveError(f'drive node {self.config.node_id}: {step}: {detail}')
+    def _fail(self, step: str, detail: str, kind: type = DriveError) -> DriveError:
+        return kind(f'drive node {self.config.drive_node_id}: {step}: {detail}')
 
     def _sdo_write(self, step: str, index: int, subindex: int | None, value: int) -> None:
         try:
             var = self._node.sdo[index] if subindex is None else self._node.sdo[index][subindex]
             var.raw = value
         except SdoCommunicationError as exc:
-            raise self._fail(step, f'no SDO answer writing 0x{index:04X} ({exc})') from None
+            raise self._fail(step, f'no SDO answer writing 0x{index:04X} ({exc})',
+                             DriveTimeoutError) from None
         except (SdoAbortedError, KeyError) as exc:
-            raise self._fail(step, f'drive refused 0x{index:04X}={value} ({exc})') from None
+            raise self._fail(step, f'drive refused 0x{index:04X}={value} ({exc})',
+                             DriveRefusedError) from None
         except Exception as exc:             # python-can: CanError, OSError, ValueError...
-            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
+            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}',
+                             BusError) from None
 
     def _sdo_read(self, step: str, index: int, subindex: int | None = None, optional=False):
         try:
@@ -215,31 +163,28 @@ class Cia402Drive:
             return var.raw
         except SdoCommunicationError as exc:
             raise self._fail(step, f'no SDO answer reading 0x{index:04X} '
-                                   f'(is the drive on {self.config.channel} as node '
-                                   f'{self.config.node_id}? {exc})') from None
+                                   f'(is the drive on {self.config.can_channel} as node '
+                                   f'{self.config.drive_node_id}? {exc})',
+                             DriveTimeoutError) from None
         except (SdoAbortedError, KeyError) as exc:
             if optional:
                 return None
-            raise self._fail(step, f'drive refused reading 0x{index:04X} ({exc})') from None
+            raise self._fail(step, f'drive refused reading 0x{index:04X} ({exc})',
+                             DriveRefusedError) from None
         except Exception as exc:             # python-can: CanError, OSError, ValueError...
-            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
+            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}',
+                             BusError) from None
 
     def _send(self, what: str, send) -> None:
-        """Run one frame-sending call; any CAN/bus failure becomes a one-line DriveError."""
+        """Run one frame-sending call; any CAN/bus failure becomes a one-line BusError."""
         try:
             send()
         except DriveError:
             raise
         except Exception as exc:            # python-can raises CanError, OSError, ValueError...
-            raise DriveError(f'drive node {self.config.node_id}: CAN send of {what} failed on '
-                             f'{self.config.interface}:{self.config.channel}: '
-                             f'{type(exc).__name__}: {exc}') from None
-
-    def _state_of(self, statusword: int) -> str:
-        for name, (mask, bits) in State402.SW_MASK.items():
-            if statusword & mask == bits:
-                return name
-        return 'UNKNOWN'
+            raise BusError(f'drive node {self.config.drive_node_id}: CAN send of {what} failed '
+                           f'on {self.config.can_interface}:{self.config.can_channel}: '
+                           f'{type(exc).__name__}: {exc}') from None
 
     # ------------------------------------------------------------------ bus callbacks
     def _on_status_tpdo(self, pdo_map) -> None:
@@ -251,9 +196,9 @@ class Cia402Drive:
                 self._sw_received = True
                 self._status_stamp = now
                 if (self._enabled and not self._reset_requested and not self._latched_reason
-                        and self._state_of(self._statusword) != OPERATION_ENABLED):
+                        and state_of(self._statusword) != OPERATION_ENABLED):
                     self._latched_reason = ('drive left OPERATION ENABLED '
-                                            f'({self._state_of(self._statusword)})')
+                                            f'({state_of(self._statusword)})')
             if 0x603F in values:
                 self._error_code = values[0x603F]
             if 0x6064 in values:
@@ -275,7 +220,8 @@ class Cia402Drive:
         with self._lock:
             self._emcy_code = entry.code
             if not self._latched_reason:
-                self._latched_reason = f'EMCY 0x{entry.code:04X} ({entry.get_desc() or "drive error"})'
+                desc = entry.get_desc() or 'drive error'
+                self._latched_reason = f'EMCY 0x{entry.code:04X} ({desc})'
 
     def _heartbeat_age(self) -> float:
         stamp = self._node.nmt.timestamp if self._node is not None else None
@@ -297,31 +243,47 @@ class Cia402Drive:
         """
         if self._enabled:
             return
-        cfg = self.config
         t_start = time.monotonic()
         self._open()
-        step = 'NMT pre-operational'
-        self._send('NMT pre-operational', lambda: setattr(self._node.nmt, 'state', 'PRE-OPERATIONAL'))
+        self._send('NMT pre-operational',
+                   lambda: setattr(self._node.nmt, 'state', 'PRE-OPERATIONAL'))
+        self._identify()
+        self._configure_pdos()
+        heartbeat_written = time.time()
+        self._configure_watchdogs()
+        self._select_profile_velocity()
+        self._wait_drive_heartbeat(since=heartbeat_written)
+        self._go_operational()
+        self._enable_state_machine()
+        self.enable_duration = time.monotonic() - t_start
+        log.info('drive node %d enabled in %.1f ms', self.config.drive_node_id,
+                 1000 * self.enable_duration)
 
+    def _identify(self) -> None:
+        """Refuse a node that is not the drive the configuration describes."""
+        cfg = self.config
         step = 'identify (SDO 0x1000 device type)'
         device_type = self._sdo_read(step, 0x1000)
         if device_type & 0xFFFF != 402:
-            raise self._fail(step, f'device type 0x{device_type:08X} is not a CiA 402 drive')
+            raise self._fail(step, f'device type 0x{device_type:08X} is not a CiA 402 drive',
+                             DriveRefusedError)
         step = 'check profile velocity support (0x6502)'
         modes = self._sdo_read(step, 0x6502, optional=True)
-        if modes is not None and not modes & 0x04:
-            raise self._fail(step, f'supported drive modes 0x{modes:08X} lack profile velocity (bit 2)')
+        if modes is not None and not modes & PROFILE_VELOCITY_SUPPORTED:
+            raise self._fail(step, f'supported drive modes 0x{modes:08X} lack profile velocity '
+                                   '(bit 2)', DriveRefusedError)
         step = 'check encoder resolution (0x608F)'
         increments = self._sdo_read(step, 0x608F, 1, optional=True)
         revolutions = self._sdo_read(step, 0x608F, 2, optional=True)
         if increments and revolutions and increments / revolutions != cfg.counts_per_motor_rev:
             raise self._fail(step, f'drive counts {increments}/{revolutions} increments per motor '
-                                   f'rev but counts_per_motor_rev={cfg.counts_per_motor_rev}')
+                                   f'rev but counts_per_motor_rev={cfg.counts_per_motor_rev}',
+                             DriveRefusedError)
 
-        self._configure_pdos()
-
+    def _configure_watchdogs(self) -> None:
+        """Heartbeat both ways, quick stop when our frames stop, and a zero target."""
+        cfg = self.config
         step = 'heartbeat (0x1017 producer, 0x1016 consumer)'
-        hb_written = time.time()
         self._sdo_write(step, 0x1017, None, round(cfg.drive_heartbeat_period * 1000))
         self._sdo_write(step, 0x1016, 1, (cfg.master_node_id << 16)
                         | round(cfg.master_heartbeat_timeout * 1000))
@@ -330,51 +292,61 @@ class Cia402Drive:
         step = 'target velocity 0 (0x60FF)'
         self._sdo_write(step, 0x60FF, None, 0)
 
+    def _select_profile_velocity(self) -> None:
+        """0x6060 = 3, confirmed by reading 0x6061 back (drives switch modes with a delay)."""
+        cfg = self.config
         step = 'mode of operation (0x6060 = 3, confirmed by 0x6061)'
         self._sdo_write(step, 0x6060, None, PROFILE_VELOCITY)
         deadline = time.monotonic() + cfg.step_timeout
         while (mode := self._sdo_read(step, 0x6061)) != PROFILE_VELOCITY:
             if time.monotonic() > deadline:
                 raise self._fail(step, f'0x6061 reads {mode} after writing 3 (profile velocity) '
-                                       f'for {cfg.step_timeout:.2f} s')
+                                       f'for {cfg.step_timeout:.2f} s', DriveTimeoutError)
             time.sleep(0.005)
 
-        step = 'drive heartbeat'
+    def _wait_drive_heartbeat(self, since: float) -> None:
+        """The drive's first heartbeat after 0x1017 was written (wall-clock `since`)."""
+        cfg = self.config
         wait = max(cfg.step_timeout, 2.5 * cfg.drive_heartbeat_period)
         deadline = time.monotonic() + wait
-        while (self._node.nmt.timestamp or 0.0) < hb_written:
+        while (self._node.nmt.timestamp or 0.0) < since:
             if time.monotonic() > deadline:
-                raise self._fail(step, f'no heartbeat within {wait:.2f} s after '
-                                       f'setting 0x1017 = {round(cfg.drive_heartbeat_period * 1000)} ms')
+                period_ms = round(cfg.drive_heartbeat_period * 1000)
+                raise self._fail('drive heartbeat', f'no heartbeat within {wait:.2f} s after '
+                                 f'setting 0x1017 = {period_ms} ms', DriveTimeoutError)
             time.sleep(0.002)
 
-        step = 'NMT operational (first statusword TPDO)'
+    def _go_operational(self) -> None:
+        """NMT operational: PDOs flow; wait for the first statusword TPDO."""
         with self._lock:
             self._sw_received = False
         self._send('NMT operational', lambda: setattr(self._node.nmt, 'state', 'OPERATIONAL'))
         self._connected = True
-        self._wait_state(step, lambda state: self._sw_received, 'no statusword TPDO')
+        self._wait_state('NMT operational (first statusword TPDO)',
+                         lambda state: self._sw_received, 'no statusword TPDO')
 
+    def _enable_state_machine(self) -> None:
+        """From whatever state the drive is in to OPERATION ENABLED, one step at a time."""
         state = self.status().state
-        if state in ('FAULT', 'FAULT REACTION ACTIVE'):
+        if state in (FAULT, FAULT_REACTION_ACTIVE):
             if not self._reset_requested:
-                raise self._fail('enable', f'drive is in FAULT (error code 0x{self._error_code:04X}); '
-                                           'call request_fault_reset() and connect again')
+                raise self._fail('enable', f'drive is in FAULT (error code '
+                                           f'0x{self._error_code:04X}); call '
+                                           'request_fault_reset() and connect again',
+                                 DriveRefusedError)
             self._transmit(CW_DISABLE_VOLTAGE, 0)
-            self._wait_step('fault reset (0x80)', CW_FAULT_RESET, 'SWITCH ON DISABLED')
-        elif state not in ('SWITCH ON DISABLED', 'READY TO SWITCH ON'):
+            self._wait_step('fault reset (0x80)', CW_FAULT_RESET, SWITCH_ON_DISABLED)
+        elif state not in (SWITCH_ON_DISABLED, READY_TO_SWITCH_ON):
             # left enabled (or quick-stopped) by an earlier session: start from the bottom
-            self._wait_step('disable voltage (0x00)', CW_DISABLE_VOLTAGE, 'SWITCH ON DISABLED')
-        self._wait_step('shutdown (0x06)', CW_SHUTDOWN, 'READY TO SWITCH ON')
-        self._wait_step('switch on (0x07)', CW_SWITCH_ON, 'SWITCHED ON')
+            self._wait_step('disable voltage (0x00)', CW_DISABLE_VOLTAGE, SWITCH_ON_DISABLED)
+        self._wait_step('shutdown (0x06)', CW_SHUTDOWN, READY_TO_SWITCH_ON)
+        self._wait_step('switch on (0x07)', CW_SWITCH_ON, SWITCHED_ON)
         self._wait_step('enable operation (0x0F)', CW_ENABLE_OPERATION, OPERATION_ENABLED)
         with self._lock:
             self._reset_requested = False
             self._latched_reason = ''
             self._emcy_code = 0
             self._enabled = True
-        self.enable_duration = time.monotonic() - t_start
-        log.info('drive node %d enabled in %.1f ms', cfg.node_id, 1000 * self.enable_duration)
 
     def _open(self) -> None:
         if self._network is not None:
@@ -384,15 +356,17 @@ class Cia402Drive:
             if self._given_bus is not None:
                 self._bus = self._given_bus
             else:
-                self._bus = can.Bus(interface=cfg.interface, channel=cfg.channel, bitrate=cfg.bitrate)
+                self._bus = can.Bus(interface=cfg.can_interface, channel=cfg.can_channel,
+                                    bitrate=cfg.can_bitrate)
         except Exception as exc:
-            raise self._fail('open bus', f'{cfg.interface}:{cfg.channel}: {type(exc).__name__}: {exc}') from None
+            raise self._fail('open bus', f'{cfg.can_interface}:{cfg.can_channel}: '
+                             f'{type(exc).__name__}: {exc}', BusError) from None
         eds = cfg.eds_path or str(default_eds_path())
         if not Path(eds).is_file():
-            raise self._fail('load EDS', f'{eds} is not a file')
+            raise self._fail('load EDS', f'{eds} is not a file', DriveConfigError)
         network = canopen.Network(self._bus)
         network.NOTIFIER_CYCLE = 0.05                 # stop() waits at most this long
-        node = BaseNode402(cfg.node_id, eds)
+        node = BaseNode402(cfg.drive_node_id, eds)
         node.sdo.RESPONSE_TIMEOUT = cfg.step_timeout
         network.add_node(node)
         node.emcy.add_callback(self._on_emcy)
@@ -410,7 +384,7 @@ class Cia402Drive:
             rpdo.clear()
             rpdo.add_variable(0x6040)
             rpdo.add_variable(0x60FF)
-            rpdo.cob_id = 0x200 + cfg.node_id
+            rpdo.cob_id = 0x200 + cfg.drive_node_id
             rpdo.trans_type = 255
             rpdo.event_timer = round(cfg.command_timeout * 1000)    # deadline monitoring
             rpdo.enabled = True
@@ -420,7 +394,7 @@ class Cia402Drive:
                 tpdo.clear()
                 for index in entries:
                     tpdo.add_variable(index)
-                tpdo.cob_id = 0x80 + 0x100 * number + cfg.node_id
+                tpdo.cob_id = 0x80 + 0x100 * number + cfg.drive_node_id
                 tpdo.trans_type = 255
                 tpdo.inhibit_time = 0
                 tpdo.event_timer = feedback_ms
@@ -428,15 +402,17 @@ class Cia402Drive:
                 tpdo.save()
             for maps, first_free, base in ((node.rpdo.map, 2, 0x200), (node.tpdo.map, 3, 0x180)):
                 for number in range(first_free, len(maps) + 1):
-                    cob_id = base + 0x100 * (number - 1) + cfg.node_id if number <= 4 else 0
+                    cob_id = base + 0x100 * (number - 1) + cfg.drive_node_id if number <= 4 else 0
                     maps[number].com_record[1].raw = PDO_NOT_VALID | cob_id
                     maps[number].enabled = False
         except SdoCommunicationError as exc:
-            raise self._fail(step, f'no SDO answer ({exc})') from None
+            raise self._fail(step, f'no SDO answer ({exc})', DriveTimeoutError) from None
         except SdoAbortedError as exc:
-            raise self._fail(step, f'drive refused the mapping ({exc})') from None
+            raise self._fail(step, f'drive refused the mapping ({exc})',
+                             DriveRefusedError) from None
         except Exception as exc:             # python-can: CanError, OSError, ValueError...
-            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}') from None
+            raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}',
+                             BusError) from None
         # our callback after BaseNode402's (which keeps node.tpdo_values); once per node,
         # a second enable attempt in the same session must not add them again
         if self._on_status_tpdo not in node.tpdo[1].callbacks:
@@ -460,7 +436,7 @@ class Cia402Drive:
         next_send = 0.0
         while True:
             with self._feedback:
-                state = self._state_of(self._statusword)
+                state = state_of(self._statusword)
                 if done(state):
                     return
                 remaining = deadline - time.monotonic()
@@ -478,7 +454,8 @@ class Cia402Drive:
                     self._feedback.wait(min(max(deadline - time.monotonic(), 0.0), 0.005))
         seen = f'state stays {state} (statusword 0x{sw:04X})' if self._sw_received else what
         raise self._fail(f'enable step {step!r}',
-                         f'timed out after {self.config.step_timeout:.2f} s: {seen}')
+                         f'timed out after {self.config.step_timeout:.2f} s: {seen}',
+                         DriveTimeoutError)
 
     def _wait_step(self, step: str, controlword: int, target_state: str) -> None:
         self._wait_state(step, lambda state: state == target_state, 'no statusword',
@@ -494,7 +471,7 @@ class Cia402Drive:
         Raises DriveError for a non-finite speed, before connect, or on a CAN send error.
         """
         if not self._connected or self._rpdo is None:
-            raise DriveError(f'drive node {self.config.node_id}: not connected '
+            raise NotConnectedError(f'drive node {self.config.drive_node_id}: not connected '
                              '(call connect_and_enable first)')
         if not math.isfinite(speed):
             raise DriveError(f'speed {speed!r} rad/s is not finite (allowed: a finite number)')
@@ -502,7 +479,7 @@ class Cia402Drive:
         now = time.monotonic()
         with self._lock:
             self._latch_heartbeat_loss()
-            state = self._state_of(self._statusword)
+            state = state_of(self._statusword)
             if self._reset_requested:
                 controlword = self._reset_step(state, now)
                 counts = 0
@@ -521,9 +498,10 @@ class Cia402Drive:
         if now > self._reset_deadline:
             self._reset_requested = False
             self._latched_reason = self._latched_reason or f'fault reset failed (state {state})'
-            log.warning('drive node %d: fault reset abandoned in state %s', self.config.node_id, state)
+            log.warning('drive node %d: fault reset abandoned in state %s',
+                        self.config.drive_node_id, state)
             return CW_ENABLE_OPERATION if state == OPERATION_ENABLED else CW_QUICK_STOP
-        if state == 'FAULT':
+        if state == FAULT:
             if self._reset_edge_sent:
                 return CW_FAULT_RESET                   # hold: one edge per request, no loop
             if self._last_controlword & CW_FAULT_RESET:
@@ -544,7 +522,7 @@ class Cia402Drive:
     def send_heartbeat(self) -> None:
         """Our heartbeat frame (NMT state operational), for the drive's consumer. NON-BLOCKING."""
         if self._network is None:
-            raise DriveError(f'drive node {self.config.node_id}: not connected '
+            raise NotConnectedError(f'drive node {self.config.drive_node_id}: not connected '
                              '(call connect_and_enable first)')
         cob_id = 0x700 + self.config.master_node_id
         self._send('heartbeat', lambda: self._network.send_message(cob_id, b'\x05'))
@@ -555,7 +533,7 @@ class Cia402Drive:
         with self._lock:
             self._latch_heartbeat_loss()
             sw = self._statusword
-            state = self._state_of(sw) if self._sw_received else 'UNKNOWN'
+            state = state_of(sw) if self._sw_received else 'UNKNOWN'
             fault_bit = bool(sw & 0x08) and self._sw_received
             reason = self._latched_reason or ('statusword fault bit' if fault_bit else '')
             error_code = self._error_code or self._emcy_code
@@ -602,7 +580,7 @@ class Cia402Drive:
                 self._shutdown_wait(hold, lambda st: st.state != OPERATION_ENABLED
                                     or abs(st.velocity) < 0.01, 'still turning')
                 self._shutdown_wait(CW_SHUTDOWN, lambda st: st.state in (
-                    'READY TO SWITCH ON', 'SWITCH ON DISABLED', 'FAULT'), 'not disabled')
+                    READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, FAULT), 'not disabled')
             except DriveError as exc:
                 log.warning('%s', exc)
         try:
@@ -610,7 +588,8 @@ class Cia402Drive:
             if self._heartbeat_age() < cfg.drive_heartbeat_timeout:
                 self._node.sdo[0x1016][1].raw = 0   # stop watching our heartbeat: we leave
         except Exception as exc:                    # best effort: the bus may be gone
-            log.warning('drive node %d: shutdown: %s: %s', cfg.node_id, type(exc).__name__, exc)
+            log.warning('drive node %d: shutdown: %s: %s', cfg.drive_node_id,
+                        type(exc).__name__, exc)
         self._connected = False
         self._enabled = False
         self._close()
@@ -629,11 +608,11 @@ class Cia402Drive:
                 return
             if status.heartbeat_lost:
                 log.warning('drive node %d: shutdown: drive heartbeat lost, not waiting for it',
-                            self.config.node_id)
+                            self.config.drive_node_id)
                 return
             if now > deadline:
-                log.warning('drive node %d: shutdown: %s (%s, %.3f rad/s)', self.config.node_id,
-                            complaint, status.state, status.velocity)
+                log.warning('drive node %d: shutdown: %s (%s, %.3f rad/s)',
+                            self.config.drive_node_id, complaint, status.state, status.velocity)
                 return
             with self._feedback:
                 self._feedback.wait(0.01)

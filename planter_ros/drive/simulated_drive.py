@@ -33,20 +33,13 @@ import canopen
 from canopen.emcy import EMCY_STRUCT
 
 from planter_ros.drive.eds import default_eds_path
+from planter_ros.drive.states import (
+    EMCY_HEARTBEAT, EMCY_RPDO_TIMEOUT, FAULT, FAULT_REACTION_ACTIVE, NOT_READY,
+    OPERATION_ENABLED, PROFILE_VELOCITY, QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON,
+    SWITCH_ON_DISABLED, SWITCHED_ON)
 
 log = logging.getLogger(__name__)
 
-# CiA 402 state names exactly as canopen's State402 spells them.
-NOT_READY = 'NOT READY TO SWITCH ON'
-SWITCH_ON_DISABLED = 'SWITCH ON DISABLED'
-READY_TO_SWITCH_ON = 'READY TO SWITCH ON'
-SWITCHED_ON = 'SWITCHED ON'
-OPERATION_ENABLED = 'OPERATION ENABLED'
-QUICK_STOP_ACTIVE = 'QUICK STOP ACTIVE'
-FAULT_REACTION_ACTIVE = 'FAULT REACTION ACTIVE'
-FAULT = 'FAULT'
-
-# Statusword bits 0-6 per state (bit 4 "voltage enabled" set whenever the power stage is on).
 _STATUS_BITS = {
     NOT_READY: 0x00,
     SWITCH_ON_DISABLED: 0x40,
@@ -61,9 +54,6 @@ SW_REMOTE = 1 << 9
 SW_TARGET_REACHED = 1 << 10
 SW_SPEED_ZERO = 1 << 12         # profile velocity mode: "speed = 0"
 
-PROFILE_VELOCITY = 3
-EMCY_RPDO_TIMEOUT = 0x8250      # CiA 301: RPDO timeout (deadline monitoring)
-EMCY_HEARTBEAT = 0x8130         # CiA 301: life guard or heartbeat error
 EMCY_ERROR_RESET = 0x0000
 
 _NMT_CODE = {'INITIALISING': 0x00, 'STOPPED': 0x04, 'OPERATIONAL': 0x05, 'PRE-OPERATIONAL': 0x7F}
@@ -473,7 +463,7 @@ class SimulatedDrive:
         self._send_state_tpdos()
 
     def _comm_error(self, reason: str, code: int) -> None:
-        """Abort connection option code 0x6007: 0 none, 1 fault, 2 disable voltage, 3 quick stop."""
+        """Abort connection option 0x6007: 0 none, 1 fault, 2 disable voltage, 3 quick stop."""
         with self._lock:
             self.watchdog_trips.append((reason, code))
             self._error_code = code
@@ -541,7 +531,8 @@ class SimulatedDrive:
             stopped = abs(self._velocity) < 0.5
             if stopped and state == FAULT_REACTION_ACTIVE:
                 self._state = FAULT
-            elif stopped and state == QUICK_STOP_ACTIVE and self._quick_stop_option in (1, 2, 3, 4):
+            elif (stopped and state == QUICK_STOP_ACTIVE
+                  and self._quick_stop_option in (1, 2, 3, 4)):
                 self._state = SWITCH_ON_DISABLED
 
     def _od_value(self, index: int) -> float:
@@ -557,7 +548,8 @@ class SimulatedDrive:
             rpdo_late = (self._rpdo_deadline > 0 and self._last_rpdo is not None
                          and now - self._last_rpdo > self._rpdo_deadline)
             hb = self._consumed_heartbeat
-            hb_late = self._consumer_timeout > 0 and hb is not None and now - hb > self._consumer_timeout
+            hb_late = (self._consumer_timeout > 0 and hb is not None
+                       and now - hb > self._consumer_timeout)
             if rpdo_late:
                 self._last_rpdo = None              # re-armed by the next RPDO
             if hb_late:

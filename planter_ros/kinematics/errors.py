@@ -4,8 +4,10 @@ import math
 
 import numpy as np
 
+from planter_ros.config import ConfigError
 
-class DesignError(ValueError):
+
+class DesignError(ConfigError):
     """An input outside the domain where the design exists.
 
     The message is one line naming the value and its allowed range, so a command line can print
@@ -22,6 +24,14 @@ class DesignError(ValueError):
         if reason:
             text += f' ({reason})'
         super().__init__(text)
+
+    @classmethod
+    def from_message(cls, text):
+        """A DesignError with a ready one-line message (a config range check's)."""
+        err = cls.__new__(cls)
+        ConfigError.__init__(err, text)
+        err.parameter = err.value = err.allowed = None
+        return err
 
 
 def require_positive_finite(name, value, unit=''):

@@ -251,7 +251,7 @@ def _design_scalar(depth, spacing, k, method, ratios):
 
 
 # A design is delivered as float bar lengths; refuse it when their round-off alone moves the
-# hole by more than this (PRODUCT.md §5 accuracy bar), instead of reporting a hole they miss.
+# hole by more than this (the accuracy target), instead of reporting a hole they miss.
 ROUND_OFF_LIMIT = 1e-9
 _TINY = 2.2250738585072014e-308     # smallest normal float: below it the hole has no precision
 
@@ -433,7 +433,8 @@ def dyad_positions(design, theta, branch=1):
     along = (l3 - l4) * ((l3 + l4) / r) / 2.0 + r / 2.0
     # height of D over C-E (Heron): products of sums and differences, exact near singular
     h = np.sqrt(np.maximum((l3 + l4 - r) / r, 0.0) * np.maximum((r + l3 - l4) / r, 0.0)
-                * np.maximum((r - l3 + l4) / r, 0.0) * np.maximum((r + l3 + l4) / r, 0.0)) * r / 2.0
+                * np.maximum((r - l3 + l4) / r, 0.0)
+                * np.maximum((r + l3 + l4) / r, 0.0)) * r / 2.0
     ux, uy = dx / r, dy / r
     px, py = cx + along * ux, cy + along * uy
     # left normal of C->E is (-uy, ux); for E behind and below C that points up

@@ -32,7 +32,8 @@ import math
 
 import numpy as np
 
-from planter_ros.control.ground_speed_filter import (
+from planter_ros.config import check, setting
+from planter_ros.sensing.ground_speed_filter import (
     GroundSpeedFilter, GroundSpeedLimits, filter_ground_speed)
 
 from .errors import DesignError
@@ -213,23 +214,22 @@ def _require_positive(name, value):
 
 @dataclass(frozen=True)
 class PredictionSettings:
-    """User choices of the monitor (SI). No standard upright threshold is confirmed: the
-    literature counts a seedling at < 30° to the ground as fallen, hence the default."""
+    """User choices of the monitor (SI): parameters of the monitor node, recorded in its bags
+    and read back by replay. No standard upright threshold is confirmed: the literature counts
+    a seedling at < 30° to the ground as fallen, hence the default."""
 
-    nozzle_width: float = 0.0                      # m, added to the tip's swept extent
-    upright_threshold: float = math.radians(30.0)  # rad, minimum stem angle to the ground
-    window: int = 20                               # plants in the rolling uprightness rate
+    nozzle_width: float = setting(0.0, "width of the nozzle along the row, added to the tip's "
+                                  'swept hole extent', unit='m', range=(0.0, 0.5))
+    upright_threshold: float = setting(math.radians(30.0), "minimum stem angle to the ground "
+                                       'for an upright plant; the literature counts < 30 deg as '
+                                       'fallen, no standard value is confirmed', unit='rad',
+                                       range=(0.0, 0.5 * math.pi))
+    window: int = setting(20, 'plants in the rolling uprightness rate', range=(1, 10000))
     # which ground-speed samples to believe: the sync node's rule (spikes, NaN, too fast)
     speed_limits: GroundSpeedLimits = GroundSpeedLimits()
 
     def __post_init__(self):
-        if not (math.isfinite(self.nozzle_width) and 0.0 <= self.nozzle_width <= 1.0):
-            raise DesignError('nozzle_width', self.nozzle_width, '[0, 1] m')
-        if not (math.isfinite(self.upright_threshold)
-                and 0.0 <= self.upright_threshold <= 0.5 * math.pi):
-            raise DesignError('upright_threshold', self.upright_threshold, '[0, π/2] rad')
-        if not (isinstance(self.window, int) and 1 <= self.window <= 100000):
-            raise DesignError('window', self.window, 'integer in [1, 100000] plants')
+        check(self, DesignError.from_message)
 
 
 # ----------------------------------------------------------------------------- results

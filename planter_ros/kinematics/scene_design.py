@@ -8,57 +8,46 @@ infeasible one, so a node never publishes it.
 
 import math
 
-from planter_ros.interfaces import PLANTS_PER_REVOLUTION
+from planter_ros.config import as_dict, from_mapping
 
-from .errors import DesignError, require_positive_finite
-
-MECHANISMS = tuple(PLANTS_PER_REVOLUTION)
+from .errors import DesignError
+from .mechanisms import PLANTS_PER_REVOLUTION
+from .scene_settings import SceneSettings, ThreeArmSettings
 
 
 def design_for_scene(params):
     """Return the JSON-ready design dict (SI) for a flat scene parameter dict.
 
-    Keys always present: mechanism, plants_per_revolution, plant_spacing (m), planting_depth
-    (m), crop, nominal_ground_speed (m/s), nominal_mechanism_speed (rad/s), then the model's
-    own fields. Raises DesignError (one line) for a bad or infeasible scene.
+    Values the scene leaves out take their defaults (scene_settings). Keys always present:
+    mechanism, plants_per_revolution, plant_spacing (m), planting_depth (m), crop,
+    nominal_ground_speed (m/s), nominal_mechanism_speed (rad/s), then the model's own fields.
+    Raises DesignError (one line) for a value out of range or an infeasible design.
     """
-    mechanism = params.get('mechanism', 'five_bar')
-    if mechanism not in MECHANISMS:
-        raise DesignError('mechanism', mechanism, ' or '.join(MECHANISMS))
-    spacing = _number(params, 'plant_spacing')
-    speed = _number(params, 'nominal_ground_speed')
-    require_positive_finite('nominal_ground_speed', speed, 'm/s')
-    if mechanism == 'five_bar':
-        out = _five_bar(params, spacing)
+    scene = from_mapping(SceneSettings, params, DesignError.from_message)
+    if scene.mechanism == 'five_bar':
+        out = _five_bar(scene)
     else:
-        out = _three_arm(params)
-    n = PLANTS_PER_REVOLUTION[mechanism]
-    out.update(mechanism=mechanism, plants_per_revolution=n, plant_spacing=spacing,
-               planting_depth=_number(params, 'planting_depth'),
-               crop=str(params.get('crop', '')), nominal_ground_speed=speed,
-               nominal_mechanism_speed=2.0 * math.pi * speed / (n * spacing))
+        arm = from_mapping(ThreeArmSettings, params, DesignError.from_message)
+        out = _three_arm({**as_dict(scene), **as_dict(arm)})
+    n = PLANTS_PER_REVOLUTION[scene.mechanism]
+    out.update(mechanism=scene.mechanism, plants_per_revolution=n,
+               plant_spacing=scene.plant_spacing, planting_depth=scene.planting_depth,
+               crop=scene.crop, nominal_ground_speed=scene.nominal_ground_speed,
+               nominal_mechanism_speed=2.0 * math.pi * scene.nominal_ground_speed
+               / (n * scene.plant_spacing))
     return out
 
 
-def _number(params, name):
-    value = params.get(name)
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise DesignError(name, value, 'a number')
-    return float(value)
-
-
-def _five_bar(params, spacing):
-    from .five_bar import PAPER_DYAD_RATIOS, design_five_bar
-    ratios = params.get('dyad_ratios', PAPER_DYAD_RATIOS)
-    if isinstance(ratios, (str, bytes)) or not hasattr(ratios, '__len__'):
-        raise DesignError('dyad_ratios', ratios, 'three ratios (l3, l4, l5)/(l1+l2)')
-    design = design_five_bar(_number(params, 'planting_depth'), spacing,
-                             _number(params, 'hole_ratio'),
-                             str(params.get('design_method', 'exact')),
-                             tuple(float(r) for r in ratios))
+def _five_bar(scene):
+    from .five_bar import design_five_bar
+    if len(scene.dyad_ratios) != 3:
+        raise DesignError('dyad_ratios', scene.dyad_ratios, 'three ratios (l3, l4, l5)/(l1+l2)')
+    design = design_five_bar(scene.planting_depth, scene.plant_spacing, scene.hole_ratio,
+                             scene.design_method, tuple(scene.dyad_ratios))
     if not design.assemblable:
-        raise DesignError('dyad_ratios', list(ratios), 'ratios whose passive dyad assembles '
-                          'over the whole cycle', 'the dyad does not close for this design')
+        raise DesignError('dyad_ratios', list(scene.dyad_ratios), 'ratios whose passive dyad '
+                          'assembles over the whole cycle', 'the dyad does not close for this '
+                          'design')
     return design.as_dict()
 
 

@@ -16,7 +16,6 @@ import time
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.three_arm.gear_train import ThreeArmMechanism
 from planter_ros.kinematics.three_arm.goals import evaluate_goals
-from planter_ros.kinematics.three_arm.pitch_curve import PitchCurve
 
 DEG = math.pi / 180.0
 RADIUS_BOUNDS = (0.015, 0.065)
@@ -46,10 +45,7 @@ def score(vector, base, margin=MARGIN):
     """Sum of goal violations (0 = all eight pass with the margin); also the goals."""
     params = parameters_from_vector(vector, base)
     try:
-        mech = ThreeArmMechanism(
-            PitchCurve(params['control_radii'], params['control_angles'],
-                       params.get('interpolant', 'periodic_cubic')),
-            *(params[k] for k in INSTALL_BOUNDS))
+        mech = ThreeArmMechanism.from_parameters(params)
         goals = evaluate_goals(mech, params, samples=GOAL_SAMPLES)
     except DesignError:
         return REFUSED, None

@@ -29,7 +29,7 @@ def plot_tradeoff(machine, rows, path):
                             xytext=(5, 5), fontsize=8)
     ax.set_xscale('log')
     ax.set_yscale('log')
-    ax.axhline(1e-9, color='gray', ls=':', label='accuracy target 1e-9 (PRODUCT.md §5)')
+    ax.axhline(1e-9, color='gray', ls=':', label='accuracy target 1e-9')
     ax.set(xlabel='run time per item (s, median)',
            ylabel=f'max relative error vs mpmath (0 drawn at {ERROR_FLOOR:g})',
            title='planter bench: error against run time')

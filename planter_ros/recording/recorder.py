@@ -20,6 +20,7 @@ Messages are written as the CDR bytes they arrived in (raw subscriptions); only 
 caller publishes itself are serialised (`write_message`, rclpy.serialization).
 """
 
+from dataclasses import dataclass
 import json
 import os
 from pathlib import Path
@@ -28,6 +29,8 @@ import sys
 import time
 
 import yaml
+
+from planter_ros.config import check, setting
 
 PROFILE = 'ros2'
 SCHEMA_ENCODING = 'ros2msg'
@@ -44,6 +47,28 @@ _INFINITE = {'sec': 9223372036, 'nsec': 854775807}
 
 class RecorderError(RuntimeError):
     """A bag that cannot be written as asked (one line: the path or value and why)."""
+
+
+@dataclass(frozen=True)
+class RecorderConfig:
+    """What and how to record (the monitor's read-only parameters)."""
+
+    record: bool = setting(True, 'record inputs and predictions to an MCAP bag (rosbag2 '
+                           'layout)', read_only=True)
+    bag_path: str = setting('', 'bag to write: a directory (rosbag2 layout) or a .mcap file; '
+                            'empty = bags/planter_<date-time>; an existing bag is never '
+                            'overwritten', read_only=True)
+    split_size: int = setting(0, 'start a new bag file after this many bytes (0 = never)',
+                              unit='B', range=(0, 2 ** 40), read_only=True)
+    split_duration: float = setting(0.0, 'start a new bag file after this much log time '
+                                    '(0 = never)', unit='s', range=(0.0, 86400.0),
+                                    read_only=True)
+    flush_period: float = setting(1.0, 'time between MCAP chunk flushes: the most a killed '
+                                  'recorder loses', unit='s', range=(0.001, 60.0),
+                                  read_only=True)
+
+    def __post_init__(self):
+        check(self, RecorderError)
 
 
 # ----------------------------------------------------------------------------- definitions
@@ -111,7 +136,10 @@ def type_hash(type_name):
 
 
 def qos_yaml(qos):
-    """offered_qos_profiles YAML (rosbag2 v9 style) of an rclpy QoSProfile or a ready dict."""
+    """offered_qos_profiles YAML (rosbag2 v9 style) of an interfaces.Qos, an rclpy QoSProfile
+    or a ready dict."""
+    if hasattr(qos, 'profile'):
+        qos = qos.profile()
     if qos is None:
         profiles = []
     elif isinstance(qos, dict):
@@ -146,7 +174,9 @@ def _qos_dict(qos):
 
 # ----------------------------------------------------------------------------- recorder
 
-class _Topic:
+class _Channel:
+    """One topic of the bag and its MCAP channel in the current file."""
+
     __slots__ = ('name', 'type_name', 'definition', 'hash', 'qos', 'channel', 'count',
                  'file_count')
 
@@ -180,15 +210,8 @@ class Recorder:
 
     def __init__(self, path=None, *, split_size=0, split_duration=0.0, flush_period=1.0,
                  chunk_size=1 << 20, bags_dir='bags', monotonic=time.monotonic):
-        if not (isinstance(split_size, int) and split_size >= 0):
-            raise RecorderError(f'split_size = {split_size!r} is out of range: allowed integer '
-                                '>= 0 bytes (0 = no split)')
-        if not (split_duration >= 0 and split_duration < float('inf')):
-            raise RecorderError(f'split_duration = {split_duration!r} is out of range: allowed '
-                                '[0, inf) s (0 = no split)')
-        if not (0 < flush_period <= 60):
-            raise RecorderError(f'flush_period = {flush_period!r} is out of range: allowed '
-                                '(0, 60] s')
+        RecorderConfig(split_size=split_size, split_duration=split_duration,
+                       flush_period=flush_period)          # RecorderError if out of range
         path = default_bag_path(bags_dir) if path in (None, '') else Path(path)
         self.single_file = path.suffix == '.mcap'
         if self.single_file and (split_size or split_duration):
@@ -235,7 +258,7 @@ class Recorder:
         if type_name not in self._definitions:
             self._definitions[type_name] = (message_definition(type_name), type_hash(type_name))
         definition, hash_ = self._definitions[type_name]
-        entry = _Topic(topic, type_name, definition, hash_, qos_yaml(qos))
+        entry = _Channel(topic, type_name, definition, hash_, qos_yaml(qos))
         self._topics[topic] = entry
         self._register(entry)
 

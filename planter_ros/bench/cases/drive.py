@@ -40,7 +40,7 @@ def _drive_pair():
     channel = f'planter-bench-drive-{uuid.uuid4().hex}'
     sim = SimulatedDrive(channel)
     sim.start()
-    drive = Cia402Drive(DriveConfig(channel=channel, motor_gear_ratio=12.5))
+    drive = Cia402Drive(DriveConfig(can_channel=channel, motor_gear_ratio=12.5))
     try:
         yield sim, drive
     finally:
@@ -68,7 +68,7 @@ def drive_session(samples, fresh):
         node = drive.node
         for _ in range(samples):
             t0 = time.perf_counter()
-            node.sdo[0x6041].raw                       # expedited upload, one round trip
+            _ = node.sdo[0x6041].raw                   # expedited upload, one round trip
             f['sdo'].append(time.perf_counter() - t0)
         # TPDO latency: drive-side send stamp (virtual bus: time.time()) -> master callback
         node.tpdo[2].add_callback(lambda m: f['tpdo'].append(time.time() - m.timestamp))

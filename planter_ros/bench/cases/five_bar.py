@@ -7,7 +7,7 @@ import numpy as np
 
 from ..registry import Row, Target, bench_case
 
-DESIGN_TIME_TARGET = 20e-6     # PRODUCT.md §5: a five-bar design <= 20 µs scalar
+DESIGN_TIME_TARGET = 20e-6     # quality target: a five-bar design <= 20 µs scalar
 DESIGN_RATE_TARGET = 1e6       # ... and >= 1e6 designs/s batched
 ACCURACY_TARGET = 1e-9         # exact design and hole width <= 1e-9 relative
 TOMATO = (0.045, 0.2, 0.05)    # the paper's tomato scene: D, d, k
@@ -28,7 +28,7 @@ def design_domain(rng, n):
 def _design_errors(l1, l2, depth, spacing, k, refs):
     """(max hole error, max length error) of computed bars against the mpmath references."""
     from mpmath import mp, mpf
-    from ..reference import DIGITS, hole_reference, rel_error
+    from ..reference import DIGITS, hole_reference
     hole_err = 0.0
     len_err = 0.0
     for i, (r1, r2) in enumerate(refs):
@@ -216,7 +216,8 @@ def trajectory(ctx):
     omega = 2.0 * math.pi
     n = ctx.n(1_000_000, 100)
     alpha = np.sort(rng.uniform(0.0, 6.0 * math.pi, n))
-    t = ctx.measure(lambda: chain_kinematics(alpha, omega, l1, l2), repeats=5 if n > 1000 else None)
+    t = ctx.measure(lambda: chain_kinematics(alpha, omega, l1, l2),
+                    repeats=5 if n > 1000 else None)
     pos, vel, acc = chain_kinematics(alpha, omega, l1, l2)
     err = 0.0
     for i in rng.choice(n, min(n, n_ref), replace=False):

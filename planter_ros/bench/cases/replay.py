@@ -13,10 +13,12 @@ import tempfile
 
 import numpy as np
 
+from planter_ros import interfaces
+
 from ..registry import Row, Target, bench_case
 
 WHAT = 'replay (planter replay)'
-REAL_TIME_TARGET = 1000.0      # PRODUCT.md §5: replay >= 1000x real time
+REAL_TIME_TARGET = 1000.0      # quality target: replay >= 1000x real time
 BAGS = Path(__file__).resolve().parents[3] / 'bags'
 ERROR_OF = ('max |replayed − live monitor prediction| over every field of every plant (SI: s, '
             'm, m/s, rad/s, rad), absolute; — for a generated bag (no live predictions in it)')
@@ -29,14 +31,16 @@ def _replay_row(ctx, path, label, result, bag_messages, error=None, target=False
     speed = result.duration / t.median
     targets = ([Target(f'≥ 1000× real time (run: {speed:.0f}×)', speed >= REAL_TIME_TARGET)]
                if target else [])
-    used = result.messages['ground_speed'] + result.messages['joint_states']
+    used = sum(result.messages[t.name] for t in (interfaces.GROUND_SPEED,
+                                                 interfaces.JOINT_STATES))
     extra = {'bag_duration_s': result.duration, 'bag_messages': bag_messages,
              'bag_bytes': os.path.getsize(path), 'messages_used': used,
              'plants': result.summary['plants'], 'times_real_time': speed,
              'used_messages_per_s': used / t.median}
     note = (f'{speed:.0f}× real time; {result.duration:.0f} s bag, {bag_messages} messages, '
             f'{extra["bag_bytes"] / 1e6:.2f} MB, {result.summary["plants"]} plants; '
-            f'{used / t.median / 1e3:.0f} k decoded input messages/s' + (f'; {note}' if note else ''))
+            f'{used / t.median / 1e3:.0f} k decoded input messages/s'
+            + (f'; {note}' if note else ''))
     return Row(WHAT, label, bag_messages, 'message', t, error=error, error_of=ERROR_OF,
                targets=targets, note=note, extra=extra)
 
@@ -60,8 +64,8 @@ def _live_error(result, path):
 def replay_throughput(ctx):
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     from planter_ros.recording.replay import replay
-    from planter_ros.recording.samples import (five_bar_design_message, simulate_run,
-                                               write_input_bag)
+    from planter_ros.sim.bags import write_input_bag
+    from planter_ros.sim.runs import five_bar_design_message, simulate_run
 
     duration = ctx.n(600.0, 20.0)
     with tempfile.TemporaryDirectory() as tmp:

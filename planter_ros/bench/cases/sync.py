@@ -20,7 +20,7 @@ from ..registry import Row, Target, bench_case
 from ..timing import from_samples
 
 WHAT = 'sync loop: ground-speed message → CAN frame'
-P99_TARGET = 2e-3          # PRODUCT.md §5: sync loop ground-speed-message -> CAN frame p99
+P99_TARGET = 2e-3          # quality target: sync loop ground-speed-message -> CAN frame p99
 RATE = 50.0                # Hz, ground-speed samples
 ERROR_OF = 'no error defined: timings only'
 
@@ -43,7 +43,6 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0):
 
     from planter_ros import interfaces
     from planter_ros.drive.simulated_drive import SimulatedDrive
-    from planter_ros.nodes.qos import DESIGN_QOS, GROUND_SPEED_QOS
     from planter_ros.nodes.sync_node import SyncNode
     from planter_ros.dds_domain import claim_private_domain
 
@@ -63,9 +62,8 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0):
             Parameter('max_ground_acceleration', value=50.0),
             Parameter('ground_speed_tolerance', value=1.0)])
         source = Node('latency_source', context=context)
-        speed_pub = source.create_publisher(TwistStamped, interfaces.GROUND_SPEED,
-                                            GROUND_SPEED_QOS)
-        design_pub = source.create_publisher(String, interfaces.DESIGN, DESIGN_QOS)
+        speed_pub = interfaces.GROUND_SPEED.publisher(source)
+        design_pub = interfaces.DESIGN.publisher(source)
         design_pub.publish(String(data=json.dumps(
             {'mechanism': 'five_bar', 'plants_per_revolution': 1, 'plant_spacing': 0.2})))
         listener = can.Bus(interface='virtual', channel=channel)

@@ -10,7 +10,7 @@ import numpy as np
 from ..registry import Row, Target, bench_case
 
 SCENE = Path(__file__).resolve().parents[3] / 'config' / 'rice_three_arm.yaml'
-CLOSURE_TARGET = 1e-9          # PRODUCT.md §5: gear-closure integral <= 1e-9 relative
+CLOSURE_TARGET = 1e-9          # quality target: gear-closure integral <= 1e-9 relative
 CYCLE_TARGET = 1e-3            # ... and a full three-arm cycle <= 1 ms
 CLOSURE_ERROR_OF = ('|a − a_ref| / a_ref, centre distance vs mpmath (30 digits) on the same '
                     'pitch curve; the closure residual |mean ratio − 1| is in the note')
@@ -52,7 +52,8 @@ def three_arm_closure(ctx):
             err = float(abs(closure.a - a_ref) / a_ref)
             residual = float(abs(_mpmath_mean_ratio(curve, closure.a) - 1))
             label = {'gauss': 'Gauss–Legendre per spline piece (ours)',
-                     'paper': "paper's 1° sum (eq. 2)"}.get(method, f"trapezoid n={kw.get('samples')}")
+                     'paper': "paper's 1° sum (eq. 2)"}.get(
+                         method, f"trapezoid n={kw.get('samples')}")
             yield Row('gear-train closure (centre distance)', label, 1, 'closure', t,
                       error=err, error_of=CLOSURE_ERROR_OF,
                       targets=[Target('err ≤ 1e-9', err <= CLOSURE_TARGET)] if method == 'gauss'

@@ -38,7 +38,10 @@ import math
 
 import numpy as np
 
+from planter_ros.config import specs
+
 from ..errors import DesignError
+from ..scene_settings import ThreeArmSettings
 from .pitch_curve import TWO_PI, PitchCurve, leggauss, solve_centre_distance, subdivide
 
 ARMS = 3
@@ -162,7 +165,7 @@ class ThreeArmMechanism:
 
     # --- positions -----------------------------------------------------------------------
     def centres(self, theta, arm=0):
-        """(O2, O3): intermediate and planet centres, each an (x, y) pair of arrays (eqs 12, 13)."""
+        """(O2, O3): intermediate and planet centres, each an (x, y) array pair (eqs 12, 13)."""
         ph = self.carrier_angle(theta, arm)
         o2 = (self.a * np.cos(ph), self.a * np.sin(ph))
         o3 = (o2[0] + self.a * np.cos(ph - self.gamma0), o2[1] + self.a * np.sin(ph - self.gamma0))
@@ -221,8 +224,8 @@ def quintic_hermite(x, y, dy, d2y):
     return PPoly(coef, x, extrapolate=True)
 
 
-PARAMETER_NAMES = ('control_radii', 'control_angles', 'carrier_initial_angle',
-                   'arm_initial_angle', 'arm_length', 'pusher_offset', 'planet_carrier_angle')
+# the scene values the model is built from, in the constructor's order after the curve
+PARAMETER_NAMES = tuple(spec.name for spec in specs(ThreeArmSettings) if spec.required)
 
 
 def _float(params, key):

@@ -36,9 +36,12 @@ import math
 
 import numpy as np
 
+from planter_ros.config import specs
+
 from ..errors import DesignError
+from ..scene_settings import SceneSettings, ThreeArmSettings
 from .gear_train import ARMS, ThreeArmMechanism
-from .pitch_curve import TWO_PI, _polar_curvature_radius
+from .pitch_curve import TWO_PI, polar_curvature_radius
 
 DEG = math.pi / 180.0
 PRESSURE_ANGLE = 20.0 * DEG
@@ -58,9 +61,11 @@ BOUNDS = {
 }
 GOAL_NAMES = tuple(BOUNDS)
 
-# scene parameters the goals need, with the defaults used when a scene leaves them out
-GOAL_DEFAULTS = {'plant_spacing': 0.18, 'planting_depth': 0.03, 'seedling_height': 0.15,
-                 'arm_width': 0.02}
+# scene parameters the goals need, with the scene's defaults for the ones a scene leaves out
+GOAL_DEFAULTS = {spec.name: spec.default for cls in (SceneSettings, ThreeArmSettings)
+                 for spec in specs(cls)
+                 if spec.name in ('plant_spacing', 'planting_depth', 'seedling_height',
+                                  'arm_width')}
 
 
 @dataclass
@@ -132,12 +137,12 @@ def gear_module_limit(mech, samples=2048):
     curve, a = mech.train.curve, mech.a
     u = np.r_[np.linspace(0.0, TWO_PI, samples, endpoint=False), curve.pieces]
     r, r1, r2 = curve(u), curve(u, 1), curve(u, 2)
-    sun = _polar_curvature_radius(r, r1, r2)
+    sun = polar_curvature_radius(r, r1, r2)
     # intermediate: R = a − ρ as a function of its own polar angle ψ, dψ/dθ = ρ/(a−ρ)
     q = a - r
     q1 = -r1 * q / r
     q2 = (-r2 * q / r + r1 * r1 * a / (r * r)) * q / r
-    inter = _polar_curvature_radius(q, q1, q2)
+    inter = polar_curvature_radius(q, q1, q2)
     rmin = float(np.min(np.abs(np.r_[sun, inter])))
     length = curve.length()
     m_undercut = rmin * math.sin(PRESSURE_ANGLE) ** 2 / ADDENDUM

@@ -200,14 +200,16 @@ class PitchCurve:
     def curvature_radius(self, theta):
         """Signed radius of curvature (m) of the pitch curve; > 0 convex, < 0 concave."""
         r, r1, r2 = self(theta), self(theta, 1), self(theta, 2)
-        return _polar_curvature_radius(r, r1, r2)
+        return polar_curvature_radius(r, r1, r2)
 
     def length(self):
         nodes, weights = self.gauss_nodes(2)
         return float(np.sum(weights * np.hypot(self(nodes), self(nodes, 1))))
 
 
-def _polar_curvature_radius(r, r1, r2):
+def polar_curvature_radius(r, r1, r2):
+    """Signed radius of curvature of a polar curve from ρ, ρ' and ρ'' (arrays; inf where
+    straight)."""
     num = (r * r + r1 * r1) ** 1.5
     den = r * r + 2.0 * r1 * r1 - r * r2
     with np.errstate(divide='ignore'):

@@ -11,17 +11,26 @@ forward, and nothing integrates distance backwards. Pure Python, no ROS.
 from dataclasses import dataclass
 import math
 
+from planter_ros.config import check, setting
+
 REJECT_REASONS = ('non_finite', 'too_fast', 'spike', 'negative')
 
 
 @dataclass(frozen=True)
 class GroundSpeedLimits:
-    """Plausibility limits of a ground-speed sensor (SI); the sync node validates the values
-    its parameters set (PhaseLockConfig), the monitor uses these defaults."""
+    """Plausibility limits of a ground-speed sensor (SI): parameters of the sync node; the
+    monitor and replay use the defaults."""
 
-    max_ground_speed: float = 3.0           # m/s, faster samples are implausible
-    max_ground_acceleration: float = 3.0    # m/s², larger jumps are spikes
-    ground_speed_tolerance: float = 0.05    # m/s, sensor noise allowed on top of that
+    max_ground_speed: float = setting(
+        3.0, 'faster samples are implausible and rejected', unit='m/s', range=(0.1, 10.0))
+    max_ground_acceleration: float = setting(
+        3.0, 'samples jumping more than this allows are spikes, rejected', unit='m/s²',
+        range=(0.1, 50.0))
+    ground_speed_tolerance: float = setting(
+        0.05, 'sensor noise allowed on top of the spike limit', unit='m/s', range=(0.0, 1.0))
+
+    def __post_init__(self):
+        check(self)
 
 
 class GroundSpeedFilter:

@@ -13,12 +13,10 @@ import numpy as np
 from rclpy.node import Node
 from rclpy.time import Time
 from geometry_msgs.msg import TwistStamped
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
 
 from planter_ros import interfaces
-from planter_ros.control.simulation import plant_positions
-from planter_ros.nodes.qos import GROUND_SPEED_QOS, STATE_QOS
+
+from .spacing import plant_positions
 
 
 class GroundSpeedSource(Node):
@@ -30,8 +28,7 @@ class GroundSpeedSource(Node):
         self.noise = noise
         self.glitches = sorted(glitches)      # (t, value) published instead of the reading
         self._rng = np.random.default_rng(seed)
-        self._pub = self.create_publisher(TwistStamped, interfaces.GROUND_SPEED,
-                                          GROUND_SPEED_QOS)
+        self._pub = interfaces.GROUND_SPEED.publisher(self)
         self.start = self.get_clock().now()
         self.samples = 0
         self.create_timer(1.0 / rate, self._tick)
@@ -62,8 +59,8 @@ class Observer(Node):
         self.start = None            # rclpy Time the field run started
         self.joint = []              # (t since start, angle rad, velocity rad/s)
         self.command = []            # (t since start, rad/s)
-        self.create_subscription(JointState, interfaces.JOINT_STATES, self._on_joint, STATE_QOS)
-        self.create_subscription(Float64, interfaces.SPEED_COMMAND, self._on_command, STATE_QOS)
+        interfaces.JOINT_STATES.subscribe(self, self._on_joint)
+        interfaces.SPEED_COMMAND.subscribe(self, self._on_command)
 
     def _since_start(self, time):
         return (time - self.start).nanoseconds * 1e-9

@@ -1,10 +1,10 @@
-"""Closed-loop simulation of the phase-locked law against a simple drive model, and the plant
-spacing analysis shared by the simulation and the demo.
+"""Closed-loop simulation of the phase-locked law against a simple drive model (no ROS, no CAN).
 
 The drive model is a first-order velocity lag with an acceleration limit and a speed scale
 (achieved/commanded in steady state: a gear-ratio parameter that is slightly off, or a loaded
 speed loop that droops). Plants are placed when the mechanism angle passes the release angle of
-each arm; their positions come from the true travelled distance at that instant.
+each arm; their positions come from the true travelled distance at that instant (sim.spacing).
+`python -m planter_ros.sim.closed_loop` prints phase-locked against speed-only spacing.
 """
 
 from dataclasses import dataclass
@@ -12,7 +12,10 @@ import math
 
 import numpy as np
 
-from .phase_lock import PhaseLock
+from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
+
+from .field import field_profile
+from .spacing import plant_positions, spacing_stats
 
 TWO_PI = 2.0 * math.pi
 
@@ -22,45 +25,6 @@ class DriveModel:
     time_constant: float = 0.05       # s, first-order velocity lag
     max_acceleration: float = 50.0    # rad/s², mechanism shaft
     speed_scale: float = 1.0          # achieved / commanded speed in steady state
-
-
-class FieldProfile:
-    """A transplanter run, callable t -> v (m/s): ramp up over `start` s, cruise, a speed change
-    to `change`·cruise at 45 % of the run (over 1 s), and a ramp to a stop (over `stop` s)
-    ending 1 s before `duration`. The phase boundaries are attributes (s)."""
-
-    def __init__(self, duration, cruise, change=1.5, start=2.0, stop=2.0):
-        self.duration, self.cruise, self.change = duration, cruise, change
-        self.start, self.stop = start, stop
-        self.t_change = 0.45 * duration
-        self.t_stop_end = duration - 1.0
-        self.t_stop = self.t_stop_end - stop
-
-    def __call__(self, t):
-        if t <= 0.0 or t >= self.t_stop_end:
-            return 0.0
-        if t < self.start:
-            base = self.cruise * t / self.start
-        elif t < self.t_change:
-            base = self.cruise
-        elif t < self.t_change + 1.0:
-            base = self.cruise * (1.0 + (self.change - 1.0) * (t - self.t_change))
-        else:
-            base = self.cruise * self.change
-        if t > self.t_stop:
-            base *= (self.t_stop_end - t) / self.stop
-        return base
-
-    def distance(self, t, dt=1e-3):
-        """True travelled distance (m) at times t (array), by the trapezoid rule on a fine grid."""
-        grid = np.arange(0.0, max(float(np.max(t)), 0.0) + 2 * dt, dt)
-        v = np.array([self(x) for x in grid])
-        s = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)))
-        return np.interp(t, grid, s)
-
-
-def field_profile(duration, cruise, change=1.5, start=2.0, stop=2.0):
-    return FieldProfile(duration, cruise, change, start, stop)
 
 
 @dataclass
@@ -79,8 +43,9 @@ def simulate(law, profile, duration, drive=DriveModel(), dt=0.001, sample_period
     `profile(t)` is the true ground speed; the law sees it every `sample_period` with Gaussian
     `noise` (m/s). `drive_change = (t, DriveModel)` swaps the drive model mid-run (a drive that
     gets slower under load); a list of such pairs, in time order, swaps it several times.
-    Commands are computed on every sample and every feedback period, as the sync node does. `sensor(t, v)`, if given, turns the true speed into the reading
-    (drop-outs, spikes) instead of the Gaussian noise.
+    Commands are computed on every sample and every feedback period, as the sync node does.
+    `sensor(t, v)`, if given, turns the true speed into the reading (drop-outs, spikes)
+    instead of the Gaussian noise.
     """
     rng = np.random.default_rng(seed)
     changes = list(drive_change or ())
@@ -119,47 +84,6 @@ def simulate(law, profile, duration, drive=DriveModel(), dt=0.001, sample_period
     return SimResult(**out)
 
 
-def plant_positions(angle, distance, pitch, release=math.pi):
-    """Travelled distance (m) at each instant the mechanism angle passes release + k·pitch.
-
-    `angle` and `distance` are samples at the same instants; crossings are interpolated
-    linearly. Only forward crossings count (the command is never negative).
-    """
-    angle = np.asarray(angle, dtype=float)
-    distance = np.asarray(distance, dtype=float)
-    k = np.floor((angle - release) / pitch)
-    idx = np.flatnonzero(np.diff(k) > 0) + 1
-    if idx.size == 0:
-        return np.empty(0)
-    crossing = (k[idx]) * pitch + release
-    a0, a1 = angle[idx - 1], angle[idx]
-    frac = np.where(a1 > a0, (crossing - a0) / np.where(a1 > a0, a1 - a0, 1.0), 1.0)
-    return distance[idx - 1] + frac * (distance[idx] - distance[idx - 1])
-
-
-@dataclass(frozen=True)
-class SpacingStats:
-    plants: int
-    mean_abs_spacing_error: float    # m, mean |gap − d| between consecutive plants
-    max_abs_spacing_error: float     # m
-    max_abs_drift: float             # m, max |position − (first + k·d)|: accumulated error
-    final_drift: float               # m, drift of the last plant
-
-    def as_dict(self):
-        return dict(self.__dict__)
-
-
-def spacing_stats(positions, spacing):
-    positions = np.asarray(positions, dtype=float)
-    if positions.size < 2:
-        return SpacingStats(int(positions.size), 0.0, 0.0, 0.0, 0.0)
-    gaps = np.diff(positions) - spacing
-    drift = positions - positions[0] - spacing * np.arange(positions.size)
-    return SpacingStats(int(positions.size), float(np.mean(np.abs(gaps))),
-                        float(np.max(np.abs(gaps))), float(np.max(np.abs(drift))),
-                        float(drift[-1]))
-
-
 def run_comparison(config, spacing, plants_per_revolution, cruise, duration=30.0,
                    drive=DriveModel(), drive_change=None, noise=0.01, seed=0):
     """Spacing statistics of the same run with phase lock on and off (speed-only)."""
@@ -186,7 +110,6 @@ SCENARIOS = {
 def main():
     """Print phase-locked vs speed-only spacing for the tomato scene (30 s field run:
     0.2 m/s, +50 % at 13.5 s, stop), noise-free and with 10 mm/s sensor noise."""
-    from .phase_lock import PhaseLockConfig
     print('tomato five-bar, d = 200 mm; max |drift from grid| / max |gap - d| in mm')
     for noise in (0.0, 0.01):
         for name, kwargs in SCENARIOS.items():
@@ -194,7 +117,8 @@ def main():
             a, b = r['phase_locked'], r['speed_only']
             print(f'  noise {noise * 1e3:4.0f} mm/s  {name:34s} phase-locked '
                   f'{a.max_abs_drift * 1e3:6.1f} / {a.max_abs_spacing_error * 1e3:5.1f}   '
-                  f'speed-only {b.max_abs_drift * 1e3:6.1f} / {b.max_abs_spacing_error * 1e3:5.1f}')
+                  f'speed-only {b.max_abs_drift * 1e3:6.1f} / '
+                  f'{b.max_abs_spacing_error * 1e3:5.1f}')
 
 
 if __name__ == '__main__':

@@ -1,0 +1,223 @@
+"""Configuration fields declared once: default, unit, range, description, read-only.
+
+Every configuration dataclass of planter_ros (the drive, the sync law, the ground-speed limits,
+the monitor's prediction and recording settings, the scene) declares each field with
+`setting(...)`. From that one declaration
+
+* `check(instance)` validates the values (type, finite, range, choices) with one-line
+  messages naming the value and a non-empty allowed range;
+* `planter_ros.nodes.parameters` declares the fields as ROS parameters with descriptors;
+* `coerce(cls, name, value)` turns a scene file's or a recording's value into the field's type
+  (an integer 1 for a float field, the string '0.02' of a recorded setting).
+
+Ranges are inclusive and in the field's SI unit. Pure Python: no ROS import.
+"""
+
+from dataclasses import MISSING, dataclass, field, fields
+import math
+
+KINDS = (float, int, bool, str, list)      # list = list of floats (a ROS double array)
+
+
+class ConfigError(ValueError):
+    """A configuration value outside its allowed domain; the message is one line."""
+
+
+@dataclass(frozen=True)
+class Spec:
+    """What one configuration field means and allows."""
+
+    name: str
+    kind: type
+    default: object            # MISSING: the value must be given (no default)
+    description: str
+    unit: str = ''
+    low: float | None = None
+    high: float | None = None
+    choices: tuple = ()
+    read_only: bool = False
+
+    @property
+    def required(self):
+        return self.default is MISSING
+
+    def allowed(self):
+        """The allowed values in words, never empty ('0.01..5 s', 'exact | paper', ...)."""
+        unit = f' {self.unit}' if self.unit else ''
+        if self.choices:
+            words = [str(c) for c in self.choices]
+            return words[0] if len(words) == 1 else ', '.join(words[:-1]) + ' or ' + words[-1]
+        if self.kind is bool:
+            return 'true or false'
+        what = {int: 'integer', float: 'number', str: 'text', list: 'list of numbers'}[self.kind]
+        if self.low is not None and self.high is not None:
+            return f'{what} {_fmt(self.low)}..{_fmt(self.high)}{unit}'
+        if self.low is not None:
+            return f'{what} >= {_fmt(self.low)}{unit}'
+        if self.high is not None:
+            return f'{what} <= {_fmt(self.high)}{unit}'
+        return f'finite {what}{unit}' if self.kind in (int, float, list) else what
+
+    def describe(self):
+        """Description for people and ROS descriptors: the text, the unit and the range."""
+        return f'{self.description} [{self.allowed()}]'
+
+
+def setting(default=MISSING, description='', *, unit='', range=None, choices=(),
+            read_only=False, kind=None):
+    """A dataclass field carrying its Spec (the one place a configuration value is defined).
+
+    `range=(low, high)` is inclusive; either end may be None. `kind` defaults to the type of
+    `default` (a list default means a list of floats).
+    """
+    if kind is None:
+        if default is MISSING:
+            raise TypeError('setting() without a default needs kind=')
+        kind = type(default)
+    if kind not in KINDS:
+        raise TypeError(f'setting kind {kind!r} is not one of {KINDS}')
+    low, high = range if range is not None else (None, None)
+    meta = {'spec': dict(kind=kind, description=description, unit=unit, low=low, high=high,
+                         choices=tuple(choices), read_only=read_only)}
+    if isinstance(default, list):
+        return field(default_factory=lambda: list(default), metadata=meta)
+    if default is MISSING:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def specs(cls):
+    """The Spec of every configured field of a dataclass (class or instance), in order."""
+    out = []
+    for f in fields(cls):
+        meta = f.metadata.get('spec')
+        if meta is None:
+            continue
+        default = f.default
+        if f.default_factory is not MISSING:
+            default = f.default_factory()
+        out.append(Spec(name=f.name, default=default, **meta))
+    return out
+
+
+def spec_of(cls, name):
+    for spec in specs(cls):
+        if spec.name == name:
+            return spec
+    raise KeyError(name)
+
+
+def names(cls):
+    return [spec.name for spec in specs(cls)]
+
+
+def coerce(spec, value):
+    """`value` from a file, a recording or a parameter as the field's type, or ConfigError
+    (text is parsed: a recording stores its settings as strings)."""
+    if isinstance(value, str) and spec.kind in (int, float):
+        try:
+            value = spec.kind(value)
+        except ValueError:
+            pass
+    return _normalise(spec, value)
+
+
+def _normalise(spec, value):
+    """int -> float where a float belongs (YAML writes 1 for 1.0), then the checks."""
+    if spec.kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if spec.kind is list and isinstance(value, (list, tuple)):
+        value = [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                 for v in value]
+    _check_value(spec, value)
+    return value
+
+
+def _check_value(spec, value):
+    def bad(shown=None):
+        shown = value if shown is None else shown
+        text = f'{shown:.6g}' if isinstance(shown, float) else f'{shown!r}' \
+            if isinstance(shown, str) else f'{shown}'
+        raise ConfigError(f'{spec.name} = {text} is out of range: allowed {spec.allowed()}')
+
+    kind = spec.kind
+    if kind is bool:
+        if not isinstance(value, bool):
+            bad()
+        return
+    if kind is str:
+        if not isinstance(value, str):
+            bad()
+        if spec.choices and value not in spec.choices:
+            bad()
+        return
+    if kind is list:
+        if not isinstance(value, (list, tuple)) or not all(
+                isinstance(v, float) for v in value):
+            bad()
+        for v in value:
+            _check_number(spec, v, bad)
+        return
+    if kind is int and (isinstance(value, bool) or not isinstance(value, int)):
+        bad()
+    if kind is float and not isinstance(value, float):
+        bad()
+    _check_number(spec, value, bad)
+    if spec.choices and value not in spec.choices:
+        bad()
+
+
+def _check_number(spec, value, bad):
+    if not math.isfinite(value):
+        bad(value)
+    if spec.low is not None and value < spec.low:
+        bad(value)
+    if spec.high is not None and value > spec.high:
+        bad(value)
+
+
+def check(instance, error=ConfigError):
+    """Validate every configured field of a dataclass instance; raise `error` (one line).
+
+    Call it from `__post_init__`; a float field given an int stores the float."""
+    for spec in specs(instance):
+        value = getattr(instance, spec.name)
+        if value is None and spec.required:
+            raise error(f'{spec.name} is required: allowed {spec.allowed()}')
+        try:
+            value = _normalise(spec, value)
+        except ConfigError as exc:
+            raise error(str(exc)) from None
+        object.__setattr__(instance, spec.name, value)
+
+
+def from_mapping(cls, values, error=ConfigError, strict=False):
+    """Build `cls` from a mapping, coercing each known value; unknown keys are ignored unless
+    `strict` (then the first one is an error)."""
+    known = {spec.name: spec for spec in specs(cls)}
+    for spec in known.values():
+        if spec.required and values.get(spec.name) is None:
+            raise error(f'{spec.name} is required: allowed {spec.allowed()}')
+    kwargs = {}
+    for key, value in values.items():
+        spec = known.get(key)
+        if spec is None:
+            if strict:
+                raise error(f'{key} is not a setting of {cls.__name__}: allowed '
+                            f'{" | ".join(known)}')
+            continue
+        try:
+            kwargs[key] = coerce(spec, value)
+        except ConfigError as exc:
+            raise error(str(exc)) from None
+    return cls(**kwargs)
+
+
+def as_dict(instance):
+    return {spec.name: getattr(instance, spec.name) for spec in specs(instance)}
+
+
+def _fmt(x):
+    if float(x).is_integer() and abs(x) < 1e15:
+        return str(int(x))
+    return f'{x:.6g}'

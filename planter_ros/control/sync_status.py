@@ -1,0 +1,110 @@
+"""The sync node's health policy, pure: when to stop commanding the drive, and what its
+/diagnostics say, from a drive status snapshot and the phase-locked law's state.
+
+Kept out of the node so the policy is tested without ROS or CAN; the node only turns the
+`Report`s into diagnostic_msgs/DiagnosticStatus (levels are the same bytes).
+"""
+
+from dataclasses import dataclass
+import math
+
+from planter_ros.drive.states import FAULT, OPERATION_ENABLED
+
+OK, WARN, ERROR, STALE = 0, 1, 2, 3
+SEND_ERROR_HOLD = 2.0      # s a CAN send error keeps the drive status at ERROR
+
+# kinds of halt, in the order they are checked
+FAULTED, HEARTBEAT_LOST, NOT_ENABLED = 'fault', 'heartbeat lost', 'not enabled'
+
+
+@dataclass(frozen=True)
+class Halt:
+    """Why the law is not driving the mechanism: `kind` for code, `text` for people."""
+
+    kind: str
+    text: str
+
+
+NEVER_ENABLED = Halt(NOT_ENABLED, 'drive not enabled')
+
+
+@dataclass(frozen=True)
+class Report:
+    """One diagnostics status: task name, level (OK..STALE), message, key/value pairs."""
+
+    task: str
+    level: int
+    message: str
+    values: tuple = ()
+
+
+def has_feedback(status):
+    """The drive has sent motion feedback (a TPDO with position and velocity)."""
+    return status.stamp is not None and math.isfinite(status.stamp) and status.stamp > 0.0
+
+
+def halt_reason(status, heartbeat_timeout):
+    """Halt (commanding 0) or None when the drive may be commanded."""
+    if status.fault or status.state == FAULT:
+        why = status.fault_reason or status.state
+        return Halt(FAULTED, f'drive fault 0x{status.error_code:04X} ({why})')
+    if status.heartbeat_age > heartbeat_timeout:
+        return Halt(HEARTBEAT_LOST, 'drive heartbeat lost')
+    if status.state != OPERATION_ENABLED:
+        return Halt(NOT_ENABLED, f'drive not enabled ({status.state})')
+    return None
+
+
+def drive_report(status, enabled, shut_down, halt, send_errors, last_send_error, command, now):
+    """The drive's status. `last_send_error` = (monotonic time, text) or None."""
+    values = [('enabled', enabled), ('send errors', send_errors)]
+    if status is None:
+        return Report('drive', STALE if shut_down else ERROR,
+                      halt.text if halt else 'not enabled', tuple(values))
+    values = [('drive state', status.state), ('statusword', f'0x{status.statusword:04X}'),
+              ('error code', f'0x{status.error_code:04X}'),
+              ('heartbeat age', f'{status.heartbeat_age:.3f} s'),
+              ('position', f'{status.position:.4f} rad'),
+              ('velocity', f'{status.velocity:.4f} rad/s'),
+              ('command', f'{command:.4f} rad/s')] + values
+    if last_send_error is not None and now - last_send_error[0] <= SEND_ERROR_HOLD:
+        values.append(('last send error', last_send_error[1]))
+        return Report('drive', ERROR, f'CAN send error: {last_send_error[1]}', tuple(values))
+    if halt is not None:
+        return Report('drive', ERROR, halt.text, tuple(values))
+    if not has_feedback(status):
+        return Report('drive', STALE, 'no feedback from the drive', tuple(values))
+    return Report('drive', OK, 'operation enabled', tuple(values))
+
+
+def ground_report(law, now):
+    """The ground-speed input: fresh, rejecting samples, or stale."""
+    rejected = sum(law.rejected.values())
+    values = [('ground speed', f'{law.ground_speed_value:.4f} m/s'),
+              ('travelled', f'{law.travelled(now):.4f} m'),
+              ('accepted samples', law.accepted), ('rejected samples', rejected)]
+    values += [(f'rejected {k}', v) for k, v in law.rejected.items()]
+    if law.stale(now):
+        return Report('ground speed', STALE, law.state(now), tuple(values))
+    if rejected:
+        return Report('ground speed', WARN, f'{rejected} sample(s) rejected since start',
+                      tuple(values))
+    return Report('ground speed', OK, 'fresh', tuple(values))
+
+
+def phase_report(law, now, command):
+    """The phase lock: waiting for a design, tracking, or slipping plants."""
+    error = law.last_error
+    metres = error * law.plants_per_revolution * law.spacing / (2 * math.pi) \
+        if law.spacing else 0.0
+    values = (('mode', 'phase-locked' if law.config.phase_lock else 'speed-only'),
+              ('state', law.state(now)), ('phase error', f'{error:.4f} rad'),
+              ('phase error along row', f'{metres:.4f} m'),
+              ('phase slips', law.phase_slips),
+              ('command', f'{command:.4f} rad/s'))
+    if law.spacing is None:
+        return Report('phase lock', STALE, 'waiting for design', values)
+    if law.phase_slips:
+        return Report('phase lock', WARN,
+                      f'{law.phase_slips} plant(s) skipped to stay on the grid', values)
+    return Report('phase lock', OK, law.state(now), values)

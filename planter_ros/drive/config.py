@@ -1,0 +1,76 @@
+"""The drive's settings, declared once; the field names are the sync node's ROS parameters.
+
+All of them are fixed while the drive runs (read-only parameters): they configure the bus, the
+PDO mapping and the drive's own watchdogs at enable time. Periods and timeouts go to the drive
+as 16-bit milliseconds, hence the ranges.
+"""
+
+from dataclasses import dataclass
+
+from planter_ros.config import check, setting
+
+from .errors import DriveConfigError
+
+
+@dataclass(frozen=True)
+class DriveConfig:
+    """CiA 402 drive on a python-can bus (SI units)."""
+
+    can_interface: str = setting('virtual', "python-can interface: 'socketcan' on a machine, "
+                                 "'virtual' in tests and the demo", read_only=True)
+    can_channel: str = setting('planter0', "CAN channel: 'can0' on a machine", read_only=True)
+    can_bitrate: int = setting(500_000, 'CAN bit rate', unit='bit/s', range=(10_000, 1_000_000),
+                               read_only=True)
+    drive_node_id: int = setting(1, 'CANopen node id of the servo drive', range=(1, 127),
+                                 read_only=True)
+    motor_gear_ratio: float = setting(1.0, 'motor revolutions per mechanism revolution',
+                                      range=(0.01, 1000.0), read_only=True)
+    counts_per_motor_rev: int = setting(4096, 'encoder counts per motor revolution (0x6064 '
+                                        'units)', range=(1, 1 << 24), read_only=True)
+    heartbeat_period: float = setting(0.1, 'our CANopen heartbeat period, sent from the '
+                                      'control loop', unit='s', range=(0.01, 1.0),
+                                      read_only=True)
+    drive_heartbeat_timeout: float = setting(0.35, 'drive heartbeat older than this = drive '
+                                             'lost: command 0, report ERROR, wait for '
+                                             'reset_fault', unit='s', range=(0.05, 5.0),
+                                             read_only=True)
+    master_heartbeat_timeout: float = setting(0.3, "the drive's timeout for our heartbeat "
+                                              '(0x1016): it stops the motor if this process '
+                                              'dies or hangs', unit='s', range=(0.02, 5.0),
+                                              read_only=True)
+    command_timeout: float = setting(0.2, 'drive-side command watchdog (RPDO deadline): the '
+                                     'drive quick-stops if our frames stop', unit='s',
+                                     range=(0.02, 5.0), read_only=True)
+    step_timeout: float = setting(0.5, 'timeout of each enable/disable state-machine step and '
+                                  'of each SDO answer', unit='s', range=(0.05, 10.0),
+                                  read_only=True)
+    drive_heartbeat_period: float = setting(0.1, "the drive's heartbeat producer period "
+                                            '(0x1017)', unit='s', range=(0.01, 1.0),
+                                            read_only=True)
+    master_node_id: int = setting(127, 'our CANopen node id (heartbeat COB-ID 0x700 + id)',
+                                  range=(1, 127), read_only=True)
+    feedback_period: float = setting(0.01, 'TPDO event timer of the drive feedback (statusword '
+                                     'and motion)', unit='s', range=(0.001, 1.0), read_only=True)
+    reset_timeout: float = setting(1.0, 'a fault reset not finished by then is abandoned',
+                                   unit='s', range=(0.1, 10.0), read_only=True)
+    eds_path: str = setting('', "the drive's EDS file; empty = config/planter_drive.eds",
+                            read_only=True)
+
+    def __post_init__(self):
+        check(self, DriveConfigError)
+
+        def bad(name, value, allowed):
+            raise DriveConfigError(f'{name} = {value!r} is out of range: allowed {allowed}')
+
+        if self.drive_node_id == self.master_node_id:
+            bad('master_node_id', self.master_node_id,
+                f'1..127 except drive_node_id={self.drive_node_id}')
+        if self.drive_heartbeat_timeout <= self.drive_heartbeat_period:
+            bad('drive_heartbeat_timeout', self.drive_heartbeat_timeout,
+                f'> drive_heartbeat_period={self.drive_heartbeat_period} s')
+        if self.master_heartbeat_timeout <= self.heartbeat_period:
+            bad('master_heartbeat_timeout', self.master_heartbeat_timeout,
+                f'> heartbeat_period={self.heartbeat_period} s')
+        for name in ('can_interface', 'can_channel'):
+            if not getattr(self, name):
+                bad(name, getattr(self, name), 'a non-empty name')

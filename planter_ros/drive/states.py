@@ -1,0 +1,44 @@
+"""CiA 402 names and codes used by the master and the simulated drive, in one place.
+
+State names, controlword commands and operation modes are canopen's (`State402`,
+`OperationMode`); only what canopen does not define is written here.
+"""
+
+from canopen.profiles.p402 import OperationMode, State402
+
+# state names exactly as canopen spells them (keys of State402.SW_MASK)
+NOT_READY = 'NOT READY TO SWITCH ON'
+SWITCH_ON_DISABLED = 'SWITCH ON DISABLED'
+READY_TO_SWITCH_ON = 'READY TO SWITCH ON'
+SWITCHED_ON = 'SWITCHED ON'
+OPERATION_ENABLED = 'OPERATION ENABLED'
+QUICK_STOP_ACTIVE = 'QUICK STOP ACTIVE'
+FAULT_REACTION_ACTIVE = 'FAULT REACTION ACTIVE'
+FAULT = 'FAULT'
+STATES = (NOT_READY, SWITCH_ON_DISABLED, READY_TO_SWITCH_ON, SWITCHED_ON, OPERATION_ENABLED,
+          QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE, FAULT)
+assert set(STATES) == set(State402.SW_MASK), 'canopen renamed a CiA 402 state'
+
+PROFILE_VELOCITY = OperationMode.PROFILED_VELOCITY            # 3
+PROFILE_VELOCITY_SUPPORTED = OperationMode.SUPPORTED['PROFILED VELOCITY']   # 0x6502 bit 2
+
+CW_DISABLE_VOLTAGE = State402.CW_DISABLE_VOLTAGE      # 0x00
+CW_QUICK_STOP = State402.CW_QUICK_STOP                # 0x02
+CW_SHUTDOWN = State402.CW_SHUTDOWN                    # 0x06
+CW_SWITCH_ON = State402.CW_SWITCH_ON                  # 0x07
+CW_ENABLE_OPERATION = State402.CW_OPERATION_ENABLED   # 0x0F
+CW_FAULT_RESET = 0x80                                 # bit 7, acts on its rising edge
+
+ABORT_OPTION_QUICK_STOP = 3                           # 0x6007: abort connection -> quick stop
+
+# CiA 301 emergency codes the watchdogs raise
+EMCY_RPDO_TIMEOUT = 0x8250                            # RPDO deadline missed
+EMCY_HEARTBEAT = 0x8130                               # life guard or heartbeat error
+
+
+def state_of(statusword):
+    """CiA 402 state name of a statusword ('UNKNOWN' if no state matches)."""
+    for name, (mask, bits) in State402.SW_MASK.items():
+        if statusword & mask == bits:
+            return name
+    return 'UNKNOWN'

@@ -1,0 +1,5 @@
+"""The planting mechanisms the core knows, and what the rest of the machine must know of each."""
+
+# plants set per revolution of the driven shaft (five-bar: sun bar; three-arm: carrier)
+PLANTS_PER_REVOLUTION = {'five_bar': 1, 'three_arm': 3}
+MECHANISMS = tuple(PLANTS_PER_REVOLUTION)

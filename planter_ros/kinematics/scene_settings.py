@@ -1,0 +1,73 @@
+"""What a scene (a crop + a mechanism, `config/*.yaml`) sets, declared once for the design node,
+the command line, the demo and the core: default, unit, range and meaning of every value.
+
+Range checks live here; feasibility (does a mechanism with these values exist and run?) is the
+models' job (`scene_design.design_for_scene`). Light module: no numpy, no models imported.
+"""
+
+from dataclasses import dataclass
+import math
+
+from planter_ros.config import check, setting
+
+from .errors import DesignError
+from .mechanisms import MECHANISMS
+
+
+@dataclass(frozen=True)
+class SceneSettings:
+    """Every scene: the crop's agronomic needs and the mechanism (SI units)."""
+
+    crop: str = setting('tomato', 'crop name, for people and recordings')
+    mechanism: str = setting('five_bar', 'planting mechanism: five_bar (1 plant per revolution) '
+                             'or three_arm (3 plants per revolution)', choices=MECHANISMS)
+    planting_depth: float = setting(0.045, 'planting depth D', unit='m', range=(0.001, 0.5))
+    plant_spacing: float = setting(0.2, 'plant spacing d along the row', unit='m',
+                                   range=(0.05, 2.0))
+    hole_ratio: float = setting(0.05, 'five-bar: hole entry-exit distance over depth, '
+                                'k = t/D; feasible while k·D < d and l1 > 0', range=(1e-4, 2.0))
+    design_method: str = setting('exact', "five-bar reverse design: exact, or paper (the "
+                                 "paper's cube-root approximation)", choices=('exact', 'paper'))
+    dyad_ratios: list = setting([1.4, 1.5, 1.3], 'five-bar passive dyad l3, l4, l5 over '
+                                '(l1 + l2)', range=(0.01, 100.0))
+    nominal_ground_speed: float = setting(0.2, 'nominal ground speed v: the reported mechanism '
+                                          'speed is 2πv/(n·d)', unit='m/s', range=(0.01, 3.0))
+
+    def __post_init__(self):
+        check(self, DesignError.from_message)
+
+
+@dataclass(frozen=True)
+class ThreeArmSettings:
+    """A three-arm scene's mechanism (the paper's parameters, SI). The seven model values have
+    no default: a scene that lacks one is refused, naming it."""
+
+    control_radii: list = setting(kind=list, description='pitch-curve control radii r_i',
+                                  unit='m', range=(1e-4, 1.0))
+    control_angles: list = setting(kind=list, description='pitch-curve control angles θ_i, in '
+                                   "the carrier's sense of rotation", unit='rad',
+                                   range=(-2 * math.pi, 4 * math.pi))
+    carrier_initial_angle: float = setting(kind=float, description='carrier initial angle Φ0',
+                                           unit='rad', range=(-2 * math.pi, 2 * math.pi))
+    arm_initial_angle: float = setting(kind=float, description='planting arm initial angle β0',
+                                       unit='rad', range=(-2 * math.pi, 2 * math.pi))
+    arm_length: float = setting(kind=float, description='planting arm length S', unit='m',
+                                range=(0.01, 1.0))
+    pusher_offset: float = setting(kind=float, description='pusher offset H1 from the arm line',
+                                   unit='m', range=(0.0, 0.5))
+    planet_carrier_angle: float = setting(kind=float, description='planet-carrier angle γ0',
+                                          unit='rad', range=(-2 * math.pi, 2 * math.pi))
+    interpolant: str = setting('periodic_cubic', 'pitch-curve interpolant between the control '
+                               'points (planter_ros.kinematics.three_arm.pitch_curve)')
+    seedling_height: float = setting(0.15, 'planted seedling above ground, for the no-push goal',
+                                     unit='m', range=(0.01, 1.0))
+    arm_width: float = setting(0.02, 'planting arm shell width, for the non-interference goal',
+                               unit='m', range=(0.001, 0.2))
+
+    def __post_init__(self):
+        check(self, DesignError.from_message)
+
+
+def scene_classes(mechanism):
+    """The settings classes a scene of `mechanism` is made of."""
+    return (SceneSettings, ThreeArmSettings) if mechanism == 'three_arm' else (SceneSettings,)

@@ -1,0 +1,110 @@
+"""Config dataclasses as ROS parameters: the one bridge from `planter_ros.config` specs to rclpy.
+
+`ParameterGroup(node, classes, build, on_change)` declares every field of the classes as a
+parameter with a descriptor (description with unit and range, floating point or integer range,
+read-only flag), builds the initial value, and follows updates the way the rclpy examples do:
+
+* on-set callback: builds the candidate from the current values plus the update and refuses
+  the update with the one-line reason if that fails. It only checks; the node keeps its state.
+* post-set callback: the update is in; build (reusing the checked candidate) and hand the new
+  value to `on_change`.
+"""
+
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.parameter import Parameter
+
+from planter_ros import config
+
+_TYPES = {float: Parameter.Type.DOUBLE, int: Parameter.Type.INTEGER, bool: Parameter.Type.BOOL,
+          str: Parameter.Type.STRING, list: Parameter.Type.DOUBLE_ARRAY}
+
+
+def descriptor(spec):
+    """ParameterDescriptor of a config Spec (ROS enforces the range and read-only itself)."""
+    d = ParameterDescriptor(description=spec.describe(), read_only=spec.read_only)
+    if spec.kind is float and spec.low is not None and spec.high is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(spec.low),
+                                                     to_value=float(spec.high), step=0.0)]
+    elif spec.kind is int and spec.low is not None and spec.high is not None:
+        d.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high),
+                                        step=1)]
+    return d
+
+
+def declare(node, spec):
+    """Declare one spec's parameter; returns its value (None if required and not given)."""
+    default = _TYPES[spec.kind] if spec.required else spec.default
+    node.declare_parameter(spec.name, default, descriptor(spec))
+    try:
+        return _plain(node.get_parameter(spec.name).value)
+    except ParameterUninitializedException:
+        return None
+
+
+def _plain(value):
+    return list(value) if not isinstance(value, (str, bytes)) and hasattr(value, '__len__') \
+        else value
+
+
+class ParameterGroup:
+    """The parameters of one or more config dataclasses on a node (see the module doc)."""
+
+    def __init__(self, node, classes, build=None, on_change=None):
+        self.node = node
+        self.classes = tuple(classes) if isinstance(classes, (tuple, list)) else (classes,)
+        self.names = []
+        for cls in self.classes:
+            for spec in config.specs(cls):
+                if not node.has_parameter(spec.name):     # shared with a group declared first
+                    declare(node, spec)
+                self.names.append(spec.name)
+        self._build = build or self._build_dataclass
+        self._on_change = on_change
+        self._checked = None               # (values key, built value) of the last check
+        self.value = self._build(self.values())
+        node.add_on_set_parameters_callback(self._check)
+        node.add_post_set_parameters_callback(self._apply)
+
+    def values(self, update=None):
+        """The group's parameter values (uninitialised ones left out), with `update` applied."""
+        out = {}
+        for name in self.names:
+            try:
+                out[name] = _plain(self.node.get_parameter(name).value)
+            except ParameterUninitializedException:
+                continue
+        out.update(update or {})
+        return out
+
+    def _build_dataclass(self, values):
+        built = tuple(config.from_mapping(cls, values) for cls in self.classes)
+        return built[0] if len(built) == 1 else built
+
+    @staticmethod
+    def _key(values):
+        return tuple(sorted((k, repr(v)) for k, v in values.items()))
+
+    def _check(self, parameters):
+        update = {p.name: _plain(p.value) for p in parameters if p.name in self.names}
+        if not update:
+            return SetParametersResult(successful=True)
+        values = self.values(update)
+        try:
+            built = self._build(values)
+        except config.ConfigError as exc:
+            self.node.get_logger().warning(f'parameter update refused: {exc}')
+            return SetParametersResult(successful=False, reason=str(exc))
+        self._checked = (self._key(values), built)
+        return SetParametersResult(successful=True)
+
+    def _apply(self, parameters):
+        if not any(p.name in self.names for p in parameters):
+            return
+        values = self.values()
+        key = self._key(values)
+        checked, self._checked = self._checked, None
+        self.value = checked[1] if checked and checked[0] == key else self._build(values)
+        if self._on_change is not None:
+            self._on_change(self.value)

@@ -1,0 +1,124 @@
+"""Measured streams of simulated planting runs: what the drive and the ground-speed sensor of a
+machine would report, made without ROS from the sync node's own law (control.phase_lock)
+against the drive model of sim.closed_loop. Deterministic for a given seed; the sample bags,
+the replay benchmark and many tests are made from them.
+"""
+
+from dataclasses import dataclass
+import json
+import math
+
+import numpy as np
+
+from planter_ros import interfaces
+from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
+
+from .closed_loop import DriveModel, simulate
+from .field import speed_profile
+
+SIM_EPOCH = 1_700_000_000.0      # s: fixed start of simulated time (deterministic bags)
+
+
+@dataclass
+class Run:
+    """A simulated measured stream (SI units, times in s on the simulated clock)."""
+
+    design: dict                 # the `design` topic's JSON dict
+    speed_t: np.ndarray          # ground speed measurement times
+    speed_v: np.ndarray          # measured ground speed (m/s)
+    joint_t: np.ndarray          # drive feedback times
+    joint_pos: np.ndarray        # measured shaft angle (rad, unwrapped)
+    joint_vel: np.ndarray        # measured shaft speed (rad/s)
+    command: np.ndarray          # shaft speed command at joint_t (rad/s)
+
+    def messages(self):
+        """The stream as ROS messages in time order: (time ns, Topic, message), the design first
+        (1 ms before the first sample), then ground speed and joint state + speed command."""
+        from builtin_interfaces.msg import Time
+        from geometry_msgs.msg import TwistStamped
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64, String
+
+        joint = interfaces.MECHANISM_JOINT[self.design['mechanism']]
+        t0 = _ns(min(self.speed_t[0], self.joint_t[0])) - 1_000_000
+        yield t0, interfaces.DESIGN, String(data=json.dumps(self.design))
+        events = sorted([(_ns(t), 0, i) for i, t in enumerate(self.speed_t)]
+                        + [(_ns(t), 1, i) for i, t in enumerate(self.joint_t)])
+        for stamp, kind, i in events:
+            sec, nsec = divmod(stamp, 1_000_000_000)
+            if kind == 0:
+                msg = TwistStamped()
+                msg.header.stamp = Time(sec=sec, nanosec=nsec)
+                msg.twist.linear.x = float(self.speed_v[i])
+                yield stamp, interfaces.GROUND_SPEED, msg
+            else:
+                msg = JointState(name=[joint], position=[float(self.joint_pos[i])],
+                                 velocity=[float(self.joint_vel[i])])
+                msg.header.stamp = Time(sec=sec, nanosec=nsec)
+                yield stamp, interfaces.JOINT_STATES, msg
+                yield stamp, interfaces.SPEED_COMMAND, Float64(data=float(self.command[i]))
+
+
+def _ns(seconds):
+    return int(round(seconds * 1e9))
+
+
+def five_bar_design_message(depth=0.045, spacing=0.2, hole_ratio=0.05, method='exact',
+                            ground_speed=0.2):
+    """The design topic's dict for a five-bar scene (tomato defaults), as design_node makes it."""
+    from planter_ros.kinematics.scene_design import design_for_scene
+    return design_for_scene({'mechanism': 'five_bar', 'planting_depth': depth,
+                             'plant_spacing': spacing, 'hole_ratio': hole_ratio,
+                             'design_method': method, 'nominal_ground_speed': ground_speed})
+
+
+def simulate_run(design, duration=30.0, cruise=0.2, speed_rate=20.0, joint_rate=100.0,
+                 drive_lag=0.08, phase_gain=4.0, speed_noise=0.02, encoder_counts=4096,
+                 step=1.25, stall_at=None, stall_for=0.8, stall_level=0.2, seed=1):
+    """Measured stream of a planting run (see module doc). Deterministic for a given seed.
+
+    The machine is the sync node's own law (control.phase_lock; `phase_gain` = 0 is speed-only)
+    against the drive model of sim.closed_loop, sampled as the drive and sensor would:
+    joint states at `joint_rate` (encoder-quantised angle, noisy speed), ground speed at
+    `speed_rate` with relative noise `speed_noise`. `stall_at` (s) makes the drive lose most of
+    its torque for `stall_for` s (it reaches `stall_level` of what is commanded): the shaft
+    drags behind the ground, then the phase lock catches up.
+    """
+    rng = np.random.default_rng(seed)
+    n = design['plants_per_revolution']
+    spacing = design['plant_spacing']
+    law = PhaseLock(PhaseLockConfig(phase_gain=phase_gain, phase_lock=phase_gain > 0,
+                                    max_acceleration=200.0, max_correction=20.0))
+    law.set_design(spacing, n, 0.0)
+
+    def true_speed(t):
+        # slow true speed variation (soil, slip) on top of the profile
+        wobble = 1.0 + 0.03 * math.sin(2 * math.pi * t / 7.0) \
+            + 0.02 * math.sin(2 * math.pi * t / 2.3)
+        return float(speed_profile(t, cruise, duration, step=step)) * wobble
+
+    readings = []
+
+    def sensor(t, v):
+        reading = v * (1.0 + rng.normal(0.0, speed_noise))
+        readings.append((t, reading))
+        return reading
+
+    nominal = DriveModel(time_constant=drive_lag, max_acceleration=1e3)
+    changes = [] if stall_at is None else [
+        (stall_at, DriveModel(time_constant=drive_lag, max_acceleration=1e3,
+                              speed_scale=stall_level)),
+        (stall_at + stall_for, nominal)]
+    dt = 1.0 / joint_rate
+    sim = simulate(law, true_speed, duration, drive=nominal, dt=dt / 4, sample_period=1.0 /
+                   speed_rate, feedback_period=dt, sensor=sensor, drive_change=changes)
+    every = 4                                    # feedback samples on the integration grid
+    t = sim.t[::every]
+    quantum = 2 * math.pi / encoder_counts
+    joint_pos = np.round(sim.angle[::every] / quantum) * quantum
+    joint_vel = sim.speed[::every] + rng.normal(0.0, 0.01 * 2 * math.pi * cruise /
+                                                (n * spacing), t.size)
+    speed_t, speed_v = (np.array(c) for c in zip(*readings))
+    return Run(design=design, speed_t=SIM_EPOCH + speed_t, speed_v=speed_v,
+               joint_t=SIM_EPOCH + t, joint_pos=joint_pos, joint_vel=joint_vel,
+               command=sim.command[::every])
