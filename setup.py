@@ -15,13 +15,30 @@ setup(
         ('share/' + package_name + '/config', glob('config/*')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
-    install_requires=['setuptools'],
+    # What the package needs at run time, with the oldest versions it is known to work with;
+    # requirements.txt pins the exact versions the bootstrap and CI install.
+    install_requires=[
+        'setuptools',
+        'ros-jazzy-rclpy[fastrtps]>=7.1.6',        # ROS 2 Jazzy from PyPI wheels
+        'ros-jazzy-common-interfaces>=5.3.6',     # std/geometry/sensor/diagnostic msgs
+        'numpy>=2.0',
+        'scipy>=1.13',
+        'PyYAML>=6.0',
+        'python-can>=4.4',
+        'canopen>=2.4',
+        'mcap>=1.2',
+        'zstandard>=0.22',
+        'rosbags>=0.10',
+        'matplotlib>=3.8',
+        'mpmath>=1.3',                            # planter bench's references
+    ],
+    extras_require={'test': ['pytest>=8', 'hypothesis>=6.100', 'colcon-common-extensions',
+                             'ruff>=0.6']},
     zip_safe=True,
     maintainer='planter_ros team',
     maintainer_email='planter@example.org',
     description='Design and drive the planting unit of a seedling transplanter.',
     license='Apache-2.0',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             'planter = planter_ros.cli.main:main',
