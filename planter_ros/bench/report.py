@@ -137,6 +137,30 @@ def as_json(machine, rows, quick):
 
 # --- markdown ---------------------------------------------------------------------------------
 
+# How the rows are made, for the page's readers (the per-row details are in each table's notes).
+METHOD_NOTES = (
+    'Every error is against a reference this run computes itself with mpmath (working precision '
+    'raised where a formula cancels); no expected numbers are stored.',
+    'Five-bar design rows: the hole the computed (float) bars achieve, evaluated in mpmath, '
+    'against k·D over random scenes (D 20–100 mm, d 0.15–0.6 m, k up to half its feasible '
+    'limit); the bars themselves are also compared with the mpmath exact design (notes).',
+    'Dense sampling is the naive hole width: sample one sun-bar turn, keep the points below the '
+    'soil, take their extent.',
+    'Sync loop: the real `sync_node` in its own single-threaded executor thread, on a python-can '
+    'virtual bus with the simulated drive, ROS in a fresh context on a private DDS domain '
+    '(localhost discovery); each ground-speed message is timed from `publish()` to the RPDO it '
+    'caused (python-can\'s send stamp).',
+    'Replay: a generated 10-minute input bag (× real time against the target) and the committed '
+    'sample bags, whose error is against the live monitor\'s recorded predictions.',
+    'CAN drive: master and simulated drive in one process on a python-can virtual bus.',
+    'Footprint: each run in a fresh interpreter; peak RSS is the child\'s own VmHWM; a five-bar '
+    'design must load no scipy, matplotlib, rclpy or other mechanism.',
+    'A row group is one function `@bench_case(name, requires=(module,))` in a module listed in '
+    '`planter_ros/bench/registry.py` (`CASE_MODULES`); a case whose module is missing reports one '
+    '"not available" row, a case that raises one FAILED row and a non-zero exit.',
+)
+
+
 def _md_cell(text):
     return str(text).replace('|', '\\|').replace('\n', ' ')
 
@@ -210,6 +234,8 @@ def format_markdown(machine, rows, command, quick=False, seconds=None):
             lines += [f'- {method}: {note}' for method, note in notes]
         if definitions or notes:
             lines.append('')
+    lines += ['## How the bench measures', '']
+    lines += [f'- {text}' for text in METHOD_NOTES]
     return '\n'.join(lines).rstrip('\n') + '\n'
 
 
