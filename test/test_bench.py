@@ -1,15 +1,30 @@
 """`planter bench` as CI runs it: the quick smoke run works, its JSON is complete and its
-errors come from the mpmath reference (exact methods at round-off, the paper's formula not)."""
+errors come from the mpmath reference (exact methods at round-off, the paper's formula not);
+its markdown page holds the quality targets and one table per row group."""
 import json
+import re
+
+import pytest
 
 from cli_helpers import run_planter
+from planter_ros.bench.registry import Row, Target
+from planter_ros.bench.report import QUALITY_TARGETS, format_markdown
+from planter_ros.bench.timing import Timing
 
 
-def test_quick_bench_runs_and_reports_every_row_with_time_and_error(tmp_path):
-    plot = tmp_path / 'tradeoff.png'
-    out = run_planter('bench', '--quick', '--json', '--plot', plot, timeout=300)
+@pytest.fixture(scope='module')
+def quick_run(tmp_path_factory):
+    """One quick bench run (JSON, plot and markdown page) shared by the tests that read it."""
+    tmp = tmp_path_factory.mktemp('bench')
+    plot, page = tmp / 'tradeoff.png', tmp / 'benchmarks.md'
+    out = run_planter('bench', '--quick', '--json', '--plot', plot, '--markdown', page,
+                      timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
-    report = json.loads(out.stdout)
+    return json.loads(out.stdout), plot, page
+
+
+def test_quick_bench_runs_and_reports_every_row_with_time_and_error(quick_run):
+    report, plot, _ = quick_run
     assert report['quick'] is True
     assert report['machine']['cpu'] and report['machine']['numpy']
     rows = report['rows']
@@ -60,3 +75,47 @@ def test_bench_rejects_bad_options_in_one_line():
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
     out = run_planter('bench', '--plot', 'x.jpg')
     assert out.returncode == 2 and 'png' in out.stderr
+
+
+def test_markdown_page_has_the_targets_and_a_table_per_row_group(quick_run):
+    report, _, page = quick_run
+    assert report['markdown'] == str(page)
+    text = page.read_text()
+    assert text.startswith('# Benchmarks\n')
+    assert f'`planter bench --quick --markdown {page}`' in text       # how it was made
+    assert 'numpy' in text and 'mpmath' in text                        # the machine line
+    targets = text.split('## Quality targets', 1)[1].split('## Results', 1)[0]
+    for quantity, target, _, _ in QUALITY_TARGETS:
+        assert f'| {quantity} | {target} |' in targets
+    assert '≤ 20 µs' in targets and 'p99 ≤ 2 ms' in targets and '≤ 15 s' in targets
+    groups = list(dict.fromkeys(r['what'] for r in report['rows']))
+    headings = re.findall(r'^### (.+)$', text, re.M)
+    assert headings == groups
+    for group, section in zip(groups, text.split('\n### ')[1:]):
+        table = [line for line in section.splitlines() if line.startswith('|')]
+        assert table[0].startswith('| method | n | time/call | p10–p90 | p99 |')
+        assert len(table) == 2 + sum(r['what'] == group for r in report['rows'])
+    assert not list(page.parent.glob('.*.tmp'))                        # renamed into place
+
+
+def test_markdown_target_status_counts_missed_rows():
+    timing = Timing(1e-3, 1e-3, 1e-3, 3, 1)
+    rows = [Row('three-arm cycle (3 arms)', 'fast', 1, 'cycle', timing,
+                targets=[Target('≤ 1 ms', True)]),
+            Row('three-arm cycle (3 arms)', 'slow | odd', 1, 'cycle', timing,
+                targets=[Target('≤ 1 ms', False)])]
+    machine = {'date': '2026-01-01 00:00 UTC', 'cpu': 'cpu', 'cores': 2, 'usable_cores': 2,
+               'os': 'os', 'python': '3.11', 'numpy': '2', 'mpmath': '1'}
+    text = format_markdown(machine, rows, 'planter bench --markdown x.md')
+    assert '| ≤ 1 ms | three-arm cycle rows | NOT MET (1 of 2 rows) |' in text
+    assert '| sync loop: ground-speed message → CAN frame | p99 ≤ 2 ms | sync loop rows | ' \
+           'no row in this run |' in text
+    assert '| slow \\| odd |' in text                                    # a | stays in its cell
+
+
+def test_markdown_into_a_missing_directory_is_refused_before_any_work(tmp_path):
+    page = tmp_path / 'no-such-dir' / 'benchmarks.md'
+    out = run_planter('bench', '--markdown', page)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    assert 'does not exist' in out.stderr and 'bench:' not in out.stderr   # no case started
+    assert not page.parent.exists()

@@ -36,7 +36,7 @@ CASE_MODULES = (
 
 @dataclass(frozen=True)
 class Target:
-    """A quality bar of PRODUCT.md §5 and whether this run met it (measured, not asserted)."""
+    """A quality target and whether this run met it (measured, not asserted)."""
 
     text: str
     met: bool

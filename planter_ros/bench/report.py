@@ -1,6 +1,32 @@
-"""The bench table for people and the JSON for machines."""
+"""The bench table for people, the JSON for machines and the markdown page for the docs."""
+
+import os
+import tempfile
 
 from .machine import machine_line
+
+# The quality targets: (quantity, target, row group that measures it, text its rows' Target
+# starts with). Group None: no bench row measures it (the command named reports it itself).
+QUALITY_TARGETS = (
+    ('five-bar reverse design, scalar', '≤ 20 µs per design',
+     'five-bar reverse design', '≤ 20 µs'),
+    ('five-bar reverse design, batched', '≥ 1e6 designs/s',
+     'five-bar reverse design', '≥ 1e6/s'),
+    ('exact five-bar design: hole of the computed bars', '≤ 1e-9 relative vs the mpmath reference',
+     'five-bar reverse design', 'err ≤ 1e-9'),
+    ('hole width (closed form)', '≤ 1e-9 relative vs the mpmath reference',
+     'hole width', 'err ≤ 1e-9'),
+    ('gear-closure integral (three-arm centre distance)', '≤ 1e-9 relative',
+     'gear-train closure', 'err ≤ 1e-9'),
+    ('a full three-arm cycle (3 arms, 360 angles each)', '≤ 1 ms',
+     'three-arm cycle', '≤ 1 ms'),
+    ('sync loop: ground-speed message → CAN frame', 'p99 ≤ 2 ms',
+     'sync loop', 'p99 ≤ 2 ms'),
+    ('replay of a recording', '≥ 1000× real time per core',
+     'replay', '≥ 1000× real time'),
+    ('three-arm optimiser (`planter optimize three-arm`)',
+     'meets all eight goals in ≤ 15 s of search on 2 cores', None, None),
+)
 
 
 def fmt_time(s):
@@ -32,24 +58,25 @@ def fmt_size(n):
 
 
 HEADER = ('method', 'n', 'time/call', 'p10–p90', 'p99', 'per item', 'throughput', 'error',
-          'target (§5)')
+          'target')
 LEFT = (0, len(HEADER) - 1)      # columns aligned left: method, target
 
 
+def row_cells(r):
+    """The HEADER columns of one row as text; a row that did not run carries its note only."""
+    if r.status != 'ok':
+        return (r.note,) + ('',) * (len(HEADER) - 1)
+    t = r.timing
+    spread = f'{fmt_time(t.p10)}–{fmt_time(t.p90)}' if t else '—'
+    tail = fmt_time(t.p99) if t and t.p99 is not None else ''
+    per = fmt_time(r.per_item) if r.size and r.size > 1 else ''
+    rate = fmt_rate(r.throughput, r.unit) if r.size and r.size > 1 else ''
+    return (r.method, fmt_size(r.size), fmt_time(t.median if t else None), spread, tail, per,
+            rate, fmt_error(r.error), '; '.join(str(x) for x in r.targets))
+
+
 def table_lines(rows):
-    cells = []
-    for r in rows:
-        if r.status != 'ok':
-            cells.append((r.what, (r.note,) + ('',) * (len(HEADER) - 1)))
-            continue
-        t = r.timing
-        spread = f'{fmt_time(t.p10)}–{fmt_time(t.p90)}' if t else '—'
-        tail = fmt_time(t.p99) if t and t.p99 is not None else ''
-        per = fmt_time(r.per_item) if r.size and r.size > 1 else ''
-        rate = fmt_rate(r.throughput, r.unit) if r.size and r.size > 1 else ''
-        cells.append((r.what, (r.method, fmt_size(r.size), fmt_time(t.median if t else None),
-                               spread, tail, per, rate, fmt_error(r.error),
-                               '; '.join(str(x) for x in r.targets))))
+    cells = [(r.what, row_cells(r)) for r in rows]
     widths = [max(len(HEADER[i]), *(len(c[1][i]) for c in cells if c[1][1] or i == 0))
               for i in range(len(HEADER))]
     widths[0] = max(len(HEADER[0]), *(len(c[1][0]) for c in cells if c[1][1]))
@@ -88,13 +115,16 @@ def row_notes(rows):
     return out
 
 
+TIME_LEGEND = ('time/call: median of repeats (p10–p90 spread); per item = time/call ÷ n. '
+               'Latency rows: median, p10–p90 and p99 over single events (count in the notes).')
+ERROR_LEGEND = ('error: relative, against mpmath at 40 digits computed by this run, unless its '
+                'line below says otherwise; — where no error is defined.')
+
+
 def format_table(machine, rows):
     lines = [f'planter bench · {machine_line(machine)}', '']
     lines += table_lines(rows)
-    lines += ['', 'time/call: median of repeats (p10–p90 spread); per item = time/call ÷ n. '
-              'Latency rows: median, p10–p90 and p99 over single events (count in the notes).',
-              'error: relative, against mpmath at 40 digits computed by this run, unless its line '
-              'below says otherwise; — where no error is defined.']
+    lines += ['', TIME_LEGEND, ERROR_LEGEND]
     lines += error_notes(rows)
     lines += ['notes:']
     lines += row_notes(rows)
@@ -103,3 +133,134 @@ def format_table(machine, rows):
 
 def as_json(machine, rows, quick):
     return {'machine': machine, 'quick': quick, 'rows': [r.as_dict() for r in rows]}
+
+
+# --- markdown ---------------------------------------------------------------------------------
+
+# How the rows are made, for the page's readers (the per-row details are in each table's notes).
+METHOD_NOTES = (
+    'Every error is against a reference this run computes itself with mpmath (working precision '
+    'raised where a formula cancels); no expected numbers are stored.',
+    'Five-bar design rows: the hole the computed (float) bars achieve, evaluated in mpmath, '
+    'against k·D over random scenes (D 20–100 mm, d 0.15–0.6 m, k up to half its feasible '
+    'limit); the bars themselves are also compared with the mpmath exact design (notes).',
+    'Dense sampling is the naive hole width: sample one sun-bar turn, keep the points below the '
+    'soil, take their extent.',
+    'Sync loop: the real `sync_node` in its own single-threaded executor thread, on a python-can '
+    'virtual bus with the simulated drive, ROS in a fresh context on a private DDS domain '
+    '(localhost discovery); each ground-speed message is timed from `publish()` to the RPDO it '
+    'caused (python-can\'s send stamp).',
+    'Replay: a generated 10-minute input bag (× real time against the target) and the committed '
+    'sample bags, whose error is against the live monitor\'s recorded predictions.',
+    'CAN drive: master and simulated drive in one process on a python-can virtual bus.',
+    'Footprint: each run in a fresh interpreter; peak RSS is the child\'s own VmHWM; a five-bar '
+    'design must load no scipy, matplotlib, rclpy or other mechanism.',
+    'A row group is one function `@bench_case(name, requires=(module,))` in a module listed in '
+    '`planter_ros/bench/registry.py` (`CASE_MODULES`); a case whose module is missing reports one '
+    '"not available" row, a case that raises one FAILED row and a non-zero exit.',
+)
+
+
+def _md_cell(text):
+    return str(text).replace('|', '\\|').replace('\n', ' ')
+
+
+def _md_row(values):
+    return '| ' + ' | '.join(_md_cell(v) for v in values) + ' |'
+
+
+def target_status(rows, group, text):
+    """'met', 'NOT MET (k of n rows)' or 'no row in this run' for one quality target."""
+    if group is None:
+        return 'not a bench row'
+    found = [t for r in rows if r.status == 'ok' and r.what.startswith(group)
+             for t in r.targets if t.text.startswith(text)]
+    if not found:
+        return 'no row in this run'
+    missed = sum(not t.met for t in found)
+    if not missed:
+        return 'met' if len(found) == 1 else f'met ({len(found)} rows)'
+    return f'NOT MET ({missed} of {len(found)} rows)'
+
+
+def _groups(rows):
+    out = {}
+    for r in rows:
+        out.setdefault(r.what, []).append(r)
+    return out
+
+
+def format_markdown(machine, rows, command, quick=False, seconds=None):
+    """The bench as a markdown page: how it was made, the quality targets and whether this run
+    met them, one table per row group with its error definition and notes."""
+    took = f' · {seconds:.3g} s of bench work' if seconds is not None else ''
+    lines = ['# Benchmarks', '',
+             f'Written by `{command}`; re-run that command to update this page rather than '
+             'editing it.', '',
+             f'Run: {machine_line(machine)}{took}.', '']
+    if quick:
+        lines += ['**`--quick` run: tiny sizes and few repeats; its figures mean nothing.**', '']
+    lines += ['## Quality targets', '',
+              'Reported as met / NOT MET from the figures of this run, never asserted in tests '
+              '(a timing target can be missed on a busy machine).', '',
+              _md_row(('quantity', 'target', 'measured in', 'this run')),
+              '|---|---|---|---|']
+    for quantity, target, group, text in QUALITY_TARGETS:
+        where = f'{group} rows' if group else 'its own output (search time)'
+        lines.append(_md_row((quantity, target, where, target_status(rows, group, text))))
+    lines += ['', '## Results', '', TIME_LEGEND, '',
+              'error: relative, against mpmath at 40 digits computed by this run, unless the '
+              'line under its table says otherwise; — where no error is defined.', '']
+    numeric = {1, 2, 3, 4, 5, 6, 7}
+    align = ['---:' if i in numeric else '---' for i in range(len(HEADER))]
+    for what, members in _groups(rows).items():
+        lines += [f'### {what}', '', _md_row(HEADER), '|' + '|'.join(align) + '|']
+        lines += [_md_row(row_cells(r)) for r in members]
+        lines.append('')
+        definitions = []
+        for r in members:
+            if r.error_of and r.error_of not in definitions:
+                definitions.append(r.error_of)
+        if len(definitions) == 1:
+            lines.append(f'Error: {definitions[0]}')
+        elif definitions:
+            lines += ['Error:', ''] + [f'- {text}' for text in definitions]
+        notes = []
+        for r in members:
+            if r.status == 'ok' and r.note and (r.method, r.note) not in notes:
+                notes.append((r.method, r.note))
+        if notes:
+            lines += ([''] if definitions else []) + ['Notes:', '']
+            lines += [f'- {method}: {note}' for method, note in notes]
+        if definitions or notes:
+            lines.append('')
+    lines += ['## How the bench measures', '']
+    lines += [f'- {text}' for text in METHOD_NOTES]
+    return '\n'.join(lines).rstrip('\n') + '\n'
+
+
+def write_atomically(path, text):
+    """Write `text` to `path` through a temp file in the same directory and a rename, so a
+    reader never sees a half-written page and a failed run leaves the old one in place."""
+    directory = os.path.dirname(os.path.abspath(path))
+    try:
+        mode = os.stat(path).st_mode & 0o777          # a regenerated page keeps its mode
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask                         # a new one gets what open() would give
+    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f'.{os.path.basename(path)}.',
+                               suffix='.tmp')
+    try:
+        with os.fdopen(fd, 'w', encoding='utf-8') as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, mode)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
