@@ -17,7 +17,7 @@ the three-arm at its lowest point). For each plant:
   nozzle speed at release; five-bar A_r = l2 - l1). The stem, held at the surface, is dragged by
   that slip Δx while the root ball stays put: tilt = atan2(Δx, D) from vertical, positive =
   top leaning forward (direction of travel). Zero at perfect sync; dragging (λ < 1) leans the
-  plant forward, overspeed (λ > 1) backward. Assumptions are listed in the README.
+  plant forward, overspeed (λ > 1) backward. Assumptions are listed in doc/monitor_recording.md.
 * upright: the stem's angle to the ground, π/2 - |tilt|, at least `upright_threshold`;
   and a rolling uprightness rate over the last N plants.
 

@@ -4,7 +4,7 @@ Frame (as the five-bar): origin at the carrier centre O1, x forward along the ro
 angles in rad counter-clockwise from +x. The carrier turns clockwise: φ_H = Φ0 − θ (eq 4) with
 θ the carrier angle (the drive's joint angle). The sun gear is fixed (eq 5).
 
-Reading of the paper's ambiguous parts (also in README):
+Reading of the paper's ambiguous parts (also in doc/design.md):
 
 * One convention for every angle the paper attaches to the gears: pitch-curve polar angles, γ0
   and β0 are measured in the carrier's sense of rotation (clockwise), like θ itself. That is

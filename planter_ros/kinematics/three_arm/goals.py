@@ -1,6 +1,6 @@
 """The eight design goals of paper 2 (§4.1), each a number with bounds, a unit and pass/fail.
 
-Definitions where the paper gives only a name (also in README):
+Definitions where the paper gives only a name (also in doc/design.md):
 
 1. arm_clearance (m, ≥ arm_width): the smallest distance between the centre lines O3→D of any
    two arms over one carrier turn. Two arm shells of width `arm_width` touch when it falls
