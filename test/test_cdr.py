@@ -547,3 +547,17 @@ def test_decode_string_refuses_damaged_payloads_in_one_line(case):
     assert text.startswith('std_msgs/String: ') and '\n' not in text and len(text) < 200
     with pytest.raises(Exception):                 # rosbags refuses these too
         TS.deserialize_cdr(BAD_STRINGS[case], STRING)
+
+
+# ----------------------------------------------------------------------------- bench case
+
+def test_bench_case_quick_rows_agree_with_rosbags():
+    from planter_ros.bench.cases.cdr import OURS, RCLPY, ROSBAGS, cdr_decoding
+    from planter_ros.bench.registry import BenchContext
+
+    rows = list(cdr_decoding(BenchContext(quick=True, verbose=False)))
+    assert len(rows) == 7 and all(r.status == 'ok' and r.size == 2000 for r in rows)
+    assert {r.method for r in rows} == {OURS, OURS + ', uncut', ROSBAGS, RCLPY}
+    for r in rows:
+        assert r.timing.median > 0 and r.extra['messages_per_s'] > 0
+        assert r.error is None if r.method == ROSBAGS else r.error == 0.0
