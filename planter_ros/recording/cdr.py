@@ -1,129 +1,269 @@
-"""The few CDR fields replay needs, decoded in bulk with numpy.
+"""Bulk decoding of a few fields from raw CDR messages (replay's inner loop), with numpy.
 
-Replay reads tens of thousands of TwistStamped and JointState messages per bag but needs only a
-stamp and one or two float64s from each. Messages of one layout (same length, same bytes where
-the layout is decided: encapsulation header, frame_id, joint names, array counts; padding bytes
-are not compared, rclpy leaves them uninitialised) share their byte offsets, so the first one of
-each layout is walked and the rest are decoded as columns of a byte matrix.
+Why: replay needs a handful of numbers (a stamp and one or two float64) from tens of thousands
+of TwistStamped / JointState messages. Deserialising each message into an object (rosbags,
+rclpy) costs far more than reading those fields, so this module reads them straight from the
+bytes, most messages at once.
+
+How: messages of one *layout* share their byte offsets. Two messages have the same layout when
+they have the same length and the same bytes wherever the walk to the wanted fields reads a
+size or a name: the representation identifier (encapsulation bytes 0-1, which say CDR and the
+byte order), the frame_id length, and for a JointState the joint-name count, every name's length
+and text (they decide which index the wanted joint has) and the array counts. The frame_id text
+is not compared (only its length moves the fields after it), nor the two encapsulation option
+bytes, nor any alignment padding: serialisers leave padding uninitialised (rclpy does), so it
+holds garbage that differs from message to message. The first message of each layout is walked
+field by field in Python; every other message of that layout is then read with one strided numpy
+view per field. The walk's checks (does every count and length fit in the message?) depend only
+on bytes the layout fixes, so they hold for the whole layout. A batch of many one-off layouts
+falls back to walking messages one by one, so it does not cost layouts × messages.
+
+CDR here is what rosbag2 stores for plain ROS 2 types (XCDR1, "CDR_BE"/"CDR_LE"): a 4-byte
+encapsulation header (byte 0 = 0; byte 1 = 1 little endian, 0 big endian; bytes 2-3 options),
+then the fields, each aligned to its own size (4 for counts and string lengths, 8 for float64)
+*relative to the end of the header* — i.e. absolute offset 4 + a multiple of the size. A string
+is a uint32 length counting its NUL terminator, then the bytes and the NUL; a sequence is a
+uint32 count, then (only if the count is non-zero) padding to the element alignment and the
+elements. Other representations (XCDR2, parameter lists: byte 0 ≠ 0 or byte 1 > 1) are refused.
+
+Rules shared by the bulk decoders:
+* A message whose own structure does not fit in its bytes (truncated, a count or length larger
+  than the message, an unknown encapsulation) is left out: stamp 0 and NaN values, no exception.
+  Bytes after the structure are allowed (rclpy's serialize_message leaves up to 8 there).
+* Stamps are header.stamp in integer nanoseconds (sec * 1e9 + nanosec, int64).
+* Input is any sequence of bytes-like objects (bytes, bytearray, memoryview); order is kept.
+
+decode_string (one message, std_msgs/String) is strict instead: it raises CdrError, with a
+one-line message, for anything that is not a well-formed CDR string.
 """
 
 import struct
 
 import numpy as np
 
-# CDR (XCDR1, as rosbag2 stores it): 4-byte encapsulation header (byte 1 = 1: little endian),
-# then fields aligned to their size relative to the end of that header.
+HEADER = 4                  # encapsulation header bytes; alignment counts from its end
+STAMP = 4                   # header.stamp.sec (int32) at 4, header.stamp.nanosec (uint32) at 8
+FRAME_ID = 12               # header.frame_id length (uint32) at 12, its bytes from 16
+
+# Matching a layout costs one pass over the messages still undecoded. After this many layouts
+# in a row that each took less than 1/_WORTH of them, messages are walked one by one, with a
+# match tried again after 1, 2, 4, ... such walks (so a long run of one layout is still found).
+_UNPRODUCTIVE = 16
+_WORTH = 256
+
+
+class CdrError(ValueError):
+    """A CDR message that cannot be decoded (one line: what is wrong with it)."""
+
+
+# ----------------------------------------------------------------------------- walking
 
 def _align(pos, size):
-    return 4 + ((pos - 4 + size - 1) // size) * size
+    """pos rounded up to 4 + a multiple of `size` (XCDR1: aligned after the header)."""
+    return pos + (-(pos - HEADER) % size)
 
 
-def _walk_header(raw, e):
-    sec, nsec = struct.unpack_from(e + 'iI', raw, 4)
-    n = struct.unpack_from(e + 'I', raw, 12)[0]
-    return sec, nsec, 16 + n
+def _byte_order(raw, what):
+    """'<' or '>' from the encapsulation header; CdrError for anything but plain CDR."""
+    if len(raw) < HEADER:
+        raise CdrError(f'{what}: {len(raw)} bytes, shorter than the 4-byte CDR encapsulation '
+                       'header')
+    if raw[0] != 0 or raw[1] > 1:
+        raise CdrError(f'{what}: encapsulation {bytes(raw[:2]).hex()} is not plain CDR '
+                       '(0000 big endian or 0001 little endian)')
+    return '<' if raw[1] else '>'
+
+
+def _u32(raw, pos, e, what, field):
+    if pos + 4 > len(raw):
+        raise CdrError(f'{what}: truncated at {field} (needs bytes {pos}-{pos + 3}, message '
+                       f'has {len(raw)})')
+    return struct.unpack_from(e + 'I', raw, pos)[0]
+
+
+def _need(raw, end, what, field):
+    if end > len(raw):
+        raise CdrError(f'{what}: truncated in {field} (needs {end} bytes, message has '
+                       f'{len(raw)})')
+
+
+def _string_end(raw, pos, e, what, field):
+    """End of the CDR string whose length is at pos (checked to fit, length >= 1)."""
+    n = _u32(raw, pos, e, what, f'{field} length')
+    if n == 0:
+        raise CdrError(f'{what}: {field} has length 0 (a CDR string holds at least its NUL)')
+    _need(raw, pos + 4 + n, what, field)
+    return pos + 4 + n
+
+
+def _float64_sequence(raw, pos, e, what, field):
+    """(count, offset of element 0, end, count's byte range) of the float64 sequence whose
+    count is at pos (after alignment)."""
+    pos = _align(pos, 4)
+    count = _u32(raw, pos, e, what, f'{field} count')
+    data = _align(pos + 4, 8) if count else pos + 4
+    end = data + 8 * count
+    _need(raw, end, what, f'{field} ({count} values)')
+    return count, data, end, (pos, pos + 4)
+
+
+def _header(raw, what):
+    """(byte order, end of std_msgs/Header, layout-defining byte ranges so far)."""
+    e = _byte_order(raw, what)
+    end = _string_end(raw, FRAME_ID, e, what, 'header.frame_id')
+    return e, end, [(0, 2), (FRAME_ID, FRAME_ID + 4)]
 
 
 def _twist_layout(raw):
-    """(stamp-sec offset, linear.x offset, layout-defining byte ranges) of a TwistStamped."""
-    e = '<' if raw[1] else '>'
-    _, _, pos = _walk_header(raw, e)
-    return _align(pos, 8), [(0, 4), (12, pos)]
+    """TwistStamped: (byte order, (linear.x offset, angular.z offset), layout byte ranges).
+    twist is six float64 in a row: linear x y z, angular x y z."""
+    what = 'TwistStamped'
+    e, pos, ranges = _header(raw, what)
+    linear_x = _align(pos, 8)
+    _need(raw, linear_x + 48, what, 'twist')
+    return e, (linear_x, linear_x + 40), ranges
 
 
-def _joint_layout(raw, name):
-    """Offsets of the named joint's position and velocity in a JointState (None if absent),
-    and the byte ranges that fix the layout (padding bytes left out: rclpy leaves them
-    uninitialised)."""
-    e = '<' if raw[1] else '>'
-    _, _, pos = _walk_header(raw, e)
-    ranges = [(0, 4), (12, pos)]
+def _joint_layout(raw, joint):
+    """JointState: (byte order, (position offset, velocity offset), layout byte ranges) for the
+    joint named `joint` (bytes, or None); an offset is None where that value is absent.
+
+    The joint is the first one of that name; a JointState with no names and exactly one
+    position is taken to be that joint (a single-joint publisher that leaves names out)."""
+    what = 'JointState'
+    e, pos, ranges = _header(raw, what)
     pos = _align(pos, 4)
-    count = struct.unpack_from(e + 'I', raw, pos)[0]
+    count = _u32(raw, pos, e, what, 'name count')
+    if count > (len(raw) - pos - 4) // 5:           # each name: 4-byte length + at least NUL
+        raise CdrError(f'{what}: name count {count} does not fit in {len(raw)} bytes')
     ranges.append((pos, pos + 4))
     pos += 4
-    names = []
-    for _ in range(count):
+    index = None
+    for i in range(count):
         pos = _align(pos, 4)
-        n = struct.unpack_from(e + 'I', raw, pos)[0]
-        names.append(bytes(raw[pos + 4:pos + 3 + n]).decode('utf-8', 'replace'))
-        ranges.append((pos, pos + 4 + n))
-        pos += 4 + n
-    pos = _align(pos, 4)
-    n_pos = struct.unpack_from(e + 'I', raw, pos)[0]
-    ranges.append((pos, pos + 4))
-    pos_data = _align(pos + 4, 8) if n_pos else pos + 4
-    vel_count = _align(pos_data + 8 * n_pos, 4)
-    n_vel = struct.unpack_from(e + 'I', raw, vel_count)[0]
-    ranges.append((vel_count, vel_count + 4))
-    vel_data = _align(vel_count + 4, 8) if n_vel else vel_count + 4
-    if vel_data + 8 * n_vel > len(raw) or pos_data + 8 * n_pos > len(raw):
-        raise ValueError('JointState shorter than its arrays')
-    if name in names:
-        i = names.index(name)
-    elif not names and n_pos == 1:
-        i = 0
-    else:
-        i = None
-    p = pos_data + 8 * i if i is not None and i < n_pos else None
-    v = vel_data + 8 * i if i is not None and i < n_vel else None
-    return p, v, ranges
+        end = _string_end(raw, pos, e, what, f'name[{i}]')
+        ranges.append((pos, end))                   # length and text: they fix the index
+        if index is None and joint is not None and bytes(raw[pos + 4:end - 1]) == joint:
+            index = i
+        pos = end
+    n_pos, pos_data, pos, span = _float64_sequence(raw, pos, e, what, 'position')
+    ranges.append(span)
+    n_vel, vel_data, pos, span = _float64_sequence(raw, pos, e, what, 'velocity')
+    ranges.append(span)
+    _, _, _, span = _float64_sequence(raw, pos, e, what, 'effort')   # only: does it fit
+    ranges.append(span)
+    if index is None and count == 0 and n_pos == 1:
+        index = 0
+    p = pos_data + 8 * index if index is not None and index < n_pos else None
+    v = vel_data + 8 * index if index is not None and index < n_vel else None
+    return e, (p, v), ranges
 
+
+# ----------------------------------------------------------------------------- bulk
 
 def _bulk(raws, layout_of, n_values):
-    """Decode messages grouped by layout. layout_of(raw) -> (offsets..., ranges); returns
-    (stamp_ns int64, values float64 [n, n_values]) with NaN where a value is absent."""
+    """Decode messages grouped by layout. layout_of(raw) -> (byte order, offsets, ranges),
+    raising CdrError for a message it cannot walk. Returns (stamp ns int64 [n],
+    values float64 [n_values, n]); a left-out message has stamp 0 and NaN values, an absent
+    value (offset None) is NaN."""
     count = len(raws)
     stamps = np.zeros(count, dtype=np.int64)
-    values = np.full((count, n_values), np.nan)
-    lengths = np.fromiter((len(r) for r in raws), dtype=np.int64, count=count)
-    todo = np.arange(count)
-    while todo.size:
-        first = raws[todo[0]]
-        try:
-            *offsets, ranges = layout_of(first)
-        except (struct.error, IndexError, ValueError):
-            # a message too short for its own fields: left out (NaN values)
-            todo = todo[1:]
+    values = np.full((n_values, count), np.nan)
+    if not count:
+        return stamps, values
+    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=count)
+    order = np.argsort(lengths, kind='stable')
+    cuts = np.flatnonzero(np.diff(lengths[order])) + 1
+    for idx in np.split(order, cuts):               # one group per message length
+        size = int(lengths[idx[0]])
+        if size < FRAME_ID + 4:                     # not even a header: all left out
             continue
-        same_len = todo[lengths[todo] == len(first)]
-        joined = b''.join(raws) if same_len.size == count else \
-            b''.join([raws[i] for i in same_len])
-        block = np.frombuffer(joined, dtype=np.uint8).reshape(same_len.size, len(first))
-        ref = np.frombuffer(bytes(first), dtype=np.uint8)
-        match = np.ones(same_len.size, dtype=bool)
-        for lo, hi in ranges:
-            match &= np.all(block[:, lo:hi] == ref[lo:hi], axis=1)
-        rows = same_len[match]
-        block = block[match]
-        e = '<' if first[1] else '>'
-        sec = block[:, 4:8].copy().view(e + 'i4').ravel().astype(np.int64)
-        nsec = block[:, 8:12].copy().view(e + 'u4').ravel().astype(np.int64)
-        stamps[rows] = sec * 1_000_000_000 + nsec
-        for k, off in enumerate(offsets):
-            if off is not None:
-                values[rows, k] = block[:, off:off + 8].copy().view(e + 'f8').ravel()
-        todo = np.setdiff1d(todo, rows, assume_unique=True)
+        # one length (the usual case): idx is 0..n-1 in order (stable sort), join as given
+        buf = b''.join(raws if idx.size == count else [raws[i] for i in idx])
+        block = np.frombuffer(buf, dtype=np.uint8).reshape(idx.size, size)
+        pending = np.arange(idx.size)               # rows of `block` not yet decided
+        unproductive = backoff = alone = 0
+        while pending.size:
+            first = int(pending[0])
+            try:
+                e, offsets, ranges = layout_of(raws[idx[first]])
+            except CdrError:
+                pending = pending[1:]               # left out; others may still decode
+                continue
+            if alone:                               # one-off layouts: walk each by itself
+                rows, pending = pending[:1], pending[1:]
+                alone -= 1
+            else:
+                cols = np.concatenate([np.arange(lo, hi) for lo, hi in ranges])
+                sub = block[:, cols] if pending.size == idx.size else block[pending[:, None], cols]
+                match = np.all(sub == block[first, cols], axis=1)
+                rows = pending[match]
+                if rows.size * _WORTH < pending.size:
+                    unproductive += 1
+                    if unproductive >= _UNPRODUCTIVE:
+                        backoff = max(1, 2 * backoff)
+                        alone = backoff
+                else:
+                    unproductive = backoff = 0
+                pending = pending[~match]
+            _read(buf, idx, rows, e, offsets, stamps, values)
     return stamps, values
 
 
+def _field(buf, n, rows, offset, dtype):
+    """The value at `offset` of each of `rows` in buf, n messages of equal length back to back
+    (a strided view: no copy of the messages)."""
+    size = len(buf) // n
+    return np.ndarray((n,), dtype=dtype, buffer=buf, offset=offset, strides=(size,))[rows]
+
+
+def _read(buf, idx, rows, e, offsets, stamps, values):
+    """Stamps and values of `rows` (all of one layout) into the outputs at idx[rows]."""
+    out = idx[rows]
+    sec = _field(buf, idx.size, rows, STAMP, e + 'i4').astype(np.int64)
+    nsec = _field(buf, idx.size, rows, STAMP + 4, e + 'u4').astype(np.int64)
+    stamps[out] = sec * 1_000_000_000 + nsec
+    for k, offset in enumerate(offsets):
+        if offset is not None:
+            values[k, out] = _field(buf, idx.size, rows, offset, e + 'f8')
+
+
+# ----------------------------------------------------------------------------- public
+
+def decode_twist(raws):
+    """(stamp ns int64, twist.linear.x, twist.angular.z float64) of TwistStamped CDR messages;
+    a message that cannot be decoded has stamp 0 and NaN values."""
+    stamps, values = _bulk(raws, _twist_layout, 2)
+    return stamps, values[0], values[1]
+
+
 def decode_ground_speed(raws):
-    """(stamp ns, linear.x m/s) arrays of TwistStamped CDR messages."""
-    if not raws:
-        return np.zeros(0, dtype=np.int64), np.zeros(0)
-    stamps, values = _bulk(raws, _twist_layout, 1)
-    return stamps, values[:, 0]
+    """(stamp ns int64, twist.linear.x m/s float64) of TwistStamped CDR messages."""
+    stamps, linear_x, _ = decode_twist(raws)
+    return stamps, linear_x
 
 
-def decode_joint_states(raws, joint):
-    """(stamp ns, position rad, velocity rad/s) of the named joint; NaN position = absent."""
-    if not raws:
-        return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
-    stamps, values = _bulk(raws, lambda r: _joint_layout(r, joint), 2)
-    return stamps, values[:, 0], values[:, 1]
+def decode_joint_states(raws, joint_name):
+    """(stamp ns int64, position, velocity float64) of the joint `joint_name` in JointState CDR
+    messages. NaN where the message lacks that joint (NaN position) or its velocity (NaN
+    velocity), or cannot be decoded (stamp 0 too). A message with no names and exactly one
+    position counts as that joint; joint_name None matches only such messages."""
+    joint = None if joint_name is None else joint_name.encode('utf-8')
+    stamps, values = _bulk(raws, lambda raw: _joint_layout(raw, joint), 2)
+    return stamps, values[0], values[1]
 
 
 def decode_string(raw):
-    e = '<' if raw[1] else '>'
-    n = struct.unpack_from(e + 'I', raw, 4)[0]
-    return bytes(raw[8:8 + max(n - 1, 0)]).decode('utf-8')
+    """The text of one std_msgs/String CDR message. Raises CdrError (a ValueError) with a
+    one-line message for an empty, truncated, unterminated or non-UTF-8 payload."""
+    what = 'std_msgs/String'
+    e = _byte_order(raw, what)
+    end = _string_end(raw, HEADER, e, what, 'data')
+    if raw[end - 1] != 0:
+        raise CdrError(f'{what}: data is not NUL-terminated (byte {end - 1} is '
+                       f'0x{raw[end - 1]:02x})')
+    try:
+        return bytes(raw[HEADER + 4:end - 1]).decode('utf-8')
+    except UnicodeDecodeError as exc:
+        raise CdrError(f'{what}: data is not UTF-8 ({exc.reason} at byte '
+                       f'{HEADER + 4 + exc.start})') from None
