@@ -119,3 +119,11 @@ def test_markdown_into_a_missing_directory_is_refused_before_any_work(tmp_path):
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
     assert 'does not exist' in out.stderr and 'bench:' not in out.stderr   # no case started
     assert not page.parent.exists()
+
+
+def test_a_table_of_only_failed_rows_still_prints_their_reasons():
+    from planter_ros.bench.report import table_lines
+    rows = [Row('replay', '—', None, '', status='FAILED', note='FAILED: RuntimeError: boom'),
+            Row('sync loop', '—', None, '', status='not available', note='not available: x')]
+    text = '\n'.join(table_lines(rows))
+    assert 'replay' in text and 'sync loop' in text

@@ -77,9 +77,10 @@ def row_cells(r):
 
 def table_lines(rows):
     cells = [(r.what, row_cells(r)) for r in rows]
-    widths = [max(len(HEADER[i]), *(len(c[1][i]) for c in cells if c[1][1] or i == 0))
+    # rows without a size (FAILED, not available) print their note only: not in the widths
+    widths = [max([len(HEADER[i]), *(len(c[1][i]) for c in cells if c[1][1] or i == 0)])
               for i in range(len(HEADER))]
-    widths[0] = max(len(HEADER[0]), *(len(c[1][0]) for c in cells if c[1][1]))
+    widths[0] = max([len(HEADER[0]), *(len(c[1][0]) for c in cells if c[1][1])])
 
     def line(values):
         return '  ' + '  '.join(v.ljust(w) if i in LEFT else v.rjust(w)
