@@ -85,6 +85,38 @@ def test_optimize_writes_a_params_file_design_reads(tmp_path):
     assert len(json.loads(again.stdout)['goals']) == 8
 
 
+def test_optimize_two_workers_give_the_one_worker_result(tmp_path):
+    one, two = tmp_path / 'one.yaml', tmp_path / 'two.yaml'
+    for target, workers in ((one, 1), (two, 2)):
+        out = run_planter('optimize', 'three-arm', '--seed', 3, '--max-time', 1000, '--workers',
+                          workers, '--out', target)
+        assert out.returncode == 0, out.stderr
+        assert 'best so far' in out.stderr and 'goals passing 8/8' in out.stderr
+        assert f"on {workers} process" in out.stdout and '8 of 8' in out.stdout
+    strip = [[line for line in f.read_text().splitlines() if not line.startswith('#')]
+             for f in (one, two)]
+    assert strip[0] == strip[1]
+
+
+@pytest.mark.parametrize('args, needle', [
+    (['--workers', '0'], '--workers'),
+    (['--max-time', 'nan'], '--max-time'),
+])
+def test_optimize_bad_options_are_one_line_exit_2(args, needle):
+    out = run_planter('optimize', 'three-arm', *args)
+    assert out.returncode == 2 and needle in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
+
+
+def test_optimize_refuses_a_curve_it_cannot_batch(tmp_path):
+    base = tmp_path / 'cartesian.yaml'
+    base.write_text(SCENE.read_text().replace('interpolant: periodic_cubic',
+                                              'interpolant: bspline_cartesian'))
+    out = run_planter('optimize', 'three-arm', '--base', base, '--out', tmp_path / 'x.yaml')
+    assert out.returncode == 2 and 'bspline_cartesian' in out.stderr
+    assert 'periodic_cubic' in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
 def test_five_bar_never_imports_three_arm():
     code = ('import sys; from planter_ros.cli.main import main; '
             'main(["design", "five-bar", "--depth", "0.045", "--spacing", "0.2", "--json"]); '

@@ -76,9 +76,13 @@ def format_table(r):
     lines.append(f"picking, planting at   θ = {math.degrees(r['picking_phase']):.1f}°, "
                  f"{math.degrees(r['planting_phase']):.1f}° (arm I; "
                  f"{r['phases_from']['picking_phase']}, {r['phases_from']['planting_phase']})")
-    lines.append(f"zero-slip spacing      {r['zero_slip_spacing'] * 1000:.1f} mm (the plant "
-                 f"spacing at which the ground keeps pace with the tip at planting; scene "
-                 f"{r['plant_spacing'] * 1000:.0f} mm)")
+    if r['zero_slip_spacing'] > 0:
+        lines.append(f"zero-slip spacing      {r['zero_slip_spacing'] * 1000:.1f} mm (the plant "
+                     f"spacing at which the ground keeps pace with the tip at planting; scene "
+                     f"{r['plant_spacing'] * 1000:.0f} mm)")
+    else:
+        lines.append('zero-slip spacing      none: the tip moves forward in the frame at '
+                     'planting, so no forward ground speed keeps pace with it')
     if 'carrier_speed' in r:
         lines.append(f"carrier speed          {r['carrier_speed']:.4f} rad/s at "
                      f"{r['nominal_ground_speed']:.3g} m/s "
