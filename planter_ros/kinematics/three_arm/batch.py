@@ -6,18 +6,19 @@ For an interpolant that is linear in the radii (pitch_curve's `linear`: all but 
 B-spline) every design's ρ, ρ', ρ'' on a common set of angles is one matrix product with the
 basis (the interpolant of each unit radius vector), so the whole batch shares its nodes:
 
-* closure: Σ w ρ/(a−ρ) = 2π on the gear-map quadrature nodes (Gauss–Legendre, 12 per Hermite
-  interval, the intervals being each analytic piece split 2**4 times, as in GearTrain), solved
-  for every design at once by Newton steps on 1/mean − 1 (nearly linear in a) kept inside a
-  bracket;
+* closure: Σ w ρ/(a−ρ) = 2π on the gear-map quadrature nodes (Gauss–Legendre on the Hermite
+  intervals, each analytic piece split 2**4 times as in GearTrain; `GAUSS_POINTS` per interval),
+  solved for every design at once by Newton steps on 1/mean − 1 (nearly linear in a) kept
+  inside a bracket;
 * gear maps Ψ and Θ = Ψ⁻¹ as quintic Hermite pieces, as GearTrain, one row per design;
 * the pose methods and the eight goals are those of ThreeArmMechanism and goals.py (numpy
   broadcasting over a leading batch axis), not a second copy.
 
-What differs from one design built alone: ρ's extremes come from the samples (2048 per turn,
-the knots and the quadrature nodes) rather than from the roots of ρ', and the closure uses one
-fixed rule rather than the adaptive one — differences far below the goals' tolerances (tested
-against ThreeArmMechanism), and the optimiser re-checks its result with the single-design path.
+What differs from one design built alone: ρ's extremes come from the samples (goal 8's 2048
+per turn, the knots and the quadrature nodes) rather than from the roots of ρ', and the closure
+uses one fixed rule rather than the adaptive one — differences far below the goals' tolerances
+(tested against ThreeArmMechanism), and the optimiser re-checks its result with the
+single-design path.
 A design the single-design path would refuse (a curve dipping to ρ ≤ 0, H1 ≥ S) is marked in
 `valid` and computed on a harmless stand-in so the batch has no NaN.
 """
@@ -28,10 +29,10 @@ import numpy as np
 
 from ..errors import DesignError
 from .gear_train import ARM_PHASE, ARMS, TABLE_SPLITS, ThreeArmMechanism, quintic_coefficients
+from .goals import MODULE_SAMPLES
 from .pitch_curve import (INTERPOLANTS, LENGTH_SPLITS, TWO_PI, _check_control_points,
-                          analytic_pieces, gauss_nodes)
+                          analytic_pieces, gauss_nodes, subdivide)
 
-RANGE_SAMPLES = 2048        # samples per turn for ρ's extremes (plus knots and nodes)
 # Gauss–Legendre points per Hermite interval for the closure and Ψ: GearTrain's 12 where the
 # intervals are few and wide (trigonometric: one analytic piece), down to 4 where there are
 # enough intervals (a spline's 12 pieces × 16) for 768 nodes per turn
@@ -62,7 +63,7 @@ class CurveBasis:
         self._unit = [cls(row, self.angles) for row in np.eye(n)]
         self.pieces = analytic_pieces(self._unit[0].breakpoints)
         self._cache = {}
-        self.table_nodes = _subdivide(self.pieces, 2 ** TABLE_SPLITS)
+        self.table_nodes = subdivide(self.pieces, 2 ** TABLE_SPLITS)
         intervals = len(self.table_nodes) - 1
         points = int(np.clip(math.ceil(GAUSS_NODES_PER_TURN / intervals), *GAUSS_POINTS))
         q, w = gauss_nodes(self.pieces, TABLE_SPLITS, points)
@@ -70,7 +71,7 @@ class CurveBasis:
         self.quad_weights = w.reshape(-1, points)
         self.length_nodes, self.length_weights = gauss_nodes(self.pieces, LENGTH_SPLITS)
         # goals.gear_module_limit's samples: ρ's extremes come from them and the nodes
-        self.range_nodes = np.r_[np.linspace(0.0, TWO_PI, RANGE_SAMPLES, endpoint=False),
+        self.range_nodes = np.r_[np.linspace(0.0, TWO_PI, MODULE_SAMPLES, endpoint=False),
                                  self.pieces]
 
     def matrix(self, u, nu=0):
@@ -84,11 +85,6 @@ class CurveBasis:
                 self._cache.clear()
             self._cache[key] = out
         return out
-
-
-def _subdivide(ends, m):
-    lo, hi = ends[:-1, None], ends[1:, None]
-    return np.r_[(lo + (hi - lo) * (np.arange(m) / m)).ravel(), ends[-1]]
 
 
 class BatchCurve:

@@ -58,6 +58,7 @@ DEG = math.pi / 180.0
 PRESSURE_ANGLE = 20.0 * DEG
 ADDENDUM = 1.0
 MIN_MODULE = 0.0025
+MODULE_SAMPLES = 2048       # per turn, where the pitch curves' curvature is checked (goal 8)
 
 # name: (lower, upper, unit, scale used by the optimiser to weigh a violation)
 BOUNDS = {
@@ -190,7 +191,7 @@ def _segment_distance(p1, q1, p2, q2):
     return np.sqrt(np.sum(diff * diff, axis=0))
 
 
-def gear_module_limit(mech, samples=2048):
+def gear_module_limit(mech, samples=MODULE_SAMPLES):
     """(undercut-free module, pitch-curve length, min |curvature radius|) for the train
     (arrays of the mechanism's batch_shape)."""
     curve, a = mech.train.curve, _per_design(mech, mech.a)[..., None]

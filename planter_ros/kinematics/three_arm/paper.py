@@ -6,8 +6,9 @@ carrier angle at which each arm picks and plants: picking 20°, 140°, 260°, pl
 and planting point (lowest) of every arm beside them, with the picking and pushing angles the
 model gives at the paper's angles.
 
-The paper leaves its equations open to several readings; `READINGS` are the ones tried, each a
-change of the scene values that turns our model into that reading (see doc/design.md):
+The paper leaves its equations open to several readings; `readings()` are the ones tried, each a
+change of the scene values that turns our model into that reading (`reading_parameters`, see
+doc/design.md):
 
 * γ0 sense: our model measures γ0 in the carrier's sense (clockwise); counter-clockwise, as
   eq 13 is printed (O3 = O2 + a·e(φ_H + γ0)), is γ0 → −γ0 in ours;
@@ -75,7 +76,7 @@ def paper_comparison(mech, samples=3600):
     return {'source': TABLE_1_SOURCE, 'arms': arms}
 
 
-# reading name -> (transform of the scene values, given the built paper-reading mechanism)
+# the sign an angle of the scene takes in our (clockwise) convention under each reading
 _SENSES = {'cw': 1.0, 'ccw': -1.0}
 
 
