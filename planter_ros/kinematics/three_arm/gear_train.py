@@ -225,13 +225,15 @@ class ThreeArmMechanism:
         """One carrier revolution of all three arms: θ (n,), tips (..., 3, 2, n), attitudes
         (..., 3, n), the leading axes being batch_shape."""
         theta = np.linspace(0.0, TWO_PI, samples, endpoint=False)
-        tips, alphas = [], []
-        for arm in range(ARMS):
-            ph = self.carrier_angle(theta, arm)
-            alpha = self._attitude(ph, self.planet_mesh_angle(theta, arm))
-            tips.append(np.stack(self._tip(ph, alpha), axis=-2))
-            alphas.append(alpha)
-        return theta, np.stack(tips, axis=-3), np.stack(alphas, axis=-2)
+        # all arms in one evaluation of the gear maps: arm k's angles follow arm I's
+        phase = (np.arange(ARMS) * ARM_PHASE)[:, None]
+        u = (theta - phase).ravel()                        # each arm's sun mesh angle
+        ph = self.phi0 + (phase - theta).ravel()           # carrier_angle of each arm
+        alpha = self._attitude(ph, self.train.theta(self.train.psi(u) + self._c))
+        x, y = self._tip(ph, alpha)
+        shape = self.batch_shape + (ARMS, samples)
+        return theta, np.stack([x.reshape(shape), y.reshape(shape)], axis=-2), \
+            alpha.reshape(shape)
 
 
 def quintic_hermite(x, y, dy, d2y):
