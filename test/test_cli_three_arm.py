@@ -1,7 +1,10 @@
 """`planter design three-arm` and `planter optimize three-arm` as a user runs them."""
 import json
+import math
 import subprocess
 import sys
+
+import pytest
 
 from cli_helpers import REPO, run_planter
 
@@ -14,8 +17,43 @@ def test_design_json_has_goals_centre_distance_and_residual():
     r = json.loads(out.stdout)
     assert len(r['goals']) == 8
     for g in r['goals']:
-        assert set(g) == {'name', 'value', 'lower', 'upper', 'unit', 'passed'}
+        assert set(g) == {'name', 'value', 'lower', 'upper', 'unit', 'passed', 'basis',
+                          'assumed', 'derived'}
+        assert g['basis'] in ('paper', 'assumption')
     assert 0.05 < r['centre_distance'] < 0.15 and r['closure_residual'] < 1e-12
+    assert (r['paper_goals_passed'], r['paper_goals']) == (3, 5)
+    arms = r['paper_comparison']['arms']
+    assert [a['arm'] for a in arms] == ['I', 'II', 'III']
+    assert arms[1]['paper_planting_phase'] == pytest.approx(math.radians(311))
+    assert abs(arms[1]['planting_phase_difference']) < math.radians(4)
+
+
+def test_design_table_headlines_both_counts_and_table_1(tmp_path):
+    out = run_planter('design', 'three-arm', '--params', SCENE)
+    assert out.returncode == 0, out.stderr
+    assert '5 of 8: 3 of 5 the paper fixes, 2 of 3 on assumptions' in out.stdout
+    assert "against the paper's Table 1" in out.stdout and 'zero-slip spacing' in out.stdout
+    phased = tmp_path / 'phased.yaml'
+    phased.write_text(SCENE.read_text().replace(
+        '    arm_width:', '    picking_phase: 0.3490658503988659\n    arm_width:'))
+    out = run_planter('design', 'three-arm', '--params', phased, '--json')
+    goals = {g['name']: g for g in json.loads(out.stdout)['goals']}
+    assert goals['picking_angle']['value'] == pytest.approx(math.radians(30.95), abs=1e-3)
+
+
+def test_each_pitch_curve_reading_from_a_scene(tmp_path):
+    for name in ('bspline_polar', 'bspline_cartesian'):
+        scene = tmp_path / f'{name}.yaml'
+        scene.write_text(SCENE.read_text().replace('interpolant: periodic_cubic',
+                                                   f'interpolant: {name}'))
+        out = run_planter('design', 'three-arm', '--params', scene, '--json')
+        assert out.returncode == 0, out.stderr
+        assert json.loads(out.stdout)['interpolant'] == name
+    bad = tmp_path / 'bezier.yaml'
+    bad.write_text(SCENE.read_text().replace('interpolant: periodic_cubic', 'interpolant: bezier'))
+    out = run_planter('design', 'three-arm', '--params', bad)
+    assert out.returncode == 2 and 'bspline_cartesian' in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
 
 
 def test_design_table_and_plot(tmp_path):
@@ -45,6 +83,38 @@ def test_optimize_writes_a_params_file_design_reads(tmp_path):
     again = run_planter('design', 'three-arm', '--params', target, '--json')
     assert again.returncode == 0, again.stderr
     assert len(json.loads(again.stdout)['goals']) == 8
+
+
+def test_optimize_two_workers_give_the_one_worker_result(tmp_path):
+    one, two = tmp_path / 'one.yaml', tmp_path / 'two.yaml'
+    for target, workers in ((one, 1), (two, 2)):
+        out = run_planter('optimize', 'three-arm', '--seed', 3, '--max-time', 1000, '--workers',
+                          workers, '--out', target)
+        assert out.returncode == 0, out.stderr
+        assert 'best so far' in out.stderr and 'goals passing 8/8' in out.stderr
+        assert f"on {workers} process" in out.stdout and '8 of 8' in out.stdout
+    strip = [[line for line in f.read_text().splitlines() if not line.startswith('#')]
+             for f in (one, two)]
+    assert strip[0] == strip[1]
+
+
+@pytest.mark.parametrize('args, needle', [
+    (['--workers', '0'], '--workers'),
+    (['--max-time', 'nan'], '--max-time'),
+])
+def test_optimize_bad_options_are_one_line_exit_2(args, needle):
+    out = run_planter('optimize', 'three-arm', *args)
+    assert out.returncode == 2 and needle in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
+
+
+def test_optimize_refuses_a_curve_it_cannot_batch(tmp_path):
+    base = tmp_path / 'cartesian.yaml'
+    base.write_text(SCENE.read_text().replace('interpolant: periodic_cubic',
+                                              'interpolant: bspline_cartesian'))
+    out = run_planter('optimize', 'three-arm', '--base', base, '--out', tmp_path / 'x.yaml')
+    assert out.returncode == 2 and 'bspline_cartesian' in out.stderr
+    assert 'periodic_cubic' in out.stderr and len(out.stderr.strip().splitlines()) == 1
 
 
 def test_five_bar_never_imports_three_arm():

@@ -1,7 +1,11 @@
 """`planter optimize three-arm`: search a three-arm design meeting all eight goals."""
 
 import math
+import os
 import sys
+
+DEFAULT_WORKERS = 2
+MAX_WORKERS = 64
 
 
 def add_arguments(parser):
@@ -9,6 +13,9 @@ def add_arguments(parser):
                         'result; default 1)')
     parser.add_argument('--max-time', type=float, default=60.0, metavar='S',
                         help='stop after S seconds (default 60)')
+    parser.add_argument('--workers', type=int, default=DEFAULT_WORKERS, metavar='N',
+                        help='processes scoring each generation (same result for any N; '
+                             f'default {DEFAULT_WORKERS})')
     parser.add_argument('--base', metavar='FILE', default=None,
                         help='scene whose crop values and control angles are kept (default '
                              'config/rice_three_arm.yaml)')
@@ -20,8 +27,8 @@ def _progress(elapsed, generation, best, passing, max_time):
     width = 30
     done = min(1.0, elapsed / max_time) if max_time > 0 else 1.0
     bar = '#' * int(done * width) + '-' * (width - int(done * width))
-    sys.stderr.write(f'\r[{bar}] {elapsed:5.1f}s gen {generation:4d}  best score '
-                     f'{best:9.4f}  goals passing {passing}/8')
+    sys.stderr.write(f'\r[{bar}] {elapsed:5.1f}s gen {generation:4d}  best so far: score '
+                     f'{best:9.4f}, goals passing {passing}/8')
     sys.stderr.flush()
 
 
@@ -36,11 +43,14 @@ def run(args):
 
     if not (math.isfinite(args.max_time) and args.max_time > 0):
         raise BadInput(f'--max-time = {args.max_time} is out of range: allowed finite and > 0 s')
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise BadInput(f'--workers = {args.workers} is out of range: allowed 1..{MAX_WORKERS} '
+                       f'(this machine has {os.cpu_count()} cores)')
     base_path = args.base or Path(__file__).resolve().parents[2] / 'config' / \
         'rice_three_arm.yaml'
     base = load_params(base_path)
     params, goals, info = optimize(base, seed=args.seed, max_time=args.max_time,
-                                   progress=_progress)
+                                   progress=_progress, workers=args.workers)
     sys.stderr.write('\n')
     header = (f"written by `planter optimize three-arm --seed {args.seed}`: "
               f"{sum(g.passed for g in goals) if goals else 0}/8 goals, "
@@ -51,5 +61,7 @@ def run(args):
     summary['params'] = args.out
     print(format_table(summary))
     print(f"search: {info['seconds']:.1f} s, {info['generations']} generations, "
-          f"{info['evaluations']} designs, stopped: {info['stopped']}")
+          f"{info['evaluations']} designs ({info['designs_per_second']:.0f}/s on "
+          f"{info['workers']} process{'es' if info['workers'] > 1 else ''}), "
+          f"stopped: {info['stopped']}")
     return 0

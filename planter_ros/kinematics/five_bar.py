@@ -543,3 +543,114 @@ def hole_geometry(l1, l2, depth, advance):
             if phi_star < psi:
                 half = max(half, abs(h(phi_star, adv, a_abs)))
     return Hole(psi, -h_end, h_end, -half, half, 2.0 * half)
+
+
+# --- what the hole width is sensitive to ------------------------------------------------------
+
+@dataclass(frozen=True)
+class HoleSensitivity:
+    """∂(hole width)/∂x at a design point (SI): m per m for l1, l2 and depth, m per unit of the
+    speed ratio λ = (l2 − l1)/advance. Bars and depth move at fixed advance (the machine kept in
+    sync with the plant spacing); λ moves at fixed bars and depth."""
+
+    width: object
+    l1: object
+    l2: object
+    depth: object
+    speed_ratio: object
+
+    def as_dict(self):
+        return {k: _plain(getattr(self, k)) for k in ('l1', 'l2', 'depth', 'speed_ratio')}
+
+
+def hole_sensitivity(l1, l2, depth, advance):
+    """Analytic derivatives of hole_geometry(...).width with respect to l1, l2, depth and λ.
+
+    The half-width is |h| at the exit φ = ψ, or at the turning point φ* where that is larger
+    (h(φ) = advance·φ − a sin φ, a = l2 − l1). At the exit,
+    dh = ψ d(advance) − sin ψ da + (advance − a cos ψ) dψ with 1 − cos ψ = D/(l1 + l2), so
+    dψ/dD = 1/(L sin ψ) and dψ/dL = −D/(L² sin ψ); at the turning point h'(φ*) = 0, so only the
+    explicit terms remain: dh = φ* d(advance) − sin φ* da. λ enters through
+    advance = a/λ: d(advance)/dλ = −advance/λ. Where the two candidates are equal (the
+    narrowest hole, λ ≈ 1.05 for the tomato design) the width has a kink and this is the
+    derivative of the exit branch. Scalars or arrays.
+    """
+    arrays = any(isinstance(v, np.ndarray) for v in (l1, l2, depth, advance))
+    l1, l2, depth, advance = (np.asarray(v, dtype=float) for v in (l1, l2, depth, advance))
+    hole = hole_geometry(l1, l2, depth, advance)
+    a = l2 - l1
+    total = l1 + l2
+    psi = np.asarray(hole.psi)
+    sin_psi = np.sin(psi)
+    h_end = np.asarray(hole.exit_x)
+    half = 0.5 * np.asarray(hole.width)
+    # the turning point of |a| and the advance as seen from it (l1 > l2 runs the other way)
+    flip = np.where(a < 0, -1.0, 1.0)
+    a_abs, adv = np.abs(a), flip * advance
+    phi_star = 2.0 * np.arctan2(np.sqrt(np.maximum(a_abs - adv, 0.0)),
+                                np.sqrt(np.maximum(a_abs + adv, 0.0)))
+    h_star = advance * phi_star - a * np.sin(phi_star)
+    star = half > np.abs(h_end)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        dpsi_dtotal = -depth / (total * total * sin_psi)
+        dpsi_ddepth = 1.0 / (total * sin_psi)
+    slope_end = advance - a * np.cos(psi)         # ∂h/∂φ at the exit
+    s_end, s_star = np.sign(h_end), np.sign(h_star)
+
+    def width_change(d_adv, d_a, d_psi):
+        end = s_end * (psi * d_adv - sin_psi * d_a + slope_end * d_psi)
+        turn = s_star * (phi_star * d_adv - np.sin(phi_star) * d_a)
+        return 2.0 * np.where(star, turn, end)
+
+    with np.errstate(divide='ignore', invalid='ignore'):
+        dadv_dlambda = -advance * advance / a          # advance = a/λ
+    out = HoleSensitivity(
+        width=2.0 * half,
+        l1=width_change(0.0, -1.0, dpsi_dtotal),
+        l2=width_change(0.0, 1.0, dpsi_dtotal),
+        depth=width_change(0.0, 0.0, dpsi_ddepth),
+        speed_ratio=width_change(dadv_dlambda, 0.0, 0.0))
+    if arrays:
+        return out
+    return HoleSensitivity(**{k: float(getattr(out, k)) for k in
+                              ('width', 'l1', 'l2', 'depth', 'speed_ratio')})
+
+
+TOLERANCE_SAMPLES = 100_000
+TOLERANCE_PERCENTILES = (0.1, 1.0, 5.0, 50.0, 95.0, 99.0, 99.9)
+TOLERANCE_BINS = 20
+
+
+def hole_tolerance(design, bar_tolerance, speed_error, samples=TOLERANCE_SAMPLES, seed=0):
+    """Hole widths of `samples` built machines: l1 and l2 each uniform within ±bar_tolerance
+    (m) of the design, the ground speed uniform within ±speed_error (a fraction) of the
+    synchronised speed, so advance = (d/2π)(1 + e); depth as designed. One vectorised
+    hole_geometry call; a seeded generator, so the same inputs give the same figures.
+
+    Returns a JSON-ready dict (SI): the inputs, the nominal width, min/max/mean/std,
+    percentiles and a histogram of the widths.
+    """
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(-1.0, 1.0, (3, samples))
+    l1 = design.l1 + bar_tolerance * u[0]
+    l2 = design.l2 + bar_tolerance * u[1]
+    advance = design.advance * (1.0 + speed_error * u[2])
+    width = hole_geometry(l1, l2, design.depth, advance).width
+    counts, edges = np.histogram(width, bins=TOLERANCE_BINS)
+    nominal = float(design.hole_width)
+    return {
+        'bar_tolerance': float(bar_tolerance),
+        'speed_error': float(speed_error),
+        'samples': int(samples),
+        'distribution': 'uniform: l1, l2 within ±bar_tolerance, ground speed within '
+                        '±speed_error of the synchronised speed, independent',
+        'seed': int(seed),
+        'nominal': nominal,
+        'min': float(width.min()),
+        'max': float(width.max()),
+        'mean': float(width.mean()),
+        'std': float(width.std()),
+        'percentiles': {f'{p:g}': float(v) for p, v in
+                        zip(TOLERANCE_PERCENTILES, np.percentile(width, TOLERANCE_PERCENTILES))},
+        'histogram': {'edges': edges.tolist(), 'counts': counts.tolist()},
+    }

@@ -11,7 +11,7 @@ import math
 from planter_ros.config import check, setting
 
 from .errors import DesignError
-from .mechanisms import MECHANISMS
+from .mechanisms import MECHANISMS, PITCH_CURVE_INTERPOLANTS
 
 
 @dataclass(frozen=True)
@@ -57,8 +57,17 @@ class ThreeArmSettings:
                                    unit='m', range=(0.0, 0.5))
     planet_carrier_angle: float = setting(kind=float, description='planet-carrier angle γ0',
                                           unit='rad', range=(-2 * math.pi, 2 * math.pi))
-    interpolant: str = setting('periodic_cubic', 'pitch-curve interpolant between the control '
-                               'points (planter_ros.kinematics.three_arm.pitch_curve)')
+    interpolant: str = setting('periodic_cubic', 'pitch-curve reading of the control points: '
+                               'interpolating (periodic_cubic, trigonometric) or approximating '
+                               'B-spline with the points as control polygon (bspline_polar, '
+                               'bspline_cartesian)', choices=PITCH_CURVE_INTERPOLANTS)
+    picking_phase: float = setting(-1.0, 'carrier angle of arm I at picking, for the picking '
+                                   'and angle-difference goals; negative: at the highest tip '
+                                   'point', unit='rad', range=(-1.0, 2 * math.pi))
+    planting_phase: float = setting(-1.0, 'carrier angle of arm I at planting, for the pushing, '
+                                    'angle-difference, seedling-push and gearbox goals; '
+                                    'negative: at the lowest tip point', unit='rad',
+                                    range=(-1.0, 2 * math.pi))
     seedling_height: float = setting(0.15, 'planted seedling above ground, for the no-push goal',
                                      unit='m', range=(0.01, 1.0))
     arm_width: float = setting(0.02, 'planting arm shell width, for the non-interference goal',

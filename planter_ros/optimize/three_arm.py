@@ -1,21 +1,31 @@
 """Automatic search for a three-arm design meeting the eight goals (replaces the paper's manual
 "parameter-guided" search).
 
-scipy's differential evolution (deterministic for a given seed, one worker: the machine is
-shared) over the twelve control radii and the installation parameters Φ0, β0, S, H1, γ0; the
-control angles stay at the scene's (the paper's near-even 30° spread), since moving them adds
-twelve dimensions and the radii already shape the curve. The score is the sum of each goal's
-violation over its scale (goals.BOUNDS), measured against bounds tightened by a small margin
-so that the result passes with some slack; a design the core refuses (DesignError) scores
-1000. The search stops at score 0, at max_time, or when DE converges.
+scipy's differential evolution (deterministic for a given seed) over the twelve control radii
+and the installation parameters Φ0, β0, S, H1, γ0; the control angles stay at the scene's (the
+paper's near-even 30° spread), since moving them adds twelve dimensions and the radii already
+shape the curve. The score is the sum of each goal's violation over its scale (goals.BOUNDS),
+measured against bounds tightened by a small margin so that the result passes with some slack;
+a design the core refuses scores 1000. The search stops at score 0, at max_time, or when DE
+converges.
+
+The population is scored as one batch per generation (`vectorized=True`): spline, closure,
+gear maps, cycle and goals for all designs at once (kinematics.three_arm.batch), the batch
+split over `workers` processes. A batch is a pure function of the designs in it, so a seed
+gives the same search whatever the number of workers. The chosen design is checked again by
+the single-design model before it is returned.
 """
 
 import math
 import time
 
+import numpy as np
+
 from planter_ros.kinematics.errors import DesignError
+from planter_ros.kinematics.three_arm.batch import CurveBasis, MechanismBatch
 from planter_ros.kinematics.three_arm.gear_train import ThreeArmMechanism
-from planter_ros.kinematics.three_arm.goals import evaluate_goals
+from planter_ros.kinematics.three_arm.goals import (GOAL_NAMES, evaluate_goals, goal_bounds,
+                                                    goal_settings, goal_values, violation)
 
 DEG = math.pi / 180.0
 RADIUS_BOUNDS = (0.015, 0.065)
@@ -27,6 +37,13 @@ INSTALL_BOUNDS = {                       # name: (low, high), SI
     'planet_carrier_angle': (-100.0 * DEG, 100.0 * DEG),
 }
 MARGIN = 0.1            # fraction of each goal's scale kept inside its bounds
+# DE settings: a population of 6 × 17 dimensions (the Sobol start rounds it up to 128), a
+# differential weight dithered in 0.3–0.9 and crossover 0.95. With the deferred updating of a
+# batched generation these reached all eight goals from the paper's scene in 2 200–7 600
+# designs over seeds 1–8, where scipy's usual (0.5, 1.0) and 12 × 17 needed 15 000–38 000.
+POPSIZE = 6
+MUTATION = (0.3, 0.9)
+RECOMBINATION = 0.95
 REFUSED = 1000.0
 GOAL_SAMPLES = 360
 
@@ -42,7 +59,8 @@ def parameters_from_vector(vector, base):
 
 
 def score(vector, base, margin=MARGIN):
-    """Sum of goal violations (0 = all eight pass with the margin); also the goals."""
+    """One design, by the single-design model: sum of goal violations (0 = all eight pass with
+    the margin) and the goals (None if the core refuses the design)."""
     params = parameters_from_vector(vector, base)
     try:
         mech = ThreeArmMechanism.from_parameters(params)
@@ -52,29 +70,122 @@ def score(vector, base, margin=MARGIN):
     return float(sum(g.violation(margin) for g in goals)), goals
 
 
-def optimize(base, seed=1, max_time=60.0, popsize=12, progress=None, max_generations=None):
+class BatchScorer:
+    """Scores of many designs at once: `(vectors (S, N)) -> (scores (S,), goals passing (S,))`.
+
+    Built once per search from the base scene (control angles, interpolant, goal settings).
+    """
+
+    def __init__(self, base, margin=MARGIN, samples=GOAL_SAMPLES):
+        self.n = len(base['control_angles'])
+        self.basis = CurveBasis(np.asarray(base['control_angles'], dtype=float),
+                                base.get('interpolant', 'periodic_cubic'))
+        self.cfg = goal_settings(base)
+        self.bounds = goal_bounds(self.cfg)
+        self.margin = margin
+        self.samples = samples
+
+    def __call__(self, vectors):
+        vectors = np.atleast_2d(np.asarray(vectors, dtype=float))
+        n = self.n
+        with np.errstate(all='ignore'):
+            mech = MechanismBatch(self.basis, vectors[:, :n], *vectors[:, n:n + 5].T)
+            values = goal_values(mech, self.cfg, self.samples)
+            total = np.zeros(len(vectors))
+            passing = np.zeros(len(vectors), dtype=int)
+            ok = mech.valid.copy()
+            for name in GOAL_NAMES:
+                lower, upper, _ = self.bounds[name]
+                value = values[name]
+                ok &= np.isfinite(value)
+                total += violation(name, value, lower, upper, self.margin)
+                inside = np.ones(len(vectors), dtype=bool)
+                if lower is not None:
+                    inside &= value >= lower
+                if upper is not None:
+                    inside &= value <= upper
+                passing += inside
+        return np.where(ok, total, REFUSED), np.where(ok, passing, 0)
+
+
+_WORKER = {}
+
+
+def _worker_init(base, margin, samples):
+    _WORKER['scorer'] = BatchScorer(base, margin, samples)
+
+
+def _worker_score(vectors):
+    return _WORKER['scorer'](vectors)
+
+
+class PopulationScorer:
+    """BatchScorer over `workers` processes (forked once, each building its own basis): the
+    batch is split in order and joined in order, so the scores do not depend on `workers`.
+    Use as a context manager, or call close()."""
+
+    def __init__(self, base, workers=1, margin=MARGIN, samples=GOAL_SAMPLES):
+        if not (isinstance(workers, int) and workers >= 1):
+            raise ValueError(f'workers = {workers} is out of range: allowed an integer >= 1')
+        self.local = BatchScorer(base, margin, samples)     # refuses a bad scene up front
+        self.workers = workers
+        self._pool = None
+        if workers > 1:
+            import multiprocessing
+            self._pool = multiprocessing.get_context('fork').Pool(
+                workers, initializer=_worker_init, initargs=(base, margin, samples))
+
+    def __call__(self, vectors):
+        vectors = np.atleast_2d(np.asarray(vectors, dtype=float))
+        if self._pool is None:
+            return self.local(vectors)
+        parts = self._pool.map(_worker_score, np.array_split(vectors, self.workers))
+        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+
+    def close(self):
+        if self._pool is not None:
+            self._pool.close()
+            self._pool.join()
+            self._pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def optimize(base, seed=1, max_time=60.0, popsize=POPSIZE, progress=None,
+             max_generations=None, workers=1):
     """Run differential evolution from the scene `base`; returns (params, goals, info).
 
-    Stopping on `max_generations` (not on time) makes a run reproducible to the bit.
+    Stopping on `max_generations` (not on time) makes a run reproducible to the bit; `workers`
+    processes share each generation's batch without changing the result.
     """
     from scipy.optimize import differential_evolution
     n = len(base['control_angles'])
     bounds = [RADIUS_BOUNDS] * n + list(INSTALL_BOUNDS.values())
+    state = {'best': math.inf, 'passing': 0, 'x': None, 'evaluations': 0, 'generation': 0,
+             'stop': '', 'to_all_goals': None}
+    population = PopulationScorer(base, workers)
     start = time.monotonic()
-    state = {'best': math.inf, 'evaluations': 0, 'generation': 0, 'stop': ''}
 
-    def objective(vector):
-        state['evaluations'] += 1
-        return score(vector, base)[0]
+    def objective(x):
+        vectors = np.asarray(x, dtype=float).T        # DE hands over (N, S)
+        scores, passing = population(vectors)
+        state['evaluations'] += len(vectors)
+        i = int(np.argmin(scores))
+        if scores[i] < state['best']:               # the best design so far, and its goals
+            state.update(best=float(scores[i]), passing=int(passing[i]), x=vectors[i].copy())
+        if state['to_all_goals'] is None and np.any(passing == len(GOAL_NAMES)):
+            state['to_all_goals'] = (time.monotonic() - start, state['evaluations'])
+        return scores
 
     def callback(intermediate_result):
         state['generation'] += 1
-        state['best'] = float(intermediate_result.fun)
         elapsed = time.monotonic() - start
         if progress is not None:
-            _, goals = score(intermediate_result.x, base, margin=0.0)
-            passing = sum(g.passed for g in goals) if goals else 0
-            progress(elapsed, state['generation'], state['best'], passing, max_time)
+            progress(elapsed, state['generation'], state['best'], state['passing'], max_time)
         if state['best'] <= 0.0:
             state['stop'] = 'all goals met'
             return True
@@ -86,13 +197,18 @@ def optimize(base, seed=1, max_time=60.0, popsize=12, progress=None, max_generat
             return True
         return False
 
-    result = differential_evolution(objective, bounds, seed=seed, popsize=popsize, tol=0.0,
-                                    maxiter=100000, polish=False, init='sobol',
-                                    mutation=(0.5, 1.0), recombination=0.9,
-                                    callback=callback, workers=1, updating='immediate')
-    params = parameters_from_vector(result.x, base)
-    value, goals = score(result.x, base, margin=0.0)
+    with population:
+        differential_evolution(objective, bounds, seed=seed, popsize=popsize, tol=0.0,
+                               maxiter=100000, polish=False, init='sobol', callback=callback,
+                               mutation=MUTATION, recombination=RECOMBINATION,
+                               vectorized=True, updating='deferred')
+    seconds = time.monotonic() - start
+    params = parameters_from_vector(state['x'], base)
+    _, goals = score(state['x'], base, margin=0.0)
     info = {'score': state['best'], 'generations': state['generation'],
-            'evaluations': state['evaluations'], 'seconds': time.monotonic() - start,
-            'stopped': state['stop'] or 'converged', 'seed': seed}
+            'evaluations': state['evaluations'], 'seconds': seconds,
+            'stopped': state['stop'] or 'converged', 'seed': seed, 'workers': workers,
+            'designs_per_second': state['evaluations'] / seconds if seconds > 0 else None,
+            'seconds_to_all_goals': (state['to_all_goals'] or (None, None))[0],
+            'designs_to_all_goals': (state['to_all_goals'] or (None, None))[1]}
     return params, goals, info

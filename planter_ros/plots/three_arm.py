@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from planter_ros.kinematics.three_arm.gear_train import ARMS
-from planter_ros.kinematics.three_arm.goals import evaluate_goals, goal_settings
+from planter_ros.kinematics.three_arm.goals import goal_settings, goal_values, goals_from_values
 
 COLOURS = ('tab:blue', 'tab:orange', 'tab:green')
 ARM_NAMES = ('I', 'II', 'III')
@@ -19,7 +19,8 @@ def plot_design(mech, params, path):
 
     mm = 1000.0
     cfg = goal_settings(params)
-    goals = {g.name: g for g in evaluate_goals(mech, params)}
+    values = goal_values(mech, cfg)
+    goals = {g.name: g for g in goals_from_values(values, cfg)}
     theta = np.linspace(0.0, 2.0 * math.pi, 721)
     fig, axes = plt.subplots(2, 2, figsize=(13, 11))
 
@@ -54,14 +55,13 @@ def plot_design(mech, params, path):
 
     # (c) absolute trajectories in the frame with attitudes at picking and pushing
     ax = axes[1, 0]
-    th_s = np.linspace(0.0, 2.0 * math.pi, 720, endpoint=False)
-    y0 = mech.tip(th_s, 0)[1]
-    marks = {'picking': th_s[int(np.argmax(y0))], 'planting': th_s[int(np.argmin(y0))]}
+    marks = {'picking': float(values['picking_phase']),
+             'planting': float(values['planting_phase'])}
     for k in range(ARMS):
         x, y = mech.tip(theta, k)
         ax.plot(x * mm, y * mm, color=COLOURS[k], lw=3.0 - k, alpha=0.8,
                 label=f'arm {ARM_NAMES[k]}')
-    ground = float(y0.min()) + cfg['planting_depth']
+    ground = float(mech.tip(marks['planting'])[1]) + cfg['planting_depth']
     ax.axhline(ground * mm, color='saddlebrown', lw=1, label='ground')
     for label, th in marks.items():
         (_, _), (cx, cy) = mech.centres(th)

@@ -46,7 +46,8 @@ from .pitch_curve import TWO_PI, PitchCurve, leggauss, solve_centre_distance, su
 
 ARMS = 3
 ARM_PHASE = TWO_PI / ARMS
-_TABLE_SPLITS = 4           # 2**4 Hermite intervals per analytic piece of ρ
+TABLE_SPLITS = 4            # 2**4 Hermite intervals per analytic piece of ρ
+TABLE_GAUSS = 12            # Gauss–Legendre points per Hermite interval for Ψ
 
 
 class GearTrain:
@@ -57,8 +58,8 @@ class GearTrain:
         self.closure = solve_centre_distance(curve, closure_method)
         a = self.a = self.closure.a
         # nodes: the analytic pieces of ρ, each split evenly; cumulative Ψ by Gauss per interval
-        nodes = subdivide(curve.pieces, 2 ** _TABLE_SPLITS)
-        x, w = leggauss(12)
+        nodes = subdivide(curve.pieces, 2 ** TABLE_SPLITS)
+        x, w = leggauss(TABLE_GAUSS)
         lo, hi = nodes[:-1, None], nodes[1:, None]
         half = 0.5 * (hi - lo)
         q = lo + half * (x + 1.0)
@@ -75,17 +76,21 @@ class GearTrain:
         self._theta = quintic_hermite(psi, nodes, g, g1)
         self.ratio_range = (float(f.min()), float(f.max()))
 
-    def psi(self, u):
-        """Intermediate polar angle in mesh with the sun's polar angle u (any real u)."""
+    def psi(self, u, nu=0):
+        """Intermediate polar angle in mesh with the sun's polar angle u (any real u), or its
+        nu-th derivative (nu = 1: the transmission ratio ρ/(a−ρ))."""
         u = np.asarray(u, dtype=float)
         turns = np.floor(u / TWO_PI)
-        return self._psi(u - turns * TWO_PI) + turns * TWO_PI
+        out = self._psi(u - turns * TWO_PI, nu)
+        return out + turns * TWO_PI if nu == 0 else out
 
-    def theta(self, p):
-        """Inverse of psi: the sun (or planet) polar angle in mesh with intermediate angle p."""
+    def theta(self, p, nu=0):
+        """Inverse of psi: the sun (or planet) polar angle in mesh with intermediate angle p, or
+        its nu-th derivative."""
         p = np.asarray(p, dtype=float)
         turns = np.floor(p / TWO_PI)
-        return self._theta(p - turns * TWO_PI) + turns * TWO_PI
+        out = self._theta(p - turns * TWO_PI, nu)
+        return out + turns * TWO_PI if nu == 0 else out
 
     def conjugate_curve(self, samples=720):
         """Intermediate pitch curve as (polar angle ψ, radius a − ρ) over one turn."""
@@ -98,7 +103,13 @@ class ThreeArmMechanism:
 
     Build once (`from_parameters`), then evaluate any number of carrier angles; all methods take
     numpy arrays of carrier angles θ (rad) and an arm index 0, 1, 2.
+
+    The pose methods are plain numpy broadcasting over the installation values and the gear
+    maps, so `three_arm.batch.MechanismBatch` (a batch of designs, values of shape (P, 1))
+    inherits them unchanged; `batch_shape` is () here and (P,) there.
     """
+
+    batch_shape = ()
 
     def __init__(self, curve, carrier_initial_angle, arm_initial_angle, arm_length,
                  pusher_offset, planet_carrier_angle, closure_method='gauss'):
@@ -156,8 +167,10 @@ class ThreeArmMechanism:
 
     def attitude(self, theta, arm=0):
         """Absolute angle α of the arm line O3→D (rad, counter-clockwise from +x)."""
-        return self.carrier_angle(theta, arm) - self.gamma0 + math.pi \
-            + self.planet_mesh_angle(theta, arm) - self.beta0
+        return self._attitude(self.carrier_angle(theta, arm), self.planet_mesh_angle(theta, arm))
+
+    def _attitude(self, carrier, mesh):
+        return carrier - self.gamma0 + math.pi + mesh - self.beta0
 
     def pusher_attitude(self, theta, arm=0):
         """Absolute angle of the pusher axis (towards the tip): α − asin(H1/S)."""
@@ -174,11 +187,27 @@ class ThreeArmMechanism:
     def tip(self, theta, arm=0):
         """Tip D of the arm in the frame (absolute, static machine): (x, y) in m (eq 14)."""
         ph = self.carrier_angle(theta, arm)
-        alpha = self.attitude(theta, arm)
+        return self._tip(ph, self._attitude(ph, self.planet_mesh_angle(theta, arm)))
+
+    def _tip(self, ph, alpha):
         a, s, g = self.a, self.arm_length, self.gamma0
         x = a * (np.cos(ph) + np.cos(ph - g)) + s * np.cos(alpha)
         y = a * (np.sin(ph) + np.sin(ph - g)) + s * np.sin(alpha)
         return x, y
+
+    def tip_velocity(self, theta, arm=0):
+        """d(tip)/dθ in the frame (m/rad): the carrier turns at −1, the arm at −1 + dw/dθ with
+        dw/dθ = Θ'(Ψ(u) + c)·Ψ'(u) from the tabulated gear maps."""
+        ph = self.carrier_angle(theta, arm)
+        u = np.asarray(theta, dtype=float) - arm * ARM_PHASE
+        p = self.train.psi(u) + self._c
+        w = self.train.theta(p)
+        dalpha = -1.0 + self.train.theta(p, 1) * self.train.psi(u, 1)
+        alpha = self._attitude(ph, w)
+        a, s, g = self.a, self.arm_length, self.gamma0
+        dx = a * (np.sin(ph) + np.sin(ph - g)) - s * np.sin(alpha) * dalpha
+        dy = -a * (np.cos(ph) + np.cos(ph - g)) + s * np.cos(alpha) * dalpha
+        return dx, dy
 
     def tip_relative(self, theta, arm=0):
         """Tip in the carrier frame (coordinates that turn with the carrier, equal at θ = 0)."""
@@ -193,17 +222,18 @@ class ThreeArmMechanism:
         return x + (ARMS * plant_spacing / TWO_PI) * np.asarray(theta, dtype=float), y
 
     def cycle(self, samples=360):
-        """One carrier revolution of all three arms: θ (n,), tips (3, 2, n), attitudes (3, n)."""
+        """One carrier revolution of all three arms: θ (n,), tips (..., 3, 2, n), attitudes
+        (..., 3, n), the leading axes being batch_shape."""
         theta = np.linspace(0.0, TWO_PI, samples, endpoint=False)
-        th = theta[None, :] - (np.arange(ARMS) * ARM_PHASE)[:, None]     # u_k per arm
-        train = self.train
-        w = train.theta(train.psi(th) + self._c)
-        ph = self.phi0 - theta[None, :] + (np.arange(ARMS) * ARM_PHASE)[:, None]
-        alpha = ph - self.gamma0 + math.pi + w - self.beta0
-        a, s, g = self.a, self.arm_length, self.gamma0
-        x = a * (np.cos(ph) + np.cos(ph - g)) + s * np.cos(alpha)
-        y = a * (np.sin(ph) + np.sin(ph - g)) + s * np.sin(alpha)
-        return theta, np.stack([x, y], axis=1), alpha
+        # all arms in one evaluation of the gear maps: arm k's angles follow arm I's
+        phase = (np.arange(ARMS) * ARM_PHASE)[:, None]
+        u = (theta - phase).ravel()                        # each arm's sun mesh angle
+        ph = self.phi0 + (phase - theta).ravel()           # carrier_angle of each arm
+        alpha = self._attitude(ph, self.train.theta(self.train.psi(u) + self._c))
+        x, y = self._tip(ph, alpha)
+        shape = self.batch_shape + (ARMS, samples)
+        return theta, np.stack([x.reshape(shape), y.reshape(shape)], axis=-2), \
+            alpha.reshape(shape)
 
 
 def quintic_hermite(x, y, dy, d2y):
@@ -213,15 +243,21 @@ def quintic_hermite(x, y, dy, d2y):
     polynomial per interval in Python and would dominate the build time.
     """
     from scipy.interpolate import PPoly
-    h = np.diff(x)
-    dy0, dy1 = dy[:-1] * h, dy[1:] * h
-    s0, s1 = d2y[:-1] * h * h, d2y[1:] * h * h
-    dd = y[1:] - y[:-1]
+    return PPoly(np.moveaxis(quintic_coefficients(x, y, dy, d2y), -1, 0), x, extrapolate=True)
+
+
+def quintic_coefficients(x, y, dy, d2y):
+    """Coefficients (..., intervals, 6) of the quintic Hermite pieces, highest power first, in
+    powers of (x − x_i) (scipy PPoly's order); leading axes are a batch of curves."""
+    h = np.diff(x, axis=-1)
+    dy0, dy1 = dy[..., :-1] * h, dy[..., 1:] * h
+    s0, s1 = d2y[..., :-1] * h * h, d2y[..., 1:] * h * h
+    dd = y[..., 1:] - y[..., :-1]
     c3 = 10.0 * dd - 6.0 * dy0 - 4.0 * dy1 - 0.5 * (3.0 * s0 - s1)
     c4 = -15.0 * dd + 8.0 * dy0 + 7.0 * dy1 + 0.5 * (3.0 * s0 - 2.0 * s1)
     c5 = 6.0 * dd - 3.0 * (dy0 + dy1) + 0.5 * (s1 - s0)
-    coef = np.array([c5 / h ** 5, c4 / h ** 4, c3 / h ** 3, 0.5 * s0 / h ** 2, dy0 / h, y[:-1]])
-    return PPoly(coef, x, extrapolate=True)
+    return np.stack([c5 / h ** 5, c4 / h ** 4, c3 / h ** 3, 0.5 * s0 / h ** 2, dy0 / h,
+                     y[..., :-1]], axis=-1)
 
 
 # the scene values the model is built from, in the constructor's order after the curve

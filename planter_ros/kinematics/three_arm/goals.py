@@ -6,11 +6,13 @@ Definitions where the paper gives only a name (also in doc/design.md):
    two arms over one carrier turn. Two arm shells of width `arm_width` touch when it falls
    below that width.
 2. picking_angle (rad, −5°…15°): angle of the pusher axis (the seedling clamp) below the
-   horizontal at the picking point, the highest point of the tip's trajectory in the frame
-   (the seedling tray is above the mechanism). Positive = tip pointing down, regardless of
-   whether it points forward or backward.
-3. pushing_angle (rad, 45°…65°): the same angle at the planting point, the lowest point of
-   the trajectory (the tip is at planting depth there).
+   horizontal at the picking point: by default the highest point of the tip's trajectory in
+   the frame (the seedling tray is above the mechanism), or arm I at the scene's
+   `picking_phase`. Positive = tip pointing down, regardless of whether it points forward or
+   backward.
+3. pushing_angle (rad, 45°…65°): the same angle at the planting point: by default the lowest
+   point of the trajectory, or arm I at the scene's `planting_phase`. The tip is at planting
+   depth there, so the planting point also fixes the ground line of goals 5 and 6.
 4. angle_difference (rad, 50°…60°): pushing_angle − picking_angle.
 5. seedling_push (m, ≤ 0.01): at the planting point the arm body (tip → planet centre O3) lies
    on one side of the seedling. From then until the tip is higher than the seedling's top
@@ -29,9 +31,18 @@ Definitions where the paper gives only a name (also in doc/design.md):
    curvature is below m / sin²α, so m ≤ min |R| sin²α over sun (= planet) and intermediate
    curves (a concave stretch needs the same radius for the shaping cutter); then rounded down
    so that the pitch-curve length is a whole number of teeth, L = π m z.
+
+Provenance (`BASIS`): the paper fixes goals 2, 3, 4, 7 and 8 (their bounds need nothing but the
+mechanism); goals 1, 5 and 6 need values the paper never gives (arm width; plant spacing,
+seedling height, planting depth and a tolerance; planting depth and an addendum), so they rest
+on our assumptions, which each goal reports. Goal 5 also reports the zero-slip plant spacing:
+the spacing at which the ground moves under the tip at the tip's own speed at planting.
+
+The goal arithmetic is written once for one design and for a batch: every array carries the
+mechanism's `batch_shape` in front (see gear_train.ThreeArmMechanism and batch.MechanismBatch).
 """
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 import math
 
 import numpy as np
@@ -47,6 +58,7 @@ DEG = math.pi / 180.0
 PRESSURE_ANGLE = 20.0 * DEG
 ADDENDUM = 1.0
 MIN_MODULE = 0.0025
+MODULE_SAMPLES = 2048       # per turn, where the pitch curves' curvature is checked (goal 8)
 
 # name: (lower, upper, unit, scale used by the optimiser to weigh a violation)
 BOUNDS = {
@@ -60,12 +72,20 @@ BOUNDS = {
     'gear_module': (MIN_MODULE, None, 'm', 0.0005),
 }
 GOAL_NAMES = tuple(BOUNDS)
+PUSH_TOLERANCE = BOUNDS['seedling_push'][1]
+
+# paper: the paper states the goal and its bound, nothing else is needed; assumption: the goal
+# needs values the paper never gives (listed per goal by `assumed_values`)
+BASIS = {'arm_clearance': 'assumption', 'picking_angle': 'paper', 'pushing_angle': 'paper',
+         'angle_difference': 'paper', 'seedling_push': 'assumption',
+         'gearbox_clearance': 'assumption', 'trajectory_height': 'paper', 'gear_module': 'paper'}
 
 # scene parameters the goals need, with the scene's defaults for the ones a scene leaves out
-GOAL_DEFAULTS = {spec.name: spec.default for cls in (SceneSettings, ThreeArmSettings)
-                 for spec in specs(cls)
-                 if spec.name in ('plant_spacing', 'planting_depth', 'seedling_height',
-                                  'arm_width')}
+_POSITIVE = ('plant_spacing', 'planting_depth', 'seedling_height', 'arm_width')
+_PHASES = ('picking_phase', 'planting_phase')
+GOAL_SPECS = {spec.name: spec for cls in (SceneSettings, ThreeArmSettings) for spec in specs(cls)
+              if spec.name in _POSITIVE + _PHASES}
+GOAL_DEFAULTS = {name: spec.default for name, spec in GOAL_SPECS.items()}
 
 
 @dataclass
@@ -76,16 +96,45 @@ class Goal:
     upper: float | None
     unit: str
     passed: bool
+    basis: str = ''                                  # 'paper' or 'assumption' (BASIS)
+    assumed: dict = field(default_factory=dict)      # the assumed values it rests on (SI)
+    derived: dict = field(default_factory=dict)      # figures computed alongside (SI)
 
     def violation(self, margin=0.0):
         """Distance outside [lower + margin, upper − margin] over the goal's scale (0 inside)."""
-        scale = BOUNDS[self.name][3]
-        v = 0.0
-        if self.lower is not None:
-            v = max(v, self.lower + margin * scale - self.value)
-        if self.upper is not None:
-            v = max(v, self.value - (self.upper - margin * scale))
-        return v / scale
+        return float(violation(self.name, self.value, self.lower, self.upper, margin))
+
+
+def violation(name, value, lower, upper, margin=0.0):
+    """Distance of value(s) outside [lower + margin·scale, upper − margin·scale], over the
+    goal's scale; 0 inside (arrays welcome)."""
+    scale = BOUNDS[name][3]
+    v = np.zeros_like(np.asarray(value, dtype=float))
+    if lower is not None:
+        v = np.maximum(v, lower + margin * scale - value)
+    if upper is not None:
+        v = np.maximum(v, value - (upper - margin * scale))
+    return v / scale
+
+
+def goal_bounds(cfg):
+    """name -> (lower, upper, unit) for the scene values `cfg` (arm_width is goal 1's bound)."""
+    out = {}
+    for name, (lower, upper, unit, _) in BOUNDS.items():
+        out[name] = (cfg['arm_width'] if name == 'arm_clearance' else lower, upper, unit)
+    return out
+
+
+def assumed_values(name, cfg):
+    """The values goal `name` rests on that the paper does not give (SI), by name."""
+    if name == 'arm_clearance':
+        return {'arm_width': cfg['arm_width']}
+    if name == 'seedling_push':
+        return {'plant_spacing': cfg['plant_spacing'], 'seedling_height': cfg['seedling_height'],
+                'planting_depth': cfg['planting_depth'], 'tolerance': PUSH_TOLERANCE}
+    if name == 'gearbox_clearance':
+        return {'planting_depth': cfg['planting_depth'], 'addendum': MIN_MODULE * ADDENDUM}
+    return {}
 
 
 def goal_settings(params):
@@ -94,20 +143,30 @@ def goal_settings(params):
     for key, default in GOAL_DEFAULTS.items():
         value = params.get(key, default)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or \
-                not math.isfinite(value) or value <= 0:
+                not math.isfinite(value):
+            raise DesignError(key, value, GOAL_SPECS[key].allowed())
+        if key in _POSITIVE and value <= 0:
             raise DesignError(key, value, 'finite and > 0 m')
+        if key in _PHASES and not GOAL_SPECS[key].low <= value <= GOAL_SPECS[key].high:
+            raise DesignError(key, value, GOAL_SPECS[key].allowed())
         out[key] = float(value)
     return out
 
 
+def _take(values, index):
+    """values[..., index] for an index array of the leading shape (periodic)."""
+    n = values.shape[-1]
+    return np.take_along_axis(values, (np.asarray(index) % n)[..., None], axis=-1)[..., 0]
+
+
 def _refine_extreme(theta, values, i):
     """Parabolic refinement of a sampled extreme at index i on a periodic uniform grid."""
-    n = len(values)
-    y0, y1, y2 = values[(i - 1) % n], values[i], values[(i + 1) % n]
+    y0, y1, y2 = _take(values, i - 1), _take(values, i), _take(values, i + 1)
     den = y0 - 2.0 * y1 + y2
     step = theta[1] - theta[0]
-    shift = 0.0 if den == 0 else 0.5 * (y0 - y2) / den
-    return theta[i] + max(-1.0, min(1.0, shift)) * step
+    with np.errstate(divide='ignore', invalid='ignore'):
+        shift = np.where(den == 0, 0.0, 0.5 * (y0 - y2) / np.where(den == 0, 1.0, den))
+    return theta[i] + np.clip(shift, -1.0, 1.0) * step
 
 
 def _below_horizontal(angle):
@@ -115,7 +174,7 @@ def _below_horizontal(angle):
 
 
 def _segment_distance(p1, q1, p2, q2):
-    """Smallest distance between segments p1q1 and p2q2 (arrays of shape (2, n))."""
+    """Smallest distance between segments p1q1 and p2q2 (arrays of shape (2, ...))."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a = np.sum(d1 * d1, axis=0)
     e = np.sum(d2 * d2, axis=0)
@@ -132,9 +191,10 @@ def _segment_distance(p1, q1, p2, q2):
     return np.sqrt(np.sum(diff * diff, axis=0))
 
 
-def gear_module_limit(mech, samples=2048):
-    """(undercut-free module, pitch-curve length, min |curvature radius|) for the train."""
-    curve, a = mech.train.curve, mech.a
+def gear_module_limit(mech, samples=MODULE_SAMPLES):
+    """(undercut-free module, pitch-curve length, min |curvature radius|) for the train
+    (arrays of the mechanism's batch_shape)."""
+    curve, a = mech.train.curve, _per_design(mech, mech.a)[..., None]
     u = np.r_[np.linspace(0.0, TWO_PI, samples, endpoint=False), curve.pieces]
     r, r1, r2 = curve(u), curve(u, 1), curve(u, 2)
     sun = polar_curvature_radius(r, r1, r2)
@@ -143,90 +203,148 @@ def gear_module_limit(mech, samples=2048):
     q1 = -r1 * q / r
     q2 = (-r2 * q / r + r1 * r1 * a / (r * r)) * q / r
     inter = polar_curvature_radius(q, q1, q2)
-    rmin = float(np.min(np.abs(np.r_[sun, inter])))
+    rmin = np.minimum(np.min(np.abs(sun), axis=-1), np.min(np.abs(inter), axis=-1))
     length = curve.length()
     m_undercut = rmin * math.sin(PRESSURE_ANGLE) ** 2 / ADDENDUM
-    if not m_undercut > 0:
-        return 0.0, length, rmin
-    teeth = math.ceil(length / (math.pi * m_undercut) - 1e-9)
-    return length / (math.pi * teeth), length, rmin
+    ok = m_undercut > 0
+    with np.errstate(divide='ignore', invalid='ignore'):
+        teeth = np.ceil(length / (math.pi * np.where(ok, m_undercut, 1.0)) - 1e-9)
+        module = np.where(ok, length / (math.pi * teeth), 0.0)
+    if mech.batch_shape == ():
+        return float(module), float(length), float(rmin)
+    return module, length, rmin
+
+
+def _per_design(mech, value):
+    """A per-design value (float, or (P, 1) in a batch) in the batch's shape."""
+    return np.reshape(np.asarray(value, dtype=float), mech.batch_shape)
+
+
+def _extremes(theta, y):
+    """Carrier angles of the highest and lowest samples of y (..., n), refined."""
+    return (_refine_extreme(theta, -y, np.argmax(y, axis=-1)),
+            _refine_extreme(theta, y, np.argmin(y, axis=-1)))
+
+
+def _at(mech, fn, theta, arm=0):
+    """fn(θ, arm) at one carrier angle per design (θ of batch_shape)."""
+    out = fn(np.asarray(theta, dtype=float)[..., None], arm)
+    if isinstance(out, tuple):
+        return tuple(v[..., 0] for v in out)
+    return out[..., 0]
+
+
+def _phases(theta, y, cfg, shape):
+    """(picking, planting, highest, lowest) carrier angles of arm I: the scene's phases where
+    given, else the highest and lowest tip points (refined from the samples y)."""
+    high, low = _extremes(theta, y)
+    pick = high if cfg['picking_phase'] < 0 else np.full(shape, cfg['picking_phase'])
+    plant = low if cfg['planting_phase'] < 0 else np.full(shape, cfg['planting_phase'])
+    return pick, plant, high, low
+
+
+def goal_values(mech, cfg, samples=720):
+    """The eight goal values, name -> array of the mechanism's batch_shape, plus the phases
+    used ('picking_phase', 'planting_phase') and the zero-slip plant spacing."""
+    theta, tips, _ = mech.cycle(samples)
+    y = tips[..., 0, 1, :]
+    out = {}
+
+    centres = [mech.centres(theta, k) for k in range(ARMS)]
+
+    # 1. non-interference between arms
+    o3 = [np.stack(c[1]) for c in centres]
+    ends = [np.moveaxis(tips[..., k, :, :], -2, 0) for k in range(ARMS)]
+    clearance = np.inf
+    for j in range(ARMS):
+        k = (j + 1) % ARMS
+        dist = _segment_distance(o3[j], ends[j], o3[k], ends[k])
+        clearance = np.minimum(clearance, dist.min(axis=-1))
+    out['arm_clearance'] = clearance
+
+    # 2-4. attitude at picking and planting (arm I)
+    th_pick, th_plant, th_high, th_low = _phases(theta, y, cfg, mech.batch_shape)
+    pick = _below_horizontal(_at(mech, mech.pusher_attitude, th_pick))
+    push = _below_horizontal(_at(mech, mech.pusher_attitude, th_plant))
+    out['picking_angle'] = pick
+    out['pushing_angle'] = push
+    out['angle_difference'] = push - pick
+
+    # 7. trajectory height; the ground is planting_depth above the planting point (5 and 6)
+    y_top = _at(mech, mech.tip, th_high)[1]
+    y_low = _at(mech, mech.tip, th_low)[1]
+    tip_x, tip_y = _at(mech, mech.tip, th_plant)
+    ground = tip_y + cfg['planting_depth']
+
+    # 5. seedling push: ground frame, from planting until the tip clears the seedling top
+    window = th_plant[..., None] + theta
+    gx, gy = mech.tip_ground(window, cfg['plant_spacing'])
+    above = gy > (ground + cfg['seedling_height'])[..., None]
+    end = np.maximum(np.where(above.any(axis=-1), np.argmax(above, axis=-1), len(theta)), 1)
+    o3x = _at(mech, lambda t, arm: mech.centres(t, arm)[1][0], th_plant)
+    side = np.where(o3x >= tip_x, 1.0, -1.0)                  # the arm body's side
+    travel = side[..., None] * (gx[..., :1] - gx)
+    out['seedling_push'] = np.max(np.where(np.arange(len(theta)) < end[..., None], travel,
+                                           -np.inf), axis=-1)
+
+    # 6. gearbox above ground
+    a = _per_design(mech, mech.a)
+    rho_max, rho_min = mech.train.curve.rho_max, mech.train.curve.rho_min
+    lowest = -(rho_max + MIN_MODULE)
+    for (_, iy), (_, py) in centres:
+        lowest = np.minimum(lowest, np.minimum(iy.min(axis=-1) - (a - rho_min + MIN_MODULE),
+                                               py.min(axis=-1) - (rho_max + MIN_MODULE)))
+    out['gearbox_clearance'] = lowest - ground
+    out['trajectory_height'] = y_top - y_low
+
+    # 8. gear module from curvature and a whole number of teeth
+    out['gear_module'] = np.asarray(gear_module_limit(mech)[0], dtype=float)
+
+    # the plant spacing at which the ground keeps pace with the tip at planting
+    # (ground-frame dx/dθ = tip dx/dθ + 3d/2π = 0)
+    out['zero_slip_spacing'] = -TWO_PI / ARMS * _at(mech, mech.tip_velocity, th_plant)[0]
+    out['picking_phase'] = np.mod(th_pick, TWO_PI)
+    out['planting_phase'] = np.mod(th_plant, TWO_PI)
+    return out
 
 
 def evaluate_goals(mech, params=None, samples=720):
     """The eight goals for a built mechanism; params gives the scene values (defaults if None)."""
     cfg = goal_settings(params or {})
-    theta, tips, _ = mech.cycle(samples)
-    y = tips[:, 1, :]
-    goals = {}
+    return goals_from_values(goal_values(mech, cfg, samples), cfg)
 
-    # 1. non-interference between arms
-    o3x, o3y = [], []
-    for k in range(ARMS):
-        _, (cx, cy) = mech.centres(theta, k)
-        o3x.append(cx)
-        o3y.append(cy)
-    clearance = np.inf
-    for j in range(ARMS):
-        k = (j + 1) % ARMS
-        dist = _segment_distance(np.stack([o3x[j], o3y[j]]), tips[j],
-                                 np.stack([o3x[k], o3y[k]]), tips[k])
-        clearance = min(clearance, float(dist.min()))
-    goals['arm_clearance'] = clearance
 
-    # 2-4. attitude at picking (highest) and planting (lowest) points of arm I
-    th_pick = _refine_extreme(theta, -y[0], int(np.argmax(y[0])))
-    th_plant = _refine_extreme(theta, y[0], int(np.argmin(y[0])))
-    pick = float(_below_horizontal(mech.pusher_attitude(th_pick)))
-    push = float(_below_horizontal(mech.pusher_attitude(th_plant)))
-    goals['picking_angle'] = pick
-    goals['pushing_angle'] = push
-    goals['angle_difference'] = push - pick
-
-    # 7. trajectory height, and the ground line for 5 and 6
-    y_top = float(mech.tip(th_pick)[1])
-    y_low = float(mech.tip(th_plant)[1])
-    goals['trajectory_height'] = y_top - y_low
-    ground = y_low + cfg['planting_depth']
-
-    # 5. seedling push: ground frame, from planting until the tip clears the seedling top
-    window = th_plant + theta
-    gx, gy = mech.tip_ground(window, cfg['plant_spacing'])
-    above = np.nonzero(gy > ground + cfg['seedling_height'])[0]
-    end = max(int(above[0]) if above.size else len(window), 1)
-    _, (o3x_p, _) = mech.centres(th_plant)
-    side = 1.0 if float(o3x_p) >= float(mech.tip(th_plant)[0]) else -1.0  # arm body's side
-    goals['seedling_push'] = float(np.max(side * (gx[0] - gx[:end])))
-
-    # 6. gearbox above ground
-    rho_max, rho_min = mech.train.curve.rho_max, mech.train.curve.rho_min
-    lowest = -(rho_max + MIN_MODULE)
-    for k in range(ARMS):
-        (ix, iy), _ = mech.centres(theta, k)
-        lowest = min(lowest, float(iy.min()) - (mech.a - rho_min + MIN_MODULE),
-                     float(o3y[k].min()) - (rho_max + MIN_MODULE))
-    goals['gearbox_clearance'] = lowest - ground
-
-    # 8. gear module from curvature and a whole number of teeth
-    goals['gear_module'] = gear_module_limit(mech)[0]
-
+def goals_from_values(values, cfg):
+    """Goal records (one design) from goal_values' output."""
     out = []
-    for name in GOAL_NAMES:
-        lower, upper, unit, _ = BOUNDS[name]
-        if name == 'arm_clearance':
-            lower = cfg['arm_width']
-        value = goals[name]
+    for name, (lower, upper, unit) in goal_bounds(cfg).items():
+        value = float(values[name])
         if not math.isfinite(value):
             raise DesignError(name, value, 'a finite goal value', 'degenerate mechanism')
         passed = (lower is None or value >= lower) and (upper is None or value <= upper)
-        out.append(Goal(name, value, lower, upper, unit, bool(passed)))
+        derived = {'zero_slip_spacing': float(values['zero_slip_spacing'])} \
+            if name == 'seedling_push' else {}
+        out.append(Goal(name, value, lower, upper, unit, bool(passed), BASIS[name],
+                        assumed_values(name, cfg), derived))
+    return out
+
+
+def goal_counts(goals):
+    """{'paper': (passed, of), 'assumption': (passed, of)} by provenance."""
+    out = {}
+    for basis in ('paper', 'assumption'):
+        mine = [g for g in goals if g.basis == basis]
+        out[basis] = (sum(g.passed for g in mine), len(mine))
     return out
 
 
 def design_summary(params, mech=None, goals=None):
     """JSON-ready design of a three-arm scene (SI units) for the `design` topic and the CLI."""
     mech = mech or ThreeArmMechanism.from_parameters(params)
-    goals = goals if goals is not None else evaluate_goals(mech, params)
     cfg = goal_settings(params)
+    values = goal_values(mech, cfg)
+    goals = goals if goals is not None else goals_from_values(values, cfg)
+    counts = goal_counts(goals)
     summary = {
         'mechanism': 'three_arm',
         'plants_per_revolution': ARMS,
@@ -240,6 +358,15 @@ def design_summary(params, mech=None, goals=None):
         'goals': [asdict(g) for g in goals],
         'goals_passed': sum(g.passed for g in goals),
         'all_goals_passed': all(g.passed for g in goals),
+        'paper_goals_passed': counts['paper'][0],
+        'paper_goals': counts['paper'][1],
+        'assumption_goals_passed': counts['assumption'][0],
+        'assumption_goals': counts['assumption'][1],
+        'picking_phase': float(values['picking_phase']),
+        'planting_phase': float(values['planting_phase']),
+        'phases_from': {name: 'scene' if cfg[name] >= 0 else 'tip extremes'
+                        for name in _PHASES},
+        'zero_slip_spacing': float(values['zero_slip_spacing']),
     }
     speed = params.get('nominal_ground_speed')
     if isinstance(speed, (int, float)) and not isinstance(speed, bool) and speed > 0:

@@ -9,6 +9,17 @@ the curve runs between the points; the interpolant is one swappable piece (`INTE
   so every integral over it is split at the knots, where it is analytic.
 * ``trigonometric``: the trigonometric polynomial of lowest degree through the points
   (analytic everywhere; swings more between unevenly spaced points).
+* ``bspline_polar``: approximating, not interpolating: the periodic cubic B-spline
+  ρ(θ) = Σ r_i N_i(θ) with knots at the control angles, the points (θ_i, r_i) being its control
+  polygon in the polar plane (basis i centred on θ_i). C², passes near but not through the
+  points, and never leaves their convex hull in (θ, ρ).
+* ``bspline_cartesian``: approximating: the uniform closed cubic B-spline in the gear plane
+  whose control polygon is the points r_i·(cos θ_i, sin θ_i); ρ(θ) is its distance from the
+  centre at polar angle θ. A curve that does not wind once around the centre with a monotone
+  polar angle is refused.
+
+The first three are linear in the radii for fixed control angles (`linear`), which the batch
+evaluation of many designs (three_arm.batch) uses.
 
 Average ratio 1 (paper eq. 2): the mating (intermediate) gear has radius a − ρ(θ) at polar angle
 ψ(θ) = ∫₀^θ ρ/(a−ρ) dθ, and closes after one turn iff (1/2π)∮ ρ/(a−ρ) dθ = 1. The left side
@@ -50,7 +61,31 @@ def subdivide(ends, m):
     return np.r_[(lo + (hi - lo) * (np.arange(m) / m)).ravel(), ends[-1]]
 
 
-class _PeriodicCubic:
+class _PiecewisePolynomial:
+    """A periodic curve held as a scipy PPoly over [start, start + 2π), evaluated wrapped."""
+
+    linear = True
+
+    def _init_ppoly(self, ppoly, start, knots):
+        self._pp = (ppoly, ppoly.derivative(1), ppoly.derivative(2))
+        self._start = float(start)
+        self.breakpoints = np.sort(np.mod(knots, TWO_PI))
+
+    def _wrap(self, theta):
+        return np.mod(np.asarray(theta, dtype=float) - self._start, TWO_PI) + self._start
+
+    def __call__(self, theta, nu=0):
+        return self._pp[nu](self._wrap(theta))
+
+    def extrema(self):
+        """Polar angles of the local extrema of r (exact roots of the derivative's pieces)."""
+        roots = self._pp[1].roots(extrapolate=False)
+        roots = roots[np.isfinite(roots)]
+        roots = roots[(roots >= self._start) & (roots <= self._start + TWO_PI)]
+        return np.mod(roots, TWO_PI)
+
+
+class _PeriodicCubic(_PiecewisePolynomial):
     """Periodic cubic spline r(θ) through the control points (scipy CubicSpline)."""
 
     name = 'periodic_cubic'
@@ -59,29 +94,32 @@ class _PeriodicCubic:
         from scipy.interpolate import CubicSpline
         x = np.r_[angles, angles[0] + TWO_PI]
         y = np.r_[radii, radii[0]]
-        self._spline = CubicSpline(x, y, bc_type='periodic')
-        self._start = float(angles[0])
-        self._d1 = self._spline.derivative(1)
-        self._d2 = self._spline.derivative(2)
-        self.breakpoints = np.sort(np.mod(angles, TWO_PI))
+        self._init_ppoly(CubicSpline(x, y, bc_type='periodic'), angles[0], angles)
 
-    def _wrap(self, theta):
-        return np.mod(np.asarray(theta, dtype=float) - self._start, TWO_PI) + self._start
 
-    def __call__(self, theta, nu=0):
-        t = self._wrap(theta)
-        return (self._spline, self._d1, self._d2)[nu](t)
+class _PolarBSpline(_PiecewisePolynomial):
+    """Periodic cubic B-spline ρ(θ) = Σ r_i N_i(θ), knots at the control angles (scipy BSpline).
 
-    def extrema(self):
-        """Polar angles of the local extrema of r (exact roots of the spline's derivative)."""
-        roots = self._d1.roots(extrapolate=False)
-        return np.mod(roots[np.isfinite(roots)], TWO_PI)
+    The basis function with knots θ_{i-2} … θ_{i+2} (centred on θ_i, its Greville abscissa
+    (θ_{i-1} + θ_i + θ_{i+1})/3) carries r_i.
+    """
+
+    name = 'bspline_polar'
+
+    def __init__(self, radii, angles):
+        from scipy.interpolate import BSpline, PPoly
+        n = len(radii)
+        knots = np.r_[angles[n - 3:] - TWO_PI, angles, angles[:4] + TWO_PI]
+        coef = np.r_[radii[n - 1], radii, radii[0], radii[1]]
+        spline = BSpline(knots, coef, 3, extrapolate=False)
+        self._init_ppoly(PPoly.from_spline(spline), angles[0], angles)
 
 
 class _Trigonometric:
     """Lowest-degree trigonometric polynomial through the control points (analytic)."""
 
     name = 'trigonometric'
+    linear = True
 
     def __init__(self, radii, angles):
         n = len(radii)
@@ -124,7 +162,121 @@ class _Trigonometric:
         return grid[idx]
 
 
-INTERPOLANTS = {cls.name: cls for cls in (_PeriodicCubic, _Trigonometric)}
+# the uniform closed cubic B-spline segment: C(t) = [t³ t² t 1] · _BSPLINE_MATRIX · [P_{i-1} …
+# P_{i+2}], t in [0, 1], segment i running from near P_i to near P_{i+1}
+_BSPLINE_MATRIX = np.array([[-1.0, 3.0, -3.0, 1.0], [3.0, -6.0, 3.0, 0.0],
+                            [-3.0, 0.0, 3.0, 0.0], [1.0, 4.0, 1.0, 0.0]]) / 6.0
+_POWERS = (lambda t: (t ** 3, t * t, t, np.ones_like(t)),
+           lambda t: (3.0 * t * t, 2.0 * t, np.ones_like(t), np.zeros_like(t)),
+           lambda t: (6.0 * t, np.full_like(t, 2.0), np.zeros_like(t), np.zeros_like(t)))
+
+
+class _CartesianBSpline:
+    """Uniform closed cubic B-spline in the plane with control polygon r_i (cos θ_i, sin θ_i).
+
+    ρ(θ) is the curve's distance from the centre where its polar angle is θ: each query finds
+    its segment by polar angle, then solves C(t) × (cos θ, sin θ) = 0 (a cubic in t with one
+    root in the segment, as the polar angle is monotone) by safeguarded Newton steps. Polar
+    derivatives come from the parametric ones: dρ/dθ = ρ_t/θ_t, d²ρ/dθ² =
+    (ρ_tt θ_t − ρ_t θ_tt)/θ_t³.
+    """
+
+    name = 'bspline_cartesian'
+    linear = False
+
+    def __init__(self, radii, angles):
+        n = len(radii)
+        pts = np.stack([radii * np.cos(angles), radii * np.sin(angles)], axis=1)
+        window = (np.arange(n)[:, None] + np.arange(-1, 3)[None, :]) % n
+        # (segment, power t³ t² t 1, xy)
+        self._coef = np.einsum('ij,sjk->sik', _BSPLINE_MATRIX, pts[window])
+        self._n = n
+        self._check_star_shaped()
+        start = self._coef[:, 3, :]
+        begin = np.mod(np.arctan2(start[:, 1], start[:, 0]), TWO_PI)
+        self._order = np.argsort(begin)
+        self._begin = begin[self._order]
+        self.breakpoints = self._begin.copy()
+
+    def _check_star_shaped(self):
+        """The polar angle must grow along the whole curve: C × C' > 0 (a quintic per segment),
+        and the curve must turn once around the centre."""
+        poly = np.polynomial.Polynomial
+        worst = np.inf
+        for c in self._coef:
+            cx, cy = poly(c[::-1, 0]), poly(c[::-1, 1])
+            cross = cx * cy.deriv() - cy * cx.deriv()
+            crit = [r.real for r in cross.deriv().roots() if abs(r.imag) < 1e-12
+                    and 0.0 <= r.real <= 1.0]
+            worst = min(worst, float(np.min(cross(np.r_[0.0, 1.0, crit]))))
+        start = self._coef[:, 3, :]
+        turns = np.sum(np.diff(np.unwrap(np.r_[np.arctan2(start[:, 1], start[:, 0]),
+                                                np.arctan2(start[0, 1], start[0, 0])]))) / TWO_PI
+        if not (worst > 0.0 and abs(turns - 1.0) < 1e-9):
+            raise DesignError('control_radii', 'the control polygon', 'a Cartesian B-spline '
+                              'whose polar angle grows all the way round the gear centre',
+                              'the curve does not wind once round the centre')
+
+    def _point(self, seg, t, nu=0):
+        c = self._coef[seg]                       # (..., 4, 2)
+        powers = _POWERS[nu](t)
+        return sum(p[..., None] * c[..., j, :] for j, p in enumerate(powers))
+
+    def _parameter(self, theta):
+        """(segment, t) of the curve point at polar angle θ (arrays)."""
+        th = np.mod(np.asarray(theta, dtype=float), TWO_PI)
+        j = np.searchsorted(self._begin, th, side='right') - 1     # -1: the wrapping segment
+        seg = self._order[j % self._n]
+        ux, uy = np.cos(th), np.sin(th)
+        lo, hi = np.zeros_like(th), np.ones_like(th)
+        t = np.full_like(th, 0.5)
+        for _ in range(64):
+            c, c1 = self._point(seg, t), self._point(seg, t, 1)
+            g = c[..., 0] * uy - c[..., 1] * ux          # > 0 while the point is short of θ
+            g1 = c1[..., 0] * uy - c1[..., 1] * ux
+            lo = np.where(g > 0, t, lo)
+            hi = np.where(g > 0, hi, t)
+            with np.errstate(divide='ignore', invalid='ignore'):
+                step = t - g / g1
+            step = np.where((step > lo) & (step < hi), step, 0.5 * (lo + hi))
+            done = np.all(np.abs(step - t) <= 4e-16)
+            t = step
+            if done:
+                break
+        return seg, t
+
+    def __call__(self, theta, nu=0):
+        seg, t = self._parameter(theta)
+        c, c1 = self._point(seg, t), self._point(seg, t, 1)
+        r = np.hypot(c[..., 0], c[..., 1])
+        if nu == 0:
+            return r
+        cross = c[..., 0] * c1[..., 1] - c[..., 1] * c1[..., 0]
+        dot = np.sum(c * c1, axis=-1)
+        r_t, th_t = dot / r, cross / (r * r)
+        if nu == 1:
+            return r_t / th_t
+        c2 = self._point(seg, t, 2)
+        r_tt = (np.sum(c1 * c1, axis=-1) + np.sum(c * c2, axis=-1)) / r - dot * dot / r ** 3
+        cross2 = c[..., 0] * c2[..., 1] - c[..., 1] * c2[..., 0]
+        th_tt = cross2 / (r * r) - 2.0 * cross * dot / r ** 4
+        return (r_tt * th_t - r_t * th_tt) / th_t ** 3
+
+    def extrema(self):
+        """Polar angles where ρ is stationary: roots of C · C' (a quintic per segment)."""
+        poly = np.polynomial.Polynomial
+        out = []
+        for c in self._coef:
+            cx, cy = poly(c[::-1, 0]), poly(c[::-1, 1])
+            for root in (cx * cx.deriv() + cy * cy.deriv()).roots():
+                if abs(root.imag) < 1e-12 and 0.0 <= root.real <= 1.0:
+                    x, y = cx(root.real), cy(root.real)
+                    out.append(math.atan2(y, x))
+        return np.mod(np.asarray(out, dtype=float), TWO_PI)
+
+
+INTERPOLANTS = {cls.name: cls for cls in (_PeriodicCubic, _Trigonometric, _PolarBSpline,
+                                          _CartesianBSpline)}
 
 
 def _check_control_points(radii, angles):
@@ -161,11 +313,7 @@ class PitchCurve:
         self.radii, self.angles = _check_control_points(radii, angles)
         self.interpolant = interpolant
         self._f = INTERPOLANTS[interpolant](self.radii, self.angles)
-        # knots within 1e-9 rad of the ends 0 and 2π would make pieces of ~0 width (their
-        # quintic tables divide by width⁵); a kink that close to an end changes no integral
-        knots = np.asarray(self._f.breakpoints, dtype=float)
-        knots = knots[(knots > _END_MERGE) & (knots < TWO_PI - _END_MERGE)]
-        self._pieces = np.unique(np.r_[0.0, knots, TWO_PI])
+        self._pieces = analytic_pieces(self._f.breakpoints)
         self.rho_min, self.rho_max = self._range()
         if not self.rho_min > 0.0:
             raise DesignError('control_radii', float(self.radii.min()), 'a pitch curve that '
@@ -189,13 +337,7 @@ class PitchCurve:
 
     def gauss_nodes(self, splits=0):
         """Gauss–Legendre nodes and weights over [0, 2π], 2**splits sub-pieces per piece."""
-        x, w = leggauss(_GL_NODES)
-        sub = subdivide(self._pieces, 2 ** splits)
-        lo, hi = sub[:-1, None], sub[1:, None]
-        half = 0.5 * (hi - lo)
-        nodes = (lo + half * (x + 1.0)).ravel()
-        weights = (half * w).ravel()
-        return nodes, weights
+        return gauss_nodes(self._pieces, splits)
 
     def curvature_radius(self, theta):
         """Signed radius of curvature (m) of the pitch curve; > 0 convex, < 0 concave."""
@@ -203,8 +345,31 @@ class PitchCurve:
         return polar_curvature_radius(r, r1, r2)
 
     def length(self):
-        nodes, weights = self.gauss_nodes(2)
+        nodes, weights = self.gauss_nodes(LENGTH_SPLITS)
         return float(np.sum(weights * np.hypot(self(nodes), self(nodes, 1))))
+
+
+LENGTH_SPLITS = 2       # Gauss rule of the pitch-curve length: 2**2 sub-pieces per piece
+
+
+def analytic_pieces(breakpoints):
+    """Ends in [0, 2π] of the pieces on which an interpolant with these knots is analytic.
+
+    Knots within 1e-9 rad of the ends 0 and 2π would make pieces of ~0 width (their quintic
+    tables divide by width⁵); a kink that close to an end changes no integral.
+    """
+    knots = np.asarray(breakpoints, dtype=float)
+    knots = knots[(knots > _END_MERGE) & (knots < TWO_PI - _END_MERGE)]
+    return np.unique(np.r_[0.0, knots, TWO_PI])
+
+
+def gauss_nodes(pieces, splits=0, points=_GL_NODES):
+    """Gauss–Legendre nodes and weights over [0, 2π], 2**splits sub-pieces per piece."""
+    x, w = leggauss(points)
+    sub = subdivide(pieces, 2 ** splits)
+    lo, hi = sub[:-1, None], sub[1:, None]
+    half = 0.5 * (hi - lo)
+    return (lo + half * (x + 1.0)).ravel(), (half * w).ravel()
 
 
 def polar_curvature_radius(r, r1, r2):
