@@ -21,6 +21,8 @@ QUALITY_TARGETS = (
      'sync loop', 'p99 ≤ 2 ms'),
     ('replay of a recording', '≥ 1000× real time per core',
      'replay', '≥ 1000× real time'),
+    ('refusing a file with no valid MCAP record', '≤ 1 s whatever its size',
+     'replay', '≤ 1 s'),
     ('three-arm optimiser (`planter optimize three-arm`)',
      'meets all eight goals in ≤ 15 s of search on 2 cores', None, None),
 )

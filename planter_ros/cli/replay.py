@@ -2,8 +2,8 @@
 
 BAG is a .mcap file or a rosbag2 bag directory (split files `<name>_<n>.mcap`). The monitor's
 settings recorded in the bag are used unless given here. A bag that is not MCAP or lacks the
-needed topics is bad input (exit 2); a truncated bag is read up to its last intact chunk with a
-warning on stderr.
+needed topics is bad input (exit 2); of a damaged or cut-off bag every intact chunk is read,
+with a warning on stderr naming the log-time range lost.
 """
 
 import json
@@ -31,6 +31,9 @@ def add_arguments(parser):
     parser.add_argument('--window', metavar='N',
                         type=spec_option(PredictionSettings, 'window', '--window'),
                         help='plants in the rolling uprightness rate (default: recorded, else 20)')
+    parser.add_argument('--scene', metavar='FILE',
+                        help="the run's scene: its design is used if the bag holds no usable "
+                             'design message (lost in a damaged part)')
     parser.add_argument('--max-input-gap', metavar='S',
                         type=spec_option(PredictionSettings, 'max_input_gap',
                                          '--max-input-gap'),
@@ -42,10 +45,19 @@ def run(args):
     from planter_ros.cli.main import BadInput
     from planter_ros.output_files import atomic_output
     from planter_ros.recording.replay import ReplayError, replay
+    design = None
+    if args.scene:
+        from planter_ros.kinematics.scene_design import design_for_scene
+        from planter_ros.scene import SceneError, load_scene
+        try:
+            design = design_for_scene(load_scene(args.scene, 'design_node'))
+        except SceneError as exc:
+            raise BadInput(str(exc)) from None
     try:
         result = replay(args.bag, {'upright_threshold': args.upright_threshold,
                                    'nozzle_width': args.nozzle_width, 'window': args.window,
-                                   'max_input_gap': args.max_input_gap})
+                                   'max_input_gap': args.max_input_gap},
+                        fallback_design=design)
     except ReplayError as exc:
         raise BadInput(str(exc)) from None
     for warning in result.warnings:
