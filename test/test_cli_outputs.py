@@ -136,3 +136,10 @@ def test_check_output_refuses_special_and_read_only_files(tmp_path):
         pytest.skip('permissions do not bind this user (root)')
     with pytest.raises(OutputError, match='read-only file'):
         check_output(ro, '--plot', ('.png',))
+
+
+def test_the_demo_checks_its_default_bag_place_too(tmp_path, monkeypatch):
+    monkeypatch.chdir(read_only_directory(tmp_path))
+    code, out, err = run(['demo', '--duration', '8'])
+    assert code == 2 and out == '' and err.count('\n') == 1
+    assert '--bag (default) = bags/planter_<date-time>' in err and 'not writable' in err

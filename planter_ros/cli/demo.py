@@ -68,10 +68,8 @@ def check_bag_path(bag):
         check_new_path(bag, '--bag', ('.mcap', ''))
         return
     bags = Path('bags')
-    if bags.exists():
-        check_directory(bags, 'default bag directory')
-    else:
-        check_directory(Path('.'), 'default bag directory bags/ in the current directory')
+    default = bags / 'planter_<date-time>'
+    check_directory(bags if bags.exists() else Path('.'), '--bag (default)', default)
 
 
 def run(args):

@@ -79,7 +79,7 @@ def _listed_files(directory):
         for entry in info.get('files') or ():
             start = int(entry['starting_time']['nanoseconds_since_epoch'])
             times[entry['path']] = (start, start + int(entry['duration']['nanoseconds']))
-        return [(str(name), *times.get(name, (None, None)))
+        return [(Path(str(name)).name, *times.get(name, (None, None)))
                 for name in info.get('relative_file_paths') or ()]
     except (OSError, UnicodeDecodeError, SceneError, AttributeError, KeyError, TypeError,
             ValueError):

@@ -60,7 +60,6 @@ class Recovered:
     metadata: dict = field(default_factory=dict)
     losses: list = field(default_factory=list)
     _schemas: dict = field(default_factory=dict)
-    _orphans: int = 0           # messages of channels never defined
 
     def add(self, record):
         from mcap.records import Channel, Message, Metadata, Schema
