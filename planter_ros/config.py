@@ -138,6 +138,8 @@ def _check_value(spec, value):
         shown = value if shown is None else shown
         text = f'{shown:.6g}' if isinstance(shown, float) else f'{shown!r}' \
             if isinstance(shown, str) else f'{shown}'
+        if len(text) > 60:          # a value from a file can be huge: the message stays short
+            text = text[:57] + '...'
         raise ConfigError(f'{spec.name} = {text} is out of range: allowed {spec.allowed()}')
 
     kind = spec.kind
@@ -168,7 +170,7 @@ def _check_value(spec, value):
 
 
 def _check_number(spec, value, bad):
-    if not math.isfinite(value):
+    if isinstance(value, float) and not math.isfinite(value):   # (a huge int overflows isfinite)
         bad(value)
     if spec.low is not None and value < spec.low:
         bad(value)

@@ -47,6 +47,7 @@ def make_drive(channel):
     made = []
 
     def make(bus=None, **overrides) -> Cia402Drive:
+        overrides.setdefault('can_interface', 'virtual')
         overrides.setdefault('can_channel', channel)
         overrides.setdefault('drive_node_id', NODE_ID)
         overrides.setdefault('step_timeout', 0.3)

@@ -45,7 +45,7 @@ def test_plot_writes_a_png(tmp_path):
 
 
 @pytest.mark.parametrize('args, needle', [
-    (['--depth', '0.045', '--spacing', '0.2', '--hole-ratio', '5'], 'hole_ratio'),
+    (['--depth', '0.045', '--spacing', '0.2', '--hole-ratio', '5'], '--hole-ratio'),
     (['--depth', '0.045', '--spacing', '0.2', '--hole-ratio', '2'], 'l1 > 0'),
     (['--depth', '-1', '--spacing', '0.2'], 'depth'),
     (['--depth', 'nan', '--spacing', '0.2'], 'depth'),

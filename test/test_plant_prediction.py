@@ -1,6 +1,7 @@
 """Per-plant prediction model: sync behaviour, hole and tilt against λ, streaming = batch."""
 import math
 
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 
@@ -256,3 +257,85 @@ def test_three_arm_design_topic_carries_what_the_monitor_needs():
     assert len(plants) == 4
     np.testing.assert_allclose(plants.spacing[1:], design['plant_spacing'], rtol=1e-6)
     assert np.all(np.isfinite(plants.hole_width)) and np.all(np.isfinite(plants.tilt))
+
+
+def _live(model, settings, st, sv, jt, jp, jw):
+    """Feed the live predictor in arrival order (speed and joint samples interleaved)."""
+    live = PlantPredictor(model, settings)
+    arrivals = sorted([(t, 0, i) for i, t in enumerate(st)]
+                      + [(t, 1, i) for i, t in enumerate(jt)])
+    return Plants.concatenate([live.add_speed(st[i], sv[i]) if kind == 0 else
+                               live.add_joint(jt[i], jp[i], jw[i]) for _, kind, i in arrivals])
+
+
+def test_a_gap_in_the_inputs_reports_no_plant_inside_it_and_restarts_the_spacing():
+    """Joint states lost for 1.4 s and, later, ground speed lost for 1.2 s: no plant is invented
+    across either gap, the first plant after each has no spacing, live and replay agree."""
+    run = simulate_run(five_bar_design_message(), duration=20.0, seed=3)
+    model = planting_model_from_design(run.design)
+    settings = PredictionSettings()
+    full = predict_plants(run.speed_t, run.speed_v, run.joint_t, run.joint_pos, run.joint_vel,
+                          model, settings)
+    t0 = run.speed_t[0]
+    j_gap, s_gap = (t0 + 6.0, t0 + 7.4), (t0 + 12.0, t0 + 13.2)
+    jk = (run.joint_t < j_gap[0]) | (run.joint_t > j_gap[1])
+    sk = (run.speed_t < s_gap[0]) | (run.speed_t > s_gap[1])
+    inputs = (run.speed_t[sk], run.speed_v[sk], run.joint_t[jk], run.joint_pos[jk],
+              run.joint_vel[jk])
+    cut = predict_plants(*inputs, model, settings)
+    for lo, hi in (j_gap, s_gap):
+        assert np.any((full.time > lo) & (full.time < hi))          # plants were set there
+        assert not np.any((cut.time > lo - 0.05) & (cut.time < hi + 0.05))
+    # outside the gaps the same plants, at the same instants
+    outside = np.ones(len(full), dtype=bool)
+    for lo, hi in (j_gap, s_gap):
+        outside &= (full.time < lo - 0.1) | (full.time > hi + 0.1)
+    np.testing.assert_allclose(cut.time, full.time[outside], rtol=0, atol=1e-9)
+    restarted = [0] + [int(np.argmax(cut.time > hi)) for _, hi in (j_gap, s_gap)]
+    assert np.all(np.isnan(cut.spacing[restarted]))
+    assert np.isnan(cut.spacing).sum() == 3
+    assert np.all(np.diff(cut.index) == 1)                            # numbering goes on
+    np.testing.assert_allclose(_live(model, settings, *inputs).table(), cut.table(), rtol=0,
+                               atol=1e-12, equal_nan=True)
+
+
+def test_a_gap_shorter_than_the_setting_is_interpolated_as_before():
+    run = simulate_run(five_bar_design_message(), duration=10.0, seed=4)
+    model = planting_model_from_design(run.design)
+    t = run.joint_t - run.joint_t[0]
+    keep = (t < 4.0) | (t > 4.3)                               # 0.3 s without joint states
+    inputs = (run.speed_t, run.speed_v, run.joint_t[keep], run.joint_pos[keep],
+              run.joint_vel[keep])
+    plants = predict_plants(*inputs, model, PredictionSettings(max_input_gap=0.5))
+    assert np.isnan(plants.spacing).sum() == 1
+    strict = predict_plants(*inputs, model, PredictionSettings(max_input_gap=0.2))
+    assert np.isnan(strict.spacing).sum() >= 2 or len(strict) < len(plants)
+
+
+@settings(max_examples=40, deadline=None)
+@given(gaps=st.lists(st.tuples(st.sampled_from(['speed', 'joint']), st.floats(0.5, 18.0),
+                               st.floats(0.05, 2.0)), max_size=4),
+       max_gap=st.floats(0.06, 1.0))
+def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
+    run = _GAP_RUN
+    model = planting_model_from_design(run.design)
+    prediction = PredictionSettings(max_input_gap=max_gap)
+    sk = np.ones(run.speed_t.size, dtype=bool)
+    jk = np.ones(run.joint_t.size, dtype=bool)
+    for which, start, length in gaps:
+        t, keep = (run.speed_t, sk) if which == 'speed' else (run.joint_t, jk)
+        t = t - run.speed_t[0]
+        keep &= ~((t > start) & (t < start + length))
+    inputs = (run.speed_t[sk], run.speed_v[sk], run.joint_t[jk], run.joint_pos[jk],
+              run.joint_vel[jk])
+    batch = predict_plants(*inputs, model, prediction)
+    np.testing.assert_allclose(_live(model, prediction, *inputs).table(), batch.table(),
+                               rtol=0, atol=1e-12, equal_nan=True)
+    # no reported plant lies inside a gap longer than the setting
+    for t in (inputs[0], inputs[2]):
+        k = np.nonzero(np.diff(t) > max_gap)[0]
+        for lo, hi in zip(t[k], t[k + 1]):
+            assert not np.any((batch.time > lo) & (batch.time < hi))
+
+
+_GAP_RUN = simulate_run(five_bar_design_message(), duration=20.0, seed=5)

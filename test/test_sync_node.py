@@ -41,7 +41,8 @@ class Rig:
         self.channel = channel or unique_channel('sync')
         self.sim = SimulatedDrive(self.channel, node_id=1, **(sim_kwargs or {}))
         self.sim.start()
-        overrides = [Parameter('can_channel', value=self.channel)]
+        overrides = [Parameter('can_interface', value='virtual'),
+                     Parameter('can_channel', value=self.channel)]
         overrides += [Parameter(k, value=v) for k, v in params.items()]
         self.sync = SyncNode(bus=bus, context=ros.context, parameter_overrides=overrides)
         self.sync.enable_drive()

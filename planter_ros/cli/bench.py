@@ -2,9 +2,10 @@
 optionally also written as a markdown page (doc/benchmarks.md is made this way)."""
 
 import json
-import os
 import shlex
 import time
+
+from planter_ros.cli.options import output_file
 
 
 def add_arguments(parser):
@@ -13,12 +14,12 @@ def add_arguments(parser):
     parser.add_argument('--quick', action='store_true',
                         help='tiny sizes and few repeats: checks the bench works (CI), '
                              'figures are not meaningful')
-    parser.add_argument('--plot', metavar='FILE.png',
+    parser.add_argument('--plot', metavar='FILE.png', type=output_file('--plot', ('.png',)),
                         help='draw error against run time (log-log) for the methods that '
                              'trade one for the other')
     parser.add_argument('--only', metavar='TEXT',
                         help='run only the cases whose name contains TEXT (e.g. "hole")')
-    parser.add_argument('--markdown', metavar='FILE',
+    parser.add_argument('--markdown', metavar='FILE.md', type=output_file('--markdown', ('.md',)),
                         help='also write the results as a markdown page to FILE (replaced '
                              'atomically): how it was made, the quality targets, one table '
                              'per row group')
@@ -26,13 +27,10 @@ def add_arguments(parser):
 
 def run(args):
     from planter_ros.cli.main import BadInput
-    if args.plot and not args.plot.lower().endswith('.png'):
-        raise BadInput(f'--plot = {args.plot} is not a .png file name')
-    if args.markdown:
-        check_markdown_path(args.markdown, BadInput)      # before minutes of bench work
     from planter_ros.bench.machine import machine_info
     from planter_ros.bench.registry import BenchContext, run_cases
-    from planter_ros.bench.report import as_json, format_markdown, format_table, write_atomically
+    from planter_ros.bench.report import as_json, format_markdown, format_table
+    from planter_ros.output_files import atomic_output, write_text_atomically
 
     ctx = BenchContext(quick=args.quick)
     machine = machine_info()
@@ -43,9 +41,10 @@ def run(args):
         raise BadInput(f'--only = {args.only} matches no bench case')
     if args.plot:
         from planter_ros.plots.bench import plot_tradeoff
-        plot_tradeoff(machine, rows, args.plot)
+        with atomic_output(args.plot) as tmp:
+            plot_tradeoff(machine, rows, tmp)
     if args.markdown:
-        write_atomically(args.markdown, format_markdown(
+        write_text_atomically(args.markdown, format_markdown(
             machine, rows, command_line(args), quick=args.quick, seconds=seconds))
     if args.json:
         out = as_json(machine, rows, args.quick)
@@ -61,17 +60,6 @@ def run(args):
         if args.markdown:
             print(f'markdown: {args.markdown}')
     return 1 if any(r.status == 'FAILED' for r in rows) else 0
-
-
-def check_markdown_path(path, error):
-    """Refuse a --markdown FILE that cannot be written (raises `error` with one line)."""
-    directory = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path):
-        raise error(f'--markdown = {path} is a directory, not a file name')
-    if not os.path.isdir(directory):
-        raise error(f'--markdown = {path}: directory {directory} does not exist')
-    if not os.access(directory, os.W_OK | os.X_OK):
-        raise error(f'--markdown = {path}: directory {directory} is not writable')
 
 
 def command_line(args):

@@ -10,26 +10,44 @@ otherwise); the demo ends by replaying that bag offline and printing the replay 
 Ctrl-C stops it cleanly (drive shut down, bus closed, bag finalised) with a summary.
 """
 
+from dataclasses import dataclass
 import math
 import os
 import sys
 import time
 from pathlib import Path
 
+from planter_ros.cli.options import spec_option
+from planter_ros.config import check, setting
+
 PROGRESS_PERIOD = 2.0     # s between progress lines
+
+
+@dataclass(frozen=True)
+class DemoOptions:
+    """The demo's own settings (the command-line options)."""
+
+    duration: float = setting(30.0, 'length of the field run', unit='s', range=(8.0, 3600.0))
+    seed: int = setting(0, 'sensor noise seed', range=(0, 2 ** 32 - 1))
+
+    def __post_init__(self):
+        check(self)
 
 
 def add_arguments(parser):
     parser.add_argument('--scene', metavar='FILE', default=None,
                         help='scene parameter file (default: config/tomato_five_bar.yaml)')
-    parser.add_argument('--duration', type=float, default=30.0, metavar='S',
+    parser.add_argument('--duration', type=spec_option(DemoOptions, 'duration', '--duration'),
+                        default=30.0, metavar='S',
                         help='length of the field run in seconds, 8..3600 (default 30)')
     parser.add_argument('--bag', metavar='PATH',
                         help='record the run to this bag: a .mcap file or a rosbag2 bag '
-                             'directory (default: bags/planter_<date-time>; never overwrites)')
+                             'directory, in an existing writable directory (default: '
+                             'bags/planter_<date-time>; never overwrites)')
     parser.add_argument('--speed-only', action='store_true',
                         help='turn phase lock off (feed-forward speed only), for comparison')
-    parser.add_argument('--seed', type=int, default=0, help='sensor noise seed (default 0)')
+    parser.add_argument('--seed', type=spec_option(DemoOptions, 'seed', '--seed'), default=0,
+                        help='sensor noise seed, 0..2^32-1 (default 0)')
 
 
 def default_scene():
@@ -40,19 +58,30 @@ def default_scene():
     return Path(get_package_share_directory('planter_ros')) / 'config' / 'tomato_five_bar.yaml'
 
 
+def check_bag_path(bag):
+    """Refuse (OutputError) a --bag the recorder could not create, before anything starts:
+    an existing path, an extension other than .mcap (a file) or none (a bag directory), a
+    missing or read-only directory; without --bag, the default bags/ directory (or the current
+    directory it would be made in) must be writable."""
+    from planter_ros.output_files import check_directory, check_new_path
+    if bag is not None:
+        check_new_path(bag, '--bag', ('.mcap', ''))
+        return
+    bags = Path('bags')
+    default = bags / 'planter_<date-time>'
+    check_directory(bags if bags.exists() else Path('.'), '--bag (default)', default)
+
+
 def run(args):
     from planter_ros.cli.main import BadInput
     from planter_ros.kinematics.scene_design import design_for_scene
     from planter_ros.scene import SceneError, load_scene
 
-    if not (math.isfinite(args.duration) and 8.0 <= args.duration <= 3600.0):
-        raise BadInput(f'--duration = {args.duration} is out of range: allowed 8..3600 s')
     try:
         scene = load_scene(args.scene or default_scene(), 'design_node')
     except SceneError as exc:
         raise BadInput(str(exc)) from None
-    if args.bag and os.path.exists(args.bag):
-        raise BadInput(f'--bag = {args.bag} exists: a recording is never overwritten')
+    check_bag_path(args.bag)
     design = design_for_scene(scene)          # a bad scene fails here, before anything starts
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     return Demo(scene, design, args).run()

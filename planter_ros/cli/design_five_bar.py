@@ -1,21 +1,34 @@
-"""`planter design five-bar`: agronomic needs (D, d, k) -> bar lengths: table, JSON or plot."""
+"""`planter design five-bar`: agronomic needs (D, d, k) -> bar lengths: table, JSON or plot.
+
+The options are the scene's values (kinematics.scene_settings): same ranges as a scene file and
+the design node's parameters."""
 
 import json
 import math
 
+from planter_ros.cli.options import output_file, require_finite, spec_option
+from planter_ros.kinematics.scene_settings import SceneSettings
+
 
 def add_arguments(parser):
-    parser.add_argument('--depth', type=float, required=True, metavar='M',
-                        help='planting depth D (m), e.g. 0.045')
-    parser.add_argument('--spacing', type=float, required=True, metavar='M',
-                        help='plant spacing d along the row (m), e.g. 0.2')
-    parser.add_argument('--hole-ratio', type=float, default=0.05, metavar='K',
+    parser.add_argument('--depth', type=spec_option(SceneSettings, 'planting_depth', '--depth'),
+                        required=True, metavar='M', help='planting depth D (m), e.g. 0.045')
+    parser.add_argument('--spacing', type=spec_option(SceneSettings, 'plant_spacing',
+                                                      '--spacing'),
+                        required=True, metavar='M', help='plant spacing d along the row (m), '
+                        'e.g. 0.2')
+    parser.add_argument('--hole-ratio', type=spec_option(SceneSettings, 'hole_ratio',
+                                                         '--hole-ratio'),
+                        default=0.05, metavar='K',
                         help='hole entry-exit distance over depth, k = t/D (default 0.05)')
-    parser.add_argument('--method', choices=('exact', 'paper'), default='exact',
+    parser.add_argument('--method', type=spec_option(SceneSettings, 'design_method', '--method'),
+                        default='exact', metavar='exact|paper',
                         help="'exact' solves ψ - sin ψ = πkD/d; 'paper' uses the paper's "
                              'cube-root approximation (default exact)')
-    parser.add_argument('--speed', type=float, metavar='M/S',
-                        help='ground speed v (m/s): adds the sun-bar speed ω1 = 2πv/d')
+    parser.add_argument('--speed', type=spec_option(SceneSettings, 'nominal_ground_speed',
+                                                    '--speed'),
+                        metavar='M/S', help='ground speed v (m/s): adds the sun-bar speed '
+                        'ω1 = 2πv/d')
     parser.add_argument('--tolerance', type=float, metavar='M',
                         help='bar length tolerance (m): hole-width range over built machines '
                              'with l1, l2 anywhere within ±M')
@@ -23,7 +36,7 @@ def add_arguments(parser):
                         help='ground-speed error as a fraction of the synchronised speed '
                              '(0.01 = 1 %%): hole-width range with the speed anywhere within ±F')
     parser.add_argument('--json', action='store_true', help='print JSON (SI units) for machines')
-    parser.add_argument('--plot', metavar='FILE.png',
+    parser.add_argument('--plot', metavar='FILE.png', type=output_file('--plot', ('.png',)),
                         help='draw static and soil-frame trajectories, velocity, acceleration')
 
 
@@ -46,14 +59,10 @@ def _check_tolerances(args, design):
 
 
 def run(args):
-    from planter_ros.cli.main import BadInput
     from planter_ros.kinematics.five_bar import (design_five_bar, hole_sensitivity,
                                                  hole_tolerance, sun_bar_speed)
+    from planter_ros.output_files import atomic_output
 
-    if args.speed is not None and not (math.isfinite(args.speed) and args.speed > 0):
-        raise BadInput(f'--speed = {args.speed} is out of range: allowed finite and > 0 m/s')
-    if args.plot and not args.plot.lower().endswith('.png'):
-        raise BadInput(f'--plot = {args.plot} is not a .png file name')
     design = design_five_bar(args.depth, args.spacing, args.hole_ratio, args.method)
     _check_tolerances(args, design)
     result = design.as_dict()
@@ -67,12 +76,14 @@ def run(args):
     if args.speed is not None:
         result['ground_speed'] = args.speed
         result['sun_bar_speed'] = sun_bar_speed(args.speed, args.spacing)
+    require_finite(result, 'five-bar design')
     if args.plot:
         from planter_ros.plots.five_bar import plot_design
-        plot_design(design, args.plot, ground_speed=args.speed)
+        with atomic_output(args.plot) as tmp:
+            plot_design(design, tmp, ground_speed=args.speed)
         result['plot'] = args.plot
     if args.json:
-        print(json.dumps(result, indent=2))
+        print(json.dumps(result, indent=2, allow_nan=False))
     else:
         print(format_table(result))
     return 0

@@ -3,19 +3,24 @@
 import json
 import math
 
+from planter_ros.cli.options import output_file, require_finite
+
 
 def add_arguments(parser):
     parser.add_argument('--params', required=True, metavar='FILE',
                         help='ROS 2 parameter file of a three_arm scene, e.g. '
                              'config/rice_three_arm.yaml')
     parser.add_argument('--json', action='store_true', help='print JSON (SI units) for machines')
-    parser.add_argument('--plot', metavar='FILE.png',
+    parser.add_argument('--plot', metavar='FILE.png', type=output_file('--plot', ('.png',)),
                         help='draw pitch curves, trajectories and arm angles')
 
 
-def load_params(path):
-    """Scene dict of a three-arm parameter file; BadInput for anything else."""
+def load_params(path, option='--params'):
+    """Scene dict of a three-arm parameter file, every value checked against its range
+    (kinematics.scene_settings); BadInput for anything else."""
     from planter_ros.cli.main import BadInput
+    from planter_ros.config import ConfigError, from_mapping
+    from planter_ros.kinematics.scene_settings import SceneSettings, ThreeArmSettings
     from planter_ros.scene import SceneError, load_scene
     try:
         params = load_scene(path)
@@ -23,28 +28,32 @@ def load_params(path):
         raise BadInput(str(exc)) from None
     mechanism = params.get('mechanism')
     if mechanism != 'three_arm':
-        raise BadInput(f'--params {path}: mechanism = {mechanism} is out of range: allowed '
+        raise BadInput(f'{option} {path}: mechanism = {mechanism} is out of range: allowed '
                        'three_arm')
+    try:
+        for cls in (SceneSettings, ThreeArmSettings):
+            from_mapping(cls, params)
+    except ConfigError as exc:
+        raise BadInput(f'{option} {path}: {exc}') from None
     return params
 
 
 def run(args):
-    from planter_ros.cli.main import BadInput
     from planter_ros.kinematics.three_arm import ThreeArmMechanism, design_summary
     from planter_ros.kinematics.three_arm.paper import paper_comparison
+    from planter_ros.output_files import atomic_output
 
-    if args.plot and not args.plot.lower().endswith('.png'):
-        raise BadInput(f'--plot = {args.plot} is not a .png file name')
     params = load_params(args.params)
     mech = ThreeArmMechanism.from_parameters(params)
-    result = design_summary(params, mech)
+    result = require_finite(design_summary(params, mech), 'three-arm design')
     result['params'] = str(args.params)
     result['paper_comparison'] = paper_comparison(mech)
     if args.plot:
         from planter_ros.plots.three_arm import plot_design
-        plot_design(mech, params, args.plot)
+        with atomic_output(args.plot) as tmp:
+            plot_design(mech, params, tmp)
         result['plot'] = args.plot
-    print(json.dumps(result, indent=2) if args.json else format_table(result))
+    print(json.dumps(result, indent=2, allow_nan=False) if args.json else format_table(result))
     return 0
 
 

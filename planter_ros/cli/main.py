@@ -35,6 +35,14 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):
         raise BadInput(f'{self.prog}: {message}')
 
+    def _get_values(self, action, arg_strings):
+        # Python 3.11's argparse drops a '--' given as an option's value (`--seed=--`) and
+        # hands the option an empty list instead of calling its type check: refuse it here
+        if action.option_strings and action.nargs is None and arg_strings == ['--']:
+            raise BadInput(f'{self.prog}: argument {action.option_strings[0]}: expected one '
+                           'value, got --')
+        return super()._get_values(action, arg_strings)
+
 
 def _selected(argv):
     """The COMMANDS key the arguments name, if any (only its module gets imported)."""
@@ -70,16 +78,23 @@ def build_parser(argv=()):
 
 def main(argv=None):
     from planter_ros.config import ConfigError
+    from planter_ros.output_files import OutputError
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
         args = build_parser(argv).parse_args(argv)
         return int(args._run(args) or 0)
-    except (BadInput, ConfigError) as exc:
-        print(f'planter: error: {exc}', file=sys.stderr)
+    except (BadInput, ConfigError, OutputError) as exc:
+        print(f'planter: error: {one_line(str(exc))}', file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print('planter: interrupted', file=sys.stderr)
         return 130
+
+
+def one_line(text):
+    """`text` as one printable line: a newline or an undecodable byte from the user's own
+    arguments (surrogate escapes) is shown escaped, never printed raw."""
+    return ''.join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 if __name__ == '__main__':

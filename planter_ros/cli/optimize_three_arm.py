@@ -1,26 +1,48 @@
-"""`planter optimize three-arm`: search a three-arm design meeting all eight goals."""
+"""`planter optimize three-arm`: search a three-arm design meeting all eight goals.
 
-import math
-import os
+The base scene, the options and the output path are checked before the search starts; the scene
+file is written atomically once the result is known to be a valid design, so a failed or
+interrupted run never touches an existing --out."""
+
+from dataclasses import dataclass
 import sys
 
+from planter_ros.cli.options import output_file, require_finite, spec_option
+from planter_ros.config import check, setting
+
 DEFAULT_WORKERS = 2
-MAX_WORKERS = 64
+
+
+@dataclass(frozen=True)
+class OptimizeOptions:
+    """The search's own settings (the command-line options)."""
+
+    seed: int = setting(1, 'random seed: same seed, same result', range=(0, 2 ** 32 - 1))
+    max_time: float = setting(60.0, 'search time limit', unit='s', range=(0.01, 86400.0))
+    workers: int = setting(DEFAULT_WORKERS, 'processes scoring each generation (same result '
+                           'for any number)', range=(1, 64))
+
+    def __post_init__(self):
+        check(self)
 
 
 def add_arguments(parser):
-    parser.add_argument('--seed', type=int, default=1, help='random seed (same seed, same '
-                        'result; default 1)')
-    parser.add_argument('--max-time', type=float, default=60.0, metavar='S',
-                        help='stop after S seconds (default 60)')
-    parser.add_argument('--workers', type=int, default=DEFAULT_WORKERS, metavar='N',
+    parser.add_argument('--seed', type=spec_option(OptimizeOptions, 'seed', '--seed'), default=1,
+                        help='random seed, 0..2^32-1 (same seed, same result; default 1)')
+    parser.add_argument('--max-time', type=spec_option(OptimizeOptions, 'max_time',
+                                                       '--max-time'),
+                        default=60.0, metavar='S', help='stop after S seconds (default 60)')
+    parser.add_argument('--workers', type=spec_option(OptimizeOptions, 'workers', '--workers'),
+                        default=DEFAULT_WORKERS, metavar='N',
                         help='processes scoring each generation (same result for any N; '
                              f'default {DEFAULT_WORKERS})')
     parser.add_argument('--base', metavar='FILE', default=None,
                         help='scene whose crop values and control angles are kept (default '
                              'config/rice_three_arm.yaml)')
-    parser.add_argument('--out', metavar='FILE', default='three_arm_optimized.yaml',
-                        help='parameter file to write (default three_arm_optimized.yaml)')
+    parser.add_argument('--out', metavar='FILE.yaml', default='three_arm_optimized.yaml',
+                        type=output_file('--out', ('.yaml', '.yml')),
+                        help='parameter file to write, replaced atomically (default '
+                             'three_arm_optimized.yaml)')
 
 
 def _progress(elapsed, generation, best, passing, max_time):
@@ -37,27 +59,32 @@ def run(args):
 
     from planter_ros.cli.design_three_arm import format_table, load_params
     from planter_ros.cli.main import BadInput
+    from planter_ros.kinematics.errors import DesignError
     from planter_ros.kinematics.three_arm import ThreeArmMechanism, design_summary
     from planter_ros.optimize.three_arm import optimize
+    from planter_ros.output_files import atomic_output
     from planter_ros.scene_writer import write_scene
 
-    if not (math.isfinite(args.max_time) and args.max_time > 0):
-        raise BadInput(f'--max-time = {args.max_time} is out of range: allowed finite and > 0 s')
-    if not 1 <= args.workers <= MAX_WORKERS:
-        raise BadInput(f'--workers = {args.workers} is out of range: allowed 1..{MAX_WORKERS} '
-                       f'(this machine has {os.cpu_count()} cores)')
     base_path = args.base or Path(__file__).resolve().parents[2] / 'config' / \
         'rice_three_arm.yaml'
-    base = load_params(base_path)
+    base = load_params(base_path, '--base')
+    _check_control_angles(base, base_path)
     params, goals, info = optimize(base, seed=args.seed, max_time=args.max_time,
                                    progress=_progress, workers=args.workers)
     sys.stderr.write('\n')
+    try:           # the result must be a design before it may replace anything
+        summary = design_summary(params, ThreeArmMechanism.from_parameters(params))
+    except DesignError as exc:
+        raise BadInput(f'no valid design found in {info["seconds"]:.1f} s ({exc}); '
+                       f'{args.out} not written') from None
+    require_finite(summary, 'optimised design')
     header = (f"written by `planter optimize three-arm --seed {args.seed}`: "
               f"{sum(g.passed for g in goals) if goals else 0}/8 goals, "
               f"{info['generations']} generations, {info['evaluations']} designs, "
               f"{info['seconds']:.1f} s ({info['stopped']})")
-    write_scene(args.out, params, header)
-    summary = design_summary(params, ThreeArmMechanism.from_parameters(params))
+    with atomic_output(args.out) as tmp:
+        write_scene(tmp, params, header)
+        load_params(tmp, '--out')            # what is written reads back as a valid scene
     summary['params'] = args.out
     print(format_table(summary))
     print(f"search: {info['seconds']:.1f} s, {info['generations']} generations, "
@@ -65,3 +92,19 @@ def run(args):
           f"{info['workers']} process{'es' if info['workers'] > 1 else ''}), "
           f"stopped: {info['stopped']}")
     return 0
+
+
+def _check_control_angles(base, path):
+    """The search keeps the base's control angles: refuse them now if no design can use them
+    (tried with radii and installation values at the middle of the search domain)."""
+    from planter_ros.cli.main import BadInput
+    from planter_ros.kinematics.errors import DesignError
+    from planter_ros.kinematics.three_arm import ThreeArmMechanism
+    from planter_ros.optimize.three_arm import (
+        INSTALL_BOUNDS, RADIUS_BOUNDS, parameters_from_vector)
+    middle = [0.5 * sum(RADIUS_BOUNDS)] * len(base['control_angles']) + \
+        [0.5 * (lo + hi) for lo, hi in INSTALL_BOUNDS.values()]
+    try:
+        ThreeArmMechanism.from_parameters(parameters_from_vector(middle, base))
+    except DesignError as exc:
+        raise BadInput(f'--base {path}: {exc}') from None

@@ -2,8 +2,8 @@
 
 BAG is a .mcap file or a rosbag2 bag directory (split files `<name>_<n>.mcap`). The monitor's
 settings recorded in the bag are used unless given here. A bag that is not MCAP or lacks the
-needed topics is bad input (exit 2); a truncated bag is read up to its last intact chunk with a
-warning on stderr.
+needed topics is bad input (exit 2); of a damaged or cut-off bag every intact chunk is read,
+with a warning on stderr naming the log-time range lost.
 """
 
 import json
@@ -11,40 +11,66 @@ import math
 import sys
 
 from planter_ros import interfaces
+from planter_ros.cli.options import output_file, spec_option
+from planter_ros.kinematics.plant_prediction import PredictionSettings
 
 
 def add_arguments(parser):
     parser.add_argument('bag', help='a .mcap file or a rosbag2 bag directory')
     parser.add_argument('--json', action='store_true', help='machine-readable output (SI units)')
-    parser.add_argument('--plot', metavar='FILE.png',
+    parser.add_argument('--plot', metavar='FILE.png', type=output_file('--plot', ('.png',)),
                         help='plot spacing error and hole width along the row, tilt histogram')
-    parser.add_argument('--upright-threshold', type=float, metavar='RAD',
+    parser.add_argument('--upright-threshold', metavar='RAD',
+                        type=spec_option(PredictionSettings, 'upright_threshold',
+                                         '--upright-threshold'),
                         help='minimum stem angle to the ground for "upright" (rad; default: '
                              'the recorded setting, else 30 deg)')
-    parser.add_argument('--nozzle-width', type=float, metavar='M',
+    parser.add_argument('--nozzle-width', metavar='M',
+                        type=spec_option(PredictionSettings, 'nozzle_width', '--nozzle-width'),
                         help='nozzle width added to the hole (m; default: recorded, else 0)')
-    parser.add_argument('--window', type=int, metavar='N',
+    parser.add_argument('--window', metavar='N',
+                        type=spec_option(PredictionSettings, 'window', '--window'),
                         help='plants in the rolling uprightness rate (default: recorded, else 20)')
+    parser.add_argument('--scene', metavar='FILE',
+                        help="the run's scene: its design is used if the bag holds no usable "
+                             'design message (lost in a damaged part)')
+    parser.add_argument('--max-input-gap', metavar='S',
+                        type=spec_option(PredictionSettings, 'max_input_gap',
+                                         '--max-input-gap'),
+                        help='a longer gap in the ground speed or joint states ends the plant '
+                             'sequence (s; default: recorded, else 0.5)')
 
 
 def run(args):
     from planter_ros.cli.main import BadInput
+    from planter_ros.output_files import atomic_output
     from planter_ros.recording.replay import ReplayError, replay
+    design = None
+    if args.scene:
+        from planter_ros.kinematics.scene_design import design_for_scene
+        from planter_ros.scene import SceneError, load_scene
+        try:
+            design = design_for_scene(load_scene(args.scene, 'design_node'))
+        except SceneError as exc:
+            raise BadInput(str(exc)) from None
     try:
         result = replay(args.bag, {'upright_threshold': args.upright_threshold,
-                                   'nozzle_width': args.nozzle_width, 'window': args.window})
+                                   'nozzle_width': args.nozzle_width, 'window': args.window,
+                                   'max_input_gap': args.max_input_gap},
+                        fallback_design=design)
     except ReplayError as exc:
         raise BadInput(str(exc)) from None
     for warning in result.warnings:
         print(f'planter: warning: {warning}', file=sys.stderr)
+    if args.plot:
+        from planter_ros.plots.replay import plot_replay
+        with atomic_output(args.plot) as tmp:
+            plot_replay(result, tmp)
     if args.json:
         print(json.dumps(result.as_json(), indent=1, allow_nan=False))
     else:
         print(format_table(result))
-    if args.plot:
-        from planter_ros.plots.replay import plot_replay
-        plot_replay(result, args.plot)
-        if not args.json:
+        if args.plot:
             print(f'plot written to {args.plot}')
     return 0
 

@@ -163,7 +163,8 @@ class Cia402Drive:
             return var.raw
         except SdoCommunicationError as exc:
             raise self._fail(step, f'no SDO answer reading 0x{index:04X} '
-                                   f'(is the drive on {self.config.can_channel} as node '
+                                   f'(is the drive on {self.config.can_interface}:'
+                                   f'{self.config.can_channel} as node '
                                    f'{self.config.drive_node_id}? {exc})',
                              DriveTimeoutError) from None
         except (SdoAbortedError, KeyError) as exc:

@@ -16,9 +16,11 @@ from .errors import DriveConfigError
 class DriveConfig:
     """CiA 402 drive on a python-can bus (SI units)."""
 
-    can_interface: str = setting('virtual', "python-can interface: 'socketcan' on a machine, "
-                                 "'virtual' in tests and the demo", read_only=True)
-    can_channel: str = setting('planter0', "CAN channel: 'can0' on a machine", read_only=True)
+    can_interface: str = setting('socketcan', "python-can interface: 'socketcan' on a machine "
+                                 "(as the launch file); the demo and the tests pass 'virtual'",
+                                 read_only=True)
+    can_channel: str = setting('can0', 'CAN channel (SocketCAN network interface, or the name '
+                               'of a virtual bus)', read_only=True)
     can_bitrate: int = setting(500_000, 'CAN bit rate', unit='bit/s', range=(10_000, 1_000_000),
                                read_only=True)
     drive_node_id: int = setting(1, 'CANopen node id of the servo drive', range=(1, 127),

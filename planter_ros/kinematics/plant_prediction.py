@@ -21,6 +21,12 @@ the three-arm at its lowest point). For each plant:
 * upright: the stem's angle to the ground, π/2 - |tilt|, at least `upright_threshold`;
   and a rolling uprightness rate over the last N plants.
 
+Gaps in the inputs: where two consecutive joint samples, or two consecutive accepted ground-speed
+samples, are more than `max_input_gap` apart, nothing is known about what happened in between.
+A plant whose instant falls in such a gap is not reported (it would be invented by
+interpolating across the gap), and the first plant after a gap starts a new sequence: it has no
+spacing (NaN), like the first plant of a stream. The plant numbering and the rolling rate go on.
+
 `predict_plants` does a whole recording at once (vectorised, used by replay); `PlantPredictor`
 does the same sample by sample (the live monitor) with the same arithmetic, so both agree.
 Pure numpy/scipy: no ROS here.
@@ -225,6 +231,10 @@ class PredictionSettings:
                                        'fallen, no standard value is confirmed', unit='rad',
                                        range=(0.0, 0.5 * math.pi))
     window: int = setting(20, 'plants in the rolling uprightness rate', range=(1, 10000))
+    max_input_gap: float = setting(0.5, 'longest time between two ground-speed or two joint '
+                                   'samples that is interpolated; a longer gap reports no plant '
+                                   'inside it and the first plant after it has no spacing',
+                                   unit='s', range=(0.01, 3600.0))
     # which ground-speed samples to believe: the sync node's rule (spikes, NaN, too fast)
     speed_limits: GroundSpeedLimits = GroundSpeedLimits()
 
@@ -396,18 +406,43 @@ def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
     i = np.searchsorted(theta, theta_k, side='left')
     t_e, omega = _crossing(theta_k, jt[i - 1], jt[i], theta[i - 1], theta[i], jw[i - 1], jw[i])
 
+    gap = settings.max_input_gap
     j = np.searchsorted(st, t_e, side='right')
     located = (j >= 1) & (j < st.size)
-    t_e, omega, j = t_e[located], omega[located], j[located]
+    jc = np.clip(j, 1, st.size - 1)
+    # a plant inside a gap of either input would be invented by interpolation: not reported
+    keep = located & (jt[i] - jt[i - 1] <= gap) & (st[jc] - st[jc - 1] <= gap)
+    t_e, omega, j = t_e[keep], omega[keep], j[keep]
     v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
+    starts = np.concatenate((_gaps(jt, gap), _gaps(st, gap)))
     return _assemble(model, settings, t_e, omega, v_e, s_e, index0=0, prev_position=np.nan,
-                     recent=())
+                     recent=(), new_sequence=_after_gap(t_e, -np.inf, starts))
 
 
-def _assemble(model, settings, t_e, omega, v_e, s_e, index0, prev_position, recent):
+def _gaps(t, gap):
+    """(start, end) of every interval between consecutive samples `t` longer than `gap`."""
+    k = np.nonzero(np.diff(t) > gap)[0]
+    return np.column_stack((t[k], t[k + 1]))
+
+
+def _after_gap(t_e, t_before, gaps):
+    """For plants at increasing instants `t_e` (the previous one at `t_before`): does an input
+    gap (rows of start, end) lie between each plant and the one before it?"""
+    if not len(gaps) or not t_e.size:
+        return np.zeros(t_e.size, dtype=bool)
+    order = np.argsort(gaps[:, 0], kind='stable')
+    starts, latest_end = gaps[order, 0], np.maximum.accumulate(gaps[order, 1])
+    before = np.concatenate(([t_before], t_e[:-1]))
+    n = np.searchsorted(starts, t_e, side='left')          # gaps starting before each plant
+    return (n > 0) & (latest_end[np.maximum(n - 1, 0)] > before)
+
+
+def _assemble(model, settings, t_e, omega, v_e, s_e, index0, prev_position, recent,
+              new_sequence):
     ratio, hole, tilt, upright = plant_values(model, settings, omega, v_e)
     n = t_e.size
     spacing = np.diff(np.concatenate(([prev_position], s_e)))
+    spacing[new_sequence] = np.nan         # no spacing across a gap in the inputs
     # rolling rate over the last `window` plants, continuing from `recent` flags
     window = settings.window
     history = np.concatenate((np.asarray(recent, dtype=float), upright))
@@ -439,6 +474,8 @@ class PlantPredictor:
         self._pending = []                               # (t_e, ω)
         self._count = 0
         self._prev_position = math.nan
+        self._prev_time = -math.inf                      # instant of the last plant reported
+        self._gaps = []                                  # input gaps (start, end) since then
         self._recent = deque(maxlen=settings.window)
 
     def add_speed(self, t, v):
@@ -452,6 +489,8 @@ class PlantPredictor:
         if self._speed:
             t0, v0, s0 = self._speed[-1]
             s = s0 + 0.5 * (v0 + v) * (t - t0)
+            if t - t0 > self.settings.max_input_gap:
+                self._gaps.append((t0, t))
         else:
             s = 0.0
         self._speed.append((t, v, s))
@@ -470,10 +509,14 @@ class PlantPredictor:
         if not t > t0:
             return self._nothing()
         th1 = max(th0, position)
+        in_gap = t - t0 > self.settings.max_input_gap
+        if in_gap:
+            self._gaps.append((t0, t))
         while _threshold(self.model, float(self._next_k)) <= th1:
             theta_k = _threshold(self.model, float(self._next_k))
             t_e, omega = _crossing(theta_k, t0, t, th0, th1, w0, velocity)
-            self._pending.append((float(t_e), float(omega)))
+            if not in_gap:             # a crossing inside a gap would be invented
+                self._pending.append((float(t_e), float(omega)))
             self._next_k += 1
         self._joint = (t, th1, velocity)
         return self._resolve()
@@ -497,13 +540,21 @@ class PlantPredictor:
         for t_e, omega in done:
             j = _bisect_right(times, t_e)
             (t0, v0, s0), (t1, v1, _) = self._speed[j - 1], self._speed[j]
+            if t1 - t0 > self.settings.max_input_gap:
+                continue                # inside a gap of the ground speed: not reported
             v_e, s_e = _at_speed(np.float64(t_e), t0, t1, v0, v1, s0)
             rows.append((t_e, omega, float(v_e), float(s_e)))
+        if not rows:
+            return self._nothing()
         t_e, omega, v_e, s_e = (np.array(c) for c in zip(*rows))
+        new_sequence = _after_gap(t_e, self._prev_time, np.array(self._gaps).reshape(-1, 2))
         plants = _assemble(self.model, self.settings, t_e, omega, v_e, s_e, self._count,
-                           self._prev_position, tuple(self._recent))
+                           self._prev_position, tuple(self._recent), new_sequence)
         self._count += len(plants)
         self._prev_position = float(plants.position[-1])
+        self._prev_time = float(plants.time[-1])
+        # a gap ending before the last plant can no longer lie between two future plants
+        self._gaps = [g for g in self._gaps if g[1] > self._prev_time]
         self._recent.extend(plants.upright.tolist())
         return plants
 

@@ -10,6 +10,7 @@ joint_states. The blocking enable runs once at start-up, never in a callback. A 
 
 from dataclasses import dataclass
 import json
+import logging
 import math
 import sys
 import threading
@@ -237,24 +238,74 @@ class SyncNode(Node):
                 for r in reports]
 
 
+class LibraryLog(logging.Handler):
+    """python-can and canopen (and our drive master) log through `logging`; with no handler
+    Python prints their warnings raw on stderr, e.g. canopen's SDO abort just before our own
+    error. Until the drive is enabled their records are held (a failed start is said in our
+    one line, which names the cause); from then on they go to the node's ROS log."""
+
+    LOGGERS = ('can', 'canopen', 'planter_ros.drive')
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.held = []
+        self.node = None
+        self._saved = []
+        for name in self.LOGGERS:
+            logger = logging.getLogger(name)
+            self._saved.append((logger, logger.propagate))
+            logger.addHandler(self)
+            logger.propagate = False
+
+    def emit(self, record):
+        text = f'{record.name}: {record.getMessage()}'
+        if self.node is None:
+            self.held.append(text)
+        else:
+            self.node.get_logger().warning(text)
+
+    def close(self):
+        for logger, propagate in self._saved:
+            logger.removeHandler(self)
+            logger.propagate = propagate
+        super().close()
+
+
+def start_error(exc, config):
+    """Our one line for a failed start: the cause, the bus and drive it was tried on, and the
+    parameters that choose them."""
+    text = f'sync_node: error: {str(exc).splitlines()[0]}'
+    if config is None or not isinstance(exc, DriveError):
+        return text
+    return (f'{text} [tried can_interface={config.can_interface}, can_channel='
+            f'{config.can_channel}, drive_node_id={config.drive_node_id}; choose them with '
+            '--ros-args -p can_interface:=<socketcan|virtual|...> -p can_channel:=<can0|...> '
+            '-p drive_node_id:=<1..127>]')
+
+
 def main(args=None):
     rclpy.init(args=args)
+    library_log = LibraryLog()
     node = None
-    code = 0
+    error = None
     try:
         node = SyncNode(namespace=interfaces.NAMESPACE)
         node.enable_drive()
+        library_log.node = node
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (DriveError, ConfigError, ParameterException) as exc:
-        print(f'sync_node: error: {str(exc).splitlines()[0]}', file=sys.stderr)
-        code = 1
+        error = start_error(exc, node.drive_config if node is not None else None)
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    return code
+        library_log.close()
+    if error is not None:            # last, after the shutdown: nothing follows our line
+        print(error, file=sys.stderr)
+        return 1
+    return 0
 
 
 if __name__ == '__main__':

@@ -3,8 +3,10 @@
 A bag is a .mcap file or a rosbag2 bag directory of split files `<name>_<n>.mcap`. Topics are
 found by their name's last part and their type (the contract in planter_ros.interfaces), in any
 namespace, preferring the default one. Finalised files are read with `rosbags` (raw bytes, the
-fastest reader here); a file without its summary (a killed recorder) or with a damaged chunk
-is read record by record up to what is intact (recording.recovery), with a warning.
+fastest reader here); a file without its summary (a killed recorder) or with damaged bytes is
+read chunk by chunk, every intact chunk kept (recording.recovery). Whatever is lost - a damaged
+chunk, a cut-off end, a split file missing from a bag directory - is reported as a warning with
+the log-time range it covered, relative to the bag's first message.
 """
 
 from dataclasses import dataclass, field
@@ -13,7 +15,7 @@ import re
 
 from planter_ros import interfaces
 
-from .recovery import one_line, read_records
+from .recovery import Loss, UnreadableError, one_line, read_records
 
 MAGIC = b'\x89MCAP0\r\n'
 
@@ -24,15 +26,64 @@ class BagError(ValueError):
 
 def bag_files(path):
     """The .mcap files of a bag: the file itself, or a directory's files in split order."""
+    return _bag_parts(path)[0]
+
+
+def _bag_parts(path):
+    """(files present in split order, [(index in that order, Loss)] for missing split files).
+
+    A directory's metadata.yaml (rosbag2) lists its files and their time ranges; without it,
+    a hole in the numbering `<name>_<n>.mcap` is a missing file whose range lies between its
+    neighbours' messages (filled in by read_recording)."""
     path = Path(path)
     if not path.exists():
         raise BagError(f'bag {path} does not exist')
-    if path.is_dir():
-        files = sorted(path.glob('*.mcap'), key=_split_index)
-        if not files:
-            raise BagError(f'bag directory {path} holds no .mcap files')
-        return files
-    return [path]
+    if not path.is_dir():
+        return [path], []
+    files = sorted(path.glob('*.mcap'), key=_split_index)
+    if not files:
+        raise BagError(f'bag directory {path} holds no .mcap files')
+    missing = []
+    listed = _listed_files(path)
+    if listed:
+        present = {f.name for f in files}
+        order = {name: i for i, (name, _, _) in enumerate(listed)}
+        files.sort(key=lambda f: (order.get(f.name, len(order)), _split_index(f)))
+        for name, start, end in listed:
+            if name not in present:
+                before = sum(1 for f in files if order.get(f.name, len(order)) < order[name])
+                missing.append((before, Loss(start, end, f'split file {name} is missing')))
+        return files, missing
+    numbered = [(_split_index(f)[0], f) for f in files]
+    indexes = [n for n, _ in numbered if n >= 0]
+    if indexes:
+        stem = re.sub(r'_\d+$', '', numbered[-1][1].stem)
+        have = set(indexes)
+        for n in range(0, max(indexes)):
+            if n not in have:
+                before = sum(1 for i, _ in numbered if i < n)
+                missing.append((before, Loss(None, None, f'split file {stem}_{n}.mcap is '
+                                                         'missing')))
+    return files, missing
+
+
+def _listed_files(directory):
+    """[(file name, start ns, end ns)] from a rosbag2 metadata.yaml, or [] (none, unreadable)."""
+    from planter_ros.scene import SceneError, load_yaml
+    meta = directory / 'metadata.yaml'
+    try:
+        if not meta.is_file() or meta.stat().st_size > (1 << 20):
+            return []
+        info = load_yaml(meta.read_text(), str(meta)).get('rosbag2_bagfile_information', {})
+        times = {}
+        for entry in info.get('files') or ():
+            start = int(entry['starting_time']['nanoseconds_since_epoch'])
+            times[entry['path']] = (start, start + int(entry['duration']['nanoseconds']))
+        return [(Path(str(name)).name, *times.get(name, (None, None)))
+                for name in info.get('relative_file_paths') or ()]
+    except (OSError, UnicodeDecodeError, SceneError, AttributeError, KeyError, TypeError,
+            ValueError):
+        return []
 
 
 def _split_index(path):
@@ -76,6 +127,7 @@ class Recording:
     metadata: dict                # MCAP metadata records: name -> {key: value}
     warnings: list
     message_count: int = 0
+    losses: list = field(default_factory=list)     # one line per lost part (also in warnings)
 
 
 def pick_topics(channels, wanted):
@@ -95,21 +147,35 @@ def pick_topics(channels, wanted):
 
 def read_recording(path, wanted):
     """Read the `wanted` topics (interfaces.Topic) of a bag as raw CDR, in file order."""
-    files = bag_files(path)
+    files, missing = _bag_parts(path)
     topics, all_topics, metadata, warnings = {}, {}, {}, []
+    losses = []                     # (Loss, last log time before it, first log time after it)
+    spans = []                      # (first, last) log time of the wanted messages per file
     count = 0
     for file in files:
         channels = messages = None
+        file_losses = []
         if check_magic(file):
             try:
                 channels, messages, file_metadata = _read_fast(file, wanted)
             except Exception as exc:           # a damaged file: say so, read what is intact
-                warnings.append(f'{file}: {one_line(exc)}; reading up to the last intact chunk')
+                warnings.append(f'{file}: {one_line(exc)}; reading every intact chunk')
         else:
-            warnings.append(f'{file} is not finalised (recorder killed?): reading up to its '
-                            'last intact chunk')
+            warnings.append(f'{file} is not finalised (recorder killed?): reading every intact '
+                            'chunk')
         if channels is None:
-            channels, messages, file_metadata = read_records(file, warnings)
+            try:
+                found = read_records(file)
+            except UnreadableError as exc:
+                if len(files) == 1:
+                    raise BagError(str(exc)) from None
+                warnings.append(f'{exc}: file skipped')
+                found = None
+            if found is not None:
+                channels, messages = found.channels, found.messages
+                file_metadata, file_losses = found.metadata, found.losses
+            else:
+                channels, messages, file_metadata = {}, [], {}
         all_topics.update({name: t for name, t in channels.values()})
         metadata.update(file_metadata)
         picked = pick_topics(channels, wanted)
@@ -120,13 +186,42 @@ def read_recording(path, wanted):
                 topics[topic] = TopicMessages(topic, name)
             elif known.name != name:          # another namespace in a later split: not ours
                 by_channel = {c: t for c, t in by_channel.items() if t is not topic}
+        first = last = None
         for cid, log_time, data in messages:
             topic = by_channel.get(cid)
             if topic is not None:
                 topics[topic].log.append(log_time)
                 topics[topic].raw.append(data)
                 count += 1
-    return Recording(files, topics, all_topics, metadata, warnings, count)
+                first = log_time if first is None else min(first, log_time)
+                last = log_time if last is None else max(last, log_time)
+        spans.append((first, last))
+        losses += [(loss, file) for loss in file_losses]
+    for before, loss in missing:     # a missing split file lies between its neighbours
+        if loss.start is None:
+            loss.start = next((s[1] for s in reversed(spans[:before]) if s[1] is not None),
+                              None)
+        if loss.end is None:
+            loss.end = next((s[0] for s in spans[before:] if s[0] is not None), None)
+        losses.append((loss, Path(path)))
+    known = [s[0] for s in spans if s[0] is not None] + \
+        [t for loss, _ in losses for t in (loss.start, loss.end) if t is not None]
+    t0 = min(known) if known else None
+    lost = [f'{where}: {loss.what}; {_lost_range(loss, t0)}' for loss, where in losses]
+    return Recording(files, topics, all_topics, metadata, warnings + lost, count, lost)
+
+
+def _lost_range(loss, t0):
+    """The log times a loss covered, in s after the bag's first message, for people."""
+    def at(ns):
+        return f'{(ns - t0) * 1e-9:.3f} s' if t0 is not None else f'{ns * 1e-9:.3f} s (epoch)'
+    if loss.start is not None and loss.end is not None:
+        return f'messages logged {at(loss.start)} to {at(loss.end)} after the start are lost'
+    if loss.start is not None:
+        return f'messages logged after {at(loss.start)} are lost'
+    if loss.end is not None:
+        return f'messages logged before {at(loss.end)} are lost'
+    return 'the time range lost is unknown'
 
 
 def _read_fast(file, wanted):

@@ -1,7 +1,79 @@
-"""Reading what is intact in an MCAP file that cannot be read the fast way: a file without its
-summary (a killed recorder) or with a damaged record. Records are read in file order with their
-CRCs checked, up to the first damaged or missing one; what came before it is kept and the loss
-is reported as a warning."""
+"""Reading everything intact in an MCAP file the fast reader refused: a file without its summary
+(a killed recorder) or with damaged bytes anywhere.
+
+* With an intact summary (footer, summary CRC), the chunk index says where every chunk is and
+  which log times it holds: each chunk is read and its CRC checked on its own, a damaged one is
+  skipped and reported with its exact time range.
+* Without one, the records are read in file order; after a damaged record the reader
+  resynchronises on the next chunk whose header is consistent and whose CRC matches, and the
+  loss is the time between the last intact message before and the first one after.
+* A file with no valid record in its first SCAN_LIMIT bytes is refused, so a file of garbage is
+  turned down in well under a second whatever its size.
+
+Chunks hold the schema and channel records of a file without summary (the mcap writer puts them
+in the chunk open when they are registered, i.e. the first): if that chunk is damaged, the
+messages of later chunks cannot be given a topic and are counted as lost.
+"""
+
+from dataclasses import dataclass, field
+import io
+import mmap
+import struct
+import zlib
+
+SCAN_LIMIT = 16 << 20          # bytes searched for a first valid record
+MAX_CHUNK = 1 << 30            # a chunk header claiming more than this is not believed
+COMPRESSIONS = ('', 'zstd', 'lz4')
+_OPCODES = range(0x01, 0x10)
+_FOOTER_LENGTH = 20            # summary_start u64, summary_offset_start u64, summary_crc u32
+_MAGIC_SIZE = 8
+
+
+class UnreadableError(ValueError):
+    """No valid MCAP record where one must be (one line)."""
+
+
+class _BadRecord(ValueError):
+    """Not a whole, valid record at `pos`; `reason` says why in a few words."""
+
+    def __init__(self, pos, reason):
+        super().__init__(f'record at byte {pos}: {reason}')
+        self.reason = reason
+
+
+@dataclass
+class Loss:
+    """Messages a damaged or missing part of a bag held: log times (ns, None = unknown)."""
+
+    start: int | None
+    end: int | None
+    what: str
+
+
+@dataclass
+class Recovered:
+    """What a careful read found: channels {id: (topic, schema name)}, messages [(channel id,
+    log time ns, CDR bytes)], metadata {record name: {key: value}}, and the losses."""
+
+    channels: dict = field(default_factory=dict)
+    messages: list = field(default_factory=list)
+    metadata: dict = field(default_factory=dict)
+    losses: list = field(default_factory=list)
+    _schemas: dict = field(default_factory=dict)
+
+    def add(self, record):
+        from mcap.records import Channel, Message, Metadata, Schema
+        if isinstance(record, Schema):
+            self._schemas[record.id] = record.name
+        elif isinstance(record, Channel):
+            self.channels[record.id] = (record.topic, self._schemas.get(record.schema_id, ''))
+        elif isinstance(record, Message):
+            self.messages.append((record.channel_id, record.log_time, record.data))
+        elif isinstance(record, Metadata):
+            self.metadata[record.name] = dict(record.metadata)
+
+    def last_time(self):
+        return max((m[1] for m in self.messages[-1000:]), default=None)
 
 
 def one_line(exc):
@@ -10,24 +82,205 @@ def one_line(exc):
     return f'{type(exc).__name__}: {text[0]}' if text else type(exc).__name__
 
 
-def read_records(file, warnings):
-    """Stream `file`: (channels {id: (topic, schema name)}, messages [(channel id, log time ns,
-    CDR bytes)], metadata {record name: {key: value}}). Appends a warning if it stopped early."""
-    from mcap.records import Channel, Message, Metadata, Schema
-    from mcap.stream_reader import StreamReader
-    schemas, channels, messages, metadata = {}, {}, [], {}
+def read_records(file):
+    """Read every intact record of `file` (see the module doc): a Recovered.
+    UnreadableError if no valid record is found at all."""
+    with open(file, 'rb') as f:
+        size = f.seek(0, 2)
+        if size <= _MAGIC_SIZE:
+            raise UnreadableError(f'{file} holds no MCAP record (file of {size} bytes)')
+        with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
+            summary = _summary(data)
+            if summary is not None and summary['chunks']:
+                out = _read_indexed(data, summary)
+            else:
+                out = _scan(data, file)
+    known = set(out.channels)
+    orphans = sum(1 for m in out.messages if m[0] not in known)
+    if orphans:
+        out.losses.append(Loss(None, None, f'{orphans} messages whose channel definitions were '
+                                           'in a damaged part'))
+    return out
+
+
+# ----------------------------------------------------------------------------- records
+
+def _record_at(data, pos, end=None):
+    """(opcode, record or None for an unknown/ignored kind, end offset) of the record at pos;
+    _BadRecord if it is not a whole, valid record. Chunks are opened and CRC-checked."""
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import (
+        Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, Metadata, MetadataIndex,
+        Schema, Statistics)
+    end = len(data) if end is None else end
+    if pos + 9 > end:
+        raise _BadRecord(pos, 'record header cut off')
+    opcode = data[pos]
+    (length,) = struct.unpack_from('<Q', data, pos + 1)
+    if opcode not in _OPCODES:
+        raise _BadRecord(pos, f'no record opcode (0x{opcode:02X})')
+    stop = pos + 9 + length
+    if stop > end:
+        raise _BadRecord(pos, 'record runs past the end of the file')
+    kinds = {0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
+             0x08: ChunkIndex, 0x0B: Statistics, 0x0D: MetadataIndex, 0x0F: DataEnd}
+    stream = ReadDataStream(io.BytesIO(data[pos + 9:stop]))
     try:
-        with open(file, 'rb') as f:
-            for record in StreamReader(f, validate_crcs=True).records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = record.name
-                elif isinstance(record, Channel):
-                    channels[record.id] = (record.topic, schemas.get(record.schema_id, ''))
-                elif isinstance(record, Message):
-                    messages.append((record.channel_id, record.log_time, record.data))
-                elif isinstance(record, Metadata):
-                    metadata[record.name] = dict(record.metadata)
-    except Exception as exc:     # truncated or corrupt: keep what was read before it
-        warnings.append(f'{file}: stopped at a damaged record ({one_line(exc)}); '
-                        f'{len(messages)} messages recovered')
-    return channels, messages, metadata
+        if opcode == 0x06:
+            _check_chunk_header(data, pos, length)
+            record = Chunk.read(stream)
+            _open_chunk(record)
+        elif opcode == 0x05:
+            record = Message.read(stream, length)
+        elif opcode in kinds:
+            record = kinds[opcode].read(stream)
+        else:                        # message/attachment indexes, attachments: not needed
+            record = None
+    except Exception as exc:         # struct, zstd, CRC, UTF-8, mcap's EndOfFile, ...
+        reason = 'CRC mismatch' if type(exc).__name__ == 'CRCValidationError' else one_line(exc)
+        raise _BadRecord(pos, reason) from None
+    return opcode, record, stop
+
+
+def _check_chunk_header(data, pos, length):
+    """Cheap consistency of a chunk header (before anything is decompressed)."""
+    body = pos + 9
+    if length < 8 + 8 + 8 + 4 + 4 + 8:
+        raise ValueError('chunk too short')
+    start, end, uncompressed = struct.unpack_from('<QQQ', data, body)
+    (n,) = struct.unpack_from('<I', data, body + 28)
+    if start > end or uncompressed > MAX_CHUNK or n > 8 or body + 32 + n + 8 > pos + 9 + length:
+        raise ValueError('inconsistent chunk header')
+    if bytes(data[body + 32:body + 32 + n]).decode('ascii', 'replace') not in COMPRESSIONS:
+        raise ValueError('unknown chunk compression')
+    (records,) = struct.unpack_from('<Q', data, body + 32 + n)
+    if body + 32 + n + 8 + records > pos + 9 + length:
+        raise ValueError('chunk records run past the chunk')
+
+
+def _open_chunk(chunk):
+    """The chunk's records, its CRC checked (a chunk written without CRC must at least parse)."""
+    from mcap.stream_reader import breakup_chunk
+    chunk.records = breakup_chunk(chunk, validate_crc=True)
+
+
+# ----------------------------------------------------------------------------- with summary
+
+def _summary(data):
+    """The summary section's schemas, channels, chunk and metadata indexes, if the footer and
+    the summary CRC are intact; else None (then the file is scanned)."""
+    from mcap.records import Channel, ChunkIndex, Footer, MetadataIndex, Schema
+    size = len(data)
+    footer_at = size - _MAGIC_SIZE - 9 - _FOOTER_LENGTH
+    if footer_at < _MAGIC_SIZE or bytes(data[size - _MAGIC_SIZE:]) != b'\x89MCAP0\r\n':
+        return None
+    try:
+        _, footer, _ = _record_at(data, footer_at, size - _MAGIC_SIZE)
+    except ValueError:
+        return None
+    if not isinstance(footer, Footer) or not _MAGIC_SIZE <= footer.summary_start < footer_at:
+        return None
+    if footer.summary_crc and zlib.crc32(data[footer.summary_start:footer_at + 9 + 16]) \
+            != footer.summary_crc:
+        return None
+    out = {'schemas': {}, 'channels': {}, 'chunks': [], 'metadata': []}
+    pos = footer.summary_start
+    try:
+        while pos < footer_at:
+            _, record, pos = _record_at(data, pos, footer_at)
+            if isinstance(record, Schema):
+                out['schemas'][record.id] = record.name
+            elif isinstance(record, Channel):
+                out['channels'][record.id] = record
+            elif isinstance(record, ChunkIndex):
+                out['chunks'].append(record)
+            elif isinstance(record, MetadataIndex):
+                out['metadata'].append(record)
+    except ValueError:
+        return None
+    return out
+
+
+def _read_indexed(data, summary):
+    from mcap.records import Chunk, Metadata
+    out = Recovered()
+    out._schemas.update(summary['schemas'])
+    for cid, channel in summary['channels'].items():
+        out.channels[cid] = (channel.topic, summary['schemas'].get(channel.schema_id, ''))
+    for index in sorted(summary['chunks'], key=lambda c: c.chunk_start_offset):
+        try:
+            _, chunk, _ = _record_at(data, index.chunk_start_offset)
+            if not isinstance(chunk, Chunk):
+                raise _BadRecord(index.chunk_start_offset, 'not a chunk')
+        except _BadRecord as exc:
+            out.losses.append(Loss(index.message_start_time, index.message_end_time,
+                                   f'damaged chunk at byte {index.chunk_start_offset} '
+                                   f'({exc.reason})'))
+            continue
+        for record in chunk.records:
+            out.add(record)
+    for index in summary['metadata']:
+        try:
+            _, record, _ = _record_at(data, index.offset)
+        except ValueError:
+            record = None
+        if isinstance(record, Metadata):
+            out.add(record)
+        else:
+            out.losses.append(Loss(None, None, f'metadata record {index.name!r} damaged'))
+    return out
+
+
+# ----------------------------------------------------------------------------- without
+
+def _scan(data, file):
+    """Records in file order; resynchronise on the next valid chunk after damage."""
+    from mcap.records import Chunk, DataEnd, Footer
+    out = Recovered()
+    size = len(data)
+    pos = _MAGIC_SIZE
+    valid = False
+    while pos < size:
+        try:
+            _, record, stop = _record_at(data, pos)
+        except ValueError as exc:
+            before = out.last_time()
+            limit = size if valid else min(size, _MAGIC_SIZE + SCAN_LIMIT)
+            found = _next_chunk(data, pos + 1, limit)
+            if found is None:
+                if not valid:
+                    raise UnreadableError(
+                        f'{file} holds no valid MCAP record in its first '
+                        f'{min(size, _MAGIC_SIZE + SCAN_LIMIT)} bytes ({exc})') from None
+                if pos < size - _MAGIC_SIZE or bytes(data[pos:]) != b'\x89MCAP0\r\n':
+                    out.losses.append(Loss(before, None, f'cut off or damaged from byte {pos} '
+                                                         f'({exc.reason})'))
+                break
+            start, chunk = found
+            out.losses.append(Loss(before, chunk.message_start_time,
+                                   f'damaged bytes {pos}..{start} ({exc.reason})'))
+            pos = start
+            continue
+        valid = True
+        if isinstance(record, Chunk):
+            for inner in record.records:
+                out.add(inner)
+        elif isinstance(record, (DataEnd, Footer)):
+            break                    # the summary repeats what was read
+        elif record is not None:
+            out.add(record)
+        pos = stop
+    return out
+
+
+def _next_chunk(data, start, stop):
+    """(offset, Chunk) of the first intact chunk at or after `start` and before `stop`."""
+    while True:
+        at = data.find(b'\x06', start, stop)
+        if at < 0:
+            return None
+        try:
+            _, record, _ = _record_at(data, at)
+            return at, record
+        except ValueError:
+            start = at + 1

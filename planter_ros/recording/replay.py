@@ -12,6 +12,7 @@ predicted, a changed design starts a new row, stamps of 0 mean "use the receive 
 
 from dataclasses import dataclass
 import json
+import struct
 
 import numpy as np
 
@@ -67,29 +68,36 @@ def settings_from_recording(recorded, overrides=None, warnings=None):
     return config.from_mapping(PredictionSettings, values)
 
 
-def replay(path, settings_overrides=None, with_recorded=False):
+def replay(path, settings_overrides=None, with_recorded=False, fallback_design=None):
     """Re-run the prediction model on a bag. Raises ReplayError for an unusable bag and
-    ConfigError for a bad setting override."""
+    ConfigError for a bad setting override. `fallback_design` (a design dict, e.g. of the scene
+    the run used) stands in for the whole bag when it holds no usable design message (lost in
+    a damaged part); it is ignored, with a warning, when the bag has its own."""
     wanted = REQUIRED + ((interfaces.PLANTS,) if with_recorded else ())
     try:
         rec = read_recording(path, wanted)
     except BagError as exc:
         raise ReplayError(str(exc)) from None
-    missing = [t for t in REQUIRED if t not in rec.topics]
+    required = REQUIRED if fallback_design is None else REQUIRED[:2]
+    missing = [t for t in required if t not in rec.topics]
     if missing:
         found = ', '.join(f'{n} ({t})' for n, t in sorted(rec.all_topics.items())) or 'none'
         want = ', '.join(f'.../{t.name} ({t.type_name})' for t in missing)
         raise ReplayError(f'bag {path} lacks {want}; topics found: {found}')
-    design_topic = rec.topics[interfaces.DESIGN]
-    if not design_topic.raw:
-        raise ReplayError(f'bag {path} has a design topic but no design message')
+    design_topic = rec.topics.get(interfaces.DESIGN)
     settings = settings_from_recording(
         rec.metadata.get(interfaces.PREDICTION_SETTINGS_RECORD, {}), settings_overrides,
         rec.warnings)
 
     designs = []         # (log ns, text, design, model) of each change
-    for log, raw in sorted(zip(design_topic.log, design_topic.raw), key=lambda x: x[0]):
-        text = decode_string(raw)
+    undecodable = 0
+    for log, raw in sorted(zip(design_topic.log, design_topic.raw) if design_topic else (),
+                           key=lambda x: x[0]):
+        try:
+            text = decode_string(raw)
+        except (ValueError, IndexError, struct.error):
+            undecodable += 1     # empty, cut short or not UTF-8 (CdrError is a ValueError)
+            continue
         if designs and designs[-1][1] == text:
             continue
         try:
@@ -100,8 +108,26 @@ def replay(path, settings_overrides=None, with_recorded=False):
                                 f'{str(exc).splitlines()[0]}')
             continue
         designs.append((log, text, design, model))
+    if undecodable:
+        rec.warnings.append(f'{undecodable} design message(s) could not be decoded (empty, cut '
+                            'short or not UTF-8 text): skipped')
+    if fallback_design is not None:
+        if designs:
+            rec.warnings.append('the bag holds its own design: the scene given is not used')
+        else:
+            try:
+                model = planting_model_from_design(fallback_design)
+            except ConfigError as exc:
+                raise ReplayError(f'the scene given has no usable design: {exc}') from None
+            designs.append((np.iinfo(np.int64).min, '', fallback_design, model))
+            rec.warnings.append('the bag holds no usable design message: the whole bag is '
+                                "predicted with the scene's design")
     if not designs:
-        raise ReplayError(f'bag {path} has no usable design message')
+        what = 'no usable design message' if design_topic and design_topic.raw else \
+            'no design message'
+        lost = f'; {len(rec.losses)} part(s) of it are lost ({rec.losses[0]}), the design may '\
+            "have been there: give the run's scene (--scene FILE)" if rec.losses else ''
+        raise ReplayError(f'bag {path} has {what}{lost}')
 
     speed = rec.topics[interfaces.GROUND_SPEED]
     joint = rec.topics[interfaces.JOINT_STATES]
@@ -112,6 +138,7 @@ def replay(path, settings_overrides=None, with_recorded=False):
     s_log = s_log[s_order]
     j_log = j_log[j_order]
     s_stamp, s_v = decode_ground_speed([speed.raw[i] for i in s_order])
+    _count_undecodable(rec.warnings, interfaces.GROUND_SPEED.name, s_stamp, s_v)
     parts = []
     for k, (log, _, design, model) in enumerate(designs):
         end = designs[k + 1][0] if k + 1 < len(designs) else np.iinfo(np.int64).max
@@ -119,6 +146,7 @@ def replay(path, settings_overrides=None, with_recorded=False):
         s_sel = (s_log > log) & (s_log <= end)
         j_idx = np.nonzero((j_log > log) & (j_log <= end))[0]
         j_stamp, j_pos, j_vel = decode_joint_states([joint.raw[j_order[i]] for i in j_idx], name)
+        _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp, j_pos)
         st = np.where(s_stamp[s_sel] != 0, s_stamp[s_sel], s_log[s_sel]) * 1e-9
         jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
         # each design starts a new row, numbered from 0 like the live monitor
@@ -135,9 +163,16 @@ def replay(path, settings_overrides=None, with_recorded=False):
         duration=float((logs.max() - logs.min()) * 1e-9) if logs.size else 0.0,
         messages={interfaces.GROUND_SPEED.name: int(s_log.size),
                   interfaces.JOINT_STATES.name: int(j_log.size),
-                  interfaces.DESIGN.name: len(design_topic.raw),
+                  interfaces.DESIGN.name: len(design_topic.raw) if design_topic else 0,
                   'total_read': rec.message_count},
         warnings=rec.warnings, recorded_plants=recorded)
+
+
+def _count_undecodable(warnings, name, stamps, values):
+    """cdr's bulk decoders leave a message they cannot decode at stamp 0 and value NaN."""
+    bad = int(np.count_nonzero((stamps == 0) & np.isnan(values)))
+    if bad:
+        warnings.append(f'{bad} {name} message(s) could not be decoded: skipped')
 
 
 def _recorded_plants(topic):
@@ -145,7 +180,10 @@ def _recorded_plants(topic):
     from std_msgs.msg import Float64MultiArray
     rows = []
     for _, raw in sorted(zip(topic.log, topic.raw), key=lambda x: x[0]):
-        msg = deserialize_message(bytes(raw), Float64MultiArray)
+        try:
+            msg = deserialize_message(bytes(raw), Float64MultiArray)
+        except Exception:            # rclpy raises its own errors for bytes that are not CDR
+            continue
         width = msg.layout.dim[1].size if len(msg.layout.dim) > 1 else 0
         if width:
             rows.append(np.asarray(msg.data, dtype=float).reshape(-1, width))

@@ -40,7 +40,8 @@ def _drive_pair():
     channel = f'planter-bench-drive-{uuid.uuid4().hex}'
     sim = SimulatedDrive(channel)
     sim.start()
-    drive = Cia402Drive(DriveConfig(can_channel=channel, motor_gear_ratio=12.5))
+    drive = Cia402Drive(DriveConfig(can_interface='virtual', can_channel=channel,
+                                    motor_gear_ratio=12.5))
     try:
         yield sim, drive
     finally:

@@ -1,5 +1,7 @@
-"""Replay rows: `replay()` of a generated input bag (throughput, × real time) and of the
-committed sample bags, whose live-monitor predictions give replay an error to report.
+"""Replay rows: `replay()` of a generated input bag (throughput, × real time), of the same bag
+with one chunk damaged (the careful reader), of files with no valid MCAP record (how soon they
+are refused) and of the committed sample bags, whose live-monitor predictions give replay an
+error to report.
 
 The generated bag (`simulate_run` → `write_input_bag`, 100 Hz joint states, 20 Hz ground speed,
 100 Hz speed command) goes to a temporary directory and is deleted. It holds no live
@@ -45,6 +47,54 @@ def _replay_row(ctx, path, label, result, bag_messages, error=None, target=False
                targets=targets, note=note, extra=extra)
 
 
+def _damaged_row(ctx, run, tmp, whole):
+    """The generated run in chunks of 64 kB, the middle chunk's bytes zeroed: every other chunk
+    is read."""
+    from mcap.reader import make_reader
+
+    from planter_ros.recording.replay import replay
+    from planter_ros.sim.bags import write_input_bag
+    path, damaged = tmp / 'chunked.mcap', tmp / 'damaged.mcap'
+    bag_messages = write_input_bag(run, path, chunk_size=64_000).message_count
+    with open(path, 'rb') as f:
+        chunks = sorted(make_reader(f).get_summary().chunk_indexes,
+                        key=lambda c: c.chunk_start_offset)
+    data = bytearray(path.read_bytes())
+    hit = chunks[len(chunks) // 2]
+    middle = hit.chunk_start_offset + hit.chunk_length // 2
+    data[middle:middle + 64] = bytes(64)
+    damaged.write_bytes(bytes(data))
+    result = replay(damaged)
+    lost = (hit.message_end_time - hit.message_start_time) * 1e-9
+    return _replay_row(ctx, damaged, 'the same run, its middle chunk damaged', result,
+                       bag_messages, note=f'{len(chunks) - 1} of {len(chunks)} chunks read, '
+                       f'{lost:.2f} s lost; {result.summary["plants"]} of '
+                       f'{whole.summary["plants"]} plants')
+
+
+def _garbage_rows(ctx, tmp):
+    """Files that start like MCAP and hold no valid record: refused after a bounded scan."""
+    from planter_ros.recording.replay import ReplayError, replay
+    zeros, noise = tmp / 'zeros.mcap', tmp / 'noise.mcap'
+    size = int(ctx.n(1 << 30, 64 << 20))
+    with open(zeros, 'wb') as f:          # sparse: no disk space used
+        f.write(b'\x89MCAP0\r\n')
+        f.truncate(size)
+    noise.write_bytes(b'\x89MCAP0\r\n' + np.random.default_rng(0).bytes(64 << 20))
+    for path, label in ((zeros, f'MCAP magic + {size >> 20} MiB of zeros'),
+                        (noise, 'MCAP magic + 64 MiB of random bytes')):
+        def refuse():
+            try:
+                replay(path)
+            except ReplayError:
+                return
+            raise RuntimeError(f'{label}: not refused')
+        t = ctx.measure(refuse, repeats=5)
+        yield Row(WHAT, f'refused: {label}', None, 'file', t,
+                  targets=[Target(f'≤ 1 s (run: p90 {t.p90:.2g} s)', t.p90 <= 1.0)],
+                  note='no valid record in the first 16 MiB: refused (exit 2)')
+
+
 def _live_error(result, path):
     """Max |replayed − recorded live prediction| over the plant table (NaN must match NaN)."""
     replayed = result.plants.table()
@@ -71,11 +121,14 @@ def replay_throughput(ctx):
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / 'bench.mcap'
         ctx.progress(f'  generating a {duration:.0f} s input bag ...')
-        rec = write_input_bag(simulate_run(five_bar_design_message(), duration=duration), path)
+        run = simulate_run(five_bar_design_message(), duration=duration)
+        rec = write_input_bag(run, path)
         result = replay(path)
         yield _replay_row(ctx, path, f'generated {duration:.0f} s input bag', result,
                           rec.message_count, target=True,
                           note='tomato five-bar, speed step +25 %')
+        yield _damaged_row(ctx, run, Path(tmp), result)
+        yield from _garbage_rows(ctx, Path(tmp))
     samples = sorted(BAGS.glob('sample_*.mcap'))
     if not samples:
         yield Row(WHAT, 'sample bags', None, '', status='not available',

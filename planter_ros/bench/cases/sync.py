@@ -57,7 +57,8 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0):
         sim = SimulatedDrive(channel, node_id=1)
         sim.start()
         sync = SyncNode(context=context, parameter_overrides=[
-            Parameter('can_channel', value=channel), Parameter('phase_lock', value=False),
+            Parameter('can_interface', value='virtual'), Parameter('can_channel', value=channel),
+            Parameter('phase_lock', value=False),
             Parameter('max_acceleration', value=1000.0), Parameter('max_speed', value=100.0),
             Parameter('max_ground_acceleration', value=50.0),
             Parameter('ground_speed_tolerance', value=1.0)])

@@ -1,0 +1,86 @@
+"""The one validation layer of command-line options: argparse `type=` adapters.
+
+An option that mirrors a configuration value (a scene's depth, the monitor's window, ...) is
+checked against that value's `config.Spec` (right type, finite, in range, one of the choices),
+so the command line, the scene files and the ROS parameters accept exactly the same values and
+say so with the same allowed range. Output paths are checked with `planter_ros.output_files`.
+The adapters run while the arguments are parsed, before any command starts its work; they raise
+`BadInput` (one line: the option, the value, what is allowed), which argparse passes through.
+"""
+
+import math
+
+from planter_ros.config import ConfigError, coerce, spec_of
+
+
+def spec_option(cls, name, option):
+    """argparse `type=` for `option`, checked against field `name` of config dataclass `cls`."""
+    spec = spec_of(cls, name)
+
+    def parse(text):
+        from planter_ros.cli.main import BadInput
+
+        def bad(why='is out of range'):
+            raise BadInput(f'{option} = {shown(text)} {why}: allowed {spec.allowed()}')
+        value = text
+        if spec.kind is float:
+            try:
+                value = float(text)
+            except ValueError:
+                bad('is not a number')
+            if not math.isfinite(value):
+                bad()
+        elif spec.kind is int:
+            try:
+                value = int(text, 10)
+            except ValueError:
+                bad('is not an integer')
+        elif spec.kind is bool:
+            value = {'true': True, 'false': False}.get(text.lower())
+            if value is None:
+                bad('is not true or false')
+        try:
+            return coerce(spec, value)
+        except ConfigError:
+            bad()
+    parse.__name__ = spec.name
+    return parse
+
+
+def output_file(option, suffixes):
+    """argparse `type=` for an output file (checked, not created: see output_files)."""
+    def parse(text):
+        from planter_ros.cli.main import BadInput
+        from planter_ros.output_files import OutputError, check_output
+        try:
+            return str(check_output(text, option, suffixes))
+        except OutputError as exc:
+            raise BadInput(str(exc)) from None
+    return parse
+
+
+def shown(text, limit=40):
+    """A value as a one-line message shows it: control characters escaped, long text cut."""
+    text = str(text)
+    if len(text) > limit:
+        text = text[:limit - 3] + '...'
+    return text if text.isprintable() else repr(text)
+
+
+def require_finite(result, what):
+    """Raise BadInput naming the first NaN or infinite number in a JSON-like result (a design
+    no one can build must never be printed as one)."""
+    from planter_ros.cli.main import BadInput
+
+    def walk(value, key):
+        if isinstance(value, dict):
+            for k, v in value.items():
+                walk(v, k)
+        elif isinstance(value, (list, tuple)):
+            for v in value:
+                walk(v, key)
+        elif isinstance(value, float) and not math.isfinite(value):
+            raise BadInput(f'{what}: {key} = {value} is not finite: allowed inputs whose '
+                           'result is a finite design')
+    walk(result, what)
+    return result

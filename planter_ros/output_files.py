@@ -1,0 +1,114 @@
+"""Files the commands write: checked before any work, written atomically.
+
+`check_output` refuses a path the command could not write in the end (missing or read-only
+directory, a directory where a file is asked for, an unsupported extension), so a long run never
+fails at its last step; `atomic_output` writes through a temporary file in the same directory and
+a rename, so a reader never sees a half-written file and a failed or invalid write leaves the
+user's old file as it was. Pure Python, no ROS.
+"""
+
+from contextlib import contextmanager
+import os
+from pathlib import Path
+import stat
+import tempfile
+
+
+class OutputError(ValueError):
+    """An output path that cannot be written as asked (one line: the option, the path, why)."""
+
+
+def check_output(path, option, suffixes):
+    """Refuse (OutputError) an output file `path` given as `option` that cannot be written:
+    its extension not one of `suffixes` (e.g. ('.png',)), a directory, an existing file that is
+    not a writable regular file, a missing, non-directory or read-only parent. Returns a Path."""
+    if path is None or str(path) == '':
+        raise OutputError(f'{option} is empty: allowed a file name ending in {_words(suffixes)}')
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f'{option} = {path} is a directory: allowed a file name ending in '
+                          f'{_words(suffixes)}')
+    if path.suffix.lower() not in suffixes:
+        raise OutputError(f'{option} = {path} has an unsupported extension: allowed a file name '
+                          f'ending in {_words(suffixes)}')
+    if path.exists() or path.is_symlink():
+        if not path.is_file():
+            raise OutputError(f'{option} = {path} exists and is not a regular file: allowed a '
+                              'new file or a regular file to replace')
+        if not os.access(path, os.W_OK):
+            raise OutputError(f'{option} = {path} is a read-only file: allowed a writable or '
+                              'new file')
+    check_directory(path.parent, option, path)
+    return path
+
+
+def check_new_path(path, option, suffixes):
+    """Refuse (OutputError) a path that must not exist yet (a recording) or whose parent is
+    missing or read-only; `suffixes` may contain '' (a directory name). Returns a Path."""
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        raise OutputError(f'{option} = {path} has an unsupported extension: allowed '
+                          f'{_words(suffixes)}')
+    if path.exists() or path.is_symlink():
+        raise OutputError(f'{option} = {path} exists: allowed a new path (a recording is never '
+                          'overwritten)')
+    check_directory(path.parent, option, path)
+    return path
+
+
+def check_directory(directory, option, path=None):
+    """Refuse (OutputError) a directory that is missing, not a directory or not writable (tried
+    by creating and removing a temporary file: permissions, read-only mounts, full quota)."""
+    shown = f'{option} = {path}: directory {directory}' if path is not None else \
+        f'{option} = {directory}: directory'
+    if not directory.exists():
+        raise OutputError(f'{shown} does not exist: allowed a path in an existing directory')
+    if not directory.is_dir():
+        raise OutputError(f'{shown} is not a directory: allowed a path in an existing directory')
+    try:
+        fd, probe = tempfile.mkstemp(dir=directory, prefix='.planter-probe-')
+    except OSError as exc:
+        raise OutputError(f'{shown} is not writable ({exc.strerror or exc}): allowed a path in '
+                          'a writable directory') from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+@contextmanager
+def atomic_output(path):
+    """Yield a temporary path next to `path` (same extension, so writers that go by it work);
+    on success it replaces `path` (keeping an existing file's mode), on an exception it is
+    removed and `path` is untouched."""
+    path = Path(path)
+    try:
+        mode = stat.S_IMODE(os.stat(path).st_mode)   # a replaced file keeps its mode
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask                        # a new one gets what open() would give
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}.',
+                               suffix=f'.tmp{path.suffix}')
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        with open(tmp, 'rb+') as f:
+            os.fsync(f.fileno())
+        os.chmod(tmp, mode)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def write_text_atomically(path, text):
+    """Write `text` (UTF-8) to `path` through atomic_output."""
+    with atomic_output(path) as tmp:
+        tmp.write_text(text, encoding='utf-8')
+
+
+def _words(suffixes):
+    words = [s if s else 'a directory name without extension' for s in suffixes]
+    return words[0] if len(words) == 1 else ', '.join(words[:-1]) + ' or ' + words[-1]
