@@ -33,7 +33,9 @@ class _Parser(argparse.ArgumentParser):
     """argparse that reports errors in one line (no usage dump, no traceback)."""
 
     def error(self, message):
-        raise BadInput(f'{self.prog}: {message}')
+        # main() prints 'planter: error: ': name only the sub-command after it
+        where = self.prog.partition(' ')[2]
+        raise BadInput(f'{where}: {message}' if where else message)
 
     def _get_values(self, action, arg_strings):
         # Python 3.11's argparse drops a '--' given as an option's value (`--seed=--`) and
