@@ -2,6 +2,8 @@
 
 The same file works as `--ros-args --params-file FILE` on a ROS machine. Parameters are taken
 from the `/**` wildcard entry merged with the entry of the node asked for (node entries win).
+Nested blocks are flattened to dotted names as ROS does (`left: {lateral_offset: 0.75}` is the
+parameter `left.lateral_offset`).
 """
 
 from pathlib import Path
@@ -42,4 +44,14 @@ def _params_of(entry, path, key):
         return {}
     if not isinstance(entry, dict) or not isinstance(entry.get('ros__parameters'), dict):
         raise SceneError(f'scene file {path}: entry {key} has no ros__parameters mapping')
-    return dict(entry['ros__parameters'])
+    return _flatten(entry['ros__parameters'])
+
+
+def _flatten(mapping, prefix=''):
+    out = {}
+    for key, value in mapping.items():
+        if isinstance(value, dict):
+            out.update(_flatten(value, f'{prefix}{key}.'))
+        else:
+            out[f'{prefix}{key}'] = value
+    return out

@@ -1,6 +1,7 @@
 """CAN bus load: worst-case frame lengths, the load of a machine's configuration, and the refusal
-above 70 % (one line naming rows, periods and bit rate)."""
+above 70 % (one line naming rows, periods and bit rate), also by the sync node at start-up."""
 import pytest
+from rclpy.parameter import Parameter
 
 from planter_ros.drive.bus_load import LIMIT, bus_load, check_bus_load, frame_bits
 from planter_ros.drive.errors import DriveConfigError
@@ -42,3 +43,14 @@ def test_eight_rows_fit_500_kbit_and_are_refused_at_250_kbit():
                  'at most 4 rows fit'):
         assert word in message
 
+
+def test_the_sync_node_refuses_an_overloaded_bus_at_start_up(ros):
+    from planter_ros.nodes.sync_node import SyncNode
+    rows = [f'r{i}' for i in range(6)]
+    params = [Parameter('can_bitrate', value=125_000), Parameter('rows', value=rows)]
+    for i, name in enumerate(rows):
+        params += [Parameter(f'{name}.lateral_offset', value=0.5 * i),
+                   Parameter(f'{name}.drive_node_id', value=i + 1)]
+    with pytest.raises(DriveConfigError, match=r'CAN bus load .* \(r0, r1, r2, r3, r4, r5 at '
+                                               r'125000 bit/s'):
+        SyncNode(context=ros.context, parameter_overrides=params)
