@@ -282,9 +282,11 @@ class Demo:
                    if mine.size else 'n/a')
             ratio = (f'; speed {np.median(meas) / expected:.3f} x 2πv_i/(n·d)'
                      if meas.size and expected > 0 else '')
+            bias = (f'; without compensation expect '
+                    f'{-row.lateral_offset * d / curve.radius * 1e3:+.2f} mm (-y·d/R)'
+                    if row.lateral_offset else '')     # a row at y = 0 sees no difference
             lines.append(f'{pad}{side + " turn R = " + format(abs(curve.radius), "g") + " m":<24}'
-                         f' spacing error {err}{ratio}; without compensation expect '
-                         f'{-row.lateral_offset * d / curve.radius * 1e3:+.2f} mm (-y·d/R)')
+                         f' spacing error {err}{ratio}{bias}')
         return lines
 
 

@@ -335,15 +335,15 @@ class SyncNode(Node):
         the master heartbeat once per bus when due. Caller holds the lock."""
         if not any(unit.running for unit in self.units):
             return
-        if now - self._last_heartbeat >= self.drive_config.heartbeat_period:
-            self._last_heartbeat = now          # due: from whichever path runs first
-            try:
-                self.drives.send_heartbeat()
-            except DriveError as exc:
-                self._send_failed(now, exc, None)
         for unit in self.units:
             if unit.running:
                 self._step_row(unit, now)
+        if now - self._last_heartbeat >= self.drive_config.heartbeat_period:
+            self._last_heartbeat = now          # due: from whichever path runs first, after
+            try:                                # the commands (they are what is waited for)
+                self.drives.send_heartbeat()
+            except DriveError as exc:
+                self._send_failed(now, exc, None)
         self._publish_commands()
 
     def _step_row(self, unit, now):
