@@ -88,17 +88,19 @@ class MotionFilter:
         self.speed.limits = limits
         self.yaw.limits = yaw_limits
 
-    def check(self, v, w, t):
+    def check(self, v, w, t, yaw=True):
         """(v, ω_z) to move the rows with, or None when the speed sample is rejected. v is the
         plausible speed as measured (negative when reversing), ω_z the accepted or held yaw
-        rate (0 once it is older than yaw_rate_timeout)."""
-        w_used, _ = self.yaw.check(w, t)
-        if w_used is not None:
-            self._w, self._t_w = w_used, t
+        rate (0 once it is older than yaw_rate_timeout). `yaw` False: the yaw rate is not
+        looked at (every row at y = 0) and ω_z is 0."""
+        if yaw:
+            w_used, _ = self.yaw.check(w, t)
+            if w_used is not None:
+                self._w, self._t_w = w_used, t
         used, reason = self.speed.check(v, t)
         if used is None:
             return None
-        return (float(v) if reason == 'negative' else used), self.yaw_rate(t)
+        return (float(v) if reason == 'negative' else used), (self.yaw_rate(t) if yaw else 0.0)
 
     def yaw_rate(self, t):
         """The yaw rate in use at time t (rad/s)."""
@@ -122,21 +124,31 @@ class RowSpeedStream:
     def __init__(self, offsets, limits=None, yaw_limits=None):
         self.offsets = np.asarray(offsets, dtype=float)
         self.filter = MotionFilter(limits, yaw_limits)
+        self._yaw = bool(np.any(self.offsets))     # rows at y = 0 do not turn with the yaw
         self._seen = -math.inf
 
-    def add(self, t, v, w):
-        """(t, speeds per row as an array) or None for a sample the rows do not use."""
-        t, v, w = float(t), float(v), float(w)
+    def motion(self, t, v, w):
+        """(t, v, ω_z) the rows move with, or None for a sample they do not use."""
+        t, v = float(t), float(v)
         if not (math.isfinite(t) and math.isfinite(v)) or not t > self._seen:
             return None
         self._seen = t
-        motion = self.filter.check(v, w, t)
-        if motion is None:
+        motion = self.filter.check(v, float(w), t, self._yaw)
+        return None if motion is None else (t, *motion)
+
+    def add(self, t, v, w):
+        """(t, speeds per row as an array) or None for a sample the rows do not use."""
+        sample = self.motion(t, v, w)
+        if sample is None:
             return None
-        v, yaw_rate = motion
-        if v <= 0.0:
-            return t, np.zeros_like(self.offsets)
-        return t, np.maximum(v - yaw_rate * self.offsets, 0.0)
+        t, v, yaw_rate = sample
+        return t, _row_speeds(np.float64(v), np.float64(yaw_rate), self.offsets)
+
+
+def _row_speeds(v, yaw_rate, offsets):
+    """v − ω_z·y for every row (offsets as a column against arrays of samples), 0 where that
+    is not forward or the machine is not moving forward."""
+    return np.where(v > 0.0, np.maximum(v - yaw_rate * offsets, 0.0), 0.0)
 
 
 def row_speed_samples(t, v, w, offsets, limits=None, yaw_limits=None):
@@ -146,12 +158,9 @@ def row_speed_samples(t, v, w, offsets, limits=None, yaw_limits=None):
     v = np.asarray(v, dtype=float)
     w = np.zeros_like(v) if w is None else np.asarray(w, dtype=float)
     stream = RowSpeedStream(offsets, limits, yaw_limits)
-    kept_t, kept_v = [], []
-    for ti, vi, wi in zip(t.tolist(), v.tolist(), w.tolist()):
-        out = stream.add(ti, vi, wi)
-        if out is not None:
-            kept_t.append(out[0])
-            kept_v.append(out[1])
-    if not kept_t:
+    kept = [sample for sample in map(stream.motion, t.tolist(), v.tolist(), w.tolist())
+            if sample is not None]
+    if not kept:
         return np.zeros(0), np.zeros((len(stream.offsets), 0))
-    return np.asarray(kept_t), np.asarray(kept_v).T
+    kept_t, kept_v, kept_w = (np.asarray(c) for c in zip(*kept))
+    return kept_t, _row_speeds(kept_v, kept_w, stream.offsets[:, None])
