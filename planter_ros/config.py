@@ -16,7 +16,8 @@ Ranges are inclusive and in the field's SI unit. Pure Python: no ROS import.
 from dataclasses import MISSING, dataclass, field, fields
 import math
 
-KINDS = (float, int, bool, str, list)      # list = list of floats (a ROS double array)
+# list = a list of the Spec's `item`: float (a ROS double array) or str (a ROS string array)
+KINDS = (float, int, bool, str, list)
 
 
 class ConfigError(ValueError):
@@ -36,6 +37,7 @@ class Spec:
     high: float | None = None
     choices: tuple = ()
     read_only: bool = False
+    item: type = float         # element type of a list field: float or str
 
     @property
     def required(self):
@@ -49,6 +51,8 @@ class Spec:
             return words[0] if len(words) == 1 else ', '.join(words[:-1]) + ' or ' + words[-1]
         if self.kind is bool:
             return 'true or false'
+        if self.kind is list and self.item is str:
+            return 'list of names'
         what = {int: 'integer', float: 'number', str: 'text', list: 'list of numbers'}[self.kind]
         if self.low is not None and self.high is not None:
             return f'{what} {_fmt(self.low)}..{_fmt(self.high)}{unit}'
@@ -64,11 +68,11 @@ class Spec:
 
 
 def setting(default=MISSING, description='', *, unit='', range=None, choices=(),
-            read_only=False, kind=None):
+            read_only=False, kind=None, item=float):
     """A dataclass field carrying its Spec (the one place a configuration value is defined).
 
     `range=(low, high)` is inclusive; either end may be None. `kind` defaults to the type of
-    `default` (a list default means a list of floats).
+    `default` (a list default means a list of `item`: float, or str for a list of names).
     """
     if kind is None:
         if default is MISSING:
@@ -76,9 +80,11 @@ def setting(default=MISSING, description='', *, unit='', range=None, choices=(),
         kind = type(default)
     if kind not in KINDS:
         raise TypeError(f'setting kind {kind!r} is not one of {KINDS}')
+    if item not in (float, str):
+        raise TypeError(f'setting item {item!r} is not float or str')
     low, high = range if range is not None else (None, None)
     meta = {'spec': dict(kind=kind, description=description, unit=unit, low=low, high=high,
-                         choices=tuple(choices), read_only=read_only)}
+                         choices=tuple(choices), read_only=read_only, item=item)}
     if isinstance(default, list):
         return field(default_factory=lambda: list(default), metadata=meta)
     if default is MISSING:
@@ -126,9 +132,11 @@ def _normalise(spec, value):
     """int -> float where a float belongs (YAML writes 1 for 1.0), then the checks."""
     if spec.kind is float and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
-    if spec.kind is list and isinstance(value, (list, tuple)):
+    if spec.kind is list and spec.item is float and isinstance(value, (list, tuple)):
         value = [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
                  for v in value]
+    elif spec.kind is list and isinstance(value, tuple):
+        value = list(value)
     _check_value(spec, value)
     return value
 
@@ -155,10 +163,11 @@ def _check_value(spec, value):
         return
     if kind is list:
         if not isinstance(value, (list, tuple)) or not all(
-                isinstance(v, float) for v in value):
+                isinstance(v, spec.item) for v in value):
             bad()
-        for v in value:
-            _check_number(spec, v, bad)
+        if spec.item is float:
+            for v in value:
+                _check_number(spec, v, bad)
         return
     if kind is int and (isinstance(value, bool) or not isinstance(value, int)):
         bad()
@@ -193,13 +202,14 @@ def check(instance, error=ConfigError):
         object.__setattr__(instance, spec.name, value)
 
 
-def from_mapping(cls, values, error=ConfigError, strict=False):
+def from_mapping(cls, values, error=ConfigError, strict=False, prefix=''):
     """Build `cls` from a mapping, coercing each known value; unknown keys are ignored unless
-    `strict` (then the first one is an error)."""
+    `strict` (then the first one is an error). `prefix` is put before each field name in the
+    messages (a row's fields are the parameters `<row>.<field>`)."""
     known = {spec.name: spec for spec in specs(cls)}
     for spec in known.values():
         if spec.required and values.get(spec.name) is None:
-            raise error(f'{spec.name} is required: allowed {spec.allowed()}')
+            raise error(f'{prefix}{spec.name} is required: allowed {spec.allowed()}')
     kwargs = {}
     for key, value in values.items():
         spec = known.get(key)
@@ -211,7 +221,7 @@ def from_mapping(cls, values, error=ConfigError, strict=False):
         try:
             kwargs[key] = coerce(spec, value)
         except ConfigError as exc:
-            raise error(str(exc)) from None
+            raise error(prefix + str(exc)) from None
     return cls(**kwargs)
 
 

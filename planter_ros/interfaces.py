@@ -93,14 +93,20 @@ DESIGN = Topic(
     "mechanism's own fields")
 JOINT_STATES = Topic(
     'joint_states', 'sensor_msgs/msg/JointState', STATE,
-    'drive feedback: name = [MECHANISM_JOINT[mechanism]], position = mechanism shaft angle '
-    '(rad, unwrapped, increasing forward), velocity (rad/s), stamped when the drive measured it')
+    'drive feedback, one joint per enabled row: name = row_joint(row, mechanism), position = '
+    'mechanism shaft angle (rad, unwrapped, increasing forward), velocity (rad/s), stamped '
+    'when the drive measured it')
 SPEED_COMMAND = Topic(
     'speed_command', 'std_msgs/msg/Float64', STATE,
-    'commanded mechanism shaft speed (rad/s) sent to the drive')
+    'commanded mechanism shaft speed (rad/s) sent to the drive (a scene without rows)')
+SPEED_COMMANDS = Topic(
+    'speed_commands', 'sensor_msgs/msg/JointState', STATE,
+    'a scene with rows: commanded mechanism shaft speed (rad/s) of each row in velocity, name '
+    '= row_joint(row, mechanism), position empty, stamped when sent')
 PLANTS = Topic(
     'plants', 'std_msgs/msg/Float64MultiArray', OUTPUT,
-    "per-plant predictions: dim[0] 'plant' x dim[1] labelled with the field names (SI)")
+    "per-plant predictions: dim[0] 'plant' x dim[1] labelled with the field names (SI); the "
+    "field 'row' is the row's index in the bag's rows record")
 UPRIGHTNESS_RATE = Topic(
     'uprightness_rate', 'std_msgs/msg/Float64', OUTPUT,
     'rolling fraction (0..1) of upright plants over the last `window` plants')
@@ -111,18 +117,24 @@ CLOCK = Topic(
     '/clock', 'rosgraph_msgs/msg/Clock', Qos('reliable', 'volatile', 100),
     'simulated time, published only by the lock-step sample feeder (use_sim_time)')
 
-TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, PLANTS, UPRIGHTNESS_RATE,
-          DIAGNOSTICS, CLOCK)
+TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, PLANTS,
+          UPRIGHTNESS_RATE, DIAGNOSTICS, CLOCK)
 # what the monitor records: its inputs as they arrived, then its own outputs
-MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, DIAGNOSTICS)
+MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS,
+                  DIAGNOSTICS)
 MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE)
 RECORDED = MONITOR_INPUTS + MONITOR_OUTPUTS
 # MCAP metadata record of a monitor's bag holding its prediction settings (name -> repr)
 PREDICTION_SETTINGS_RECORD = 'planter_monitor'
+# MCAP metadata record naming the rows: key 'rows' = JSON list of {index, name, lateral_offset,
+# drive_node_id, enabled}; a plant's `row` field is the index. Absent: one implicit row.
+ROWS_RECORD = 'planter_rows'
 
 
 @dataclass(frozen=True)
 class Service:
+    """A service of the contract; a row's own is `<row>/<name>` (`for_row`)."""
+
     name: str
     type_name: str
     doc: str
@@ -131,9 +143,23 @@ class Service:
         package, kind, base = self.type_name.split('/')
         return getattr(importlib.import_module(f'{package}.{kind}'), base)
 
+    def for_row(self, row_name):
+        """The service's name for one row (the plain name for a scene without rows)."""
+        return f'{row_name}/{self.name}' if row_name else self.name
+
 
 RESET_FAULT = Service('reset_fault', 'std_srvs/srv/Trigger',
-                      'sync node: the only way out of a drive fault')
+                      "sync node, per row: the only way out of the row's drive fault")
+SECTION = Service('section', 'std_srvs/srv/SetBool',
+                  'sync node, per row: data false = switch the row off (stops within one plant '
+                  'pitch, plants nothing more), true = on (a new grid from the switch-on point)')
 
 # the mechanism's shaft in joint_states, per mechanism
 MECHANISM_JOINT = {'five_bar': 'sun_bar', 'three_arm': 'carrier'}
+
+
+def row_joint(row_name, mechanism):
+    """A row's joint name in joint_states: `<row>/sun_bar` (`<row>/carrier`), or the plain
+    `sun_bar` (`carrier`) for the implicit row of a scene without rows."""
+    joint = MECHANISM_JOINT[mechanism]
+    return f'{row_name}/{joint}' if row_name else joint

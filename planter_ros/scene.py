@@ -5,7 +5,8 @@ from the `/**` wildcard entry merged with the entry of the node asked for (node 
 
 A scene is small: files over MAX_SCENE_BYTES are refused unread, and YAML aliases may expand to
 at most MAX_ALIAS_NODES nodes (no recursive alias), so a hostile file (an "alias bomb") costs
-neither memory nor a giant error message.
+neither memory nor a giant error message. Nested blocks are flattened to dotted names as ROS
+does (`left: {lateral_offset: 0.75}` is the parameter `left.lateral_offset`).
 """
 
 from pathlib import Path
@@ -70,7 +71,15 @@ def _params_of(entry, path, key):
         return {}
     if not isinstance(entry, dict) or not isinstance(entry.get('ros__parameters'), dict):
         raise SceneError(f'scene file {path}: entry {key} has no ros__parameters mapping')
-    return dict(entry['ros__parameters'])
+    params = entry['ros__parameters']
+    # a scene's only blocks are its rows' settings: any other block is a misplaced value
+    rows = params.get('rows')
+    rows = set(rows) if isinstance(rows, list) and all(isinstance(r, str) for r in rows) else set()
+    for name, value in params.items():
+        if isinstance(value, dict) and name not in rows:
+            raise SceneError(f'scene file {path}: {name} is a block: allowed a value (blocks '
+                             'only for the rows named in rows)')
+    return _flatten(params)
 
 
 class _AliasError(ValueError):
@@ -130,3 +139,13 @@ def _bounded_loader():
 
     _LOADER = BoundedLoader
     return _LOADER
+
+
+def _flatten(mapping, prefix=''):
+    out = {}
+    for key, value in mapping.items():
+        if isinstance(value, dict):
+            out.update(_flatten(value, f'{prefix}{key}.'))
+        else:
+            out[f'{prefix}{key}'] = value
+    return out

@@ -49,7 +49,16 @@ def test_quick_bench_runs_and_reports_every_row_with_time_and_error(quick_run):
     # the node-graph rows: latencies with their tail, replay speed and its error vs live
     sync = [r for r in ok if r['what'].startswith('sync loop')]
     assert sync and all(r['median_s'] <= r['p99_s'] and r['matched'] > 0 for r in sync)
-    assert all(t['target'].startswith('p99 ≤ 2 ms') for r in sync for t in r['targets'])
+    assert all(t['target'].startswith(('p99 ≤ 2 ms', '8 rows: p99 ≤ 2 ms'))
+               for r in sync for t in r['targets'])
+    machine = [r for r in sync if r['what'].startswith('sync loop, rows')]
+    assert [r['rows'] for r in machine] == [1, 4, 8]
+    curves = [r for r in ok if r['what'].startswith('closed loop, 4 rows')]
+    assert len(curves) == 8                               # 4 rows, with and without
+    compensated = [r for r in curves if r['mode'] == 'compensated']
+    assert all(t['met'] for r in compensated for t in r['targets'])
+    assert all(r['error'] > 0.05 for r in curves              # the ±y/R bias of outer rows
+               if r['mode'] == 'uncompensated' and '0.75' in r['method'])
     drive = [r for r in ok if r['what'].startswith('CAN drive')]
     assert {'SDO round trip (6041h upload)', 'RPDO latency, send_velocity() → drive decoded it'} \
         <= {r['method'] for r in drive}

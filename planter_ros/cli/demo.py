@@ -1,13 +1,16 @@
 """`planter demo`: the whole machine in one process, on a simulated CAN bus.
 
-design_node + sync_node + monitor_node + a simulated ground-speed sensor, and the simulated
-CiA 402 drive on a python-can virtual bus with a channel of its own.
-The sensor follows a field run (start, cruise with noise, a speed change, a stop, and two
-glitches the sync node must reject). At the end it prints plants placed, spacing error (from the
-measured mechanism angle in joint_states against the true travelled distance), and commanded
-against measured speed. The monitor records the run (bags/planter_<date-time> unless --bag says
-otherwise); the demo ends by replaying that bag offline and printing the replay summary.
-Ctrl-C stops it cleanly (drive shut down, bus closed, bag finalised) with a summary.
+design_node + sync_node + monitor_node + a simulated ground-speed sensor, and one simulated
+CiA 402 drive per row (node ids from the scene; one drive, node 1, for a scene without rows) on
+a python-can virtual bus with a channel of its own.
+The sensor follows a field run (start, cruise with noise, a left and a right turn of 10 m
+radius, a speed change, a stop, noise on speed and yaw rate, and two glitches the sync node
+must reject). At the end it prints per row the plants placed, the spacing error (from the
+measured mechanism angle in joint_states against the row's true travelled distance), commanded
+against measured speed, and in the turns the compensation's effect. The monitor records the run
+(bags/planter_<date-time> unless --bag says otherwise); the demo ends by replaying that bag
+offline and printing the replay summary. Ctrl-C stops it cleanly (drives shut down, bus closed,
+bag finalised) with a summary.
 """
 
 from dataclasses import dataclass
@@ -46,6 +49,9 @@ def add_arguments(parser):
                              'bags/planter_<date-time>; never overwrites)')
     parser.add_argument('--speed-only', action='store_true',
                         help='turn phase lock off (feed-forward speed only), for comparison')
+    parser.add_argument('--no-turn-compensation', action='store_true',
+                        help="every row on the machine's speed, not its own on the curves, "
+                             'for comparison')
     parser.add_argument('--seed', type=spec_option(DemoOptions, 'seed', '--seed'), default=0,
                         help='sensor noise seed, 0..2^32-1 (default 0)')
 
@@ -74,7 +80,9 @@ def check_bag_path(bag):
 
 def run(args):
     from planter_ros.cli.main import BadInput
+    from planter_ros.config import ConfigError
     from planter_ros.kinematics.scene_design import design_for_scene
+    from planter_ros.rows import rows_from_scene
     from planter_ros.scene import SceneError, load_scene
 
     try:
@@ -83,13 +91,21 @@ def run(args):
         raise BadInput(str(exc)) from None
     check_bag_path(args.bag)
     design = design_for_scene(scene)          # a bad scene fails here, before anything starts
+    try:
+        rows = rows_from_scene(scene, default_node_id=1)
+    except ConfigError as exc:
+        raise BadInput(f'scene {args.scene or default_scene()}: {exc}') from None
+    if not any(row.enabled for row in rows):
+        raise BadInput(f'scene {args.scene or default_scene()}: rows = every row has enabled '
+                       'false: allowed at least one enabled row')
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    return Demo(scene, design, args).run()
+    return Demo(scene, design, rows, args).run()
 
 
 class Demo:
-    def __init__(self, scene, design, args):
-        self.scene, self.design, self.args = scene, design, args
+    def __init__(self, scene, design, rows, args):
+        self.scene, self.design, self.rows, self.args = scene, design, rows, args
+        self.planting = [row for row in rows if row.enabled]
 
     def run(self):
         import threading
@@ -100,21 +116,24 @@ class Demo:
         from rclpy.signals import SignalHandlerOptions
 
         from planter_ros import interfaces
-        from planter_ros.drive.simulated_drive import SimulatedDrive
+        from planter_ros.drive.simulated_drive import SimulatedBus
         from planter_ros.nodes.design_node import DesignNode
         from planter_ros.nodes.sync_node import SyncNode
-        from planter_ros.sim.field import FieldProfile
+        from planter_ros.rows import scene_row_parameters
+        from planter_ros.sim.field import FieldProfile, demo_curves
         from planter_ros.sim.ros_field import GroundSpeedSource, Observer
 
         args, design = self.args, self.design
         from planter_ros.nodes.monitor_node import MonitorNode
         channel = f'planter_demo_{os.getpid()}_{time.monotonic_ns() % 1_000_000}'
-        profile = FieldProfile(args.duration, design['nominal_ground_speed'])
+        profile = FieldProfile(args.duration, design['nominal_ground_speed'],
+                               curves=demo_curves(args.duration))
         glitches = [(0.3 * args.duration, 25.0), (0.6 * args.duration, math.nan)]
         ros_scene = _scene_parameters(self.scene)
+        row_params = [_param(k, v) for k, v in scene_row_parameters(self.scene).items()]
 
-        sim = SimulatedDrive(channel, node_id=1)
-        sim.start()
+        sims = SimulatedBus(channel, [row.drive_node_id for row in self.planting])
+        sims.start()
         context = Context()
         rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
         executor = SingleThreadedExecutor(context=context)
@@ -127,19 +146,32 @@ class Demo:
                                     parameter_overrides=ros_scene))
             sync = SyncNode(context=context, namespace=ns, parameter_overrides=[
                 _param('can_interface', 'virtual'), _param('can_channel', channel),
-                _param('phase_lock', not args.speed_only)])
+                _param('phase_lock', not args.speed_only),
+                _param('turn_compensation', not args.no_turn_compensation)] + row_params)
             nodes.append(sync)
             observer = Observer(context=context, namespace=ns)
             nodes.append(observer)
             monitor = MonitorNode(context=context, namespace=ns, parameter_overrides=(
-                [_param('bag_path', args.bag)] if args.bag else []))
+                [_param('bag_path', args.bag)] if args.bag else []) + row_params)
             nodes.append(monitor)                # per-plant predictions and the bag
+            turns = ', '.join(f'{"left" if c.radius > 0 else "right"} turn R = '
+                              f'{abs(c.radius):g} m at {c.start:.1f}-{c.end:.1f} s'
+                              for c in profile.curves)
             print(f"planter demo: {design['crop']} {design['mechanism']}, d = "
                   f"{design['plant_spacing']:.3f} m, cruise {profile.cruise:.2f} -> "
-                  f"{profile.cruise * profile.change:.2f} m/s, {args.duration:g} s, "
-                  f"{'speed-only' if args.speed_only else 'phase-locked'}, CAN virtual:{channel}")
+                  f"{profile.cruise * profile.change:.2f} m/s, {turns}, {args.duration:g} s, "
+                  f"{'speed-only' if args.speed_only else 'phase-locked'}, turn compensation "
+                  f"{'off' if args.no_turn_compensation else 'on'}, CAN virtual:{channel}")
+            if self.rows[0].name:
+                print('rows: ' + ', '.join(
+                    f'{row.name} (y = {row.lateral_offset:+.2f} m, node {row.drive_node_id}'
+                    f'{"" if row.enabled else ", disabled"})' for row in self.rows)
+                      + f'; CAN bus load {100 * sync.bus_load.load:.1f} % of '
+                      f'{sync.bus_load.bitrate} bit/s')
             sync.enable_drive()                  # blocking, before anything spins
-            print('drive enabled (CiA 402 profile velocity); field run starts')
+            print(('drive enabled' if len(self.planting) == 1 else
+                   f'{sum(u.running for u in sync.units)} drives enabled')
+                  + ' (CiA 402 profile velocity); field run starts')
             source = GroundSpeedSource(profile, glitches=glitches, seed=args.seed,
                                        context=context, namespace=ns)
             nodes.append(source)
@@ -167,9 +199,9 @@ class Demo:
             for node in reversed(nodes):
                 node.destroy_node()          # the sync node shuts the drive down first
             context.try_shutdown()
-            sim.stop()
+            sims.stop()
         if sync is not None and 'observer' in locals() and observer.start is not None:
-            print(self.summary(profile, sync, observer, sim))
+            print(self.summary(profile, sync, observer, sims))
         if monitor is not None and monitor.recorder is not None:
             print(self.replay_summary(monitor.recorder.path))
         return 130 if interrupted else 0
@@ -188,46 +220,103 @@ class Demo:
         lines += [f'  warning: {w}' for w in result.warnings]
         return '\n'.join(lines)
 
-    def _progress(self, t, profile, sync, observer):
-        status = sync._status
-        n = len(observer.plant_positions(profile, self.design))
-        return (f't = {t:5.1f} s  v = {profile(t):.3f} m/s  command = {sync.command_value:6.3f} '
-                f'rad/s  measured = {status.velocity if status else 0.0:6.3f} rad/s  '
-                f'plants = {n:3d}  drive: {status.state if status else "-"}')
+    def _joint(self, row):
+        return row.joint(self.design['mechanism'])
 
-    def summary(self, profile, sync, observer, sim):
+    def _progress(self, t, profile, sync, observer):
+        plants = sum(len(observer.plant_positions(profile, self.design, self._joint(row),
+                                                  row.lateral_offset))
+                     for row in self.planting)
+        if len(self.planting) == 1:
+            status = sync._status
+            return (f't = {t:5.1f} s  v = {profile(t):.3f} m/s  command = '
+                    f'{sync.command_value:6.3f} rad/s  measured = '
+                    f'{status.velocity if status else 0.0:6.3f} rad/s  plants = {plants:3d}  '
+                    f'drive: {status.state if status else "-"}')
+        commands = ' '.join(f'{u.command:5.2f}' for u in sync.units if u.drive is not None)
+        return (f't = {t:5.1f} s  v = {profile(t):.3f} m/s  yaw rate = '
+                f'{profile.yaw_rate(t):+.3f} rad/s  commands = {commands} rad/s  '
+                f'plants = {plants:3d}')
+
+    def summary(self, profile, sync, observer, sims):
         import numpy as np
 
         from planter_ros.sim.spacing import spacing_stats
         d = self.design['plant_spacing']
-        positions = observer.plant_positions(profile, self.design)
-        stats = spacing_stats(positions, d)
-        lines = ['', 'summary',
-                 f"  plants placed            {stats.plants}",
-                 f"  spacing error |gap - d|  mean {stats.mean_abs_spacing_error * 1e3:.2f} mm, "
-                 f"max {stats.max_abs_spacing_error * 1e3:.2f} mm  (d = {d * 1e3:.0f} mm)",
-                 f"  drift from the grid      max {stats.max_abs_drift * 1e3:.2f} mm, last plant "
-                 f"{stats.final_drift * 1e3:+.2f} mm"]
         n = self.design['plants_per_revolution']
-        for label, (a, b) in (('cruise 1', (profile.start + 0.5, profile.t_change)),
-                              ('cruise 2', (profile.t_change + 1.5, profile.t_stop))):
-            expected = 2 * math.pi * profile(0.5 * (a + b)) / (n * d)
-            cmd = observer.window('command', a, b)
-            meas = observer.window('velocity', a, b)
-            if cmd.size and meas.size:
-                rms = np.sqrt(np.mean((meas - expected) ** 2))
-                lines.append(f"  {label + ' speed':<24} expected {expected:.3f} rad/s, "
-                             f'commanded {np.mean(cmd):.3f}, measured {np.mean(meas):.3f} '
-                             f'(rms measured - expected {rms:.3f})')
+        named = bool(self.rows[0].name)
+        lines = ['', 'summary']
+        for row in self.planting:
+            joint = self._joint(row)
+            times, positions = observer.plants(profile, self.design, joint, row.lateral_offset)
+            stats = spacing_stats(positions, d)
+            gaps = np.diff(positions) - d
+            rms = float(np.sqrt(np.mean(gaps ** 2))) if gaps.size else 0.0
+            head = f'  row {row.label} (y = {row.lateral_offset:+.2f} m)' if named else ''
+            if head:
+                lines.append(head)
+            pad = '    ' if named else '  '
+            lines += [f"{pad}plants placed            {stats.plants}",
+                      f"{pad}spacing error |gap - d|  mean "
+                      f"{stats.mean_abs_spacing_error * 1e3:.2f} mm, RMS {rms * 1e3:.2f} mm, "
+                      f"max {stats.max_abs_spacing_error * 1e3:.2f} mm  (d = {d * 1e3:.0f} mm)",
+                      f"{pad}drift from the grid      max {stats.max_abs_drift * 1e3:.2f} mm, "
+                      f"last plant {stats.final_drift * 1e3:+.2f} mm"]
+            for label, (a, b) in (('cruise 1', (profile.start + 0.5, profile.t_change)),
+                                  ('cruise 2', (profile.t_change + 1.5, profile.t_stop))):
+                expected = 2 * math.pi * profile(0.5 * (a + b)) / (n * d)
+                cmd = observer.window('command', a, b, joint)
+                meas = observer.window('velocity', a, b, joint)
+                if cmd.size and meas.size and not named:
+                    rms = np.sqrt(np.mean((meas - expected) ** 2))
+                    lines.append(f"{pad}{label + ' speed':<24} expected {expected:.3f} rad/s, "
+                                 f'commanded {np.mean(cmd):.3f}, measured {np.mean(meas):.3f} '
+                                 f'(rms measured - expected {rms:.3f})')
+            lines += self._curve_lines(profile, observer, row, times, positions, pad)
         law = sync.law
         lines.append(f"  ground-speed samples     {law.accepted} accepted, rejected "
                      + ', '.join(f'{k} {v}' for k, v in law.rejected.items()))
-        lines.append(f'  phase slips              {law.phase_slips}; CAN send errors '
+        yaw = sync.machine.filter.yaw
+        lines.append(f"  yaw-rate samples         {yaw.accepted} accepted, rejected "
+                     + ', '.join(f'{k} {v}' for k, v in yaw.rejected.items()))
+        slips = sum(unit.law.phase_slips for unit in sync.units)
+        lines.append(f'  phase slips              {slips}; CAN send errors '
                      f'{sync.send_errors}; mode '
-                     f"{'phase-locked' if law.config.phase_lock else 'speed-only'}")
-        trips = ', '.join(f'{why} (0x{code:04X})' for why, code in sim.watchdog_trips)
+                     f"{'phase-locked' if law.config.phase_lock else 'speed-only'}, turn "
+                     f"compensation {'on' if sync.machine.turn.turn_compensation else 'off'}")
+        trips = ', '.join(f'node {node}: {why} (0x{code:04X})'
+                          for node, why, code in sims.watchdog_trips)
         lines.append(f"  drive watchdog trips     {trips or 'none'}")
         return '\n'.join(lines)
+
+    def _curve_lines(self, profile, observer, row, times, positions, pad):
+        """Per turn: the row's mean spacing error and speed against 2πv_i/(n·d), next to the
+        bias a machine without turn compensation shows there (−y·d/R)."""
+        import numpy as np
+        d = self.design['plant_spacing']
+        n = self.design['plants_per_revolution']
+        lines = []
+        gaps = np.diff(positions) - d
+        for curve in profile.curves:
+            a, b = curve.start + curve.ease, curve.end - curve.ease
+            mine = gaps[(times[:-1] >= a) & (times[1:] <= b)]
+            meas = observer.window('velocity', a, b, self._joint(row))
+            grid = np.linspace(a, b, 50)
+            expected = np.mean([2 * math.pi * profile(t) * (1 - row.lateral_offset
+                                                            / curve.radius) / (n * d)
+                                for t in grid])
+            side = 'left' if curve.radius > 0 else 'right'
+            err = (f'mean {np.mean(mine) * 1e3:+.2f} mm, RMS '
+                   f'{np.sqrt(np.mean(mine ** 2)) * 1e3:.2f} mm over {mine.size} gaps'
+                   if mine.size else 'n/a')
+            ratio = (f'; speed {np.median(meas) / expected:.3f} x 2πv_i/(n·d)'
+                     if meas.size and expected > 0 else '')
+            bias = (f'; without compensation expect '
+                    f'{-row.lateral_offset * d / curve.radius * 1e3:+.2f} mm (-y·d/R)'
+                    if row.lateral_offset else '')     # a row at y = 0 sees no difference
+            lines.append(f'{pad}{side + " turn R = " + format(abs(curve.radius), "g") + " m":<24}'
+                         f' spacing error {err}{ratio}{bias}')
+        return lines
 
 
 def _param(name, value):

@@ -75,37 +75,60 @@ def run(args):
     return 0
 
 
+def _named_rows(result):
+    return len(result.rows) > 1 or bool(result.rows[0].name)
+
+
 def format_table(result):
     """Per-plant rows and the summary for people (mm and degrees, labelled)."""
     p = result.plants
     t0 = float(p.time[0]) if len(p) else 0.0
     messages = result.messages
+    names = {row.index: row.label for row in result.rows} if _named_rows(result) else None
+    width = max((len(n) for n in names.values()), default=3) if names else 0
+    row_head = f'{"row":<{width}} ' if names else ''
     lines = [f'bag {result.path}: {messages[interfaces.GROUND_SPEED.name]} ground speed and '
              f'{messages[interfaces.JOINT_STATES.name]} joint state messages over '
              f'{result.duration:.1f} s',
-             f'{"plant":>5} {"t [s]":>8} {"x [m]":>8} {"spacing [mm]":>12} {"error [mm]":>10} '
-             f'{"lambda":>7} {"hole [mm]":>9} {"tilt [deg]":>10} {"upright":>7}']
+             f'{row_head}{"plant":>5} {"t [s]":>8} {"x [m]":>8} {"spacing [mm]":>12} '
+             f'{"error [mm]":>10} {"lambda":>7} {"hole [mm]":>9} {"tilt [deg]":>10} '
+             f'{"upright":>7}']
     for i in range(len(p)):
         spacing = '' if not math.isfinite(p.spacing[i]) else f'{p.spacing[i] * 1e3:.1f}'
         err = '' if not math.isfinite(p.spacing_error[i]) else f'{p.spacing_error[i] * 1e3:+.1f}'
         lam = f'{p.speed_ratio[i]:.3f}' if math.isfinite(p.speed_ratio[i]) else 'inf'
-        lines.append(f'{int(p.index[i]):>5} {p.time[i] - t0:>8.3f} {p.position[i]:>8.3f} '
+        row = f'{names.get(int(p.row[i]), "?"):<{width}} ' if names else ''
+        lines.append(f'{row}{int(p.index[i]):>5} {p.time[i] - t0:>8.3f} {p.position[i]:>8.3f} '
                      f'{spacing:>12} {err:>10} {lam:>7} {p.hole_width[i] * 1e3:>9.2f} '
                      f'{math.degrees(p.tilt[i]):>10.2f} {"yes" if p.upright[i] else "NO":>7}')
     return '\n'.join(lines + [''] + format_summary(result).splitlines())
 
 
-def format_summary(result):
-    """The replay summary for people: plants, spacing error, hole width, uprightness."""
-    s = result.summary
+def _mm(v):
+    return 'n/a' if v is None else f'{v * 1e3:.2f} mm'
 
-    def mm(v):
-        return 'n/a' if v is None else f'{v * 1e3:.2f} mm'
+
+def format_summary(result):
+    """The replay summary for people: plants, spacing error, hole width, uprightness; with
+    rows, one line per row too (positions along each row's own travelled distance)."""
+    s = result.summary
     rate = 'n/a' if s['uprightness_rate'] is None else f'{100 * s["uprightness_rate"]:.1f} %'
     threshold = math.degrees(result.settings.upright_threshold)
-    return '\n'.join([
+    lines = [
         f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
-        f'spacing error: mean {mm(s["spacing_error_mean"])}, sigma '
-        f'{mm(s["spacing_error_std"])}, max |error| {mm(s["spacing_error_max"])}',
-        f'hole width: mean {mm(s["hole_width_mean"])}, max {mm(s["hole_width_max"])}',
-        f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)'])
+        f'spacing error: mean {_mm(s["spacing_error_mean"])}, sigma '
+        f'{_mm(s["spacing_error_std"])}, max |error| {_mm(s["spacing_error_max"])}',
+        f'hole width: mean {_mm(s["hole_width_mean"])}, max {_mm(s["hole_width_max"])}',
+        f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)']
+    if _named_rows(result):
+        for row, r in zip(result.rows, result.row_summaries):
+            where = f'y = {row.lateral_offset:+.2f} m'
+            if not row.enabled:
+                lines.append(f'row {row.label} ({where}): disabled')
+                continue
+            upright = 'n/a' if r['uprightness_rate'] is None else \
+                f'{100 * r["uprightness_rate"]:.1f} %'
+            lines.append(f'row {row.label} ({where}): {r["plants"]} plants, spacing error mean '
+                         f'{_mm(r["spacing_error_mean"])}, sigma {_mm(r["spacing_error_std"])}, '
+                         f'max {_mm(r["spacing_error_max"])}; upright {upright}')
+    return '\n'.join(lines)

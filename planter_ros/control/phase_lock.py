@@ -20,6 +20,14 @@ Choices the papers leave open, made here on purpose:
 * The law never tries to make up more than one plant: when |e| exceeds one plant pitch 2π/n
   (after a drive fault or a long stale period) the target jumps by whole pitches, so later
   plants stay on the original grid and the missed ones are simply missing (counted as slips).
+* Section control: switched off, the row comes to rest at the angle `stop_angle` chooses (out
+  of the soil, before the next planting angle unless braking cannot stop it in front of the
+  soil, which happens only when it is already there), braking along √(2·a·remaining angle)
+  from the measured angle; switched on, it speeds up on feed-forward alone and a new grid is
+  anchored where it reaches the row's speed (no catching up with the old grid or with the
+  ramp's lag, so no plant comes too soon).
+* A row of a machine on a curve gets its own speed v_i already filtered (`row_speed`); the
+  filter then is the machine's (shared, so its counts are the machine's).
 
 Time is passed in explicitly (monotonic seconds), so the law is deterministic and testable.
 """
@@ -35,6 +43,11 @@ TWO_PI = 2.0 * math.pi
 _MAX_FEEDBACK_EXTRAPOLATION = 0.05
 # the acceleration limit never integrates over a gap longer than this (s)
 _MAX_RATE_STEP = 0.1
+# a row switched off is at rest once it is this close to its stop angle (rad)
+PARK_TOLERANCE = 0.02
+# s of the row's speed a stop may overshoot by (the drive's speed lag, the feedback delay):
+# a stop that close to the soil is taken as in it
+STOP_LAG = 0.05
 
 
 class ControlConfigError(ConfigError):
@@ -63,14 +76,51 @@ class PhaseLockConfig:
         check(self, ControlConfigError)
 
 
+@dataclass(frozen=True)
+class PlantingAngles:
+    """Where on the shaft a mechanism plants (rad, the joint's angle): a planting instant at
+    `phase` + k·2π/n; the nozzle enters the soil `entry` before it and leaves `exit` after."""
+
+    phase: float
+    entry: float
+    exit: float
+
+
+def stop_angle(theta, omega, max_acceleration, pitch, angles=None, lag=STOP_LAG):
+    """Where a row switched off at shaft angle `theta` (rad), turning at `omega` (rad/s), comes
+    to rest, braking at `max_acceleration` (rad/s²) through the soonest stop θ_min.
+
+    Without planting angles: θ_min. With them, plants are θ_k = phase + k·pitch and the nozzle
+    is in the soil over [θ_k − entry, θ_k + exit]: at θ_min (plus `lag`·ω of overshoot) in the
+    soil, the plant in progress is set and the row parks after it; otherwise it parks in the
+    middle of the out-of-soil arc if that is still ahead, else at θ_min (before the next soil
+    entry): nothing more is planted.
+    """
+    omega = max(omega, 0.0)
+    earliest = theta + omega ** 2 / (2.0 * max_acceleration)
+    if angles is None or angles.entry + angles.exit >= pitch:
+        return earliest
+    k = math.ceil((earliest - angles.exit - angles.phase) / pitch)
+    plant = angles.phase + k * pitch          # first plant whose soil arc is not behind θ_min
+    half_arc = 0.5 * (pitch - angles.entry - angles.exit)
+    if earliest + lag * omega >= plant - angles.entry:
+        return plant + angles.exit + half_arc
+    return max(earliest, plant - angles.entry - half_arc)
+
+
 class PhaseLock:
     """Ground speed + measured mechanism angle -> mechanism speed command (rad/s)."""
 
-    def __init__(self, config=None, limits=None):
+    def __init__(self, config=None, limits=None, speed_filter=None):
         self.config = config or PhaseLockConfig()
         self.spacing = None                 # d (m), None until a design is known
         self.plants_per_revolution = 1
-        self.filter = GroundSpeedFilter(limits or GroundSpeedLimits())
+        self.planting = None                # PlantingAngles, if the design gives them
+        self.filter = speed_filter or GroundSpeedFilter(limits or GroundSpeedLimits())
+        self.section_on = True              # section control: planting (True) or off
+        self.stop_angle = None              # where a row switched off comes to rest (rad)
+        self.parked = False                 # switched off and at rest at stop_angle
+        self._starting = False              # switched on, not up to speed: no grid yet
         self.phase_slips = 0                # whole plant pitches given up (fault, stale gap)
         self._v = 0.0                       # last accepted forward speed (m/s)
         self._t_sample = None               # time of the last accepted (or negative) sample
@@ -87,8 +137,9 @@ class PhaseLock:
         self.config = config
         self.filter.limits = limits
 
-    def set_design(self, spacing, plants_per_revolution, now):
-        """Use a new spacing d (m) and plants per revolution n; re-anchors the phase."""
+    def set_design(self, spacing, plants_per_revolution, now, planting=None):
+        """Use a new spacing d (m) and plants per revolution n (and where the mechanism plants,
+        `PlantingAngles`, for section stops); re-anchors the phase."""
         if not (math.isfinite(spacing) and spacing > 0):
             raise ControlConfigError(f'plant_spacing = {spacing} is out of range: allowed '
                                      'finite and > 0 m')
@@ -97,6 +148,7 @@ class PhaseLock:
                                      'of range: allowed 1..6')
         self.spacing = float(spacing)
         self.plants_per_revolution = int(plants_per_revolution)
+        self.planting = planting
         self._anchor = None
         self._try_anchor(now)
 
@@ -115,11 +167,35 @@ class PhaseLock:
         if used is None:
             return reason
         # accepted, or a plausible negative sample read as 0 (not moving forward)
-        self._s = self.travelled(now)
-        self._v = used
-        self._t_sample = now
+        self.row_speed(used, now)
         return reason
 
+    def row_speed(self, v, now):
+        """Take a speed sample already judged plausible (m/s; ≤ 0 = not moving forward)."""
+        self._s = self.travelled(now)
+        self._v = max(float(v), 0.0)
+        self._t_sample = now
+
+    def switch(self, on, now):
+        """Section control: off = come to rest at `stop_angle` and plant nothing more; on = a
+        new grid from the angle the mechanism rests at and the distance travelled now."""
+        if on == self.section_on:
+            return
+        self.section_on = on
+        if on:
+            self.stop_angle = None
+            self.parked = False
+            self._anchor = None
+            self._starting = True           # the grid starts once up to speed (command())
+            return
+        theta = self.measured_angle(now)
+        omega = self._fb[1] if self._fb is not None else 0.0
+        if theta is None:                   # never turned: rest where it is
+            self.stop_angle, self.parked = None, True
+            return
+        self.stop_angle = stop_angle(theta, max(omega, self._cmd), self.config.max_acceleration,
+                                     TWO_PI / self.plants_per_revolution, self.planting)
+        self.parked = False
     def feedback(self, angle, speed, stamp):
         """Measured mechanism angle (rad, unwrapped) and speed (rad/s) at time `stamp`."""
         if math.isfinite(angle) and math.isfinite(speed):
@@ -174,6 +250,8 @@ class PhaseLock:
     def state(self, now):
         if self.spacing is None:
             return 'waiting for design'
+        if not self.section_on:
+            return 'section off (at rest)' if self.parked else 'section off (stopping)'
         if self._t_sample is None:
             return 'waiting for ground speed'
         if self.stale(now):
@@ -186,10 +264,16 @@ class PhaseLock:
         """Speed command (rad/s, >= 0) for time `now`, acceleration-limited from the last one."""
         cfg = self.config
         target = self.feed_forward(now)
-        error = self._wrapped_error(now)
-        self.last_error = error
-        if cfg.phase_lock and self._anchor is not None and not self.stale(now):
-            target += min(max(cfg.phase_gain * error, -cfg.max_correction), cfg.max_correction)
+        if self.section_on:
+            if self._starting:
+                self._start_grid(now, target)
+            error = self._wrapped_error(now)
+            self.last_error = error
+            if cfg.phase_lock and self._anchor is not None and not self.stale(now):
+                target += min(max(cfg.phase_gain * error, -cfg.max_correction),
+                              cfg.max_correction)
+        else:
+            target = min(target, self._braking(now))
         target = min(max(target, 0.0), cfg.max_speed)
         if self._t_cmd is None:
             step = 0.0
@@ -199,13 +283,33 @@ class PhaseLock:
         self._t_cmd = now
         return self._cmd
 
+    def _start_grid(self, now, feed_forward):
+        """Switched on: the mechanism speeds up from rest on feed-forward alone; the new grid
+        is anchored once it turns at 95 % of it, so the ramp's lag shifts the grid instead of
+        being made up (which would set the next plants too close)."""
+        if self._fb is not None and feed_forward > 0.0 and self._fb[1] >= 0.95 * feed_forward:
+            self._starting = False
+            self._try_anchor(now)
+
+    def _braking(self, now):
+        """Switched off: the speed that still stops at stop_angle (0 once at rest there)."""
+        if self.parked or self.stop_angle is None:
+            self.parked = True
+            return 0.0
+        remaining = self.stop_angle - self.measured_angle(now)
+        if remaining <= PARK_TOLERANCE:
+            self.parked = True
+            return 0.0
+        return math.sqrt(2.0 * self.config.max_acceleration * remaining)
+
     def halt(self, now):
         """The drive stopped (fault, disabled): the next commands ramp up again from 0."""
         self._cmd = 0.0
         self._t_cmd = now
 
     def _try_anchor(self, now):
-        if self._anchor is None and self.spacing is not None and self._fb is not None:
+        if (self._anchor is None and not self._starting and self.spacing is not None
+                and self._fb is not None):
             self._anchor = (self.measured_angle(now), self.travelled(now))
 
     def _wrapped_error(self, now):

@@ -77,18 +77,30 @@ def drive_report(status, enabled, shut_down, halt, send_errors, last_send_error,
     return Report('drive', OK, 'operation enabled', tuple(values))
 
 
-def ground_report(law, now):
-    """The ground-speed input: fresh, rejecting samples, or stale."""
+def ground_report(law, now, machine=None, stale_state=None):
+    """The ground-speed input: fresh, rejecting samples, or stale. `law` runs at the machine's
+    reference point; `machine` (control.machine.Machine) adds the yaw rate; `stale_state` says
+    what the rows do meanwhile (default: `law.state`)."""
     rejected = sum(law.rejected.values())
     values = [('ground speed', f'{law.ground_speed_value:.4f} m/s'),
               ('travelled', f'{law.travelled(now):.4f} m'),
               ('accepted samples', law.accepted), ('rejected samples', rejected)]
     values += [(f'rejected {k}', v) for k, v in law.rejected.items()]
+    yaw_rejected = 0
+    if machine is not None:
+        yaw = machine.filter.yaw
+        yaw_rejected = sum(yaw.rejected.values())
+        values += [('yaw rate', f'{machine.yaw_rate_value:.4f} rad/s'),
+                   ('turn compensation', 'on' if machine.turn.turn_compensation else 'off'),
+                   ('accepted yaw-rate samples', yaw.accepted),
+                   ('rejected yaw-rate samples', yaw_rejected)]
+        values += [(f'rejected yaw rate {k}', v) for k, v in yaw.rejected.items()]
     if law.stale(now):
-        return Report('ground speed', STALE, law.state(now), tuple(values))
-    if rejected:
-        return Report('ground speed', WARN, f'{rejected} sample(s) rejected since start',
-                      tuple(values))
+        return Report('ground speed', STALE, stale_state or law.state(now), tuple(values))
+    if rejected or yaw_rejected:
+        return Report('ground speed', WARN, f'{rejected} speed and {yaw_rejected} yaw-rate '
+                      'sample(s) rejected since start' if machine is not None else
+                      f'{rejected} sample(s) rejected since start', tuple(values))
     return Report('ground speed', OK, 'fresh', tuple(values))
 
 
@@ -108,3 +120,31 @@ def phase_report(law, now, command):
         return Report('phase lock', WARN,
                       f'{law.phase_slips} plant(s) skipped to stay on the grid', values)
     return Report('phase lock', OK, law.state(now), values)
+
+
+# how bad a level is, for merging (diagnostic_msgs numbers STALE above ERROR)
+_SEVERITY = {OK: 0, WARN: 1, STALE: 2, ERROR: 3}
+
+
+def row_report(name, drive, phase, row_values=()):
+    """One status per row of a machine: the row's drive and phase lock reports merged (the
+    worse level; the drive's message unless the drive is fine) plus the row's own values."""
+    worst = max((drive, phase), key=lambda r: _SEVERITY[r.level])
+    message = drive.message if drive.level != OK else phase.message
+    return Report(name, worst.level, message,
+                  tuple(row_values) + tuple(drive.values) + tuple(phase.values))
+
+
+def idle_row_report(name, reason, level, row_values=()):
+    """A row that does not run: disabled in the scene (OK) or left out at start-up (ERROR)."""
+    return Report(name, level, reason, tuple(row_values))
+
+
+def bus_report(load, last_send_error, now):
+    """The CAN bus: its worst-case load (drive.bus_load.BusLoad) and heartbeat send errors."""
+    values = tuple(load.values())
+    if last_send_error is not None and now - last_send_error[0] <= SEND_ERROR_HOLD:
+        return Report('bus', ERROR, f'CAN send error: {last_send_error[1]}',
+                      values + (('last send error', last_send_error[1]),))
+    return Report('bus', OK, f'load {100 * load.load:.1f} % of {load.bitrate} bit/s '
+                  f'({load.rows} drive(s))', values)

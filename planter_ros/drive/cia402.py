@@ -2,7 +2,11 @@
 
 The one CAN protocol module of planter_ros. It uses the `canopen` library (Network on a
 python-can bus, BaseNode402 with the drive's EDS) for SDO, NMT, PDO encoding, EMCY and the
-statusword decoding, and keeps every blocking call out of the real-time path:
+statusword decoding, and keeps every blocking call out of the real-time path.
+
+`CanopenBus` owns the python-can bus and its canopen Network and sends the master's heartbeat
+(once per bus); `Cia402Drive` is the master of one drive (one node id) on such a bus. Several
+drives share one `CanopenBus` (a machine with a drive per row); a drive given none opens its own.
 
 * ``connect_and_enable()`` and ``shutdown()`` block (SDO, waits with timeouts): call them at
   node start-up / shutdown or from a worker thread, never from a ROS or CAN callback.
@@ -33,6 +37,7 @@ from dataclasses import dataclass
 import logging
 import math
 from pathlib import Path
+import struct
 import threading
 import time
 
@@ -52,11 +57,16 @@ from planter_ros.drive.states import (
     NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY, PROFILE_VELOCITY_SUPPORTED,
     QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON, state_of)
 
-__all__ = ['Cia402Drive', 'DriveConfig', 'DriveError', 'DriveStatus']
+__all__ = ['CanopenBus', 'Cia402Drive', 'DriveConfig', 'DriveError', 'DriveStatus']
 
 log = logging.getLogger(__name__)
 
 _INT32 = (-2**31, 2**31 - 1)
+# RPDO1 as _configure_pdos maps it: (index, bit offset, bit length) of each entry, and the
+# frame packed straight from that (the control loop's hot path: canopen's per-entry encoding
+# costs several times the send)
+_RPDO_LAYOUT = ((0x6040, 0, 16), (0x60FF, 16, 32))
+_RPDO_FRAME = struct.Struct('<Hi')
 
 # Fault-reset / re-enable: the controlword that moves each state one step towards
 # OPERATION ENABLED (fault state handled separately: one reset edge per request).
@@ -87,16 +97,79 @@ class DriveStatus:                             # snapshot, built without blockin
     commanded_velocity: float = 0.0            # mechanism rad/s in the last RPDO sent
 
 
-class Cia402Drive:
-    """Master for one CiA 402 drive in profile velocity mode (see the module docstring)."""
+class CanopenBus:
+    """One python-can bus with its canopen Network (a notifier thread runs the callbacks of
+    every node on it) and the master's heartbeat. Uses the bus fields of `config`
+    (can_interface, can_channel, can_bitrate, master_node_id); `bus` = an open python-can bus
+    to use (left open on close)."""
 
     def __init__(self, config: DriveConfig, bus: can.BusABC | None = None):
         self.config = config
         self._given_bus = bus
         self._bus: can.BusABC | None = None
+        self.network: canopen.Network | None = None
+        self._lock = threading.Lock()
+
+    @property
+    def where(self) -> str:
+        return f'{self.config.can_interface}:{self.config.can_channel}'
+
+    def open(self) -> canopen.Network:
+        """Open the bus and start the Network (idempotent). Raises BusError."""
+        with self._lock:
+            if self.network is not None:
+                return self.network
+            cfg = self.config
+            try:
+                self._bus = self._given_bus or can.Bus(
+                    interface=cfg.can_interface, channel=cfg.can_channel, bitrate=cfg.can_bitrate)
+            except Exception as exc:
+                raise BusError(f'open bus: {self.where}: {type(exc).__name__}: {exc}') from None
+            network = canopen.Network(self._bus)
+            network.NOTIFIER_CYCLE = 0.05                 # close() waits at most this long
+            network.connect()
+            self.network = network
+            return network
+
+    def send_heartbeat(self) -> None:
+        """Our heartbeat frame (NMT state operational), for every drive's consumer.
+        NON-BLOCKING. Raises NotConnectedError before open(), BusError on a send error."""
+        network = self.network
+        if network is None:
+            raise NotConnectedError(f'CAN bus {self.where}: not open (no heartbeat sent)')
+        try:
+            network.send_message(0x700 + self.config.master_node_id, b'\x05')
+        except Exception as exc:            # python-can raises CanError, OSError, ValueError...
+            raise BusError(f'CAN send of heartbeat failed on {self.where}: '
+                           f'{type(exc).__name__}: {exc}') from None
+
+    def close(self) -> None:
+        """Stop the Network's notifier; shut the bus down if this object opened it."""
+        with self._lock:
+            network, self.network = self.network, None
+            if network is not None and network.notifier is not None:
+                network.notifier.stop(1.0)
+            if self._given_bus is None and self._bus is not None:
+                self._bus.shutdown()
+            self._bus = None
+
+
+class Cia402Drive:
+    """Master for one CiA 402 drive in profile velocity mode (see the module docstring).
+
+    `bus`: an open python-can bus to use; `canbus`: a `CanopenBus` shared with other drives
+    (then this drive neither opens nor closes the bus, and the master heartbeat is the
+    CanopenBus's to send)."""
+
+    def __init__(self, config: DriveConfig, bus: can.BusABC | None = None,
+                 canbus: CanopenBus | None = None):
+        self.config = config
+        self._owns_canbus = canbus is None
+        self.canbus = canbus if canbus is not None else CanopenBus(config, bus)
         self._network: canopen.Network | None = None
         self._node: BaseNode402 | None = None
         self._rpdo = None
+        self._rpdo_packed = False     # RPDO1 has the layout _RPDO_FRAME packs
         self._connected = False       # bus open, PDOs configured, drive operational
         self._enabled = False         # enable sequence finished (cleared by shutdown)
         self._lock = threading.Lock()             # feedback and fault fields
@@ -349,30 +422,26 @@ class Cia402Drive:
             self._emcy_code = 0
             self._enabled = True
 
-    def _open(self) -> None:
+    def open(self) -> None:
+        """Open (or join) the bus and add this drive's node to it (no frame sent). Drives
+        sharing a CanopenBus are opened one after the other, then enabled at once."""
         if self._network is not None:
             return
         cfg = self.config
-        try:
-            if self._given_bus is not None:
-                self._bus = self._given_bus
-            else:
-                self._bus = can.Bus(interface=cfg.can_interface, channel=cfg.can_channel,
-                                    bitrate=cfg.can_bitrate)
-        except Exception as exc:
-            raise self._fail('open bus', f'{cfg.can_interface}:{cfg.can_channel}: '
-                             f'{type(exc).__name__}: {exc}', BusError) from None
         eds = cfg.eds_path or str(default_eds_path())
         if not Path(eds).is_file():
             raise self._fail('load EDS', f'{eds} is not a file', DriveConfigError)
-        network = canopen.Network(self._bus)
-        network.NOTIFIER_CYCLE = 0.05                 # stop() waits at most this long
+        try:
+            network = self.canbus.open()
+        except BusError as exc:
+            raise BusError(f'drive node {cfg.drive_node_id}: {exc}') from None
         node = BaseNode402(cfg.drive_node_id, eds)
         node.sdo.RESPONSE_TIMEOUT = cfg.step_timeout
         network.add_node(node)
         node.emcy.add_callback(self._on_emcy)
-        network.connect()
         self._network, self._node = network, node
+
+    _open = open
 
     def _configure_pdos(self) -> None:
         """RPDO1 = controlword + target velocity; TPDO1 = statusword + error code,
@@ -421,14 +490,20 @@ class Cia402Drive:
             for number in (1, 2):
                 node.tpdo[number].add_callback(self._on_status_tpdo)
         self._rpdo = rpdo
+        layout = tuple((var.index, var.offset, var.length) for var in rpdo)
+        self._rpdo_packed = layout == _RPDO_LAYOUT and rpdo.cob_id == 0x200 + cfg.drive_node_id
 
     def _transmit(self, controlword: int, counts: int) -> None:
         """One RPDO frame: controlword + target velocity (counts/s)."""
         def send():
             with self._tx_lock:
-                self._rpdo[0x6040].raw = controlword
-                self._rpdo[0x60FF].raw = counts
-                self._rpdo.transmit()
+                if self._rpdo_packed:
+                    self._network.send_message(self._rpdo.cob_id,
+                                               _RPDO_FRAME.pack(controlword, counts))
+                else:
+                    self._rpdo[0x6040].raw = controlword
+                    self._rpdo[0x60FF].raw = counts
+                    self._rpdo.transmit()
                 self._last_controlword = controlword
         self._send(f'RPDO (controlword 0x{controlword:04X}, 0x60FF {counts})', send)
 
@@ -521,12 +596,15 @@ class Cia402Drive:
                 self._emcy_code = self._emcy_code or EMCY_HEARTBEAT
 
     def send_heartbeat(self) -> None:
-        """Our heartbeat frame (NMT state operational), for the drive's consumer. NON-BLOCKING."""
+        """Our heartbeat frame (NMT state operational), for the drive's consumer. NON-BLOCKING.
+        On a shared CanopenBus send it once per bus instead (`canbus.send_heartbeat()`)."""
         if self._network is None:
             raise NotConnectedError(f'drive node {self.config.drive_node_id}: not connected '
                              '(call connect_and_enable first)')
-        cob_id = 0x700 + self.config.master_node_id
-        self._send('heartbeat', lambda: self._network.send_message(cob_id, b'\x05'))
+        try:
+            self.canbus.send_heartbeat()
+        except DriveError as exc:
+            raise BusError(f'drive node {self.config.drive_node_id}: {exc}') from None
 
     def status(self) -> DriveStatus:
         """Snapshot of the drive as the bus callbacks last saw it. NON-BLOCKING."""
@@ -620,14 +698,10 @@ class Cia402Drive:
 
     def _close(self) -> None:
         network, self._network = self._network, None
-        if network is not None:
-            if network.notifier is not None:
-                network.notifier.stop(1.0)
-            if self._node is not None and self._node.id in network:
-                del network[self._node.id]
-        if self._given_bus is None and self._bus is not None:
-            self._bus.shutdown()
-        self._bus = None
+        if network is not None and self._node is not None and self._node.id in network:
+            del network[self._node.id]
+        if self._owns_canbus:
+            self.canbus.close()
         self._rpdo = None
 
     def __enter__(self) -> 'Cia402Drive':

@@ -87,11 +87,13 @@ class SimulatedDrive:
                  counts_per_motor_rev: int = 4096, *, interface: str = 'virtual',
                  eds_path: str | Path | None = None, tick: float = 0.002,
                  supported_modes: tuple[int, ...] = (PROFILE_VELOCITY,),
-                 coast_time_constant: float = 0.5):
+                 coast_time_constant: float = 0.5, network: canopen.Network | None = None):
         """Build the drive (no thread yet, call start()).
 
         bus_or_channel: a python-can bus this drive uses (left open on stop()), or a channel
         name for a bus of `interface` that the drive opens and closes itself.
+        network: a canopen Network on that bus shared with other simulated drives (see
+        `SimulatedBus`; its owner connects and stops it), else the drive makes its own.
         time_constant: s, first-order lag of the speed loop. max_acceleration: motor rad/s^2.
         counts_per_motor_rev: encoder increments per motor revolution (0x608F).
         supported_modes: modes the drive accepts in 0x6060 (0x6061 keeps its old value
@@ -118,7 +120,8 @@ class SimulatedDrive:
         self._stop_event = threading.Event()
         self._thread: threading.Thread | None = None
 
-        self.network = canopen.Network(self._bus)
+        self._owns_network = network is None
+        self.network = network if network is not None else canopen.Network(self._bus)
         self.network.NOTIFIER_CYCLE = 0.05        # short, so stop() does not wait a second
         self.node = canopen.LocalNode(node_id, str(eds_path or default_eds_path()))
         # The heartbeat is sent by our thread, never by a send_periodic task: drop the NMT
@@ -177,15 +180,18 @@ class SimulatedDrive:
             obj = obj[subindex]
         return int(obj.default or 0)
 
-    def start(self) -> None:
-        """Boot (boot-up message, pre-operational, SWITCH ON DISABLED) and start the thread."""
+    def start(self, thread: bool = True) -> None:
+        """Boot (boot-up message, pre-operational, SWITCH ON DISABLED) and start the thread
+        (`thread` False: the caller runs `step()` instead, as SimulatedBus does)."""
         if self._thread is not None:
             return
-        self.network.connect()
+        if self._owns_network:
+            self.network.connect()
         self._boot()
-        self._thread = threading.Thread(target=self._run, name=f'sim-drive-{self.node_id}',
-                                        daemon=True)
-        self._thread.start()
+        if thread:
+            self._thread = threading.Thread(target=self._run, name=f'sim-drive-{self.node_id}',
+                                            daemon=True)
+            self._thread.start()
 
     def _boot(self) -> None:
         self.node.nmt.state = 'INITIALISING'          # sends the boot-up frame
@@ -201,7 +207,7 @@ class SimulatedDrive:
         if self._thread is not None:
             self._thread.join(timeout=2.0)
             self._thread = None
-        if self.network.notifier is not None:
+        if self._owns_network and self.network.notifier is not None:
             self.network.notifier.stop(1.0)
             self.network.notifier = None
         if self._owns_bus:
@@ -500,15 +506,22 @@ class SimulatedDrive:
                 next_tick = time.monotonic()      # fell behind (loaded machine): no burst
             now = time.monotonic()
             dt, last = now - last, now
-            try:
-                self._step_motor(dt)
-                self._check_watchdogs(now)
-                self._send_state_tpdos()
-                self._send_cyclic(now)
-            except (can.CanError, RuntimeError, OSError) as exc:
-                if self._stop_event.is_set():
-                    break
-                log.warning('simulated drive: bus error: %s', exc)
+            if not self.step(dt, now):
+                break
+
+    def step(self, dt: float, now: float) -> bool:
+        """One step of the drive's own work (motor, watchdogs, TPDOs, heartbeat); False once
+        stopped."""
+        try:
+            self._step_motor(dt)
+            self._check_watchdogs(now)
+            self._send_state_tpdos()
+            self._send_cyclic(now)
+        except (can.CanError, RuntimeError, OSError) as exc:
+            if self._stop_event.is_set():
+                return False
+            log.warning('simulated drive: bus error: %s', exc)
+        return True
 
     def _step_motor(self, dt: float) -> None:
         to_counts = self.counts_per_motor_rev / (2.0 * math.pi)
@@ -575,6 +588,68 @@ class SimulatedDrive:
             if now - self._tpdo_last_sent.get(number, -math.inf) >= pdo_map.event_timer / 1000.0:
                 self._tpdo_last_sent[number] = now
                 self._send_tpdo(pdo_map)
+
+
+class SimulatedBus:
+    """Several simulated drives as devices on one cable: one python-can bus and one canopen
+    Network for all of them (one receiving bus in the process, not one per drive, so a frame
+    sent to N drives is copied once, as on a real bus). `drives[i]` has node id `node_ids[i]`;
+    keyword arguments go to every SimulatedDrive."""
+
+    def __init__(self, channel: str, node_ids, *, interface: str = 'virtual',
+                 tick: float = 0.002, **drive_kwargs):
+        self.bus = can.Bus(interface=interface, channel=channel)
+        self.network = canopen.Network(self.bus)
+        self.network.NOTIFIER_CYCLE = 0.05
+        self.tick = float(tick)
+        self.drives = [SimulatedDrive(self.bus, node_id=node_id, network=self.network,
+                                      tick=tick, **drive_kwargs) for node_id in node_ids]
+        self._stop_event = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        """Boot every drive and run them all from one thread (one wake-up per tick for the
+        whole bus, not one per drive)."""
+        self.network.connect()
+        for drive in self.drives:
+            drive.start(thread=False)
+        self._thread = threading.Thread(target=self._run, name='sim-bus', daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        last = time.monotonic()
+        next_tick = last
+        while not self._stop_event.is_set():
+            next_tick += self.tick
+            delay = next_tick - time.monotonic()
+            if delay > 0:
+                self._stop_event.wait(delay)
+            else:
+                next_tick = time.monotonic()      # fell behind (loaded machine): no burst
+            now = time.monotonic()
+            dt, last = now - last, now
+            for drive in self.drives:
+                if not drive.step(dt, now):
+                    return
+
+    def stop(self) -> None:
+        self._stop_event.set()
+        for drive in self.drives:
+            drive._stop_event.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        for drive in self.drives:
+            drive.stop()
+        if self.network.notifier is not None:
+            self.network.notifier.stop(1.0)
+            self.network.notifier = None
+        self.bus.shutdown()
+
+    @property
+    def watchdog_trips(self):
+        """(node id, reason, EMCY code) of every drive's watchdog reactions."""
+        return [(d.node_id, why, code) for d in self.drives for why, code in d.watchdog_trips]
 
 
 def _wrap_i32(value: int) -> int:

@@ -61,6 +61,7 @@ PLANT_FIELDS = (
     'tilt',              # rad from vertical, + = top leans forward (direction of travel)
     'upright',           # 1 if the stem's angle to the ground >= upright_threshold, else 0
     'uprightness_rate',  # fraction upright over the last `window` plants (this one included)
+    'row',               # the planting unit: its index in the machine's rows (0 without rows)
 )
 
 
@@ -87,6 +88,7 @@ class FiveBarPlanting:
         self.sync_advance = self.l2 - self.l1
         self.release_advance = self.sync_advance
         self.exit_angle = depth_angle(self.depth, self.l1 + self.l2)
+        self.entry_angle = self.exit_angle          # the path is symmetric about the bottom
 
     def hole_width(self, advance):
         """Swept extent (m) below the soil for advance v/ω (m/rad, array)."""
@@ -161,6 +163,7 @@ class PathPlanting:
 
         phi_in, phi_out = crossing(-1.0), crossing(+1.0)
         self.exit_angle = phi_out - phi_p
+        self.entry_angle = phi_p - phi_in
         self._arc = np.linspace(phi_in, phi_out, int(samples)) - phi_p
         self._arc_x = self._x(self._arc + phi_p)
         # frame velocity of the tip along x at release: zero slip when v/ω = -dx/dφ
@@ -260,6 +263,7 @@ class Plants:
     tilt: np.ndarray
     upright: np.ndarray
     uprightness_rate: np.ndarray
+    row: np.ndarray
 
     def __len__(self):
         return int(self.index.size)
@@ -381,15 +385,18 @@ def plant_values(model, settings, omega, v):
 
 
 def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
-                   settings=PredictionSettings()):
+                   settings=PredictionSettings(), row=0, speed_filter=True):
     """All plants of a recording at once (vectorised). Times in s (same clock for both inputs),
-    speeds m/s, shaft angle rad (unwrapped), shaft speed rad/s (NaN or empty = not measured)."""
+    speeds m/s, shaft angle rad (unwrapped), shaft speed rad/s (NaN or empty = not measured).
+    `row` goes into every plant's row field; `speed_filter` False takes speeds that already
+    passed the plausibility rule (a row's speed from sensing.row_speed)."""
     joint_vel = np.asarray(joint_vel, dtype=float)
     if joint_vel.size != np.size(joint_t):
         joint_vel = np.full(np.size(joint_t), np.nan)
     st, sv = clean_samples(speed_t, speed_v)
-    st, sv = (np.asarray(a, dtype=float) for a in filter_ground_speed(st, sv,
-                                                                       settings.speed_limits))
+    if speed_filter:
+        st, sv = (np.asarray(a, dtype=float)
+                  for a in filter_ground_speed(st, sv, settings.speed_limits))
     jt, jp, jw = clean_samples(joint_t, joint_pos, joint_vel)
     empty = Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
     if st.size < 2 or jt.size < 2:
@@ -416,7 +423,7 @@ def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
     v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
     starts = np.concatenate((_gaps(jt, gap), _gaps(st, gap)))
     return _assemble(model, settings, t_e, omega, v_e, s_e, index0=0, prev_position=np.nan,
-                     recent=(), new_sequence=_after_gap(t_e, -np.inf, starts))
+                     recent=(), new_sequence=_after_gap(t_e, -np.inf, starts), row=row)
 
 
 def _gaps(t, gap):
@@ -438,7 +445,7 @@ def _after_gap(t_e, t_before, gaps):
 
 
 def _assemble(model, settings, t_e, omega, v_e, s_e, index0, prev_position, recent,
-              new_sequence):
+              new_sequence, row=0):
     ratio, hole, tilt, upright = plant_values(model, settings, omega, v_e)
     n = t_e.size
     spacing = np.diff(np.concatenate(([prev_position], s_e)))
@@ -453,7 +460,7 @@ def _assemble(model, settings, t_e, omega, v_e, s_e, index0, prev_position, rece
     return Plants(index=np.arange(index0, index0 + n, dtype=float), time=t_e, position=s_e,
                   spacing=spacing, spacing_error=spacing - model.spacing, speed_ratio=ratio,
                   ground_speed=v_e, shaft_speed=omega, hole_width=hole, tilt=tilt,
-                  upright=upright, uprightness_rate=rate)
+                  upright=upright, uprightness_rate=rate, row=np.full(n, float(row)))
 
 
 class PlantPredictor:
@@ -463,11 +470,14 @@ class PlantPredictor:
 
     SPEED_HISTORY = 4096      # speed samples kept to locate plants reported late by the drive
 
-    def __init__(self, model, settings=PredictionSettings()):
+    def __init__(self, model, settings=PredictionSettings(), row=0, speed_filter=True):
+        """`row`: the row field of its plants; `speed_filter` False: speeds already passed
+        the plausibility rule (a row's speed from sensing.row_speed)."""
         self.model = model
         self.settings = settings
+        self.row = row
         self._speed = deque(maxlen=self.SPEED_HISTORY)   # (t, v, s) of the samples kept
-        self._speed_filter = GroundSpeedFilter(settings.speed_limits)
+        self._speed_filter = GroundSpeedFilter(settings.speed_limits) if speed_filter else None
         self._speed_seen = -math.inf                     # latest finite sample time
         self._joint = None                               # last (t, θmax, ω)
         self._next_k = None
@@ -483,7 +493,8 @@ class PlantPredictor:
         if not (math.isfinite(t) and math.isfinite(v)) or not t > self._speed_seen:
             return self._nothing()
         self._speed_seen = t
-        v, _ = self._speed_filter.check(v, t)
+        if self._speed_filter is not None:
+            v, _ = self._speed_filter.check(v, t)
         if v is None:
             return self._nothing()
         if self._speed:
@@ -549,7 +560,7 @@ class PlantPredictor:
         t_e, omega, v_e, s_e = (np.array(c) for c in zip(*rows))
         new_sequence = _after_gap(t_e, self._prev_time, np.array(self._gaps).reshape(-1, 2))
         plants = _assemble(self.model, self.settings, t_e, omega, v_e, s_e, self._count,
-                           self._prev_position, tuple(self._recent), new_sequence)
+                           self._prev_position, tuple(self._recent), new_sequence, self.row)
         self._count += len(plants)
         self._prev_position = float(plants.position[-1])
         self._prev_time = float(plants.time[-1])

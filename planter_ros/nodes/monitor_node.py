@@ -3,15 +3,22 @@
 Subscribes `ground_speed` (TwistStamped), `joint_states` (JointState) and the latched `design`
 (String JSON); publishes each plant on `plants` (std_msgs/Float64MultiArray, labelled layout,
 fields in `PLANT_FIELDS`, SI) and the rolling rate on `uprightness_rate` (std_msgs/Float64,
-fraction 0..1), and `/diagnostics` at 1 Hz. It records its inputs (plus `speed_command` and
-`/diagnostics`) as the CDR bytes that arrived (raw subscriptions) and its own outputs, through
-the one recorder (planter_ros.recording.recorder); the topics are interfaces.RECORDED.
+fraction 0..1, over the last `window` plants of the whole machine), and `/diagnostics` at 1 Hz.
+It records its inputs (plus the speed commands and `/diagnostics`) as the CDR bytes that arrived
+(raw subscriptions) and its own outputs, through the one recorder
+(planter_ros.recording.recorder); the topics are interfaces.RECORDED, and the bag's rows record
+names each row index.
 
-The model is `planter_ros.kinematics.plant_prediction`; this node only turns messages into
-calls of it. Inputs stamped 0 are timed by their receive time. Samples before the first design
-are recorded but not predicted (replay does the same), and a changed design starts a new row.
+A machine with several rows (the scene's `rows`, planter_ros.rows) is predicted row by row:
+each row from its own joint and its own travelled distance, from the ground speed v, the yaw
+rate ω_z and its lateral offset y (v − ω_z·y, sensing.row_speed: what the row's ground really
+did, whether or not the sync node compensated the turn). The model is
+`planter_ros.kinematics.plant_prediction`; this node only turns messages into calls of it.
+Inputs stamped 0 are timed by their receive time. Samples before the first design are recorded
+but not predicted (replay does the same), and a changed design starts a new sequence.
 """
 
+from collections import deque
 import json
 import math
 
@@ -27,8 +34,10 @@ from planter_ros import interfaces
 from planter_ros.config import ConfigError, as_dict
 from planter_ros.kinematics.plant_prediction import (
     PLANT_FIELDS, PlantPredictor, PredictionSettings, planting_model_from_design)
-from planter_ros.nodes.parameters import ParameterGroup
+from planter_ros.nodes.parameters import ParameterGroup, declare_rows
 from planter_ros.recording.recorder import Recorder, RecorderConfig, RecorderError
+from planter_ros.rows import rows_record
+from planter_ros.sensing.row_speed import RowSpeedStream
 
 STALE_AFTER = 2.0          # s without input samples before the status says STALE
 PLANTS_LABEL = ','.join(PLANT_FIELDS)
@@ -57,6 +66,8 @@ class MonitorNode(Node):
         recording = ParameterGroup(self, RecorderConfig).value
         self._settings = ParameterGroup(self, PredictionSettings,
                                         on_change=self._on_settings)
+        self.rows = declare_rows(self)
+        self._planting = [row for row in self.rows if row.enabled]
 
         self.recorder = None
         self.record_error = ''
@@ -64,10 +75,13 @@ class MonitorNode(Node):
         self.samples_taken = 0
         self._design_text = None
         self._model = None
-        self._predictor = None
-        self._joint_name = None
+        self._predictors = None             # one PlantPredictor per planting row
+        self._speeds = None                 # the rows' speeds (sensing.row_speed)
+        self._joint_names = []
+        self._recent = deque()              # upright flags of the machine's last plants
         self._tables = []
         self._plants = 0
+        self._row_plants = {row.index: 0 for row in self._planting}
         self._last = None
         self._last_input = None
         self._rate = None
@@ -81,6 +95,7 @@ class MonitorNode(Node):
                     interfaces.GROUND_SPEED: self._on_speed,
                     interfaces.JOINT_STATES: self._on_joint,
                     interfaces.SPEED_COMMAND: self._on_command,
+                    interfaces.SPEED_COMMANDS: self._on_command,
                     interfaces.DIAGNOSTICS: self._on_diagnostics}
         self._subs = [topic.subscribe(self, self._raw_callback(topic, handlers[topic]),
                                       qos=topic.recording_qos(), raw=True)
@@ -94,8 +109,17 @@ class MonitorNode(Node):
 
     def _on_settings(self, settings):
         if self._model is not None:
-            self._predictor = PlantPredictor(self._model, settings)
-            self.get_logger().info('prediction settings changed: a new row starts')
+            self._start_predictors(settings)
+            self.get_logger().info('prediction settings changed: a new sequence starts')
+
+    def _start_predictors(self, settings):
+        """Fresh predictors (and row speeds) for every planting row, as replay starts them at
+        each design."""
+        self._predictors = [PlantPredictor(self._model, settings, row=row.index,
+                                           speed_filter=False) for row in self._planting]
+        self._speeds = RowSpeedStream([row.lateral_offset for row in self._planting],
+                                      settings.speed_limits)
+        self._recent = deque(maxlen=settings.window)
 
     # -- recording -----------------------------------------------------------------------
     def _start_recorder(self, recording):
@@ -114,6 +138,7 @@ class MonitorNode(Node):
         # the settings replay needs to reproduce these predictions
         self.recorder.add_metadata(interfaces.PREDICTION_SETTINGS_RECORD, {k: repr(v) for k, v in
                                                      as_dict(self.settings).items()})
+        self.recorder.add_metadata(interfaces.ROWS_RECORD, rows_record(self.rows))
         self.get_logger().info(f'recording to {self.recorder.path}')
 
     def _record(self, topic, data, log_ns, publish_ns=None, message=None):
@@ -164,8 +189,9 @@ class MonitorNode(Node):
             return
         self._design_text = msg.data
         self._model = model
-        self._joint_name = interfaces.MECHANISM_JOINT.get(design.get('mechanism', 'five_bar'))
-        self._predictor = PlantPredictor(model, self.settings)
+        mechanism = design.get('mechanism', 'five_bar')
+        self._joint_names = [row.joint(mechanism) for row in self._planting]
+        self._start_predictors(self.settings)
         self.has_design = True
         self.get_logger().info(f'design received: {design.get("mechanism", "five_bar")}, '
                                f'd = {model.spacing:.4g} m, D = {model.depth:.4g} m')
@@ -173,19 +199,26 @@ class MonitorNode(Node):
     def _on_speed(self, msg, t, now):
         self.samples_taken += 1
         self._last_input = now
-        if self._predictor is not None:
-            self._publish_plants(self._predictor.add_speed(t, msg.twist.linear.x), now)
+        if self._predictors is None:
+            return
+        sample = self._speeds.add(t, msg.twist.linear.x, msg.twist.angular.z)
+        if sample is None:
+            return
+        t, speeds = sample
+        for predictor, v in zip(self._predictors, speeds.tolist()):
+            self._publish_plants(predictor.add_speed(t, v), now)
 
     def _on_joint(self, msg, t, now):
         self.samples_taken += 1
         self._last_input = now
-        if self._predictor is None:
+        if self._predictors is None:
             return
-        i = joint_index(msg, self._joint_name)
-        if i is None:
-            return
-        velocity = msg.velocity[i] if len(msg.velocity) > i else math.nan
-        self._publish_plants(self._predictor.add_joint(t, msg.position[i], velocity), now)
+        for predictor, name in zip(self._predictors, self._joint_names):
+            i = joint_index(msg, name)
+            if i is None:
+                continue
+            velocity = msg.velocity[i] if len(msg.velocity) > i else math.nan
+            self._publish_plants(predictor.add_joint(t, msg.position[i], velocity), now)
 
     def _on_command(self, _msg, _t, _now):
         """Recorded only; counted, since the lock-step feeder waits on it."""
@@ -201,11 +234,13 @@ class MonitorNode(Node):
         msg = plants_message(plants)
         self._pub_plants.publish(msg)
         self._record(interfaces.PLANTS, None, now, now, message=msg)
-        rate = Float64(data=float(plants.uprightness_rate[-1]))
+        self._recent.extend(plants.upright.tolist())
+        rate = Float64(data=float(sum(self._recent) / len(self._recent)))
         self._pub_rate.publish(rate)
         self._record(interfaces.UPRIGHTNESS_RATE, None, now, now, message=rate)
         self._tables.append(plants.table())
         self._plants += len(plants)
+        self._row_plants[int(plants.row[0])] += len(plants)
         self._last = plants
         self._rate = rate.data
 
@@ -227,6 +262,9 @@ class MonitorNode(Node):
         values = {'plants': self._plants,
                   'uprightness_rate': '' if self._rate is None else f'{self._rate:.4f}',
                   'upright_threshold_rad': f'{self.settings.upright_threshold:.6g}'}
+        if len(self.rows) > 1 or self.rows[0].name:
+            values.update({f'plants {row.label}': self._row_plants[row.index]
+                           for row in self._planting})
         if self._last is not None:
             values.update({
                 'last_spacing_error_m': f'{self._last.spacing_error[-1]:.6g}',

@@ -1,13 +1,17 @@
 """Config dataclasses as ROS parameters: the one bridge from `planter_ros.config` specs to rclpy.
 
-`ParameterGroup(node, classes, build, on_change)` declares every field of the classes as a
-parameter with a descriptor (description with unit and range, floating point or integer range,
+`ParameterGroup(node, classes, build, on_change, prefix)` declares every field of the classes as
+a parameter with a descriptor (description with unit and range, floating point or integer range,
 read-only flag), builds the initial value, and follows updates the way the rclpy examples do:
 
 * on-set callback: builds the candidate from the current values plus the update and refuses
   the update with the one-line reason if that fails. It only checks; the node keeps its state.
 * post-set callback: the update is in; build (reusing the checked candidate) and hand the new
   value to `on_change`.
+
+A `prefix` declares the fields as `<prefix><field>`: one row's settings are the parameters
+`<row>.lateral_offset`, ... (a parameter file's nested block `<row>: {lateral_offset: ...}`),
+and `declare_rows` reads a scene's rows that way.
 """
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
@@ -19,6 +23,12 @@ from planter_ros import config
 
 _TYPES = {float: Parameter.Type.DOUBLE, int: Parameter.Type.INTEGER, bool: Parameter.Type.BOOL,
           str: Parameter.Type.STRING, list: Parameter.Type.DOUBLE_ARRAY}
+
+
+def _type(spec):
+    if spec.kind is list and spec.item is str:
+        return Parameter.Type.STRING_ARRAY
+    return _TYPES[spec.kind]
 
 
 def descriptor(spec):
@@ -33,12 +43,14 @@ def descriptor(spec):
     return d
 
 
-def declare(node, spec):
-    """Declare one spec's parameter; returns its value (None if required and not given)."""
-    default = _TYPES[spec.kind] if spec.required else spec.default
-    node.declare_parameter(spec.name, default, descriptor(spec))
+def declare(node, spec, prefix=''):
+    """Declare one spec's parameter (named `prefix` + field name); returns its value (None if
+    not given and required, or with an empty list as default: ROS cannot type an empty list)."""
+    name = prefix + spec.name
+    default = _type(spec) if spec.required or spec.default == [] else spec.default
+    node.declare_parameter(name, default, descriptor(spec))
     try:
-        return _plain(node.get_parameter(spec.name).value)
+        return _plain(node.get_parameter(name).value)
     except ParameterUninitializedException:
         return None
 
@@ -51,15 +63,16 @@ def _plain(value):
 class ParameterGroup:
     """The parameters of one or more config dataclasses on a node (see the module doc)."""
 
-    def __init__(self, node, classes, build=None, on_change=None):
+    def __init__(self, node, classes, build=None, on_change=None, prefix=''):
         self.node = node
         self.classes = tuple(classes) if isinstance(classes, (tuple, list)) else (classes,)
-        self.names = []
+        self.prefix = prefix
+        self.names = []                    # parameter names (with the prefix)
         for cls in self.classes:
             for spec in config.specs(cls):
-                if not node.has_parameter(spec.name):     # shared with a group declared first
-                    declare(node, spec)
-                self.names.append(spec.name)
+                if not node.has_parameter(prefix + spec.name):   # shared with a group before
+                    declare(node, spec, prefix)
+                self.names.append(prefix + spec.name)
         self._build = build or self._build_dataclass
         self._on_change = on_change
         self._checked = None               # (values key, built value) of the last check
@@ -68,18 +81,20 @@ class ParameterGroup:
         node.add_post_set_parameters_callback(self._apply)
 
     def values(self, update=None):
-        """The group's parameter values (uninitialised ones left out), with `update` applied."""
+        """The group's values by field name (uninitialised ones left out), with `update`
+        (by field name) applied."""
         out = {}
         for name in self.names:
             try:
-                out[name] = _plain(self.node.get_parameter(name).value)
+                out[name[len(self.prefix):]] = _plain(self.node.get_parameter(name).value)
             except ParameterUninitializedException:
                 continue
         out.update(update or {})
         return out
 
     def _build_dataclass(self, values):
-        built = tuple(config.from_mapping(cls, values) for cls in self.classes)
+        built = tuple(config.from_mapping(cls, values, prefix=self.prefix)
+                      for cls in self.classes)
         return built[0] if len(built) == 1 else built
 
     @staticmethod
@@ -87,7 +102,8 @@ class ParameterGroup:
         return tuple(sorted((k, repr(v)) for k, v in values.items()))
 
     def _check(self, parameters):
-        update = {p.name: _plain(p.value) for p in parameters if p.name in self.names}
+        update = {p.name[len(self.prefix):]: _plain(p.value) for p in parameters
+                  if p.name in self.names}
         if not update:
             return SetParametersResult(successful=True)
         values = self.values(update)
@@ -108,3 +124,14 @@ class ParameterGroup:
         self.value = checked[1] if checked and checked[0] == key else self._build(values)
         if self._on_change is not None:
             self._on_change(self.value)
+
+
+def declare_rows(node, default_node_id=None):
+    """The scene's rows from `node`'s parameters: `rows` (names) and each row's `<row>.<field>`
+    (planter_ros.rows.RowSettings); one implicit row when the scene names none. Raises
+    ConfigError (one line) for a bad name, a missing or out-of-range field, a node id twice."""
+    from planter_ros.rows import RowLayout, RowSettings, rows_from_settings
+    layout = ParameterGroup(node, RowLayout).value
+    settings = {name: ParameterGroup(node, RowSettings, prefix=f'{name}.').value
+                for name in layout.rows}
+    return rows_from_settings(layout.rows, settings, default_node_id)

@@ -1,4 +1,5 @@
-"""Replay figure: spacing error and hole width along the row, and the tilt histogram."""
+"""Replay figure: spacing error and hole width along the row (one line per row of a machine),
+and the tilt histogram."""
 
 import math
 
@@ -13,25 +14,37 @@ def plot_replay(result, path):
 
     p = result.plants
     s = result.summary
+    rows = getattr(result, 'rows', None) or []
+    named = len(rows) > 1 or bool(rows and rows[0].name)
+    labels = {row.index: row.label for row in rows}
     fig, axes = plt.subplots(3, 1, figsize=(10, 10))
     ax = axes[0]
-    ok = np.isfinite(p.spacing_error)
     ax.axhline(0.0, color='0.6', lw=0.8)
-    ax.plot(p.position[ok], p.spacing_error[ok] * 1e3, '.-', ms=4, lw=0.8)
+    for index in np.unique(p.row):
+        mine = (p.row == index) & np.isfinite(p.spacing_error)
+        ax.plot(p.position[mine], p.spacing_error[mine] * 1e3, '.-', ms=4, lw=0.8,
+                label=labels.get(int(index), f'row {int(index)}') if named else None)
+    if named:
+        ax.legend(fontsize='small', ncol=min(len(rows), 4))
     ax.set_xlabel('position along the row [m]')
     ax.set_ylabel('spacing error [mm]')
     ax.set_title(f'spacing error (design spacing {s["design_spacing"] * 1e3:.0f} mm)')
     ax.grid(alpha=0.3)
 
     ax = axes[1]
-    ax.plot(p.position, p.hole_width * 1e3, '.-', ms=4, lw=0.8, color='tab:brown')
+    for index in np.unique(p.row):
+        mine = p.row == index
+        ax.plot(p.position[mine], p.hole_width[mine] * 1e3, '.-', ms=4, lw=0.8,
+                color=None if named else 'tab:brown')
     ax.set_xlabel('position along the row [m]')
     ax.set_ylabel('hole width [mm]')
     ax.set_title(f'hole width at depth (nozzle width {result.settings.nozzle_width * 1e3:.1f} mm '
                  'included)')
     ax.grid(alpha=0.3)
     twin = ax.twinx()
-    twin.plot(p.position, p.speed_ratio, color='tab:green', lw=0.6, alpha=0.7)
+    for index in np.unique(p.row):
+        mine = p.row == index
+        twin.plot(p.position[mine], p.speed_ratio[mine], color='tab:green', lw=0.6, alpha=0.7)
     twin.set_ylabel('speed ratio λ', color='tab:green')
 
     ax = axes[2]

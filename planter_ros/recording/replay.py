@@ -7,7 +7,11 @@ few fields the model needs, decoded in bulk). The monitor's settings recorded in
 used unless overridden.
 
 The live monitor's rules are applied the same way: samples before the first design are not
-predicted, a changed design starts a new row, stamps of 0 mean "use the receive (log) time".
+predicted, a changed design starts a new sequence, stamps of 0 mean "use the receive (log)
+time". A machine with several rows (the bag's rows record, interfaces.ROWS_RECORD) is predicted
+row by row, each from its own joint and its own travelled distance (ground speed, yaw rate
+`twist.angular.z` and the row's lateral offset: sensing.row_speed), and summarised per row; a
+bag without the record has one row, the joint `sun_bar` / `carrier`.
 """
 
 from dataclasses import dataclass
@@ -21,9 +25,11 @@ from planter_ros.config import ConfigError
 from planter_ros.kinematics.plant_prediction import (
     PLANT_FIELDS, Plants, PredictionSettings, planting_model_from_design, predict_plants,
     summarize)
+from planter_ros.rows import implicit_row, rows_from_record
+from planter_ros.sensing.row_speed import row_speed_samples
 
 from .bag_reader import BagError, read_recording
-from .cdr import decode_ground_speed, decode_joint_states, decode_string
+from .cdr import decode_joint_states, decode_string, decode_twist
 
 REQUIRED = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES, interfaces.DESIGN)
 
@@ -43,13 +49,17 @@ class ReplayResult:
     messages: dict                # topic name -> messages used, and 'total_read'
     warnings: list
     recorded_plants: np.ndarray   # the live monitor's plant table, if recorded (n, fields)
+    rows: list                    # planter_ros.rows.Row of the machine (one without a record)
+    row_summaries: list           # summarize() of each planting row's plants, in `rows` order
 
     def as_json(self):
         return {'bag': self.path, 'design': self.design,
                 'settings': config.as_dict(self.settings),
                 'duration': self.duration, 'messages': self.messages,
-                'summary': self.summary, 'plants': self.plants.rows(),
-                'warnings': self.warnings}
+                'summary': self.summary,
+                'rows': [{**row.as_dict(), 'summary': summary}
+                         for row, summary in zip(self.rows, self.row_summaries)],
+                'plants': self.plants.rows(), 'warnings': self.warnings}
 
 
 def settings_from_recording(recorded, overrides=None, warnings=None):
@@ -129,6 +139,16 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
             "have been there: give the run's scene (--scene FILE)" if rec.losses else ''
         raise ReplayError(f'bag {path} has {what}{lost}')
 
+    rows = [implicit_row()]
+    if interfaces.ROWS_RECORD in rec.metadata:
+        rows = rows_from_record(rec.metadata[interfaces.ROWS_RECORD])
+        if not rows:
+            rec.warnings.append(f'rows record {interfaces.ROWS_RECORD!r} unreadable: one row '
+                                'assumed')
+            rows = [implicit_row()]
+    planting = [row for row in rows if row.enabled]
+    offsets = [row.lateral_offset for row in planting]
+
     speed = rec.topics[interfaces.GROUND_SPEED]
     joint = rec.topics[interfaces.JOINT_STATES]
     s_log = np.asarray(speed.log, dtype=np.int64)
@@ -137,20 +157,30 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
     j_order = np.argsort(j_log, kind='stable')
     s_log = s_log[s_order]
     j_log = j_log[j_order]
-    s_stamp, s_v = decode_ground_speed([speed.raw[i] for i in s_order])
+    s_stamp, s_v, s_w = decode_twist([speed.raw[i] for i in s_order])
     _count_undecodable(rec.warnings, interfaces.GROUND_SPEED.name, s_stamp, s_v)
     parts = []
     for k, (log, _, design, model) in enumerate(designs):
         end = designs[k + 1][0] if k + 1 < len(designs) else np.iinfo(np.int64).max
-        name = interfaces.MECHANISM_JOINT.get(design.get('mechanism', 'five_bar'))
+        mechanism = design.get('mechanism', 'five_bar')
         s_sel = (s_log > log) & (s_log <= end)
         j_idx = np.nonzero((j_log > log) & (j_log <= end))[0]
-        j_stamp, j_pos, j_vel = decode_joint_states([joint.raw[j_order[i]] for i in j_idx], name)
-        _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp, j_pos)
         st = np.where(s_stamp[s_sel] != 0, s_stamp[s_sel], s_log[s_sel]) * 1e-9
-        jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
-        # each design starts a new row, numbered from 0 like the live monitor
-        parts.append(predict_plants(st, s_v[s_sel], jt, j_pos, j_vel, model, settings))
+        # each row's own speed: v − ω_z·y, filtered as the sync node and the monitor do
+        rt, rv = row_speed_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits)
+        raws = [joint.raw[j_order[i]] for i in j_idx]
+        segment = []
+        for r, row in enumerate(planting):
+            j_stamp, j_pos, j_vel = decode_joint_states(raws, row.joint(mechanism))
+            if r == 0:
+                _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp, j_pos)
+            jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
+            # each design starts a new sequence, numbered from 0 like the live monitor
+            segment.append(predict_plants(rt, rv[r], jt, j_pos, j_vel, model, settings,
+                                          row=row.index, speed_filter=False))
+        segment = Plants.concatenate(segment)
+        order = np.argsort(segment.time, kind='stable')
+        parts.append(Plants.from_table(segment.table()[order]))
     plants = Plants.concatenate(parts)
     last_model = designs[-1][3]
     logs = np.concatenate((s_log, j_log))
@@ -159,7 +189,9 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
         recorded = _recorded_plants(rec.topics[interfaces.PLANTS])
     return ReplayResult(
         path=str(path), design=designs[-1][2], settings=settings, plants=plants,
-        summary=summarize(plants, last_model.spacing),
+        summary=summarize(plants, last_model.spacing), rows=rows,
+        row_summaries=[summarize(_of_row(plants, row.index), last_model.spacing)
+                       for row in rows],
         duration=float((logs.max() - logs.min()) * 1e-9) if logs.size else 0.0,
         messages={interfaces.GROUND_SPEED.name: int(s_log.size),
                   interfaces.JOINT_STATES.name: int(j_log.size),
@@ -175,16 +207,31 @@ def _count_undecodable(warnings, name, stamps, values):
         warnings.append(f'{bad} {name} message(s) could not be decoded: skipped')
 
 
+def _of_row(plants, index):
+    return Plants.from_table(plants.table()[plants.row == index])
+
+
 def _recorded_plants(topic):
+    """The live monitor's plants in PLANT_FIELDS order, by the labels of each message (a field
+    the recording lacks is NaN; `row` is 0 in a recording made before rows existed)."""
     from rclpy.serialization import deserialize_message
     from std_msgs.msg import Float64MultiArray
-    rows = []
+    tables = []
     for _, raw in sorted(zip(topic.log, topic.raw), key=lambda x: x[0]):
         try:
             msg = deserialize_message(bytes(raw), Float64MultiArray)
         except Exception:            # rclpy raises its own errors for bytes that are not CDR
             continue
         width = msg.layout.dim[1].size if len(msg.layout.dim) > 1 else 0
-        if width:
-            rows.append(np.asarray(msg.data, dtype=float).reshape(-1, width))
-    return np.vstack(rows) if rows else np.zeros((0, 0))
+        if not width:
+            continue
+        data = np.asarray(msg.data, dtype=float).reshape(-1, width)
+        labels = msg.layout.dim[1].label.split(',')
+        table = np.full((data.shape[0], len(PLANT_FIELDS)), np.nan)
+        if 'row' not in labels:
+            table[:, PLANT_FIELDS.index('row')] = 0.0
+        for i, label in enumerate(labels[:width]):
+            if label in PLANT_FIELDS:
+                table[:, PLANT_FIELDS.index(label)] = data[:, i]
+        tables.append(table)
+    return np.vstack(tables) if tables else np.zeros((0, len(PLANT_FIELDS)))

@@ -33,6 +33,19 @@ class GroundSpeedLimits:
         check(self)
 
 
+def implausible(x, t, ref_x, ref_t, max_abs, max_rate, tolerance):
+    """Why sample x at time t is not believable, or None: 'non_finite', 'too_fast' (|x| above
+    max_abs) or 'spike' (further from the last sample taken, ref_x at ref_t, than max_rate
+    allows over the time between them, plus the noise tolerance). The rule of every sensor."""
+    if not isinstance(x, (int, float)) or not math.isfinite(x):
+        return 'non_finite'
+    if abs(x) > max_abs:
+        return 'too_fast'
+    if ref_x is not None and abs(x - ref_x) > tolerance + max_rate * (t - ref_t):
+        return 'spike'
+    return None
+
+
 class GroundSpeedFilter:
     """Stateful sample check; `rejected` counts by reason, `accepted` counts the rest."""
 
@@ -46,15 +59,9 @@ class GroundSpeedFilter:
     def check(self, v, t):
         """(speed to use or None, rejection reason or None) for sample v (m/s) at time t (s)."""
         lim = self.limits
-        reason = None
-        if not isinstance(v, (int, float)) or not math.isfinite(v):
-            reason = 'non_finite'
-        elif abs(v) > lim.max_ground_speed:
-            reason = 'too_fast'
-        elif self._ref_v is not None and abs(v - self._ref_v) > (
-                lim.ground_speed_tolerance + lim.max_ground_acceleration * (t - self._ref_t)):
-            reason = 'spike'
-        elif v < 0.0:
+        reason = implausible(v, t, self._ref_v, self._ref_t, lim.max_ground_speed,
+                             lim.max_ground_acceleration, lim.ground_speed_tolerance)
+        if reason is None and v < 0.0:
             reason = 'negative'
         if reason is not None:
             self.rejected[reason] += 1

@@ -2,6 +2,8 @@
 topics, types and QoS the monitor records (interfaces.MONITOR_INPUTS), log time = measurement
 time. Fast; for the replay benchmark and the recording tests."""
 
+import json
+
 from planter_ros import interfaces
 from planter_ros.recording.recorder import Recorder
 
@@ -15,5 +17,52 @@ def write_input_bag(run, path, **recorder_options):
         rec.add_topic(topic.resolved(), topic.type_name, topic.recording_qos())
     for stamp, topic, msg in run.messages():
         rec.write_message(topic.resolved(), msg, stamp)
+    rec.close()
+    return rec
+
+
+def write_machine_bag(rows, runs, profile, design, path, epoch=1_700_000_000.0,
+                      speed_period=0.05, joint_period=0.01):
+    """Write a simulated machine (sim.closed_loop.simulate_rows: one RowRun per row of `rows`,
+    planter_ros.rows.Row) as a monitor would record its inputs: the design, ground speed with
+    the profile's true v and yaw rate, one JointState with every row's joint, and the rows
+    record. Times on the simulated clock from `epoch` (s). Returns the closed Recorder."""
+    import numpy as np
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import TwistStamped
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+
+    from planter_ros.rows import rows_record
+
+    def stamp(t):
+        sec, nsec = divmod(int(round((epoch + t) * 1e9)), 1_000_000_000)
+        return Time(sec=sec, nanosec=nsec)
+
+    def ns(t):
+        return int(round((epoch + t) * 1e9))
+
+    rec = Recorder(path)
+    for topic in (interfaces.DESIGN, interfaces.GROUND_SPEED, interfaces.JOINT_STATES):
+        rec.add_topic(topic.resolved(), topic.type_name, topic.recording_qos())
+    rec.add_metadata(interfaces.ROWS_RECORD, rows_record(rows))
+    t = runs[0].t
+    rec.write_message(interfaces.DESIGN.resolved(), String(data=json.dumps(design)), ns(-0.001))
+    joints = [row.joint(design['mechanism']) for row in rows]
+    events = sorted([(float(x), 0) for x in np.arange(0.0, t[-1], speed_period)]
+                    + [(float(x), 1) for x in np.arange(0.0, t[-1], joint_period)])
+    for when, kind in events:
+        if kind == 0:
+            msg = TwistStamped()
+            msg.header.stamp = stamp(when)
+            msg.twist.linear.x = float(profile(when))
+            msg.twist.angular.z = float(profile.yaw_rate(when))
+            rec.write_message(interfaces.GROUND_SPEED.resolved(), msg, ns(when))
+        else:
+            i = int(np.searchsorted(t, when))
+            msg = JointState(name=joints, position=[float(r.angle[i]) for r in runs],
+                             velocity=[float(r.speed[i]) for r in runs])
+            msg.header.stamp = stamp(float(t[i]))
+            rec.write_message(interfaces.JOINT_STATES.resolved(), msg, ns(when))
     rec.close()
     return rec

@@ -4,7 +4,12 @@ The drive model is a first-order velocity lag with an acceleration limit and a s
 (achieved/commanded in steady state: a gear-ratio parameter that is slightly off, or a loaded
 speed loop that droops). Plants are placed when the mechanism angle passes the release angle of
 each arm; their positions come from the true travelled distance at that instant (sim.spacing).
-`python -m planter_ros.sim.closed_loop` prints phase-locked against speed-only spacing.
+`python -m planter_ros.sim.closed_loop` prints phase-locked against speed-only spacing, and each
+row of a 4-row machine through two 10 m curves with and without turn compensation.
+
+`simulate_rows` runs a whole machine: the sync node's `Machine` (one law per row on the row's
+own speed v − ω_z·y) against one drive model per row; every row's plants are placed along the
+row's own true travelled distance (FieldProfile.row_distance).
 """
 
 from dataclasses import dataclass
@@ -12,9 +17,10 @@ import math
 
 import numpy as np
 
+from planter_ros.control.machine import Machine, TurnConfig
 from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
 
-from .field import field_profile
+from .field import demo_curves, field_profile
 from .spacing import plant_positions, spacing_stats
 
 TWO_PI = 2.0 * math.pi
@@ -99,6 +105,119 @@ def run_comparison(config, spacing, plants_per_revolution, cruise, duration=30.0
     return result
 
 
+@dataclass
+class RowRun:
+    """One row of a simulated machine (arrays on the simulation's time grid)."""
+
+    lateral_offset: float    # m, + left
+    t: np.ndarray            # s
+    distance: np.ndarray     # the row's own true travelled distance (m)
+    angle: np.ndarray        # mechanism angle (rad)
+    command: np.ndarray      # speed command (rad/s)
+    speed: np.ndarray        # mechanism speed (rad/s)
+
+
+def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, config=None,
+                  compensation=True, drive=DriveModel(), dt=0.001, sample_period=0.05,
+                  feedback_period=0.01, noise=0.005, yaw_noise=0.005, seed=0, switches=(),
+                  planting=None):
+    """Run a machine with rows at `offsets` (m) along `profile` (a FieldProfile: speed and yaw
+    rate) for `duration` s; the sensor adds Gaussian `noise` (m/s) and `yaw_noise` (rad/s).
+    Commands are computed on every sample and every feedback period, as the sync node does.
+    `switches`: (t, row index, on) section-control events; `planting`: the mechanism's
+    PlantingAngles (where it plants, for the section stops). Returns one RowRun per row."""
+    rng = np.random.default_rng(seed)
+    machine = Machine(offsets, config or PhaseLockConfig(),
+                      turn=TurnConfig(turn_compensation=compensation))
+    machine.set_design(spacing, plants_per_revolution, 0.0, planting)
+    switches = sorted(switches)
+    rows = len(machine.laws)
+    steps = int(round(duration / dt))
+    t_out = np.arange(steps + 1) * dt
+    angle, command, speed = (np.empty((rows, steps + 1)) for _ in range(3))
+    theta = np.zeros(rows)
+    omega = np.zeros(rows)
+    cmd = np.zeros(rows)
+    next_sample = next_feedback = 0.0
+    for i in range(steps + 1):
+        t = i * dt
+        fresh = False
+        while switches and t >= switches[0][0]:
+            _, row, on = switches.pop(0)
+            machine.laws[row].switch(on, t)
+        if t >= next_feedback - 1e-12:
+            for r, law in enumerate(machine.laws):
+                law.feedback(theta[r], omega[r], t)
+            fresh = True
+            next_feedback += feedback_period
+        if t >= next_sample - 1e-12:
+            v = profile(t)
+            v_read = v + rng.normal(0.0, noise) if v > 0.0 else 0.0
+            w_read = profile.yaw_rate(t) + rng.normal(0.0, yaw_noise)
+            machine.sample(v_read, w_read, t)
+            fresh = True
+            next_sample += sample_period
+        if fresh:
+            for r, law in enumerate(machine.laws):
+                cmd[r] = law.command(t)
+        angle[:, i], command[:, i], speed[:, i] = theta, cmd, omega
+        goal = drive.speed_scale * cmd
+        step = (goal - omega) * min(dt / drive.time_constant, 1.0)
+        lim = drive.max_acceleration * dt
+        omega = omega + np.clip(step, -lim, lim)
+        theta = theta + omega * dt
+    return [RowRun(y, t_out, profile.row_distance(t_out, y), angle[r], command[r], speed[r])
+            for r, y in enumerate(machine.offsets)]
+
+
+def curve_figures(run, profile, spacing, plants_per_revolution=1):
+    """Per curve of `profile`, through its steady part: the row's plants there, their spacing
+    error against d along the row's own travelled distance (RMS and mean, m), the bias a
+    machine without turn compensation shows there (−y·d/R, m), and the median of the measured
+    mechanism speed over 2πv_i/(n·d); then `rms_spacing_error` over every curve's plants."""
+    pitch = TWO_PI / plants_per_revolution
+    release = 0.5 * pitch                           # the arm starts at the top
+    times = plant_positions(run.angle, run.t, pitch, release=release)
+    error = np.diff(plant_positions(run.angle, run.distance, pitch, release=release)) - spacing
+    curves, every = [], []
+    for curve in profile.curves:
+        a, b = curve.start + curve.ease, curve.end - curve.ease
+        # a spacing counts when both of its plants are set in the steady turn
+        mine = error[(times[:-1] >= a) & (times[1:] <= b)]
+        every.append(mine)
+        steady = (run.t >= a) & (run.t <= b)
+        v_row = np.array([profile(t) for t in run.t[steady]]) * (
+            1.0 - run.lateral_offset / curve.radius)
+        expected = TWO_PI * v_row / (plants_per_revolution * spacing)
+        moving = expected > 0.1
+        curves.append({
+            'radius': curve.radius, 'plants': int(mine.size),
+            'rms_spacing_error': float(np.sqrt(np.mean(mine ** 2))) if mine.size else None,
+            'mean_spacing_error': float(np.mean(mine)) if mine.size else None,
+            'uncompensated_bias': -run.lateral_offset * spacing / curve.radius,
+            'median_speed_ratio': float(np.median(run.speed[steady][moving] / expected[moving]))
+            if moving.any() else None})
+    every = np.concatenate(every) if every else np.zeros(0)
+    return {'lateral_offset': run.lateral_offset, 'curves': curves,
+            'rms_spacing_error': float(np.sqrt(np.mean(every ** 2))) if every.size else None}
+
+
+MACHINE_ROWS = (0.75, 0.25, -0.25, -0.75)       # the 4-row scene's lateral offsets (m)
+
+
+def curve_comparison(offsets=MACHINE_ROWS, spacing=0.2, cruise=0.2, duration=30.0,
+                     radius=10.0, seed=0, dt=0.001):
+    """`curve_figures` of every row, with and without turn compensation (tomato, the demo's
+    30 s run with a left and a right turn of `radius`)."""
+    profile = field_profile(duration, cruise, curves=demo_curves(duration, radius))
+    out = {}
+    for mode, on in (('compensated', True), ('uncompensated', False)):
+        runs = simulate_rows(offsets, profile, duration, spacing, compensation=on, seed=seed,
+                             dt=dt)
+        out[mode] = [curve_figures(run, profile, spacing) for run in runs]
+    return out
+
+
 SCENARIOS = {
     'nominal drive (lag 0.05 s)': dict(drive=DriveModel()),
     'drive lag 0.05 -> 0.2 s at 12 s': dict(drive_change=(12.0, DriveModel(
@@ -119,6 +238,16 @@ def main():
                   f'{a.max_abs_drift * 1e3:6.1f} / {a.max_abs_spacing_error * 1e3:5.1f}   '
                   f'speed-only {b.max_abs_drift * 1e3:6.1f} / '
                   f'{b.max_abs_spacing_error * 1e3:5.1f}')
+    print('4 rows through a left and a right 10 m turn (tomato, d = 200 mm, 5 mm/s and '
+          '5 mrad/s noise): spacing error in the curves, RMS / mean, mm; speed ratio median')
+    result = curve_comparison()
+    for on, off in zip(result['compensated'], result['uncompensated']):
+        for a, b in zip(on['curves'], off['curves']):
+            print(f"  y = {on['lateral_offset']:+.2f} m, R = {a['radius']:+5.1f} m  compensated "
+                  f"{a['rms_spacing_error'] * 1e3:5.2f} / {a['mean_spacing_error'] * 1e3:+6.2f}, "
+                  f"ratio {a['median_speed_ratio']:.4f}   uncompensated "
+                  f"{b['rms_spacing_error'] * 1e3:5.2f} / {b['mean_spacing_error'] * 1e3:+6.2f} "
+                  f"(-y·d/R {b['uncompensated_bias'] * 1e3:+6.2f})")
 
 
 if __name__ == '__main__':

@@ -1,21 +1,63 @@
 """The simulated field: true ground-speed profiles of a transplanter run (callable t -> m/s,
 with their exact travelled distance), used by the closed-loop simulation, the sample streams
-and the demo's ground-speed sensor."""
+and the demo's ground-speed sensor. A run may include curves: then the profile also has a yaw
+rate, each row's own travelled distance, and the machine's pose (x, y, heading) along the way.
+
+Frames follow REP 103: x forward, y left, the heading and yaw rate + counter-clockwise (a left
+turn); a row at lateral offset y travels at v·(1 − κ·y), κ the path's signed curvature.
+"""
+
+from dataclasses import dataclass
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class Curve:
+    """A steady turn from `start` to `end` (s) of signed `radius` (m, + = left turn), its
+    curvature eased in and out over `ease` s at either end (no step in the yaw rate)."""
+
+    start: float
+    end: float
+    radius: float
+    ease: float = 0.5
+
+    def breakpoints(self):
+        """(times, curvatures) of the piecewise-linear curvature, 0 outside the curve."""
+        ease = min(self.ease, 0.5 * (self.end - self.start))
+        k = 1.0 / self.radius
+        return ([self.start, self.start + ease, self.end - ease, self.end], [0.0, k, k, 0.0])
+
+
+def demo_curves(duration, radius=10.0, length=8.0):
+    """A left and a right turn of `radius` (m), each `length` s (a quarter of the run in a run
+    under 32 s), in the two cruise phases of a `FieldProfile` of `duration` s: from 15 % and
+    60 % of the run."""
+    length = min(length, 0.25 * duration)
+    return (Curve(0.15 * duration, 0.15 * duration + length, radius),
+            Curve(0.6 * duration, 0.6 * duration + length, -radius))
 
 
 class FieldProfile:
     """A transplanter run, callable t -> v (m/s): ramp up over `start` s, cruise, a speed change
     to `change`·cruise at 45 % of the run (over 1 s), and a ramp to a stop (over `stop` s)
-    ending 1 s before `duration`. The phase boundaries are attributes (s)."""
+    ending 1 s before `duration`. The phase boundaries are attributes (s). `curves`: `Curve`s
+    (not overlapping) the path makes meanwhile; none = a straight run."""
 
-    def __init__(self, duration, cruise, change=1.5, start=2.0, stop=2.0):
+    def __init__(self, duration, cruise, change=1.5, start=2.0, stop=2.0, curves=()):
         self.duration, self.cruise, self.change = duration, cruise, change
         self.start, self.stop = start, stop
         self.t_change = 0.45 * duration
         self.t_stop_end = duration - 1.0
         self.t_stop = self.t_stop_end - stop
+        self.curves = tuple(sorted(curves, key=lambda c: c.start))
+        times, kappas = [0.0], [0.0]
+        for curve in self.curves:
+            t, k = curve.breakpoints()
+            times += t
+            kappas += k
+        self._kappa = (np.asarray(times), np.asarray(kappas))
+        self._path = None
 
     def __call__(self, t):
         if t <= 0.0 or t >= self.t_stop_end:
@@ -39,9 +81,44 @@ class FieldProfile:
         s = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)))
         return np.interp(t, grid, s)
 
+    def curvature(self, t):
+        """Signed path curvature κ (1/m, + = turning left) at time(s) t."""
+        return np.interp(t, *self._kappa)
 
-def field_profile(duration, cruise, change=1.5, start=2.0, stop=2.0):
-    return FieldProfile(duration, cruise, change, start, stop)
+    def yaw_rate(self, t):
+        """True yaw rate ω_z = v·κ (rad/s, + counter-clockwise) at time t (s)."""
+        return self(t) * float(self.curvature(t))
+
+    def _integrated(self):
+        """(t, s, heading, x, y) on a fine grid over the run, integrated once (trapezoid)."""
+        if self._path is None:
+            dt = max(1e-3, self.duration / 100_000)
+            t = np.arange(0.0, self.duration + 2 * dt, dt)
+            v = np.array([self(x) for x in t])
+
+            def integral(f):
+                return np.concatenate(([0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * dt)))
+            s = integral(v)
+            heading = integral(v * self.curvature(t))
+            self._path = (t, s, heading, integral(v * np.cos(heading)),
+                          integral(v * np.sin(heading)))
+        return self._path
+
+    def pose(self, t):
+        """The machine's reference point at time(s) t: (x, y, heading) in m, m, rad, in the
+        field frame of the start (x forward at t = 0, y left)."""
+        grid, _, heading, x, y = self._integrated()
+        return np.interp(t, grid, x), np.interp(t, grid, y), np.interp(t, grid, heading)
+
+    def row_distance(self, t, lateral_offset):
+        """True distance (m) a row at `lateral_offset` (m, + left) has travelled at time(s) t:
+        ∫v·(1 − κ·y) dt = s − y·heading."""
+        grid, s, heading, _, _ = self._integrated()
+        return np.interp(t, grid, s) - lateral_offset * np.interp(t, grid, heading)
+
+
+def field_profile(duration, cruise, change=1.5, start=2.0, stop=2.0, curves=()):
+    return FieldProfile(duration, cruise, change, start, stop, curves)
 
 
 def speed_profile(t, cruise, duration, step_at=None, step=1.25, ramp=2.0):

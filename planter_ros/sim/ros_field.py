@@ -1,9 +1,10 @@
 """The simulated field of the demo: a ground-speed sensor and an observer of the mechanism.
 
-GroundSpeedSource publishes TwistStamped along a field profile (t -> true speed, m/s) with
-Gaussian noise and, at given times, the glitches real wheel/radar sensors produce (a spike, a
-NaN) that the sync node must reject. The profile's exact travelled distance is the reference
-for the demo's spacing figures; Observer collects the measured mechanism angle to compare.
+GroundSpeedSource publishes TwistStamped along a field profile (t -> true speed, m/s, and the
+yaw rate on its curves in twist.angular.z) with Gaussian noise and, at given times, the glitches
+real wheel/radar sensors produce (a spike, a NaN) that the sync node must reject. The profile's
+exact travelled distance (each row's own, on a curve) is the reference for the demo's spacing
+figures; Observer collects each row's measured mechanism angle to compare.
 """
 
 
@@ -22,10 +23,12 @@ from .spacing import plant_positions
 class GroundSpeedSource(Node):
     """Publishes `ground_speed` at `rate` Hz from `profile(t)` (t in s since start)."""
 
-    def __init__(self, profile, rate=20.0, noise=0.005, glitches=(), seed=0, **kwargs):
+    def __init__(self, profile, rate=20.0, noise=0.005, glitches=(), seed=0, yaw_noise=0.005,
+                 **kwargs):
         super().__init__('ground_speed_source', **kwargs)
         self.profile = profile
         self.noise = noise
+        self.yaw_noise = yaw_noise            # rad/s, a MEMS gyro's noise at 20 Hz
         self.glitches = sorted(glitches)      # (t, value) published instead of the reading
         self._rng = np.random.default_rng(seed)
         self._pub = interfaces.GROUND_SPEED.publisher(self)
@@ -41,50 +44,85 @@ class GroundSpeedSource(Node):
         t = self.elapsed(now)
         v = self.profile(t)
         reading = v + self._rng.normal(0.0, self.noise) if v > 0.0 else 0.0
+        yaw = getattr(self.profile, 'yaw_rate', lambda _t: 0.0)(t)
+        yaw_reading = yaw + self._rng.normal(0.0, self.yaw_noise)
         if self.glitches and t >= self.glitches[0][0]:
             reading = self.glitches.pop(0)[1]
         msg = TwistStamped()
         msg.header.stamp = now.to_msg()
         msg.header.frame_id = 'base_link'
         msg.twist.linear.x = float(reading)
+        msg.twist.angular.z = float(yaw_reading)
         self._pub.publish(msg)
         self.samples += 1
 
 
 class Observer(Node):
-    """Collects joint_states (measured) and speed_command for the demo's summary."""
+    """Collects joint_states (measured) and the speed commands for the demo's summary, per
+    joint (one per row; `sun_bar` / `carrier` in a scene without rows)."""
 
     def __init__(self, **kwargs):
         super().__init__('demo_observer', **kwargs)
         self.start = None            # rclpy Time the field run started
-        self.joint = []              # (t since start, angle rad, velocity rad/s)
-        self.command = []            # (t since start, rad/s)
+        self.joint = {}              # joint -> [(t since start, angle rad, velocity rad/s)]
+        self.command = {}            # joint (None: speed_command) -> [(t since start, rad/s)]
         interfaces.JOINT_STATES.subscribe(self, self._on_joint)
         interfaces.SPEED_COMMAND.subscribe(self, self._on_command)
+        interfaces.SPEED_COMMANDS.subscribe(self, self._on_commands)
 
     def _since_start(self, time):
         return (time - self.start).nanoseconds * 1e-9
 
     def _on_joint(self, msg):
-        if self.start is not None and msg.position:
-            self.joint.append((self._since_start(Time.from_msg(msg.header.stamp)),
-                               msg.position[0], msg.velocity[0] if msg.velocity else math.nan))
+        if self.start is None:
+            return
+        t = self._since_start(Time.from_msg(msg.header.stamp))
+        names = list(msg.name) or [None]
+        for i, name in enumerate(names[:len(msg.position)]):
+            velocity = msg.velocity[i] if len(msg.velocity) > i else math.nan
+            self.joint.setdefault(name, []).append((t, msg.position[i], velocity))
 
     def _on_command(self, msg):
         if self.start is not None:
-            self.command.append((self._since_start(self.get_clock().now()), msg.data))
+            self.command.setdefault(None, []).append(
+                (self._since_start(self.get_clock().now()), msg.data))
 
-    def window(self, what, a, b):
-        """Commanded ('command') or measured ('velocity') speeds between a and b s."""
-        rows, col = (self.command, 1) if what == 'command' else (self.joint, 2)
+    def _on_commands(self, msg):
+        if self.start is not None:
+            t = self._since_start(self.get_clock().now())
+            for name, value in zip(msg.name, msg.velocity):
+                self.command.setdefault(name, []).append((t, value))
+
+    def _joint(self, joint):
+        rows = self.joint.get(joint)
+        if rows is None and len(self.joint) == 1:
+            rows = next(iter(self.joint.values()))
+        return list(rows or [])
+
+    def window(self, what, a, b, joint=None):
+        """Commanded ('command') or measured ('velocity') speeds of `joint` between a and b s."""
+        if what == 'command':
+            rows = self.command.get(joint if joint in self.command else None, [])
+            col = 1
+        else:
+            rows, col = self._joint(joint), 2
         return np.array([r[col] for r in list(rows) if a <= r[0] <= b])
 
-    def plant_positions(self, profile, design):
-        """True travelled distance (m) at each plant release seen in the measured angle."""
-        rows = [r for r in list(self.joint) if r[0] >= 0.0]
+    def plants(self, profile, design, joint=None, lateral_offset=0.0):
+        """(times s, positions m) of each plant release seen in `joint`'s measured angle; the
+        position is the row's own true travelled distance (profile.row_distance)."""
+        rows = [r for r in self._joint(joint) if r[0] >= 0.0]
         if len(rows) < 2:
-            return np.empty(0)
+            return np.empty(0), np.empty(0)
         t, angle, _ = (np.array(c) for c in zip(*rows))
         pitch = 2 * math.pi / design['plants_per_revolution']
         # the arm starts at the top and releases half a pitch later (five-bar: the bottom)
-        return plant_positions(angle, profile.distance(t), pitch, release=angle[0] + 0.5 * pitch)
+        release = angle[0] + 0.5 * pitch
+        distance = (profile.row_distance(t, lateral_offset) if hasattr(profile, 'row_distance')
+                    else profile.distance(t))
+        return (plant_positions(angle, t, pitch, release=release),
+                plant_positions(angle, distance, pitch, release=release))
+
+    def plant_positions(self, profile, design, joint=None, lateral_offset=0.0):
+        """True travelled distance (m) at each plant release seen in the measured angle."""
+        return self.plants(profile, design, joint, lateral_offset)[1]

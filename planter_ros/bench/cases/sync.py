@@ -1,14 +1,20 @@
-"""Sync loop rows: ground-speed message -> CAN frame latency of the real sync node.
+"""Sync loop rows: ground-speed message -> CAN frame latency of the real sync node, for a
+machine of 1, 4 and 8 rows (one drive each on one bus); and the closed-loop simulation of a
+4-row machine through 10 m curves, with and without turn compensation.
 
 The sync node runs in its own executor thread (as in its own process on the machine) against
-the simulated drive on a virtual bus of its own; the bench thread publishes TwistStamped
+the simulated drives on a virtual bus of its own; the bench thread publishes TwistStamped
 samples, each with a speed no other sample has, and notes time.time() just before publish().
 A listener on the bus notes each velocity RPDO (python-can stamps virtual frames with
-time.time() at send). The frame a sample caused is the first RPDO after the publish whose
-payload differs from the previous RPDO's: the control timer only repeats the last command
-(speed-only mode, no acceleration limit in the way), so a new payload can only come from the
-new sample. ROS runs in a fresh Context on a private DDS domain, discovery on localhost only,
-so no other process's topics mix in.
+time.time() at send). The frame a sample caused, per row, is that row's first RPDO after the
+publish whose payload differs from its previous RPDO's: the control timer only repeats the last
+command (speed-only mode, no acceleration limit in the way), so a new payload can only come
+from the new sample; a sample's latency is the time to the last row's frame. ROS runs in a
+fresh Context on a private DDS domain, discovery on localhost only, so no other process's
+topics mix in. The simulated drives sit on one bus of their own (`SimulatedBus`, as devices on
+one cable) but share the process and its GIL (a thread each): with 8 of them the figures include
+their load, which a machine's real drives do not put on the master; and a virtual-bus send
+copies the frame in Python, where SocketCAN hands it to the kernel.
 """
 
 import os
@@ -20,15 +26,31 @@ from ..registry import Row, Target, bench_case
 from ..timing import from_samples
 
 WHAT = 'sync loop: ground-speed message → CAN frame'
+WHAT_ROWS = "sync loop, rows on one bus: ground-speed message → last row's CAN frame"
+WHAT_CURVE = 'closed loop, 4 rows through 10 m turns: spacing error per row'
 P99_TARGET = 2e-3          # quality target: sync loop ground-speed-message -> CAN frame p99
+ROW_COUNTS = (1, 4, 8)
 RATE = 50.0                # Hz, ground-speed samples
 ERROR_OF = 'no error defined: timings only'
 
 
-def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0):
-    """Seconds from publish() to the CAN frame it caused, one entry per matched sample;
-    returns (latencies, samples sent). The node spins in rclpy's single-threaded executor,
-    as sync_node's main does."""
+def row_parameters(rows):
+    """Scene parameters of a machine of `rows` rows (node ids 1..rows, 0.5 m apart), as a
+    parameter file gives them; none for one row (a scene without rows)."""
+    if rows <= 1:
+        return {}
+    names = [f'row{i + 1}' for i in range(rows)]
+    out = {'rows': names}
+    for i, name in enumerate(names):
+        out[f'{name}.lateral_offset'] = 0.5 * (0.5 * (rows - 1) - i)
+        out[f'{name}.drive_node_id'] = i + 1
+    return out
+
+
+def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
+    """Seconds from publish() to the last row's CAN frame it caused, one entry per sample
+    matched on every row; returns (latencies, samples sent). The node spins in rclpy's
+    single-threaded executor, as sync_node's main does."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     import can
     import json
@@ -42,7 +64,7 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0):
     from std_msgs.msg import String
 
     from planter_ros import interfaces
-    from planter_ros.drive.simulated_drive import SimulatedDrive
+    from planter_ros.drive.simulated_drive import SimulatedBus
     from planter_ros.nodes.sync_node import SyncNode
     from planter_ros.dds_domain import claim_private_domain
 
@@ -50,25 +72,27 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0):
     context = Context()
     rclpy.init(context=context, domain_id=claim_private_domain(),
                signal_handler_options=SignalHandlerOptions.NO)
-    sim = sync = source = ex = listener = None
+    sims = None
+    sync = source = ex = listener = None
     frames = []
     stop = threading.Event()
     try:
-        sim = SimulatedDrive(channel, node_id=1)
-        sim.start()
+        sims = SimulatedBus(channel, range(1, max(rows, 1) + 1))
+        sims.start()
         sync = SyncNode(context=context, parameter_overrides=[
             Parameter('can_interface', value='virtual'), Parameter('can_channel', value=channel),
             Parameter('phase_lock', value=False),
             Parameter('max_acceleration', value=1000.0), Parameter('max_speed', value=100.0),
             Parameter('max_ground_acceleration', value=50.0),
-            Parameter('ground_speed_tolerance', value=1.0)])
+            Parameter('ground_speed_tolerance', value=1.0)]
+            + [Parameter(k, value=v) for k, v in row_parameters(rows).items()])
         source = Node('latency_source', context=context)
         speed_pub = interfaces.GROUND_SPEED.publisher(source)
         design_pub = interfaces.DESIGN.publisher(source)
         design_pub.publish(String(data=json.dumps(
             {'mechanism': 'five_bar', 'plants_per_revolution': 1, 'plant_spacing': 0.2})))
         listener = can.Bus(interface='virtual', channel=channel)
-        rpdo_ids = range(0x200 + 1, 0x580)
+        rpdo_ids = range(0x200 + 1, 0x200 + max(rows, 1) + 1)
 
         def listen():
             while not stop.is_set():
@@ -107,27 +131,38 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0):
         context.try_shutdown()
         if listener is not None:
             listener.shutdown()
-        if sim is not None:
-            sim.stop()
+        if sims is not None:
+            sims.stop()
     return match_frames(sent, frames), len(sent)
 
 
 def match_frames(sent, frames):
-    """Latency of each sample: first RPDO after it, before the next sample, with a new payload."""
-    changes = []
+    """Latency of each sample: per row (COB-ID), the first RPDO after it, before the next
+    sample, with a new payload; the sample's latency is the last row's. A sample some row has
+    no such frame for is left out."""
+    changes = {}
     last = {}
     for stamp, cob, data in frames:
         if last.get(cob) is not None and data != last[cob]:
-            changes.append(stamp)
+            changes.setdefault(cob, []).append(stamp)
         last[cob] = data
     lat = []
-    j = 0
+    cursor = {cob: 0 for cob in changes}
     for k, t in enumerate(sent):
         nxt = sent[k + 1] if k + 1 < len(sent) else float('inf')
-        while j < len(changes) and changes[j] < t:
-            j += 1
-        if j < len(changes) and changes[j] < nxt:
-            lat.append(changes[j] - t)
+        worst = None
+        for cob, stamps in changes.items():
+            j = cursor[cob]
+            while j < len(stamps) and stamps[j] < t:
+                j += 1
+            cursor[cob] = j
+            if j < len(stamps) and stamps[j] < nxt:
+                worst = stamps[j] if worst is None else max(worst, stamps[j])
+            else:
+                worst = None
+                break
+        if worst is not None and changes:
+            lat.append(worst - t)
     return lat
 
 
@@ -144,3 +179,52 @@ def sync_latency(ctx):
               note=f'{len(lat)}/{sent} samples matched at {RATE:g} Hz, max '
                    f'{max(lat) * 1e3:.2f} ms; frame stamped by python-can at send',
               extra={'samples': sent, 'matched': len(lat), 'max_s': max(lat)})
+
+
+@bench_case('sync loop latency per row count',
+            requires=('rclpy', 'can', 'planter_ros.nodes.sync_node', 'planter_ros.rows'))
+def sync_latency_rows(ctx):
+    samples = ctx.n(1000, 50)
+    for rows in ROW_COUNTS:
+        ctx.progress(f'  {rows} row(s): {samples} samples at {RATE:g} Hz ...')
+        lat, sent = sync_latencies(samples, RATE, warmup=ctx.n(50, 10), rows=rows)
+        if not lat:
+            raise RuntimeError(f'{rows} rows: no sample matched a CAN frame on every row')
+        t = from_samples(lat, tail=True)
+        targets = [Target('8 rows: p99 ≤ 2 ms', t.p99 <= P99_TARGET)] if rows == 8 else []
+        yield Row(WHAT_ROWS, f'{rows} row(s), simulated drives in the process', rows,
+                  'row', t, error_of=ERROR_OF, targets=targets,
+                  note=f'{len(lat)}/{sent} samples matched on every row at {RATE:g} Hz, p50 '
+                       f'{t.median * 1e3:.2f} ms, p99 {t.p99 * 1e3:.2f} ms, max '
+                       f'{max(lat) * 1e3:.2f} ms',
+                  extra={'rows': rows, 'samples': sent, 'matched': len(lat),
+                         'max_s': max(lat)})
+
+
+@bench_case('closed loop through curves', requires=('planter_ros.control.machine',))
+def closed_loop_curves(ctx):
+    from planter_ros.sim.closed_loop import curve_comparison
+    result = {}
+    t = ctx.measure(lambda: result.update(curve_comparison(dt=ctx.n(0.001, 0.002))),
+                    repeats=1, min_time=0.0)
+    d = 0.2
+    for mode in ('compensated', 'uncompensated'):
+        for row in result[mode]:
+            worst = max(c['rms_spacing_error'] for c in row['curves'])
+            ratios = [c['median_speed_ratio'] for c in row['curves']]
+            detail = '; '.join(
+                f"R {c['radius']:+g} m: RMS {c['rms_spacing_error'] * 1e3:.2f} mm, mean "
+                f"{c['mean_spacing_error'] * 1e3:+.2f} mm (−y·d/R "
+                f"{c['uncompensated_bias'] * 1e3:+.1f} mm), speed ratio "
+                f"{c['median_speed_ratio']:.3f}" for c in row['curves'])
+            targets = []
+            if mode == 'compensated':
+                targets = [Target('RMS ≤ 2 % of d', worst <= 0.02 * d),
+                           Target('speed ratio within 3 %',
+                                  all(abs(r - 1.0) <= 0.03 for r in ratios))]
+            yield Row(WHAT_CURVE, f"{mode}, row y = {row['lateral_offset']:+.2f} m", 1, 'run',
+                      t, error=worst / d,
+                      error_of='worst RMS spacing error in a curve over d (tomato, d = 200 mm, '
+                               '0.2 and 0.3 m/s, 5 mm/s and 5 mrad/s sensor noise)',
+                      targets=targets, note=detail,
+                      extra={'curves': row['curves'], 'mode': mode})

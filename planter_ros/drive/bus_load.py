@@ -1,0 +1,97 @@
+"""CAN bus load of a machine's configuration, the physical limit of several drives on one bus.
+
+Worst case, per second: every frame the configuration makes, times its length in bits with
+the worst-case bit stuffing, over the bit rate. A CAN 2.0A data frame with n data bytes has
+47 + 8n bits (SOF, 11-bit id, RTR, IDE, r0, DLC, data, CRC 15 + delimiter, ACK 2, EOF 7,
+intermission 3); the 34 + 8n bits from SOF to the CRC are stuffed, at worst one stuff bit
+after every four bits after the first: floor((34 + 8n − 1) / 4) more (R. I. Davis, A. Burns,
+R. J. Bril, J. J. Lukkien: "Controller Area Network (CAN) schedulability analysis: refuted,
+revisited and revised", Real-Time Systems 35(3):239–272, 2007).
+
+The frames of `planter_ros.drive.cia402` per enabled row: the RPDO (controlword + target
+velocity, 6 bytes) once per control period and once per ground-speed sample; TPDO1 (statusword
++ error code, 4 bytes) and TPDO2 (position + velocity, 8 bytes) every feedback period; the
+drive's heartbeat (1 byte); plus the master's one heartbeat and SYNC (0 bytes) if used (the
+PDOs here are asynchronous: no SYNC). Pure, no ROS, no bus.
+"""
+
+from dataclasses import dataclass
+
+from .errors import DriveConfigError
+
+LIMIT = 0.70                 # refused above this share of the bit rate
+
+RPDO_BYTES = 6               # 0x6040 controlword (2) + 0x60FF target velocity (4)
+TPDO_BYTES = (4, 8)          # 0x6041 + 0x603F; 0x6064 + 0x606C
+HEARTBEAT_BYTES = 1
+SYNC_BYTES = 0
+
+
+def frame_bits(data_bytes):
+    """Worst-case length (bits) of a CAN 2.0A data frame with `data_bytes` bytes (0..8)."""
+    if not 0 <= data_bytes <= 8:
+        raise ValueError(f'data_bytes = {data_bytes} is out of range: allowed 0..8')
+    n = 8 * data_bytes
+    return 47 + n + (34 + n - 1) // 4
+
+
+@dataclass(frozen=True)
+class BusLoad:
+    """The worst-case load of one configuration."""
+
+    rows: int                 # drives on the bus (enabled rows)
+    bitrate: int              # bit/s
+    frames_per_second: float
+    bits_per_second: float
+    items: tuple              # (what, frames/s, bits/s) per kind of frame
+
+    @property
+    def load(self):
+        """Share of the bit rate, 0..1 (can exceed 1: the bus cannot carry it)."""
+        return self.bits_per_second / self.bitrate
+
+    def values(self):
+        """Key/value pairs for diagnostics and people."""
+        out = [('bus load', f'{100 * self.load:.1f} %'),
+               ('bus load limit', f'{100 * LIMIT:.0f} %'),
+               ('drives on the bus', self.rows), ('bit rate', f'{self.bitrate} bit/s'),
+               ('frames per second', f'{self.frames_per_second:.0f}')]
+        out += [(f'{what}', f'{frames:.0f} frames/s, {bits:.0f} bit/s')
+                for what, frames, bits in self.items]
+        return out
+
+
+def bus_load(rows, bitrate, control_period, ground_speed_rate, feedback_period,
+             drive_heartbeat_period, heartbeat_period, sync_period=0.0):
+    """Worst-case load of `rows` drives (periods in s, rate in Hz, bit rate in bit/s)."""
+    items = []
+
+    def add(what, frames, data_bytes):
+        items.append((what, frames, frames * frame_bits(data_bytes)))
+
+    add('RPDO (command)', rows * (1.0 / control_period + ground_speed_rate), RPDO_BYTES)
+    for number, size in enumerate(TPDO_BYTES, 1):
+        add(f'TPDO{number} (feedback)', rows / feedback_period, size)
+    add('drive heartbeats', rows / drive_heartbeat_period, HEARTBEAT_BYTES)
+    add('master heartbeat', 1.0 / heartbeat_period, HEARTBEAT_BYTES)
+    if sync_period:
+        add('SYNC', 1.0 / sync_period, SYNC_BYTES)
+    return BusLoad(rows, int(bitrate), sum(i[1] for i in items), sum(i[2] for i in items),
+                   tuple(items))
+
+
+def check_bus_load(load, row_names, control_period, ground_speed_rate, feedback_period,
+                   drive_heartbeat_period, heartbeat_period):
+    """Raise DriveConfigError (one line naming rows, periods and bit rate) above LIMIT."""
+    if load.load <= LIMIT:
+        return
+    per_row = load.bits_per_second / max(load.rows, 1)
+    fits = int(LIMIT * load.bitrate // per_row) if per_row else 0
+    names = ', '.join(row_names) if row_names else f'{load.rows} row(s)'
+    raise DriveConfigError(
+        f'CAN bus load {100 * load.load:.1f} % is out of range: allowed <= {100 * LIMIT:.0f} % '
+        f'({names} at {load.bitrate} bit/s; per row an RPDO every control_period = '
+        f'{control_period * 1e3:g} ms and per ground-speed sample at {ground_speed_rate:g} Hz, '
+        f'2 TPDOs every feedback_period = {feedback_period * 1e3:g} ms, a heartbeat every '
+        f'{drive_heartbeat_period * 1e3:g} ms; master heartbeat {heartbeat_period * 1e3:g} ms: '
+        f'at most {fits} rows fit, or lengthen the periods, or raise can_bitrate)')

@@ -1,0 +1,142 @@
+"""The machine's planting units (rows), declared once: names, lateral offsets, drives.
+
+A scene names its rows in the string array `rows` and gives each row a block of `RowSettings`
+(in a ROS 2 parameter file a nested block `<row>: {lateral_offset: ..., drive_node_id: ...}`,
+which ROS and `planter_ros.scene.load_scene` flatten to the parameters `<row>.lateral_offset`,
+...). All rows share the scene's one design (crop, mechanism, spacing).
+
+A scene without `rows` has one implicit row: name '' (its joint keeps the mechanism's plain name
+`sun_bar` / `carrier`, its services have no prefix, so single-row scenes, tests and recordings
+stay as they were), lateral offset 0, driven by the drive config's `drive_node_id`.
+
+Lateral offsets follow REP 103: y is + to the left of the machine's reference point, and a
+positive yaw rate turns the machine counter-clockwise (left), so a row at y travels at
+v − ω_z·y. Pure Python, no ROS.
+"""
+
+from dataclasses import dataclass
+import json
+import re
+
+from planter_ros import interfaces
+from planter_ros.config import ConfigError, check, from_mapping, setting
+
+IMPLICIT = ''                      # the name of the one row of a scene without `rows`
+_NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
+
+
+@dataclass(frozen=True)
+class RowLayout:
+    """Which rows the machine has (fixed at start-up)."""
+
+    rows: list = setting([], 'names of the planting units (rows); each has a block of row '
+                         'settings <row>.lateral_offset, <row>.drive_node_id, <row>.enabled; '
+                         'empty = one implicit row', item=str, read_only=True)
+
+    def __post_init__(self):
+        check(self)
+        seen = set()
+        for name in self.rows:
+            if not _NAME.match(name):
+                raise ConfigError(f'rows = {name!r} is not a row name: allowed letters, digits '
+                                  'and _, starting with a letter')
+            if name in seen:
+                raise ConfigError(f'rows = {name!r} is named twice: allowed each name once')
+            seen.add(name)
+
+
+@dataclass(frozen=True)
+class RowSettings:
+    """One row: where it sits on the machine and which drive turns it (fixed at start-up)."""
+
+    lateral_offset: float = setting(kind=float, description="the row's lateral offset from the "
+                                    "machine's reference point, + = left (REP 103)", unit='m',
+                                    range=(-20.0, 20.0), read_only=True)
+    drive_node_id: int = setting(kind=int, description="CANopen node id of the row's servo "
+                                 'drive', range=(1, 127), read_only=True)
+    enabled: bool = setting(True, 'false: the row is never enabled on the bus and plants '
+                            'nothing (a unit taken off the machine)', read_only=True)
+
+    def __post_init__(self):
+        check(self)
+
+
+@dataclass(frozen=True)
+class Row:
+    """One planting unit of the machine. `index` is its place in the scene's `rows` (the
+    `row` field of every plant); `name` is '' for the implicit row."""
+
+    index: int
+    name: str
+    lateral_offset: float
+    drive_node_id: int | None
+    enabled: bool = True
+
+    @property
+    def label(self):
+        """The row's name for people ('row' for the implicit row)."""
+        return self.name or 'row'
+
+    def joint(self, mechanism):
+        """The row's mechanism joint in joint_states (`<row>/sun_bar`, or `sun_bar`)."""
+        return interfaces.row_joint(self.name, mechanism)
+
+    def as_dict(self):
+        return {'index': self.index, 'name': self.name, 'lateral_offset': self.lateral_offset,
+                'drive_node_id': self.drive_node_id, 'enabled': self.enabled}
+
+
+def implicit_row(drive_node_id=None):
+    return Row(0, IMPLICIT, 0.0, drive_node_id, True)
+
+
+def rows_from_settings(names, settings, default_node_id=None):
+    """Rows from the row names and each name's RowSettings; one implicit row without names.
+    Raises ConfigError when two rows name the same drive."""
+    if not names:
+        return [implicit_row(default_node_id)]
+    rows = [Row(i, name, settings[name].lateral_offset, settings[name].drive_node_id,
+                settings[name].enabled) for i, name in enumerate(names)]
+    owner = {}
+    for row in rows:
+        if row.drive_node_id in owner:
+            raise ConfigError(f'{row.name}.drive_node_id = {row.drive_node_id} is also row '
+                              f'{owner[row.drive_node_id]}\'s: allowed a node id no other row '
+                              'uses')
+        owner[row.drive_node_id] = row.name
+    return rows
+
+
+def rows_from_scene(params, default_node_id=None):
+    """Rows of a flat scene parameter dict (`planter_ros.scene.load_scene`), as the nodes read
+    them from their parameters. Raises ConfigError (one line)."""
+    layout = from_mapping(RowLayout, {k: params[k] for k in ('rows',) if k in params})
+    settings = {}
+    for name in layout.rows:
+        prefix = f'{name}.'
+        values = {k[len(prefix):]: v for k, v in params.items() if k.startswith(prefix)}
+        settings[name] = from_mapping(RowSettings, values, prefix=prefix)
+    return rows_from_settings(layout.rows, settings, default_node_id)
+
+
+def scene_row_parameters(params):
+    """The row parameters of a flat scene dict (`rows` and every `<row>.<field>`)."""
+    names = params.get('rows') or []
+    return {k: v for k, v in params.items()
+            if k == 'rows' or any(k.startswith(f'{n}.') for n in names)}
+
+
+def rows_record(rows):
+    """The bag metadata record (`interfaces.ROWS_RECORD`) naming each row index."""
+    return {'rows': json.dumps([row.as_dict() for row in rows])}
+
+
+def rows_from_record(record):
+    """Rows from a bag's rows record; None when the record is absent or unreadable."""
+    try:
+        items = json.loads(record['rows'])
+        return [Row(int(r['index']), str(r['name']), float(r['lateral_offset']),
+                    None if r.get('drive_node_id') is None else int(r['drive_node_id']),
+                    bool(r.get('enabled', True))) for r in items]
+    except (KeyError, TypeError, ValueError):
+        return None
