@@ -30,6 +30,9 @@ setup(
         'zstandard>=0.22',
         'rosbags>=0.10',
         'matplotlib>=3.8',
+        'pyproj>=3.6',                            # geodesy of the as-planted map
+        'dask[distributed]>=2024.8',              # planter analyze on a cluster
+        'pyarrow>=15',                            # Parquet tables of a season
         'mpmath>=1.3',                            # planter bench's references
     ],
     extras_require={'test': ['pytest>=8', 'hypothesis>=6.100', 'colcon-common-extensions',

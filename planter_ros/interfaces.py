@@ -107,6 +107,10 @@ PLANTS = Topic(
     'plants', 'std_msgs/msg/Float64MultiArray', OUTPUT,
     "per-plant predictions: dim[0] 'plant' x dim[1] labelled with the field names (SI); the "
     "field 'row' is the row's index in the bag's rows record")
+GNSS_FIX = Topic(
+    'gnss/fix', 'sensor_msgs/msg/NavSatFix', SENSOR_DATA,
+    "input: the machine's GNSS antenna position (WGS 84), status and covariance as the "
+    'receiver reports them; a fix without position (status NO_FIX) is not used')
 UPRIGHTNESS_RATE = Topic(
     'uprightness_rate', 'std_msgs/msg/Float64', OUTPUT,
     'rolling fraction (0..1) of upright plants over the last `window` plants')
@@ -117,10 +121,10 @@ CLOCK = Topic(
     '/clock', 'rosgraph_msgs/msg/Clock', Qos('reliable', 'volatile', 100),
     'simulated time, published only by the lock-step sample feeder (use_sim_time)')
 
-TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, PLANTS,
+TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX, PLANTS,
           UPRIGHTNESS_RATE, DIAGNOSTICS, CLOCK)
 # what the monitor records: its inputs as they arrived, then its own outputs
-MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS,
+MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX,
                   DIAGNOSTICS)
 MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE)
 RECORDED = MONITOR_INPUTS + MONITOR_OUTPUTS

@@ -43,7 +43,9 @@ ROSDEP = {'ros-jazzy-rclpy': {'rclpy'},
           'python-can': {'python3-can'}, 'canopen': {'python3-canopen'},
           'mcap': {'python3-mcap'}, 'zstandard': {'python3-zstandard'},
           'rosbags': {'python3-rosbags'}, 'matplotlib': {'python3-matplotlib'},
-          'mpmath': {'python3-mpmath'}, 'setuptools': set()}
+          'mpmath': {'python3-mpmath'}, 'pyproj': {'python3-pyproj'},
+          'dask': {'python3-dask', 'python3-distributed'}, 'pyarrow': {'python3-pyarrow'},
+          'setuptools': set()}
 
 
 def test_package_xml_lists_every_runtime_dependency_of_setup_py():

@@ -121,7 +121,8 @@ class Demo:
         from planter_ros.nodes.sync_node import SyncNode
         from planter_ros.rows import scene_row_parameters
         from planter_ros.sim.field import FieldProfile, demo_curves
-        from planter_ros.sim.ros_field import GroundSpeedSource, Observer
+        from planter_ros.sim.gnss import SimulatedGnss
+        from planter_ros.sim.ros_field import GnssSource, GroundSpeedSource, Observer
 
         args, design = self.args, self.design
         from planter_ros.nodes.monitor_node import MonitorNode
@@ -175,6 +176,9 @@ class Demo:
             source = GroundSpeedSource(profile, glitches=glitches, seed=args.seed,
                                        context=context, namespace=ns)
             nodes.append(source)
+            # the machine's GNSS receiver, on the same path and clock
+            nodes.append(GnssSource(profile, SimulatedGnss(), source.start, seed=args.seed,
+                                    context=context, namespace=ns))
             observer.start = source.start
             for node in nodes:
                 executor.add_node(node)

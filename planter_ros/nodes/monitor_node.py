@@ -96,6 +96,7 @@ class MonitorNode(Node):
                     interfaces.JOINT_STATES: self._on_joint,
                     interfaces.SPEED_COMMAND: self._on_command,
                     interfaces.SPEED_COMMANDS: self._on_command,
+                    interfaces.GNSS_FIX: self._on_command,
                     interfaces.DIAGNOSTICS: self._on_diagnostics}
         self._subs = [topic.subscribe(self, self._raw_callback(topic, handlers[topic]),
                                       qos=topic.recording_qos(), raw=True)
@@ -221,7 +222,8 @@ class MonitorNode(Node):
             self._publish_plants(predictor.add_joint(t, msg.position[i], velocity), now)
 
     def _on_command(self, _msg, _t, _now):
-        """Recorded only; counted, since the lock-step feeder waits on it."""
+        """Speed commands and GNSS fixes: recorded; counted, since the lock-step feeder waits
+        on every message it feeds."""
         self.samples_taken += 1
 
     def _on_diagnostics(self, _msg, _t, _now):

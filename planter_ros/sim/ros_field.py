@@ -17,6 +17,7 @@ from geometry_msgs.msg import TwistStamped
 
 from planter_ros import interfaces
 
+from .gnss import fix_positions, navsatfix
 from .spacing import plant_positions
 
 
@@ -55,6 +56,30 @@ class GroundSpeedSource(Node):
         msg.twist.angular.z = float(yaw_reading)
         self._pub.publish(msg)
         self.samples += 1
+
+
+class GnssSource(Node):
+    """Publishes `gnss/fix` at the receiver's rate along the profile's path (sim.gnss), on the
+    clock of `start` (the ground-speed source's start: both describe one machine)."""
+
+    def __init__(self, profile, gnss, start, antenna=(0.0, 0.0), seed=0, **kwargs):
+        super().__init__('gnss_source', **kwargs)
+        self.profile, self.gnss, self.start = profile, gnss, start
+        self.antenna = tuple(antenna)
+        self._rng = np.random.default_rng(seed + 1)
+        self._pub = interfaces.GNSS_FIX.publisher(self)
+        self.fixes = 0
+        self.create_timer(1.0 / gnss.rate, self._tick)
+
+    def _tick(self):
+        now = self.get_clock().now()
+        t = (now - self.start).nanoseconds * 1e-9
+        if t < 0.0:
+            return
+        lat, lon, alt = fix_positions(self.profile, np.array([t]), self.gnss, self.antenna,
+                                      self._rng)
+        self._pub.publish(navsatfix(now.to_msg(), lat[0], lon[0], alt[0], self.gnss.noise))
+        self.fixes += 1
 
 
 class Observer(Node):
