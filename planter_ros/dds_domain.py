@@ -1,5 +1,6 @@
 """A DDS domain of this process's own: graphs started for the product's own purposes (demo,
 bench, sample and season generators, tests) must be unreachable from any other graph on the host.
+And the machine's own nodes discover only on this host unless the user widens it on purpose.
 
 ROS 2 graphs in different DDS domains never see each other. A domain counts as free when no
 process of ours holds its lock file and no participant on the host has bound its first unicast
@@ -69,10 +70,20 @@ def claim_private_domain():
                             'on this host')
 
 
+def keep_discovery_on_host(environ=os.environ):
+    """ROS_AUTOMATIC_DISCOVERY_RANGE unset (or empty) -> LOCALHOST, before rclpy.init(): the
+    nodes of one machine run on one host, and a graph reachable from the whole subnet is a
+    choice the user makes (SUBNET, or SYSTEM_DEFAULT with ROS_STATIC_PEERS). Returns the range
+    in force."""
+    if not environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE'):
+        environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    return environ['ROS_AUTOMATIC_DISCOVERY_RANGE']
+
+
 def isolate_environment(environ=os.environ):
     """Point ROS_DOMAIN_ID at a private domain (and keep discovery on the host unless the
     environment already chose a range); returns the domain id."""
     domain = claim_private_domain()
     environ['ROS_DOMAIN_ID'] = str(domain)
-    environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    keep_discovery_on_host(environ)
     return domain

@@ -1,11 +1,63 @@
-"""`planter demo` as a user runs it: bad input is one line; Ctrl-C stops cleanly with a summary."""
+"""`planter demo` as a user runs it: bad input is one line; SIGTERM (what systemd, docker and
+`timeout` send) stops it like Ctrl-C with a summary, a finalised bag and exit 0; a killed
+demo's drives are still shut down; the verdict line and its exit code; two demos side by side
+and a stray node in the default domain change nothing; a design published into the demo's
+graph is logged, fails the verdict and is scored as the design in force. (The second signal's
+forced exit itself: test_stop_signals.py.)"""
+import json
 import os
+from pathlib import Path
+import re
 import signal
 import subprocess
 import sys
 import time
 
 from cli_helpers import REPO, run_planter
+
+DEMO = [sys.executable, '-m', 'planter_ros.cli', 'demo']
+
+
+def demo_env():
+    return dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+
+
+def start_demo(*args, cwd):
+    return subprocess.Popen(DEMO + [str(a) for a in args], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=demo_env(), cwd=cwd)
+
+
+def read_until(proc, prefix, lines, timeout=90):
+    """Read the demo's output into `lines` until a line starts with `prefix`."""
+    deadline = time.monotonic() + timeout
+    for line in proc.stdout:
+        lines.append(line)
+        if line.startswith(prefix):
+            return line
+        assert time.monotonic() < deadline, ''.join(lines)
+    raise AssertionError(f'no line {prefix!r}:\n' + ''.join(lines))
+
+
+def children_of(pid):
+    """Process ids whose parent is `pid` (from /proc)."""
+    out = []
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / 'stat').read_text().rsplit(')', 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                out.append(int(entry.name))
+    return out
+
+
+def alive(pid):
+    try:
+        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != 'Z'
 
 
 def test_bad_duration_and_scene_are_one_line_errors(tmp_path):
@@ -29,33 +81,47 @@ def test_an_existing_bag_is_never_overwritten(tmp_path):
     assert bag.read_bytes() == b'precious'
 
 
-def test_ctrl_c_stops_the_demo_cleanly_with_a_summary_and_a_finalised_bag(tmp_path):
-    env = dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    proc = subprocess.Popen([sys.executable, '-m', 'planter_ros.cli', 'demo', '--duration', '60'],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
-                            cwd=tmp_path)
+def test_sigterm_stops_the_demo_cleanly_with_summaries_a_finalised_bag_and_exit_0(tmp_path):
+    proc = start_demo('--duration', '60', cwd=tmp_path)
     lines = []
-    deadline = time.monotonic() + 60
-    for line in proc.stdout:                       # wait until plants are being placed
-        lines.append(line)
-        if line.startswith('t =   4.0 s') or time.monotonic() > deadline:
-            break
-    proc.send_signal(signal.SIGINT)
-    rest, _ = proc.communicate(timeout=30)
+    read_until(proc, 't =   4.0 s', lines)                # plants are being placed
+    proc.send_signal(signal.SIGTERM)
+    rest, _ = proc.communicate(timeout=60)
     out = ''.join(lines) + rest
-    assert proc.returncode == 130, out
-    assert 'interrupted: stopping' in out
+    assert proc.returncode == 0, out
+    assert 'interrupted by SIGTERM: stopping' in out
     assert 'drive shut down (target 0, disabled, pre-operational)' in out
     assert 'Traceback' not in out
     placed = next(line for line in out.splitlines() if 'plants placed' in line)
     assert int(placed.split()[-1]) >= 1
-    # the default bag lands under ./bags, finalised, and the demo ends with its replay
+    assert re.search(r'control loop +command gap mean [\d.]+ ms, p99\.9 [\d.]+ ms, max', out)
+    assert out.rstrip().splitlines()[-1].startswith('verdict: PASS (stopped by SIGTERM after ')
+    # the default bag lands under ./bags, finalised; the demo and `planter replay` of it read
+    # it without a warning
     bags = list((tmp_path / 'bags').glob('planter_*'))
     assert len(bags) == 1
-    assert f'recorded bags/{bags[0].name}' in out
-    replayed = next(line for line in out.splitlines() if line.strip().startswith('plants:'))
-    assert int(replayed.split()[1]) >= 1
-    assert 'spacing error: mean' in out and 'uprightness:' in out
+    assert f'recorded bags/{bags[0].name}' in out and 'warning' not in out
+    replayed = run_planter('replay', bags[0], '--json', cwd=tmp_path)
+    assert replayed.returncode == 0 and replayed.stderr == ''
+    result = json.loads(replayed.stdout)
+    assert result['warnings'] == [] and result['summary']['plants'] >= 1
+
+
+def test_a_killed_demo_still_has_its_drives_shut_down_by_the_sync_process(tmp_path):
+    """A forced exit (a second signal, SIGKILL, a crash) skips the demo's own clean-up: the
+    sync process sees its pipe break and shuts its drives down itself."""
+    proc = start_demo('--duration', '60', cwd=tmp_path)
+    lines = []
+    read_until(proc, 't =   2.0 s', lines)
+    helpers = [pid for pid in children_of(proc.pid) if alive(pid)]
+    assert helpers                                     # the sync process
+    proc.kill()
+    rest, _ = proc.communicate(timeout=30)             # until the sync process closes stdout
+    deadline = time.monotonic() + 20
+    while any(alive(pid) for pid in helpers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(alive(pid) for pid in helpers)
+    assert 'drive shut down (target 0, disabled, pre-operational)' in rest, ''.join(lines) + rest
 
 
 def test_the_four_row_demo_plants_every_row_through_the_turns_and_replays_per_row(tmp_path):
@@ -69,9 +135,11 @@ def test_the_four_row_demo_plants_every_row_through_the_turns_and_replays_per_ro
     for name in names:
         assert f'  row {name} (y = ' in out.stdout                  # the demo's own summary
         assert f'row {name} (y = ' in out.stdout.split('replay')[-1]  # and the replay's
+        assert f'  control loop {name}' in out.stdout
     assert out.stdout.count('    left turn R = 10 m') == 4
     assert 'without compensation expect -15.00 mm (-y·d/R)' in out.stdout
     assert 'drive watchdog trips     none' in out.stdout
+    assert out.stdout.rstrip().splitlines()[-1].startswith('verdict: PASS: ')
     result = replay(bag, with_recorded=True)
     assert [r.name for r in result.rows] == names
     assert all(s['plants'] >= 5 for s in result.row_summaries)
@@ -80,3 +148,102 @@ def test_the_four_row_demo_plants_every_row_through_the_turns_and_replays_per_ro
         return table[np.lexsort((table[:, 0], table[:, -1]))]
     assert np.allclose(by_row(result.plants.table()), by_row(result.recorded_plants),
                        rtol=0, atol=1e-12, equal_nan=True)
+
+
+# a design node with the pepper scene (d = 0.3 m) and a ground-speed sensor claiming 1 m/s (its
+# node name in argv[2], none if empty), as a second machine's nodes (or a mistake) on the same
+# host would publish them
+STRAY = r'''
+import sys
+import rclpy
+from geometry_msgs.msg import TwistStamped
+from rclpy.executors import SingleThreadedExecutor
+from planter_ros import interfaces
+from planter_ros.cli.demo import _scene_parameters
+from planter_ros.nodes.design_node import DesignNode
+from planter_ros.scene import load_scene
+rclpy.init()
+node = DesignNode(namespace=interfaces.NAMESPACE,
+                  parameter_overrides=_scene_parameters(load_scene(sys.argv[1], 'design_node')))
+ex = SingleThreadedExecutor()
+ex.add_node(node)
+sensor = pub = None
+if sys.argv[2]:
+    sensor = rclpy.create_node(sys.argv[2], namespace=interfaces.NAMESPACE)
+    pub = interfaces.GROUND_SPEED.publisher(sensor)
+    ex.add_node(sensor)
+print('stray up', flush=True)
+msg = TwistStamped()
+msg.twist.linear.x = 1.0
+while True:
+    if pub is not None:
+        msg.header.stamp = sensor.get_clock().now().to_msg()
+        pub.publish(msg)
+    ex.spin_once(timeout_sec=0.02)
+'''
+
+
+def start_stray(domain, sensor='stray_sensor'):
+    env = dict(demo_env(), ROS_DOMAIN_ID=str(domain))
+    proc = subprocess.Popen([sys.executable, '-c', STRAY,
+                             str(REPO / 'config' / 'pepper_five_bar.yaml'), sensor],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    assert proc.stdout.readline().strip() == 'stray up'
+    return proc
+
+
+def test_two_demos_side_by_side_and_a_stray_graph_in_domain_0_change_nothing(tmp_path):
+    stray = start_stray(0)
+    try:
+        demos = [start_demo('--duration', '10', '--bag', tmp_path / f'run{i}.mcap',
+                            cwd=tmp_path) for i in range(2)]
+        outs = [proc.communicate(timeout=180)[0] for proc in demos]
+    finally:
+        stray.kill()
+        stray.wait()
+    domains = set()
+    for proc, out in zip(demos, outs):
+        assert proc.returncode == 0, out
+        assert out.rstrip().splitlines()[-1].startswith('verdict: PASS: '), out
+        domains.add(int(re.search(r'DDS domain (\d+) \(private\)', out).group(1)))
+        assert 'unchanged during the run' in out and 'design change' not in out
+        # its own sensor only: 20 Hz over the 10 s run (another sensor would double that)
+        accepted = int(re.search(r'ground-speed samples +(\d+) accepted', out).group(1))
+        assert 180 <= accepted <= 215, out
+        assert 'd = 200 mm' in out and 'drive watchdog trips     none' in out
+        assert int(re.search(r'plants placed +(\d+)', out).group(1)) in range(7, 10)
+    assert len(domains) == 2 and 0 not in domains
+
+
+def test_a_design_published_into_the_demos_graph_is_logged_scored_in_force_and_fails(
+        tmp_path):
+    from planter_ros.recording.replay import replay
+    bag = tmp_path / 'intruded.mcap'
+    proc = start_demo('--duration', '14', '--bag', bag, cwd=tmp_path)
+    lines = []
+    header = read_until(proc, 'planter demo:', lines)
+    domain = int(re.search(r'DDS domain (\d+) \(private\)', header).group(1))
+    read_until(proc, 't =   4.0 s', lines)
+    intruder = start_stray(domain, sensor='')      # a second design node, the pepper scene
+    try:
+        rest, _ = proc.communicate(timeout=120)
+    finally:
+        intruder.kill()
+        intruder.wait()
+    out = ''.join(lines) + rest
+    assert proc.returncode == 1, out
+    verdict = out.rstrip().splitlines()[-1]
+    assert verdict.startswith('verdict: FAIL: ')
+    assert 'design changed by another node during the run (1x, the latest from ' \
+           '/planter/design_node' in verdict
+    # the sync node and the monitor log it with the publishing node
+    assert re.search(r'\[planter\.sync_node\]: design change 1 from /planter/design_node '
+                     r'\(publisher [0-9a-f.]+\): five_bar, d = 0\.3 m', out), out
+    assert re.search(r'\[planter\.monitor_node\]: design change 1 from /planter/design_node', out)
+    # the plants after the change are scored against d = 300 mm, not 200
+    assert 'd in force: 200 -> 300 mm' in out
+    result = replay(bag)
+    errors = result.plants.spacing_error
+    late = result.plants.time > result.plants.time[0] + 8.0
+    assert abs(float(errors[late & (errors == errors)].mean())) < 0.1 * 0.3, out
+    assert max(result.plants.spacing[late & (errors == errors)]) > 0.25    # pepper spacing

@@ -132,7 +132,8 @@ def test_each_row_follows_its_own_speed_on_a_curve_with_one_joint_per_row(machin
     assert last.velocity[0] < last.velocity[1]        # the left row is inside
     assert m.commands[-1].name == ['left/sun_bar', 'right/sun_bar']
     assert [s.name for s in m.sync.diagnostics()] == [
-        'sync_node: ground speed', 'sync_node: bus', 'sync_node: left', 'sync_node: right']
+        'sync_node: ground speed', 'sync_node: bus', 'sync_node: left', 'sync_node: right',
+        'sync_node: control loop', 'sync_node: design']
     left = m.diag('left')
     assert left.level == DiagnosticStatus.OK and values(left)['row speed'] == '0.1850 m/s'
     assert values(m.diag('ground speed'))['yaw rate'] == '0.0200 rad/s'

@@ -2,6 +2,8 @@
 closed-loop simulation showing spacing stays bounded where speed-only control drifts."""
 import math
 
+import numpy as np
+
 import pytest
 
 from planter_ros.control.phase_lock import ControlConfigError, PhaseLock, PhaseLockConfig
@@ -206,3 +208,56 @@ def test_simulated_run_survives_bad_and_missing_samples():
     sim = simulate(law, base, 20.0, sensor=sensor)
     assert law.rejected['non_finite'] > 0 and law.rejected['too_fast'] > 0
     assert all(math.isfinite(x) for x in sim.command) and min(sim.command) >= 0.0
+
+
+# ---------------------------------------------------------------- design changes
+def drive_through_design_change(d_new, t_change, planting, v=0.2, duration=8.0, dt=0.005,
+                                lag=0.05):
+    """The law against a first-order drive at constant v; d changes to d_new at t_change.
+    Returns (plant positions, target angle just before and after each step, switch time)."""
+    law = PhaseLock(PhaseLockConfig())
+    law.set_design(D, 1, 0.0, planting)
+    law.feedback(0.0, 0.0, 0.0)
+    theta = omega = 0.0
+    t, times, angles, jumps, switched = 0.0, [], [], [], None
+    while t < duration:
+        t += dt
+        law.ground_speed(v, t)
+        if abs(t - t_change) < dt / 2:
+            law.set_design(d_new, 1, t)
+        before = law.target_angle(t)
+        cmd = law.command(t)
+        jumps.append(abs(law.target_angle(t) - before))
+        if switched is None and law.spacing == d_new:
+            switched = t
+        omega += (cmd - omega) * dt / lag
+        theta += omega * dt
+        law.feedback(theta, omega, t)
+        times.append(t)
+        angles.append(theta)
+    positions = plant_positions(angles, v * np.asarray(times), 2 * math.pi,
+                                release=planting.phase if planting else math.pi)
+    return law, positions, max(jumps), switched
+
+
+def test_a_new_design_takes_effect_at_the_next_planting_instant_and_the_grid_goes_on():
+    from planter_ros.control.phase_lock import PlantingAngles
+    planting = PlantingAngles(math.pi, 0.6, 0.6)     # plants at the bottom, θ = π + 2πk
+    law, positions, jump, switched = drive_through_design_change(0.3, 3.31, planting)
+    # the old grid puts plants at 0.1 + 0.2·k m; the change comes at s = 0.662 m, so the
+    # plant at 0.7 m is still the old design's and from there plants follow every 0.3 m
+    assert np.allclose(positions[1:], [0.3, 0.5, 0.7, 1.0, 1.3, 1.6], atol=0.003)
+    assert switched == pytest.approx(0.7 / 0.2, abs=0.011)   # at that plant's instant
+    # the target angle is continuous: between two commands it moves by no more than one
+    # step's distance at the faster of the two rates
+    assert jump <= 2 * math.pi * 0.2 * 0.005 * (1 / D - 1 / 0.3) * 1.01
+    assert not law.design_pending and law.phase_slips == 0
+
+
+def test_without_planting_angles_a_new_design_applies_at_once_without_a_phase_jump():
+    law, positions, jump, switched = drive_through_design_change(0.3, 3.31, None)
+    assert switched == pytest.approx(3.31, abs=0.006)
+    assert jump < 1e-9 and law.phase_slips == 0
+    gaps = np.diff(positions)
+    # the gap in progress stretches between d and the new d, then the new spacing
+    assert np.allclose(gaps[-2:], 0.3, atol=0.006) and gaps[1:].min() > 0.195 and gaps.max() < 0.31

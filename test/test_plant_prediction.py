@@ -339,3 +339,38 @@ def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
 
 
 _GAP_RUN = simulate_run(five_bar_design_message(), duration=20.0, seed=5)
+
+
+def test_a_new_design_scores_plants_from_the_next_planting_instant_live_and_batch_alike():
+    """The machine plants every 0.2 m up to the plant at 0.7 m, then every 0.3 m (the sync law
+    switches at the first planting instant after the design message, here at s = 0.62 m)."""
+    pepper = design_five_bar(0.045, 0.3, 0.05)
+    new = FiveBarPlanting(pepper.l1, pepper.l2, 0.045, 0.3)
+    v, rate = 0.2, 100.0
+    t = np.arange(0.0, 12.0, 1.0 / rate)
+    s = v * t
+    theta = np.where(s <= 0.7, 2 * np.pi * s / 0.2, 7 * np.pi + 2 * np.pi * (s - 0.7) / 0.3)
+    omega = np.where(s <= 0.7, 2 * np.pi * v / 0.2, 2 * np.pi * v / 0.3)
+    t_msg = 0.62 / v
+    stray = FiveBarPlanting(TOMATO.l1 * 2, TOMATO.l2 * 2, 0.045, 0.4)    # overtaken at once
+    changes = [(t_msg - 0.05, stray), (t_msg, new)]
+    batch = predict_plants(t, np.full_like(t, v), t, theta, omega, tomato_model(),
+                           changes=changes)
+    assert np.allclose(batch.position, [0.1, 0.3, 0.5, 0.7, 1.0, 1.3, 1.6, 1.9, 2.2],
+                       atol=1e-9)
+    # every gap against the design it was planted with: none looks 100 mm off
+    assert np.allclose(batch.spacing_error[1:], 0.0, atol=1e-9)
+    assert np.allclose(batch.hole_width[4:], pepper.hole_width, rtol=1e-6)
+    assert np.allclose(batch.hole_width[:3], TOMATO.hole_width, rtol=1e-6)   # (the 4th: the
+    # speed steps right at it, so its interpolated λ is off)
+    assert list(batch.index) == list(range(len(batch)))             # one sequence
+    # the live predictor given the same messages in arrival order agrees exactly
+    live = PlantPredictor(tomato_model())
+    parts, pending = [], list(changes)
+    for i in range(t.size):
+        while pending and pending[0][0] <= t[i]:
+            live.change_model(pending[0][1], pending[0][0])
+            pending.pop(0)
+        parts += [live.add_joint(t[i], theta[i], omega[i]), live.add_speed(t[i], v)]
+    streamed = Plants.concatenate(parts)
+    assert np.allclose(streamed.table(), batch.table(), rtol=0, atol=1e-12, equal_nan=True)

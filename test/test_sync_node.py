@@ -242,3 +242,27 @@ def test_law_parameters_are_validated(rig):
     assert r.sync.set_parameters([Parameter('max_speed', value=8.0)])[0].successful
     assert r.sync.law.config.max_speed == 8.0
     assert not r.sync.set_parameters([Parameter('can_channel', value='x')])[0].successful
+
+
+def test_a_design_from_another_node_is_counted_and_named_and_the_loop_timed(rig):
+    r = rig()
+    r.drive(0.2, 1.0)
+    other = r.ros.node('stray_design')
+    pub = interfaces.DESIGN.publisher(other)
+    pub.publish(String(data=json.dumps(dict(TOMATO, plant_spacing=0.3))))
+    assert r.ros.spin_until(lambda: r.sync.design_sources.changes == 1, timeout=5.0)
+    r.drive(0.2, 0.5)
+    design = r.diag('design')
+    assert design.level == DiagnosticStatus.WARN
+    assert '1 design change(s) by another node, the latest from /stray_design' in design.message
+    v = values(design)
+    assert v['design from'].startswith('/test_io (publisher ')
+    assert v['design changes by other nodes'] == '1'
+    assert v['design publishers seen'] == '/stray_design, /test_io'
+    assert r.sync.law.spacing == 0.3      # no planting angles known here: in force at once
+    loop = r.diag('control loop')
+    assert loop.level == DiagnosticStatus.OK
+    lv = values(loop)
+    assert int(lv['command frames']) > 50
+    assert float(lv['command gap max'].split()[0]) < 200.0
+    assert lv['drive command deadline'] == '200 ms'

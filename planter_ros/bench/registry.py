@@ -28,6 +28,7 @@ CASE_MODULES = (
     'planter_ros.bench.cases.five_bar',
     'planter_ros.bench.cases.three_arm',
     'planter_ros.bench.cases.sync',
+    'planter_ros.bench.cases.control_loop',
     'planter_ros.bench.cases.replay',
     'planter_ros.bench.cases.cdr',
     'planter_ros.bench.cases.drive',

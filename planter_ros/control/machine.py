@@ -52,14 +52,16 @@ class Machine:
             law.config = config
 
     def set_design(self, spacing, plants_per_revolution, now, planting=None):
+        """A design for every row: each row running on its grid takes it at its own next
+        planting instant (PhaseLock.set_design)."""
         for law in self.laws:
             law.set_design(spacing, plants_per_revolution, now, planting)
 
     def set_planting(self, planting):
         """Where the design's mechanism plants (PlantingAngles or None), found later than the
-        design itself; used by the next section stops."""
+        design itself; used by the next section stops and design changes."""
         for law in self.laws:
-            law.planting = planting
+            law.set_planting(planting)
 
     def sample(self, v, yaw_rate, now):
         """Offer a ground-speed message's v (m/s) and ω_z (rad/s); True when the rows use it."""

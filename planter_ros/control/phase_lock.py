@@ -28,6 +28,14 @@ Choices the papers leave open, made here on purpose:
   ramp's lag, so no plant comes too soon).
 * A row of a machine on a curve gets its own speed v_i already filtered (`row_speed`); the
   filter then is the machine's (shared, so its counts are the machine's).
+* A new design while the row runs on its grid takes effect at the row's next planting
+  instant: the plant the mechanism sets next (the first planting angle beyond the measured
+  angle when the design arrives) is still placed on the old grid, at the distance s_k where
+  the old grid wants it, and from there plants follow at the new spacing: the target angle is
+  continuous (no jump in phase) and the grid goes on instead of restarting wherever the
+  mechanism happens to be. Without known planting angles, or with another number of plants
+  per revolution (another mechanism), the design applies at once (the target still continuous
+  for the former, a new grid for the latter).
 
 Time is passed in explicitly (monotonic seconds), so the law is deterministic and testable.
 """
@@ -130,6 +138,7 @@ class PhaseLock:
         self._cmd = 0.0
         self._t_cmd = None
         self.last_error = 0.0               # phase error at the last command (rad)
+        self._pending = None                # (d, PlantingAngles, s at its planting instant)
 
     # ------------------------------------------------------------------ inputs
     def configure(self, config, limits):
@@ -146,11 +155,61 @@ class PhaseLock:
         if plants_per_revolution not in (1, 2, 3, 4, 5, 6):
             raise ControlConfigError(f'plants_per_revolution = {plants_per_revolution} is out '
                                      'of range: allowed 1..6')
-        self.spacing = float(spacing)
-        self.plants_per_revolution = int(plants_per_revolution)
-        self.planting = planting
-        self._anchor = None
-        self._try_anchor(now)
+        if (self._anchor is None or not self.section_on or self._starting
+                or int(plants_per_revolution) != self.plants_per_revolution):
+            # no grid to continue: the design applies at once, a grid starts from here
+            self._pending = None
+            self.spacing = float(spacing)
+            self.plants_per_revolution = int(plants_per_revolution)
+            self.planting = planting
+            self._anchor = None
+            self._try_anchor(now)
+            return
+        self._pending = (float(spacing), planting, self._next_planting_distance(now))
+        self._switch_design(now)
+
+    def set_planting(self, planting):
+        """Where the design's mechanism plants (PlantingAngles or None), found after the
+        design itself: the pending design's, if one waits for its planting instant."""
+        if self._pending is not None:
+            spacing, _, switch_at = self._pending
+            self._pending = (spacing, planting, switch_at)
+        else:
+            self.planting = planting
+
+    @property
+    def design_pending(self):
+        """A new design waits for the row's next planting instant."""
+        return self._pending is not None
+
+    def _next_planting_distance(self, now):
+        """Travelled distance at which the current grid sets the mechanism's next plant (the
+        first planting angle beyond the measured angle); now's distance when the planting
+        angles are not known."""
+        theta = self.measured_angle(now)
+        if self.planting is None or theta is None:
+            return self.travelled(now)
+        pitch = TWO_PI / self.plants_per_revolution
+        k = math.floor((theta - self.planting.phase) / pitch) + 1
+        theta0, s0 = self._anchor
+        return s0 + (self.planting.phase + k * pitch - theta0) * (
+            self.plants_per_revolution * self.spacing) / TWO_PI
+
+    def _switch_design(self, now):
+        """Once the row has travelled to the pending design's planting instant s_k: the grid
+        goes on from the old grid's (θ_k, s_k) at the new spacing."""
+        if self._pending is None:
+            return
+        spacing, planting, switch_at = self._pending
+        if self.travelled(now) < switch_at:
+            return
+        theta0, s0 = self._anchor
+        theta_k = theta0 + TWO_PI * (switch_at - s0) / (self.plants_per_revolution * self.spacing)
+        self._anchor = (theta_k, switch_at)
+        self.spacing = spacing
+        if planting is not None or self.planting is None:
+            self.planting = planting
+        self._pending = None
 
     @property
     def rejected(self):
@@ -181,6 +240,11 @@ class PhaseLock:
         new grid from the angle the mechanism rests at and the distance travelled now."""
         if on == self.section_on:
             return
+        if self._pending is not None:        # no grid across a switch: the design applies now
+            spacing, planting, _ = self._pending
+            self.spacing, self._pending = spacing, None
+            if planting is not None:
+                self.planting = planting
         self.section_on = on
         if on:
             self.stop_angle = None
@@ -242,6 +306,7 @@ class PhaseLock:
 
     def phase_error(self, now):
         """θ_target − θ_measured (rad); 0 until anchored."""
+        self._switch_design(now)
         target = self.target_angle(now)
         if target is None or self._fb is None:
             return 0.0
@@ -257,12 +322,13 @@ class PhaseLock:
         if self.stale(now):
             return 'halted (stale ground speed)' if self._cmd == 0.0 else \
                 'ramping down (stale ground speed)'
-        return 'tracking'
+        return 'tracking (new design at the next plant)' if self._pending else 'tracking'
 
     # ------------------------------------------------------------------ output
     def command(self, now):
         """Speed command (rad/s, >= 0) for time `now`, acceleration-limited from the last one."""
         cfg = self.config
+        self._switch_design(now)
         target = self.feed_forward(now)
         if self.section_on:
             if self._starting:

@@ -148,3 +148,38 @@ def bus_report(load, last_send_error, now):
                       values + (('last send error', last_send_error[1]),))
     return Report('bus', OK, f'load {100 * load.load:.1f} % of {load.bitrate} bit/s '
                   f'({load.rows} drive(s))', values)
+
+
+# the control loop keeps its margin while no gap between two command frames of a row exceeds
+# this share of the drive's RPDO deadline (command_timeout)
+LOOP_MARGIN = 0.5
+
+
+def loop_report(periods, deadline):
+    """How the control loop keeps the drives' command deadline: per row (label, PeriodStats of
+    its command frames; label '' without rows) the largest gap and p99.9. WARN once a gap ate
+    half the deadline, ERROR once one reached it (the drive has quick-stopped)."""
+    values = []
+    worst = 0.0
+    p999 = 0.0
+    for label, stats in periods:
+        prefix = f'{label} ' if label else ''
+        if not stats.gaps:
+            values.append((f'{prefix}command frames', 0))
+            continue
+        values += [(f'{prefix}command frames', stats.gaps + 1),
+                   (f'{prefix}command gap mean', f'{stats.mean * 1e3:.1f} ms'),
+                   (f'{prefix}command gap p99.9', f'{stats.quantile(0.999) * 1e3:.1f} ms'),
+                   (f'{prefix}command gap max', f'{stats.max_gap * 1e3:.1f} ms')]
+        worst = max(worst, stats.max_gap)
+        p999 = max(p999, stats.quantile(0.999))
+    values.append(('drive command deadline', f'{deadline * 1e3:.0f} ms'))
+    text = (f'command gap max {worst * 1e3:.1f} ms, p99.9 {p999 * 1e3:.1f} ms (deadline '
+            f'{deadline * 1e3:.0f} ms)')
+    if worst >= deadline:
+        return Report('control loop', ERROR, f'deadline missed: {text}', tuple(values))
+    if worst >= LOOP_MARGIN * deadline:
+        return Report('control loop', WARN, f'less than half the deadline left: {text}',
+                      tuple(values))
+    return Report('control loop', OK, text, tuple(values))
+

@@ -2,7 +2,8 @@
 
 The simulator is what tests and the demo drive instead of a real servo: the object dictionary
 comes from ``config/planter_drive.eds``, SDO is served by canopen's ``LocalNode``, and
-everything ``LocalNode`` does not do is done here, in one thread plus the bus callbacks:
+everything ``LocalNode`` does not do is done here, in one thread that also decodes the received
+frames (no listener thread of its own):
 
 * the CiA 402 state machine (controlword -> state, statusword), profile velocity mode only;
 * received RPDOs are decoded with canopen's ``PdoMap`` (with the mapping the master wrote by
@@ -13,7 +14,10 @@ everything ``LocalNode`` does not do is done here, in one thread plus the bus ca
   an encoder that integrates the speed into increments (0x6064);
 * the heartbeat producer (0x1017), sent from this thread (no ``send_periodic``);
 * the drive's own command watchdog: RPDO deadline monitoring (event timer 0x1400:5) and the
-  heartbeat consumer (0x1016) trigger the abort connection option (0x6007), e.g. quick stop;
+  heartbeat consumer (0x1016) trigger the abort connection option (0x6007), e.g. quick stop.
+  It judges each frame by its time on the bus (the frame's timestamp), as a drive's hardware
+  receives it, and decodes every waiting frame before it judges: the thread that simulates the
+  drive running late (a loaded host) is no missed command;
 * faults and EMCY on demand, and a switch to silence the heartbeat.
 
 Units inside: increments (counts) and counts/s, as on the bus; the introspection properties
@@ -122,7 +126,6 @@ class SimulatedDrive:
 
         self._owns_network = network is None
         self.network = network if network is not None else canopen.Network(self._bus)
-        self.network.NOTIFIER_CYCLE = 0.05        # short, so stop() does not wait a second
         self.node = canopen.LocalNode(node_id, str(eds_path or default_eds_path()))
         # The heartbeat is sent by our thread, never by a send_periodic task: drop the NMT
         # slave's 0x1017 write hook that would start one.
@@ -185,8 +188,6 @@ class SimulatedDrive:
         (`thread` False: the caller runs `step()` instead, as SimulatedBus does)."""
         if self._thread is not None:
             return
-        if self._owns_network:
-            self.network.connect()
         self._boot()
         if thread:
             self._thread = threading.Thread(target=self._run, name=f'sim-drive-{self.node_id}',
@@ -207,9 +208,6 @@ class SimulatedDrive:
         if self._thread is not None:
             self._thread.join(timeout=2.0)
             self._thread = None
-        if self._owns_network and self.network.notifier is not None:
-            self.network.notifier.stop(1.0)
-            self.network.notifier = None
         if self._owns_bus:
             self._bus.shutdown()
 
@@ -368,7 +366,7 @@ class SimulatedDrive:
 
     def _on_consumed_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
         if (can_id & 0x7F) == self._consumer_node:
-            self._consumed_heartbeat = time.monotonic()
+            self._consumed_heartbeat = wire_time(timestamp)
 
     # ---------------------------------------------------------------- NMT and PDO
     def _on_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:
@@ -407,7 +405,7 @@ class SimulatedDrive:
             return
         self.rpdo_count += 1
         with self._lock:
-            self._last_rpdo = time.monotonic()
+            self._last_rpdo = wire_time(pdo_map.timestamp)
         entries = sorted(pdo_map, key=lambda var: var.index == 0x6040)
         try:
             for var in entries:
@@ -504,6 +502,7 @@ class SimulatedDrive:
                 self._stop_event.wait(delay)
             else:
                 next_tick = time.monotonic()      # fell behind (loaded machine): no burst
+            receive(self._bus, self.network)
             now = time.monotonic()
             dt, last = now - last, now
             if not self.step(dt, now):
@@ -600,7 +599,6 @@ class SimulatedBus:
                  tick: float = 0.002, **drive_kwargs):
         self.bus = can.Bus(interface=interface, channel=channel)
         self.network = canopen.Network(self.bus)
-        self.network.NOTIFIER_CYCLE = 0.05
         self.tick = float(tick)
         self.drives = [SimulatedDrive(self.bus, node_id=node_id, network=self.network,
                                       tick=tick, **drive_kwargs) for node_id in node_ids]
@@ -610,7 +608,6 @@ class SimulatedBus:
     def start(self) -> None:
         """Boot every drive and run them all from one thread (one wake-up per tick for the
         whole bus, not one per drive)."""
-        self.network.connect()
         for drive in self.drives:
             drive.start(thread=False)
         self._thread = threading.Thread(target=self._run, name='sim-bus', daemon=True)
@@ -626,6 +623,12 @@ class SimulatedBus:
                 self._stop_event.wait(delay)
             else:
                 next_tick = time.monotonic()      # fell behind (loaded machine): no burst
+            try:
+                receive(self.bus, self.network)
+            except (can.CanError, OSError):
+                if self._stop_event.is_set():
+                    return
+                raise
             now = time.monotonic()
             dt, last = now - last, now
             for drive in self.drives:
@@ -641,15 +644,38 @@ class SimulatedBus:
             self._thread = None
         for drive in self.drives:
             drive.stop()
-        if self.network.notifier is not None:
-            self.network.notifier.stop(1.0)
-            self.network.notifier = None
         self.bus.shutdown()
 
     @property
     def watchdog_trips(self):
         """(node id, reason, EMCY code) of every drive's watchdog reactions."""
         return [(d.node_id, why, code) for d in self.drives for why, code in d.watchdog_trips]
+
+
+def wire_time(timestamp: float | None) -> float:
+    """A received frame's time on the bus, on the monotonic clock: python-can stamps a frame
+    with the wall clock (the virtual bus when it is sent, SocketCAN when the kernel receives
+    it), so its age is subtracted from now; now for a frame without a stamp."""
+    now = time.monotonic()
+    if timestamp is None or not math.isfinite(timestamp) or timestamp <= 0.0:
+        return now
+    return now - max(time.time() - timestamp, 0.0)
+
+
+def receive(bus: can.BusABC, network: canopen.Network) -> None:
+    """Decode every frame waiting on `bus` (canopen's own listener does the same from a thread
+    of its own): the simulated drives' thread calls this before each step, so a watchdog is
+    never judged with frames still waiting in the queue."""
+    while True:
+        msg = bus.recv(timeout=0.0)
+        if msg is None:
+            return
+        if msg.is_error_frame or msg.is_remote_frame:
+            continue
+        try:
+            network.notify(msg.arbitration_id, msg.data, msg.timestamp)
+        except Exception as exc:     # a callback's error must not stop the drive, as canopen
+            log.error('simulated drive: %s', exc)
 
 
 def _wrap_i32(value: int) -> int:

@@ -27,6 +27,12 @@ A plant whose instant falls in such a gap is not reported (it would be invented 
 interpolating across the gap), and the first plant after a gap starts a new sequence: it has no
 spacing (NaN), like the first plant of a stream. The plant numbering and the rolling rate go on.
 
+A new design (d, the mechanism's geometry) arriving at time t takes effect at the next planting
+instant, as in the sync law: the first plant set after t (its crossing later than t) is the
+old design's last — its spacing is scored against the old d — and every later plant is scored
+and described with the new design; plants and positions go on across the change (no new
+sequence). Several changes before that plant: the latest applies.
+
 `predict_plants` does a whole recording at once (vectorised, used by replay); `PlantPredictor`
 does the same sample by sample (the live monitor) with the same arithmetic, so both agree.
 Pure numpy/scipy: no ROS here.
@@ -385,11 +391,13 @@ def plant_values(model, settings, omega, v):
 
 
 def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
-                   settings=PredictionSettings(), row=0, speed_filter=True):
+                   settings=PredictionSettings(), row=0, speed_filter=True, changes=()):
     """All plants of a recording at once (vectorised). Times in s (same clock for both inputs),
     speeds m/s, shaft angle rad (unwrapped), shaft speed rad/s (NaN or empty = not measured).
     `row` goes into every plant's row field; `speed_filter` False takes speeds that already
-    passed the plausibility rule (a row's speed from sensing.row_speed)."""
+    passed the plausibility rule (a row's speed from sensing.row_speed). `changes`: (time s,
+    model) of each later design, in time order, each in force from the next planting instant
+    after its time (module doc)."""
     joint_vel = np.asarray(joint_vel, dtype=float)
     if joint_vel.size != np.size(joint_t):
         joint_vel = np.full(np.size(joint_t), np.nan)
@@ -404,14 +412,10 @@ def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
     ss = travelled_distance(st, sv)
     theta = np.maximum.accumulate(jp)
 
-    k0 = _first_k(model, theta[0])
-    k1 = _first_k(model, theta[-1])          # first index not yet reached
-    ks = np.arange(k0, k1)
-    if ks.size == 0:
+    models = [model] + [m for _, m in changes]
+    i, t_e, omega, which = _crossings(models, [t for t, _ in changes], jt, theta, jw)
+    if not t_e.size:
         return empty
-    theta_k = _threshold(model, ks.astype(float))
-    i = np.searchsorted(theta, theta_k, side='left')
-    t_e, omega = _crossing(theta_k, jt[i - 1], jt[i], theta[i - 1], theta[i], jw[i - 1], jw[i])
 
     gap = settings.max_input_gap
     j = np.searchsorted(st, t_e, side='right')
@@ -419,11 +423,45 @@ def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
     jc = np.clip(j, 1, st.size - 1)
     # a plant inside a gap of either input would be invented by interpolation: not reported
     keep = located & (jt[i] - jt[i - 1] <= gap) & (st[jc] - st[jc - 1] <= gap)
-    t_e, omega, j = t_e[keep], omega[keep], j[keep]
+    t_e, omega, j, which = t_e[keep], omega[keep], j[keep], which[keep]
     v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
     starts = np.concatenate((_gaps(jt, gap), _gaps(st, gap)))
-    return _assemble(model, settings, t_e, omega, v_e, s_e, index0=0, prev_position=np.nan,
-                     recent=(), new_sequence=_after_gap(t_e, -np.inf, starts), row=row)
+    return _assemble([models[w] for w in which], settings, t_e, omega, v_e, s_e, index0=0,
+                     prev_position=np.nan, recent=(),
+                     new_sequence=_after_gap(t_e, -np.inf, starts), row=row)
+
+
+def _crossings(models, change_times, jt, theta, jw):
+    """Every planting instant of a running-maximum shaft angle `theta` (at times `jt`):
+    (index of the joint sample after it, instant, shaft speed, index into `models` of the
+    design in force). models[0] is in force from the start, models[c] from the first crossing
+    after change_times[c - 1] (that crossing still the earlier design's)."""
+    parts = []
+    lo, current = theta[0], 0                  # thresholds strictly beyond lo
+    while True:
+        model = models[current]
+        ks = np.arange(_first_k(model, lo), _first_k(model, theta[-1]))
+        if not ks.size:
+            break
+        theta_k = _threshold(model, ks.astype(float))
+        i = np.searchsorted(theta, theta_k, side='left')
+        t_e, omega = _crossing(theta_k, jt[i - 1], jt[i], theta[i - 1], theta[i], jw[i - 1],
+                               jw[i])
+        # models[current + 1] comes with change_times[current]
+        later = (np.nonzero(t_e > change_times[current])[0] if current < len(change_times)
+                 else ())
+        if not len(later):
+            parts.append((i, t_e, omega, np.full(t_e.size, current)))
+            break
+        last = later[0]                        # the old design's last plant
+        parts.append((i[:last + 1], t_e[:last + 1], omega[:last + 1],
+                      np.full(last + 1, current)))
+        # in force after it: the latest change before it
+        current = int(np.searchsorted(change_times, t_e[last], side='left'))
+        lo = theta_k[last]
+    if not parts:
+        return (np.zeros(0, dtype=int), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int))
+    return tuple(np.concatenate(c) for c in zip(*parts))
 
 
 def _gaps(t, gap):
@@ -444,10 +482,20 @@ def _after_gap(t_e, t_before, gaps):
     return (n > 0) & (latest_end[np.maximum(n - 1, 0)] > before)
 
 
-def _assemble(model, settings, t_e, omega, v_e, s_e, index0, prev_position, recent,
+def _assemble(models, settings, t_e, omega, v_e, s_e, index0, prev_position, recent,
               new_sequence, row=0):
-    ratio, hole, tilt, upright = plant_values(model, settings, omega, v_e)
+    """Plants from their instants, speeds and positions; `models[p]` is the design in force
+    for plant p (one model: for all of them)."""
     n = t_e.size
+    if not isinstance(models, (list, tuple)):
+        models = [models] * n
+    ratio, hole, tilt, upright = (np.zeros(n) for _ in range(4))
+    d = np.zeros(n)
+    for model in {id(m): m for m in models}.values():
+        mine = np.array([m is model for m in models], dtype=bool)
+        ratio[mine], hole[mine], tilt[mine], upright[mine] = plant_values(
+            model, settings, omega[mine], v_e[mine])
+        d[mine] = model.spacing
     spacing = np.diff(np.concatenate(([prev_position], s_e)))
     spacing[new_sequence] = np.nan         # no spacing across a gap in the inputs
     # rolling rate over the last `window` plants, continuing from `recent` flags
@@ -458,7 +506,7 @@ def _assemble(model, settings, t_e, omega, v_e, s_e, index0, prev_position, rece
     start = np.maximum(end - window, 0)
     rate = (csum[end] - csum[start]) / (end - start) if n else np.zeros(0)
     return Plants(index=np.arange(index0, index0 + n, dtype=float), time=t_e, position=s_e,
-                  spacing=spacing, spacing_error=spacing - model.spacing, speed_ratio=ratio,
+                  spacing=spacing, spacing_error=spacing - d, speed_ratio=ratio,
                   ground_speed=v_e, shaft_speed=omega, hole_width=hole, tilt=tilt,
                   upright=upright, uprightness_rate=rate, row=np.full(n, float(row)))
 
@@ -481,12 +529,21 @@ class PlantPredictor:
         self._speed_seen = -math.inf                     # latest finite sample time
         self._joint = None                               # last (t, θmax, ω)
         self._next_k = None
-        self._pending = []                               # (t_e, ω)
+        self._pending = []                               # (t_e, ω, model in force)
+        self._changes = []                               # (t, model) not yet in force
         self._count = 0
         self._prev_position = math.nan
         self._prev_time = -math.inf                      # instant of the last plant reported
         self._gaps = []                                  # input gaps (start, end) since then
         self._recent = deque(maxlen=settings.window)
+
+    def change_model(self, model, t):
+        """A new design arrived at `t` (s): in force from the next planting instant (the
+        first crossing later than `t`, still the old design's plant; module doc)."""
+        if self._joint is None:                  # nothing turned yet: in force at once
+            self.model, self._changes = model, []
+            return
+        self._changes.append((float(t), model))
 
     def add_speed(self, t, v):
         t, v = float(t), float(v)
@@ -527,8 +584,14 @@ class PlantPredictor:
             theta_k = _threshold(self.model, float(self._next_k))
             t_e, omega = _crossing(theta_k, t0, t, th0, th1, w0, velocity)
             if not in_gap:             # a crossing inside a gap would be invented
-                self._pending.append((float(t_e), float(omega)))
+                self._pending.append((float(t_e), float(omega), self.model))
             self._next_k += 1
+            if self._changes and self._changes[0][0] < t_e:
+                # this plant was the old design's last; the latest change before it is in force
+                n = sum(1 for change_t, _ in self._changes if change_t < t_e)
+                self.model = self._changes[n - 1][1]
+                self._changes = self._changes[n:]
+                self._next_k = _first_k(self.model, theta_k)
         self._joint = (t, th1, velocity)
         return self._resolve()
 
@@ -537,29 +600,30 @@ class PlantPredictor:
             return self._nothing()
         first_t, last_t = self._speed[0][0], self._speed[-1][0]
         done, keep = [], []
-        for t_e, omega in self._pending:
+        for t_e, omega, model in self._pending:
             if t_e >= last_t:
-                keep.append((t_e, omega))
+                keep.append((t_e, omega, model))
             elif t_e >= first_t:
-                done.append((t_e, omega))
+                done.append((t_e, omega, model))
             # else: before the first speed sample: no position, dropped (as in replay)
         self._pending = keep
         if not done:
             return self._nothing()
         times = [s[0] for s in self._speed]
-        rows = []
-        for t_e, omega in done:
+        rows, models = [], []
+        for t_e, omega, model in done:
             j = _bisect_right(times, t_e)
             (t0, v0, s0), (t1, v1, _) = self._speed[j - 1], self._speed[j]
             if t1 - t0 > self.settings.max_input_gap:
                 continue                # inside a gap of the ground speed: not reported
             v_e, s_e = _at_speed(np.float64(t_e), t0, t1, v0, v1, s0)
             rows.append((t_e, omega, float(v_e), float(s_e)))
+            models.append(model)
         if not rows:
             return self._nothing()
         t_e, omega, v_e, s_e = (np.array(c) for c in zip(*rows))
         new_sequence = _after_gap(t_e, self._prev_time, np.array(self._gaps).reshape(-1, 2))
-        plants = _assemble(self.model, self.settings, t_e, omega, v_e, s_e, self._count,
+        plants = _assemble(models, self.settings, t_e, omega, v_e, s_e, self._count,
                            self._prev_position, tuple(self._recent), new_sequence, self.row)
         self._count += len(plants)
         self._prev_position = float(plants.position[-1])

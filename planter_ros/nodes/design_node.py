@@ -15,10 +15,11 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from planter_ros import interfaces
+from planter_ros import interfaces, stop_signals
 from planter_ros.config import ConfigError, spec_of
 from planter_ros.kinematics.scene_design import design_for_scene
 from planter_ros.kinematics.scene_settings import SceneSettings, scene_classes
+from planter_ros.dds_domain import keep_discovery_on_host
 from planter_ros.nodes.parameters import ParameterGroup, declare
 
 
@@ -43,6 +44,8 @@ class DesignNode(Node):
 
 
 def main(args=None):
+    keep_discovery_on_host()
+    stop_signals.install('design_node')        # SIGTERM stops like Ctrl-C
     rclpy.init(args=args)
     node = None
     try:

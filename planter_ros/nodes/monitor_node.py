@@ -15,7 +15,10 @@ rate ω_z and its lateral offset y (v − ω_z·y, sensing.row_speed: what the r
 did, whether or not the sync node compensated the turn). The model is
 `planter_ros.kinematics.plant_prediction`; this node only turns messages into calls of it.
 Inputs stamped 0 are timed by their receive time. Samples before the first design are recorded
-but not predicted (replay does the same), and a changed design starts a new sequence.
+but not predicted (replay does the same). A changed design is logged with the node that
+published it (planter_ros.design_sources), counted in /diagnostics, and scores plants from each
+row's next planting instant on (the plant set next is still the old design's, as in the sync
+law); a design of another mechanism starts a new sequence.
 """
 
 from collections import deque
@@ -30,10 +33,13 @@ from rclpy.serialization import deserialize_message
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
-from planter_ros import interfaces
+from planter_ros import interfaces, stop_signals
 from planter_ros.config import ConfigError, as_dict
+from planter_ros.dds_domain import keep_discovery_on_host
+from planter_ros.design_sources import DesignSources
 from planter_ros.kinematics.plant_prediction import (
     PLANT_FIELDS, PlantPredictor, PredictionSettings, planting_model_from_design)
+from planter_ros.nodes import graph
 from planter_ros.nodes.parameters import ParameterGroup, declare_rows
 from planter_ros.recording.recorder import Recorder, RecorderConfig, RecorderError
 from planter_ros.rows import rows_record
@@ -75,6 +81,8 @@ class MonitorNode(Node):
         self.samples_taken = 0
         self._design_text = None
         self._model = None
+        self._mechanism = None
+        self.design_sources = DesignSources()
         self._predictors = None             # one PlantPredictor per planting row
         self._speeds = None                 # the rows' speeds (sensing.row_speed)
         self._joint_names = []
@@ -179,7 +187,7 @@ class MonitorNode(Node):
             handler(msg, (stamp or now) * 1e-9, now)
         return callback
 
-    def _on_design(self, msg, _t, _now):
+    def _on_design(self, msg, t, _now):
         if msg.data == self._design_text:
             return
         try:
@@ -191,11 +199,32 @@ class MonitorNode(Node):
         self._design_text = msg.data
         self._model = model
         mechanism = design.get('mechanism', 'five_bar')
-        self._joint_names = [row.joint(mechanism) for row in self._planting]
-        self._start_predictors(self.settings)
+        if self._predictors is None or mechanism != self._mechanism:
+            # the first design, or another machine: a new sequence
+            self._mechanism = mechanism
+            self._joint_names = [row.joint(mechanism) for row in self._planting]
+            self._start_predictors(self.settings)
+        else:
+            # in force from each row's next planting instant, as in the sync law
+            for predictor in self._predictors:
+                predictor.change_model(model, t)
         self.has_design = True
-        self.get_logger().info(f'design received: {design.get("mechanism", "five_bar")}, '
-                               f'd = {model.spacing:.4g} m, D = {model.depth:.4g} m')
+        self._log_design(mechanism, model)
+
+    def _log_design(self, mechanism, model):
+        """Log an accepted design with the node that published it (design_sources)."""
+        source = self.design_sources.accepted(graph.publishers(self, interfaces.DESIGN))
+        what = f'{mechanism}, d = {model.spacing:.4g} m, D = {model.depth:.4g} m'
+        if source.first:
+            self.get_logger().info(f'design received from {source.text}: {what}')
+            return
+        text = (f'design change {self.design_sources.changes} from {source.text}: {what}; '
+                "plants are scored against it from each row's next planting instant")
+        if source.foreign:
+            self.get_logger().warning(f'{text} (not the publisher of the first design, '
+                                      f'{self.design_sources.first.text})')
+        else:
+            self.get_logger().info(text)
 
     def _on_speed(self, msg, t, now):
         self.samples_taken += 1
@@ -284,7 +313,12 @@ class MonitorNode(Node):
             rec.level, rec.message = DiagnosticStatus.ERROR, self.record_error
         else:
             rec.level, rec.message = DiagnosticStatus.OK, 'recording off'
-        msg = DiagnosticArray(status=[status, rec])
+        design = self.design_sources.report()
+        source = DiagnosticStatus(name=f'{self.get_name()}: design', hardware_id='planter',
+                                  level=bytes((design.level,)), message=design.message,
+                                  values=[KeyValue(key=k, value=str(v))
+                                          for k, v in design.values])
+        msg = DiagnosticArray(status=[status, rec, source])
         msg.header.stamp = now.to_msg()
         self._pub_diag.publish(msg)
 
@@ -294,7 +328,8 @@ class MonitorNode(Node):
             try:
                 self.recorder.close()
             except OSError as exc:
-                self.get_logger().error(f'bag not finalised: {exc}')
+                self.record_error = f'bag not finalised: {exc}'
+                self.get_logger().error(self.record_error)
         return super().destroy_node()
 
 
@@ -310,6 +345,8 @@ def joint_index(msg, name):
 
 
 def main(args=None):
+    keep_discovery_on_host()
+    stop_signals.install('monitor_node')       # SIGTERM stops like Ctrl-C: the bag finalised
     rclpy.init(args=args)
     node = None
     try:

@@ -32,16 +32,20 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from planter_ros import interfaces
+from planter_ros import interfaces, stop_signals
 from planter_ros.config import ConfigError, check, setting
 from planter_ros.control import sync_status
+from planter_ros.control.loop_timing import PeriodStats
 from planter_ros.control.machine import Machine, TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig, PlantingAngles
+from planter_ros.dds_domain import keep_discovery_on_host
+from planter_ros.design_sources import DesignSources
 from planter_ros.drive.bus_load import bus_load, check_bus_load
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.drive_set import DriveSet
 from planter_ros.drive.errors import DriveError
 from planter_ros.drive.states import FAULT
+from planter_ros.nodes import graph
 from planter_ros.nodes.parameters import ParameterGroup, declare_rows
 from planter_ros.rows import IMPLICIT
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
@@ -81,6 +85,9 @@ class RowUnit:
         self.send_errors = 0
         self.last_send_error = None         # (monotonic time, message)
         self.joint = None                   # joint name, once the design is known
+        self.period = PeriodStats()         # gaps between its command frames
+        self.faults = 0                     # drive faults (and lost heartbeats) seen
+        self.last_fault = ''
 
     @property
     def label(self):
@@ -117,6 +124,7 @@ class SyncNode(Node):
         self._shut_down = False
         self._design_key = None
         self._mechanism = None
+        self.design_sources = DesignSources()
         self._bus_send_errors = 0
         self._last_bus_error = None          # (monotonic time, message)
         self._last_heartbeat = -math.inf
@@ -257,6 +265,8 @@ class SyncNode(Node):
         return msg
 
     def _on_design(self, msg):
+        if msg.data == (self._design_key or (None, None, None))[2]:
+            return                                  # the design in force, delivered again
         try:
             design = json.loads(msg.data)
             spacing = float(design['plant_spacing'])
@@ -265,8 +275,8 @@ class SyncNode(Node):
             joints = [unit.row.joint(mechanism) for unit in self.units]
             with self._lock:
                 key = (spacing, n, msg.data)
-                if key[:2] != (self._design_key or (None, None))[:2]:
-                    self.machine.set_design(spacing, n, time.monotonic())
+                # each running row takes it at its next planting instant (the grid goes on)
+                self.machine.set_design(spacing, n, time.monotonic())
                 self._design_key = key
                 self._mechanism = mechanism
                 for unit, joint in zip(self.units, joints):
@@ -278,8 +288,22 @@ class SyncNode(Node):
         # a worker thread, so the control loop never waits on it
         threading.Thread(target=self._find_planting_angles, args=(design, key), daemon=True,
                          name='planting-angles').start()
-        self.get_logger().info(f"design: {design['mechanism']}, d = {spacing} m, "
-                               f'{n} plant(s) per revolution')
+        self._log_design(design, spacing, n)
+
+    def _log_design(self, design, spacing, n):
+        """Log an accepted design with the node that published it (design_sources)."""
+        source = self.design_sources.accepted(graph.publishers(self, interfaces.DESIGN))
+        what = f"{design['mechanism']}, d = {spacing} m, {n} plant(s) per revolution"
+        if source.first:
+            self.get_logger().info(f'design from {source.text}: {what}')
+            return
+        text = (f'design change {self.design_sources.changes} from {source.text}: {what}; in '
+                "force from each row's next planting instant")
+        if source.foreign:
+            self.get_logger().warning(f'{text} (not the publisher of the first design, '
+                                      f'{self.design_sources.first.text})')
+        else:
+            self.get_logger().info(text)
 
     def _find_planting_angles(self, design, key):
         planting = _planting_angles(design)
@@ -366,6 +390,7 @@ class SyncNode(Node):
             unit.drive.send_velocity(command)
         except DriveError as exc:
             self._send_failed(now, exc, unit)
+        unit.period.event(time.monotonic())      # when the frame went, not when asked for
         unit.command = command
 
     def _publish_commands(self):
@@ -383,6 +408,9 @@ class SyncNode(Node):
         log = self.get_logger()
         row = '' if self.implicit else f'row {unit.label}: '
         service = interfaces.RESET_FAULT.for_row(unit.row.name)
+        if halt is not None and halt.kind != sync_status.NOT_ENABLED:
+            unit.faults += 1
+            unit.last_fault = halt.text
         if halt is None:
             log.info(f'{row}drive back in operation: resuming')
         elif halt.kind == sync_status.FAULTED:
@@ -441,6 +469,10 @@ class SyncNode(Node):
             ground = sync_status.ground_report(self.machine.reference, now, self.machine,
                                                (ramping or states or [None])[0])
             bus = sync_status.bus_report(self.bus_load, self._last_bus_error, now)
+            loop = sync_status.loop_report(
+                [('' if self.implicit else unit.label, unit.period) for unit in self.units
+                 if unit.drive is not None], self.drive_config.command_timeout)
+            shared = [(loop, self.bus_id), (self.design_sources.report(), self.bus_id)]
             if self.implicit:
                 unit = self.units[0]
                 drive = self._drive_report(unit, now)
@@ -450,7 +482,7 @@ class SyncNode(Node):
                 reports = [(drive, unit.hardware_id), (ground, unit.hardware_id),
                            (sync_status.phase_report(unit.law, now, unit.command),
                             unit.hardware_id),
-                           (bus, self.bus_id)]
+                           (bus, self.bus_id)] + shared
             else:
                 reports = [(ground, self.bus_id), (bus, self.bus_id)]
                 for unit in self.units:
@@ -466,6 +498,7 @@ class SyncNode(Node):
                                                              self._idle_reason(unit), level,
                                                              values)
                     reports.append((report, unit.hardware_id))
+                reports += shared
         return [DiagnosticStatus(level=bytes((r.level,)), name=f'{self.get_name()}: {r.task}',
                                  message=r.message, hardware_id=hardware_id,
                                  values=[KeyValue(key=k, value=str(v)) for k, v in r.values])
@@ -529,6 +562,8 @@ def start_error(exc, config):
 
 
 def main(args=None):
+    keep_discovery_on_host()
+    stop = stop_signals.install('sync_node')   # SIGTERM stops like Ctrl-C: drives shut down
     rclpy.init(args=args)
     library_log = LibraryLog()
     node = None
@@ -537,7 +572,8 @@ def main(args=None):
         node = SyncNode(namespace=interfaces.NAMESPACE)
         node.enable_drive()
         library_log.node = node
-        rclpy.spin(node)
+        if stop.received is None:            # not stopped while the drives were enabled
+            rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (DriveError, ConfigError, ParameterException) as exc:

@@ -7,9 +7,11 @@ few fields the model needs, decoded in bulk). The monitor's settings recorded in
 used unless overridden.
 
 The live monitor's rules are applied the same way: samples before the first design are not
-predicted, a changed design starts a new sequence, stamps of 0 mean "use the receive (log)
-time". A machine with several rows (the bag's rows record, interfaces.ROWS_RECORD) is predicted
-row by row, each from its own joint and its own travelled distance (ground speed, yaw rate
+predicted, a changed design is in force from the next planting instant after its message (the
+plant set next is the old design's last; kinematics.plant_prediction), a design of another
+mechanism starts a new sequence, stamps of 0 mean "use the receive (log) time". A machine
+with several rows (the bag's rows record, interfaces.ROWS_RECORD) is predicted row by row,
+each from its own joint and its own travelled distance (ground speed, yaw rate
 `twist.angular.z` and the row's lateral offset: sensing.row_speed), and summarised per row; a
 bag without the record has one row, the joint `sun_bar` / `carrier`.
 """
@@ -160,24 +162,30 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
     s_stamp, s_v, s_w = decode_twist([speed.raw[i] for i in s_order])
     _count_undecodable(rec.warnings, interfaces.GROUND_SPEED.name, s_stamp, s_v)
     parts = []
-    for k, (log, _, design, model) in enumerate(designs):
-        end = designs[k + 1][0] if k + 1 < len(designs) else np.iinfo(np.int64).max
-        mechanism = design.get('mechanism', 'five_bar')
+    segments = _mechanism_segments(designs)
+    for k, (log, group) in enumerate(segments):
+        end = segments[k + 1][0] if k + 1 < len(segments) else np.iinfo(np.int64).max
+        mechanism = group[0][2].get('mechanism', 'five_bar')
         s_sel = (s_log > log) & (s_log <= end)
         j_idx = np.nonzero((j_log > log) & (j_log <= end))[0]
         st = np.where(s_stamp[s_sel] != 0, s_stamp[s_sel], s_log[s_sel]) * 1e-9
         # each row's own speed: v − ω_z·y, filtered as the sync node and the monitor do
         rt, rv = row_speed_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits)
         raws = [joint.raw[j_order[i]] for i in j_idx]
+        # a change before the first joint sample is in force at once (nothing turned yet),
+        # a later one from the next planting instant after its message, as the live monitor
+        first_joint = j_log[j_idx[0]] if j_idx.size else np.iinfo(np.int64).max
+        model = [m for t, _, _, m in group if t < first_joint or t == log][-1]
+        changes = [(t * 1e-9, m) for t, _, _, m in group if t >= first_joint and t != log]
         segment = []
         for r, row in enumerate(planting):
             j_stamp, j_pos, j_vel = decode_joint_states(raws, row.joint(mechanism))
             if r == 0:
                 _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp, j_pos)
             jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
-            # each design starts a new sequence, numbered from 0 like the live monitor
+            # another mechanism starts a new sequence, numbered from 0 like the live monitor
             segment.append(predict_plants(rt, rv[r], jt, j_pos, j_vel, model, settings,
-                                          row=row.index, speed_filter=False))
+                                          row=row.index, speed_filter=False, changes=changes))
         segment = Plants.concatenate(segment)
         order = np.argsort(segment.time, kind='stable')
         parts.append(Plants.from_table(segment.table()[order]))
@@ -198,6 +206,20 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
                   interfaces.DESIGN.name: len(design_topic.raw) if design_topic else 0,
                   'total_read': rec.message_count},
         warnings=rec.warnings, recorded_plants=recorded)
+
+
+def _mechanism_segments(designs):
+    """The design messages (log ns, text, design, model) grouped into runs of one mechanism:
+    [(log ns of the run's first, [its designs])]. Within a run a change is in force from the
+    next planting instant; another mechanism is another machine and starts a new sequence."""
+    segments = []
+    for entry in designs:
+        mechanism = entry[2].get('mechanism', 'five_bar')
+        if segments and segments[-1][1][0][2].get('mechanism', 'five_bar') == mechanism:
+            segments[-1][1].append(entry)
+        else:
+            segments.append((entry[0], [entry]))
+    return segments
 
 
 def _count_undecodable(warnings, name, stamps, values):

@@ -8,6 +8,7 @@ figures; Observer collects each row's measured mechanism angle to compare.
 """
 
 
+import json
 import math
 
 import numpy as np
@@ -36,6 +37,10 @@ class GroundSpeedSource(Node):
         self.start = self.get_clock().now()
         self.samples = 0
         self.create_timer(1.0 / rate, self._tick)
+
+    def restart(self):
+        """The field run starts now (the graph is matched): t = 0 of the profile."""
+        self.start = self.get_clock().now()
 
     def elapsed(self, now=None):
         return ((now or self.get_clock().now()) - self.start).nanoseconds * 1e-9
@@ -83,17 +88,35 @@ class GnssSource(Node):
 
 
 class Observer(Node):
-    """Collects joint_states (measured) and the speed commands for the demo's summary, per
-    joint (one per row; `sun_bar` / `carrier` in a scene without rows)."""
+    """Collects joint_states (measured), the speed commands and the designs for the demo's
+    summary, per joint (one per row; `sun_bar` / `carrier` in a scene without rows)."""
 
     def __init__(self, **kwargs):
         super().__init__('demo_observer', **kwargs)
         self.start = None            # rclpy Time the field run started
         self.joint = {}              # joint -> [(t since start, angle rad, velocity rad/s)]
         self.command = {}            # joint (None: speed_command) -> [(t since start, rad/s)]
+        self.designs = []            # (rclpy Time received, design dict), each new one
         interfaces.JOINT_STATES.subscribe(self, self._on_joint)
         interfaces.SPEED_COMMAND.subscribe(self, self._on_command)
         interfaces.SPEED_COMMANDS.subscribe(self, self._on_commands)
+        interfaces.DESIGN.subscribe(self, self._on_design)
+
+    def _on_design(self, msg):
+        try:
+            design = json.loads(msg.data)
+            float(design['plant_spacing'])
+        except (ValueError, KeyError, TypeError):
+            return                   # the nodes refuse it too
+        if not self.designs or self.designs[-1][1] != design:
+            self.designs.append((self.get_clock().now(), design))
+
+    def design_changes(self):
+        """(t since start s, design) of each design after the first (the one in force when
+        the field run started)."""
+        if self.start is None:
+            return []
+        return [(self._since_start(t), design) for t, design in self.designs[1:]]
 
     def _since_start(self, time):
         return (time - self.start).nanoseconds * 1e-9

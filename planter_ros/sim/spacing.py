@@ -38,11 +38,28 @@ class SpacingStats:
 
 
 def spacing_stats(positions, spacing):
+    """Spacing error and drift of plants at `positions` (m) against `spacing` d (m): one
+    number, or one per gap (the design in force when each gap's second plant was set; the
+    grid then goes on at each gap's own d)."""
     positions = np.asarray(positions, dtype=float)
     if positions.size < 2:
         return SpacingStats(int(positions.size), 0.0, 0.0, 0.0, 0.0)
-    gaps = np.diff(positions) - spacing
-    drift = positions - positions[0] - spacing * np.arange(positions.size)
+    d = np.broadcast_to(np.asarray(spacing, dtype=float), (positions.size - 1,))
+    gaps = np.diff(positions) - d
+    drift = positions - positions[0] - np.concatenate(([0.0], np.cumsum(d)))
     return SpacingStats(int(positions.size), float(np.mean(np.abs(gaps))),
                         float(np.max(np.abs(gaps))), float(np.max(np.abs(drift))),
                         float(drift[-1]))
+
+
+def spacing_in_force(times, spacing, changes):
+    """d (m) of each gap between plants set at `times` (s, increasing): `spacing` at first;
+    each change (t s, d) is in force from the first plant set after t (that plant's own gap
+    is still the old d's), as the sync law and the monitor apply a new design."""
+    times = np.asarray(times, dtype=float)
+    d = np.full(max(times.size - 1, 0), float(spacing))
+    for t, new in changes:
+        after = np.nonzero(times > t)[0]
+        if after.size:
+            d[after[0]:] = new          # gaps ending at plants after the change's first
+    return d

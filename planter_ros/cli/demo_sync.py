@@ -1,0 +1,218 @@
+"""The demo's command path in a process of its own: sync_node and the simulated drives.
+
+The drives' RPDO deadline (0.2 s) is only as safe as the thread that sends the commands. In
+one process with the monitor, the recorder and its compression, the field sensors and the
+demo's own bookkeeping, that thread shares one GIL and one executor with all of them, and on a
+loaded 2-core machine it was left unscheduled long enough for a drive to quick-stop. Here the
+sync node spins alone in a child process (a single-threaded executor, as `sync_node` runs on
+the machine); python-can's virtual bus reaches only its own process, so the simulated drives
+live there too, as the drives would be other devices on the machine. The child talks to the
+rest of the demo over DDS in the demo's private domain (ground speed and the design in;
+joint_states, speed commands and /diagnostics out) and to the demo itself over a pipe: its
+start, a status snapshot four times a second for the progress lines, and at the end a report
+(sample counts, faults, watchdog trips, the control loop's period statistics, design changes).
+
+The child ignores SIGINT and SIGTERM (the terminal's Ctrl-C reaches the whole process group):
+the demo decides when it stops. It stops on the demo's request or when the pipe breaks (the
+demo died or was forced out): either way its drives are shut down (0x60FF = 0, disable).
+"""
+
+from dataclasses import dataclass, field
+import multiprocessing
+import threading
+import time
+
+STATUS_PERIOD = 0.25       # s between status snapshots sent to the demo
+
+
+class SyncProcessError(RuntimeError):
+    """The sync process did not start (one line: why)."""
+
+
+@dataclass(frozen=True)
+class SyncProcessSettings:
+    domain: int                      # the demo's private DDS domain
+    channel: str                     # python-can virtual channel of the drives' bus
+    node_ids: tuple                  # the simulated drives' CANopen node ids
+    namespace: str
+    parameters: tuple = ()           # (name, value) sync node parameter overrides
+    log_level: str = 'info'
+    drive_kwargs: dict = field(default_factory=dict)
+
+
+class SyncProcess:
+    """The parent's handle of the child process (start, status, stop)."""
+
+    def __init__(self, settings):
+        context = multiprocessing.get_context('spawn')   # no fork of a process running DDS
+        self._conn, child = context.Pipe()
+        self.process = context.Process(target=child_main, args=(child, settings),
+                                       name='planter-demo-sync')
+        self.process.start()
+        child.close()
+        self.info = {}               # what the child said at start
+        self.status = {}             # the latest snapshot
+        self.report = None           # the final report
+        self.error = None
+
+    def _handle(self, kind, payload):
+        if kind == 'status':
+            self.status = payload
+        elif kind == 'final':
+            self.report = payload
+        elif kind == 'error':
+            self.error = payload
+        else:
+            self.info[kind] = payload
+
+    def poll(self, timeout=0.0):
+        """Take every message the child has sent (waiting up to `timeout` for the first)."""
+        try:
+            while self._conn.poll(timeout):
+                self._handle(*self._conn.recv())
+                timeout = 0.0
+        except (EOFError, OSError):
+            pass
+
+    def wait_for(self, kind, timeout, stopped=lambda: False):
+        """Wait until the child has said `kind` ('built', 'ready'); raises SyncProcessError
+        with the child's own line if it failed. Returns its payload, or None when `stopped()`
+        turned true first."""
+        deadline = time.monotonic() + timeout
+        while kind not in self.info:
+            if self.error is not None:
+                raise SyncProcessError(self.error)
+            if stopped():
+                return None
+            if not self.process.is_alive() and not self._conn.poll():
+                raise SyncProcessError(f'the sync process ended (exit code '
+                                       f'{self.process.exitcode}) before it was {kind}')
+            if time.monotonic() > deadline:
+                raise SyncProcessError(f'the sync process was not {kind} within {timeout:g} s')
+            self.poll(0.05)
+        return self.info[kind]
+
+    def stop(self, timeout=30.0):
+        """Ask the child to shut its drives down and report; returns the report (None if it
+        never came)."""
+        try:
+            self._conn.send('stop')
+        except (BrokenPipeError, OSError):
+            pass
+        deadline = time.monotonic() + timeout
+        while self.report is None and time.monotonic() < deadline:
+            if not self.process.is_alive() and not self._conn.poll():
+                break
+            self.poll(0.1)
+        self.process.join(max(0.0, deadline - time.monotonic()))
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+        self._conn.close()
+        return self.report
+
+
+def child_main(conn, settings):
+    """The child process: the sync node on the simulated bus until asked to stop."""
+    from planter_ros import stop_signals
+    stop_signals.ignore()
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.exceptions import ParameterException
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from rclpy.signals import SignalHandlerOptions
+
+    from planter_ros.config import ConfigError
+    from planter_ros.drive.errors import DriveError
+    from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.nodes.sync_node import LibraryLog, SyncNode, start_error
+
+    def send(*message):
+        try:
+            conn.send(message)
+            return True
+        except (BrokenPipeError, OSError):
+            return False
+
+    sims = SimulatedBus(settings.channel, list(settings.node_ids), **settings.drive_kwargs)
+    sims.start()
+    context = Context()
+    rclpy.init(args=['--ros-args', '--log-level', settings.log_level], context=context,
+               domain_id=settings.domain, signal_handler_options=SignalHandlerOptions.NO)
+    executor = SingleThreadedExecutor(context=context)
+    library_log = LibraryLog()
+    sync = None
+    try:
+        sync = SyncNode(context=context, namespace=settings.namespace, parameter_overrides=[
+            Parameter(name, value=value) for name, value in settings.parameters])
+        send('built', {'bus_load': sync.bus_load.load, 'bitrate': sync.bus_load.bitrate})
+        sync.enable_drive()                        # blocking; the loop spins right after it
+        executor.add_node(sync)
+        spinner = threading.Thread(target=executor.spin, daemon=True, name='sync-executor')
+        spinner.start()
+        library_log.node = sync
+        send('ready', {'running': sum(unit.running for unit in sync.units)})
+        while True:
+            if conn.poll(STATUS_PERIOD) and conn.recv() == 'stop':
+                break
+            if not send('status', snapshot(sync)):
+                break
+    except (EOFError, OSError):
+        pass                                       # the demo is gone: stop the drives
+    except (DriveError, ConfigError, ParameterException) as exc:
+        send('error', start_error(exc, sync.drive_config if sync is not None else None))
+    finally:
+        executor.shutdown(timeout_sec=2.0)
+        if sync is not None:
+            sync.destroy_node()                    # every row: 0x60FF = 0, disable
+        context.try_shutdown()
+        sims.stop()
+        library_log.close()
+    if sync is not None:
+        send('final', final_report(sync, sims))
+    conn.close()
+
+
+def snapshot(sync):
+    """What the progress lines show: each running row's command, measured speed and state."""
+    rows = []
+    for unit in sync.units:
+        if unit.drive is None:
+            continue
+        status = unit.status
+        rows.append({'label': unit.label, 'command': unit.command,
+                     'velocity': status.velocity if status else 0.0,
+                     'state': status.state if status else '-', 'running': unit.running})
+    return {'rows': rows, 'spacing': sync.law.spacing}
+
+
+def final_report(sync, sims):
+    """The run's figures from the command path (JSON-ready)."""
+    from planter_ros.control.loop_timing import PeriodStats
+    law, yaw = sync.law, sync.machine.filter.yaw
+    everything = PeriodStats()
+    rows = []
+    for unit in sync.units:
+        if unit.drive is None:
+            continue
+        everything.merge(unit.period)
+        rows.append({'label': unit.label, 'faults': unit.faults, 'last_fault': unit.last_fault,
+                     'left_out': unit.left_out, 'loop': unit.period.summary()})
+    sources = sync.design_sources
+    return {
+        'accepted': law.accepted, 'rejected': dict(law.rejected),
+        'yaw_accepted': yaw.accepted, 'yaw_rejected': dict(yaw.rejected),
+        'phase_slips': sum(unit.law.phase_slips for unit in sync.units),
+        'send_errors': sync.send_errors,
+        'phase_lock': law.config.phase_lock,
+        'turn_compensation': sync.machine.turn.turn_compensation,
+        'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
+        'rows': rows,
+        'loop': everything.summary(),
+        'loop_histogram': everything.histogram(),      # for figures over many runs
+        'command_timeout': sync.drive_config.command_timeout,
+        'design': {'first': sources.first.text if sources.first else '',
+                   'changes': sources.changes, 'foreign_changes': sources.foreign_changes,
+                   'last_change': sources.last_change.text if sources.last_change else ''},
+    }

@@ -1,0 +1,92 @@
+"""The demo's verdict: one line, PASS or FAIL with every reason, and the exit code it gives.
+
+A run passes when the machine did what it is for and left a record of it:
+* no drive watchdog tripped (the command path kept the drives' RPDO deadline and heartbeat);
+* no drive fault (EMCY, fault bit, lost drive heartbeat) and every row's drive was enabled;
+* every planting row placed at least two plants, and its spacing error RMS (gap − d, each gap
+  against the design in force when its plant was set) is at most SPACING_TOLERANCE of d;
+* no node changed the design during the run (the demo's own design node publishes once);
+* the bag was recorded, finalised and replays.
+Pure: no ROS import.
+"""
+
+from dataclasses import dataclass, field
+
+SPACING_TOLERANCE = 0.02          # per-row spacing error RMS, as a fraction of d
+EXIT_PASS, EXIT_FAIL = 0, 1
+
+
+@dataclass
+class RowResult:
+    """One planting row's figures from the demo's own measurement."""
+
+    label: str
+    plants: int
+    rms: float                    # spacing error RMS relative to d (fraction)
+
+
+@dataclass
+class Verdict:
+    reasons: list = field(default_factory=list)
+    stopped_by: str = ''          # 'SIGTERM' / 'SIGINT' when a signal ended the run early
+    elapsed: float = 0.0          # s of field run
+
+    @property
+    def passed(self):
+        return not self.reasons
+
+    @property
+    def exit_code(self):
+        return EXIT_PASS if self.passed else EXIT_FAIL
+
+    def line(self):
+        stopped = (f' (stopped by {self.stopped_by} after {self.elapsed:.1f} s)'
+                   if self.stopped_by else '')
+        if self.passed:
+            return (f'verdict: PASS{stopped}: no watchdog trip, no drive fault, spacing RMS '
+                    f'<= {100 * SPACING_TOLERANCE:g} % of d on every row, design unchanged, '
+                    'bag recorded')
+        return f'verdict: FAIL{stopped}: ' + '; '.join(self.reasons)
+
+
+def judge(rows, sync_report, start_error='', bag_error='', monitor_design_changes=''):
+    """The verdict of a run. `rows`: RowResult per planting row (empty if the run never
+    started); `sync_report`: the sync process's final report (demo_sync.final_report, None if
+    it never came); `start_error`: why the drives did not start; `bag_error`: why there is no
+    usable bag; `monitor_design_changes`: the monitor's account of design changes, if any."""
+    reasons = []
+    if start_error:
+        reasons.append(f'drives not started: {start_error}')
+    if sync_report is None and not start_error:
+        reasons.append('the sync process gave no report')
+    report = sync_report or {}
+    trips = report.get('watchdog_trips', [])
+    if trips:
+        reasons.append('drive watchdog trip: ' + ', '.join(
+            f'node {node} {why} (EMCY 0x{code:04X})' for node, why, code in trips))
+    for row in report.get('rows', []):
+        name = f'row {row["label"]}' if row['label'] else 'the drive'
+        if row['left_out']:
+            reasons.append(f'{name} left out: {row["left_out"]}')
+        elif row['faults']:
+            reasons.append(f'drive fault on {name} ({row["faults"]}x, last: '
+                           f'{row["last_fault"]})')
+    if not start_error:
+        for row in rows:
+            name = f'row {row.label}' if row.label else 'the row'
+            if row.plants < 2:
+                reasons.append(f'{name} placed {row.plants} plant(s): spacing not judged '
+                               '(needs 2)')
+            elif row.rms > SPACING_TOLERANCE:
+                reasons.append(f'{name} spacing error RMS {100 * row.rms:.2f} % of d > '
+                               f'{100 * SPACING_TOLERANCE:g} %')
+    design = report.get('design', {})
+    if design.get('changes'):
+        reasons.append(f'design changed by another node during the run ({design["changes"]}x, '
+                       f'the latest from {design["last_change"]})')
+    elif monitor_design_changes:
+        reasons.append(f'design changed by another node during the run '
+                       f'({monitor_design_changes})')
+    if bag_error:
+        reasons.append(f'no bag: {bag_error}')
+    return Verdict(reasons)

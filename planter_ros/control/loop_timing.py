@@ -1,0 +1,98 @@
+"""How well the control loop keeps the drive's deadline: the time between consecutive command
+frames of one row.
+
+A drive quick-stops when no command frame reaches it within its RPDO deadline (the sync node's
+`command_timeout`, 0.2 s): the largest gap between two frames and the tail of their
+distribution (p99.9) are the figures that say how much margin the loop keeps. `PeriodStats`
+counts gaps in a fixed histogram (0.1 ms bins up to 1 s, one overflow bin above), so it runs
+for hours in constant memory and costs one list increment per frame in the control loop's hot
+path. Pure (numpy), times in seconds passed in explicitly.
+"""
+
+import math
+
+import numpy as np
+
+BIN = 1e-4                  # s, histogram resolution
+SPAN = 1.0                  # s, gaps above this share the overflow bin (their max is kept)
+
+
+class PeriodStats:
+    """Gaps between consecutive events (frames) of one row, from `event(now)` calls."""
+
+    def __init__(self, bin_width=BIN, span=SPAN):
+        self.bin_width = float(bin_width)
+        self.counts = np.zeros(int(round(span / bin_width)) + 1, dtype=np.int64)
+        self.gaps = 0
+        self.max_gap = 0.0
+        self.total = 0.0
+        self._last = None
+
+    def event(self, now):
+        """One frame sent at `now` (monotonic s)."""
+        last, self._last = self._last, now
+        if last is not None:
+            self.add(now - last)
+
+    def restart(self):
+        """The next event starts a new series (the row stopped sending on purpose: shut
+        down, left out): the pause is no gap of the loop."""
+        self._last = None
+
+    def add(self, gap):
+        gap = max(float(gap), 0.0)
+        self.counts[min(int(gap / self.bin_width), self.counts.size - 1)] += 1
+        self.gaps += 1
+        self.total += gap
+        if gap > self.max_gap:
+            self.max_gap = gap
+
+    def quantile(self, q):
+        """The gap (s) that a fraction `q` of all gaps do not exceed, to one bin (the upper
+        edge of its bin, never more than the largest gap; the largest gap in the overflow
+        bin); NaN before two events."""
+        if not self.gaps:
+            return math.nan
+        rank = max(1, math.ceil(q * self.gaps))
+        i = int(np.searchsorted(np.cumsum(self.counts), rank))
+        if i >= self.counts.size - 1:            # the overflow bin: only its max is known
+            return self.max_gap
+        return min((i + 1) * self.bin_width, self.max_gap)
+
+    @property
+    def mean(self):
+        return self.total / self.gaps if self.gaps else math.nan
+
+    def merge(self, other):
+        """Add another series' gaps (e.g. every row's, for one figure of the machine)."""
+        if other.counts.size != self.counts.size or other.bin_width != self.bin_width:
+            raise ValueError('PeriodStats.merge: different histograms')
+        self.counts = self.counts + other.counts
+        self.gaps += other.gaps
+        self.total += other.total
+        self.max_gap = max(self.max_gap, other.max_gap)
+        return self
+
+    def histogram(self):
+        """The counts as plain data (the nonzero bins), e.g. to send to another process."""
+        return {'bin': self.bin_width, 'size': int(self.counts.size), 'max': self.max_gap,
+                'total': self.total,
+                'counts': {int(i): int(self.counts[i]) for i in self.counts.nonzero()[0]}}
+
+    @classmethod
+    def from_histogram(cls, data):
+        """The PeriodStats `histogram()` describes (without its last event)."""
+        stats = cls(data['bin'], data['bin'] * (data['size'] - 1))
+        for i, count in data['counts'].items():
+            stats.counts[int(i)] = count
+        stats.gaps = int(stats.counts.sum())
+        stats.max_gap, stats.total = data['max'], data['total']
+        return stats
+
+    def summary(self):
+        """JSON-ready figures (s): frames' gaps counted, mean, p99, p99.9, max."""
+        def finite(x):
+            return None if math.isnan(x) else x
+        return {'gaps': self.gaps, 'mean': finite(self.mean),
+                'p99': finite(self.quantile(0.99)), 'p999': finite(self.quantile(0.999)),
+                'max': self.max_gap if self.gaps else None}

@@ -1,0 +1,105 @@
+"""Who set the design: the publishing node of every design the sync node and the monitor accept.
+
+The design topic is latched and anyone on the graph may publish it; a change from a node that
+is not the machine's design node (a second design_node started with another scene, a test
+tool) moves the whole machine to another spacing. So each accepted design is attributed to its
+publisher, logged and counted. Jazzy's rclpy does not hand a Python callback the publisher's
+GID, so the attribution comes from the graph (the topic's publishers, by node name and endpoint
+GID) at the moment the message is taken: the only publisher, else the one publisher that
+appeared since the last look (a new publisher of a latched topic delivers its sample as soon
+as it is matched), else every candidate is named ("one of ..."). A change counts as foreign
+when it surely came from none of the publishers of the first design. Pure: no ROS import.
+"""
+
+from dataclasses import dataclass
+
+from planter_ros.control.sync_status import OK, STALE, WARN, Report
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """One publisher of the design: its node's full name and its endpoint GID (hex)."""
+
+    node: str
+    gid: str
+
+
+def gid_text(gid_bytes):
+    """An endpoint GID as ROS prints it: bytes as two hex digits joined by dots."""
+    return '.'.join(f'{b:02x}' for b in gid_bytes)
+
+
+@dataclass(frozen=True)
+class Attribution:
+    """Where one accepted design came from."""
+
+    candidates: tuple        # Endpoint(s) it can have come from
+    first: bool              # the first design this node accepted
+    foreign: bool            # surely not from a publisher of the first design
+
+    @property
+    def text(self):
+        nodes = sorted({e.node for e in self.candidates})
+        if not nodes:
+            return 'a publisher no longer on the graph'
+        if len(nodes) == 1 and len(self.candidates) == 1:
+            return f'{nodes[0]} (publisher {self.candidates[0].gid})'
+        if len(nodes) == 1:
+            return f'{nodes[0]} (one of {len(self.candidates)} publishers of that name)'
+        return 'one of ' + ', '.join(nodes)
+
+
+class DesignSources:
+    """Attributes, counts and reports the designs one node accepts."""
+
+    def __init__(self):
+        self.known = {}              # gid -> node name, every publisher seen on the topic
+        self.first = None            # Attribution of the first design
+        self.changes = 0             # designs accepted after the first
+        self.foreign_changes = 0
+        self.last_change = None      # Attribution of the latest change
+
+    def accepted(self, endpoints):
+        """A design was accepted; `endpoints` are the topic's publishers now. Returns its
+        Attribution (and counts it)."""
+        endpoints = tuple(endpoints)
+        new = tuple(e for e in endpoints if e.gid not in self.known)
+        self.known.update((e.gid, e.node) for e in endpoints)
+        if len(endpoints) == 1:
+            candidates = endpoints
+        elif len(new) == 1:
+            candidates = new
+        else:
+            candidates = endpoints
+        if self.first is None:
+            self.first = Attribution(candidates, True, False)
+            return self.first
+        original = {e.gid for e in self.first.candidates}
+        foreign = not any(e.gid in original for e in candidates)
+        self.last_change = Attribution(candidates, False, foreign)
+        self.changes += 1
+        self.foreign_changes += foreign
+        return self.last_change
+
+    def values(self):
+        """Key/value pairs for /diagnostics."""
+        out = [('design from', self.first.text if self.first else ''),
+               ('design changes', self.changes),
+               ('design changes by other nodes', self.foreign_changes),
+               ('design publishers seen', ', '.join(sorted(set(self.known.values()))))]
+        if self.last_change is not None:
+            out.append(('last design change from', self.last_change.text))
+        return out
+
+    def report(self):
+        """The node's 'design' status: WARN once another node changed the design."""
+        values = tuple(self.values())
+        if self.first is None:
+            return Report('design', STALE, 'waiting for design', values)
+        if self.foreign_changes:
+            return Report('design', WARN, f'{self.foreign_changes} design change(s) by another '
+                          f'node, the latest from {self.last_change.text}', values)
+        if self.changes:
+            return Report('design', OK, f'{self.changes} design change(s), the latest from '
+                          f'{self.last_change.text}', values)
+        return Report('design', OK, f'from {self.first.text}', values)

@@ -1,0 +1,96 @@
+"""SIGTERM is Ctrl-C in every node main and the demo: the first stop signal asks for a clean
+stop, a second one forces the exit (a clean-up that hangs must not keep the process alive)."""
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+HUNG_CLEANUP = r'''
+import time
+from planter_ros import stop_signals
+stop = stop_signals.install('test')
+print('running', flush=True)
+while stop.received is None:
+    time.sleep(0.01)
+print('stopping on', stop.name_received, flush=True)
+time.sleep(60)                     # a clean-up that hangs
+print('clean-up done', flush=True)
+'''
+
+
+def child_env():
+    return dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+
+
+@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGINT])
+def test_the_first_signal_asks_for_a_clean_stop_the_second_forces_the_exit(sig):
+    proc = subprocess.Popen([sys.executable, '-c', HUNG_CLEANUP], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=child_env())
+    try:
+        assert proc.stdout.readline().strip() == 'running'
+        proc.send_signal(sig)
+        assert proc.stdout.readline().strip() == f'stopping on {signal.Signals(sig).name}'
+        t0 = time.monotonic()
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert time.monotonic() - t0 < 5
+    assert proc.returncode == 128 + sig
+    assert 'clean-up done' not in out
+    assert err == f'test: second {signal.Signals(sig).name}: forced exit, without a clean stop\n'
+
+
+@pytest.mark.parametrize('main', ['design_node', 'sync_node'])
+def test_sigterm_stops_a_node_like_ctrl_c_with_exit_0(main, tmp_path):
+    """design_node and sync_node (on a simulated drive) stop cleanly on SIGTERM; the monitor's
+    bag is tested in test_recorder_signals.py."""
+    code = {'design_node': 'from planter_ros.nodes.design_node import main; '
+                           'raise SystemExit(main())',
+            'sync_node': SYNC_ON_A_SIMULATED_DRIVE}[main]
+    args = ['--ros-args', '--params-file', str(REPO / 'config' / 'tomato_five_bar.yaml')] \
+        if main == 'design_node' else []
+    env = child_env()
+    env.pop('ROS_AUTOMATIC_DISCOVERY_RANGE')      # unset: the node keeps discovery on the host
+    proc = subprocess.Popen([sys.executable, '-c', code] + args, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=env)
+    lines = []
+    try:
+        for line in proc.stdout:
+            lines.append(line)
+            if 'published' in line or 'enabled (profile velocity)' in line:
+                break
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)
+        rest, _ = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    out = ''.join(lines) + rest
+    assert proc.returncode == 0, out
+    assert 'Traceback' not in out
+    if main == 'sync_node':
+        assert 'drive shut down (target 0, disabled, pre-operational)' in out
+        assert 'discovery range LOCALHOST' in out
+
+
+# sync_node's main on a virtual bus with a simulated drive in the same process
+SYNC_ON_A_SIMULATED_DRIVE = r'''
+import os, sys
+from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.nodes.sync_node import main
+channel = f'sigterm{os.getpid()}'
+sim = SimulatedDrive(channel)
+sim.start()
+code = main(['--ros-args', '-p', 'can_interface:=virtual', '-p', f'can_channel:={channel}'])
+print('discovery range', os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE'), flush=True)
+sim.stop()
+raise SystemExit(code)
+'''
