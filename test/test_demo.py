@@ -188,7 +188,7 @@ def start_stray(domain, sensor='stray_sensor'):
     proc = subprocess.Popen([sys.executable, '-c', STRAY,
                              str(REPO / 'config' / 'pepper_five_bar.yaml'), sensor],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
-    assert proc.stdout.readline().strip() == 'stray up'
+    read_until(proc, 'stray up', [], timeout=60)       # after its own log lines
     return proc
 
 

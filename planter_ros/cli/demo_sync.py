@@ -18,6 +18,7 @@ demo died or was forced out): either way its drives are shut down (0x60FF = 0, d
 """
 
 from dataclasses import dataclass, field
+import gc
 import multiprocessing
 import threading
 import time
@@ -148,6 +149,10 @@ def child_main(conn, settings):
             Parameter(name, value=value) for name, value in settings.parameters])
         send('built', {'bus_load': sync.bus_load.load, 'bitrate': sync.bus_load.bitrate})
         sync.enable_drive()                        # blocking; the loop spins right after it
+        # what start-up built (canopen's object dictionaries, rclpy, numpy, scipy) lives as
+        # long as the process: out of the collector's reach, a full collection scans only
+        # what the run allocates (the start-up objects alone take ~45 ms to scan, unloaded)
+        gc.freeze()
         executor.add_node(sync)
         spinner = threading.Thread(target=executor.spin, daemon=True, name='sync-executor')
         spinner.start()
