@@ -69,6 +69,11 @@ def test_quick_bench_runs_and_reports_every_row_with_time_and_error(quick_run):
     assert generated and generated[0]['error'] is None            # no live predictions in it
     assert generated[0]['times_real_time'] > 0 and generated[0]['targets']
     assert recorded and all(r['error'] < 1e-9 for r in recorded)  # replay reproduces the monitor
+    # the control loop under load: a whole demo beside two CPU hogs, its command gaps pooled
+    loop = [r for r in ok if r['what'].startswith('control loop under load')]
+    assert len(loop) == 1 and loop[0]['runs'] == 1 and loop[0]['gaps'] > 100
+    assert 0 < loop[0]['gap_p99_s'] <= loop[0]['gap_p999_s'] <= loop[0]['gap_max_s']
+    assert [t['target'] for t in loop[0]['targets']] == ['0 watchdog trips', 'p99.9 gap ≤ 50 ms']
 
 
 def test_bench_table_names_the_machine_and_targets():

