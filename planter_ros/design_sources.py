@@ -11,7 +11,7 @@ as it is matched), else every candidate is named ("one of ..."). A change counts
 when it surely came from none of the publishers of the first design. Pure: no ROS import.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from planter_ros.control.sync_status import OK, STALE, WARN, Report
 
@@ -22,6 +22,15 @@ class Endpoint:
 
     node: str
     gid: str
+
+    @property
+    def named(self):
+        """False while the graph knows the endpoint but not yet its node (rclpy then names it
+        '_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_')."""
+        return UNKNOWN not in self.node
+
+
+UNKNOWN = '_UNKNOWN_'
 
 
 def gid_text(gid_bytes):
@@ -36,6 +45,10 @@ class Attribution:
     candidates: tuple        # Endpoint(s) it can have come from
     first: bool              # the first design this node accepted
     foreign: bool            # surely not from a publisher of the first design
+
+    @property
+    def named(self):
+        return all(e.named for e in self.candidates)
 
     @property
     def text(self):
@@ -64,7 +77,7 @@ class DesignSources:
         Attribution (and counts it)."""
         endpoints = tuple(endpoints)
         new = tuple(e for e in endpoints if e.gid not in self.known)
-        self.known.update((e.gid, e.node) for e in endpoints)
+        self._learn(endpoints)
         if len(endpoints) == 1:
             candidates = endpoints
         elif len(new) == 1:
@@ -80,6 +93,25 @@ class DesignSources:
         self.changes += 1
         self.foreign_changes += foreign
         return self.last_change
+
+    def refresh(self, endpoints):
+        """Learn the node names the graph did not know yet when a design arrived (a latched
+        sample can come before its node's discovery) and name the attributions with them."""
+        self._learn(endpoints)
+        self.first = self.named(self.first)
+        self.last_change = self.named(self.last_change)
+
+    def named(self, attribution):
+        """`attribution` with every candidate named as far as the graph has told us."""
+        if attribution is None:
+            return None
+        return replace(attribution, candidates=tuple(
+            Endpoint(self.known.get(e.gid, e.node), e.gid) for e in attribution.candidates))
+
+    def _learn(self, endpoints):
+        for e in endpoints:
+            if e.named or e.gid not in self.known:
+                self.known[e.gid] = e.node
 
     def values(self):
         """Key/value pairs for /diagnostics."""

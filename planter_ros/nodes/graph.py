@@ -1,5 +1,10 @@
 """What a node sees of the ROS graph, as plain data for the pure core."""
 
+import time
+
+from rclpy.clock import Clock, ClockType
+
+from planter_ros import interfaces
 from planter_ros.design_sources import Endpoint, gid_text
 
 
@@ -13,3 +18,25 @@ def publishers(node, topic):
     return [Endpoint(full_name(info.node_name, info.node_namespace),
                      gid_text(info.endpoint_gid))
             for info in node.get_publishers_info_by_topic(node.resolve_topic_name(topic.name))]
+
+
+def when_named(node, sources, attribution, write, wait=3.0, period=0.05):
+    """Call write(attribution) once the graph names the node that published a design.
+
+    A latched design can be delivered before discovery has told this node the publisher's
+    name; then the graph is asked again every `period` (steady clock: simulated time may stand
+    still) for at most `wait` seconds, and what is known by then is written."""
+    if attribution.named:
+        write(attribution)
+        return
+    deadline = time.monotonic() + wait
+    timer = None
+
+    def retry():
+        sources.refresh(publishers(node, interfaces.DESIGN))
+        named = sources.named(attribution)
+        if named.named or time.monotonic() > deadline:
+            node.destroy_timer(timer)
+            write(named)
+
+    timer = node.create_timer(period, retry, clock=Clock(clock_type=ClockType.STEADY_TIME))
