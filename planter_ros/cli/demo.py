@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 from planter_ros.cli.options import spec_option
-from planter_ros.config import check, setting
+from planter_ros.config import check, setting, spec_of
 
 PROGRESS_PERIOD = 2.0     # s between progress lines
 
@@ -54,6 +54,14 @@ def add_arguments(parser):
                              'for comparison')
     parser.add_argument('--seed', type=spec_option(DemoOptions, 'seed', '--seed'), default=0,
                         help='sensor noise seed, 0..2^32-1 (default 0)')
+    from planter_ros.sim.gnss import SimulatedGnss
+    for name, word in (('origin_latitude', 'latitude'), ('origin_longitude', 'longitude')):
+        spec = spec_of(SimulatedGnss, name)
+        parser.add_argument(f'--origin-{word}', metavar='DEG', default=spec.default,
+                            type=spec_option(SimulatedGnss, name, f'--origin-{word}'),
+                            help=f'{word} (WGS 84) where the field run starts: the simulated '
+                                 f'GNSS receiver\'s origin, {spec.allowed()} (default '
+                                 f'{spec.default:g})')
 
 
 def default_scene():
@@ -80,7 +88,8 @@ def check_bag_path(bag):
 
 def run(args):
     from planter_ros.cli.main import BadInput
-    from planter_ros.config import ConfigError
+    from planter_ros.config import ConfigError, from_mapping
+    from planter_ros.geo import AntennaSettings
     from planter_ros.kinematics.scene_design import design_for_scene
     from planter_ros.rows import rows_from_scene
     from planter_ros.scene import SceneError, load_scene
@@ -93,18 +102,21 @@ def run(args):
     design = design_for_scene(scene)          # a bad scene fails here, before anything starts
     try:
         rows = rows_from_scene(scene, default_node_id=1)
+        antenna = from_mapping(AntennaSettings, scene)
     except ConfigError as exc:
         raise BadInput(f'scene {args.scene or default_scene()}: {exc}') from None
     if not any(row.enabled for row in rows):
         raise BadInput(f'scene {args.scene or default_scene()}: rows = every row has enabled '
                        'false: allowed at least one enabled row')
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    return Demo(scene, design, rows, args).run()
+    return Demo(scene, design, rows, args, antenna).run()
 
 
 class Demo:
-    def __init__(self, scene, design, rows, args):
+    def __init__(self, scene, design, rows, args, antenna=None):
+        from planter_ros.geo import AntennaSettings
         self.scene, self.design, self.rows, self.args = scene, design, rows, args
+        self.antenna = antenna or AntennaSettings()
         self.planting = [row for row in rows if row.enabled]
 
     def run(self):
@@ -153,7 +165,8 @@ class Demo:
             observer = Observer(context=context, namespace=ns)
             nodes.append(observer)
             monitor = MonitorNode(context=context, namespace=ns, parameter_overrides=(
-                [_param('bag_path', args.bag)] if args.bag else []) + row_params)
+                [_param('bag_path', args.bag)] if args.bag else []) + row_params + [
+                _param('antenna_position', list(self.antenna.antenna_position))])
             nodes.append(monitor)                # per-plant predictions and the bag
             turns = ', '.join(f'{"left" if c.radius > 0 else "right"} turn R = '
                               f'{abs(c.radius):g} m at {c.start:.1f}-{c.end:.1f} s'
@@ -177,8 +190,15 @@ class Demo:
                                        context=context, namespace=ns)
             nodes.append(source)
             # the machine's GNSS receiver, on the same path and clock
-            nodes.append(GnssSource(profile, SimulatedGnss(), source.start, seed=args.seed,
+            gnss = SimulatedGnss(origin_latitude=args.origin_latitude,
+                                 origin_longitude=args.origin_longitude)
+            nodes.append(GnssSource(profile, gnss, source.start,
+                                    antenna=self.antenna.antenna_position, seed=args.seed,
                                     context=context, namespace=ns))
+            print(f'GNSS: simulated receiver at {gnss.rate:g} Hz from {gnss.origin_latitude:.7f}, '
+                  f'{gnss.origin_longitude:.7f} (WGS 84), noise {gnss.noise * 1e3:.0f} mm per '
+                  f'axis; antenna x = {self.antenna.antenna_position[0]:+.2f} m, y = '
+                  f'{self.antenna.antenna_position[1]:+.2f} m on the machine')
             observer.start = source.start
             for node in nodes:
                 executor.add_node(node)
