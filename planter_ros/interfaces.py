@@ -113,8 +113,8 @@ GNSS_FIX = Topic(
     'receiver reports them; a fix without position (status NO_FIX) is not used')
 SPACING_QUALITY = Topic(
     'spacing_quality', 'std_msgs/msg/Float64MultiArray', OUTPUT,
-    "ISO 7256-1 spacing-quality indices since the start: dim[0] 'row' (one line per planting "
-    "row, then the machine: row -1) x dim[1] labelled 'row,multiple_index,miss_index,"
+    "ISO 7256-1 spacing-quality indices since the start: dim[0] 'row' (the machine first, "
+    "row -1, then one line per planting row) x dim[1] labelled 'row,multiple_index,miss_index,"
     "quality_of_feed_index,precision,spacings' (fractions 0..1, NaN when undefined)")
 PLANT_MARKERS = Topic(
     'plant_markers', 'visualization_msgs/msg/MarkerArray', OUTPUT,

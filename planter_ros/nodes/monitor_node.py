@@ -345,9 +345,10 @@ class MonitorNode(Node):
         self._rate = rate.data
 
     def spacing_quality(self):
-        """[(row index, indices)] of every planting row, then (-1, the machine's)."""
-        return [(row.index, self._quality[row.index].result()) for row in self._planting] + \
-            [(MACHINE, self._machine_quality.result())]
+        """[(-1, the machine's indices)], then (row index, indices) of every planting row: the
+        machine first, so a viewer finds it at the same place whatever the rows."""
+        return [(MACHINE, self._machine_quality.result())] + \
+            [(row.index, self._quality[row.index].result()) for row in self._planting]
 
     def published_tables(self):
         """Every plant table published so far (for the sample generator and tests)."""
@@ -398,7 +399,7 @@ class MonitorNode(Node):
         status = DiagnosticStatus(name=f'{self.get_name()}: spacing quality',
                                   hardware_id='planter')
         lines = self.spacing_quality()
-        machine = lines[-1][1]
+        machine = lines[0][1]
         if not machine['spacings']:
             status.level, status.message = DiagnosticStatus.OK, 'no spacings yet'
         else:
