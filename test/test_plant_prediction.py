@@ -353,3 +353,54 @@ def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
 
 
 _GAP_RUN = simulate_run(five_bar_design_message(), duration=20.0, seed=5)
+
+
+def test_a_section_switched_off_ends_the_spacing_sequence_live_and_in_replay():
+    """A row's section off for 3 s (the sync node holds the shaft, the machine drives on): the
+    first plant after it would read as a 0.6 m miss; with the sync node's on/off reports it has
+    no spacing, in batch and live alike."""
+    from types import SimpleNamespace as Obj
+
+    from planter_ros.control.sync_status import SECTION_KEY, section_breaks, section_states
+    run = simulate_run(five_bar_design_message(), duration=20.0, seed=5)
+    model = planting_model_from_design(run.design)
+    settings = PredictionSettings()
+    t0 = run.joint_t[0]
+    off, on = t0 + 6.0, t0 + 9.0
+    held = np.interp(off, run.joint_t, run.joint_pos)
+    pos = np.where(run.joint_t < off, run.joint_pos, held)
+    after = run.joint_t > on
+    pos[after] = run.joint_pos[after] - (np.interp(on, run.joint_t, run.joint_pos) - held)
+    vel = np.where((run.joint_t >= off) & (run.joint_t <= on), 0.0, run.joint_vel)
+    inputs = (run.speed_t, run.speed_v, run.joint_t, pos, vel)
+
+    blind = predict_plants(*inputs, model, settings)
+    assert np.nanmax(blind.spacing) > 2.5 * model.spacing           # a miss that was no miss
+
+    def report(name, state):
+        return [Obj(name=f'sync_node: {name}',
+                    values=[Obj(key='row speed', value='0.2'), Obj(key=SECTION_KEY,
+                                                                   value=state)])]
+    reports = [(t0 + 1.0, section_states(report('left', 'on'))),
+               (off, section_states(report('left', 'off'))),
+               (off + 1.0, section_states(report('left', 'off'))),
+               (on, section_states(report('left', 'on')))]
+    breaks = section_breaks(reports)
+    assert breaks == {'left': [(off + 1.0, on)]}
+    plants = predict_plants(*inputs, model, settings, breaks=breaks['left'])
+    first = int(np.argmax(plants.time > on))
+    assert np.isnan(plants.spacing[first]) and np.isnan(plants.spacing).sum() == 2
+    assert np.nanmax(np.abs(plants.spacing_error)) < 0.1 * model.spacing
+
+    live = PlantPredictor(model, settings)
+    arrivals = sorted([(t, 0, i) for i, t in enumerate(inputs[0])]
+                      + [(t, 1, i) for i, t in enumerate(inputs[2])])
+    out, told = [], False
+    for t, kind, i in arrivals:
+        if not told and t >= on:
+            live.add_break(*breaks['left'][0])          # the monitor hears "on" at `on`
+            told = True
+        out.append(live.add_speed(inputs[0][i], inputs[1][i]) if kind == 0 else
+                   live.add_joint(inputs[2][i], inputs[3][i], inputs[4][i]))
+    np.testing.assert_allclose(Plants.concatenate(out).table(), plants.table(), rtol=0,
+                               atol=1e-12, equal_nan=True)
