@@ -13,8 +13,8 @@ QoS, chosen on purpose:
   costs one 20-50 ms update. The sync node never waits on a retransmission.
 * joint_states, speed_command, /diagnostics: reliable, keep last 10 (the monitor computes plant
   positions from joint states: losing one loses a plant crossing).
-* plants, uprightness_rate: reliable, keep last 100 (a viewer that falls behind for a second
-  still gets every plant).
+* plants, uprightness_rate, spacing_quality, plant_markers: reliable, keep last 100 (a viewer
+  that falls behind for a second still gets every plant).
 A recorder subscribes with the same reliability and durability but a deeper queue
 (`Topic.recording_qos`), so it rides out a busy second at 100 Hz.
 """
@@ -111,6 +111,15 @@ GNSS_FIX = Topic(
     'gnss/fix', 'sensor_msgs/msg/NavSatFix', SENSOR_DATA,
     "input: the machine's GNSS antenna position (WGS 84), status and covariance as the "
     'receiver reports them; a fix without position (status NO_FIX) is not used')
+SPACING_QUALITY = Topic(
+    'spacing_quality', 'std_msgs/msg/Float64MultiArray', OUTPUT,
+    "ISO 7256-1 spacing-quality indices since the start: dim[0] 'row' (the machine first, "
+    "row -1, then one line per planting row) x dim[1] labelled 'row,multiple_index,miss_index,"
+    "quality_of_feed_index,precision,spacings' (fractions 0..1, NaN when undefined)")
+PLANT_MARKERS = Topic(
+    'plant_markers', 'visualization_msgs/msg/MarkerArray', OUTPUT,
+    "3D view of the planted plants (stems with their predicted tilt) and each row's tip path, "
+    "in the frame 'field' (east, north, up of the as-planted map)")
 UPRIGHTNESS_RATE = Topic(
     'uprightness_rate', 'std_msgs/msg/Float64', OUTPUT,
     'rolling fraction (0..1) of upright plants over the last `window` plants')
@@ -122,14 +131,17 @@ CLOCK = Topic(
     'simulated time, published only by the lock-step sample feeder (use_sim_time)')
 
 TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX, PLANTS,
-          UPRIGHTNESS_RATE, DIAGNOSTICS, CLOCK)
+          UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, DIAGNOSTICS, CLOCK)
 # what the monitor records: its inputs as they arrived, then its own outputs
 MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX,
                   DIAGNOSTICS)
-MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE)
+MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS)
 RECORDED = MONITOR_INPUTS + MONITOR_OUTPUTS
 # MCAP metadata record of a monitor's bag holding its prediction settings (name -> repr)
 PREDICTION_SETTINGS_RECORD = 'planter_monitor'
+# MCAP metadata record of the monitor's as-planted map: its MapSettings and the scene's
+# antenna_position, each value as JSON text. Absent: the defaults, the antenna at [0, 0].
+MAP_RECORD = 'planter_map'
 # MCAP metadata record naming the rows: key 'rows' = JSON list of {index, name, lateral_offset,
 # drive_node_id, enabled}; a plant's `row` field is the index. Absent: one implicit row.
 ROWS_RECORD = 'planter_rows'

@@ -19,8 +19,9 @@ def node():
 
 
 def test_parameters_have_descriptions_and_ranges(node):
-    for name in ('upright_threshold', 'nozzle_width', 'window', 'split_size', 'split_duration',
-                 'flush_period', 'bag_path', 'record'):
+    for name in ('upright_threshold', 'window', 'split_size', 'split_duration', 'flush_period',
+                 'bag_path', 'record', 'track_length', 'fix_window', 'max_fix_sigma',
+                 'max_fix_age', 'antenna_position'):
         assert node.describe_parameter(name).description
     d = node.describe_parameter('upright_threshold').floating_point_range[0]
     assert d.from_value == 0.0 and d.to_value == pytest.approx(math.pi / 2)

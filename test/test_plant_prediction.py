@@ -15,8 +15,8 @@ from planter_ros.sim.runs import five_bar_design_message, simulate_run
 TOMATO = design_five_bar(0.045, 0.2, 0.05)
 
 
-def tomato_model():
-    return FiveBarPlanting(TOMATO.l1, TOMATO.l2, 0.045, 0.2)
+def tomato_model(nozzle_width=0.0):
+    return FiveBarPlanting(TOMATO.l1, TOMATO.l2, 0.045, 0.2, nozzle_width=nozzle_width)
 
 
 def constant_run(lam, v=0.2, duration=5.0, rate=100.0, theta0=0.3):
@@ -28,11 +28,12 @@ def constant_run(lam, v=0.2, duration=5.0, rate=100.0, theta0=0.3):
 
 
 def test_perfect_sync_gives_the_designed_hole_zero_tilt_and_exact_spacing():
-    model = tomato_model()
-    settings = PredictionSettings(nozzle_width=0.03)
-    plants = predict_plants(*constant_run(1.0), model, settings)
+    model = tomato_model(nozzle_width=0.03)
+    plants = predict_plants(*constant_run(1.0), model, PredictionSettings())
     assert len(plants) == 5
     assert np.allclose(plants.speed_ratio, 1.0, rtol=1e-12)
+    # the tip (a point) sweeps the designed hole; the soil sees it widened by the nozzle
+    assert np.allclose(plants.tip_sweep, TOMATO.hole_width, rtol=1e-9)
     assert np.allclose(plants.hole_width, TOMATO.hole_width + 0.03, rtol=1e-9)
     assert np.allclose(plants.tilt, 0.0, atol=1e-12)
     assert np.all(plants.upright == 1.0)
@@ -46,8 +47,8 @@ def test_perfect_sync_gives_the_designed_hole_zero_tilt_and_exact_spacing():
 def test_dragging_widens_the_hole_monotonically_and_tilts_forward():
     model = tomato_model()
     lams = np.array([0.3, 0.5, 0.7, 0.9, 0.99, 1.0])
-    ratio, hole, tilt, _ = plant_values(model, PredictionSettings(), lams * 0.2 /
-                                        model.sync_advance, np.full(lams.size, 0.2))
+    ratio, _, hole, tilt, _ = plant_values(model, PredictionSettings(), lams * 0.2 /
+                                           model.sync_advance, np.full(lams.size, 0.2))
     assert np.allclose(ratio, lams, rtol=1e-12)
     assert np.all(np.diff(hole) < 0)                 # narrower as λ rises towards 1
     assert np.all(tilt[:-1] > 0) and tilt[-1] == pytest.approx(0.0, abs=1e-15)
@@ -60,8 +61,8 @@ def test_overspeed_first_narrows_the_hole_then_widens_it_and_tilts_backward():
     λ ≈ 1.05, monotone on both sides of it. The tilt is monotone in |λ - 1| throughout."""
     model = tomato_model()
     lams = np.linspace(1.0, 2.0, 2001)
-    _, hole, tilt, _ = plant_values(model, PredictionSettings(), lams * 0.2 / model.sync_advance,
-                                    np.full(lams.size, 0.2))
+    _, _, hole, tilt, _ = plant_values(model, PredictionSettings(),
+                                       lams * 0.2 / model.sync_advance, np.full(lams.size, 0.2))
     i = int(np.argmin(hole))
     assert 1.01 < lams[i] < 1.1
     assert np.all(np.diff(hole[:i]) < 0) and np.all(np.diff(hole[i + 1:]) > 0)
@@ -73,8 +74,8 @@ def test_tilt_is_the_slip_over_the_exit_climb_against_depth():
     model = tomato_model()
     lam = 0.5
     advance = model.sync_advance / lam
-    _, _, tilt, _ = plant_values(model, PredictionSettings(), np.array([0.2 / advance]),
-                                 np.array([0.2]))
+    _, _, _, tilt, _ = plant_values(model, PredictionSettings(), np.array([0.2 / advance]),
+                                    np.array([0.2]))
     slip = (advance - model.sync_advance) * model.exit_angle
     assert tilt[0] == pytest.approx(math.atan2(slip, 0.045), rel=1e-12)
 
@@ -84,12 +85,13 @@ def test_upright_threshold_is_the_stem_angle_to_the_ground():
     lams = np.array([0.05, 0.2, 0.5, 1.0])
     omega = lams * 0.2 / model.sync_advance
     v = np.full(lams.size, 0.2)
-    _, _, tilt, upright = plant_values(model, PredictionSettings(), omega, v)
+    _, _, _, tilt, upright = plant_values(model, PredictionSettings(), omega, v)
     to_ground = 0.5 * math.pi - np.abs(tilt)
     assert np.array_equal(upright, (to_ground >= math.radians(30)).astype(float))
     assert upright[0] == 0.0 and upright[-1] == 1.0
-    _, _, _, strict = plant_values(model, PredictionSettings(upright_threshold=math.radians(80)),
-                                   omega, v)
+    _, _, _, _, strict = plant_values(model,
+                                      PredictionSettings(upright_threshold=math.radians(80)),
+                                      omega, v)
     assert strict.sum() < upright.sum()
 
 
@@ -165,11 +167,16 @@ def test_three_plants_per_revolution_are_set_at_each_arms_planting_angle():
     assert path.exit_angle == pytest.approx(closed.exit_angle, rel=1e-9)
     assert path.release_advance == pytest.approx(closed.release_advance, rel=1e-6)
     adv = np.linspace(-0.02, 0.2, 12)
-    assert np.allclose(path.hole_width(adv), closed.hole_width(adv), rtol=1e-6)
+    assert np.allclose(path.tip_sweep(adv), closed.tip_sweep(adv), rtol=1e-6)
+    # the same tip path too, relative to the planting point
+    around = np.linspace(-math.pi, math.pi, 37)
+    assert np.allclose(np.column_stack(path.tip_path(around)),
+                       np.column_stack(closed.tip_path(around)), atol=1e-9)
+    assert np.allclose(closed.tip_path(0.0), 0.0, atol=1e-15)
 
     three = planting_model_from_design({
         'mechanism': 'three_arm', 'plants_per_revolution': 3, 'plant_spacing': 0.2,
-        'planting_depth': 0.03,
+        'planting_depth': 0.03, 'nozzle_width': 0.02,
         'tip_path': {'angle': phi.tolist(), 'x': (0.1 * np.sin(phi)).tolist(),
                      'y': (0.2 * np.cos(phi)).tolist()}})
     t = np.arange(0.0, 3.0, 0.01)
@@ -179,13 +186,20 @@ def test_three_plants_per_revolution_are_set_at_each_arms_planting_angle():
     assert np.allclose(np.diff(plants.time), 1.0, rtol=1e-9)   # one plant per 1/3 rev
     assert np.allclose(plants.spacing[1:], 0.2, rtol=1e-9)
     assert np.allclose(plants.speed_ratio, 1.0)
+    assert np.allclose(plants.hole_width - plants.tip_sweep, 0.02)
 
 
 @pytest.mark.parametrize('design, word', [
-    ({'mechanism': 'five_bar', 'plant_spacing': 0.2, 'planting_depth': 0.045}, 'l1'),
+    ({'mechanism': 'five_bar', 'plant_spacing': 0.2, 'planting_depth': 0.045,
+      'nozzle_width': 0.04}, 'l1'),
     ({'mechanism': 'five_bar', 'l1': 0.1, 'l2': 0.13, 'plant_spacing': -0.2,
-      'planting_depth': 0.045}, 'plant_spacing'),
-    ({'mechanism': 'three_arm', 'plant_spacing': 0.2, 'planting_depth': 0.03}, 'tip_path'),
+      'planting_depth': 0.045, 'nozzle_width': 0.04}, 'plant_spacing'),
+    ({'mechanism': 'three_arm', 'plant_spacing': 0.2, 'planting_depth': 0.03,
+      'nozzle_width': 0.04}, 'tip_path'),
+    ({'mechanism': 'five_bar', 'l1': 0.1, 'l2': 0.13, 'plant_spacing': 0.2,
+      'planting_depth': 0.045}, 'nozzle_width'),
+    ({'mechanism': 'five_bar', 'l1': 0.1, 'l2': 0.13, 'plant_spacing': 0.2,
+      'planting_depth': 0.045, 'nozzle_width': 0.7}, 'nozzle_width'),
     ([1, 2], 'design'),
 ])
 def test_unusable_designs_are_one_line_errors(design, word):
@@ -194,7 +208,7 @@ def test_unusable_designs_are_one_line_errors(design, word):
     assert word in str(err.value) and '\n' not in str(err.value)
 
 
-@pytest.mark.parametrize('kwargs', [dict(nozzle_width=-0.01), dict(nozzle_width=math.nan),
+@pytest.mark.parametrize('kwargs', [dict(max_input_gap=0.0), dict(max_input_gap=math.nan),
                                     dict(upright_threshold=2.0), dict(window=0)])
 def test_settings_out_of_range_are_refused(kwargs):
     with pytest.raises(DesignError):
@@ -203,8 +217,8 @@ def test_settings_out_of_range_are_refused(kwargs):
 
 def test_stopped_machine_and_reversing_give_finite_figures():
     model = tomato_model()
-    ratio, hole, tilt, upright = plant_values(model, PredictionSettings(), np.array([6.0, 6.0]),
-                                              np.array([0.0, -0.1]))
+    ratio, _, hole, tilt, upright = plant_values(model, PredictionSettings(),
+                                                 np.array([6.0, 6.0]), np.array([0.0, -0.1]))
     assert ratio[0] == math.inf and ratio[1] < 0
     assert np.all(np.isfinite(hole)) and np.all(np.isfinite(tilt))
     assert np.all(tilt < 0)                  # nozzle moves backwards relative to the soil
@@ -374,3 +388,52 @@ def test_a_new_design_scores_plants_from_the_next_planting_instant_live_and_batc
         parts += [live.add_joint(t[i], theta[i], omega[i]), live.add_speed(t[i], v)]
     streamed = Plants.concatenate(parts)
     assert np.allclose(streamed.table(), batch.table(), rtol=0, atol=1e-12, equal_nan=True)
+def test_a_section_switched_off_ends_the_spacing_sequence_live_and_in_replay():
+    """A row's section off for 3 s (the sync node holds the shaft, the machine drives on): the
+    first plant after it would read as a 0.6 m miss; with the sync node's on/off reports it has
+    no spacing, in batch and live alike."""
+    from types import SimpleNamespace as Obj
+
+    from planter_ros.control.sync_status import SECTION_KEY, section_breaks, section_states
+    run = simulate_run(five_bar_design_message(), duration=20.0, seed=5)
+    model = planting_model_from_design(run.design)
+    settings = PredictionSettings()
+    t0 = run.joint_t[0]
+    off, on = t0 + 6.0, t0 + 9.0
+    held = np.interp(off, run.joint_t, run.joint_pos)
+    pos = np.where(run.joint_t < off, run.joint_pos, held)
+    after = run.joint_t > on
+    pos[after] = run.joint_pos[after] - (np.interp(on, run.joint_t, run.joint_pos) - held)
+    vel = np.where((run.joint_t >= off) & (run.joint_t <= on), 0.0, run.joint_vel)
+    inputs = (run.speed_t, run.speed_v, run.joint_t, pos, vel)
+
+    blind = predict_plants(*inputs, model, settings)
+    assert np.nanmax(blind.spacing) > 2.5 * model.spacing           # a miss that was no miss
+
+    def report(name, state):
+        return [Obj(name=f'sync_node: {name}',
+                    values=[Obj(key='row speed', value='0.2'), Obj(key=SECTION_KEY,
+                                                                   value=state)])]
+    reports = [(t0 + 1.0, section_states(report('left', 'on'))),
+               (off, section_states(report('left', 'off'))),
+               (off + 1.0, section_states(report('left', 'off'))),
+               (on, section_states(report('left', 'on')))]
+    breaks = section_breaks(reports)
+    assert breaks == {'left': [(off + 1.0, on)]}
+    plants = predict_plants(*inputs, model, settings, breaks=breaks['left'])
+    first = int(np.argmax(plants.time > on))
+    assert np.isnan(plants.spacing[first]) and np.isnan(plants.spacing).sum() == 2
+    assert np.nanmax(np.abs(plants.spacing_error)) < 0.1 * model.spacing
+
+    live = PlantPredictor(model, settings)
+    arrivals = sorted([(t, 0, i) for i, t in enumerate(inputs[0])]
+                      + [(t, 1, i) for i, t in enumerate(inputs[2])])
+    out, told = [], False
+    for t, kind, i in arrivals:
+        if not told and t >= on:
+            live.add_break(*breaks['left'][0])          # the monitor hears "on" at `on`
+            told = True
+        out.append(live.add_speed(inputs[0][i], inputs[1][i]) if kind == 0 else
+                   live.add_joint(inputs[2][i], inputs[3][i], inputs[4][i]))
+    np.testing.assert_allclose(Plants.concatenate(out).table(), plants.table(), rtol=0,
+                               atol=1e-12, equal_nan=True)

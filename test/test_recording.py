@@ -12,7 +12,7 @@ from planter_ros.cli.samples import record_sample
 from planter_ros.sim.bags import write_input_bag
 from planter_ros.sim.runs import five_bar_design_message, simulate_run
 
-MONITOR_PARAMS = {'nozzle_width': 0.012, 'window': 5}
+MONITOR_PARAMS = {'window': 5, 'max_fix_age': 1.5, 'antenna_position': [1.5, -0.2]}
 
 
 @pytest.fixture(scope='module')
@@ -55,7 +55,9 @@ def test_bag_has_the_rosbag2_layout(live_bag):
         meta = {m.name: m.metadata for m in reader.iter_metadata()}
         info = yaml.safe_load(meta['rosbag2']['serialized_metadata'])
         assert info['message_count'] == stats.message_count
-        assert float(meta['planter_monitor']['nozzle_width']) == MONITOR_PARAMS['nozzle_width']
+        assert int(meta['planter_monitor']['window']) == MONITOR_PARAMS['window']
+        assert float(meta['planter_map']['max_fix_age']) == MONITOR_PARAMS['max_fix_age']
+        assert meta['planter_map']['antenna_position'] == '[1.5, -0.2]'
 
 
 def test_rosbags_decodes_every_message_to_the_published_values(live_bag):
@@ -109,8 +111,12 @@ def test_mcap_reader_decodes_every_message_to_the_published_values(live_bag):
 def test_replay_matches_the_live_monitor(live_bag):
     _, live, path = live_bag
     result = replay(path, with_recorded=True)
-    assert result.settings.nozzle_width == MONITOR_PARAMS['nozzle_width']
     assert result.settings.window == MONITOR_PARAMS['window']
+    assert result.map_settings.max_fix_age == MONITOR_PARAMS['max_fix_age']
+    assert result.antenna.antenna_position == MONITOR_PARAMS['antenna_position']
+    # the nozzle width is the design's (a scene value): the holes are the tip sweep + it
+    assert result.nozzle_width == result.design['nozzle_width'] == 0.04
+    assert np.allclose(result.plants.hole_width - result.plants.tip_sweep, 0.04, atol=1e-15)
     assert len(result.plants) == live.shape[0] >= 5
     assert np.allclose(result.plants.table(), live, rtol=0, atol=1e-12, equal_nan=True)
     assert np.array_equal(result.recorded_plants, live, equal_nan=True)

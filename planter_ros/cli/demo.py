@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 from planter_ros.cli.options import spec_option
-from planter_ros.config import check, setting
+from planter_ros.config import check, setting, spec_of
 
 PROGRESS_PERIOD = 2.0     # s between progress lines
 
@@ -60,6 +60,14 @@ def add_arguments(parser):
                              'for comparison')
     parser.add_argument('--seed', type=spec_option(DemoOptions, 'seed', '--seed'), default=0,
                         help='sensor noise seed, 0..2^32-1 (default 0)')
+    from planter_ros.sim.gnss import SimulatedGnss
+    for name, word in (('origin_latitude', 'latitude'), ('origin_longitude', 'longitude')):
+        spec = spec_of(SimulatedGnss, name)
+        parser.add_argument(f'--origin-{word}', metavar='DEG', default=spec.default,
+                            type=spec_option(SimulatedGnss, name, f'--origin-{word}'),
+                            help=f'{word} (WGS 84) where the field run starts: the simulated '
+                                 f'GNSS receiver\'s origin, {spec.allowed()} (default '
+                                 f'{spec.default:g})')
 
 
 def default_scene():
@@ -92,8 +100,9 @@ def prepare(args, **kwargs):
     """The Demo `args` ask for, every input and output checked (BadInput, ConfigError,
     OutputError: exit 2 before anything starts); kwargs go to Demo."""
     from planter_ros.cli.main import BadInput
-    from planter_ros.config import ConfigError
+    from planter_ros.config import ConfigError, from_mapping
     from planter_ros.dds_domain import keep_discovery_on_host
+    from planter_ros.geo import AntennaSettings
     from planter_ros.kinematics.scene_design import design_for_scene
     from planter_ros.rows import rows_from_scene
     from planter_ros.scene import SceneError, load_scene
@@ -106,23 +115,26 @@ def prepare(args, **kwargs):
     design = design_for_scene(scene)          # a bad scene fails here, before anything starts
     try:
         rows = rows_from_scene(scene, default_node_id=1)
+        antenna = from_mapping(AntennaSettings, scene)
     except ConfigError as exc:
         raise BadInput(f'scene {args.scene or default_scene()}: {exc}') from None
     if not any(row.enabled for row in rows):
         raise BadInput(f'scene {args.scene or default_scene()}: rows = every row has enabled '
                        'false: allowed at least one enabled row')
     keep_discovery_on_host()
-    return Demo(scene, design, rows, args, **kwargs)
+    return Demo(scene, design, rows, args, antenna=antenna, **kwargs)
 
 
 class Demo:
     """One demo run. `out`: where the report goes (stdout); `install_signals`: take over
     SIGINT/SIGTERM (the command line; a caller that runs demos itself, the bench, keeps its
-    own); `log_level`: the nodes' ROS log level."""
+    own); `log_level`: the nodes' ROS log level; `antenna`: the GNSS antenna on the machine
+    (geo.AntennaSettings, the scene's)."""
 
     def __init__(self, scene, design, rows, args, out=None, install_signals=True,
-                 log_level='info'):
+                 log_level='info', antenna=None):
         self.scene, self.design, self.rows, self.args = scene, design, rows, args
+        self.antenna = antenna or AntennaSettings()
         self.planting = [row for row in rows if row.enabled]
         self.out = out or sys.stdout
         self.install_signals = install_signals
@@ -395,7 +407,8 @@ class _Run:
         self.nodes.append(self.observer)
         params = [_param(k, v) for k, v in row_params]
         self.monitor = MonitorNode(context=context, namespace=ns, parameter_overrides=(
-            [_param('bag_path', args.bag)] if args.bag else []) + params)
+            [_param('bag_path', args.bag)] if args.bag else []) + params + [
+            _param('antenna_position', list(demo.antenna.antenna_position))])
         self.nodes.append(self.monitor)          # per-plant predictions and the bag
         for node in self.nodes:
             self.executor.add_node(node)
@@ -452,8 +465,16 @@ class _Run:
                 break
         self.source.restart()
         # the machine's GNSS receiver, on the same path and clock
-        gnss = GnssSource(profile, SimulatedGnss(), self.source.start, seed=args.seed,
-                          context=self.context, namespace=ns)
+        receiver = SimulatedGnss(origin_latitude=args.origin_latitude,
+                                 origin_longitude=args.origin_longitude)
+        antenna = self.demo.antenna.antenna_position
+        gnss = GnssSource(profile, receiver, self.source.start, antenna=antenna,
+                          seed=args.seed, context=self.context, namespace=ns)
+        self.demo._print(
+            f'GNSS: simulated receiver at {receiver.rate:g} Hz from '
+            f'{receiver.origin_latitude:.7f}, {receiver.origin_longitude:.7f} (WGS 84), noise '
+            f'{receiver.noise * 1e3:.0f} mm per axis; antenna x = {antenna[0]:+.2f} m, '
+            f'y = {antenna[1]:+.2f} m on the machine')
         self.observer.start = self.source.start
         for node in (self.source, gnss):
             self.nodes.append(node)

@@ -17,9 +17,11 @@ def add_arguments(parser):
 
 def load_params(path, option='--params'):
     """Scene dict of a three-arm parameter file, every value checked against its range
-    (kinematics.scene_settings); BadInput for anything else."""
+    (kinematics.scene_settings, and the antenna the monitor reads: geo); BadInput for anything
+    else."""
     from planter_ros.cli.main import BadInput
     from planter_ros.config import ConfigError, from_mapping
+    from planter_ros.geo import AntennaSettings
     from planter_ros.kinematics.scene_settings import SceneSettings, ThreeArmSettings
     from planter_ros.scene import SceneError, load_scene
     try:
@@ -31,7 +33,7 @@ def load_params(path, option='--params'):
         raise BadInput(f'{option} {path}: mechanism = {mechanism} is out of range: allowed '
                        'three_arm')
     try:
-        for cls in (SceneSettings, ThreeArmSettings):
+        for cls in (SceneSettings, ThreeArmSettings, AntennaSettings):
             from_mapping(cls, params)
     except ConfigError as exc:
         raise BadInput(f'{option} {path}: {exc}') from None

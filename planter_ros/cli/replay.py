@@ -1,9 +1,11 @@
-"""`planter replay BAG [--json] [--plot FILE.png]`: re-run the monitor's model on a recording.
+"""`planter replay BAG [--json] [--plot FILE.png] [--geojson FILE] [--csv FILE]`: re-run the
+monitor's model on a recording.
 
 BAG is a .mcap file or a rosbag2 bag directory (split files `<name>_<n>.mcap`). The monitor's
 settings recorded in the bag are used unless given here. A bag that is not MCAP or lacks the
 needed topics is bad input (exit 2); of a damaged or cut-off bag every intact chunk is read,
-with a warning on stderr naming the log-time range lost.
+with a warning on stderr naming the log-time range lost. `--geojson` and `--csv` write the
+as-planted map (recording.export).
 """
 
 import json
@@ -13,21 +15,31 @@ import sys
 from planter_ros import interfaces
 from planter_ros.cli.options import output_file, spec_option
 from planter_ros.kinematics.plant_prediction import PredictionSettings
+from planter_ros.kinematics.scene_settings import SceneSettings
+from planter_ros.kinematics.spacing_quality import format_quality
 
 
 def add_arguments(parser):
     parser.add_argument('bag', help='a .mcap file or a rosbag2 bag directory')
     parser.add_argument('--json', action='store_true', help='machine-readable output (SI units)')
     parser.add_argument('--plot', metavar='FILE.png', type=output_file('--plot', ('.png',)),
-                        help='plot spacing error and hole width along the row, tilt histogram')
+                        help='plot spacing error and hole width along the row, the tilt '
+                             'histogram and the map of the plants')
+    parser.add_argument('--geojson', metavar='FILE',
+                        type=output_file('--geojson', ('.geojson', '.json')),
+                        help='write the as-planted map: an RFC 7946 FeatureCollection, one '
+                             'Point [lon, lat] (WGS 84) per plant')
+    parser.add_argument('--csv', metavar='FILE.csv', type=output_file('--csv', ('.csv',)),
+                        help='write the same per-plant table as CSV')
     parser.add_argument('--upright-threshold', metavar='RAD',
                         type=spec_option(PredictionSettings, 'upright_threshold',
                                          '--upright-threshold'),
                         help='minimum stem angle to the ground for "upright" (rad; default: '
                              'the recorded setting, else 30 deg)')
     parser.add_argument('--nozzle-width', metavar='M',
-                        type=spec_option(PredictionSettings, 'nozzle_width', '--nozzle-width'),
-                        help='nozzle width added to the hole (m; default: recorded, else 0)')
+                        type=spec_option(SceneSettings, 'nozzle_width', '--nozzle-width'),
+                        help="nozzle width along the row added to the tip's sweep (m; default: "
+                             "the design's, in a bag older than that the recorded setting)")
     parser.add_argument('--window', metavar='N',
                         type=spec_option(PredictionSettings, 'window', '--window'),
                         help='plants in the rolling uprightness rate (default: recorded, else 20)')
@@ -62,16 +74,27 @@ def run(args):
         raise BadInput(str(exc)) from None
     for warning in result.warnings:
         print(f'planter: warning: {warning}', file=sys.stderr)
+    written = []
     if args.plot:
         from planter_ros.plots.replay import plot_replay
         with atomic_output(args.plot) as tmp:
             plot_replay(result, tmp)
+        written.append(f'plot written to {args.plot}')
+    if args.geojson or args.csv:
+        from planter_ros.output_files import write_text_atomically
+        from planter_ros.recording.export import csv_text, geojson_text
+        placed = int(sum(1 for v in result.plants.latitude if math.isfinite(v)))
+        for path, text, what in ((args.geojson, geojson_text, 'GeoJSON'),
+                                 (args.csv, csv_text, 'CSV')):
+            if path:
+                write_text_atomically(path, text(result))
+                written.append(f'{what} written to {path} ({len(result.plants)} plants, '
+                               f'{placed} with a map position)')
     if args.json:
         print(json.dumps(result.as_json(), indent=1, allow_nan=False))
     else:
         print(format_table(result))
-        if args.plot:
-            print(f'plot written to {args.plot}')
+        print('\n'.join(written))
     return 0
 
 
@@ -91,16 +114,17 @@ def format_table(result):
              f'{messages[interfaces.JOINT_STATES.name]} joint state messages over '
              f'{result.duration:.1f} s',
              f'{row_head}{"plant":>5} {"t [s]":>8} {"x [m]":>8} {"spacing [mm]":>12} '
-             f'{"error [mm]":>10} {"lambda":>7} {"hole [mm]":>9} {"tilt [deg]":>10} '
-             f'{"upright":>7}']
+             f'{"error [mm]":>10} {"lambda":>7} {"sweep [mm]":>10} {"hole [mm]":>9} '
+             f'{"tilt [deg]":>10} {"upright":>7}']
     for i in range(len(p)):
         spacing = '' if not math.isfinite(p.spacing[i]) else f'{p.spacing[i] * 1e3:.1f}'
         err = '' if not math.isfinite(p.spacing_error[i]) else f'{p.spacing_error[i] * 1e3:+.1f}'
         lam = f'{p.speed_ratio[i]:.3f}' if math.isfinite(p.speed_ratio[i]) else 'inf'
         row = f'{names.get(int(p.row[i]), "?"):<{width}} ' if names else ''
         lines.append(f'{row}{int(p.index[i]):>5} {p.time[i] - t0:>8.3f} {p.position[i]:>8.3f} '
-                     f'{spacing:>12} {err:>10} {lam:>7} {p.hole_width[i] * 1e3:>9.2f} '
-                     f'{math.degrees(p.tilt[i]):>10.2f} {"yes" if p.upright[i] else "NO":>7}')
+                     f'{spacing:>12} {err:>10} {lam:>7} {p.tip_sweep[i] * 1e3:>10.2f} '
+                     f'{p.hole_width[i] * 1e3:>9.2f} {math.degrees(p.tilt[i]):>10.2f} '
+                     f'{"yes" if p.upright[i] else "NO":>7}')
     return '\n'.join(lines + [''] + format_summary(result).splitlines())
 
 
@@ -109,17 +133,26 @@ def _mm(v):
 
 
 def format_summary(result):
-    """The replay summary for people: plants, spacing error, hole width, uprightness; with
-    rows, one line per row too (positions along each row's own travelled distance)."""
+    """The replay summary for people: plants, spacing error and quality, hole width (tip sweep
+    and nozzle), uprightness, the map; what a figure means where the model is not validated,
+    next to it; with rows, one line per row too (positions along each row's own travelled
+    distance)."""
     s = result.summary
     rate = 'n/a' if s['uprightness_rate'] is None else f'{100 * s["uprightness_rate"]:.1f} %'
     threshold = math.degrees(result.settings.upright_threshold)
+    nozzle = _nozzle(result)
+    notes = list(result.notes or [])
     lines = [
         f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
         f'spacing error: mean {_mm(s["spacing_error_mean"])}, sigma '
         f'{_mm(s["spacing_error_std"])}, max |error| {_mm(s["spacing_error_max"])}',
-        f'hole width: mean {_mm(s["hole_width_mean"])}, max {_mm(s["hole_width_max"])}',
-        f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)']
+        f'spacing quality (ISO 7256-1): {format_quality(s["spacing_quality"])}',
+        f'hole width: mean {_mm(s["hole_width_mean"])}, max {_mm(s["hole_width_max"])} (tip '
+        f'sweep mean {_mm(s["tip_sweep_mean"])} + nozzle width {nozzle})']
+    lines += _notes_for(notes, ('tip_sweep', 'hole_width'))
+    lines.append(f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)')
+    lines += _notes_for(notes, ('tilt', 'upright', 'uprightness_rate'))
+    lines.append(_map_line(result))
     if _named_rows(result):
         for row, r in zip(result.rows, result.row_summaries):
             where = f'y = {row.lateral_offset:+.2f} m'
@@ -128,7 +161,35 @@ def format_summary(result):
                 continue
             upright = 'n/a' if r['uprightness_rate'] is None else \
                 f'{100 * r["uprightness_rate"]:.1f} %'
+            q = r['spacing_quality']['quality_of_feed_index']
+            feed = 'n/a' if q is None else f'{100 * q:.1f} %'
             lines.append(f'row {row.label} ({where}): {r["plants"]} plants, spacing error mean '
                          f'{_mm(r["spacing_error_mean"])}, sigma {_mm(r["spacing_error_std"])}, '
-                         f'max {_mm(r["spacing_error_max"])}; upright {upright}')
+                         f'max {_mm(r["spacing_error_max"])}; quality of feed {feed}; upright '
+                         f'{upright}')
     return '\n'.join(lines)
+
+
+def _nozzle(result):
+    return _mm(result.nozzle_width)
+
+
+def _notes_for(notes, fields):
+    """The notes about any of `fields` not shown yet, as indented lines (taken from `notes`)."""
+    lines = []
+    for note in list(notes):
+        if set(note['fields']) & set(fields):
+            lines.append(f'  note: {note["text"]}')
+            notes.remove(note)
+    return lines
+
+
+def _map_line(result):
+    placed = int(sum(1 for v in result.plants.latitude if math.isfinite(v)))
+    if not result.fixes:
+        return 'map: no usable GNSS fix in the bag: no plant has a map position'
+    origin = result.placement.origin
+    return (f'map: {placed} of {len(result.plants)} plants placed from {result.fixes} GNSS '
+            f'fixes (antenna at x = {result.antenna.antenna_position[0]:+.2f} m, y = '
+            f'{result.antenna.antenna_position[1]:+.2f} m; origin {origin[0]:.7f}, '
+            f'{origin[1]:.7f})')

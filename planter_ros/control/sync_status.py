@@ -13,6 +13,11 @@ from planter_ros.drive.states import FAULT, OPERATION_ENABLED
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 SEND_ERROR_HOLD = 2.0      # s a CAN send error keeps the drive status at ERROR
 
+# the value of a row's phase-lock status saying whether its section is on or off; the monitor
+# and replay read it back (`section_states`) so a plant after a section was off has no spacing
+SECTION_KEY = 'section'
+PHASE_LOCK_TASK = 'phase lock'      # the status of a scene without rows (one implicit row)
+
 # kinds of halt, in the order they are checked
 FAULTED, HEARTBEAT_LOST, NOT_ENABLED = 'fault', 'heartbeat lost', 'not enabled'
 
@@ -113,13 +118,14 @@ def phase_report(law, now, command):
               ('state', law.state(now)), ('phase error', f'{error:.4f} rad'),
               ('phase error along row', f'{metres:.4f} m'),
               ('phase slips', law.phase_slips),
-              ('command', f'{command:.4f} rad/s'))
+              ('command', f'{command:.4f} rad/s'),
+              (SECTION_KEY, 'on' if law.section_on else 'off'))
     if law.spacing is None:
-        return Report('phase lock', STALE, 'waiting for design', values)
+        return Report(PHASE_LOCK_TASK, STALE, 'waiting for design', values)
     if law.phase_slips:
-        return Report('phase lock', WARN,
+        return Report(PHASE_LOCK_TASK, WARN,
                       f'{law.phase_slips} plant(s) skipped to stay on the grid', values)
-    return Report('phase lock', OK, law.state(now), values)
+    return Report(PHASE_LOCK_TASK, OK, law.state(now), values)
 
 
 # how bad a level is, for merging (diagnostic_msgs numbers STALE above ERROR)
@@ -183,3 +189,30 @@ def loop_report(periods, deadline):
                       tuple(values))
     return Report('control loop', OK, text, tuple(values))
 
+def section_states(statuses):
+    """{row name: section on (bool)} from diagnostic statuses (objects with `name` and `values`
+    of `key`/`value`, as diagnostic_msgs has them): the sync node's status of each row
+    (`<node>: <row>`) or, in a scene without rows, its phase-lock status (row name '').
+    Statuses without the section value are not the sync node's: left out."""
+    states = {}
+    for status in statuses:
+        for item in status.values:
+            if item.key == SECTION_KEY and item.value in ('on', 'off'):
+                task = status.name.rsplit(': ', 1)[-1]
+                states['' if task == PHASE_LOCK_TASK else task] = item.value == 'on'
+                break
+    return states
+
+
+def section_breaks(reports):
+    """Per row name, the times (start, end) across which its section was off, from reports
+    [(t, {row name: on})] in time order: from the last report saying off to the first saying
+    on again. The first plant after such a break has no spacing."""
+    breaks, last_off = {}, {}
+    for t, states in reports:
+        for row, on in states.items():
+            if not on:
+                last_off[row] = t
+            elif row in last_off:
+                breaks.setdefault(row, []).append((last_off.pop(row), t))
+    return breaks

@@ -9,8 +9,10 @@ the three-arm at its lowest point). For each plant:
 * position: travelled distance at that instant (trapezoid integral of the measured speed,
   interpolated), spacing to the previous plant and its error against the design spacing d;
 * speed ratio λ = A0·ω/v with A0 the synchronous advance (five-bar: l2 - l1 = d/2π);
-* hole width: the nozzle tip's swept horizontal extent below the soil line at depth D for the
-  actual advance v/ω (five-bar: closed form `five_bar.hole_geometry`), plus the nozzle's width;
+* tip sweep: the nozzle tip's swept horizontal extent below the soil line at depth D for the
+  actual advance v/ω (five-bar: closed form `five_bar.hole_geometry`); the tip is a point, so
+  the hole the soil sees is hole width = tip sweep + the nozzle's width along the row (the
+  design's `nozzle_width`, a scene value);
 * tilt: the seedling's root ball is released at the bottom of the path; while the nozzle climbs
   back to the surface (shaft angle ψ_exit) it moves along the row relative to the soil by
   (v/ω - A_r)·ψ_exit more than the synchronous path does (A_r: the advance with zero horizontal
@@ -44,12 +46,12 @@ import math
 
 import numpy as np
 
-from planter_ros.config import check, setting
+from planter_ros.config import ConfigError, check, setting
 from planter_ros.sensing.ground_speed_filter import (
     GroundSpeedFilter, GroundSpeedLimits, filter_ground_speed)
 
 from .errors import DesignError
-from .five_bar import depth_angle, hole_geometry
+from .five_bar import depth_angle, hole_geometry, static_trajectory
 
 TWO_PI = 2.0 * math.pi
 
@@ -63,11 +65,15 @@ PLANT_FIELDS = (
     'speed_ratio',       # λ = A0·ω/v (1 = in sync; inf when v = 0)
     'ground_speed',      # m/s, measured ground speed at the planting instant
     'shaft_speed',       # rad/s, measured mechanism shaft speed at the planting instant
-    'hole_width',        # m, swept extent of the nozzle below the soil + nozzle width
+    'hole_width',        # m, tip_sweep + the nozzle's width along the row: the soil's hole
     'tilt',              # rad from vertical, + = top leans forward (direction of travel)
     'upright',           # 1 if the stem's angle to the ground >= upright_threshold, else 0
     'uprightness_rate',  # fraction upright over the last `window` plants (this one included)
     'row',               # the planting unit: its index in the machine's rows (0 without rows)
+    # later fields go last, so a consumer reading the older ones by place keeps working
+    'tip_sweep',         # m, swept extent of the nozzle tip (a point) below the soil
+    'latitude',          # deg WGS 84 of the plant (the as-planted map); NaN without GNSS
+    'longitude',         # deg WGS 84; NaN without GNSS
 )
 
 
@@ -79,10 +85,11 @@ class FiveBarPlanting:
 
     plants_per_revolution = 1
 
-    def __init__(self, l1, l2, depth, spacing, planting_phase=math.pi):
+    def __init__(self, l1, l2, depth, spacing, planting_phase=math.pi, nozzle_width=0.0):
         for name, value in (('l1', l1), ('l2', l2), ('planting_depth', depth),
                             ('plant_spacing', spacing)):
             _require_positive(name, value)
+        self.nozzle_width = _nozzle_width(nozzle_width)
         if not l2 > l1:
             raise DesignError('l2', l2, f'> l1 = {l1:.6g} m', 'the nozzle must loop')
         if not depth < 2.0 * (l1 + l2):
@@ -96,10 +103,16 @@ class FiveBarPlanting:
         self.exit_angle = depth_angle(self.depth, self.l1 + self.l2)
         self.entry_angle = self.exit_angle          # the path is symmetric about the bottom
 
-    def hole_width(self, advance):
-        """Swept extent (m) below the soil for advance v/ω (m/rad, array)."""
+    def tip_sweep(self, advance):
+        """The tip's swept extent (m) below the soil for advance v/ω (m/rad, array)."""
         advance = np.asarray(advance, dtype=float)
         return np.asarray(hole_geometry(self.l1, self.l2, self.depth, advance).width)
+
+    def tip_path(self, phi):
+        """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
+        at shaft angles `phi` (rad) from the planting instant."""
+        x, y = static_trajectory(self.l1, self.l2, math.pi + np.asarray(phi, dtype=float))
+        return x, y + (self.l1 + self.l2)
 
 
 class PathPlanting:
@@ -113,12 +126,13 @@ class PathPlanting:
     """
 
     def __init__(self, angle, x, y, plants_per_revolution, depth, spacing, planting_phase=None,
-                 samples=2048):
+                 samples=2048, nozzle_width=0.0):
         from scipy.interpolate import CubicSpline
         from scipy.optimize import brentq, minimize_scalar
 
         _require_positive('planting_depth', depth)
         _require_positive('plant_spacing', spacing)
+        self.nozzle_width = _nozzle_width(nozzle_width)
         n = int(plants_per_revolution)
         if n < 1 or n != plants_per_revolution:
             raise DesignError('plants_per_revolution', plants_per_revolution, 'integer >= 1')
@@ -176,21 +190,35 @@ class PathPlanting:
         self.release_advance = -float(self._x(phi_p, 1))
         self.sync_advance = n * self.spacing / TWO_PI
 
-    def hole_width(self, advance):
+    def tip_sweep(self, advance):
         advance = np.asarray(advance, dtype=float)
         xs = self._arc_x + advance[..., None] * self._arc
         return xs.max(axis=-1) - xs.min(axis=-1)
 
+    def tip_path(self, phi):
+        """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
+        at carrier angles `phi` (rad) from the planting instant."""
+        angle = self.planting_phase + np.asarray(phi, dtype=float)
+        p = self.planting_phase
+        return self._x(angle) - float(self._x(p)), self._y(angle) - float(self._y(p))
 
-def planting_model_from_design(design):
+
+def planting_model_from_design(design, nozzle_width=None):
     """Build the planting geometry from the `design` topic's JSON dict (SI units).
 
     five_bar: l1, l2, planting_depth (or depth), plant_spacing (or spacing).
     three_arm (or any mechanism): tip_path = {angle, x, y} of one arm over one revolution,
     plants_per_revolution, planting_depth, plant_spacing, optional planting_phase.
+    Every mechanism: nozzle_width (m), the nozzle's width along the row, unless `nozzle_width`
+    is given (it then replaces the design's: replay's override, a bag older than the field).
     """
     if not isinstance(design, dict):
         raise DesignError('design', type(design).__name__, 'a JSON object')
+    if nozzle_width is None:
+        nozzle_width = design.get('nozzle_width')
+        if nozzle_width is None:
+            raise DesignError('design', 'no nozzle_width', "key nozzle_width (m): the nozzle's "
+                              'width along the row, a scene value')
     mechanism = design.get('mechanism', 'five_bar')
     depth = _first(design, 'planting_depth', 'depth')
     spacing = _first(design, 'plant_spacing', 'spacing')
@@ -200,13 +228,14 @@ def planting_model_from_design(design):
         if l1 is None or l2 is None:
             raise DesignError('design', 'five_bar without l1/l2', 'keys l1, l2 (m)')
         return FiveBarPlanting(l1, l2, depth, spacing,
-                               math.pi if phase is None else float(phase))
+                               math.pi if phase is None else float(phase), nozzle_width)
     path = design.get('tip_path')
     if not isinstance(path, dict) or not all(k in path for k in ('angle', 'x', 'y')):
         raise DesignError('design', f'{mechanism} without tip_path',
                           'tip_path = {angle, x, y} (rad, m, m) of one nozzle tip per revolution')
     n = design.get('plants_per_revolution', 1)
-    return PathPlanting(path['angle'], path['x'], path['y'], n, depth, spacing, phase)
+    return PathPlanting(path['angle'], path['x'], path['y'], n, depth, spacing, phase,
+                        nozzle_width=nozzle_width)
 
 
 def _first(design, *keys):
@@ -214,6 +243,41 @@ def _first(design, *keys):
         if design.get(key) is not None:
             return design[key]
     raise DesignError('design', f'no {keys[0]}', f'key {keys[0]} (m)')
+
+
+def _nozzle_width(value):
+    """The nozzle width checked against the scene's range (DesignError, one line)."""
+    from planter_ros.config import coerce, spec_of
+
+    from .scene_settings import SceneSettings
+    try:
+        return coerce(spec_of(SceneSettings, 'nozzle_width'), value)
+    except ConfigError as exc:
+        raise DesignError.from_message(str(exc)) from None
+
+
+def prediction_notes(design, model):
+    """What the figures of this design mean where the model is not validated: a list of
+    {fields, text} (empty for the five-bar the model was made for). Shown next to the figures
+    by replay and the demo, and in their JSON."""
+    notes = []
+    mechanism = design.get('mechanism', 'five_bar') if isinstance(design, dict) else 'five_bar'
+    if mechanism != 'five_bar':
+        notes.append({'fields': ['tilt', 'upright', 'uprightness_rate'],
+                      'text': f"the tilt model (a duckbill holding the stem until it leaves "
+                              f"the soil) is not validated for the {mechanism.replace('_', '-')}"
+                              "'s pusher, which throws the seedling: read tilt and uprightness "
+                              'as a kinematic slip indicator only'})
+    ratio = model.release_advance / model.sync_advance
+    if abs(ratio - 1.0) > 0.1:
+        n = model.plants_per_revolution
+        notes.append({'fields': ['tip_sweep', 'hole_width', 'tilt'],
+                      'text': f'at planting the tip moves along the row at '
+                              f'{model.release_advance:.3f} m/rad against the ground\'s '
+                              f'{model.sync_advance:.3f} m/rad in sync: no slip would need a '
+                              f'spacing of {TWO_PI * model.release_advance / n:.3f} m, so '
+                              'every hole is wide and every plant leans'})
+    return notes
 
 
 def _require_positive(name, value):
@@ -233,8 +297,6 @@ class PredictionSettings:
     and read back by replay. No standard upright threshold is confirmed: the literature counts
     a seedling at < 30° to the ground as fallen, hence the default."""
 
-    nozzle_width: float = setting(0.0, "width of the nozzle along the row, added to the tip's "
-                                  'swept hole extent', unit='m', range=(0.0, 0.5))
     upright_threshold: float = setting(math.radians(30.0), "minimum stem angle to the ground "
                                        'for an upright plant; the literature counts < 30 deg as '
                                        'fallen, no standard value is confirmed', unit='rad',
@@ -270,6 +332,9 @@ class Plants:
     upright: np.ndarray
     uprightness_rate: np.ndarray
     row: np.ndarray
+    tip_sweep: np.ndarray
+    latitude: np.ndarray
+    longitude: np.ndarray
 
     def __len__(self):
         return int(self.index.size)
@@ -302,10 +367,14 @@ def _json_value(v):
     return v if math.isfinite(v) else None
 
 
-def summarize(plants, spacing):
-    """Summary figures (SI) of a run: plant count, spacing error, hole width, uprightness."""
+def summarize(plants, spacing, design_spacing=None):
+    """Summary figures (SI) of a run: plant count, spacing error, hole width and tip sweep,
+    uprightness, spacing quality (each plant's spacing against `design_spacing`: one per plant,
+    default `spacing` for all)."""
+    from .spacing_quality import spacing_quality
     err = plants.spacing_error[np.isfinite(plants.spacing_error)]
     hole = plants.hole_width
+    sweep = plants.tip_sweep[np.isfinite(plants.tip_sweep)]
     return {
         'plants': len(plants),
         'design_spacing': float(spacing),
@@ -314,8 +383,12 @@ def summarize(plants, spacing):
         'spacing_error_max': float(np.abs(err).max()) if err.size else None,
         'hole_width_mean': float(hole.mean()) if hole.size else None,
         'hole_width_max': float(hole.max()) if hole.size else None,
+        'tip_sweep_mean': float(sweep.mean()) if sweep.size else None,
+        'tip_sweep_max': float(sweep.max()) if sweep.size else None,
         'tilt_max': float(np.abs(plants.tilt).max()) if hole.size else None,
         'uprightness_rate': float(plants.upright.mean()) if hole.size else None,
+        'spacing_quality': spacing_quality(
+            plants.spacing, spacing if design_spacing is None else design_spacing),
     }
 
 
@@ -377,27 +450,30 @@ def _at_speed(t_e, t0, t1, v0, v1, s0):
 
 
 def plant_values(model, settings, omega, v):
-    """λ, hole width, tilt and upright flag for arrays of shaft speed ω > 0 and ground speed v."""
+    """λ, tip sweep, hole width (tip sweep + the model's nozzle width), tilt and upright flag
+    for arrays of shaft speed ω > 0 and ground speed v."""
     omega = np.asarray(omega, dtype=float)
     v = np.asarray(v, dtype=float)
     advance = v / omega
     with np.errstate(divide='ignore'):
         ratio = np.where(v != 0, model.sync_advance * omega / np.where(v != 0, v, 1.0), np.inf)
-    hole = model.hole_width(advance) + settings.nozzle_width
+    sweep = model.tip_sweep(advance)
     slip = (advance - model.release_advance) * model.exit_angle
     tilt = np.arctan2(slip, model.depth)
     upright = (0.5 * math.pi - np.abs(tilt) >= settings.upright_threshold).astype(float)
-    return ratio, hole, tilt, upright
+    return ratio, sweep, sweep + model.nozzle_width, tilt, upright
 
 
 def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
-                   settings=PredictionSettings(), row=0, speed_filter=True, changes=()):
+                   settings=PredictionSettings(), row=0, speed_filter=True, changes=(),
+                   breaks=()):
     """All plants of a recording at once (vectorised). Times in s (same clock for both inputs),
     speeds m/s, shaft angle rad (unwrapped), shaft speed rad/s (NaN or empty = not measured).
     `row` goes into every plant's row field; `speed_filter` False takes speeds that already
     passed the plausibility rule (a row's speed from sensing.row_speed). `changes`: (time s,
     model) of each later design, in time order, each in force from the next planting instant
-    after its time (module doc)."""
+    after its time (module doc). `breaks`: (start, end) times across which the row's section
+    was off: the first plant after one has no spacing, like after a gap in the inputs."""
     joint_vel = np.asarray(joint_vel, dtype=float)
     if joint_vel.size != np.size(joint_t):
         joint_vel = np.full(np.size(joint_t), np.nan)
@@ -425,7 +501,8 @@ def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
     keep = located & (jt[i] - jt[i - 1] <= gap) & (st[jc] - st[jc - 1] <= gap)
     t_e, omega, j, which = t_e[keep], omega[keep], j[keep], which[keep]
     v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
-    starts = np.concatenate((_gaps(jt, gap), _gaps(st, gap)))
+    starts = np.concatenate((_gaps(jt, gap), _gaps(st, gap),
+                             np.asarray(breaks, dtype=float).reshape(-1, 2)))
     return _assemble([models[w] for w in which], settings, t_e, omega, v_e, s_e, index0=0,
                      prev_position=np.nan, recent=(),
                      new_sequence=_after_gap(t_e, -np.inf, starts), row=row)
@@ -489,11 +566,11 @@ def _assemble(models, settings, t_e, omega, v_e, s_e, index0, prev_position, rec
     n = t_e.size
     if not isinstance(models, (list, tuple)):
         models = [models] * n
-    ratio, hole, tilt, upright = (np.zeros(n) for _ in range(4))
+    ratio, sweep, hole, tilt, upright = (np.zeros(n) for _ in range(5))
     d = np.zeros(n)
     for model in {id(m): m for m in models}.values():
         mine = np.array([m is model for m in models], dtype=bool)
-        ratio[mine], hole[mine], tilt[mine], upright[mine] = plant_values(
+        ratio[mine], sweep[mine], hole[mine], tilt[mine], upright[mine] = plant_values(
             model, settings, omega[mine], v_e[mine])
         d[mine] = model.spacing
     spacing = np.diff(np.concatenate(([prev_position], s_e)))
@@ -508,7 +585,8 @@ def _assemble(models, settings, t_e, omega, v_e, s_e, index0, prev_position, rec
     return Plants(index=np.arange(index0, index0 + n, dtype=float), time=t_e, position=s_e,
                   spacing=spacing, spacing_error=spacing - d, speed_ratio=ratio,
                   ground_speed=v_e, shaft_speed=omega, hole_width=hole, tilt=tilt,
-                  upright=upright, uprightness_rate=rate, row=np.full(n, float(row)))
+                  upright=upright, uprightness_rate=rate, row=np.full(n, float(row)),
+                  tip_sweep=sweep, latitude=np.full(n, np.nan), longitude=np.full(n, np.nan))
 
 
 class PlantPredictor:
@@ -563,6 +641,11 @@ class PlantPredictor:
             s = 0.0
         self._speed.append((t, v, s))
         return self._resolve()
+
+    def add_break(self, start, end):
+        """The row's section was off from `start` to `end` (s): the first plant after it has
+        no spacing (call before that plant is completed)."""
+        self._gaps.append((float(start), float(end)))
 
     def add_joint(self, t, position, velocity=math.nan):
         t, position = float(t), float(position)

@@ -20,7 +20,8 @@ def design_for_scene(params):
 
     Values the scene leaves out take their defaults (scene_settings). Keys always present:
     mechanism, plants_per_revolution, plant_spacing (m), planting_depth (m), crop,
-    nominal_ground_speed (m/s), nominal_mechanism_speed (rad/s), then the model's own fields.
+    nominal_ground_speed (m/s), nominal_mechanism_speed (rad/s), nozzle_width (m), then the
+    model's own fields.
     Raises DesignError (one line) for a value out of range or an infeasible design.
     """
     scene = from_mapping(SceneSettings, params, DesignError.from_message)
@@ -34,7 +35,7 @@ def design_for_scene(params):
                plant_spacing=scene.plant_spacing, planting_depth=scene.planting_depth,
                crop=scene.crop, nominal_ground_speed=scene.nominal_ground_speed,
                nominal_mechanism_speed=2.0 * math.pi * scene.nominal_ground_speed
-               / (n * scene.plant_spacing))
+               / (n * scene.plant_spacing), nozzle_width=scene.nozzle_width)
     return out
 
 

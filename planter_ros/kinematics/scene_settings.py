@@ -14,7 +14,7 @@ from .errors import DesignError
 from .mechanisms import MECHANISMS, PITCH_CURVE_INTERPOLANTS
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SceneSettings:
     """Every scene: the crop's agronomic needs and the mechanism (SI units)."""
 
@@ -32,6 +32,10 @@ class SceneSettings:
                                 '(l1 + l2)', range=(0.01, 100.0))
     nominal_ground_speed: float = setting(0.2, 'nominal ground speed v: the reported mechanism '
                                           'speed is 2πv/(n·d)', unit='m/s', range=(0.01, 3.0))
+    nozzle_width: float = setting(kind=float, description="the nozzle's width along the row "
+                                  '(a duckbill, a planting arm\'s clamp): the hole the soil sees '
+                                  "is the tip's sweep plus this; no default, measure it",
+                                  unit='m', range=(0.0, 0.5))
 
     def __post_init__(self):
         check(self, DesignError.from_message)

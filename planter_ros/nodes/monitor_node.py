@@ -1,9 +1,13 @@
 """monitor_node: per-plant predictions from measured motion, and the MCAP recording.
 
-Subscribes `ground_speed` (TwistStamped), `joint_states` (JointState) and the latched `design`
-(String JSON); publishes each plant on `plants` (std_msgs/Float64MultiArray, labelled layout,
-fields in `PLANT_FIELDS`, SI) and the rolling rate on `uprightness_rate` (std_msgs/Float64,
-fraction 0..1, over the last `window` plants of the whole machine), and `/diagnostics` at 1 Hz.
+Subscribes `ground_speed` (TwistStamped), `joint_states` (JointState), the latched `design`
+(String JSON), `gnss/fix` (NavSatFix) and `/diagnostics` (the sync node's section states);
+publishes each plant on `plants` (std_msgs/Float64MultiArray, labelled layout, fields in
+`PLANT_FIELDS`, SI), the rolling rate on `uprightness_rate` (std_msgs/Float64, fraction 0..1,
+over the last `window` plants of the whole machine), the ISO 7256-1 spacing-quality indices on
+`spacing_quality`, the 3D view on `plant_markers` (visualization_msgs/MarkerArray) and
+`/diagnostics` at 1 Hz. Each plant is placed on the earth from the GNSS fixes
+(sensing.plant_map: held until the fixes that place it are in) before it is published.
 It records its inputs (plus the speed commands and `/diagnostics`) as the CDR bytes that arrived
 (raw subscriptions) and its own outputs, through the one recorder
 (planter_ros.recording.recorder); the topics are interfaces.RECORDED, and the bag's rows record
@@ -25,6 +29,8 @@ from collections import deque
 import json
 import math
 
+import numpy as np
+
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -35,18 +41,27 @@ from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
 from planter_ros import interfaces, stop_signals
 from planter_ros.config import ConfigError, as_dict
+from planter_ros.control.sync_status import section_states
 from planter_ros.dds_domain import keep_discovery_on_host
 from planter_ros.design_sources import DesignSources
+from planter_ros.geo import AntennaSettings
 from planter_ros.kinematics.plant_prediction import (
     PLANT_FIELDS, PlantPredictor, PredictionSettings, planting_model_from_design)
+from planter_ros.kinematics.spacing_quality import (
+    QUALITY_FIELDS, SpacingQuality, format_quality)
 from planter_ros.nodes import graph
+from planter_ros.nodes.markers import marker_array
 from planter_ros.nodes.parameters import ParameterGroup, declare_rows
 from planter_ros.recording.recorder import Recorder, RecorderConfig, RecorderError
+from planter_ros.recording.replay import map_record
 from planter_ros.rows import rows_record
+from planter_ros.sensing.plant_map import MapSettings, PlantPlacer
 from planter_ros.sensing.row_speed import RowSpeedStream
 
 STALE_AFTER = 2.0          # s without input samples before the status says STALE
 PLANTS_LABEL = ','.join(PLANT_FIELDS)
+QUALITY_LABEL = ','.join(('row',) + QUALITY_FIELDS)
+MACHINE = -1               # the `row` of the whole machine's line in spacing_quality
 
 
 def plants_message(plants):
@@ -57,6 +72,19 @@ def plants_message(plants):
     msg.layout.dim = [MultiArrayDimension(label='plant', size=n, stride=n * f),
                       MultiArrayDimension(label=PLANTS_LABEL, size=f, stride=f)]
     msg.data = table.ravel().tolist()
+    return msg
+
+
+def quality_message(qualities):
+    """Float64MultiArray of [(row index, SpacingQuality.result())]: dim[0] 'row' x dim[1] the
+    labels of QUALITY_LABEL; an undefined index is NaN."""
+    table = [[float(row)] + [math.nan if q[f] is None else float(q[f]) for f in QUALITY_FIELDS]
+             for row, q in qualities]
+    msg = Float64MultiArray()
+    n, f = len(table), len(QUALITY_FIELDS) + 1
+    msg.layout.dim = [MultiArrayDimension(label='row', size=n, stride=n * f),
+                      MultiArrayDimension(label=QUALITY_LABEL, size=f, stride=f)]
+    msg.data = [v for line in table for v in line]
     return msg
 
 
@@ -72,8 +100,16 @@ class MonitorNode(Node):
         recording = ParameterGroup(self, RecorderConfig).value
         self._settings = ParameterGroup(self, PredictionSettings,
                                         on_change=self._on_settings)
+        self._map_settings = ParameterGroup(self, MapSettings, on_change=self._on_map_settings)
+        self.antenna = ParameterGroup(self, AntennaSettings).value
         self.rows = declare_rows(self)
         self._planting = [row for row in self.rows if row.enabled]
+        self._labels = {row.index: row.label for row in self.rows}
+        self._placer = self._new_placer(self._map_settings.value)
+        self._quality = {row.index: SpacingQuality() for row in self._planting}
+        self._machine_quality = SpacingQuality()
+        self._drawn = {}                    # row index -> plants drawn (marker ids)
+        self._last_off = {}                 # row name -> last report of its section off
 
         self.recorder = None
         self.record_error = ''
@@ -96,6 +132,8 @@ class MonitorNode(Node):
 
         self._pub_plants = interfaces.PLANTS.publisher(self)
         self._pub_rate = interfaces.UPRIGHTNESS_RATE.publisher(self)
+        self._pub_quality = interfaces.SPACING_QUALITY.publisher(self)
+        self._pub_markers = interfaces.PLANT_MARKERS.publisher(self)
         self._pub_diag = interfaces.DIAGNOSTICS.publisher(self)
         if recording.record:
             self._start_recorder(recording)
@@ -104,7 +142,7 @@ class MonitorNode(Node):
                     interfaces.JOINT_STATES: self._on_joint,
                     interfaces.SPEED_COMMAND: self._on_command,
                     interfaces.SPEED_COMMANDS: self._on_command,
-                    interfaces.GNSS_FIX: self._on_command,
+                    interfaces.GNSS_FIX: self._on_fix,
                     interfaces.DIAGNOSTICS: self._on_diagnostics}
         self._subs = [topic.subscribe(self, self._raw_callback(topic, handlers[topic]),
                                       qos=topic.recording_qos(), raw=True)
@@ -121,13 +159,24 @@ class MonitorNode(Node):
             self._start_predictors(settings)
             self.get_logger().info('prediction settings changed: a new sequence starts')
 
+    def _new_placer(self, settings):
+        return PlantPlacer(settings, self.antenna.antenna_position,
+                           {row.index: row.lateral_offset for row in self.rows})
+
+    def _on_map_settings(self, settings):
+        """A new map from here on: the plants held so far are placed with the old one."""
+        self._publish_placed(self._placer.flush(), self.get_clock().now().nanoseconds)
+        self._placer = self._new_placer(settings)
+        self.get_logger().info('map settings changed: a new map starts')
+
     def _start_predictors(self, settings):
         """Fresh predictors (and row speeds) for every planting row, as replay starts them at
         each design."""
         self._predictors = [PlantPredictor(self._model, settings, row=row.index,
                                            speed_filter=False) for row in self._planting]
+        # the yaw rate always: the as-planted map dead-reckons the machine's heading
         self._speeds = RowSpeedStream([row.lateral_offset for row in self._planting],
-                                      settings.speed_limits)
+                                      settings.speed_limits, yaw=True)
         self._recent = deque(maxlen=settings.window)
 
     # -- recording -----------------------------------------------------------------------
@@ -148,6 +197,8 @@ class MonitorNode(Node):
         self.recorder.add_metadata(interfaces.PREDICTION_SETTINGS_RECORD, {k: repr(v) for k, v in
                                                      as_dict(self.settings).items()})
         self.recorder.add_metadata(interfaces.ROWS_RECORD, rows_record(self.rows))
+        self.recorder.add_metadata(interfaces.MAP_RECORD,
+                                   map_record(self._map_settings.value, self.antenna))
         self.get_logger().info(f'recording to {self.recorder.path}')
 
     def _record(self, topic, data, log_ns, publish_ns=None, message=None):
@@ -236,12 +287,14 @@ class MonitorNode(Node):
         self._last_input = now
         if self._predictors is None:
             return
-        sample = self._speeds.add(t, msg.twist.linear.x, msg.twist.angular.z)
-        if sample is None:
+        motion = self._speeds.motion(t, msg.twist.linear.x, msg.twist.angular.z)
+        if motion is None:
             return
-        t, speeds = sample
-        for predictor, v in zip(self._predictors, speeds.tolist()):
-            self._publish_plants(predictor.add_speed(t, v), now)
+        t, v, yaw_rate = motion
+        self._publish_placed(self._placer.add_motion(t, v, yaw_rate), now)
+        for predictor, speed in zip(self._predictors,
+                                    self._speeds.speeds(v, yaw_rate).tolist()):
+            self._predicted(predictor.add_speed(t, speed), now)
 
     def _on_joint(self, msg, t, now):
         self.samples_taken += 1
@@ -253,32 +306,83 @@ class MonitorNode(Node):
             if i is None:
                 continue
             velocity = msg.velocity[i] if len(msg.velocity) > i else math.nan
-            self._publish_plants(predictor.add_joint(t, msg.position[i], velocity), now)
+            self._predicted(predictor.add_joint(t, msg.position[i], velocity), now)
+
+    def _on_fix(self, msg, t, now):
+        """A GNSS fix: it may place the plants held for it."""
+        self.samples_taken += 1
+        cov = msg.position_covariance
+        self._publish_placed(self._placer.add_fix(
+            t, msg.status.status, msg.latitude, msg.longitude, cov[0], cov[4],
+            msg.position_covariance_type), now)
 
     def _on_command(self, _msg, _t, _now):
-        """Speed commands and GNSS fixes: recorded; counted, since the lock-step feeder waits
-        on every message it feeds."""
+        """Speed commands: recorded; counted, since the lock-step feeder waits on every message
+        it feeds."""
         self.samples_taken += 1
 
-    def _on_diagnostics(self, _msg, _t, _now):
-        """Recorded only."""
+    def _on_diagnostics(self, msg, t, _now):
+        """The sync node's section states: a row switched off and on again starts a new
+        sequence (its next plant has no spacing), like replay reads them from the bag."""
+        states = section_states(msg.status)
+        if not states or self._predictors is None:
+            return
+        for predictor, row in zip(self._predictors, self._planting):
+            on = states.get(row.name)
+            if on is False:
+                self._last_off[row.name] = t
+            elif on and row.name in self._last_off:
+                predictor.add_break(self._last_off.pop(row.name), t)
 
     # -- outputs -------------------------------------------------------------------------
-    def _publish_plants(self, plants, now):
+    def _predicted(self, plants, now):
+        """Plants just predicted: to the map, published once placed."""
+        if len(plants):
+            self._publish_placed(self._placer.add_plants(plants), now)
+
+    def _publish_placed(self, placed, now):
+        for plants, placement in placed:
+            self._publish_plants(plants, placement, now)
+
+    def _publish(self, topic, publisher, msg, now):
+        """Publish (if the context still runs: the last plants come at shutdown) and record."""
+        try:
+            publisher.publish(msg)
+        except Exception as exc:         # rclpy's own error types once the context is down
+            self.get_logger().debug(f'{topic.name} not published: {exc}')
+        self._record(topic, None, now, now, message=msg)
+
+    def _publish_plants(self, plants, placement, now):
         if not len(plants):
             return
-        msg = plants_message(plants)
-        self._pub_plants.publish(msg)
-        self._record(interfaces.PLANTS, None, now, now, message=msg)
+        self._publish(interfaces.PLANTS, self._pub_plants, plants_message(plants), now)
         self._recent.extend(plants.upright.tolist())
         rate = Float64(data=float(sum(self._recent) / len(self._recent)))
-        self._pub_rate.publish(rate)
-        self._record(interfaces.UPRIGHTNESS_RATE, None, now, now, message=rate)
+        self._publish(interfaces.UPRIGHTNESS_RATE, self._pub_rate, rate, now)
+        design_spacing = plants.spacing - plants.spacing_error
+        for row in set(plants.row.astype(int).tolist()):
+            mine = plants.row == row
+            self._quality.setdefault(row, SpacingQuality()).add(plants.spacing[mine],
+                                                                design_spacing[mine])
+        self._machine_quality.add(plants.spacing, design_spacing)
+        self._publish(interfaces.SPACING_QUALITY, self._pub_quality,
+                      quality_message(self.spacing_quality()), now)
+        if self._model is not None and np.any(np.isfinite(placement.east)):
+            self._publish(interfaces.PLANT_MARKERS, self._pub_markers,
+                          marker_array(plants, placement, self._model, self._labels,
+                                       self._drawn), now)
         self._tables.append(plants.table())
         self._plants += len(plants)
-        self._row_plants[int(plants.row[0])] += len(plants)
+        for row in plants.row.astype(int).tolist():
+            self._row_plants[row] = self._row_plants.get(row, 0) + 1
         self._last = plants
         self._rate = rate.data
+
+    def spacing_quality(self):
+        """[(-1, the machine's indices)], then (row index, indices) of every planting row: the
+        machine first, so a viewer finds it at the same place whatever the rows."""
+        return [(MACHINE, self._machine_quality.result())] + \
+            [(row.index, self._quality[row.index].result()) for row in self._planting]
 
     def published_tables(self):
         """Every plant table published so far (for the sample generator and tests)."""
@@ -308,6 +412,7 @@ class MonitorNode(Node):
                 'last_tilt_rad': f'{self._last.tilt[-1]:.6g}',
                 'last_speed_ratio': f'{self._last.speed_ratio[-1]:.6g}'})
         status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
+        quality = self._quality_status()
         rec = DiagnosticStatus(name=f'{self.get_name()}: recording', hardware_id='planter')
         if self.recorder is not None:
             rec.level, rec.message = DiagnosticStatus.OK, 'recording'
@@ -323,12 +428,36 @@ class MonitorNode(Node):
                                   level=bytes((design.level,)), message=design.message,
                                   values=[KeyValue(key=k, value=str(v))
                                           for k, v in design.values])
-        msg = DiagnosticArray(status=[status, rec, source])
+        msg = DiagnosticArray(status=[status, quality, rec, source])
         msg.header.stamp = now.to_msg()
         self._pub_diag.publish(msg)
 
+    def _quality_status(self):
+        """The spacing-quality indices so far, the machine's and each row's (no judgement: OK
+        once there are spacings; the standard sets no limit)."""
+        status = DiagnosticStatus(name=f'{self.get_name()}: spacing quality',
+                                  hardware_id='planter')
+        lines = self.spacing_quality()
+        machine = lines[0][1]
+        if not machine['spacings']:
+            status.level, status.message = DiagnosticStatus.OK, 'no spacings yet'
+        else:
+            status.level, status.message = DiagnosticStatus.OK, format_quality(machine)
+        named = len(self.rows) > 1 or bool(self.rows[0].name)
+        values = []
+        for row, quality in lines:
+            if row != MACHINE and not named:
+                continue                     # one row without a name: the machine's line
+            where = '' if row == MACHINE else f' {self._labels[row]}'
+            values += [KeyValue(key=f'{field}{where}', value=_quality_text(quality[field]))
+                       for field in QUALITY_FIELDS]
+        status.values = values
+        return status
+
     def destroy_node(self):
-        """Finalise the bag (summary, statistics, metadata) before the node goes."""
+        """Place and publish the plants still held for fixes, then finalise the bag (summary,
+        statistics, metadata) before the node goes."""
+        self._publish_placed(self._placer.flush(), self.get_clock().now().nanoseconds)
         if self.recorder is not None:
             try:
                 self.recorder.close()
@@ -336,6 +465,12 @@ class MonitorNode(Node):
                 self.record_error = f'bag not finalised: {exc}'
                 self.get_logger().error(self.record_error)
         return super().destroy_node()
+
+
+def _quality_text(value):
+    if value is None:
+        return ''
+    return str(value) if isinstance(value, int) else f'{value:.4f}'
 
 
 def joint_index(msg, name):

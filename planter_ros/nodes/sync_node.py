@@ -354,6 +354,8 @@ class SyncNode(Node):
                 response.message = (f'row {unit.label} off: coming to rest'
                                      + (f' at {stop:.3f} rad' if stop is not None else ''))
         self.get_logger().info(response.message)
+        if response.success and was != on:
+            self._on_diagnostics()          # the instant of the switch, for the monitor
         return response
 
     def _on_law_parameters(self, value):
@@ -454,7 +456,6 @@ class SyncNode(Node):
         law = unit.law
         return (('lateral offset', f'{unit.row.lateral_offset:.3f} m'),
                 ('drive node id', unit.row.drive_node_id),
-                ('section', 'on' if law.section_on else 'off'),
                 ('row speed', f'{law.ground_speed_value:.4f} m/s'),
                 ('row travelled', f'{law.travelled(now):.4f} m'))
 

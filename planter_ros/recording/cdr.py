@@ -1,9 +1,9 @@
 """Bulk decoding of a few fields from raw CDR messages (replay's inner loop), with numpy.
 
 Why: replay needs a handful of numbers (a stamp and one or two float64) from tens of thousands
-of TwistStamped / JointState messages. Deserialising each message into an object (rosbags,
-rclpy) costs far more than reading those fields, so this module reads them straight from the
-bytes, most messages at once.
+of TwistStamped / JointState messages (and a few fields of each NavSatFix: the as-planted
+map). Deserialising each message into an object (rosbags, rclpy) costs far more than reading
+those fields, so this module reads them straight from the bytes, most messages at once.
 
 How: messages of one *layout* share their byte offsets. Two messages have the same layout when
 they have the same length and the same bytes wherever the walk to the wanted fields reads a
@@ -124,6 +124,22 @@ def _twist_layout(raw):
     return e, (linear_x, linear_x + 40), ranges
 
 
+def _navsatfix_layout(raw):
+    """NavSatFix: (byte order, offsets of status.status (int8), latitude, longitude,
+    position_covariance[0] and [4] (east and north variance, ENU), position_covariance_type
+    (uint8), layout byte ranges). After the header: status int8, service uint16, three float64,
+    nine float64 (a fixed array: no count), uint8."""
+    what = 'NavSatFix'
+    e, pos, ranges = _header(raw, what)
+    status = pos
+    latitude = _align(_align(status + 1, 2) + 2, 8)
+    covariance = latitude + 24
+    kind = covariance + 72
+    _need(raw, kind + 1, what, 'position_covariance_type')
+    return e, ((status, 'i1'), latitude, latitude + 8, covariance, covariance + 32,
+               (kind, 'u1')), ranges
+
+
 def _joint_layout(raw, joint):
     """JointState: (byte order, (position offset, velocity offset), layout byte ranges) for the
     joint named `joint` (bytes, or None); an offset is None where that value is absent.
@@ -163,9 +179,10 @@ def _joint_layout(raw, joint):
 
 def _bulk(raws, layout_of, n_values):
     """Decode messages grouped by layout. layout_of(raw) -> (byte order, offsets, ranges),
-    raising CdrError for a message it cannot walk. Returns (stamp ns int64 [n],
-    values float64 [n_values, n]); a left-out message has stamp 0 and NaN values, an absent
-    value (offset None) is NaN."""
+    raising CdrError for a message it cannot walk; an offset is a float64's, or (offset, numpy
+    type code) for another number ('i1', 'u1'). Returns (stamp ns int64 [n], values float64
+    [n_values, n]); a left-out message has stamp 0 and NaN values, an absent value (offset
+    None) is NaN."""
     count = len(raws)
     stamps = np.zeros(count, dtype=np.int64)
     values = np.full((n_values, count), np.nan)
@@ -224,8 +241,10 @@ def _read(buf, idx, rows, e, offsets, stamps, values):
     nsec = _field(buf, idx.size, rows, STAMP + 4, e + 'u4').astype(np.int64)
     stamps[out] = sec * 1_000_000_000 + nsec
     for k, offset in enumerate(offsets):
-        if offset is not None:
-            values[k, out] = _field(buf, idx.size, rows, offset, e + 'f8')
+        if offset is None:
+            continue
+        offset, kind = offset if isinstance(offset, tuple) else (offset, 'f8')
+        values[k, out] = _field(buf, idx.size, rows, offset, e + kind)
 
 
 # ----------------------------------------------------------------------------- public
@@ -241,6 +260,14 @@ def decode_ground_speed(raws):
     """(stamp ns int64, twist.linear.x m/s float64) of TwistStamped CDR messages."""
     stamps, linear_x, _ = decode_twist(raws)
     return stamps, linear_x
+
+
+def decode_navsatfix(raws):
+    """(stamp ns int64, status, latitude, longitude, east variance, north variance, covariance
+    type) of sensor_msgs/NavSatFix CDR messages, the integers as float64; a message that
+    cannot be decoded has stamp 0 and NaN values (NaN status: not a fix)."""
+    stamps, values = _bulk(raws, _navsatfix_layout, 6)
+    return (stamps, *values)
 
 
 def decode_joint_states(raws, joint_name):

@@ -14,6 +14,11 @@ with several rows (the bag's rows record, interfaces.ROWS_RECORD) is predicted r
 each from its own joint and its own travelled distance (ground speed, yaw rate
 `twist.angular.z` and the row's lateral offset: sensing.row_speed), and summarised per row; a
 bag without the record has one row, the joint `sun_bar` / `carrier`.
+
+Like the monitor, replay places each plant on the earth from the recorded GNSS fixes
+(sensing.plant_map, with the antenna position and map settings of the bag's map record), ends a
+row's spacing sequence where the sync node's diagnostics say its section was switched off, and
+judges the spacings by the ISO 7256-1 indices (kinematics.spacing_quality), per row and overall.
 """
 
 from dataclasses import dataclass
@@ -24,16 +29,20 @@ import numpy as np
 
 from planter_ros import config, interfaces
 from planter_ros.config import ConfigError
+from planter_ros.control.sync_status import section_breaks, section_states
+from planter_ros.geo import AntennaSettings
 from planter_ros.kinematics.plant_prediction import (
     PLANT_FIELDS, Plants, PredictionSettings, planting_model_from_design, predict_plants,
-    summarize)
+    prediction_notes, summarize)
 from planter_ros.rows import implicit_row, rows_from_record
-from planter_ros.sensing.row_speed import row_speed_samples
+from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, place_plants
+from planter_ros.sensing.row_speed import motion_samples, row_speed_samples
 
 from .bag_reader import BagError, read_recording
-from .cdr import decode_joint_states, decode_string, decode_twist
+from .cdr import decode_joint_states, decode_navsatfix, decode_string, decode_twist
 
 REQUIRED = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES, interfaces.DESIGN)
+OPTIONAL = (interfaces.GNSS_FIX, interfaces.DIAGNOSTICS)
 
 
 class ReplayError(ValueError):
@@ -53,15 +62,33 @@ class ReplayResult:
     recorded_plants: np.ndarray   # the live monitor's plant table, if recorded (n, fields)
     rows: list                    # planter_ros.rows.Row of the machine (one without a record)
     row_summaries: list           # summarize() of each planting row's plants, in `rows` order
+    placement: Placement = None   # each plant in the map's local frame (sensing.plant_map)
+    notes: list = None            # what some figures mean: [{fields, text}] (prediction_notes)
+    map_settings: MapSettings = None
+    antenna: AntennaSettings = None
+    fixes: int = 0                # usable GNSS fixes in the bag
+    nozzle_width: float = None    # m, of the last design's predictions
+    recorded_fields: tuple = ()   # the PLANT_FIELDS the live recording has (older: fewer)
+
+    def recorded_columns(self):
+        """Indices of the plant fields the live recording has: replay and the recording can
+        be compared on these."""
+        return [PLANT_FIELDS.index(f) for f in self.recorded_fields]
 
     def as_json(self):
         return {'bag': self.path, 'design': self.design,
                 'settings': config.as_dict(self.settings),
+                'map': {**config.as_dict(self.map_settings), **config.as_dict(self.antenna),
+                        'fixes': self.fixes,
+                        'origin': None if self.placement is None or
+                        self.placement.origin is None else list(self.placement.origin)},
+                'nozzle_width': self.nozzle_width,
                 'duration': self.duration, 'messages': self.messages,
                 'summary': self.summary,
                 'rows': [{**row.as_dict(), 'summary': summary}
                          for row, summary in zip(self.rows, self.row_summaries)],
-                'plants': self.plants.rows(), 'warnings': self.warnings}
+                'plants': self.plants.rows(), 'notes': self.notes or [],
+                'warnings': self.warnings}
 
 
 def settings_from_recording(recorded, overrides=None, warnings=None):
@@ -82,10 +109,13 @@ def settings_from_recording(recorded, overrides=None, warnings=None):
 
 def replay(path, settings_overrides=None, with_recorded=False, fallback_design=None):
     """Re-run the prediction model on a bag. Raises ReplayError for an unusable bag and
-    ConfigError for a bad setting override. `fallback_design` (a design dict, e.g. of the scene
-    the run used) stands in for the whole bag when it holds no usable design message (lost in
-    a damaged part); it is ignored, with a warning, when the bag has its own."""
-    wanted = REQUIRED + ((interfaces.PLANTS,) if with_recorded else ())
+    ConfigError for a bad setting override (`nozzle_width` among them replaces the design's).
+    `fallback_design` (a design dict, e.g. of the scene the run used) stands in for the whole
+    bag when it holds no usable design message (lost in a damaged part); it is ignored, with a
+    warning, when the bag has its own."""
+    overrides = dict(settings_overrides or {})
+    nozzle_override = overrides.pop('nozzle_width', None)
+    wanted = REQUIRED + OPTIONAL + ((interfaces.PLANTS,) if with_recorded else ())
     try:
         rec = read_recording(path, wanted)
     except BagError as exc:
@@ -97,9 +127,11 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
         want = ', '.join(f'.../{t.name} ({t.type_name})' for t in missing)
         raise ReplayError(f'bag {path} lacks {want}; topics found: {found}')
     design_topic = rec.topics.get(interfaces.DESIGN)
-    settings = settings_from_recording(
-        rec.metadata.get(interfaces.PREDICTION_SETTINGS_RECORD, {}), settings_overrides,
-        rec.warnings)
+    recorded_settings = rec.metadata.get(interfaces.PREDICTION_SETTINGS_RECORD, {})
+    settings = settings_from_recording(recorded_settings, overrides, rec.warnings)
+    map_settings, antenna = map_from_recording(rec.metadata.get(interfaces.MAP_RECORD, {}),
+                                               rec.warnings)
+    nozzle = _NozzleWidth(nozzle_override, recorded_settings)
 
     designs = []         # (log ns, text, design, model) of each change
     undecodable = 0
@@ -114,7 +146,7 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
             continue
         try:
             design = json.loads(text)
-            model = planting_model_from_design(design)
+            model = planting_model_from_design(design, nozzle.width(design))
         except (ValueError, ConfigError) as exc:
             rec.warnings.append(f'design message at {log * 1e-9:.3f} s ignored: '
                                 f'{str(exc).splitlines()[0]}')
@@ -128,7 +160,8 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
             rec.warnings.append('the bag holds its own design: the scene given is not used')
         else:
             try:
-                model = planting_model_from_design(fallback_design)
+                model = planting_model_from_design(fallback_design,
+                                                   nozzle.width(fallback_design))
             except ConfigError as exc:
                 raise ReplayError(f'the scene given has no usable design: {exc}') from None
             designs.append((np.iinfo(np.int64).min, '', fallback_design, model))
@@ -150,6 +183,7 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
             rows = [implicit_row()]
     planting = [row for row in rows if row.enabled]
     offsets = [row.lateral_offset for row in planting]
+    breaks = _section_breaks(rec.topics.get(interfaces.DIAGNOSTICS), planting)
 
     speed = rec.topics[interfaces.GROUND_SPEED]
     joint = rec.topics[interfaces.JOINT_STATES]
@@ -161,7 +195,9 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
     j_log = j_log[j_order]
     s_stamp, s_v, s_w = decode_twist([speed.raw[i] for i in s_order])
     _count_undecodable(rec.warnings, interfaces.GROUND_SPEED.name, s_stamp, s_v)
-    parts = []
+    fixes_topic = rec.topics.get(interfaces.GNSS_FIX)
+    fixes = _fixes(fixes_topic)          # the map's dead reckoning needs the yaw rate
+    parts, motions = [], []
     segments = _mechanism_segments(designs)
     for k, (log, group) in enumerate(segments):
         end = segments[k + 1][0] if k + 1 < len(segments) else np.iinfo(np.int64).max
@@ -169,8 +205,13 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
         s_sel = (s_log > log) & (s_log <= end)
         j_idx = np.nonzero((j_log > log) & (j_log <= end))[0]
         st = np.where(s_stamp[s_sel] != 0, s_stamp[s_sel], s_log[s_sel]) * 1e-9
-        # each row's own speed: v − ω_z·y, filtered as the sync node and the monitor do
-        rt, rv = row_speed_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits)
+        # the machine's motion as the rows use it, and each row's own speed v − ω_z·y,
+        # filtered as the sync node and the monitor do
+        motion = motion_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits,
+                                yaw=True if fixes[0].size else None)
+        motions.append(motion)
+        rt, rv = row_speed_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits,
+                                   motion=motion)
         raws = [joint.raw[j_order[i]] for i in j_idx]
         # a change before the first joint sample is in force at once (nothing turned yet),
         # a later one from the next planting instant after its message, as the live monitor
@@ -185,27 +226,132 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
             jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
             # another mechanism starts a new sequence, numbered from 0 like the live monitor
             segment.append(predict_plants(rt, rv[r], jt, j_pos, j_vel, model, settings,
-                                          row=row.index, speed_filter=False, changes=changes))
+                                          row=row.index, speed_filter=False, changes=changes,
+                                          breaks=breaks.get(row.name, ())))
         segment = Plants.concatenate(segment)
         order = np.argsort(segment.time, kind='stable')
         parts.append(Plants.from_table(segment.table()[order]))
     plants = Plants.concatenate(parts)
-    last_model = designs[-1][3]
+    design_spacing = plants.spacing - plants.spacing_error     # each plant's design in force
+    offset_of = {row.index: row.lateral_offset for row in rows}
+    placement = place_plants(plants.time, [offset_of.get(int(r), 0.0) for r in plants.row],
+                             tuple(np.concatenate(c) for c in zip(*motions)), fixes,
+                             map_settings, antenna.antenna_position)
+    plants.latitude, plants.longitude = placement.latitude, placement.longitude
+    usable_fixes = int(np.count_nonzero(np.isfinite(fix_sigma(*fixes[1:],
+                                                              map_settings.max_fix_sigma))))
+    last_design, last_model = designs[-1][2], designs[-1][3]
     logs = np.concatenate((s_log, j_log))
-    recorded = np.zeros((0, len(PLANT_FIELDS)))
+    recorded, recorded_fields = np.zeros((0, len(PLANT_FIELDS))), ()
     if with_recorded and interfaces.PLANTS in rec.topics:
-        recorded = _recorded_plants(rec.topics[interfaces.PLANTS])
+        recorded, recorded_fields = _recorded_plants(rec.topics[interfaces.PLANTS])
+    if nozzle.fallback_used:
+        rec.warnings.append(nozzle.fallback_used)
     return ReplayResult(
-        path=str(path), design=designs[-1][2], settings=settings, plants=plants,
-        summary=summarize(plants, last_model.spacing), rows=rows,
-        row_summaries=[summarize(_of_row(plants, row.index), last_model.spacing)
-                       for row in rows],
+        path=str(path), design=last_design, settings=settings, plants=plants,
+        summary=summarize(plants, last_model.spacing, design_spacing), rows=rows,
+        row_summaries=[summarize(_of_row(plants, row.index), last_model.spacing,
+                                 design_spacing[plants.row == row.index]) for row in rows],
         duration=float((logs.max() - logs.min()) * 1e-9) if logs.size else 0.0,
         messages={interfaces.GROUND_SPEED.name: int(s_log.size),
                   interfaces.JOINT_STATES.name: int(j_log.size),
                   interfaces.DESIGN.name: len(design_topic.raw) if design_topic else 0,
+                  interfaces.GNSS_FIX.name: len(fixes_topic.raw) if fixes_topic else 0,
                   'total_read': rec.message_count},
-        warnings=rec.warnings, recorded_plants=recorded)
+        warnings=rec.warnings, recorded_plants=recorded, recorded_fields=recorded_fields,
+        placement=placement,
+        notes=prediction_notes(last_design, last_model), map_settings=map_settings,
+        antenna=antenna, nozzle_width=last_model.nozzle_width,
+        fixes=usable_fixes)
+
+
+class _NozzleWidth:
+    """Which nozzle width a design is predicted with: the override, else the design's own, else
+    (a bag recorded before the nozzle width was a scene value) the monitor's recorded setting,
+    else 0 m, with a warning."""
+
+    def __init__(self, override, recorded):
+        self.override = override
+        self.recorded = recorded.get('nozzle_width')
+        self.fallback_used = ''
+
+    def width(self, design):
+        if self.override is not None:
+            return self.override
+        if isinstance(design, dict) and design.get('nozzle_width') is not None:
+            return None                          # the design's own
+        try:
+            width = float(self.recorded)
+        except (TypeError, ValueError):
+            width = 0.0
+            self.fallback_used = ('the design gives no nozzle_width and the bag records none: '
+                                  'holes are the tip sweep alone (nozzle width 0 m); give '
+                                  '--nozzle-width M')
+        return width
+
+
+def map_from_recording(record, warnings=None):
+    """(MapSettings, AntennaSettings) of the monitor's map record (values as JSON text); the
+    defaults for a bag without it, or for a value it cannot use (with a warning)."""
+    values = {}
+    for key, text in record.items():
+        try:
+            values[key] = json.loads(text)
+        except (TypeError, ValueError):
+            if warnings is not None:
+                warnings.append(f'map record value {key} = {str(text)[:40]!r} is not JSON: '
+                                'default used')
+    out = []
+    for cls in (MapSettings, AntennaSettings):
+        try:
+            out.append(config.from_mapping(cls, values))
+        except ConfigError as exc:
+            if warnings is not None:
+                warnings.append(f'recorded map setting ignored, defaults used: {exc}')
+            out.append(cls())
+    return tuple(out)
+
+
+def map_record(map_settings, antenna):
+    """The bag metadata record (interfaces.MAP_RECORD) of the monitor's map: values as JSON."""
+    return {k: json.dumps(v) for k, v in {**config.as_dict(map_settings),
+                                          **config.as_dict(antenna)}.items()}
+
+
+def _fixes(topic):
+    """(t s, status, latitude, longitude, east and north variance, covariance type) of the
+    recorded fixes in log order, t = header stamp (receive time if 0)."""
+    if topic is None or not topic.raw:
+        return tuple(np.zeros(0) for _ in range(7))
+    log = np.asarray(topic.log, dtype=np.int64)
+    order = np.argsort(log, kind='stable')
+    stamp, *values = decode_navsatfix([topic.raw[i] for i in order])
+    t = np.where(stamp != 0, stamp, log[order]) * 1e-9
+    return (t, *values)
+
+
+def _section_breaks(topic, planting):
+    """{row name: [(start, end)]} when each row's section was off, from the sync node's
+    /diagnostics in the bag (control.sync_status.section_states)."""
+    if topic is None or not topic.raw:
+        return {}
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.serialization import deserialize_message
+    names = {row.name for row in planting}
+    reports = []
+    for log, raw in sorted(zip(topic.log, topic.raw), key=lambda x: x[0]):
+        if b'section' not in bytes(raw):       # not the sync node's: not decoded
+            continue
+        try:
+            msg = deserialize_message(bytes(raw), DiagnosticArray)
+        except Exception:            # rclpy raises its own errors for bytes that are not CDR
+            continue
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        states = {k: v for k, v in section_states(msg.status).items() if k in names}
+        if states:
+            reports.append(((stamp or log) * 1e-9, states))
+    reports.sort(key=lambda r: r[0])
+    return section_breaks(reports)
 
 
 def _mechanism_segments(designs):
@@ -234,11 +380,13 @@ def _of_row(plants, index):
 
 
 def _recorded_plants(topic):
-    """The live monitor's plants in PLANT_FIELDS order, by the labels of each message (a field
-    the recording lacks is NaN; `row` is 0 in a recording made before rows existed)."""
+    """(table, fields): the live monitor's plants in PLANT_FIELDS order, by the labels of each
+    message (a field the recording lacks is NaN, e.g. tip_sweep and the map position in a
+    recording made before them; `row` is 0 in a recording made before rows existed), and the
+    fields it has."""
     from rclpy.serialization import deserialize_message
     from std_msgs.msg import Float64MultiArray
-    tables = []
+    tables, seen = [], set()
     for _, raw in sorted(zip(topic.log, topic.raw), key=lambda x: x[0]):
         try:
             msg = deserialize_message(bytes(raw), Float64MultiArray)
@@ -252,8 +400,11 @@ def _recorded_plants(topic):
         table = np.full((data.shape[0], len(PLANT_FIELDS)), np.nan)
         if 'row' not in labels:
             table[:, PLANT_FIELDS.index('row')] = 0.0
+            seen.add('row')
         for i, label in enumerate(labels[:width]):
             if label in PLANT_FIELDS:
                 table[:, PLANT_FIELDS.index(label)] = data[:, i]
+                seen.add(label)
         tables.append(table)
-    return np.vstack(tables) if tables else np.zeros((0, len(PLANT_FIELDS)))
+    fields = tuple(f for f in PLANT_FIELDS if f in seen)
+    return (np.vstack(tables) if tables else np.zeros((0, len(PLANT_FIELDS)))), fields

@@ -121,10 +121,12 @@ class RowSpeedStream:
     same through `row_speed_samples`). Samples with a non-finite time or speed, or a time not
     after the last such sample, are dropped before the filter (the prediction model's rule)."""
 
-    def __init__(self, offsets, limits=None, yaw_limits=None):
+    def __init__(self, offsets, limits=None, yaw_limits=None, yaw=None):
+        """`yaw`: look at the yaw rate; default only if a row is off the centre line (rows at
+        y = 0 do not turn with it); the as-planted map needs it always."""
         self.offsets = np.asarray(offsets, dtype=float)
         self.filter = MotionFilter(limits, yaw_limits)
-        self._yaw = bool(np.any(self.offsets))     # rows at y = 0 do not turn with the yaw
+        self._yaw = bool(np.any(self.offsets)) if yaw is None else bool(yaw)
         self._seen = -math.inf
 
     def motion(self, t, v, w):
@@ -141,8 +143,11 @@ class RowSpeedStream:
         sample = self.motion(t, v, w)
         if sample is None:
             return None
-        t, v, yaw_rate = sample
-        return t, _row_speeds(np.float64(v), np.float64(yaw_rate), self.offsets)
+        return sample[0], self.speeds(sample[1], sample[2])
+
+    def speeds(self, v, yaw_rate):
+        """Each row's speed (array) for the machine's motion (v, ω_z) from `motion`."""
+        return _row_speeds(np.float64(v), np.float64(yaw_rate), self.offsets)
 
 
 def _row_speeds(v, yaw_rate, offsets):
@@ -151,16 +156,27 @@ def _row_speeds(v, yaw_rate, offsets):
     return np.where(v > 0.0, np.maximum(v - yaw_rate * offsets, 0.0), 0.0)
 
 
-def row_speed_samples(t, v, w, offsets, limits=None, yaw_limits=None):
-    """Each row's speed over a whole recording: (times (n,), speeds (rows, n)) of the samples
-    the rows use, in order. `w` may be None (no yaw rate recorded: straight)."""
+def motion_samples(t, v, w, offsets, limits=None, yaw_limits=None, yaw=None):
+    """The machine's motion over a whole recording as the rows use it: (times, v, ω_z), each
+    (n,), of the samples `RowSpeedStream.motion` keeps, in order. `w` may be None (no yaw rate
+    recorded: straight); `yaw` as for RowSpeedStream."""
     t = np.asarray(t, dtype=float)
     v = np.asarray(v, dtype=float)
     w = np.zeros_like(v) if w is None else np.asarray(w, dtype=float)
-    stream = RowSpeedStream(offsets, limits, yaw_limits)
+    stream = RowSpeedStream(offsets, limits, yaw_limits, yaw)
     kept = [sample for sample in map(stream.motion, t.tolist(), v.tolist(), w.tolist())
             if sample is not None]
     if not kept:
-        return np.zeros(0), np.zeros((len(stream.offsets), 0))
-    kept_t, kept_v, kept_w = (np.asarray(c) for c in zip(*kept))
-    return kept_t, _row_speeds(kept_v, kept_w, stream.offsets[:, None])
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    return tuple(np.asarray(c) for c in zip(*kept))
+
+
+def row_speed_samples(t, v, w, offsets, limits=None, yaw_limits=None, motion=None):
+    """Each row's speed over a whole recording: (times (n,), speeds (rows, n)) of the samples
+    the rows use, in order. `w` may be None (no yaw rate recorded: straight); `motion`: the
+    samples' `motion_samples`, if already known."""
+    kept_t, kept_v, kept_w = motion or motion_samples(t, v, w, offsets, limits, yaw_limits)
+    offsets = np.asarray(offsets, dtype=float)
+    if not kept_t.size:
+        return np.zeros(0), np.zeros((len(offsets), 0))
+    return kept_t, _row_speeds(kept_v, kept_w, offsets[:, None])

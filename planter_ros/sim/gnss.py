@@ -8,6 +8,7 @@ reports that σ² in its covariance (type diagonal known), like an RTK receiver 
 """
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -47,8 +48,14 @@ def fix_positions(profile, times, gnss, antenna=(0.0, 0.0), rng=None):
     if rng is not None and gnss.noise > 0:
         east = east + rng.normal(0.0, gnss.noise, east.shape)
         north = north + rng.normal(0.0, gnss.noise, north.shape)
-    lon, lat = LocalFrame(gnss.origin_latitude, gnss.origin_longitude).to_lonlat(east, north)
+    lon, lat = _frame(gnss.origin_latitude, gnss.origin_longitude).to_lonlat(east, north)
     return lat, lon, np.full(times.shape, gnss.origin_altitude)
+
+
+@lru_cache(maxsize=8)
+def _frame(latitude, longitude):
+    """The field's local frame, made once per origin (the demo asks at every fix)."""
+    return LocalFrame(latitude, longitude)
 
 
 def navsatfix(stamp, latitude, longitude, altitude, noise, frame_id='gnss'):

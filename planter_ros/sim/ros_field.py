@@ -74,6 +74,8 @@ class GnssSource(Node):
         self._rng = np.random.default_rng(seed + 1)
         self._pub = interfaces.GNSS_FIX.publisher(self)
         self.fixes = 0
+        # the projection now, not in the first tick (pyproj's import would stall the executor)
+        fix_positions(profile, np.zeros(1), gnss, self.antenna)
         self.create_timer(1.0 / gnss.rate, self._tick)
 
     def _tick(self):

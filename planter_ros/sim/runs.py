@@ -64,12 +64,13 @@ def _ns(seconds):
 
 
 def five_bar_design_message(depth=0.045, spacing=0.2, hole_ratio=0.05, method='exact',
-                            ground_speed=0.2):
+                            ground_speed=0.2, nozzle_width=0.04):
     """The design topic's dict for a five-bar scene (tomato defaults), as design_node makes it."""
     from planter_ros.kinematics.scene_design import design_for_scene
     return design_for_scene({'mechanism': 'five_bar', 'planting_depth': depth,
                              'plant_spacing': spacing, 'hole_ratio': hole_ratio,
-                             'design_method': method, 'nominal_ground_speed': ground_speed})
+                             'design_method': method, 'nominal_ground_speed': ground_speed,
+                             'nozzle_width': nozzle_width})
 
 
 def simulate_run(design, duration=30.0, cruise=0.2, speed_rate=20.0, joint_rate=100.0,

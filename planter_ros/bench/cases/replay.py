@@ -97,8 +97,10 @@ def _garbage_rows(ctx, tmp):
 
 def _live_error(result, path):
     """Max |replayed − recorded live prediction| over the plant table (NaN must match NaN)."""
-    replayed = result.plants.table()
-    live = result.recorded_plants
+    # the fields this recording has (one made before tip_sweep and the map has fewer)
+    columns = result.recorded_columns()
+    replayed = result.plants.table()[:, columns]
+    live = result.recorded_plants[:, columns]
     if live.shape != replayed.shape:
         raise RuntimeError(f'{path.name}: replay found {replayed.shape[0]} plants, the live '
                            f'monitor recorded {live.shape[0]}')

@@ -1,0 +1,79 @@
+"""The as-planted map of a replay as files: GeoJSON (RFC 7946) and CSV, one plant per feature or
+line, SI units and WGS 84 degrees. Pure Python: no ROS.
+
+GeoJSON: a FeatureCollection of Point features, coordinates [longitude, latitude] (RFC 7946's
+order, WGS 84), with COORDINATE_DECIMALS decimals (1e-9 degrees is about 0.1 mm: the 6 decimals
+RFC 7946 suggests are 0.1 m, half a plant spacing); a plant without a map position (no GNSS) is
+a Feature whose geometry is null, as RFC 7946 allows for unlocated features. Properties: row
+(index), row_name, index, time (s, the recording's clock), spacing, spacing_error, hole_width (m),
+tilt (rad, + leaning forward), upright (true/false); an undefined value is null.
+CSV: the same table, a header line, empty cells for undefined values, upright as 1/0.
+"""
+
+import csv
+import io
+import json
+import math
+
+COORDINATE_DECIMALS = 9
+PROPERTIES = ('row', 'row_name', 'index', 'time', 'spacing', 'spacing_error', 'hole_width',
+              'tilt', 'upright')
+CSV_COLUMNS = ('row', 'row_name', 'index', 'time', 'longitude', 'latitude', 'spacing',
+               'spacing_error', 'hole_width', 'tilt', 'upright')
+
+
+def _number(value):
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def plant_records(result):
+    """One dict per plant of a ReplayResult: the CSV columns, None for undefined values."""
+    p = result.plants
+    names = {row.index: row.name for row in result.rows}
+    out = []
+    for i in range(len(p)):
+        row = int(p.row[i])
+        out.append({'row': row, 'row_name': names.get(row, ''), 'index': int(p.index[i]),
+                    'time': _number(p.time[i]), 'longitude': _number(p.longitude[i]),
+                    'latitude': _number(p.latitude[i]), 'spacing': _number(p.spacing[i]),
+                    'spacing_error': _number(p.spacing_error[i]),
+                    'hole_width': _number(p.hole_width[i]), 'tilt': _number(p.tilt[i]),
+                    'upright': bool(p.upright[i])})
+    return out
+
+
+def geojson(result):
+    """The RFC 7946 FeatureCollection (a dict) of a ReplayResult's plants."""
+    features = []
+    for record in plant_records(result):
+        lon, lat = record['longitude'], record['latitude']
+        geometry = None if lon is None or lat is None else {
+            'type': 'Point',
+            'coordinates': [round(lon, COORDINATE_DECIMALS), round(lat, COORDINATE_DECIMALS)]}
+        features.append({'type': 'Feature', 'geometry': geometry,
+                         'properties': {k: record[k] for k in PROPERTIES}})
+    return {'type': 'FeatureCollection', 'features': features}
+
+
+def geojson_text(result):
+    return json.dumps(geojson(result), allow_nan=False, separators=(',', ':')) + '\n'
+
+
+def csv_text(result):
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator='\n')
+    writer.writerow(CSV_COLUMNS)
+    for record in plant_records(result):
+        cells = []
+        for column in CSV_COLUMNS:
+            value = record[column]
+            if column == 'upright':
+                value = int(value)
+            elif column in ('longitude', 'latitude') and value is not None:
+                value = f'{value:.{COORDINATE_DECIMALS}f}'
+            elif isinstance(value, float):
+                value = repr(value)
+            cells.append('' if value is None else value)
+        writer.writerow(cells)
+    return out.getvalue()

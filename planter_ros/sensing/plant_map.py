@@ -1,0 +1,391 @@
+"""The as-planted map: each plant on the earth (WGS 84) from GNSS fixes and the machine's motion.
+
+Interpolating the fixes alone is not enough: an RTK fix scatters by about 2 cm per axis, 10 % of
+a 0.2 m plant spacing, so two neighbours would be misplaced against each other by that much.
+The machine's own motion (ground speed and yaw rate, dead-reckoned) is precise from one plant to
+the next but drifts over a field. So each plant is placed on the dead-reckoned path, and the
+fixes hold that path on the earth:
+
+* Dead reckoning: the machine's reference point (x, y) and heading ψ, integrated (trapezoid)
+  from the motion samples the rows use (sensing.row_speed: the speed accepted, the yaw rate
+  accepted or held); the heading turns only while the machine moves forward.
+* Fixes: a fix is usable when it has a position (status at least STATUS_FIX, finite latitude
+  and longitude) and, when its covariance is known, a horizontal σ of at most `max_fix_sigma`.
+  Usable fixes go into a local east/north frame (geo.LocalFrame, anchored at the first usable
+  fix), each paired with where the dead-reckoned antenna (the scene's `antenna_position` on the
+  machine) was at that instant.
+* At each usable fix: the rotation φ and translation T that best map the dead-reckoned antenna
+  onto the usable fixes of the last `track_length` metres of path (and at most `fix_window`
+  seconds; least squares, weights 1/σ²). Once those fixes span half the track length the
+  rotation is the heading from the track; where they span less (standing, creeping) the last
+  rotation is kept and the heading follows the yaw rate between fixes.
+* A plant at t is placed with the transform of the last usable fix at or before t, at most
+  `max_fix_age` before it: east/north = R(φ)·p + T, p its row's nozzle on the dead-reckoned
+  machine (the row's lateral offset to the left of the reference point, on the line of the
+  planting points). If that fix came before the track gave any heading (the first metres of a
+  run), the first fix with a heading places it, if it comes within `fix_window`. Otherwise the
+  plant has no map position (NaN).
+
+Which fixes place a plant depends on their stamps only, so the live monitor (`PlantPlacer`,
+which holds a plant until a fix stamped after it has arrived, or the first heading) and replay
+(`place_plants`) place every plant alike. Pure numpy, and pyproj through planter_ros.geo: no ROS.
+"""
+
+from bisect import bisect_right
+from collections import deque
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from planter_ros.config import check, setting
+from planter_ros.geo import LocalFrame, on_machine
+
+STATUS_FIX = 0                    # sensor_msgs/NavSatStatus: NO_FIX = -1, FIX = 0, SBAS, GBAS
+COVARIANCE_TYPE_UNKNOWN = 0       # sensor_msgs/NavSatFix.position_covariance_type
+MIN_SIGMA = 1e-3                  # m: a reported σ below this weighs like 1 mm
+
+
+@dataclass(frozen=True)
+class MapSettings:
+    """How the monitor places plants on the earth (parameters of the monitor, recorded in its
+    bags with the prediction settings and read back by replay)."""
+
+    track_length: float = setting(3.0, 'each fix holds the dead-reckoned path on the earth with '
+                                  'the fixes of this much path before it; they give a heading '
+                                  'once they span half of it', unit='m', range=(0.2, 1000.0))
+    fix_window: float = setting(60.0, 'and with fixes of at most this long before it (standing '
+                                'still, the heading is then kept and turned with the yaw rate)',
+                                unit='s', range=(1.0, 3600.0))
+    max_fix_sigma: float = setting(0.5, 'a fix whose covariance reports a larger horizontal '
+                                   'standard deviation is not used; a fix of unknown '
+                                   'covariance is used and weighted as this', unit='m',
+                                   range=(0.001, 100.0))
+    max_fix_age: float = setting(2.0, 'a plant more than this after the last usable fix has no '
+                                 'map position', unit='s', range=(0.05, 600.0))
+
+    def __post_init__(self):
+        check(self)
+
+
+def fix_sigma(status, latitude, longitude, cov_east, cov_north, cov_type, max_sigma):
+    """Horizontal σ (m) of each fix (arrays), NaN where the fix is not usable: no position
+    (status below STATUS_FIX or NaN, latitude or longitude not finite or out of range) or a
+    known covariance with σ above `max_sigma`. Unknown covariance: `max_sigma`."""
+    status, lat, lon, ce, cn, kind = (np.asarray(a, dtype=float) for a in (
+        status, latitude, longitude, cov_east, cov_north, cov_type))
+    with np.errstate(invalid='ignore'):
+        usable = ((status >= STATUS_FIX) & np.isfinite(lat) & np.isfinite(lon)
+                  & (np.abs(lat) <= 90.0) & (np.abs(lon) <= 180.0))
+        sigma = np.where(kind == COVARIANCE_TYPE_UNKNOWN, max_sigma,
+                         np.sqrt(0.5 * (ce + cn)))
+        usable &= np.isfinite(sigma) & (sigma <= max_sigma)
+    return np.where(usable, np.maximum(sigma, MIN_SIGMA), np.nan)
+
+
+# ----------------------------------------------------------------------------- dead reckoning
+
+def dead_reckoning(t, v, w):
+    """The machine's reference point (x, y, m) and heading ψ (rad) at the motion samples
+    (t s increasing, v m/s, ω_z rad/s), from (0, 0, 0) at the first: trapezoid integration,
+    the heading turning only while v > 0. The same arithmetic as `DeadReckoning`."""
+    t, v, w = (np.asarray(a, dtype=float) for a in (t, v, w))
+    if not t.size:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    dt = np.diff(t)
+    turn = np.where(v > 0.0, w, 0.0)
+    psi = np.concatenate(([0.0], np.cumsum(0.5 * (turn[:-1] + turn[1:]) * dt)))
+    vx, vy = v * np.cos(psi), v * np.sin(psi)
+    x = np.concatenate(([0.0], np.cumsum(0.5 * (vx[:-1] + vx[1:]) * dt)))
+    y = np.concatenate(([0.0], np.cumsum(0.5 * (vy[:-1] + vy[1:]) * dt)))
+    return x, y, psi
+
+
+class DeadReckoning:
+    """`dead_reckoning` one sample at a time, keeping the last `keep` seconds."""
+
+    def __init__(self, keep):
+        self.keep = keep
+        self.t, self.x, self.y, self.psi = [], [], [], []
+        self._last = None                  # (v cos ψ, v sin ψ, turn rate) of the last sample
+
+    def add(self, t, v, w):
+        t, v = float(t), float(v)
+        turn = float(w) if v > 0.0 else 0.0
+        if not self.t:
+            x = y = psi = 0.0
+        else:
+            if not t > self.t[-1]:
+                return
+            dt = t - self.t[-1]
+            vx0, vy0, turn0 = self._last
+            psi = self.psi[-1] + 0.5 * (turn0 + turn) * dt
+        vx, vy = (v * np.cos(np.float64(psi)), v * np.sin(np.float64(psi)))
+        if self.t:
+            x = self.x[-1] + 0.5 * (vx0 + vx) * dt
+            y = self.y[-1] + 0.5 * (vy0 + vy) * dt
+        for series, value in ((self.t, t), (self.x, x), (self.y, y), (self.psi, psi)):
+            series.append(float(value))
+        self._last = (float(vx), float(vy), turn)
+        if self.t[0] < t - 2.0 * self.keep and len(self.t) > 2:
+            cut = bisect_right(self.t, t - self.keep) - 1
+            if cut > 0:
+                for series in (self.t, self.x, self.y, self.psi):
+                    del series[:cut]
+
+    def covers(self, t):
+        return bool(self.t) and self.t[0] <= t <= self.t[-1]
+
+    def pose(self, t):
+        return _pose(np.asarray(self.t), np.asarray(self.x), np.asarray(self.y),
+                     np.asarray(self.psi), t)
+
+
+def _pose(t_dr, x, y, psi, t):
+    """(x, y, ψ) interpolated at times t (inside the samples' span)."""
+    return np.interp(t, t_dr, x), np.interp(t, t_dr, y), np.interp(t, t_dr, psi)
+
+
+# ----------------------------------------------------------------------------- the track
+
+class FixTrack:
+    """Usable fixes in order, each giving the transform dead-reckoned path -> local east/north
+    (see the module doc). `add` takes a fix whose instant the dead reckoning covers."""
+
+    def __init__(self, settings, antenna, keep_all=False):
+        """`keep_all`: keep every fix's transform (replay places plants after all fixes);
+        otherwise those too old to place a plant still to come are dropped."""
+        self.settings = settings
+        self.keep_all = keep_all
+        self.antenna = (float(antenna[0]), float(antenna[1]))
+        self.frame = None
+        # (t, antenna x, y dead-reckoned, east, north, weight, antenna path length)
+        self._window = deque()
+        self._phi = None
+        self.times = []               # each usable fix's instant, with its transform:
+        self.transforms = []          # (φ, Tx, Ty), or None before a heading is known
+        self.first_heading = None     # (instant, transform) of the first fix with a heading
+        self.fixes = 0                # usable fixes taken
+
+    def anchor(self, latitude, longitude):
+        if self.frame is None:
+            self.frame = LocalFrame(latitude, longitude)
+
+    def add(self, t, latitude, longitude, sigma, pose):
+        """A usable fix at t (s) with its σ (m) and the dead-reckoned pose (x, y, ψ) at t."""
+        settings = self.settings
+        self.anchor(latitude, longitude)
+        east, north = self.frame.to_east_north(longitude, latitude)
+        ax, ay = on_machine(pose[0], pose[1], pose[2], *self.antenna)
+        ax, ay = float(ax), float(ay)
+        path = 0.0
+        if self._window:
+            last = self._window[-1]
+            path = last[6] + math.hypot(ax - last[1], ay - last[2])
+        self._window.append((float(t), ax, ay, float(east), float(north),
+                             1.0 / float(sigma) ** 2, path))
+        while len(self._window) > 1 and (
+                self._window[1][6] <= path - settings.track_length
+                or self._window[0][0] < t - settings.fix_window):
+            self._window.popleft()
+        self.fixes += 1
+        transform = self._fit(np.array(self._window)[:, :6])
+        self.times.append(float(t))
+        self.transforms.append(transform)
+        if transform is not None and self.first_heading is None:
+            self.first_heading = (float(t), transform)
+        horizon = t - settings.fix_window - 2.0 * settings.max_fix_age - 1.0
+        if not self.keep_all and len(self.times) > 2 and self.times[1] < horizon:
+            cut = bisect_right(self.times, horizon) - 1
+            del self.times[:cut], self.transforms[:cut]
+
+    def _fit(self, window):
+        """(φ, Tx, Ty) mapping the window's dead-reckoned antenna onto its fixes."""
+        a, b, weight = window[:, 1:3], window[:, 3:5], window[:, 5]
+        total = weight.sum()
+        a_mean = weight @ a / total
+        b_mean = weight @ b / total
+        da, db = a - a_mean, b - b_mean
+        # the path's extent as the length of a straight stretch of the same spread
+        extent = math.sqrt(12.0 * float(weight @ np.sum(da * da, axis=1)) / total)
+        if extent >= 0.5 * self.settings.track_length:
+            cross = float(weight @ (da[:, 0] * db[:, 1] - da[:, 1] * db[:, 0]))
+            dot = float(weight @ np.sum(da * db, axis=1))
+            self._phi = math.atan2(cross, dot)
+        if self._phi is None:
+            return None
+        c, s = math.cos(self._phi), math.sin(self._phi)
+        return (self._phi, float(b_mean[0] - (c * a_mean[0] - s * a_mean[1])),
+                float(b_mean[1] - (s * a_mean[0] + c * a_mean[1])))
+
+    def transform_for(self, t):
+        """The transform that places a plant at t: that of the last usable fix at or before
+        t, at most max_fix_age before it; if that fix came before any heading, the first fix
+        with a heading, at most fix_window after t. None: no map position."""
+        k = bisect_right(self.times, t) - 1
+        if k < 0 or t - self.times[k] > self.settings.max_fix_age:
+            return None
+        if self.transforms[k] is not None:
+            return self.transforms[k]
+        first = self.first_heading
+        if first is not None and first[0] - t <= self.settings.fix_window:
+            return first[1]
+        return None
+
+    def decided(self, t, fix_seen, motion_seen):
+        """Are all the fixes that could place a plant at t in (live: fixes arrive in order)?"""
+        age, window = self.settings.max_fix_age, self.settings.fix_window
+        if not (fix_seen > t or motion_seen > t + age or fix_seen < t - age):
+            return False
+        k = bisect_right(self.times, t) - 1
+        if k < 0 or t - self.times[k] > age or self.transforms[k] is not None:
+            return True
+        # before the first heading: wait for it, as long as it may still place this plant
+        return (self.first_heading is not None or self.times[-1] > t + window
+                or motion_seen > t + window + age)
+
+    def place(self, t, lateral_offset, pose):
+        """(east, north, heading) in the local frame of plants at times t (array) on rows at
+        `lateral_offset` (array), the machine's dead-reckoned pose at t given; NaN where no
+        transform applies."""
+        t = np.asarray(t, dtype=float)
+        out = np.full((3, t.size), np.nan)
+        for i, ti in enumerate(t.tolist()):
+            transform = self.transform_for(ti) if self.times else None
+            if transform is None or not math.isfinite(pose[0][i]):
+                continue
+            phi, tx, ty = transform
+            px, py = on_machine(pose[0][i], pose[1][i], pose[2][i], 0.0, lateral_offset[i])
+            c, s = math.cos(phi), math.sin(phi)
+            out[:, i] = (c * px - s * py + tx, s * px + c * py + ty, pose[2][i] + phi)
+        return out
+
+
+@dataclass
+class Placement:
+    """Where plants are: local east/north (m) and heading (rad, counter-clockwise from east) in
+    the map's frame (origin: the first usable fix), latitude/longitude (deg WGS 84); NaN where
+    a plant has no map position."""
+
+    east: np.ndarray
+    north: np.ndarray
+    heading: np.ndarray
+    latitude: np.ndarray
+    longitude: np.ndarray
+    origin: tuple | None          # (latitude, longitude) of the local frame, None without fixes
+
+
+def _placement(track, t, offsets, pose):
+    east, north, heading = track.place(t, offsets, pose)
+    lat = np.full(east.shape, np.nan)
+    lon = np.full(east.shape, np.nan)
+    ok = np.isfinite(east)
+    if ok.any():
+        lon[ok], lat[ok] = track.frame.to_lonlat(east[ok], north[ok])
+    origin = None if track.frame is None else (track.frame.latitude, track.frame.longitude)
+    return Placement(east, north, heading, lat, lon, origin)
+
+
+def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna):
+    """Replay's map: where each plant is (Placement), from all the recording's motion samples
+    `motion` = (t, v, ω_z) as the rows used them and `fixes` = (t, status, latitude, longitude,
+    east variance, north variance, covariance type) in arrival order, stamps in s."""
+    plant_t = np.asarray(plant_t, dtype=float)
+    track = FixTrack(settings, antenna, keep_all=True)
+    mt, mv, mw = (np.asarray(a, dtype=float) for a in motion)
+    x, y, psi = dead_reckoning(mt, mv, mw)
+    ft, status, lat, lon, ce, cn, kind = (np.asarray(a, dtype=float) for a in fixes)
+    sigma = fix_sigma(status, lat, lon, ce, cn, kind, settings.max_fix_sigma)
+    seen = -math.inf
+    for i in range(ft.size):
+        if not (math.isfinite(ft[i]) and ft[i] > seen):
+            continue                       # out of order or repeated: dropped, as live
+        seen = ft[i]
+        if not math.isfinite(sigma[i]):
+            continue
+        track.anchor(lat[i], lon[i])
+        if mt.size and mt[0] <= ft[i] <= mt[-1]:
+            track.add(ft[i], lat[i], lon[i], sigma[i], _pose(mt, x, y, psi, ft[i]))
+    return _placement(track, plant_t, np.asarray(plant_offset, dtype=float),
+                      _pose_inside(mt, x, y, psi, plant_t))
+
+
+def _pose_inside(t_dr, x, y, psi, t):
+    """The pose at times t, NaN outside the dead reckoning's span."""
+    t = np.asarray(t, dtype=float)
+    if not np.size(t_dr):
+        return (t * np.nan,) * 3
+    inside = (t >= t_dr[0]) & (t <= t_dr[-1])
+    return tuple(np.where(inside, p, np.nan) for p in _pose(t_dr, x, y, psi, t))
+
+
+class PlantPlacer:
+    """The live monitor's map: motion samples, fixes and plants in as they arrive; plants out,
+    placed, once the fixes that place them are in (see the module doc). Every `add_*` returns
+    the plants released by that input as a list of (plants, Placement), in the order the
+    plants came in."""
+
+    def __init__(self, settings, antenna, lateral_offsets):
+        import pyproj  # noqa: F401  (loaded now, not in the callback of the first fix)
+        self.settings = settings
+        self.offsets = dict(lateral_offsets)          # row index -> lateral offset (m)
+        self.track = FixTrack(settings, antenna)
+        self.dr = DeadReckoning(keep=settings.fix_window + settings.max_fix_age + 5.0)
+        self._fixes = deque()                         # usable fixes waiting for the motion
+        self._fix_seen = -math.inf                    # newest fix stamp received (any status)
+        self._motion_seen = -math.inf
+        self._pending = deque()                       # Plants not released yet
+
+    def add_motion(self, t, v, w):
+        self.dr.add(t, v, w)
+        self._motion_seen = max(self._motion_seen, float(t))
+        self._take_fixes()
+        return self._release()
+
+    def add_fix(self, t, status, latitude, longitude, cov_east, cov_north, cov_type):
+        t = float(t)
+        if not (math.isfinite(t) and t > self._fix_seen):
+            return self._release()
+        self._fix_seen = t
+        sigma = float(fix_sigma(status, latitude, longitude, cov_east, cov_north, cov_type,
+                                self.settings.max_fix_sigma))
+        if math.isfinite(sigma):
+            self.track.anchor(latitude, longitude)
+            self._fixes.append((t, float(latitude), float(longitude), sigma))
+            self._take_fixes()
+        return self._release()
+
+    def add_plants(self, plants):
+        if len(plants):
+            self._pending.append(plants)
+        return self._release()
+
+    def flush(self):
+        """Release every plant held, placed with the fixes there are (the monitor's end)."""
+        return self._release(everything=True)
+
+    def _take_fixes(self):
+        while self._fixes and self.dr.t:
+            t = self._fixes[0][0]
+            if t < self.dr.t[0]:
+                self._fixes.popleft()               # before the motion began: never placed
+            elif t <= self.dr.t[-1]:
+                _, lat, lon, sigma = self._fixes.popleft()
+                self.track.add(t, lat, lon, sigma, self.dr.pose(t))
+            else:
+                break
+
+    def _release(self, everything=False):
+        out = []
+        while self._pending and (everything or all(
+                self.track.decided(t, self._fix_seen, self._motion_seen)
+                for t in self._pending[0].time.tolist())):
+            plants = self._pending.popleft()
+            offsets = np.array([self.offsets.get(int(r), 0.0) for r in plants.row])
+            pose = _pose_inside(np.asarray(self.dr.t), np.asarray(self.dr.x),
+                                np.asarray(self.dr.y), np.asarray(self.dr.psi), plants.time)
+            placement = _placement(self.track, plants.time, offsets, pose)
+            plants.latitude = placement.latitude
+            plants.longitude = placement.longitude
+            out.append((plants, placement))
+        return out
