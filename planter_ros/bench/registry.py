@@ -29,6 +29,7 @@ CASE_MODULES = (
     'planter_ros.bench.cases.three_arm',
     'planter_ros.bench.cases.sync',
     'planter_ros.bench.cases.replay',
+    'planter_ros.bench.cases.analyze',
     'planter_ros.bench.cases.cdr',
     'planter_ros.bench.cases.drive',
     'planter_ros.bench.cases.footprint',
