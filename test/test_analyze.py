@@ -25,9 +25,9 @@ from planter_ros.sim.season import draw_plan, simulate_bag, simulate_plan, write
 
 # columns of the bags table that are the analysis's own, not replay's JSON
 OWN = ('status', 'reason', 'file_size', 'file_mtime_ns', 'model_version', 'options',
-       'analysed_at', 'analysis_seconds', 'plants_file')
+       'analysed_at', 'analysis_seconds', 'analysis_cpu_seconds', 'plants_file')
 # what differs between two runs of the same analysis
-WHEN = ('analysed_at', 'analysis_seconds', 'plants_file')
+WHEN = ('analysed_at', 'analysis_seconds', 'analysis_cpu_seconds', 'plants_file')
 
 
 @pytest.fixture(scope='module')

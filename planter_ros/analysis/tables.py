@@ -6,11 +6,11 @@
   (a non-finite value, e.g. the first plant's spacing).
 * `bags`: one row per bag: `bag`, `status` (ok | warnings | failed | error), `reason` (one
   line, null unless failed or error), the re-run key (`file_size`, `file_mtime_ns`,
-  `model_version`, `options`), `analysed_at`, `analysis_seconds`, `plants_file` (the part of
-  the plants dataset holding the bag's rows), then the replay JSON without its plants,
-  flattened: nested objects become dotted columns (`summary.spacing_error_mean`,
-  `settings.window`, `design.l1`, `messages.joint_states`), lists stay lists (`warnings`,
-  `rows` = each row's record and summary).
+  `model_version`, `options`), `analysed_at`, `analysis_seconds`, `analysis_cpu_seconds`,
+  `plants_file` (the part of the plants dataset holding the bag's rows), then the replay JSON
+  without its plants, flattened: nested objects become dotted columns
+  (`summary.spacing_error_mean`, `settings.window`, `design.l1`, `messages.joint_states`),
+  lists stay lists (`warnings`, `rows` = each row's record and summary).
 
 Column types: numbers are float64 (int64 when every value is an integer), booleans bool, text
 string, a column of nulls only float64, anything else as pyarrow infers it. Units (SI; '1' =
@@ -35,7 +35,8 @@ UNITS = {
     'latitude': 'deg (WGS 84)', 'longitude': 'deg (WGS 84)', 'altitude': 'm',
     # bags
     'plants': '1', 'design_spacing': 'm', 'duration': 's', 'file_size': 'B',
-    'file_mtime_ns': 'ns since the epoch', 'analysis_seconds': 's', 'lateral_offset': 'm',
+    'file_mtime_ns': 'ns since the epoch', 'analysis_seconds': 's',
+    'analysis_cpu_seconds': 's', 'lateral_offset': 'm',
     'analysed_at': 's since the epoch', 'plant_spacing': 'm', 'planting_depth': 'm',
     'nominal_ground_speed': 'm/s',
 }

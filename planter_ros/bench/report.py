@@ -165,7 +165,8 @@ METHOD_NOTES = (
     'sample bags, whose error is against the live monitor\'s recorded predictions.',
     'Season analysis: `planter analyze` of a season `planter simulate` wrote (one-minute '
     'runs of a 4-row machine, copied to 200 bags), on a local Dask cluster of 1 and 2 worker '
-    'processes; the cluster start is timed apart.',
+    'processes; the cluster start is timed apart; the targets are judged on each worker '
+    'count\'s fastest of 3 runs (the least disturbed by other load), the median is in the note.',
     'CAN drive: master and simulated drive in one process on a python-can virtual bus.',
     'Footprint: each run in a fresh interpreter; peak RSS is the child\'s own VmHWM; a five-bar '
     'design must load no scipy, matplotlib, rclpy or other mechanism.',
