@@ -30,6 +30,7 @@ CASE_MODULES = (
     'planter_ros.bench.cases.sync',
     'planter_ros.bench.cases.control_loop',
     'planter_ros.bench.cases.replay',
+    'planter_ros.bench.cases.analyze',
     'planter_ros.bench.cases.cdr',
     'planter_ros.bench.cases.drive',
     'planter_ros.bench.cases.footprint',

@@ -133,6 +133,7 @@ class Demo:
 
     def __init__(self, scene, design, rows, args, out=None, install_signals=True,
                  log_level='info', antenna=None):
+        from planter_ros.geo import AntennaSettings
         self.scene, self.design, self.rows, self.args = scene, design, rows, args
         self.antenna = antenna or AntennaSettings()
         self.planting = [row for row in rows if row.enabled]

@@ -20,6 +20,10 @@ COMMANDS = {
                                 'search a three-arm design meeting all eight goals'),
     ('demo',): ('planter_ros.cli.demo', 'run the whole machine on a simulated CAN bus'),
     ('replay',): ('planter_ros.cli.replay', 're-run the monitor\'s model on a recorded bag'),
+    ('analyze',): ('planter_ros.cli.analyze',
+                   'replay a season of bags on Dask into Parquet tables'),
+    ('simulate',): ('planter_ros.cli.simulate',
+                    'write a season of realistic simulated bags, fast'),
 }
 
 EXIT_BAD_INPUT = 2

@@ -84,3 +84,26 @@ def require_finite(result, what):
                            'result is a finite design')
     walk(result, what)
     return result
+
+
+def add_engine_arguments(parser):
+    """--workers N | --scheduler ADDRESS: where `planter analyze` and `planter simulate` run
+    (planter_ros.analysis.engine)."""
+    from planter_ros.analysis.engine import EngineSettings
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument('--workers', metavar='N',
+                       type=spec_option(EngineSettings, 'workers', '--workers'),
+                       help='worker processes of the local cluster, 1..512 (default: one per '
+                            'usable core)')
+    group.add_argument('--scheduler', metavar='ADDRESS', type=_scheduler,
+                       help="run on an existing Dask cluster instead: its scheduler's address, "
+                            'e.g. tcp://host:8786 (workers read the bags from the same paths)')
+
+
+def _scheduler(text):
+    from planter_ros.analysis.engine import EngineError, scheduler_address
+    from planter_ros.cli.main import BadInput
+    try:
+        return scheduler_address(text)
+    except EngineError as exc:
+        raise BadInput(str(exc)) from None

@@ -31,6 +31,11 @@ def add_arguments(parser):
                              'Point [lon, lat] (WGS 84) per plant')
     parser.add_argument('--csv', metavar='FILE.csv', type=output_file('--csv', ('.csv',)),
                         help='write the same per-plant table as CSV')
+    add_settings_arguments(parser)
+
+
+def add_settings_arguments(parser):
+    """The options that choose how a bag is replayed (also `planter analyze`'s)."""
     parser.add_argument('--upright-threshold', metavar='RAD',
                         type=spec_option(PredictionSettings, 'upright_threshold',
                                          '--upright-threshold'),
@@ -53,23 +58,32 @@ def add_arguments(parser):
                              'sequence (s; default: recorded, else 0.5)')
 
 
+def settings_overrides(args):
+    """The prediction settings given on the command line (None: not given)."""
+    return {'upright_threshold': args.upright_threshold, 'nozzle_width': args.nozzle_width,
+            'window': args.window, 'max_input_gap': args.max_input_gap}
+
+
+def fallback_design(args):
+    """The design of --scene (None without it); BadInput for a bad scene."""
+    if not args.scene:
+        return None
+    from planter_ros.cli.main import BadInput
+    from planter_ros.kinematics.scene_design import design_for_scene
+    from planter_ros.scene import SceneError, load_scene
+    try:
+        return design_for_scene(load_scene(args.scene, 'design_node'))
+    except SceneError as exc:
+        raise BadInput(str(exc)) from None
+
+
 def run(args):
     from planter_ros.cli.main import BadInput
     from planter_ros.output_files import atomic_output
     from planter_ros.recording.replay import ReplayError, replay
-    design = None
-    if args.scene:
-        from planter_ros.kinematics.scene_design import design_for_scene
-        from planter_ros.scene import SceneError, load_scene
-        try:
-            design = design_for_scene(load_scene(args.scene, 'design_node'))
-        except SceneError as exc:
-            raise BadInput(str(exc)) from None
+    design = fallback_design(args)
     try:
-        result = replay(args.bag, {'upright_threshold': args.upright_threshold,
-                                   'nozzle_width': args.nozzle_width, 'window': args.window,
-                                   'max_input_gap': args.max_input_gap},
-                        fallback_design=design)
+        result = replay(args.bag, settings_overrides(args), fallback_design=design)
     except ReplayError as exc:
         raise BadInput(str(exc)) from None
     for warning in result.warnings:

@@ -2,11 +2,12 @@
 
 A bag is a .mcap file or a rosbag2 bag directory of split files `<name>_<n>.mcap`. Topics are
 found by their name's last part and their type (the contract in planter_ros.interfaces), in any
-namespace, preferring the default one. Finalised files are read with `rosbags` (raw bytes, the
-fastest reader here); a file without its summary (a killed recorder) or with damaged bytes is
-read chunk by chunk, every intact chunk kept (recording.recovery). Whatever is lost - a damaged
-chunk, a cut-off end, a split file missing from a bag directory - is reported as a warning with
-the log-time range it covered, relative to the bag's first message.
+namespace, preferring the default one. Finalised files are read through their indexes, only the
+wanted channels' messages (recording.indexed); a file without its summary (a killed recorder) or
+with damaged bytes is read chunk by chunk, every intact chunk kept (recording.recovery).
+Whatever is lost - a damaged chunk, a cut-off end, a split file missing from a bag directory -
+is reported as a warning with the log-time range it covered, relative to the bag's first
+message.
 """
 
 from dataclasses import dataclass, field
@@ -153,11 +154,11 @@ def read_recording(path, wanted):
     spans = []                      # (first, last) log time of the wanted messages per file
     count = 0
     for file in files:
-        channels = messages = None
+        channels = blocks = None
         file_losses = []
         if check_magic(file):
             try:
-                channels, messages, file_metadata = _read_fast(file, wanted)
+                channels, blocks, file_metadata = _read_fast(file, wanted)
             except Exception as exc:           # a damaged file: say so, read what is intact
                 warnings.append(f'{file}: {one_line(exc)}; reading every intact chunk')
         else:
@@ -172,10 +173,10 @@ def read_recording(path, wanted):
                 warnings.append(f'{exc}: file skipped')
                 found = None
             if found is not None:
-                channels, messages = found.channels, found.messages
+                channels, blocks = found.channels, _blocks(found.messages)
                 file_metadata, file_losses = found.metadata, found.losses
             else:
-                channels, messages, file_metadata = {}, [], {}
+                channels, blocks, file_metadata = {}, {}, {}
         all_topics.update({name: t for name, t in channels.values()})
         metadata.update(file_metadata)
         picked = pick_topics(channels, wanted)
@@ -187,14 +188,14 @@ def read_recording(path, wanted):
             elif known.name != name:          # another namespace in a later split: not ours
                 by_channel = {c: t for c, t in by_channel.items() if t is not topic}
         first = last = None
-        for cid, log_time, data in messages:
+        for cid, (logs, raws) in blocks.items():
             topic = by_channel.get(cid)
-            if topic is not None:
-                topics[topic].log.append(log_time)
-                topics[topic].raw.append(data)
-                count += 1
-                first = log_time if first is None else min(first, log_time)
-                last = log_time if last is None else max(last, log_time)
+            if topic is not None and logs:
+                topics[topic].log += logs
+                topics[topic].raw += raws
+                count += len(logs)
+                first = min(logs) if first is None else min(first, min(logs))
+                last = max(logs) if last is None else max(last, max(logs))
         spans.append((first, last))
         losses += [(loss, file) for loss in file_losses]
     for before, loss in missing:     # a missing split file lies between its neighbours
@@ -225,22 +226,19 @@ def _lost_range(loss, t0):
 
 
 def _read_fast(file, wanted):
-    """rosbags' reader: only the wanted channels' messages, plus the metadata records."""
-    from rosbags.rosbag2 import Reader
-    with Reader(file) as reader:
-        channels = {c.id: (c.topic, c.msgtype) for c in reader.connections}
-        ids = {cid for cid, _ in pick_topics(channels, wanted).values()}
-        conns = [c for c in reader.connections if c.id in ids]
-        # an empty selection means "every message" to rosbags: ask only when there is one
-        messages = [(conn.id, log_time, raw) for conn, log_time, raw in
-                    reader.messages(connections=conns)] if conns else []
-    return channels, messages, _read_metadata(file)
+    """A finalised file through its indexes: (channels {id: (topic, type)}, {id: (log times,
+    raw CDR)} of the wanted topics' channels, metadata records). Raises on anything damaged."""
+    from .indexed import IndexedFile
+    with IndexedFile(file) as indexed:
+        ids = {cid for cid, _ in pick_topics(indexed.channels, wanted).values()}
+        return indexed.channels, indexed.messages(ids), indexed.metadata()
 
 
-def _read_metadata(file):
-    from mcap.reader import make_reader
-    try:
-        with open(file, 'rb') as f:
-            return {r.name: dict(r.metadata) for r in make_reader(f).iter_metadata()}
-    except Exception:        # metadata is optional: a file without it replays with defaults
-        return {}
+def _blocks(messages):
+    """[(channel id, log time, raw)] in file order -> {channel id: (log times, raws)}."""
+    out = {}
+    for cid, log_time, data in messages:
+        logs, raws = out.setdefault(cid, ([], []))
+        logs.append(log_time)
+        raws.append(data)
+    return out

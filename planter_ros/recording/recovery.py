@@ -90,7 +90,7 @@ def read_records(file):
         if size <= _MAGIC_SIZE:
             raise UnreadableError(f'{file} holds no MCAP record (file of {size} bytes)')
         with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
-            summary = _summary(data)
+            summary = read_summary(data)
             if summary is not None and summary['chunks']:
                 out = _read_indexed(data, summary)
             else:
@@ -105,7 +105,7 @@ def read_records(file):
 
 # ----------------------------------------------------------------------------- records
 
-def _record_at(data, pos, end=None):
+def record_at(data, pos, end=None):
     """(opcode, record or None for an unknown/ignored kind, end offset) of the record at pos;
     _BadRecord if it is not a whole, valid record. Chunks are opened and CRC-checked."""
     from mcap.data_stream import ReadDataStream
@@ -127,7 +127,7 @@ def _record_at(data, pos, end=None):
     stream = ReadDataStream(io.BytesIO(data[pos + 9:stop]))
     try:
         if opcode == 0x06:
-            _check_chunk_header(data, pos, length)
+            check_chunk_header(data, pos, length)
             record = Chunk.read(stream)
             _open_chunk(record)
         elif opcode == 0x05:
@@ -142,7 +142,7 @@ def _record_at(data, pos, end=None):
     return opcode, record, stop
 
 
-def _check_chunk_header(data, pos, length):
+def check_chunk_header(data, pos, length):
     """Cheap consistency of a chunk header (before anything is decompressed)."""
     body = pos + 9
     if length < 8 + 8 + 8 + 4 + 4 + 8:
@@ -166,7 +166,7 @@ def _open_chunk(chunk):
 
 # ----------------------------------------------------------------------------- with summary
 
-def _summary(data):
+def read_summary(data):
     """The summary section's schemas, channels, chunk and metadata indexes, if the footer and
     the summary CRC are intact; else None (then the file is scanned)."""
     from mcap.records import Channel, ChunkIndex, Footer, MetadataIndex, Schema
@@ -175,7 +175,7 @@ def _summary(data):
     if footer_at < _MAGIC_SIZE or bytes(data[size - _MAGIC_SIZE:]) != b'\x89MCAP0\r\n':
         return None
     try:
-        _, footer, _ = _record_at(data, footer_at, size - _MAGIC_SIZE)
+        _, footer, _ = record_at(data, footer_at, size - _MAGIC_SIZE)
     except ValueError:
         return None
     if not isinstance(footer, Footer) or not _MAGIC_SIZE <= footer.summary_start < footer_at:
@@ -187,7 +187,7 @@ def _summary(data):
     pos = footer.summary_start
     try:
         while pos < footer_at:
-            _, record, pos = _record_at(data, pos, footer_at)
+            _, record, pos = record_at(data, pos, footer_at)
             if isinstance(record, Schema):
                 out['schemas'][record.id] = record.name
             elif isinstance(record, Channel):
@@ -209,7 +209,7 @@ def _read_indexed(data, summary):
         out.channels[cid] = (channel.topic, summary['schemas'].get(channel.schema_id, ''))
     for index in sorted(summary['chunks'], key=lambda c: c.chunk_start_offset):
         try:
-            _, chunk, _ = _record_at(data, index.chunk_start_offset)
+            _, chunk, _ = record_at(data, index.chunk_start_offset)
             if not isinstance(chunk, Chunk):
                 raise _BadRecord(index.chunk_start_offset, 'not a chunk')
         except _BadRecord as exc:
@@ -221,7 +221,7 @@ def _read_indexed(data, summary):
             out.add(record)
     for index in summary['metadata']:
         try:
-            _, record, _ = _record_at(data, index.offset)
+            _, record, _ = record_at(data, index.offset)
         except ValueError:
             record = None
         if isinstance(record, Metadata):
@@ -242,7 +242,7 @@ def _scan(data, file):
     valid = False
     while pos < size:
         try:
-            _, record, stop = _record_at(data, pos)
+            _, record, stop = record_at(data, pos)
         except ValueError as exc:
             before = out.last_time()
             limit = size if valid else min(size, _MAGIC_SIZE + SCAN_LIMIT)
@@ -280,7 +280,7 @@ def _next_chunk(data, start, stop):
         if at < 0:
             return None
         try:
-            _, record, _ = _record_at(data, at)
+            _, record, _ = record_at(data, at)
             return at, record
         except ValueError:
             start = at + 1

@@ -120,18 +120,24 @@ class RowRun:
 def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, config=None,
                   compensation=True, drive=DriveModel(), dt=0.001, sample_period=0.05,
                   feedback_period=0.01, noise=0.005, yaw_noise=0.005, seed=0, switches=(),
-                  planting=None):
+                  planting=None, sensor=None, drive_changes=()):
     """Run a machine with rows at `offsets` (m) along `profile` (a FieldProfile: speed and yaw
     rate) for `duration` s; the sensor adds Gaussian `noise` (m/s) and `yaw_noise` (rad/s).
     Commands are computed on every sample and every feedback period, as the sync node does.
     `switches`: (t, row index, on) section-control events; `planting`: the mechanism's
-    PlantingAngles (where it plants, for the section stops). Returns one RowRun per row."""
+    PlantingAngles (where it plants, for the section stops). `sensor(t, v, ω_z)`, if given,
+    turns the true speed and yaw rate into the reading (v, ω_z), or None for a sample that
+    never arrives, instead of the Gaussian noise. `drive_changes`: (t, row index, DriveModel)
+    events, that row's drive from t on (a stall and its end). Returns one RowRun per row."""
     rng = np.random.default_rng(seed)
     machine = Machine(offsets, config or PhaseLockConfig(),
                       turn=TurnConfig(turn_compensation=compensation))
     machine.set_design(spacing, plants_per_revolution, 0.0, planting)
     switches = sorted(switches)
+    changes = sorted(drive_changes, key=lambda c: (c[0], c[1]))
     rows = len(machine.laws)
+    tau, amax, scale = (np.full(rows, float(getattr(drive, k))) for k in
+                        ('time_constant', 'max_acceleration', 'speed_scale'))
     steps = int(round(duration / dt))
     t_out = np.arange(steps + 1) * dt
     angle, command, speed = (np.empty((rows, steps + 1)) for _ in range(3))
@@ -145,6 +151,10 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
         while switches and t >= switches[0][0]:
             _, row, on = switches.pop(0)
             machine.laws[row].switch(on, t)
+        while changes and t >= changes[0][0]:
+            _, row, model = changes.pop(0)
+            tau[row], amax[row], scale[row] = (model.time_constant, model.max_acceleration,
+                                               model.speed_scale)
         if t >= next_feedback - 1e-12:
             for r, law in enumerate(machine.laws):
                 law.feedback(theta[r], omega[r], t)
@@ -152,18 +162,21 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
             next_feedback += feedback_period
         if t >= next_sample - 1e-12:
             v = profile(t)
-            v_read = v + rng.normal(0.0, noise) if v > 0.0 else 0.0
-            w_read = profile.yaw_rate(t) + rng.normal(0.0, yaw_noise)
-            machine.sample(v_read, w_read, t)
-            fresh = True
+            if sensor is not None:
+                reading = sensor(t, v, profile.yaw_rate(t))
+            else:
+                reading = (v + rng.normal(0.0, noise) if v > 0.0 else 0.0,
+                           profile.yaw_rate(t) + rng.normal(0.0, yaw_noise))
+            if reading is not None:
+                machine.sample(reading[0], reading[1], t)
+                fresh = True
             next_sample += sample_period
         if fresh:
             for r, law in enumerate(machine.laws):
                 cmd[r] = law.command(t)
         angle[:, i], command[:, i], speed[:, i] = theta, cmd, omega
-        goal = drive.speed_scale * cmd
-        step = (goal - omega) * min(dt / drive.time_constant, 1.0)
-        lim = drive.max_acceleration * dt
+        step = (scale * cmd - omega) * np.minimum(dt / tau, 1.0)
+        lim = amax * dt
         omega = omega + np.clip(step, -lim, lim)
         theta = theta + omega * dt
     return [RowRun(y, t_out, profile.row_distance(t_out, y), angle[r], command[r], speed[r])

@@ -29,6 +29,28 @@ class Curve:
         return ([self.start, self.start + ease, self.end - ease, self.end], [0.0, k, k, 0.0])
 
 
+@dataclass(frozen=True)
+class Stop:
+    """A halt in the middle of a run: the speed ramps down to 0 over `ramp` s from `start` (s),
+    stays 0 for `hold` s, then ramps back over `ramp` s (a headland, a refill of seedlings)."""
+
+    start: float
+    hold: float
+    ramp: float = 1.0
+
+    def factor(self, t):
+        """The fraction of the run's speed left at time t (0..1)."""
+        down = self.start + self.ramp
+        up = down + self.hold
+        if t <= self.start or t >= up + self.ramp:
+            return 1.0
+        if t < down:
+            return (down - t) / self.ramp
+        if t <= up:
+            return 0.0
+        return (t - up) / self.ramp
+
+
 def demo_curves(duration, radius=10.0, length=8.0):
     """A left and a right turn of `radius` (m), each `length` s (a quarter of the run in a run
     under 32 s), in the two cruise phases of a `FieldProfile` of `duration` s: from 15 % and
@@ -42,10 +64,12 @@ class FieldProfile:
     """A transplanter run, callable t -> v (m/s): ramp up over `start` s, cruise, a speed change
     to `change`·cruise at 45 % of the run (over 1 s), and a ramp to a stop (over `stop` s)
     ending 1 s before `duration`. The phase boundaries are attributes (s). `curves`: `Curve`s
-    (not overlapping) the path makes meanwhile; none = a straight run."""
+    (not overlapping) the path makes meanwhile; none = a straight run. `stops`: `Stop`s on the
+    way (the yaw rate is v·κ, so the machine does not turn while it stands)."""
 
-    def __init__(self, duration, cruise, change=1.5, start=2.0, stop=2.0, curves=()):
+    def __init__(self, duration, cruise, change=1.5, start=2.0, stop=2.0, curves=(), stops=()):
         self.duration, self.cruise, self.change = duration, cruise, change
+        self.stops = tuple(stops)
         self.start, self.stop = start, stop
         self.t_change = 0.45 * duration
         self.t_stop_end = duration - 1.0
@@ -72,6 +96,8 @@ class FieldProfile:
             base = self.cruise * self.change
         if t > self.t_stop:
             base *= (self.t_stop_end - t) / self.stop
+        for halt in self.stops:
+            base *= halt.factor(t)
         return base
 
     def distance(self, t, dt=1e-3):
@@ -117,8 +143,8 @@ class FieldProfile:
         return np.interp(t, grid, s) - lateral_offset * np.interp(t, grid, heading)
 
 
-def field_profile(duration, cruise, change=1.5, start=2.0, stop=2.0, curves=()):
-    return FieldProfile(duration, cruise, change, start, stop, curves)
+def field_profile(duration, cruise, change=1.5, start=2.0, stop=2.0, curves=(), stops=()):
+    return FieldProfile(duration, cruise, change, start, stop, curves, stops)
 
 
 def speed_profile(t, cruise, duration, step_at=None, step=1.25, ramp=2.0):

@@ -1,0 +1,151 @@
+"""The Dask distributed engine of `planter analyze` and `planter simulate`.
+
+`cluster()` gives a Client: of a local cluster of worker processes sized to the machine (one
+single-threaded worker process per usable core, or `workers`), scheduler and workers bound to
+127.0.0.1, no dashboard; or of an existing cluster (`scheduler` = its scheduler's address,
+`tcp://host:8786`). `check_workers` runs a warm-up on every worker (imports the code once, says
+which model version it runs) and refuses a cluster that cannot run ours. `completed` maps a
+function over argument tuples and yields the results as they complete, gathered in batches.
+"""
+
+from contextlib import contextmanager
+from dataclasses import dataclass
+import logging
+import os
+
+from planter_ros.config import check, setting
+
+CONNECT_TIMEOUT = 10.0      # s to reach an existing scheduler
+WORKER_WAIT = 30.0          # s an existing scheduler may take to have a worker
+
+
+class EngineError(ValueError):
+    """A cluster the command cannot use (one line: the option or address and why)."""
+
+
+@dataclass(frozen=True)
+class EngineSettings:
+    """The local cluster's size (the command-line option)."""
+
+    workers: int = setting(1, 'worker processes of the local cluster (one thread each)',
+                           range=(1, 512))
+
+    def __post_init__(self):
+        check(self)
+
+
+def scheduler_address(text):
+    """`text` if it is a scheduler address Dask can connect to (`tcp://host:port`, ...), else
+    EngineError."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    try:
+        scheme, location = parse_address(text, strict=True)
+        parse_host_port(location)
+    except (ValueError, TypeError):
+        raise EngineError(f'--scheduler = {text} is not a scheduler address: allowed '
+                          'tcp://host:port (or tls://, ws://, wss://)') from None
+    if scheme not in ('tcp', 'tls', 'ws', 'wss'):
+        raise EngineError(f'--scheduler = {text} uses protocol {scheme}: allowed tcp://, '
+                          'tls://, ws:// or wss://host:port')
+    return text
+
+
+def usable_cores():
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+@contextmanager
+def cluster(workers=None, scheduler=None):
+    """A distributed.Client (see the module doc); everything is closed on exit."""
+    from distributed import Client, LocalCluster
+    # the workers inherit the environment: any ROS they touched would stay on loopback
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    local = None
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise EngineError(f'--scheduler = {scheduler}: cannot connect '
+                              f'({_first_line(exc)}): allowed the address of a running Dask '
+                              'scheduler, e.g. tcp://host:8786') from None
+        try:
+            client.wait_for_workers(1, timeout=WORKER_WAIT)
+        except (OSError, TimeoutError) as exc:
+            client.close()
+            raise EngineError(f'--scheduler = {scheduler} has no worker after '
+                              f'{WORKER_WAIT:.0f} s ({_first_line(exc)}): allowed a scheduler '
+                              'with at least one worker') from None
+    else:
+        try:
+            local = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
+                                 processes=True, host='127.0.0.1', scheduler_port=0,
+                                 dashboard_address=None, worker_dashboard_address=None,
+                                 silence_logs=logging.ERROR)
+        except Exception as exc:             # no free port, no processes, ...
+            raise EngineError(f'the local cluster did not start ({_first_line(exc)}): allowed '
+                              'a machine where Dask can start worker processes on 127.0.0.1') \
+                from None
+        client = Client(local, set_as_default=False)
+    try:
+        yield client
+    finally:
+        client.close()
+        if local is not None:
+            local.close()
+
+
+def worker_count(client):
+    return len(client.scheduler_info(n_workers=-1)['workers'])
+
+
+def check_workers(client, warm_up, expected, where):
+    """Run `warm_up()` on every worker and refuse (EngineError) a worker whose answer is not
+    `expected` (the model version) or that cannot run it at all."""
+    try:
+        answers = client.run(warm_up)
+    except Exception as exc:              # ModuleNotFoundError on the worker, lost worker, ...
+        raise EngineError(f'{where}: a worker cannot run planter_ros ({_first_line(exc)}): '
+                          'allowed workers with the same planter_ros installed') from None
+    wrong = {worker: got for worker, got in answers.items() if got != expected}
+    if wrong:
+        worker, got = sorted(wrong.items())[0]
+        raise EngineError(f'{where}: worker {worker} runs planter_ros model version {got}, '
+                          f'this command {expected}: allowed workers with the same planter_ros')
+    return len(answers)
+
+
+def completed(client, fn, arguments, **kwargs):
+    """Run fn(*args, **kwargs) for every tuple in `arguments` on the cluster; yield (position
+    in `arguments`, result, None) or (position, None, exception) as tasks complete. Results
+    are gathered in batches (one round trip for all that completed meanwhile) and released."""
+    from distributed import as_completed
+    if not arguments:
+        return
+    futures = client.map(fn, *zip(*arguments), pure=False, **kwargs)
+    position = {future.key: i for i, future in enumerate(futures)}
+    pending = as_completed(futures, loop=client.loop)
+    try:
+        for batch in pending.batches():
+            done = [f for f in batch if f.status == 'finished']
+            results = client.gather(done) if done else []
+            for future, result in zip(done, results):
+                yield position[future.key], result, None
+            for future in batch:
+                if future.status != 'finished':
+                    try:
+                        error = future.exception()
+                    except BaseException as exc:      # a cancelled future raises its reason
+                        error = exc
+                    yield position[future.key], None, error
+                future.release()          # the worker may drop the result now
+                futures[position[future.key]] = None
+    finally:
+        client.cancel([f for f in futures if f is not None and not f.done()])
+
+
+def _first_line(exc):
+    text = str(exc).strip().splitlines()
+    return f'{type(exc).__name__}: {text[0]}' if text else type(exc).__name__

@@ -1,0 +1,92 @@
+"""What a worker of `planter analyze` runs: one bag replayed into its rows of the two tables.
+
+The replay code is imported with this module, once per worker process (the warm-up every worker
+gets before the first bag). The bag is read from its path (shared storage): only the path and
+the settings travel through the scheduler, and back only the bag's row and its plants table.
+"""
+
+from functools import lru_cache
+import hashlib
+import importlib.metadata
+from pathlib import Path
+import time
+
+from planter_ros.recording.replay import ReplayError, replay
+
+from .tables import flatten, plants_table
+
+# planter_ros packages whose code cannot change a replay's result (not in the model version)
+NOT_MODEL = ('analysis', 'bench', 'cli', 'nodes', 'optimize', 'plots', 'sim')
+# libraries whose version can change a number of the result
+LIBRARIES = ('numpy', 'scipy', 'mcap', 'zstandard', 'pyproj')
+
+
+class WorkerMismatch(RuntimeError):
+    """The worker runs another model version than the client asked for (one line)."""
+
+
+@lru_cache(maxsize=1)
+def model_version():
+    """A short hash of the replay model: the source of every planter_ros module that can change
+    a replay's result (all but the packages in NOT_MODEL) and the versions of LIBRARIES."""
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob('*.py')):
+        relative = path.relative_to(root)
+        if relative.parts[0] in NOT_MODEL:
+            continue
+        digest.update(relative.as_posix().encode() + b'\0' + path.read_bytes() + b'\0')
+    for name in LIBRARIES:
+        digest.update(f'{name}=={importlib.metadata.version(name)}\0'.encode())
+    return digest.hexdigest()[:16]
+
+
+def warm_up():
+    """Run on every worker before the first bag: loads what a replay imports only when first
+    needed (the indexed reader, zstd, pyarrow: a quarter second), so no bag pays for it, and
+    returns the model version the worker runs."""
+    import mcap.records  # noqa: F401
+    import pyarrow  # noqa: F401
+    import zstandard  # noqa: F401
+
+    from planter_ros.recording import indexed  # noqa: F401
+    return model_version()
+
+
+def analyze_bag(path, identity, options, overrides, design, version):
+    """Replay the bag at `path` as `planter replay` would with the setting `overrides` (and the
+    fallback `design`, or None): (its `bags` row, its `plants` table or None). A bag replay
+    cannot read is a row with status 'failed' and its one-line reason; any other exception of
+    the model on this bag is status 'error'. `identity`, `options` and `version` are the
+    re-run key the client decided on (season.BagKey)."""
+    started, cpu = time.perf_counter(), time.process_time()
+    if model_version() != version:
+        raise WorkerMismatch(f'worker runs planter_ros model version {model_version()}, the '
+                             f'analysis asked for {version}')
+    row = {'bag': str(path), 'status': None, 'reason': None, 'file_size': identity[0],
+           'file_mtime_ns': identity[1], 'model_version': version, 'options': options,
+           'analysed_at': time.time(), 'analysis_seconds': None,
+           'analysis_cpu_seconds': None, 'plants_file': None}
+    table = None
+    try:
+        result = replay(str(path), overrides, fallback_design=design)
+    except ReplayError as exc:
+        row.update(status='failed', reason=_one_line(str(exc)))
+    except Exception as exc:        # one bag's bug in the model must not stop the season
+        row.update(status='error', reason=_one_line(f'{type(exc).__name__}: {exc}'))
+    else:
+        data = result.as_json()
+        plants = data.pop('plants')
+        row.update(flatten(data))
+        row['status'] = 'warnings' if data['warnings'] else 'ok'
+        if plants:
+            table = plants_table(str(path), plants)
+    row['analysis_seconds'] = time.perf_counter() - started
+    # CPU time apart from wall time: on shared cores the difference is time spent waiting
+    row['analysis_cpu_seconds'] = time.process_time() - cpu
+    return row, table
+
+
+def _one_line(text):
+    lines = text.strip().splitlines()
+    return lines[0] if lines else text

@@ -1,0 +1,199 @@
+"""Season analysis rows: `planter analyze` of a simulated season with 1 and 2 local workers.
+
+The season: `planter simulate`'s runs (4 rows, one minute each, varied speeds, stops, glitches,
+stalls, curves, GNSS; written in parallel on the local cluster, its own row) in a temporary
+directory, each run copied to reach the season's size (the analysis reads and replays every
+file; the copies cost what distinct runs of the same kind would). Each analysis is the command's
+own code path (analysis.season.run on analysis.engine.cluster) into fresh tables, timed from
+the first task submitted to the last result written; the cluster's start and the workers'
+imports (once per worker) are timed apart. From those: bags/s, × real time (bag seconds over
+wall seconds) in total and per worker, the scaling efficiency 1 → 2 workers, the workers' own
+time per bag (from the bags table) and what the rest costs per bag. The row's time is the
+median of the repeats; the targets (× real time per worker, scaling efficiency) are judged on
+each worker count's fastest repeat, the one least disturbed by other processes on the shared
+cores (as timeit's best of N), and the note gives the median's figures too. A last row times
+empty tasks through the same cluster: Dask's own cost per task, which bounds a large cluster's
+rate.
+"""
+
+import os
+from pathlib import Path
+import shutil
+import statistics
+import tempfile
+import time
+
+from ..registry import Row, Target, bench_case
+from ..timing import from_samples
+
+WHAT = 'season analysis (planter analyze)'
+REAL_TIME_TARGET = 1000.0       # × real time per worker
+EFFICIENCY_TARGET = 0.8         # 1 -> 2 local workers
+ERROR_OF = ('max |Parquet value − planter replay --json value| over every field of every '
+            'plant of one bag (checked on the first bag of the season)')
+ROWS = 4
+
+
+def _noop(i):
+    return i
+
+
+def _simulate(directory, runs, duration):
+    """Simulate `runs` runs into `directory` on the local cluster: (seconds, workers, bytes)."""
+    from planter_ros.analysis.engine import check_workers, cluster, completed
+    from planter_ros.analysis.task import model_version, warm_up
+    from planter_ros.sim.season import bag_name, simulate_bag
+    with cluster() as client:
+        workers = check_workers(client, warm_up, model_version(), 'the local cluster')
+        started = time.monotonic()
+        arguments = [(str(directory / bag_name(0, k)), 0, k, duration, ROWS)
+                     for k in range(runs)]
+        for _, _, error in completed(client, simulate_bag, arguments):
+            if error is not None:
+                raise error
+        seconds = time.monotonic() - started
+    return seconds, workers
+
+
+def _analyse(bags, out, workers):
+    """One analysis of `bags` into fresh tables at `out` with `workers` local workers:
+    (report, seconds to start the cluster and warm the workers up)."""
+    from planter_ros.analysis import season as seasons
+    from planter_ros.analysis.engine import check_workers, cluster
+    from planter_ros.analysis.task import model_version, warm_up
+    version = model_version()
+    started = time.monotonic()
+    with cluster(workers=workers) as client:
+        check_workers(client, warm_up, version, 'the local cluster')
+        startup = time.monotonic() - started
+        with seasons.Season(out) as season:
+            keys, _ = season.plan(bags, version, seasons.options_key({}, None))
+            report = seasons.run(season, client, keys, {}, None)
+    return report, startup
+
+
+def _task_overhead(count):
+    """Seconds per empty task through a 2-worker local cluster (submit → result gathered)."""
+    from planter_ros.analysis.engine import cluster, completed
+    with cluster(workers=2) as client:
+        list(completed(client, _noop, [(i,) for i in range(50)]))       # warm
+        started = time.monotonic()
+        done = sum(1 for _ in completed(client, _noop, [(i,) for i in range(count)]))
+        return (time.monotonic() - started) / done
+
+
+def _replay_error(bag, out):
+    """Max |Parquet − replay JSON| over the plants of `bag` (None-for-None must match)."""
+    import math
+
+    import pyarrow.dataset as ds
+
+    from planter_ros.recording.replay import replay
+    expected = replay(str(bag)).as_json()['plants']
+    table = ds.dataset(out / 'plants').to_table(filter=ds.field('bag') == str(bag))
+    got = [{k: v for k, v in row.items() if k != 'bag'} for row in table.to_pylist()]
+    if len(got) != len(expected):
+        raise RuntimeError(f'{bag}: {len(got)} plants in the table, replay finds '
+                           f'{len(expected)}')
+    worst = 0.0
+    for a, b in zip(got, expected):
+        if a.keys() != b.keys():
+            raise RuntimeError(f'{bag}: plant fields differ from replay: {sorted(a)}')
+        for key in a:
+            if (a[key] is None) != (b[key] is None):
+                raise RuntimeError(f'{bag}: {key} null in one and not the other')
+            if a[key] is not None:
+                worst = max(worst, abs(a[key] - b[key]) if math.isfinite(b[key]) else 0.0)
+    return worst
+
+
+@bench_case('analyze', requires=('distributed', 'pyarrow', 'planter_ros.analysis.season'))
+def season_analysis(ctx):
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    import pyarrow.parquet as pq
+
+    from planter_ros.analysis.bags import find_bags
+    count, runs = ctx.n(200, 8), ctx.n(20, 4)
+    duration = ctx.n(60.0, 10.0)
+    repeats = ctx.n(3, 1)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        made, season_dir = tmp / 'runs', tmp / 'season'
+        made.mkdir()
+        season_dir.mkdir()
+        ctx.progress(f'  simulating {runs} runs of {duration:.0f} s ...')
+        seconds, sim_workers = _simulate(made, runs, duration)
+        originals = sorted(made.glob('*.mcap'))
+        per_worker = runs * duration / seconds / sim_workers
+        yield Row(WHAT, f'planter simulate: {runs} runs of {duration:.0f} s, {ROWS} rows',
+                  runs, 'bag', from_samples([seconds]),
+                  note=f'{runs * duration / seconds:.0f}× real time on {sim_workers} workers '
+                       f'({per_worker:.0f}× per worker), closed loop + monitor model + MCAP',
+                  extra={'times_real_time': runs * duration / seconds, 'workers': sim_workers,
+                         'times_real_time_per_worker': per_worker})
+        for k in range(count):
+            shutil.copyfile(originals[k % runs], season_dir / f'bag_{k:04d}.mcap')
+        bags = find_bags([season_dir])
+        size = sum(b.stat().st_size for b in bags)
+        rates = {}
+        for workers in (1, 2):
+            ctx.progress(f'  analysing {count} bags with {workers} worker(s) ...')
+            walls, startups, runs_of = [], [], []
+            for rep in range(repeats):
+                out = tmp / f'out_{workers}_{rep}'
+                report, startup = _analyse(bags, out, workers)
+                if report.analysed != count:
+                    raise RuntimeError(f'{report.analysed} of {count} bags analysed: '
+                                       f'{report.failures[:1] or report.not_done[:1]}')
+                walls.append(report.seconds)
+                startups.append(startup)
+                runs_of.append((report.seconds, out, report))
+            timing = from_samples(walls)
+            best, out, report = min(runs_of, key=lambda r: r[0])
+            table = pq.read_table(out / 'bags.parquet', columns=[
+                'analysis_seconds', 'analysis_cpu_seconds']).to_pydict()
+            worker_s = statistics.median(table['analysis_seconds'])
+            worker_cpu = statistics.median(table['analysis_cpu_seconds'])
+            bag_seconds = report.data_seconds
+            speed = bag_seconds / best
+            median_speed = bag_seconds / timing.median
+            rates[workers] = count / best
+            # the same run's wall time shared among its workers, less their own time per bag
+            overhead = workers * best / count - statistics.mean(table['analysis_seconds'])
+            targets = [Target(f'≥ 1000× real time per worker (run: {speed / workers:.0f}×)',
+                              speed / workers >= REAL_TIME_TARGET)]
+            efficiency = None
+            if workers == 2:
+                efficiency = rates[2] / (2 * rates[1])
+                targets.append(Target(f'≥ 80 % efficiency 1 → 2 workers (run: '
+                                      f'{efficiency:.0%})', efficiency >= EFFICIENCY_TARGET))
+            error = _replay_error(bags[0], out) if workers == 1 else None
+            yield Row(WHAT, f'{count} bags of {duration:.0f} s, {workers} local worker(s)',
+                      count, 'bag', timing, error=error, error_of=ERROR_OF if error is not None
+                      else '', targets=targets,
+                      note=f'fastest of {len(walls)}: {speed:.0f}× real time '
+                           f'({speed / workers:.0f}× per worker), median {median_speed:.0f}×; '
+                           f'{size / count / 1e6:.2f} MB per bag, read at '
+                           f'{size / best / 1e6:.0f} MB/s; worker time per bag '
+                           f'{worker_s * 1e3:.0f} ms (median; CPU {worker_cpu * 1e3:.0f} ms, '
+                           'the rest waiting for a core), other cost per bag '
+                           f'{overhead * 1e3:.1f} ms; cluster start + imports '
+                           f'{statistics.median(startups):.1f} s (not in the time)'
+                           + (f'; scaling efficiency {efficiency:.0%}' if efficiency else ''),
+                      extra={'workers': workers, 'bags': count, 'bag_seconds': bag_seconds,
+                             'bytes': size, 'times_real_time': speed,
+                             'times_real_time_per_worker': speed / workers,
+                             'times_real_time_median': median_speed,
+                             'worker_seconds_per_bag': worker_s,
+                             'worker_cpu_seconds_per_bag': worker_cpu,
+                             'other_seconds_per_bag': overhead,
+                             'startup_seconds': statistics.median(startups),
+                             'read_bytes_per_second': size / best,
+                             'scaling_efficiency': efficiency})
+    tasks = ctx.n(2000, 200)
+    ctx.progress(f'  {tasks} empty tasks ...')
+    per_task = _task_overhead(tasks)
+    yield Row(WHAT, f'Dask alone: {tasks} empty tasks, 2 local workers', 1, 'task',
+              from_samples([per_task]),
+              note=f'{1 / per_task:.0f} tasks/s: the scheduler and client cost of one bag',
+              extra={'tasks_per_second': 1 / per_task})

@@ -1,0 +1,98 @@
+"""`planter analyze PATH... --out DIR`: replay a season of bags on Dask into Parquet tables.
+
+Every bag under the paths (.mcap files and rosbag2 bag directories, searched recursively) is
+replayed with the same model and settings as `planter replay` on a Dask cluster: a local one of
+worker processes by default, an existing one with --scheduler. The results go to two Parquet
+tables under DIR as they complete (`plants`: one row per plant, `bags`: one row per bag), with
+a progress line on stderr. A bag replay cannot read is a row with its one-line reason; a re-run
+skips the bags the tables hold for the same model version and settings unless --force.
+Details: doc/analysis.md.
+"""
+
+import json
+import sys
+
+from planter_ros.cli.options import add_engine_arguments
+from planter_ros.cli.replay import add_settings_arguments, fallback_design, settings_overrides
+
+SHOWN_FAILURES = 10      # failed bags listed on stdout (all are in the bags table)
+
+
+def add_arguments(parser):
+    parser.add_argument('paths', nargs='+', metavar='PATH',
+                        help='.mcap files and directories holding bags (searched recursively '
+                             'for .mcap files and rosbag2 bag directories)')
+    parser.add_argument('--out', metavar='DIR', required=True,
+                        help='directory of the tables (bags.parquet, plants/): new, empty, or '
+                             'the output of an earlier run (which it updates)')
+    add_engine_arguments(parser)
+    parser.add_argument('--force', action='store_true',
+                        help='analyse every bag again, also those the tables hold for the same '
+                             'model version and settings')
+    parser.add_argument('--json', action='store_true',
+                        help="print the run's report as JSON (SI) instead of text")
+    add_settings_arguments(parser)
+
+
+def run(args):
+    from planter_ros.analysis import season as seasons
+    from planter_ros.analysis.bags import BagSearchError, find_bags
+    from planter_ros.analysis.engine import EngineError, check_workers, cluster
+    from planter_ros.analysis.progress import Progress
+    from planter_ros.analysis.task import model_version, warm_up
+    from planter_ros.cli.main import BadInput
+
+    out = seasons.check_out(args.out)
+    design = fallback_design(args)
+    overrides = settings_overrides(args)
+    try:
+        bags = find_bags(args.paths, skip=[out])
+    except BagSearchError as exc:
+        raise BadInput(str(exc)) from None
+    if not bags:
+        raise BadInput(f'PATH = {" ".join(args.paths)} holds no bag: allowed .mcap files and '
+                       'directories holding .mcap files or rosbag2 bag directories')
+    version = model_version()
+    with seasons.Season(out) as season:
+        keys, skipped = season.plan(bags, version, seasons.options_key(overrides, design),
+                                    args.force)
+        report = seasons.Report(out=str(out))
+        if keys:
+            where = args.scheduler or 'the local cluster'
+            try:
+                with cluster(args.workers, args.scheduler) as client:
+                    workers = check_workers(client, warm_up, version, where)
+                    season.clear(keys)
+                    progress = Progress(len(keys), label='planter analyze')
+                    report = seasons.run(season, client, keys, overrides, design, progress)
+                    report.workers = workers
+            except EngineError as exc:
+                raise BadInput(str(exc)) from None
+    report.found, report.skipped = len(bags), skipped
+    if args.json:
+        print(json.dumps(report.as_json(), indent=1, allow_nan=False))
+    else:
+        print(format_report(report))
+    for bag, reason in report.not_done:
+        print(f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again',
+              file=sys.stderr)
+    return 1 if report.not_done else 0
+
+
+def format_report(report):
+    """The run's report for people."""
+    data = report.as_json()
+    lines = [f'{report.found} bags found: {report.analysed} analysed ({report.warnings} with '
+             f'warnings), {report.failed} failed, {report.skipped} skipped (analysed before), '
+             f'{len(report.not_done)} lost; {report.plants} plants']
+    if report.seconds > 0:
+        lines.append(f'{report.seconds:.1f} s on {report.workers} worker(s): '
+                     f'{data["bags_per_second"]:.3g} bags/s, '
+                     f'{data["times_real_time"]:.0f}× real time')
+    lines.append(f'tables: {data["tables"]["bags"]}, {data["tables"]["plants"]}/')
+    for bag, status, reason in report.failures[:SHOWN_FAILURES]:
+        lines.append(f'{status}: {bag}: {reason}')
+    if len(report.failures) > SHOWN_FAILURES:
+        lines.append(f'... and {len(report.failures) - SHOWN_FAILURES} more (column `status` '
+                     'of the bags table)')
+    return '\n'.join(lines)

@@ -1,0 +1,181 @@
+"""Reading a few channels of a finalised MCAP file through its indexes (replay's fast path).
+
+A finalised file (this package's recorder, rosbag2's) ends with a summary: where every chunk is
+and, per chunk, where each of its channels' message index lies (pairs of log time and offset of
+the message record in the uncompressed chunk). Replay needs three of the nine channels a
+monitor records, so only the chunks holding them are decompressed, and in those only the wanted
+channels' records are touched: their offsets come from the message indexes, their lengths and
+log times are read for all of them at once with numpy, and each message is a memoryview slice of
+its decompressed chunk (no copy). No other record is parsed (nor any topic's QoS YAML), so the
+cost follows the messages wanted, not the bag's size in records. Every chunk read has its CRC
+checked.
+
+The summary is parsed by recovery.read_summary (footer and summary CRC checked). Anything
+inconsistent - no intact summary, a chunk header, a CRC, an index pointing outside its chunk or
+at a record of another kind or channel - raises NotIndexed, IndexMismatch or the decompressor's
+error: the caller then reads the file carefully (recovery.read_records), which finds and
+reports exactly what is damaged. A chunk written without message indexes is read record by
+record (mcap's parser).
+"""
+
+import mmap
+import struct
+import zlib
+
+import numpy as np
+
+from .recovery import check_chunk_header, read_summary, record_at
+
+_MESSAGE = 0x05
+_MESSAGE_INDEX = 0x07
+# a message record: opcode u8, length u64, channel id u16, sequence u32, log time u64,
+# publish time u64, then the data
+_DATA = 1 + 8 + 2 + 4 + 8 + 8
+
+
+class NotIndexed(ValueError):
+    """The file has no intact summary with chunk indexes (read it carefully instead)."""
+
+
+class IndexMismatch(ValueError):
+    """An index does not agree with the records it points at (read the file carefully)."""
+
+
+class IndexedFile:
+    """A finalised MCAP file opened through its summary (a context manager)."""
+
+    def __init__(self, path):
+        self.path = path
+        self._file = open(path, 'rb')
+        try:
+            self._data = mmap.mmap(self._file.fileno(), 0, access=mmap.ACCESS_READ)
+            summary = read_summary(self._data)
+        except BaseException:
+            self.close()
+            raise
+        if summary is None or not summary['chunks']:
+            self.close()
+            raise NotIndexed(f'{path}: no intact summary with a chunk index')
+        self._summary = summary
+        self.channels = {cid: (c.topic, summary['schemas'].get(c.schema_id, ''))
+                         for cid, c in summary['channels'].items()}
+
+    def close(self):
+        data = getattr(self, '_data', None)
+        if data is not None:
+            data.close()
+            self._data = None
+        self._file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def metadata(self):
+        """{record name: {key: value}} of the metadata records the summary indexes."""
+        from mcap.records import Metadata
+        out = {}
+        for index in self._summary['metadata']:
+            _, record, _ = record_at(self._data, index.offset)
+            if not isinstance(record, Metadata):
+                raise IndexMismatch(f'metadata index {index.name!r} points at no metadata')
+            out[record.name] = dict(record.metadata)
+        return out
+
+    def messages(self, ids):
+        """{channel id: (log times ns, raw CDR memoryviews)} of the channels `ids`, each in
+        file order (chunk by chunk, then by position in the chunk)."""
+        out = {cid: ([], []) for cid in ids}
+        chunks = sorted(self._summary['chunks'], key=lambda c: c.chunk_start_offset)
+        if not ids:
+            return out
+        if any(index.message_index_length == 0 for index in chunks):
+            for index in chunks:                  # a writer without message indexes
+                self._whole_chunk(index, out)
+            return out
+        # the chunks holding wanted channels, decompressed into one buffer, and every wanted
+        # message's offset in it: then one vectorised pass per channel
+        buffers, offsets, size = [], {cid: [] for cid in ids}, 0
+        for index in chunks:
+            mine = [cid for cid in ids if cid in index.message_index_offsets]
+            if not mine:
+                continue
+            records = self._chunk_records(index)
+            for cid in mine:
+                offsets[cid].append(self._offsets(index, cid, len(records)) + size)
+            buffers.append(records)
+            size += len(records)
+        data = b''.join(buffers)
+        head = np.frombuffer(data, dtype=np.uint8)
+        view = memoryview(data)
+        for cid in ids:
+            if not offsets[cid]:
+                continue
+            at = np.concatenate(offsets[cid])
+            fields = head[at[:, None] + np.arange(_DATA)]
+            length = fields[:, 1:9].copy().view('<u8')[:, 0].astype(np.int64)
+            channel = fields[:, 9:11].copy().view('<u2')[:, 0]
+            end = at + 9 + length
+            # a record may not run past its own chunk: past the next chunk's start at most
+            bounds = np.cumsum([len(b) for b in buffers])
+            limit = bounds[np.searchsorted(bounds, at, side='right')]
+            if (np.any(fields[:, 0] != _MESSAGE) or np.any(channel != cid)
+                    or np.any(length < _DATA - 9) or np.any(end > limit)):
+                raise IndexMismatch(f'message index of channel {cid} does not match its records')
+            logs, raws = out[cid]
+            logs += fields[:, 15:23].copy().view('<u8')[:, 0].tolist()
+            raws += [view[a:b] for a, b in zip((at + _DATA).tolist(), end.tolist())]
+        return out
+
+    def _chunk_records(self, index):
+        """The uncompressed records of the chunk `index` points at, CRC checked."""
+        data, pos = self._data, index.chunk_start_offset
+        if pos + 9 > len(data) or data[pos] != 0x06:
+            raise IndexMismatch(f'chunk index points at byte {pos}, not at a chunk')
+        (length,) = struct.unpack_from('<Q', data, pos + 1)
+        if pos + 9 + length > len(data):
+            raise IndexMismatch(f'chunk at byte {pos} runs past the end of the file')
+        check_chunk_header(data, pos, length)
+        body = pos + 9
+        _, _, size, crc, n = struct.unpack_from('<QQQII', data, body)
+        compression = bytes(data[body + 32:body + 32 + n]).decode('ascii')
+        (stored,) = struct.unpack_from('<Q', data, body + 32 + n)
+        raw = data[body + 40 + n:body + 40 + n + stored]
+        if compression == 'zstd':
+            import zstandard
+            records = zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
+        elif compression == 'lz4':
+            import lz4.frame
+            records = lz4.frame.decompress(raw)
+        else:
+            records = raw
+        if len(records) != size or (crc and zlib.crc32(records) != crc):
+            raise IndexMismatch(f'chunk at byte {pos}: CRC mismatch')
+        return records
+
+    def _offsets(self, index, cid, size):
+        """Sorted offsets (int64) of channel `cid`'s messages in the chunk of `index`."""
+        data, pos = self._data, index.message_index_offsets[cid]
+        if pos + 15 > len(data) or data[pos] != _MESSAGE_INDEX:
+            raise IndexMismatch(f'message index of channel {cid} points at byte {pos}, not at a '
+                                'message index')
+        (length,) = struct.unpack_from('<Q', data, pos + 1)
+        channel, count = struct.unpack_from('<HI', data, pos + 9)
+        if channel != cid or count % 16 or 6 + count > length or pos + 9 + length > len(data):
+            raise IndexMismatch(f'message index at byte {pos} is inconsistent')
+        pairs = np.frombuffer(bytes(data[pos + 15:pos + 15 + count]), dtype='<u8')
+        offsets = np.sort(pairs[1::2]).astype(np.int64)
+        if offsets.size and (offsets[0] < 0 or offsets[-1] + _DATA > size):
+            raise IndexMismatch(f'message index at byte {pos} points outside its chunk')
+        return offsets
+
+    def _whole_chunk(self, index, out):
+        from mcap.records import Message
+        _, chunk, _ = record_at(self._data, index.chunk_start_offset)
+        for record in chunk.records:
+            if isinstance(record, Message) and record.channel_id in out:
+                logs, raws = out[record.channel_id]
+                logs.append(record.log_time)
+                raws.append(record.data)

@@ -1,0 +1,412 @@
+"""A season of simulated runs: realistic bags in the exact layout the monitor records, written
+far faster than real time and without DDS (`planter simulate`).
+
+Each run is drawn from a seed and its number in the season (`draw_plan`): its speed (cruise, a
+speed change, stops), a curve, ground-speed sensor glitches (a spike, a NaN reading, a drop-out
+longer than the monitor's gap rule allows), now and then a drive stall on one row, and where
+the field lies (GNSS). The machine is the sync node's own law for every row against the drive
+model (sim.closed_loop.simulate_rows); what its sensors, drives and sync node reported goes
+into the bag as the monitor would have received it: stamped when measured, logged a little
+later, every topic of interfaces.RECORDED with the monitor's QoS, its settings and rows
+records, chunks closed every second of log time. The monitor's own outputs (plants,
+uprightness_rate) come from its model fed sample by sample in log-time order, as monitor_node
+feeds it (RowSpeedStream, one PlantPredictor per row), so replaying the bag reproduces them.
+The bag has no /diagnostics messages (the channel is there).
+"""
+
+from collections import deque
+from dataclasses import dataclass, field
+from functools import lru_cache
+import json
+import math
+
+import numpy as np
+
+from planter_ros import interfaces
+from planter_ros.config import check, setting
+from planter_ros.rows import Row, implicit_row
+
+from .closed_loop import DriveModel, simulate_rows
+from .field import Curve, FieldProfile, Stop
+from .gnss import SimulatedGnss
+from .runs import SIM_EPOCH
+
+ROW_PITCH = 0.5            # m between neighbouring simulated rows
+SAMPLE_PERIOD = 0.05       # s, ground-speed sensor (20 Hz)
+FEEDBACK_PERIOD = 0.01     # s, drive feedback and speed commands (100 Hz)
+GNSS_PERIOD = 0.1          # s, GNSS fixes (10 Hz)
+STEP = 0.0025              # s, integration step of the closed loop
+ENCODER_COUNTS = 4096      # per mechanism revolution
+RUN_PERIOD = 3600.0        # s of simulated clock between the starts of two runs of a season
+
+
+@dataclass(frozen=True)
+class SeasonOptions:
+    """A simulated season (`planter simulate`'s options)."""
+
+    bags: int = setting(1, 'runs (bags) to simulate', range=(1, 100_000))
+    duration: float = setting(60.0, 'length of each run', unit='s', range=(10.0, 3600.0))
+    rows: int = setting(4, 'planting rows of the machine (1: a machine without rows)',
+                        range=(1, 16))
+    seed: int = setting(0, 'seed of the season: the same seed gives the same bags',
+                        range=(0, 2 ** 32 - 1))
+
+    def __post_init__(self):
+        check(self)
+
+
+def bag_name(seed, index):
+    """The file name of run `index` of the season of `seed`."""
+    return f'run_{seed}_{index:05d}.mcap'
+
+
+@dataclass(frozen=True)
+class Stall:
+    """Row `row`'s drive reaches only `level` of its command from `start` for `length` s."""
+
+    row: int
+    start: float
+    length: float
+    level: float
+
+
+@dataclass(frozen=True)
+class Glitch:
+    """A ground-speed sensor glitch: 'spike' (one reading `factor` times the truth), 'nan' (one
+    NaN reading) or 'dropout' (no reading for `length` s)."""
+
+    kind: str
+    start: float
+    length: float = 0.0
+    factor: float = 1.0
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What happens in one simulated run (SI units, times in s from the run's start)."""
+
+    index: int                    # the run's number in the season
+    seed: int                     # the season's seed
+    duration: float
+    rows: tuple                   # planter_ros.rows.Row
+    cruise: float                 # m/s
+    change: float                 # speed factor after the change at 45 % of the run
+    stops: tuple = ()             # field.Stop
+    curves: tuple = ()            # field.Curve
+    glitches: tuple = ()          # Glitch
+    stall: Stall | None = None
+    drive_lag: float = 0.05       # s, the drives' velocity time constant
+    gnss: SimulatedGnss = field(default_factory=SimulatedGnss)
+
+    @property
+    def start_time(self):
+        """The run's start on the simulated clock (s since the epoch)."""
+        return SIM_EPOCH + self.index * RUN_PERIOD
+
+    def profile(self):
+        return FieldProfile(self.duration, self.cruise, change=self.change, curves=self.curves,
+                            stops=self.stops)
+
+    def events(self):
+        """The plan for people and JSON (SI)."""
+        return {'cruise': self.cruise, 'speed_change': self.change,
+                'stops': [{'start': s.start, 'hold': s.hold} for s in self.stops],
+                'curves': [{'start': c.start, 'end': c.end, 'radius': c.radius}
+                           for c in self.curves],
+                'glitches': [{'kind': g.kind, 'start': g.start, 'length': g.length}
+                             for g in self.glitches],
+                'stall': None if self.stall is None else {
+                    'row': self.stall.row, 'start': self.stall.start,
+                    'length': self.stall.length, 'level': self.stall.level}}
+
+
+def machine_rows(count):
+    """`count` rows ROW_PITCH apart, centred on the machine, left first; one row is a machine
+    without rows (the implicit row, as a scene without `rows`)."""
+    if count == 1:
+        return (implicit_row(),)
+    return tuple(Row(i, f'row_{i + 1}', ROW_PITCH * (0.5 * (count - 1) - i), i + 1, True)
+                 for i in range(count))
+
+
+def draw_plan(seed, index, duration, rows):
+    """Run `index` of the season of `seed`: the same arguments give the same run."""
+    rng = np.random.default_rng([int(seed), int(index)])
+    d = float(duration)
+    stops = []
+    if d >= 30.0:
+        for _ in range(int(rng.choice(3, p=(0.4, 0.4, 0.2)))):
+            stops.append(Stop(float(rng.uniform(0.1, 0.75) * d), float(rng.uniform(1.0, 4.0))))
+    curves = []
+    if rng.random() < 0.75:
+        length = float(rng.uniform(4.0, max(4.0, min(12.0, 0.3 * d))))
+        start = float(rng.uniform(0.1 * d, max(0.1 * d, 0.85 * d - length)))
+        radius = float(rng.uniform(6.0, 25.0)) * (1.0 if rng.random() < 0.5 else -1.0)
+        curves.append(Curve(start, min(start + length, d - 3.0), radius))
+    glitches = []
+    for _ in range(min(int(rng.poisson(1.5)), 4)):
+        kind = str(rng.choice(('spike', 'nan', 'dropout'), p=(0.4, 0.3, 0.3)))
+        glitches.append(Glitch(kind, float(rng.uniform(3.0, d - 4.0)),
+                               length=float(rng.uniform(0.6, 1.5)) if kind == 'dropout' else 0.0,
+                               factor=float(rng.uniform(2.0, 4.0))))
+    stall = None
+    if rng.random() < 0.3:
+        stall = Stall(int(rng.integers(rows)), float(rng.uniform(0.15, 0.8) * d),
+                      float(rng.uniform(0.5, 3.0)), float(rng.uniform(0.05, 0.3)))
+    gnss = SimulatedGnss(origin_latitude=52.0 + float(rng.uniform(-0.05, 0.05)),
+                         origin_longitude=5.0 + float(rng.uniform(-0.08, 0.08)),
+                         origin_heading=float(rng.uniform(-math.pi, math.pi)))
+    return RunPlan(index=int(index), seed=int(seed), duration=d, rows=machine_rows(rows),
+                   cruise=float(rng.uniform(0.15, 0.4)), change=float(rng.uniform(0.75, 1.35)),
+                   stops=tuple(sorted(stops, key=lambda s: s.start)), curves=tuple(curves),
+                   glitches=tuple(sorted(glitches, key=lambda g: g.start)), stall=stall,
+                   drive_lag=float(rng.uniform(0.03, 0.1)), gnss=gnss)
+
+
+@lru_cache(maxsize=1)
+def season_design():
+    """The design topic's dict of every simulated run (tomato, geared five-bar)."""
+    from .runs import five_bar_design_message
+    return five_bar_design_message()
+
+
+@dataclass
+class MachineRun:
+    """What the machine's sensors, drives and sync node reported in one run (times in s from
+    its start)."""
+
+    plan: RunPlan
+    speed_t: np.ndarray           # ground-speed readings: times, v (m/s), yaw rate (rad/s)
+    speed_v: np.ndarray
+    speed_w: np.ndarray
+    joint_t: np.ndarray           # drive feedback times
+    joint_pos: np.ndarray         # (rows, n) measured shaft angle (rad, encoder-quantised)
+    joint_vel: np.ndarray         # (rows, n) measured shaft speed (rad/s)
+    command: np.ndarray           # (rows, n) speed command at the feedback times (rad/s)
+    gnss_t: np.ndarray
+    latitude: np.ndarray
+    longitude: np.ndarray
+    altitude: np.ndarray
+
+
+def simulate_plan(plan, design=None):
+    """Run the machine of `plan` in closed loop (no ROS): a MachineRun."""
+    from .gnss import fix_positions
+    design = design or season_design()
+    rng = np.random.default_rng([plan.seed, plan.index, 1])
+    profile = plan.profile()
+    readings = []
+
+    def sensor(t, v, w):
+        for g in plan.glitches:
+            if g.kind == 'dropout' and g.start <= t < g.start + g.length:
+                return None
+        # a standing wheel or radar reads 0; the gyro is noisy always
+        v_read = v + rng.normal(0.0, 0.005) if v > 0.0 else 0.0
+        w_read = w + rng.normal(0.0, 0.005)
+        for g in plan.glitches:
+            if g.start <= t < g.start + SAMPLE_PERIOD:
+                if g.kind == 'spike':
+                    v_read = g.factor * v + 0.3
+                elif g.kind == 'nan':
+                    v_read = math.nan
+        readings.append((t, v_read, w_read))
+        return v_read, w_read
+
+    nominal = DriveModel(time_constant=plan.drive_lag)
+    changes = []
+    if plan.stall is not None:
+        s = plan.stall
+        changes = [(s.start, s.row, DriveModel(time_constant=plan.drive_lag, speed_scale=s.level)),
+                   (s.start + s.length, s.row, nominal)]
+    runs = simulate_rows([row.lateral_offset for row in plan.rows], profile, plan.duration,
+                         design['plant_spacing'], design['plants_per_revolution'],
+                         drive=nominal, dt=STEP, sample_period=SAMPLE_PERIOD,
+                         feedback_period=FEEDBACK_PERIOD, sensor=sensor, drive_changes=changes,
+                         seed=plan.index)
+    every = int(round(FEEDBACK_PERIOD / STEP))
+    t = runs[0].t[::every]
+    quantum = 2.0 * math.pi / ENCODER_COUNTS
+    joint_pos = np.round(np.array([r.angle[::every] for r in runs]) / quantum) * quantum
+    speed = np.array([r.speed[::every] for r in runs])
+    joint_vel = speed + rng.normal(0.0, 0.02, speed.shape)
+    command = np.array([r.command[::every] for r in runs])
+    speed_t, speed_v, speed_w = (np.array(c) for c in zip(*readings)) if readings else \
+        (np.zeros(0),) * 3
+    gnss_t = np.arange(0.0, plan.duration, GNSS_PERIOD)
+    lat, lon, alt = fix_positions(profile, gnss_t, plan.gnss, rng=rng)
+    return MachineRun(plan, speed_t, speed_v, speed_w, t, joint_pos, joint_vel, command,
+                      gnss_t, lat, lon, alt)
+
+
+class MonitorModel:
+    """The monitor's prediction as monitor_node runs it, without the node: one RowSpeedStream
+    for the machine, one PlantPredictor per planting row, the machine's rolling upright rate."""
+
+    def __init__(self, rows, design, settings):
+        from planter_ros.kinematics.plant_prediction import (PlantPredictor,
+                                                             planting_model_from_design)
+        from planter_ros.sensing.row_speed import RowSpeedStream
+        model = planting_model_from_design(design)
+        planting = [row for row in rows if row.enabled]
+        self.predictors = [PlantPredictor(model, settings, row=row.index, speed_filter=False)
+                           for row in planting]
+        self.speeds = RowSpeedStream([row.lateral_offset for row in planting],
+                                     settings.speed_limits)
+        self.recent = deque(maxlen=settings.window)
+
+    def speed(self, t, v, w):
+        """Plants batches completed by a ground-speed message (t s, v m/s, ω_z rad/s)."""
+        sample = self.speeds.add(t, v, w)
+        if sample is None:
+            return []
+        t, speeds = sample
+        return [p.add_speed(t, s) for p, s in zip(self.predictors, speeds.tolist())]
+
+    def joint(self, t, positions, velocities):
+        """Plants batches completed by a joint-state message (each planting row's joint)."""
+        return [p.add_joint(t, a, w) for p, a, w in zip(self.predictors, positions, velocities)]
+
+    def rate(self, plants):
+        """The machine's rolling upright rate after `plants` (what uprightness_rate carries)."""
+        self.recent.extend(plants.upright.tolist())
+        return float(sum(self.recent) / len(self.recent))
+
+
+def plants_message(plants):
+    """std_msgs/Float64MultiArray of a Plants batch in the layout monitor_node publishes on
+    `plants` (dim[0] 'plant' × dim[1] = the field names)."""
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+    from planter_ros.kinematics.plant_prediction import PLANT_FIELDS
+    table = plants.table()
+    n, f = table.shape
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label='plant', size=n, stride=n * f),
+                      MultiArrayDimension(label=','.join(PLANT_FIELDS), size=f, stride=f)]
+    msg.data = table.ravel().tolist()
+    return msg
+
+
+def write_monitor_bag(run, path, design=None, settings=None, **recorder_options):
+    """Record `run` (a MachineRun) at `path` as monitor_node would have (see the module doc);
+    `recorder_options` (split_size, split_duration) as the monitor's parameters. Returns a
+    summary dict (SI)."""
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import TwistStamped
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64, String
+
+    from planter_ros.config import as_dict
+    from planter_ros.kinematics.plant_prediction import PredictionSettings
+    from planter_ros.recording.recorder import Recorder
+    from planter_ros.rows import rows_record
+
+    from .gnss import navsatfix
+
+    design = design or season_design()
+    settings = settings or PredictionSettings()
+    plan = run.plan
+    rows = list(plan.rows)
+    named = len(rows) > 1 or bool(rows[0].name)
+    mechanism = design['mechanism']
+    joints = [row.joint(mechanism) for row in rows]
+    rng = np.random.default_rng([plan.seed, plan.index, 2])
+    epoch = int(round(plan.start_time * 1e9))
+
+    def ns(t):
+        return epoch + np.round(np.asarray(t, dtype=float) * 1e9).astype(np.int64)
+
+    def stamp(value):
+        sec, nsec = divmod(int(value), 1_000_000_000)
+        return Time(sec=sec, nanosec=nsec)
+
+    # stamped when measured, received a little later (latencies in ns)
+    speed_stamp = ns(run.speed_t)
+    joint_stamp = ns(run.joint_t)
+    gnss_stamp = ns(run.gnss_t)
+    command_stamp = joint_stamp + 200_000             # sent after the feedback it answers
+    logs = (speed_stamp + rng.integers(200_000, 3_000_000, speed_stamp.size),
+            joint_stamp + rng.integers(500_000, 2_000_000, joint_stamp.size),
+            command_stamp + rng.integers(200_000, 1_000_000, joint_stamp.size),
+            gnss_stamp + rng.integers(5_000_000, 30_000_000, gnss_stamp.size))
+    kinds = np.concatenate([np.full(a.size, k, dtype=np.int8) for k, a in enumerate(logs)])
+    index = np.concatenate([np.arange(a.size) for a in logs])
+    log = np.concatenate(logs)
+    order = np.lexsort((index, kinds, log))
+
+    clock = [0.0]                      # the recorder's flush clock: simulated log time
+    rec = Recorder(path, flush_period=1.0, monotonic=lambda: clock[0], **recorder_options)
+    names = {topic: topic.resolved() for topic in interfaces.RECORDED}
+    for topic in interfaces.RECORDED:
+        rec.add_topic(names[topic], topic.type_name, topic.recording_qos())
+    rec.add_metadata(interfaces.PREDICTION_SETTINGS_RECORD,
+                     {k: repr(v) for k, v in as_dict(settings).items()})
+    rec.add_metadata(interfaces.ROWS_RECORD, rows_record(rows))
+    monitor = MonitorModel(rows, design, settings)
+    start = int(log.min()) - 500_000_000 if log.size else epoch
+    clock[0] = start * 1e-9
+    rec.write_message(names[interfaces.DESIGN], String(data=json.dumps(design)), start)
+    plants_written = 0
+
+    def publish(batches, now):
+        nonlocal plants_written
+        for plants in batches:
+            if not len(plants):
+                continue
+            rec.write_message(names[interfaces.PLANTS], plants_message(plants), now, now)
+            rec.write_message(names[interfaces.UPRIGHTNESS_RATE],
+                              Float64(data=monitor.rate(plants)), now, now)
+            plants_written += len(plants)
+
+    speed_v, speed_w = run.speed_v.tolist(), run.speed_w.tolist()
+    positions, velocities = run.joint_pos.T.tolist(), run.joint_vel.T.tolist()
+    commands = run.command.T.tolist()
+    lat, lon, alt = run.latitude.tolist(), run.longitude.tolist(), run.altitude.tolist()
+    for k in order.tolist():
+        kind, i, now = int(kinds[k]), int(index[k]), int(log[k])
+        clock[0] = now * 1e-9
+        if kind == 0:
+            msg = TwistStamped()
+            msg.header.stamp = stamp(speed_stamp[i])
+            msg.twist.linear.x = speed_v[i]
+            msg.twist.angular.z = speed_w[i]
+            rec.write_message(names[interfaces.GROUND_SPEED], msg, now, int(speed_stamp[i]))
+            publish(monitor.speed(int(speed_stamp[i]) * 1e-9, speed_v[i], speed_w[i]), now)
+        elif kind == 1:
+            msg = JointState(name=joints, position=positions[i], velocity=velocities[i])
+            msg.header.stamp = stamp(joint_stamp[i])
+            rec.write_message(names[interfaces.JOINT_STATES], msg, now, int(joint_stamp[i]))
+            publish(monitor.joint(int(joint_stamp[i]) * 1e-9, positions[i], velocities[i]),
+                    now)
+        elif kind == 2:
+            if named:
+                msg = JointState(name=joints, velocity=commands[i])
+                msg.header.stamp = stamp(command_stamp[i])
+                rec.write_message(names[interfaces.SPEED_COMMANDS], msg, now,
+                                  int(command_stamp[i]))
+            else:
+                rec.write_message(names[interfaces.SPEED_COMMAND], Float64(data=commands[i][0]),
+                                  now, now)
+        else:
+            msg = navsatfix(stamp(gnss_stamp[i]), lat[i], lon[i], alt[i], plan.gnss.noise)
+            rec.write_message(names[interfaces.GNSS_FIX], msg, now, int(gnss_stamp[i]))
+    rec.close()
+    return {'bag': str(path), 'run': plan.index, 'duration': plan.duration,
+            'rows': len(rows), 'messages': rec.message_count, 'plants': plants_written,
+            'events': plan.events()}
+
+
+def simulate_bag(path, seed, index, duration, rows):
+    """Draw run `index` of the season of `seed`, simulate it and record it at `path` (a task
+    of `planter simulate`). Returns write_monitor_bag's summary; a bag left unfinished by an
+    error is removed."""
+    from pathlib import Path
+    plan = draw_plan(seed, index, duration, rows)
+    existed = Path(path).exists()          # the recorder refuses it: never removed here
+    try:
+        return write_monitor_bag(simulate_plan(plan), path)
+    except BaseException:
+        if not existed:
+            Path(path).unlink(missing_ok=True)
+        raise

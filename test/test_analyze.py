@@ -1,0 +1,275 @@
+"""`planter analyze`: a season of bags into Parquet tables on Dask.
+
+Every Parquet row equals `planter replay --json` of its bag, field by field; a damaged bag is
+a row with its reason and the rest are analysed; a real `dask scheduler` and `dask worker`,
+started as separate processes on 127.0.0.1, give the same tables as the local cluster; a re-run
+skips what is done (and redoes a changed bag without duplicating it); --out into a bad place
+is refused before any work."""
+import json
+import os
+from pathlib import Path
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import pyarrow.parquet as pq
+import pytest
+
+from cli_helpers import REPO, run_planter
+from planter_ros.analysis.tables import unflatten, units
+from planter_ros.cli.main import main
+from planter_ros.sim.season import draw_plan, simulate_bag, simulate_plan, write_monitor_bag
+
+# columns of the bags table that are the analysis's own, not replay's JSON
+OWN = ('status', 'reason', 'file_size', 'file_mtime_ns', 'model_version', 'options',
+       'analysed_at', 'analysis_seconds', 'analysis_cpu_seconds', 'plants_file')
+# what differs between two runs of the same analysis
+WHEN = ('analysed_at', 'analysis_seconds', 'analysis_cpu_seconds', 'plants_file')
+
+
+@pytest.fixture(scope='module')
+def season(tmp_path_factory):
+    """A small season in nested directories: simulated runs of 4, 1 and 2 rows (.mcap files),
+    one as a rosbag2 bag directory split in three files, a copy cut off before its end (replays
+    with a warning) and a file of garbage named .mcap (replay refuses it)."""
+    root = tmp_path_factory.mktemp('season')
+    (root / 'day1').mkdir()
+    (root / 'day2' / 'machine').mkdir(parents=True)
+    simulate_bag(root / 'day1' / 'a.mcap', 5, 0, 16.0, 4)
+    simulate_bag(root / 'day1' / 'b.mcap', 5, 1, 16.0, 1)
+    simulate_bag(root / 'day2' / 'machine' / 'c.mcap', 5, 2, 16.0, 2)
+    write_monitor_bag(simulate_plan(draw_plan(5, 3, 16.0, 4)), root / 'day2' / 'split',
+                      split_duration=6.0)
+    data = (root / 'day1' / 'a.mcap').read_bytes()
+    (root / 'day2' / 'cut.mcap').write_bytes(data[:len(data) * 2 // 3])
+    (root / 'day2' / 'garbage.mcap').write_bytes(b'these are field notes, not a bag\n' * 10)
+    return root
+
+
+def analyze(*args, timeout=300):
+    r = run_planter('analyze', *args, '--json', timeout=timeout)
+    assert r.returncode in (0, 1), r.stderr[-3000:]
+    return r, json.loads(r.stdout)
+
+
+@pytest.fixture(scope='module')
+def local(season):
+    """The season analysed on the default local cluster (2 workers), tables inside the season
+    (so the search must skip them)."""
+    out = season / 'tables'
+    r, report = analyze(season, '--out', out, '--workers', 2)
+    return out, r, report
+
+
+def rows_of(out):
+    return {row['bag']: row for row in pq.read_table(out / 'bags.parquet').to_pylist()}
+
+
+def plants_of(out):
+    table = pq.read_table(out / 'plants')
+    per_bag = {}
+    for row in table.to_pylist():
+        per_bag.setdefault(row.pop('bag'), []).append(row)
+    return per_bag, table
+
+
+def test_every_bag_is_found_once_and_the_tables_are_not(season, local):
+    out, r, report = local
+    expected = {season / 'day1' / 'a.mcap', season / 'day1' / 'b.mcap',
+                season / 'day2' / 'machine' / 'c.mcap', season / 'day2' / 'split',
+                season / 'day2' / 'cut.mcap', season / 'day2' / 'garbage.mcap'}
+    assert set(rows_of(out)) == {str(p) for p in expected}
+    assert report['bags_found'] == 6 and report['workers'] == 2
+    assert report['analysed'] == 5 and report['failed'] == 1 and report['with_warnings'] == 1
+    assert r.returncode == 0
+    # progress on stderr: bags done / total, rate, × real time; the last line says it is done
+    lines = [line for line in r.stderr.splitlines() if line.startswith('planter analyze:')]
+    assert lines and lines[-1].startswith('planter analyze: 6/6 bags, ')
+    assert 'bags/s' in lines[-1] and '× real time' in lines[-1] and '1 failed' in lines[-1]
+
+
+def test_the_tables_equal_planter_replay_json_of_every_bag(season, local, capsys):
+    out, _, _ = local
+    bags = rows_of(out)
+    plants, table = plants_of(out)
+    for bag, row in bags.items():
+        code = main(['replay', bag, '--json'])
+        captured = capsys.readouterr()
+        if row['status'] == 'failed':
+            assert code == 2 and bag not in plants
+            assert captured.err == f'planter: error: {row["reason"]}\n'
+            continue
+        assert code == 0
+        expected = json.loads(captured.out)
+        assert plants.get(bag, []) == expected.pop('plants'), bag
+        got = unflatten({k: v for k, v in row.items() if k not in OWN})
+        assert got == expected, bag
+        assert row['status'] == ('warnings' if expected['warnings'] else 'ok')
+    assert sum(len(p) for p in plants.values()) == table.num_rows > 100
+    # SI units in the schemas
+    assert units(table.schema)['spacing_error'] == 'm'
+    assert table.schema.field('tilt').metadata[b'unit'] == b'rad'
+    bags_units = units(pq.read_schema(out / 'bags.parquet'))
+    assert bags_units['summary.spacing_error_mean'] == 'm'
+    assert bags_units['settings.upright_threshold'] == 'rad' and bags_units['duration'] == 's'
+
+
+def test_a_damaged_bag_is_reported_and_the_rest_analysed(season, local):
+    out, r, report = local
+    bags = rows_of(out)
+    garbage = bags[str(season / 'day2' / 'garbage.mcap')]
+    assert garbage['status'] == 'failed' and 'is not an MCAP file' in garbage['reason']
+    assert garbage['plants_file'] is None and '\n' not in garbage['reason']
+    cut = bags[str(season / 'day2' / 'cut.mcap')]
+    assert cut['status'] == 'warnings' and any('not finalised' in w for w in cut['warnings'])
+    whole = bags[str(season / 'day1' / 'a.mcap')]
+    assert 0 < cut['summary.plants'] < whole['summary.plants']
+    assert report['failures'] == [{'bag': garbage['bag'], 'status': 'failed',
+                                   'reason': garbage['reason']}]
+    for row in bags.values():
+        if row is not garbage:
+            assert row['status'] in ('ok', 'warnings') and row['reason'] is None
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def dask_cluster(tmp_path):
+    """`dask scheduler` and `dask worker` as separate processes on 127.0.0.1; yields the
+    scheduler's address."""
+    dask = Path(sys.executable).with_name('dask')
+    env = dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    info = tmp_path / 'scheduler.json'
+    procs = [subprocess.Popen(
+        [str(dask), 'scheduler', '--host', '127.0.0.1', '--port', str(_free_port()),
+         '--no-dashboard', '--scheduler-file', str(info)],
+        env=env, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        deadline = time.monotonic() + 60
+        while not info.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        address = json.loads(info.read_text())['address']
+        procs.append(subprocess.Popen(
+            [str(dask), 'worker', '--scheduler-file', str(info), '--host', '127.0.0.1',
+             '--nworkers', '1', '--nthreads', '1', '--no-dashboard'],
+            env=env, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        yield address
+    finally:
+        for proc in reversed(procs):
+            proc.send_signal(signal.SIGTERM)
+        for proc in reversed(procs):
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
+def test_a_real_dask_scheduler_and_worker_give_the_same_tables(season, local, dask_cluster,
+                                                               tmp_path):
+    from distributed import Client
+    assert dask_cluster.startswith('tcp://127.0.0.1:')
+    with Client(dask_cluster, timeout=30, set_as_default=False) as client:
+        client.wait_for_workers(1, timeout=60)
+        workers = client.scheduler_info()['workers']
+        assert workers and all(w.startswith('tcp://127.0.0.1:') for w in workers)
+    out = tmp_path / 'remote'
+    r, report = analyze(season, '--out', out, '--scheduler', dask_cluster)
+    assert report['workers'] == 1 and report['analysed'] == 5 and report['failed'] == 1
+    here, there = rows_of(local[0]), rows_of(out)
+    assert here.keys() == there.keys()
+    for bag in here:
+        assert {k: v for k, v in here[bag].items() if k not in WHEN} == \
+            {k: v for k, v in there[bag].items() if k not in WHEN}
+    assert plants_of(local[0])[0] == plants_of(out)[0]
+
+
+def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
+    out = tmp_path / 'tables'
+    _, first = analyze(season, '--out', out, '--workers', 1)
+    assert first['analysed'] + first['failed'] == 6 and first['skipped'] == 0
+    before = (out / 'bags.parquet').read_bytes()
+    plants, table = plants_of(out)
+
+    _, again = analyze(season, '--out', out)
+    assert again['skipped'] == 6 and again['analysed'] == again['failed'] == 0
+    assert again['workers'] == 0                       # no cluster started for nothing
+    assert (out / 'bags.parquet').read_bytes() == before
+
+    changed = season / 'day1' / 'b.mcap'
+    stat = changed.stat()
+    os.utime(changed, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000_000))
+    _, third = analyze(season, '--out', out, '--workers', 1)
+    assert third['skipped'] == 5 and third['analysed'] == 1
+    rows = rows_of(out)
+    assert rows[str(changed)]['file_mtime_ns'] == stat.st_mtime_ns + 1_000_000_000
+    assert plants_of(out)[0] == plants                 # the same plants, none twice
+
+    _, forced = analyze(season, '--out', out, '--workers', 1, '--force')
+    assert forced['skipped'] == 0 and forced['analysed'] + forced['failed'] == 6
+    assert plants_of(out)[0] == plants
+    # every part file is claimed by a bag of the table
+    claimed = {row['plants_file'] for row in rows_of(out).values()} - {None}
+    assert {p.name for p in (out / 'plants').iterdir()} == claimed
+
+    _, window = analyze(season, '--out', out, '--workers', 1, '--window', 5)
+    assert window['analysed'] + window['failed'] == 6        # other settings: done again
+    assert all(row['settings.window'] == 5 for row in rows_of(out).values()
+               if row['status'] != 'failed')
+
+
+def test_out_into_a_bad_place_is_refused_before_any_work(season, tmp_path, capsys):
+    (tmp_path / 'notes.txt').write_text('mine\n')
+    (tmp_path / 'foreign').mkdir()
+    (tmp_path / 'foreign' / 'photo.jpg').write_bytes(b'\xff\xd8')
+    (tmp_path / 'broken').mkdir()
+    (tmp_path / 'broken' / 'bags.parquet').write_bytes(b'not parquet')
+    cases = {tmp_path / 'notes.txt': 'exists and is not a directory',
+             tmp_path / 'missing' / 'out': 'does not exist',
+             tmp_path / 'foreign': 'holds other files',
+             tmp_path / 'broken': 'is not a readable bags table'}
+    for out, words in cases.items():
+        # a PATH that does not exist: refused for --out first, so nothing else was looked at
+        assert main(['analyze', str(tmp_path / 'no-such-bags'), '--out', str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith('planter: error: --out') and words in err, err
+        assert err.count('\n') == 1
+    assert not (tmp_path / 'missing').exists()
+    assert sorted(p.name for p in (tmp_path / 'foreign').iterdir()) == ['photo.jpg']
+    r = run_planter('analyze', season, '--out', tmp_path / 'notes.txt')
+    assert r.returncode == 2 and r.stderr.count('\n') == 1 and 'Traceback' not in r.stderr
+
+
+@pytest.mark.parametrize('args, words', [
+    (['--workers', '0'], '--workers = 0 is out of range'),
+    (['--scheduler', 'somewhere'], 'is not a scheduler address'),
+    (['--workers', '2', '--scheduler', 'tcp://127.0.0.1:1'], 'not allowed with argument'),
+    (['--window', '0'], '--window = 0 is out of range'),
+])
+def test_bad_options_are_one_line(args, words, season, tmp_path, capsys):
+    assert main(['analyze', str(season), '--out', str(tmp_path / 'out'), *args]) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.count('\n') == 1
+    assert not (tmp_path / 'out').exists()
+
+
+def test_no_bags_and_no_scheduler_are_refused(tmp_path, capsys, monkeypatch):
+    from planter_ros.analysis import engine
+    (tmp_path / 'empty').mkdir()
+    assert main(['analyze', str(tmp_path / 'empty'), '--out', str(tmp_path / 'out')]) == 2
+    assert 'holds no bag' in capsys.readouterr().err
+    (tmp_path / 'empty' / 'run.mcap').write_bytes(b'x')
+    monkeypatch.setattr(engine, 'CONNECT_TIMEOUT', 1.0)
+    assert main(['analyze', str(tmp_path / 'empty'), '--out', str(tmp_path / 'out'),
+                 '--scheduler', f'tcp://127.0.0.1:{_free_port()}']) == 2
+    err = capsys.readouterr().err
+    assert 'cannot connect' in err and err.count('\n') == 1
+    assert not (tmp_path / 'out').exists()            # made for nothing: removed again
+    shutil.rmtree(tmp_path / 'empty')
