@@ -10,8 +10,10 @@ into the bag as the monitor would have received it: stamped when measured, logge
 later, every topic of interfaces.RECORDED with the monitor's QoS, its settings and rows
 records, chunks closed every second of log time. The monitor's own outputs (plants,
 uprightness_rate) come from its model fed sample by sample in log-time order, as monitor_node
-feeds it (RowSpeedStream, one PlantPredictor per row), so replaying the bag reproduces them.
-The bag has no /diagnostics messages (the channel is there).
+feeds it (RowSpeedStream, one PlantPredictor per row, the map's PlantPlacer), so replaying the
+bag reproduces them.
+The bag has no /diagnostics, spacing_quality or plant_markers messages (the channels are
+there): replay derives the indices and the map from the plants and fixes.
 """
 
 from collections import deque
@@ -241,31 +243,59 @@ def simulate_plan(plan, design=None):
 
 class MonitorModel:
     """The monitor's prediction as monitor_node runs it, without the node: one RowSpeedStream
-    for the machine, one PlantPredictor per planting row, the machine's rolling upright rate."""
+    for the machine (the yaw rate always: the map dead-reckons the heading), one PlantPredictor
+    per planting row, the as-planted map (sensing.plant_map.PlantPlacer: a plant is published
+    once the fixes that place it are in), the machine's rolling upright rate."""
 
-    def __init__(self, rows, design, settings):
+    def __init__(self, rows, design, settings, map_settings, antenna):
         from planter_ros.kinematics.plant_prediction import (PlantPredictor,
                                                              planting_model_from_design)
+        from planter_ros.sensing.plant_map import PlantPlacer
         from planter_ros.sensing.row_speed import RowSpeedStream
         model = planting_model_from_design(design)
         planting = [row for row in rows if row.enabled]
         self.predictors = [PlantPredictor(model, settings, row=row.index, speed_filter=False)
                            for row in planting]
         self.speeds = RowSpeedStream([row.lateral_offset for row in planting],
-                                     settings.speed_limits)
+                                     settings.speed_limits, yaw=True)
+        self.placer = PlantPlacer(map_settings, antenna.antenna_position,
+                                  {row.index: row.lateral_offset for row in rows})
         self.recent = deque(maxlen=settings.window)
 
     def speed(self, t, v, w):
-        """Plants batches completed by a ground-speed message (t s, v m/s, ω_z rad/s)."""
-        sample = self.speeds.add(t, v, w)
-        if sample is None:
+        """Plants batches placed after a ground-speed message (t s, v m/s, ω_z rad/s)."""
+        motion = self.speeds.motion(t, v, w)
+        if motion is None:
             return []
-        t, speeds = sample
-        return [p.add_speed(t, s) for p, s in zip(self.predictors, speeds.tolist())]
+        t, v, yaw_rate = motion
+        out = self._placed(self.placer.add_motion(t, v, yaw_rate))
+        for p, s in zip(self.predictors, self.speeds.speeds(v, yaw_rate).tolist()):
+            out += self._predicted(p.add_speed(t, s))
+        return out
 
     def joint(self, t, positions, velocities):
-        """Plants batches completed by a joint-state message (each planting row's joint)."""
-        return [p.add_joint(t, a, w) for p, a, w in zip(self.predictors, positions, velocities)]
+        """Plants batches placed after a joint-state message (each planting row's joint)."""
+        out = []
+        for p, a, w in zip(self.predictors, positions, velocities):
+            out += self._predicted(p.add_joint(t, a, w))
+        return out
+
+    def fix(self, t, status, latitude, longitude, cov_east, cov_north, cov_type):
+        """Plants batches placed after a GNSS fix."""
+        return self._placed(self.placer.add_fix(t, status, latitude, longitude, cov_east,
+                                                cov_north, cov_type))
+
+    def flush(self):
+        """The plants still held for fixes, placed with the fixes there are (the monitor's
+        end of recording)."""
+        return self._placed(self.placer.flush())
+
+    def _predicted(self, plants):
+        return self._placed(self.placer.add_plants(plants)) if len(plants) else []
+
+    @staticmethod
+    def _placed(placed):
+        return [plants for plants, _ in placed]
 
     def rate(self, plants):
         """The machine's rolling upright rate after `plants` (what uprightness_rate carries)."""
@@ -298,8 +328,11 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
     from std_msgs.msg import Float64, String
 
     from planter_ros.config import as_dict
+    from planter_ros.geo import AntennaSettings
     from planter_ros.kinematics.plant_prediction import PredictionSettings
     from planter_ros.recording.recorder import Recorder
+    from planter_ros.recording.replay import map_record
+    from planter_ros.sensing.plant_map import MapSettings
     from planter_ros.rows import rows_record
 
     from .gnss import navsatfix
@@ -343,7 +376,9 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
     rec.add_metadata(interfaces.PREDICTION_SETTINGS_RECORD,
                      {k: repr(v) for k, v in as_dict(settings).items()})
     rec.add_metadata(interfaces.ROWS_RECORD, rows_record(rows))
-    monitor = MonitorModel(rows, design, settings)
+    map_settings, antenna = MapSettings(), AntennaSettings()
+    rec.add_metadata(interfaces.MAP_RECORD, map_record(map_settings, antenna))
+    monitor = MonitorModel(rows, design, settings, map_settings, antenna)
     start = int(log.min()) - 500_000_000 if log.size else epoch
     clock[0] = start * 1e-9
     rec.write_message(names[interfaces.DESIGN], String(data=json.dumps(design)), start)
@@ -391,6 +426,10 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
         else:
             msg = navsatfix(stamp(gnss_stamp[i]), lat[i], lon[i], alt[i], plan.gnss.noise)
             rec.write_message(names[interfaces.GNSS_FIX], msg, now, int(gnss_stamp[i]))
+            cov = msg.position_covariance
+            publish(monitor.fix(int(gnss_stamp[i]) * 1e-9, msg.status.status, lat[i], lon[i],
+                                cov[0], cov[4], msg.position_covariance_type), now)
+    publish(monitor.flush(), int(log.max()) if log.size else start)
     rec.close()
     return {'bag': str(path), 'run': plan.index, 'duration': plan.duration,
             'rows': len(rows), 'messages': rec.message_count, 'plants': plants_written,
