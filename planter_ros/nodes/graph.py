@@ -40,3 +40,25 @@ def when_named(node, sources, attribution, write, wait=3.0, period=0.05):
             write(named)
 
     timer = node.create_timer(period, retry, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
+def log_accepted_design(node, sources, what, effect):
+    """Attribute a design `node` just accepted to its publisher (sources: DesignSources) and log
+    it once the graph names that node: the first as info, a change as info, a change by another
+    node than the first design's as a warning. `what` describes the design, `effect` says
+    when the change takes effect."""
+    source = sources.accepted(publishers(node, interfaces.DESIGN))
+    changes = sources.changes
+
+    def write(named):
+        if named.first:
+            node.get_logger().info(f'design from {named.text}: {what}')
+            return
+        text = f'design change {changes} from {named.text}: {what}; {effect}'
+        if named.foreign:
+            node.get_logger().warning(f'{text} (not the publisher of the first design, '
+                                      f'{sources.first.text})')
+        else:
+            node.get_logger().info(text)
+
+    when_named(node, sources, source, write)

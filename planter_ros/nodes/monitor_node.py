@@ -264,23 +264,9 @@ class MonitorNode(Node):
 
     def _log_design(self, mechanism, model):
         """Log an accepted design with the node that published it (design_sources)."""
-        source = self.design_sources.accepted(graph.publishers(self, interfaces.DESIGN))
         what = f'{mechanism}, d = {model.spacing:.4g} m, D = {model.depth:.4g} m'
-        changes = self.design_sources.changes
-        graph.when_named(self, self.design_sources, source,
-                         lambda named: self._write_design_log(named, what, changes))
-
-    def _write_design_log(self, source, what, changes):
-        if source.first:
-            self.get_logger().info(f'design received from {source.text}: {what}')
-            return
-        text = (f'design change {changes} from {source.text}: {what}; '
-                "plants are scored against it from each row's next planting instant")
-        if source.foreign:
-            self.get_logger().warning(f'{text} (not the publisher of the first design, '
-                                      f'{self.design_sources.first.text})')
-        else:
-            self.get_logger().info(text)
+        graph.log_accepted_design(self, self.design_sources, what, 'plants are scored against '
+                                  "it from each row's next planting instant")
 
     def _on_speed(self, msg, t, now):
         self.samples_taken += 1

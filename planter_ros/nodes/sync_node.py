@@ -292,23 +292,9 @@ class SyncNode(Node):
 
     def _log_design(self, design, spacing, n):
         """Log an accepted design with the node that published it (design_sources)."""
-        source = self.design_sources.accepted(graph.publishers(self, interfaces.DESIGN))
         what = f"{design['mechanism']}, d = {spacing} m, {n} plant(s) per revolution"
-        changes = self.design_sources.changes
-        graph.when_named(self, self.design_sources, source,
-                         lambda named: self._write_design_log(named, what, changes))
-
-    def _write_design_log(self, source, what, changes):
-        if source.first:
-            self.get_logger().info(f'design from {source.text}: {what}')
-            return
-        text = (f'design change {changes} from {source.text}: {what}; in '
-                "force from each row's next planting instant")
-        if source.foreign:
-            self.get_logger().warning(f'{text} (not the publisher of the first design, '
-                                      f'{self.design_sources.first.text})')
-        else:
-            self.get_logger().info(text)
+        graph.log_accepted_design(self, self.design_sources, what,
+                                  "in force from each row's next planting instant")
 
     def _find_planting_angles(self, design, key):
         planting = _planting_angles(design)

@@ -150,7 +150,14 @@ def _pose(t_dr, x, y, psi, t):
 
 class FixTrack:
     """Usable fixes in order, each giving the transform dead-reckoned path -> local east/north
-    (see the module doc). `add` takes a fix whose instant the dead reckoning covers."""
+    (see the module doc). `add` takes a fix whose instant the dead reckoning covers.
+
+    The least-squares fit of each fix needs only weighted sums over its window, so the track
+    keeps running sums (rebased at the window's start now and then) in plain floats: a fix
+    costs a few microseconds whatever the window holds, and the live placer and replay, both
+    calling `add`, compute every transform with the same arithmetic."""
+
+    REBASE = 256                  # fixes before the running sums restart at the window
 
     def __init__(self, settings, antenna, keep_all=False):
         """`keep_all`: keep every fix's transform (replay places plants after all fixes);
@@ -159,8 +166,12 @@ class FixTrack:
         self.keep_all = keep_all
         self.antenna = (float(antenna[0]), float(antenna[1]))
         self.frame = None
-        # (t, antenna x, y dead-reckoned, east, north, weight, antenna path length)
-        self._window = deque()
+        # the fixes from just before the window on: instant, antenna path length (m) and the
+        # running sums after each (w, w·ax, w·ay, w·e, w·n, w·|a|², w·a·b, w·a×b; a the
+        # dead-reckoned antenna, b the fix in east/north, w = 1/σ²)
+        self._t, self._path, self._sums = [], [], []
+        self._first = 0               # index in those lists of the window's first fix
+        self._antenna_at = None       # the last fix's dead-reckoned antenna (x, y)
         self._phi = None
         self.times = []               # each usable fix's instant, with its transform:
         self.transforms = []          # (φ, Tx, Ty), or None before a heading is known
@@ -171,52 +182,74 @@ class FixTrack:
         if self.frame is None:
             self.frame = LocalFrame(latitude, longitude)
 
-    def add(self, t, latitude, longitude, sigma, pose):
-        """A usable fix at t (s) with its σ (m) and the dead-reckoned pose (x, y, ψ) at t."""
+    def add(self, t, latitude, longitude, sigma, pose, east_north=None):
+        """A usable fix at t (s) with its σ (m) and the dead-reckoned pose (x, y, ψ) at t;
+        `east_north`: the fix already in the local frame (replay converts all at once)."""
         settings = self.settings
+        t = float(t)
         self.anchor(latitude, longitude)
-        east, north = self.frame.to_east_north(longitude, latitude)
+        if east_north is None:
+            east_north = self.frame.to_east_north(longitude, latitude)
+        e, n = float(east_north[0]), float(east_north[1])
         ax, ay = on_machine(pose[0], pose[1], pose[2], *self.antenna)
         ax, ay = float(ax), float(ay)
         path = 0.0
-        if self._window:
-            last = self._window[-1]
-            path = last[6] + math.hypot(ax - last[1], ay - last[2])
-        self._window.append((float(t), ax, ay, float(east), float(north),
-                             1.0 / float(sigma) ** 2, path))
-        while len(self._window) > 1 and (
-                self._window[1][6] <= path - settings.track_length
-                or self._window[0][0] < t - settings.fix_window):
-            self._window.popleft()
+        if self._antenna_at is not None:
+            path = self._path[-1] + math.hypot(ax - self._antenna_at[0],
+                                               ay - self._antenna_at[1])
+        self._antenna_at = (ax, ay)
+        w = 1.0 / float(sigma) ** 2
+        last = self._sums[-1] if self._sums else (0.0,) * 8
+        self._t.append(t)
+        self._path.append(path)
+        self._sums.append((last[0] + w, last[1] + w * ax, last[2] + w * ay, last[3] + w * e,
+                           last[4] + w * n, last[5] + w * (ax * ax + ay * ay),
+                           last[6] + w * (ax * e + ay * n), last[7] + w * (ax * n - ay * e)))
+        # the window: the fixes of the last track_length of path (and the one just before it),
+        # at most fix_window old
+        end, first = len(self._t) - 1, self._first
+        while first < end and (self._path[first + 1] <= path - settings.track_length
+                               or self._t[first] < t - settings.fix_window):
+            first += 1
+        if first > self.REBASE:
+            self._rebase(first)
+            end, first = len(self._t) - 1, 1
+        self._first = first
+        before = self._sums[first - 1] if first > 0 else (0.0,) * 8
+        transform = self._fit([a - b for a, b in zip(self._sums[end], before)])
         self.fixes += 1
-        transform = self._fit(np.array(self._window)[:, :6])
-        self.times.append(float(t))
+        self.times.append(t)
         self.transforms.append(transform)
         if transform is not None and self.first_heading is None:
-            self.first_heading = (float(t), transform)
+            self.first_heading = (t, transform)
         horizon = t - settings.fix_window - 2.0 * settings.max_fix_age - 1.0
         if not self.keep_all and len(self.times) > 2 and self.times[1] < horizon:
             cut = bisect_right(self.times, horizon) - 1
             del self.times[:cut], self.transforms[:cut]
 
-    def _fit(self, window):
-        """(φ, Tx, Ty) mapping the window's dead-reckoned antenna onto its fixes."""
-        a, b, weight = window[:, 1:3], window[:, 3:5], window[:, 5]
-        total = weight.sum()
-        a_mean = weight @ a / total
-        b_mean = weight @ b / total
-        da, db = a - a_mean, b - b_mean
-        # the path's extent as the length of a straight stretch of the same spread
-        extent = math.sqrt(12.0 * float(weight @ np.sum(da * da, axis=1)) / total)
+    def _rebase(self, first):
+        """Drop the fixes before the one preceding the window's first and restart the running
+        sums there (they stay of the window's size: no precision lost over a long run)."""
+        base = self._sums[first - 1]
+        del self._t[:first - 1], self._path[:first - 1], self._sums[:first - 1]
+        self._sums = [tuple(a - b for a, b in zip(sums, base)) for sums in self._sums]
+
+    def _fit(self, sums):
+        """(φ, Tx, Ty) mapping the window's dead-reckoned antenna onto its fixes, from its
+        weighted sums (see `add`)."""
+        total, sax, say, sbx, sby, saa, sab, sacb = sums
+        amx, amy, bmx, bmy = sax / total, say / total, sbx / total, sby / total
+        # Σw|a − ā|²: the path's extent as the length of a straight stretch of that spread
+        spread = max(saa - total * (amx * amx + amy * amy), 0.0)
+        extent = math.sqrt(12.0 * spread / total)
         if extent >= 0.5 * self.settings.track_length:
-            cross = float(weight @ (da[:, 0] * db[:, 1] - da[:, 1] * db[:, 0]))
-            dot = float(weight @ np.sum(da * db, axis=1))
+            cross = sacb - total * (amx * bmy - amy * bmx)
+            dot = sab - total * (amx * bmx + amy * bmy)
             self._phi = math.atan2(cross, dot)
         if self._phi is None:
             return None
         c, s = math.cos(self._phi), math.sin(self._phi)
-        return (self._phi, float(b_mean[0] - (c * a_mean[0] - s * a_mean[1])),
-                float(b_mean[1] - (s * a_mean[0] + c * a_mean[1])))
+        return (self._phi, bmx - (c * amx - s * amy), bmy - (s * amx + c * amy))
 
     def transform_for(self, t):
         """The transform that places a plant at t: that of the last usable fix at or before
@@ -296,16 +329,22 @@ def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna):
     x, y, psi = dead_reckoning(mt, mv, mw)
     ft, status, lat, lon, ce, cn, kind = (np.asarray(a, dtype=float) for a in fixes)
     sigma = fix_sigma(status, lat, lon, ce, cn, kind, settings.max_fix_sigma)
-    seen = -math.inf
+    usable, seen = [], -math.inf
     for i in range(ft.size):
         if not (math.isfinite(ft[i]) and ft[i] > seen):
             continue                       # out of order or repeated: dropped, as live
         seen = ft[i]
-        if not math.isfinite(sigma[i]):
-            continue
-        track.anchor(lat[i], lon[i])
-        if mt.size and mt[0] <= ft[i] <= mt[-1]:
-            track.add(ft[i], lat[i], lon[i], sigma[i], _pose(mt, x, y, psi, ft[i]))
+        if math.isfinite(sigma[i]):
+            usable.append(i)
+    if usable:
+        track.anchor(lat[usable[0]], lon[usable[0]])
+        taken = np.array([i for i in usable if mt.size and mt[0] <= ft[i] <= mt[-1]], dtype=int)
+        # the poses and the local frame of all fixes at once; each fix then as live
+        px, py, ppsi = _pose(mt, x, y, psi, ft[taken])
+        east, north = track.frame.to_east_north(lon[taken], lat[taken])
+        for k, i in enumerate(taken.tolist()):
+            track.add(ft[i], lat[i], lon[i], sigma[i], (px[k], py[k], ppsi[k]),
+                      (east[k], north[k]))
     return _placement(track, plant_t, np.asarray(plant_offset, dtype=float),
                       _pose_inside(mt, x, y, psi, plant_t))
 
