@@ -83,6 +83,25 @@ def _next_state(state: str, controlword: int, quick_stop_option: int) -> str:
     return {READY_TO_SWITCH_ON: SWITCHED_ON, OPERATION_ENABLED: SWITCHED_ON}.get(state, state)
 
 
+def _paced(stop_event, tick, work):
+    """Every `tick` s until `stop_event`: run `work()` (read the bus), then yield (seconds since
+    the last step, now). A loop that fell behind (a loaded machine) takes up its pace from now
+    instead of catching up in a burst."""
+    last = time.monotonic()
+    next_tick = last
+    while not stop_event.is_set():
+        next_tick += tick
+        delay = next_tick - time.monotonic()
+        if delay > 0:
+            stop_event.wait(delay)
+        else:
+            next_tick = time.monotonic()
+        work()
+        now = time.monotonic()
+        dt, last = now - last, now
+        yield dt, now
+
+
 class SimulatedDrive:
     """A CiA 402 profile-velocity drive on the bus, with a motor model and its own watchdog."""
 
@@ -493,18 +512,8 @@ class SimulatedDrive:
 
     # ---------------------------------------------------------------- the thread
     def _run(self) -> None:
-        last = time.monotonic()
-        next_tick = last
-        while not self._stop_event.is_set():
-            next_tick += self.tick
-            delay = next_tick - time.monotonic()
-            if delay > 0:
-                self._stop_event.wait(delay)
-            else:
-                next_tick = time.monotonic()      # fell behind (loaded machine): no burst
-            receive(self._bus, self.network)
-            now = time.monotonic()
-            dt, last = now - last, now
+        for dt, now in _paced(self._stop_event, self.tick,
+                              lambda: receive(self._bus, self.network)):
             if not self.step(dt, now):
                 break
 
@@ -614,26 +623,15 @@ class SimulatedBus:
         self._thread.start()
 
     def _run(self) -> None:
-        last = time.monotonic()
-        next_tick = last
-        while not self._stop_event.is_set():
-            next_tick += self.tick
-            delay = next_tick - time.monotonic()
-            if delay > 0:
-                self._stop_event.wait(delay)
-            else:
-                next_tick = time.monotonic()      # fell behind (loaded machine): no burst
-            try:
-                receive(self.bus, self.network)
-            except (can.CanError, OSError):
-                if self._stop_event.is_set():
-                    return
+        try:
+            for dt, now in _paced(self._stop_event, self.tick,
+                                  lambda: receive(self.bus, self.network)):
+                for drive in self.drives:
+                    if not drive.step(dt, now):
+                        return
+        except (can.CanError, OSError):
+            if not self._stop_event.is_set():
                 raise
-            now = time.monotonic()
-            dt, last = now - last, now
-            for drive in self.drives:
-                if not drive.step(dt, now):
-                    return
 
     def stop(self) -> None:
         self._stop_event.set()
