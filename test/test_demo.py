@@ -45,6 +45,15 @@ def read_until(proc, prefix, lines, timeout=90):
     raise AssertionError(f'no line {prefix!r}:\n' + ''.join(lines))
 
 
+def host_starved(out):
+    """Did the host leave the demo's command path unscheduled for more than half the drive's
+    0.2 s deadline (its own control-loop line says so)? On a shared CI machine that is the host,
+    not the product: the real-time tests below then run once more, and fail if it happens
+    again."""
+    gaps = re.findall(r'command gap mean [\d.]+ ms, p99\.9 [\d.]+ ms, max ([\d.]+) ms', out)
+    return any(float(gap) > 100.0 for gap in gaps)
+
+
 def children_of(pid):
     """Process ids whose parent is `pid` (from /proc)."""
     out = []
@@ -98,12 +107,17 @@ def test_an_existing_bag_is_never_overwritten(tmp_path):
 
 
 def test_sigterm_stops_the_demo_cleanly_with_summaries_a_finalised_bag_and_exit_0(tmp_path):
-    proc = start_demo('--duration', '60', cwd=tmp_path)
-    lines = []
-    read_until(proc, 't =   4.0 s', lines)                # plants are being placed
-    proc.send_signal(signal.SIGTERM)
-    rest, _ = proc.communicate(timeout=60)
-    out = ''.join(lines) + rest
+    for attempt in range(2):
+        cwd = tmp_path / f'attempt{attempt}'
+        cwd.mkdir()
+        proc = start_demo('--duration', '60', cwd=cwd)
+        lines = []
+        read_until(proc, 't =   4.0 s', lines)            # plants are being placed
+        proc.send_signal(signal.SIGTERM)
+        rest, _ = proc.communicate(timeout=60)
+        out = ''.join(lines) + rest
+        if not host_starved(out):
+            break
     assert proc.returncode == 0, out
     assert 'interrupted by SIGTERM: stopping' in out
     assert 'drive shut down (target 0, disabled, pre-operational)' in out
@@ -114,10 +128,10 @@ def test_sigterm_stops_the_demo_cleanly_with_summaries_a_finalised_bag_and_exit_
     assert out.rstrip().splitlines()[-1].startswith('verdict: PASS (stopped by SIGTERM after ')
     # the default bag lands under ./bags, finalised; the demo and `planter replay` of it read
     # it without a warning
-    bags = list((tmp_path / 'bags').glob('planter_*'))
+    bags = list((cwd / 'bags').glob('planter_*'))
     assert len(bags) == 1
     assert f'recorded bags/{bags[0].name}' in out and 'warning' not in out
-    replayed = run_planter('replay', bags[0], '--json', cwd=tmp_path)
+    replayed = run_planter('replay', bags[0], '--json', cwd=cwd)
     assert replayed.returncode == 0 and replayed.stderr == ''
     result = json.loads(replayed.stdout)
     assert result['warnings'] == [] and result['summary']['plants'] >= 1
@@ -142,9 +156,12 @@ def test_a_killed_demo_still_has_its_drives_shut_down_by_the_sync_process(tmp_pa
 
 def test_the_four_row_demo_plants_every_row_through_the_turns_and_replays_per_row(tmp_path):
     from planter_ros.recording.replay import replay
-    bag = tmp_path / 'four_rows.mcap'
-    out = run_planter('demo', '--scene', REPO / 'config' / 'tomato_4row.yaml', '--duration',
-                      '16', '--bag', bag, timeout=180)
+    for attempt in range(2):
+        bag = tmp_path / f'four_rows_{attempt}.mcap'
+        out = run_planter('demo', '--scene', REPO / 'config' / 'tomato_4row.yaml',
+                          '--duration', '16', '--bag', bag, timeout=180)
+        if not host_starved(out.stdout):
+            break
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     names = ['left_outer', 'left_inner', 'right_inner', 'right_outer']
     for name in names:
@@ -350,19 +367,22 @@ def test_two_demos_side_by_side_and_a_stray_graph_in_domain_0_change_nothing(tmp
 def test_a_design_published_into_the_demos_graph_is_logged_scored_in_force_and_fails(
         tmp_path):
     from planter_ros.recording.replay import replay
-    bag = tmp_path / 'intruded.mcap'
-    proc = start_demo('--duration', '14', '--bag', bag, cwd=tmp_path)
-    lines = []
-    header = read_until(proc, 'planter demo:', lines)
-    domain = int(re.search(r'DDS domain (\d+) \(private\)', header).group(1))
-    read_until(proc, 't =   4.0 s', lines)
-    intruder = start_stray(domain, sensor='')      # a second design node, the pepper scene
-    try:
-        rest, _ = proc.communicate(timeout=120)
-    finally:
-        intruder.kill()
-        intruder.wait()
-    out = ''.join(lines) + rest
+    for attempt in range(2):
+        bag = tmp_path / f'intruded_{attempt}.mcap'
+        proc = start_demo('--duration', '14', '--bag', bag, cwd=tmp_path)
+        lines = []
+        header = read_until(proc, 'planter demo:', lines)
+        domain = int(re.search(r'DDS domain (\d+) \(private\)', header).group(1))
+        read_until(proc, 't =   4.0 s', lines)
+        intruder = start_stray(domain, sensor='')  # a second design node, the pepper scene
+        try:
+            rest, _ = proc.communicate(timeout=120)
+        finally:
+            intruder.kill()
+            intruder.wait()
+        out = ''.join(lines) + rest
+        if not host_starved(out):
+            break
     assert proc.returncode == 1, out
     verdict = out.rstrip().splitlines()[-1]
     assert verdict.startswith('verdict: FAIL: ')
