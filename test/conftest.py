@@ -31,3 +31,5 @@ if os.environ.get('CI'):
 from ros_fixtures import ros  # noqa: E402, F401
 # the CAN drive fixtures (a virtual channel per test, the simulated drive, masters)
 from drive_helpers import channel, enabled, make_drive, sim, spy  # noqa: E402, F401
+# the rice three-arm scene and its mechanism (module scope), for the three-arm test modules
+from three_arm_fixtures import mech, params  # noqa: E402, F401

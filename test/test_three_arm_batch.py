@@ -11,16 +11,9 @@ from planter_ros.kinematics.three_arm.batch import CurveBasis, MechanismBatch
 from planter_ros.kinematics.three_arm.goals import GOAL_NAMES, goal_settings, goal_values
 from planter_ros.optimize.three_arm import (INSTALL_BOUNDS, RADIUS_BOUNDS, BatchScorer, optimize,
                                             parameters_from_vector, score)
-from planter_ros.scene import load_scene
 
-from cli_helpers import REPO
 
 NAMES = tuple(INSTALL_BOUNDS)
-
-
-@pytest.fixture(scope='module')
-def params():
-    return load_scene(REPO / 'config' / 'rice_three_arm.yaml')
 
 
 def random_designs(params, count, seed):

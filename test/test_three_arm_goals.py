@@ -8,21 +8,9 @@ import pytest
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.three_arm import ThreeArmMechanism, design_summary, evaluate_goals
 from planter_ros.kinematics.three_arm.goals import GOAL_NAMES, gear_module_limit
-from planter_ros.scene import load_scene
 
-from cli_helpers import REPO
 
 DEG = math.pi / 180
-
-
-@pytest.fixture(scope='module')
-def params():
-    return load_scene(REPO / 'config' / 'rice_three_arm.yaml')
-
-
-@pytest.fixture(scope='module')
-def mech(params):
-    return ThreeArmMechanism.from_parameters(params)
 
 
 @pytest.fixture(scope='module')

@@ -7,21 +7,9 @@ import pytest
 
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.three_arm import PitchCurve, ThreeArmMechanism, solve_centre_distance
-from planter_ros.scene import load_scene
 
-from cli_helpers import REPO
 
 TWO_PI = 2 * math.pi
-
-
-@pytest.fixture(scope='module')
-def params():
-    return load_scene(REPO / 'config' / 'rice_three_arm.yaml')
-
-
-@pytest.fixture(scope='module')
-def mech(params):
-    return ThreeArmMechanism.from_parameters(params)
 
 
 def test_closure_matches_mpmath_reference(mech):

@@ -11,22 +11,10 @@ from planter_ros.kinematics.three_arm.goals import gear_module_limit
 from planter_ros.kinematics.three_arm.paper import (TABLE_1, paper_comparison, reading_table,
                                                     readings)
 from planter_ros.kinematics.three_arm.pitch_curve import INTERPOLANTS
-from planter_ros.scene import load_scene
 
-from cli_helpers import REPO
 
 DEG = math.pi / 180
 TWO_PI = 2 * math.pi
-
-
-@pytest.fixture(scope='module')
-def params():
-    return load_scene(REPO / 'config' / 'rice_three_arm.yaml')
-
-
-@pytest.fixture(scope='module')
-def mech(params):
-    return ThreeArmMechanism.from_parameters(params)
 
 
 def test_table_1_per_arm_plants_close_and_picks_a_third_of_a_turn_off(mech):
