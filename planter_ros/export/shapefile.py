@@ -170,9 +170,10 @@ def _write_set(shp, shx, dbf, prj, cpg, runs):
                           f'{dbf_bytes / 2**30:.1f} GiB attribute table: a Shapefile holds at '
                           'most 2 GiB per file (export fewer bags at a time)')
     placed = 0
-    with open(shp, 'wb') as f_shp, open(shx, 'wb') as f_shx, open(dbf, 'wb') as f_dbf:
-        writer = shapefile.Writer(shp=f_shp, shx=f_shx, dbf=f_dbf, shapeType=shapefile.POINT,
-                                  encoding=ENCODING)
+    with open(shp, 'wb') as f_shp, open(shx, 'wb') as f_shx, open(dbf, 'wb') as f_dbf, \
+            shapefile.Writer(shp=f_shp, shx=f_shx, dbf=f_dbf, shapeType=shapefile.POINT,
+                             encoding=ENCODING, autoBalance=True) as writer:
+        # (autoBalance: a write that fails between a point and its record still closes)
         for attribute, size in columns:
             if attribute.kind == 'L':
                 writer.field(attribute.name, 'L')
@@ -186,7 +187,6 @@ def _write_set(shp, shx, dbf, prj, cpg, runs):
                 writer.point(lon, lat)
                 placed += 1
             writer.record(*[_cell(a, size, record.get(a.key)) for a, size in columns])
-        writer.close()
     Path(prj).write_text(prj_text(), encoding='ascii')
     Path(cpg).write_text('UTF-8', encoding='ascii')
     return len(records), placed
