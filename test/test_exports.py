@@ -68,7 +68,7 @@ def read_gdal(path):
 
 # ------------------------------------------------------------------------------ Shapefile
 
-def check_against_replay(result, points, columns, rows_named=True):
+def check_against_replay(result, points, columns, rows_named=True, bag_name=None):
     """Every plant of the replay is its feature: position within 1 mm, fields as replay's."""
     p = result.plants
     assert len(points) == len(p)
@@ -87,7 +87,7 @@ def check_against_replay(result, points, columns, rows_named=True):
                 assert columns[name][i] == pytest.approx(values[i], abs=5e-7), name
             else:
                 assert math.isnan(columns[name][i]), name       # null, read as NaN
-    assert columns['bag'][0] == Path(result.path).name
+    assert set(columns['bag']) == {bag_name or Path(result.path).name}
     assert columns['utc'][0].endswith('Z')
 
 
@@ -439,3 +439,55 @@ def test_a_failed_write_leaves_the_old_files_and_no_temporaries(result, tmp_path
     write_isoxml(taskdir, [run])
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         'TASKDATA', 'map.cpg', 'map.dbf', 'map.prj', 'map.shp', 'map.shx']
+
+
+# ------------------------------------------------------------------------------ a season
+
+def test_analyze_writes_the_seasons_shapefile_and_task_data_next_to_its_tables(bag, tmp_path):
+    """Two machines' recordings in a season: the Shapefile holds every plant with its
+    recording's name, where replay puts it; the task data one task per recording, one device
+    per machine, each task's time log its recording's plants."""
+    import shutil
+    import zipfile
+    from cli_helpers import run_planter
+    season = tmp_path / 'season'
+    (season / 'day1').mkdir(parents=True)
+    (season / 'day2').mkdir()
+    shutil.copy(bag, season / 'day1' / 'a.mcap')
+    shutil.copy(NO_GNSS, season / 'day2' / 'b.mcap')
+    out = tmp_path / 'tables'
+    r = run_planter('analyze', season, '--out', out, '--workers', 1, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert f'exports: {out / "as_planted.zip"} (Shapefile' in r.stdout
+    results = {'day1/a.mcap': replay(str(season / 'day1' / 'a.mcap')),
+               'day2/b.mcap': replay(str(season / 'day2' / 'b.mcap'))}
+    meta, points, columns = read_gdal(out / 'as_planted.zip')
+    assert meta['crs'] == 'EPSG:4326'
+    bags = np.array(columns['bag'])
+    assert set(bags) == set(results)
+    for key, result in results.items():
+        mine = np.flatnonzero(bags == key)
+        assert len(mine) == len(result.plants)
+        if np.isfinite(result.plants.latitude).all():
+            check_against_replay(result, [points[i] for i in mine],
+                                 {k: np.asarray(v)[mine] for k, v in columns.items()},
+                                 bag_name=key)
+        else:
+            assert all(points[i] is None for i in mine)
+    zipfile.ZipFile(out / 'TASKDATA.zip').extractall(tmp_path / 'unzipped')
+    task_data, files = read_taskdata(tmp_path / 'unzipped' / 'TASKDATA')
+    assert len(task_data.devices) == 2
+    assert sorted(t.designator for t in task_data.tasks) == sorted(results)
+    for task in task_data.tasks:
+        name = task.time_logs[0].filename
+        _, records = decode_time_log(
+            (tmp_path / 'unzipped' / 'TASKDATA' / f'{name}.XML').read_text(), files[name])
+        assert len(records) == len(results[task.designator].plants)
+    # a re-run that analyses nothing leaves them; one that finds them gone writes them again
+    (out / 'TASKDATA.zip').unlink()
+    again = run_planter('analyze', season, '--out', out, '--workers', 1, '--json', timeout=300)
+    assert again.returncode == 0, again.stderr[-2000:]
+    import json
+    report = json.loads(again.stdout)
+    assert report['skipped'] == 2 and report['exports']['tasks'] == 2
+    assert (out / 'TASKDATA.zip').is_file()

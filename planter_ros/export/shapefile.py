@@ -61,6 +61,7 @@ ATTRIBUTES = (
               'records carry it)'),
     Attribute('reason', 'reason', 'C', text='why the status is what it is'),
 )
+LATER = ('status', 'reason')               # keys records gain with a seedling sensor
 GEOMETRY = ('longitude', 'latitude')      # record keys that are the point, not attributes
 SIDECARS = ('.shx', '.dbf', '.prj', '.cpg')
 STALE = ('.qix', '.sbn', '.sbx')           # spatial indexes other programs build from a .shp
@@ -84,13 +85,14 @@ def check_path(path, option):
 
 def attributes_of(records):
     """The columns of `records` (ATTRIBUTES' order, then unknown keys as they first appear):
-    [(Attribute, size)] with text widths fitted to the values."""
+    [(Attribute, size)] with text widths fitted to the values (no records: today's
+    columns)."""
     known = {a.key: a for a in ATTRIBUTES}
     keys = {}
     for record in records:
         for key in record:
             keys.setdefault(key, None)
-    present = [a for a in ATTRIBUTES if a.key in keys]
+    present = [a for a in ATTRIBUTES if a.key in keys or (not records and a.key not in LATER)]
     taken = {a.name.lower() for a in ATTRIBUTES}
     extra = []
     for key in keys:
