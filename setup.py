@@ -34,9 +34,12 @@ setup(
         'dask[distributed]>=2024.8',              # planter analyze on a cluster
         'pyarrow>=15',                            # Parquet tables of a season
         'mpmath>=1.3',                            # planter bench's references
+        'pyshp>=2.3',                             # Shapefile export
+        'isoxml>=0.0.4',                          # ISO 11783-10 task data export
+        'xsdata>=24.7',                           # isoxml's bindings (its date-time type)
     ],
     extras_require={'test': ['pytest>=8', 'hypothesis>=6.100', 'colcon-common-extensions',
-                             'ruff>=0.6']},
+                             'ruff>=0.6', 'pyogrio>=0.10']},
     zip_safe=True,
     maintainer='planter_ros team',
     maintainer_email='planter@example.org',

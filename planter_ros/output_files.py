@@ -4,7 +4,8 @@
 directory, a directory where a file is asked for, an unsupported extension), so a long run never
 fails at its last step; `atomic_output` writes through a temporary file in the same directory and
 a rename, so a reader never sees a half-written file and a failed or invalid write leaves the
-user's old file as it was. Pure Python, no ROS.
+user's old file as it was (`atomic_outputs`: a set of files written whole before any is renamed;
+`atomic_directory`: a directory of files). Pure Python, no ROS.
 """
 
 from contextlib import contextmanager
@@ -80,12 +81,7 @@ def atomic_output(path):
     on success it replaces `path` (keeping an existing file's mode), on an exception it is
     removed and `path` is untouched."""
     path = Path(path)
-    try:
-        mode = stat.S_IMODE(os.stat(path).st_mode)   # a replaced file keeps its mode
-    except FileNotFoundError:
-        umask = os.umask(0)
-        os.umask(umask)
-        mode = 0o666 & ~umask                        # a new one gets what open() would give
+    mode = _mode_for(path)           # a replaced file keeps its mode, a new one gets open()'s
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}.',
                                suffix=f'.tmp{path.suffix}')
     os.close(fd)
@@ -101,6 +97,73 @@ def atomic_output(path):
         except OSError:
             pass
         raise
+
+
+@contextmanager
+def atomic_outputs(paths):
+    """atomic_output for a set of files that belong together (a Shapefile's .shp, .shx, .dbf,
+    ...): yields one temporary path per path (same directory and extension); only when all
+    are written are they renamed onto the paths, in the order given (put the file readers
+    open first last); on an exception every temporary is removed and no path is touched."""
+    paths = [Path(p) for p in paths]
+    temporaries = []
+    try:
+        for path in paths:
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}.',
+                                       suffix=f'.tmp{path.suffix}')
+            os.close(fd)
+            temporaries.append(Path(tmp))
+        yield list(temporaries)
+        for path, tmp in zip(paths, temporaries):
+            with open(tmp, 'rb+') as f:
+                os.fsync(f.fileno())
+            os.chmod(tmp, _mode_for(path))
+        for path, tmp in zip(paths, temporaries):
+            os.replace(tmp, path)
+    except BaseException:
+        for tmp in temporaries:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+        raise
+
+
+@contextmanager
+def atomic_directory(path):
+    """Yield a new temporary directory next to `path`; on success it takes the place of `path`
+    (an existing directory there is moved aside, then removed: a reader sees the old or the
+    new one, never a half-written one); on an exception it is removed and `path` untouched."""
+    import shutil
+    path = Path(path)
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.tmp'))
+    try:
+        yield tmp
+        for file in (f for f in tmp.rglob('*') if f.is_file()):
+            with open(file, 'rb+') as f:
+                os.fsync(f.fileno())
+        os.chmod(tmp, _mode_for(path, directory=True))
+        old = None
+        if path.exists():
+            old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f'.{path.name}.',
+                                        suffix='.old'))
+            os.replace(path, old)        # onto the empty directory just made
+        os.replace(tmp, path)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _mode_for(path, directory=False):
+    """The mode a replaced file or directory keeps, or what a new one would get."""
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return (0o777 if directory else 0o666) & ~umask
 
 
 def write_text_atomically(path, text):

@@ -6,6 +6,7 @@ Layout of the output directory:
     plants/part-<run>-<n>.parquet  the plants dataset: each write adds one part holding the
                                  plants of the bags completed since the previous write
     .planter-analyze.lock        held while a run writes (a second run on it is refused)
+    as_planted.zip, TASKDATA.zip the season for farm software (analysis.exports)
 
 The bags table is the truth: a bag's plants are the rows of its `plants_file` whose `bag` is it.
 A bag is analysed again unless the table holds it with the same key (BagKey: path, size,
@@ -28,11 +29,12 @@ from planter_ros.output_files import OutputError, atomic_output
 
 from . import tables
 from .bags import identity
+from .exports import EXPORTS
 
 BAGS_FILE = 'bags.parquet'
 PLANTS_DIR = 'plants'
 LOCK_FILE = '.planter-analyze.lock'
-OWNED = (BAGS_FILE, PLANTS_DIR, LOCK_FILE)
+OWNED = (BAGS_FILE, PLANTS_DIR, LOCK_FILE) + EXPORTS
 FLUSH_SECONDS = 2.0          # s between two writes of the tables, at least
 FLUSH_BAGS = 2000            # bags completed that force a write
 # status of a bag row: replayed (with or without warnings), refused by replay, a model error

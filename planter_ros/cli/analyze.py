@@ -4,8 +4,10 @@ Every bag under the paths (.mcap files and rosbag2 bag directories, searched rec
 replayed with the same model and settings as `planter replay` on a Dask cluster: a local one of
 worker processes by default, an existing one with --scheduler. The results go to two Parquet
 tables under DIR as they complete (`plants`: one row per plant, `bags`: one row per bag), with
-a progress line on stderr. A bag replay cannot read is a row with its one-line reason; a re-run
-skips the bags the tables hold for the same model version and settings unless --force.
+a progress line on stderr; then the season's as-planted map for farm software next to them
+(as_planted.zip: a Shapefile; TASKDATA.zip: ISO 11783-10 task data; analysis.exports). A bag
+replay cannot read is a row with its one-line reason; a re-run skips the bags the tables hold
+for the same model version and settings unless --force.
 Details: doc/analysis.md.
 """
 
@@ -53,6 +55,7 @@ def run(args):
         raise BadInput(f'PATH = {" ".join(args.paths)} holds no bag: allowed .mcap files and '
                        'directories holding .mcap files or rosbag2 bag directories')
     version = model_version()
+    exports = None
     with seasons.Season(out) as season:
         keys, skipped = season.plan(bags, version, seasons.options_key(overrides, design),
                                     args.force)
@@ -68,15 +71,45 @@ def run(args):
                     report.workers = workers
             except EngineError as exc:
                 raise BadInput(str(exc)) from None
+        exports = season_exports(out, force=bool(keys))
     report.found, report.skipped = len(bags), skipped
     if args.json:
-        print(json.dumps(report.as_json(), indent=1, allow_nan=False))
+        print(json.dumps({**report.as_json(), 'exports': exports}, indent=1, allow_nan=False))
     else:
         print(format_report(report))
+        if exports:
+            print(format_exports(exports))
+    for bag, reason in (exports or {}).get('skipped', []):
+        print(f'planter: warning: {bag} not in the ISOXML task data ({reason})',
+              file=sys.stderr)
     for bag, reason in report.not_done:
         print(f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again',
               file=sys.stderr)
     return 1 if report.not_done else 0
+
+
+def season_exports(out, force):
+    """The season's Shapefile and ISOXML next to the tables (analysis.exports), with the time
+    it took: written when `force` (bags were analysed) or one is missing; None otherwise."""
+    import time
+    from planter_ros.analysis.exports import write_season_exports
+    from planter_ros.cli.main import BadInput
+    from planter_ros.export import ExportError
+    started = time.monotonic()
+    try:
+        exports = write_season_exports(out, force)
+    except ExportError as exc:
+        raise BadInput(str(exc)) from None
+    if exports is not None:
+        exports['seconds'] = time.monotonic() - started
+    return exports
+
+
+def format_exports(exports):
+    """The exports' line for people."""
+    return (f'exports: {exports["shapefile"]} (Shapefile, {exports["plants"]} plants, '
+            f'{exports["placed"]} with a map position), {exports["isoxml"]} (ISOXML, '
+            f'{exports["tasks"]} tasks) in {exports["seconds"]:.1f} s')
 
 
 def format_report(report):

@@ -59,6 +59,19 @@ def output_file(option, suffixes):
     return parse
 
 
+def output_path(check, option):
+    """argparse `type=` for an output a function checks: `check(text, option)` returns the
+    path or raises OutputError (export.shapefile.check_path, export.isoxml.check_path)."""
+    def parse(text):
+        from planter_ros.cli.main import BadInput
+        from planter_ros.output_files import OutputError
+        try:
+            return str(check(text, option))
+        except OutputError as exc:
+            raise BadInput(str(exc)) from None
+    return parse
+
+
 def shown(text, limit=40):
     """A value as a one-line message shows it: control characters escaped, long text cut."""
     text = str(text)

@@ -1,11 +1,12 @@
-"""`planter replay BAG [--json] [--plot FILE.png] [--geojson FILE] [--csv FILE]`: re-run the
-monitor's model on a recording.
+"""`planter replay BAG [--json] [--plot FILE.png] [--geojson FILE] [--csv FILE] [--shapefile FILE]
+[--isoxml PATH]`: re-run the monitor's model on a recording.
 
 BAG is a .mcap file or a rosbag2 bag directory (split files `<name>_<n>.mcap`). The monitor's
 settings recorded in the bag are used unless given here. A bag that is not MCAP or lacks the
 needed topics is bad input (exit 2); of a damaged or cut-off bag every intact chunk is read,
 with a warning on stderr naming the log-time range lost. `--geojson` and `--csv` write the
-as-planted map (recording.export).
+as-planted map (recording.export), `--shapefile` and `--isoxml` the same for farm software
+(planter_ros.export, doc/exports.md).
 """
 
 import json
@@ -13,7 +14,7 @@ import math
 import sys
 
 from planter_ros import interfaces
-from planter_ros.cli.options import output_file, spec_option
+from planter_ros.cli.options import output_file, output_path, spec_option
 from planter_ros.kinematics.plant_prediction import PredictionSettings
 from planter_ros.kinematics.scene_settings import SceneSettings
 from planter_ros.kinematics.spacing_quality import format_quality
@@ -31,7 +32,79 @@ def add_arguments(parser):
                              'Point [lon, lat] (WGS 84) per plant')
     parser.add_argument('--csv', metavar='FILE.csv', type=output_file('--csv', ('.csv',)),
                         help='write the same per-plant table as CSV')
+    add_export_arguments(parser)
     add_settings_arguments(parser)
+
+
+def add_export_arguments(parser):
+    from planter_ros.export import isoxml, shapefile
+    parser.add_argument('--shapefile', metavar='FILE.shp|FILE.zip',
+                        type=output_path(shapefile.check_path, '--shapefile'),
+                        help='write the as-planted map as an ESRI Shapefile (point per plant, '
+                             'WGS 84 .prj): the set next to FILE.shp, or in one .zip')
+    parser.add_argument('--isoxml', metavar='DIR|FILE.zip',
+                        type=output_path(isoxml.check_path, '--isoxml'),
+                        help='write ISO 11783-10 task data (TASKDATA.XML and a binary time log '
+                             'of every plant) into DIR, or a .zip holding TASKDATA/')
+
+
+def check_distinct_outputs(args):
+    """BadInput when two output options name the same file (the later would replace the
+    earlier)."""
+    from pathlib import Path
+    from planter_ros.cli.main import BadInput
+    seen = {}
+    for option in ('plot', 'geojson', 'csv', 'shapefile', 'isoxml'):
+        path = getattr(args, option, None)
+        if not path:
+            continue
+        key = Path(path).resolve()
+        if key in seen:
+            raise BadInput(f'--{option} = {path} is also --{seen[key]}: allowed a path no '
+                           'other output option names')
+        seen[key] = option
+
+
+def export_run(args, result):
+    """The replay's plants for --shapefile and --isoxml (None without them), checked before
+    any file is written: BadInput for plants a format cannot hold."""
+    if not (args.shapefile or args.isoxml):
+        return None
+    from planter_ros.cli.main import BadInput
+    from planter_ros.export import ExportError
+    from planter_ros.export.isoxml import check_run
+    from planter_ros.export.runs import run_of_replay
+    run = run_of_replay(result)
+    if args.isoxml:
+        try:
+            check_run(run)
+        except ExportError as exc:
+            raise BadInput(f'--isoxml: {exc}') from None
+    return run
+
+
+def write_exports(args, run):
+    """Write --shapefile and --isoxml of an export_run: lines for people saying what was
+    written."""
+    if run is None:
+        return []
+    from planter_ros.cli.main import BadInput
+    from planter_ros.export import ExportError
+    from planter_ros.export.isoxml import write_isoxml
+    from planter_ros.export.shapefile import write_shapefile
+    written = []
+    try:
+        if args.shapefile:
+            plants, placed = write_shapefile(args.shapefile, [run])
+            written.append(f'Shapefile written to {args.shapefile} ({plants} plants, {placed} '
+                           'with a map position)')
+        if args.isoxml:
+            tasks, logged, _ = write_isoxml(args.isoxml, [run])
+            written.append(f'ISOXML written to {args.isoxml} ({tasks} task, {logged} plants '
+                           'in its time log)')
+    except ExportError as exc:
+        raise BadInput(str(exc)) from None
+    return written
 
 
 def add_settings_arguments(parser):
@@ -81,6 +154,7 @@ def run(args):
     from planter_ros.cli.main import BadInput
     from planter_ros.output_files import atomic_output
     from planter_ros.recording.replay import ReplayError, replay
+    check_distinct_outputs(args)
     design = fallback_design(args)
     try:
         result = replay(args.bag, settings_overrides(args), fallback_design=design)
@@ -88,6 +162,7 @@ def run(args):
         raise BadInput(str(exc)) from None
     for warning in result.warnings:
         print(f'planter: warning: {warning}', file=sys.stderr)
+    exports = export_run(args, result)
     written = []
     if args.plot:
         from planter_ros.plots.replay import plot_replay
@@ -104,6 +179,7 @@ def run(args):
                 write_text_atomically(path, text(result))
                 written.append(f'{what} written to {path} ({len(result.plants)} plants, '
                                f'{placed} with a map position)')
+    written += write_exports(args, exports)
     if args.json:
         print(json.dumps(result.as_json(), indent=1, allow_nan=False))
     else:

@@ -1,0 +1,77 @@
+"""A season's as-planted map for farm software, next to its tables (doc/exports.md):
+
+    as_planted.zip     the Shapefile set (as_planted.shp, .shx, .dbf, .prj, .cpg) of every
+                       plant of the season, column `bag` naming its recording
+    TASKDATA.zip       ISO 11783-10 task data (TASKDATA/): one task per recording, each with
+                       its time log; one device per machine (row layout)
+
+One file of each per season: a farm-management system imports a season's work as one upload,
+in which ISOXML keeps each recording apart as a task and the Shapefile by its `bag` column.
+Both are rebuilt from the tables (bags.parquet and plants/) whenever a run analysed a bag or
+one of them is missing, so they always hold what the tables hold.
+"""
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+SHAPEFILE = 'as_planted.zip'
+ISOXML = 'TASKDATA.zip'
+EXPORTS = (SHAPEFILE, ISOXML)
+
+__all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'season_runs', 'write_season_exports']
+
+
+def season_runs(out):
+    """ExportRuns (export.runs) of every analysed bag in the tables under `out`, in the bags
+    table's order; a bag's name is its path from the bags' common directory."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from planter_ros.export.runs import run_of_plants
+    from planter_ros.kinematics.plant_prediction import PLANT_FIELDS, Plants
+
+    from .season import ANALYSED, BAGS_FILE, PLANTS_DIR, read_bags
+    out = Path(out)
+    bags = [row for row in read_bags(out / BAGS_FILE)
+            if row.get('status') in ANALYSED and row.get('plants_file')]
+    if not bags:
+        return []
+    table = pq.read_table(out / PLANTS_DIR)
+    keys = table.column('bag').to_numpy(zero_copy_only=False)
+    columns = np.column_stack([
+        table.column(f).cast(pa.float64()).to_numpy(zero_copy_only=False)
+        if f in table.column_names else np.full(table.num_rows, np.nan) for f in PLANT_FIELDS])
+    names, inverse = np.unique(keys, return_inverse=True)
+    where = {name: np.flatnonzero(inverse == i) for i, name in enumerate(names)}
+    paths = [row['bag'] for row in bags]
+    root = os.path.commonpath([os.path.dirname(p) for p in paths]) if len(paths) > 1 else \
+        os.path.dirname(paths[0])
+    runs = []
+    for row in bags:
+        rows = row.get('rows') or [{'index': 0, 'name': ''}]
+        quality = {r['index']: (r.get('summary') or {}).get('spacing_quality') or {}
+                   for r in rows}
+        plants = Plants.from_table(columns[where.get(row['bag'], np.zeros(0, dtype=int))])
+        runs.append(run_of_plants(os.path.relpath(row['bag'], root) if root else row['bag'],
+                                  plants, [(r['index'], r['name']) for r in rows],
+                                  row.get('summary.design_spacing'), quality))
+    return runs
+
+
+def write_season_exports(out, force=False):
+    """Write as_planted.zip and TASKDATA.zip under `out` from its tables (unless both exist
+    and not `force`): {'shapefile', 'isoxml': paths, 'plants', 'placed', 'tasks', 'skipped':
+    [(bag, reason)]} or None when nothing was written."""
+    from planter_ros.export.isoxml import write_isoxml
+    from planter_ros.export.shapefile import write_shapefile
+    out = Path(out)
+    if not force and all((out / name).is_file() for name in EXPORTS):
+        return None
+    runs = season_runs(out)
+    plants, placed = write_shapefile(out / SHAPEFILE, runs)
+    tasks, _, skipped = write_isoxml(out / ISOXML, runs)
+    return {'shapefile': str(out / SHAPEFILE), 'isoxml': str(out / ISOXML), 'plants': plants,
+            'placed': placed, 'tasks': tasks,
+            'skipped': [{'bag': bag, 'reason': reason} for bag, reason in skipped]}

@@ -1,0 +1,12 @@
+"""The as-planted map in the formats farm software imports (doc/exports.md): an ESRI Shapefile
+(`shapefile`, point per plant, WGS 84) and ISO 11783-10 task data (`isoxml`, an as-planted task
+with its binary time log), from one replay (`planter replay`) or a season of them
+(`planter analyze`). `runs` is what both take: one recording's plants as records. Pure Python
+and numpy, no ROS.
+"""
+
+__all__ = ['ExportError']
+
+
+class ExportError(ValueError):
+    """Plants a format cannot hold as asked (one line: what and the allowed range)."""
