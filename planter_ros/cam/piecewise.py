@@ -2,8 +2,8 @@
 
 A cam is stored as breakpoints and, per piece, the six coefficients of θ(r) = Σ c_j (r − r_i)^j.
 `Piecewise.at` finds the piece with `bisect` and evaluates θ, θ′ and θ″ by Horner's rule in plain
-Python floats (a few µs; no numpy, no scipy per call); `values` does arrays with numpy, and
-`to_scipy` hands the same coefficients to scipy's PPoly for an independent check.
+Python floats (about a µs; no numpy, no scipy per call); `values` does arrays through scipy's
+PPoly of the same coefficients (`to_scipy`), an independent evaluation of the same function.
 """
 
 from bisect import bisect_right
@@ -18,7 +18,7 @@ DEGREE = 5
 class Piecewise:
     """θ(r) on [breaks[0], breaks[-1]]; outside it the end pieces are extended."""
 
-    __slots__ = ('breaks', 'coeffs', '_breaks', '_rows', '_inner')
+    __slots__ = ('breaks', 'coeffs', '_breaks', '_rows', '_inner', '_ppoly')
 
     def __init__(self, breaks, coeffs):
         breaks = np.asarray(breaks, dtype=float)
@@ -36,6 +36,7 @@ class Piecewise:
         self._breaks = breaks.tolist()
         self._rows = [tuple(row) for row in coeffs.tolist()]
         self._inner = self._breaks[1:-1]
+        self._ppoly = None
 
     @property
     def start(self):
@@ -55,18 +56,11 @@ class Piecewise:
                 2.0 * c2 + x * (6.0 * c3 + x * (12.0 * c4 + x * 20.0 * c5)))
 
     def values(self, r, order=0):
-        """The `order`-th derivative (0..3) at an array of r (numpy)."""
-        r = np.asarray(r, dtype=float)
-        i = np.clip(np.searchsorted(self.breaks, r, side='right') - 1, 0, len(self._rows) - 1)
-        x = r - self.breaks[i]
-        c = self.coeffs[i]
-        out = np.zeros_like(x)
-        for j in range(DEGREE, order - 1, -1):
-            factor = 1.0
-            for m in range(order):
-                factor *= j - m
-            out = out * x + factor * c[..., j]
-        return out
+        """The `order`-th derivative (0..3) at an array of r, through scipy's PPoly of the
+        same coefficients: arithmetic independent of `at`'s, so each checks the other."""
+        if self._ppoly is None:
+            self._ppoly = self.to_scipy()
+        return self._ppoly(np.asarray(r, dtype=float), order)
 
     def to_scipy(self):
         """The same function as scipy.interpolate.PPoly (highest power first)."""

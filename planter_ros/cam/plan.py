@@ -24,7 +24,8 @@ from .mechanism import RULES, CamMechanism, constant_law, rule_law
 from .piecewise import Piecewise
 
 __all__ = ['CamProfile', 'CamPlan', 'plan_cam', 'constant_profile', 'build_profile',
-           'fallback_laws', 'rule_top_speed', 'BLEND_STEPS', 'SPEED_RANGE']
+           'fallback_laws', 'rule_top_speed', 'rule_top_speeds', 'sampled_tip_sweep',
+           'BRUTE_FORCE_SAMPLES', 'BLEND_STEPS', 'SPEED_RANGE']
 
 BLEND_STEPS = 14                 # bisection steps of β: resolution 2⁻¹⁴
 SPEED_RANGE = (0.01, 3.0)        # ground speeds searched for a rule's top speed, m/s (scene's)
@@ -281,16 +282,23 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
                 else:
                     hi = mid
             break
-    tops = {}
-    if top_speeds:
-        for name in RULES:
-            try:
-                tops[name] = rule_top_speed(mech, spacing, name, drive, speed, pieces)
-            except CamInputError as exc:             # zero slip undefined for this depth
-                tops[name] = (0.0, str(exc))
-        tops['constant'] = constant_profile(mech, spacing, drive).loads.top_speed()
+    tops = rule_top_speeds(mech, spacing, drive, speed, pieces) if top_speeds else {}
     return CamPlan(profile, rule, spacing, speed, beta, blend_of, blended_with, figures,
                    rule_figures, tops)
+
+
+def rule_top_speeds(mech, spacing, drive=None, hint=0.3, pieces=ARC_PIECES):
+    """Up to what ground speed each rule, and constant speed, holds at this spacing:
+    {'zero_slip' | 'design_speed' | 'constant': (m/s, the limit that stops it)}."""
+    drive = DriveLimits() if drive is None else drive
+    tops = {}
+    for name in RULES:
+        try:
+            tops[name] = rule_top_speed(mech, spacing, name, drive, hint, pieces)
+        except CamInputError as exc:             # zero slip undefined for this depth
+            tops[name] = (0.0, str(exc))
+    tops['constant'] = constant_profile(mech, spacing, drive).loads.top_speed()
+    return tops
 
 
 def rule_top_speed(mech, spacing, rule, drive, hint=0.3, pieces=ARC_PIECES):
@@ -336,3 +344,22 @@ def rule_top_speed(mech, spacing, rule, drive, hint=0.3, pieces=ARC_PIECES):
             hi, why = mid, f.binding
     return lo, why
 
+
+
+BRUTE_FORCE_SAMPLES = 1_000_000
+
+
+def sampled_tip_sweep(profile, samples=BRUTE_FORCE_SAMPLES):
+    """The tip sweep found by brute force, independently of the closed form: θ(s) through
+    scipy's PPoly of the profile's coefficients at `samples` equally spaced distances over one
+    revolution (one spacing, from plant 0's soil entry), the tip from the five-bar's soil
+    trajectory, the extent along the row of the samples in the soil (y ≤ D). It misses each
+    soil edge by less than one step, an error of at most max|dx/ds|·d/samples."""
+    from planter_ros.kinematics.five_bar import soil_trajectory
+    mech = profile.mech
+    r = np.linspace(0.0, profile.spacing, int(samples), endpoint=False)
+    theta = profile.period.to_scipy()(r)
+    x, y = soil_trajectory(mech.l1, mech.l2, theta, 0.0)
+    x = x + r
+    inside = x[y <= mech.depth]
+    return float(inside.max() - inside.min()) if inside.size else 0.0

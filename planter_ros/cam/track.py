@@ -43,6 +43,10 @@ class _Periodic:
         th, d1, d2 = self.profile.evaluate(s - self.origin)
         return th + self._offset, d1, d2
 
+    def values(self, s, order):
+        out = self.profile.values(s - self.origin, order)
+        return out + self._offset if order == 0 else out
+
 
 class _Arc:
     """A transition arc starting at s0."""
@@ -54,6 +58,9 @@ class _Arc:
 
     def evaluate(self, s):
         return self.piecewise.at(s - self.s0)
+
+    def values(self, s, order):
+        return self.piecewise.values(s - self.s0, order)
 
 
 class _Plants:
@@ -97,6 +104,17 @@ class CamTrack:
     def evaluate(self, s):
         """(θ, θ′, θ″) at the row's travelled distance s (m): rad, rad/m, rad/m²."""
         return self._segments[bisect_right(self._starts, s) - 1].evaluate(s)
+
+    def values(self, s, order=0):
+        """θ (order 0) or its derivative (1..3) at an array of s (numpy; plots, checks)."""
+        import numpy as np
+        s = np.asarray(s, dtype=float)
+        which = np.searchsorted(self._starts, s, side='right') - 1
+        out = np.empty_like(s)
+        for i in np.unique(which):
+            mine = which == i
+            out[mine] = self._segments[i].values(s[mine], order)
+        return out
 
     def next_plant(self, s):
         """(s_plant, profile) of the first planting instant strictly after s."""
