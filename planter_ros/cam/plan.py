@@ -47,12 +47,29 @@ def _phi_of_distance(law, mech, u, phi0):
     return phi
 
 
+def quintic_hermite(x, states):
+    """Power-basis coefficients of the C2 quintic through (θ, θ′, θ″) at each x: per piece,
+    c0..c2 from the left end, c3..c5 solved from the right end's deltas (so each break is met
+    to round-off of θ″ itself, not of the large higher coefficients)."""
+    x = np.asarray(x, dtype=float)
+    st = np.asarray(states, dtype=float)
+    h = np.diff(x)
+    y0, d0, a0 = st[:-1, 0], st[:-1, 1], st[:-1, 2]
+    y1, d1, a1 = st[1:, 0], st[1:, 1], st[1:, 2]
+    e0 = y1 - (y0 + d0 * h + 0.5 * a0 * h * h)
+    e1 = (d1 - (d0 + a0 * h)) * h
+    e2 = (a1 - a0) * h * h
+    c3 = (10.0 * e0 - 4.0 * e1 + 0.5 * e2) / h ** 3
+    c4 = (-15.0 * e0 + 7.0 * e1 - e2) / h ** 4
+    c5 = (6.0 * e0 - 3.0 * e1 + 0.5 * e2) / h ** 5
+    return np.column_stack([y0, d0, 0.5 * a0, c3, c4, c5])
+
+
 def soil_arc(mech, law):
     """The in-soil arc θ(r) as a Piecewise, r from the soil entry (0) to the exit.
 
     Linear laws are one exact piece; others are quintic Hermite pieces through the exact θ, θ′,
     θ″ at breaks equally spaced in φ, doubled until the fit is within SOIL_TOLERANCE."""
-    from scipy.interpolate import BPoly, PPoly
     psi = mech.psi
     u_in = law.half_length(mech)
     if law.zero_slip == 0.0:
@@ -63,16 +80,14 @@ def soil_arc(mech, law):
         phi = np.linspace(-psi, psi, pieces + 1)
         u = np.array([law.distance(mech, p) for p in phi])
         states = [[math.pi + p, *law.angle_derivatives(mech, p)[:2]] for p in phi]
-        poly = PPoly.from_bernstein_basis(BPoly.from_derivatives(u, states, orders=5))
+        fit = Piecewise(u + u_in, quintic_hermite(u, states))
         mid_u = 0.5 * (u[:-1] + u[1:])
         mid_phi = [_phi_of_distance(law, mech, m, 0.5 * (p0 + p1))
                    for m, p0, p1 in zip(mid_u, phi[:-1], phi[1:])]
-        err = np.max(np.abs(poly(mid_u) - (math.pi + np.array(mid_phi))))
+        err = max(abs(fit.at(m + u_in)[0] - (math.pi + p)) for m, p in zip(mid_u, mid_phi))
         if err <= SOIL_TOLERANCE or pieces >= _MAX_SOIL_PIECES:
-            break
+            return fit
         pieces *= 2
-    coeffs = poly.c[::-1].T
-    return Piecewise(u + u_in, coeffs)
 
 
 # --- a profile -------------------------------------------------------------------------------
@@ -296,7 +311,7 @@ def rule_top_speeds(mech, spacing, drive=None, hint=0.3, pieces=ARC_PIECES):
         try:
             tops[name] = rule_top_speed(mech, spacing, name, drive, hint, pieces)
         except CamInputError as exc:             # zero slip undefined for this depth
-            tops[name] = (0.0, str(exc))
+            tops[name] = (0.0, f'undefined here: {exc}')
     tops['constant'] = constant_profile(mech, spacing, drive).loads.top_speed()
     return tops
 

@@ -19,7 +19,7 @@ out-of-soil arc is that transition, and nothing is planned at run time.
 evaluation. Pure Python floats; no ROS.
 """
 
-from bisect import bisect_right
+from bisect import bisect_left, bisect_right
 import math
 
 from planter_ros.kinematics.five_bar import TWO_PI
@@ -97,6 +97,17 @@ class CamTrack:
         self._plants = [_Plants(first, -math.inf)]
 
     @property
+    def joins(self):
+        """Distances (m) where one piece of the track hands over to the next (the old
+        profile's soil exit, a transition arc's end) — where a change could show a jump."""
+        return list(self._starts[1:])
+
+    def segment_values(self, index, s):
+        """(θ, θ′, θ″) of the track's segment `index` (0 = the first) at s, even outside the
+        stretch where it is in force: the left and right limits at a join."""
+        return self._segments[index].evaluate(s)
+
+    @property
     def profile(self):
         """The profile in force last (the newest change)."""
         return self._plants[-1].periodic.profile
@@ -167,8 +178,8 @@ class CamTrack:
                               lambda th: profile.drive.torque_terms(profile.mech, th),
                               ARC_PIECES)
             segments += [(exit_s, _Arc(arc, exit_s)), (entry_s, new)]
-        # everything from the old exit on is replaced
-        keep = bisect_right(self._starts, exit_s)
+        # everything from the old exit on is replaced (an earlier change not yet in force too)
+        keep = bisect_left(self._starts, exit_s)
         if self._segments[keep - 1] is not old:
             raise AssertionError('the next plant is not in force at its own soil exit')
         del self._starts[keep:], self._segments[keep:]
