@@ -47,6 +47,14 @@ def test_a_spacing_change_takes_effect_at_the_next_planting_instant(profiles):
     assert_no_jump(track)
 
 
+def test_the_motion_a_drive_is_sent_is_the_cam_at_the_rows_speed(profiles):
+    track = CamTrack(profiles[('zero_slip', 0.25)])
+    theta, d1, d2 = track.evaluate(0.0123)
+    assert track.motion(0.0123, 0.4) == pytest.approx((theta, 0.4 * d1, 0.16 * d2))
+    # braking at 0.5 m/s²: α = v² θ″ + a θ′
+    assert track.motion(0.0123, 0.4, -0.5)[2] == pytest.approx(0.16 * d2 - 0.5 * d1)
+
+
 def test_the_same_rule_at_another_spacing_needs_no_planning_at_run_time(profiles):
     track = CamTrack(profiles[('zero_slip', 0.25)])
     track.change(profiles[('zero_slip', 0.5)], 0.1)

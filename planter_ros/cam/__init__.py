@@ -9,7 +9,7 @@ top speeds), `track` (one row's cam across run-time spacing changes), `piecewise
 evaluation).
 """
 
-from .drive import DRIVE_SOURCE, DriveLimits, LoadFigures
+from .drive import DRIVE_SOURCE, DriveLimits, LoadFigures, sun_bar_motion
 from .errors import CamError, CamInputError, CamPlanningError
 from .mechanism import RULES, CamMechanism, SoilLaw, constant_law, rule_law
 from .plan import (CamPlan, CamProfile, build_profile, constant_profile, plan_cam,
@@ -19,4 +19,4 @@ from .track import CamTrack
 __all__ = ['CamError', 'CamInputError', 'CamPlanningError', 'CamMechanism', 'SoilLaw',
            'RULES', 'rule_law', 'constant_law', 'DriveLimits', 'DRIVE_SOURCE', 'LoadFigures',
            'CamProfile', 'CamPlan', 'plan_cam', 'build_profile', 'constant_profile',
-           'rule_top_speed', 'sampled_tip_sweep', 'CamTrack']
+           'rule_top_speed', 'sampled_tip_sweep', 'CamTrack', 'sun_bar_motion']

@@ -37,7 +37,7 @@ from planter_ros.config import check, setting
 from .errors import CamInputError
 
 __all__ = ['DriveLimits', 'EffectiveLimits', 'LoadFigures', 'LoadSamples', 'LIMIT_NAMES',
-           'DRIVE_SOURCE', 'GRAVITY']
+           'DRIVE_SOURCE', 'GRAVITY', 'sun_bar_motion']
 
 GRAVITY = 9.80665
 RPM = 2.0 * math.pi / 60.0
@@ -48,6 +48,14 @@ DRIVE_SOURCE = ('motor: Yaskawa Σ-7 SGM7J-08A, 750 W (Σ-7-Series Rotary Servom
 
 # utilisation names, in the order tables show them
 LIMIT_NAMES = ('speed', 'acceleration', 'jerk', 'torque', 'rms torque')
+
+
+def sun_bar_motion(derivatives, ground_speed, ground_acceleration=0.0):
+    """(θ, ω, α) of the sun bar from the cam's (θ, θ′, θ″) at the row's distance, its ground
+    speed v (m/s) and acceleration a (m/s²): ω = v θ′, α = v² θ″ + a θ′ (rad, rad/s, rad/s²)."""
+    theta, d1, d2 = derivatives
+    v = ground_speed
+    return theta, v * d1, v * v * d2 + ground_acceleration * d1
 
 
 def _error(text):

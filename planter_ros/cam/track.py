@@ -25,6 +25,7 @@ import math
 from planter_ros.kinematics.five_bar import TWO_PI
 
 from .arc import ARC_PIECES, plan_arc
+from .drive import sun_bar_motion
 from .errors import CamInputError
 
 __all__ = ['CamTrack']
@@ -115,6 +116,11 @@ class CamTrack:
     def evaluate(self, s):
         """(θ, θ′, θ″) at the row's travelled distance s (m): rad, rad/m, rad/m²."""
         return self._segments[bisect_right(self._starts, s) - 1].evaluate(s)
+
+    def motion(self, s, ground_speed, ground_acceleration=0.0):
+        """(θ, ω, α) the sun bar must have at the row's distance s (m), ground speed (m/s)
+        and acceleration (m/s²): the CSP target and its feed-forwards (rad, rad/s, rad/s²)."""
+        return sun_bar_motion(self.evaluate(s), ground_speed, ground_acceleration)
 
     def values(self, s, order=0):
         """θ (order 0) or its derivative (1..3) at an array of s (numpy; plots, checks)."""
