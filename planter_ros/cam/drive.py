@@ -111,24 +111,25 @@ class DriveLimits:
                                rms_torque=self.motor_rated_torque,
                                torque_acceleration=torque_acceleration)
 
-    def torque_terms(self, mech, theta):
-        """Per angle θ (array): (k_α, k_ω, g) with motor torque T_m = k_α·α + k_ω·ω² + g."""
-        n, eta = self.gear_ratio, self.gearbox_efficiency
+    def _load(self, mech, theta):
+        """(J(θ), ½J′(θ), weight term) at the sun bar for angles θ (array)."""
         m, a, big = self.tip_mass, mech.a, mech.total
         c, s = np.cos(theta), np.sin(theta)
         inertia = self.bar_inertia + m * (a * a * c * c + big * big * s * s)
-        k_alpha = (self.rotor_inertia + self.gearbox_inertia) * n + inertia / (n * eta)
-        k_omega = m * (big * big - a * a) * s * c / (n * eta)
-        gravity = -m * GRAVITY * big * s / (n * eta)
-        return k_alpha, k_omega, gravity
+        return inertia, m * (big * big - a * a) * s * c, -m * GRAVITY * big * s
+
+    def torque_terms(self, mech, theta):
+        """Per angle θ (array): (k_α, k_ω, g) with motor torque T_m = k_α·α + k_ω·ω² + g."""
+        through = self.gear_ratio * self.gearbox_efficiency
+        inertia, half_slope, weight = self._load(mech, theta)
+        k_alpha = (self.rotor_inertia + self.gearbox_inertia) * self.gear_ratio \
+            + inertia / through
+        return k_alpha, half_slope / through, weight / through
 
     def sun_bar_torque(self, mech, theta, omega, alpha):
         """Torque at the sun bar (the gearbox output), N·m."""
-        m, a, big = self.tip_mass, mech.a, mech.total
-        c, s = np.cos(theta), np.sin(theta)
-        inertia = self.bar_inertia + m * (a * a * c * c + big * big * s * s)
-        return inertia * alpha + m * (big * big - a * a) * s * c * omega ** 2 \
-            - m * GRAVITY * big * s
+        inertia, half_slope, weight = self._load(mech, theta)
+        return inertia * alpha + half_slope * omega ** 2 + weight
 
 
 @dataclass(frozen=True)

@@ -85,8 +85,12 @@ def soil_arc(mech, law):
         mid_phi = [_phi_of_distance(law, mech, m, 0.5 * (p0 + p1))
                    for m, p0, p1 in zip(mid_u, phi[:-1], phi[1:])]
         err = max(abs(fit.at(m + u_in)[0] - (math.pi + p)) for m, p in zip(mid_u, mid_phi))
-        if err <= SOIL_TOLERANCE or pieces >= _MAX_SOIL_PIECES:
+        if err <= SOIL_TOLERANCE:
             return fit
+        if pieces >= _MAX_SOIL_PIECES:
+            raise CamInputError('depth', mech.depth, f'clear of l1 + l2 = {mech.total:.6g} m '
+                                f'for {law.name}', f'{pieces} pieces fit the in-soil law only '
+                                f'to {err:.1e} rad')
         pieces *= 2
 
 
