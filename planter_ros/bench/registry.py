@@ -34,6 +34,7 @@ CASE_MODULES = (
     'planter_ros.bench.cases.cdr',
     'planter_ros.bench.cases.drive',
     'planter_ros.bench.cases.footprint',
+    'planter_ros.bench.cases.cam',
 )
 
 

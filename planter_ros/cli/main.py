@@ -24,6 +24,7 @@ COMMANDS = {
                    'replay a season of bags on Dask into Parquet tables'),
     ('simulate',): ('planter_ros.cli.simulate',
                     'write a season of realistic simulated bags, fast'),
+    ('cam', 'five-bar'): ('planter_ros.cli.cam', 'electronic cam: every spacing planted upright'),
 }
 
 EXIT_BAD_INPUT = 2

@@ -1,0 +1,273 @@
+"""The drive that turns the sun bar, its limits, and the load a cam puts on it.
+
+The cam is θ(s); at ground speed v (m/s, steady) the sun bar turns at ω = v·θ′, accelerates at
+α = v²·θ″ and jerks at v³·θ‴ (a changing ground speed adds a·θ′ to α; the figures here are at
+steady speed, the field's usual case).
+
+Load model (SI, at the sun bar A):
+
+* the nozzle (tip C, mass m) on the ellipse x = a sin θ, y = L cos θ: inertia
+  J_C(θ) = m (a² cos² θ + L² sin² θ) about A, plus the bars lumped as a constant J_b;
+* Lagrange: T_A = J(θ)·α + ½ J′(θ)·ω² + m g L·(−sin θ), J = J_b + J_C;
+* motor torque through a gearbox of ratio N and efficiency η (taken as a loss in both
+  directions, the safe side): T_m = (J_rotor + J_gearbox)·N·α + T_A / (N η).
+
+Default drive: a 750 W AC servo with a planetary gearbox. Motor figures from the Yaskawa Σ-7
+SGM7J-08A (200 V, 750 W, no brake), Σ-7-Series Rotary Servomotor Product Manual (Yaskawa,
+SIEP S800001 36), ratings table: rated torque 2.39 N·m, instantaneous maximum torque 8.36 N·m,
+rated speed 3000 min⁻¹, maximum speed 6000 min⁻¹, rotor moment of inertia 1.59 × 10⁻⁴ kg·m².
+Gearbox: a two-stage planetary of ratio 20 (the middle of 15–30:1), efficiency 0.94 (about 3 % per
+stage) and 0.3 × 10⁻⁴ kg·m² at its input (catalogue values of 60–90 mm two-stage planetaries
+lie at 0.1–0.5 × 10⁻⁴ kg·m²): typical values, not one product's. The mechanism's tip mass and
+bar inertia are assumptions (a duckbill nozzle of 1.5 kg; 0.02 kg·m² of bars about A):
+weigh the machine and override them.
+
+Servo datasheets rate no jerk; the default jerk limit lets the acceleration rise from zero to
+the torque-limited acceleration in `jerk_ramp_time` = 40 ms, about one period of a 25 Hz first
+torsional mode of a geared arm (an assumption: measure the machine's and override it).
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from planter_ros.config import check, setting
+
+from .errors import CamInputError
+
+__all__ = ['DriveLimits', 'EffectiveLimits', 'LoadFigures', 'LoadSamples', 'LIMIT_NAMES',
+           'DRIVE_SOURCE', 'GRAVITY', 'sun_bar_motion']
+
+GRAVITY = 9.80665
+RPM = 2.0 * math.pi / 60.0
+
+DRIVE_SOURCE = ('motor: Yaskawa Σ-7 SGM7J-08A, 750 W (Σ-7-Series Rotary Servomotor Product '
+                'Manual, SIEP S800001 36, ratings table); gearbox: typical two-stage planetary, '
+                'ratio 20; tip mass, bar inertia and jerk ramp time: assumptions, override them')
+
+# utilisation names, in the order tables show them
+LIMIT_NAMES = ('speed', 'acceleration', 'jerk', 'torque', 'rms torque')
+
+
+def sun_bar_motion(derivatives, ground_speed, ground_acceleration=0.0):
+    """(θ, ω, α) of the sun bar from the cam's (θ, θ′, θ″) at the row's distance, its ground
+    speed v (m/s) and acceleration a (m/s²): ω = v θ′, α = v² θ″ + a θ′ (rad, rad/s, rad/s²)."""
+    theta, d1, d2 = derivatives
+    v = ground_speed
+    return theta, v * d1, v * v * d2 + ground_acceleration * d1
+
+
+def _error(text):
+    return CamInputError.from_message(text)
+
+
+@dataclass(frozen=True, kw_only=True)
+class DriveLimits:
+    """The sun bar's drive: servo, gearbox, mechanism inertia and the limits (SI)."""
+
+    motor_peak_torque: float = setting(8.36, "servo's instantaneous maximum torque",
+                                       unit='N m', range=(0.001, 1e4))
+    motor_rated_torque: float = setting(2.39, "servo's rated (continuous) torque, the limit "
+                                        'of the RMS torque over a plant', unit='N m',
+                                        range=(0.001, 1e4))
+    motor_max_speed: float = setting(6000.0 * RPM, "servo's maximum speed", unit='rad/s',
+                                     range=(1.0, 1e4))
+    rotor_inertia: float = setting(1.59e-4, "servo rotor's moment of inertia",
+                                   unit='kg m^2', range=(0.0, 10.0))
+    gear_ratio: float = setting(20.0, 'gearbox reduction N: motor turns per sun-bar turn',
+                                range=(1.0, 1000.0))
+    gearbox_efficiency: float = setting(0.94, 'gearbox efficiency η', range=(0.1, 1.0))
+    gearbox_inertia: float = setting(0.3e-4, "gearbox's moment of inertia at its input",
+                                     unit='kg m^2', range=(0.0, 10.0))
+    tip_mass: float = setting(1.5, 'mass of the nozzle at the tip C (assumed; weigh it)',
+                              unit='kg', range=(0.0, 100.0))
+    bar_inertia: float = setting(0.02, 'moment of inertia of the bars about A (assumed)',
+                                 unit='kg m^2', range=(0.0, 100.0))
+    max_speed: float = setting(0.0, 'sun-bar speed limit; 0: motor_max_speed / gear_ratio',
+                               unit='rad/s', range=(0.0, 1e4))
+    max_acceleration: float = setting(0.0, 'sun-bar acceleration limit; 0: only the torque '
+                                      'limits it', unit='rad/s^2', range=(0.0, 1e7))
+    max_jerk: float = setting(0.0, 'sun-bar jerk limit; 0: the torque-limited acceleration '
+                              'over jerk_ramp_time', unit='rad/s^3', range=(0.0, 1e10))
+    jerk_ramp_time: float = setting(0.04, 'shortest time for the acceleration to rise from 0 to '
+                                    'its limit (sets the default jerk limit)', unit='s',
+                                    range=(0.001, 10.0))
+
+    def __post_init__(self):
+        check(self, _error)
+
+    def effective(self, mech):
+        """The limits in force for mechanism `mech` (derived ones filled in)."""
+        n, eta = self.gear_ratio, self.gearbox_efficiency
+        speed = self.max_speed or self.motor_max_speed / n
+        reflected = (self.rotor_inertia + self.gearbox_inertia) * n * n * eta
+        worst = reflected + self.bar_inertia + self.tip_mass * max(mech.a, mech.total) ** 2
+        torque_acceleration = self.motor_peak_torque * n * eta / worst
+        ramp = min(torque_acceleration, self.max_acceleration or math.inf)
+        jerk = self.max_jerk or ramp / self.jerk_ramp_time
+        return EffectiveLimits(speed=speed, acceleration=self.max_acceleration, jerk=jerk,
+                               torque=self.motor_peak_torque,
+                               rms_torque=self.motor_rated_torque,
+                               torque_acceleration=torque_acceleration)
+
+    def _load(self, mech, theta):
+        """(J(θ), ½J′(θ), weight term) at the sun bar for angles θ (array)."""
+        m, a, big = self.tip_mass, mech.a, mech.total
+        c, s = np.cos(theta), np.sin(theta)
+        inertia = self.bar_inertia + m * (a * a * c * c + big * big * s * s)
+        return inertia, m * (big * big - a * a) * s * c, -m * GRAVITY * big * s
+
+    def torque_terms(self, mech, theta):
+        """Per angle θ (array): (k_α, k_ω, g) with motor torque T_m = k_α·α + k_ω·ω² + g."""
+        through = self.gear_ratio * self.gearbox_efficiency
+        inertia, half_slope, weight = self._load(mech, theta)
+        k_alpha = (self.rotor_inertia + self.gearbox_inertia) * self.gear_ratio \
+            + inertia / through
+        return k_alpha, half_slope / through, weight / through
+
+    def sun_bar_torque(self, mech, theta, omega, alpha):
+        """Torque at the sun bar (the gearbox output), N·m."""
+        inertia, half_slope, weight = self._load(mech, theta)
+        return inertia * alpha + half_slope * omega ** 2 + weight
+
+
+@dataclass(frozen=True)
+class EffectiveLimits:
+    """Limits in force (SI, at the sun bar except the motor torques); acceleration 0 = only
+    the torque limits it."""
+
+    speed: float
+    acceleration: float
+    jerk: float
+    torque: float
+    rms_torque: float
+    torque_acceleration: float      # α the peak torque gives at the largest inertia
+
+    def as_dict(self):
+        return {'sun_bar_speed': self.speed, 'sun_bar_acceleration': self.acceleration or None,
+                'sun_bar_jerk': self.jerk, 'motor_peak_torque': self.torque,
+                'motor_rms_torque': self.rms_torque,
+                'torque_limited_acceleration': self.torque_acceleration}
+
+
+@dataclass(frozen=True)
+class LoadFigures:
+    """Peaks of one plant's motion at ground speed v, and each limit's utilisation (peak over
+    limit: ≤ 1 is within it)."""
+
+    ground_speed: float
+    peak_speed: float               # rad/s, sun bar
+    peak_acceleration: float        # rad/s², sun bar
+    peak_jerk: float                # rad/s³, sun bar
+    peak_torque: float              # N·m, motor
+    rms_torque: float               # N·m, motor, over one plant
+    peak_sun_bar_torque: float      # N·m, gearbox output
+    utilisation: dict
+
+    @property
+    def feasible(self):
+        return all(u <= 1.0 + 1e-9 for u in self.utilisation.values())
+
+    @property
+    def binding(self):
+        """The limit closest to (or furthest beyond) its value."""
+        return max(self.utilisation, key=self.utilisation.get)
+
+    @property
+    def exceeded(self):
+        return [k for k in LIMIT_NAMES if self.utilisation.get(k, 0.0) > 1.0 + 1e-9]
+
+    def as_dict(self):
+        return {'ground_speed': self.ground_speed, 'peak_sun_bar_speed': self.peak_speed,
+                'peak_sun_bar_acceleration': self.peak_acceleration,
+                'peak_sun_bar_jerk': self.peak_jerk, 'peak_motor_torque': self.peak_torque,
+                'rms_motor_torque': self.rms_torque,
+                'peak_sun_bar_torque': self.peak_sun_bar_torque,
+                'utilisation': dict(self.utilisation), 'feasible': self.feasible,
+                'binding': self.binding}
+
+
+SAMPLES_PER_PIECE = 33
+
+
+class LoadSamples:
+    """θ and its derivatives sampled densely over one period of a cam (both ends of every
+    piece, so a jump in θ‴ is seen from both sides); the loads at any steady speed follow."""
+
+    def __init__(self, period, spacing, mech, drive):
+        t = np.linspace(0.0, 1.0, SAMPLES_PER_PIECE)
+        b = period.breaks
+        r = (b[:-1, None] + (b[1:] - b[:-1])[:, None] * t[None, :])
+        piece = np.repeat(np.arange(b.size - 1), SAMPLES_PER_PIECE)
+        r = r.ravel()
+        x = r - b[piece]
+        c = period.coeffs[piece]
+        powers = np.vander(x, 6, increasing=True)
+        self.theta = np.einsum('ij,ij->i', c, powers)
+        self.d1 = np.einsum('ij,ij->i', c[:, 1:] * np.arange(1, 6), powers[:, :5])
+        self.d2 = np.einsum('ij,ij->i', c[:, 2:] * np.array([2., 6., 12., 20.]), powers[:, :4])
+        self.d3 = np.einsum('ij,ij->i', c[:, 3:] * np.array([6., 24., 60.]), powers[:, :3])
+        # trapezoid weights along s within each piece (for the RMS over one plant)
+        w = np.full((b.size - 1, SAMPLES_PER_PIECE), 1.0)
+        w[:, 0] = w[:, -1] = 0.5
+        self.weights = (w * ((b[1:] - b[:-1]) / (SAMPLES_PER_PIECE - 1))[:, None]).ravel()
+        self.spacing = spacing
+        self.mech = mech
+        self.drive = drive
+        self.limits = drive.effective(mech)
+        self.k_alpha, self.k_omega, self.gravity = drive.torque_terms(mech, self.theta)
+
+    def torque(self, v):
+        return v * v * (self.k_alpha * self.d2 + self.k_omega * self.d1 ** 2) + self.gravity
+
+    def figures(self, v):
+        lim = self.limits
+        omega, alpha, jerk = v * self.d1, v * v * self.d2, v ** 3 * self.d3
+        torque = self.torque(v)
+        rms = math.sqrt(float(np.dot(self.weights, torque * torque)) / self.spacing)
+        sun_torque = self.drive.sun_bar_torque(self.mech, self.theta, omega, alpha)
+        peak = {'speed': float(np.max(np.abs(omega))),
+                'acceleration': float(np.max(np.abs(alpha))),
+                'jerk': float(np.max(np.abs(jerk))),
+                'torque': float(np.max(np.abs(torque))), 'rms torque': rms}
+        util = {'speed': peak['speed'] / lim.speed}
+        if lim.acceleration:
+            util['acceleration'] = peak['acceleration'] / lim.acceleration
+        util['jerk'] = peak['jerk'] / lim.jerk
+        util['torque'] = peak['torque'] / lim.torque
+        util['rms torque'] = rms / lim.rms_torque
+        return LoadFigures(v, peak['speed'], peak['acceleration'], peak['jerk'], peak['torque'],
+                           rms, float(np.max(np.abs(sun_torque))), util)
+
+    def top_speed(self):
+        """The largest steady ground speed at which this (fixed) motion meets every limit,
+        with the limit that stops it: (m/s, name). 0 if even a standstill does not (the
+        mechanism's weight alone over the torque limit)."""
+        lim = self.limits
+        speeds = {'speed': lim.speed / max(float(np.max(np.abs(self.d1))), 1e-300),
+                  'jerk': (lim.jerk / max(float(np.max(np.abs(self.d3))), 1e-300)) ** (1 / 3)}
+        if lim.acceleration:
+            speeds['acceleration'] = math.sqrt(lim.acceleration /
+                                               max(float(np.max(np.abs(self.d2))), 1e-300))
+        # |A v² + g| ≤ T at every sample: A v² ≤ T − g and −A v² ≤ T + g
+        big_a = self.k_alpha * self.d2 + self.k_omega * self.d1 ** 2
+        g = self.gravity
+        if np.any(np.abs(g) > lim.torque):
+            return 0.0, 'torque'
+        with np.errstate(divide='ignore'):
+            room = np.where(big_a > 0, (lim.torque - g) / np.where(big_a > 0, big_a, 1.0),
+                            np.where(big_a < 0, (lim.torque + g) / np.where(big_a < 0, -big_a,
+                                                                             1.0), np.inf))
+        speeds['torque'] = math.sqrt(float(np.min(room)))
+        # RMS: mean of (A u + g)² over s, u = v², ≤ T_rated²: a quadratic in u
+        w = self.weights / self.spacing
+        qa, qb, qc = (float(np.dot(w, big_a * big_a)), 2.0 * float(np.dot(w, big_a * g)),
+                      float(np.dot(w, g * g)) - lim.rms_torque ** 2)
+        if qc > 0:
+            return 0.0, 'rms torque'
+        if qa > 0:
+            u = (-qb + math.sqrt(qb * qb - 4 * qa * qc)) / (2 * qa)
+            speeds['rms torque'] = math.sqrt(max(u, 0.0))
+        name = min(speeds, key=speeds.get)
+        return speeds[name], name

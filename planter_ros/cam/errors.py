@@ -1,0 +1,18 @@
+"""The cam's errors: one base class and the two cases a caller acts on differently."""
+
+from planter_ros.kinematics.errors import DesignError
+
+__all__ = ['CamError', 'CamInputError', 'CamPlanningError']
+
+
+class CamError(Exception):
+    """Anything the cam planner refuses or fails at; the message is one line."""
+
+
+class CamInputError(CamError, DesignError):
+    """A bad or impossible input (a mechanism, spacing, speed or limit outside its domain): the
+    caller fixes the input. A DesignError, so the command line reports it as bad input."""
+
+
+class CamPlanningError(CamError):
+    """The solver failed on an input that should have a plan (a bug to report, not bad input)."""

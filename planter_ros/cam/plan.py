@@ -1,0 +1,384 @@
+"""Cam planning: one plant's θ(s), periodic in the spacing, within the drive's limits.
+
+A period runs from the soil entry of one plant to the next plant's: the in-soil arc follows a
+`SoilLaw` (θ = π at the planting instant, ±ψ at the soil edges), the out-of-soil arc is planned
+by `arc.plan_arc` to meet the next entry with θ, θ′ and θ″ continuous (C2) and θ advanced by
+2π per spacing. `plan_cam` plans the chosen rule at the top ground speed; where the limits
+cannot be met it returns the feasible profile closest to the rule: a blend β of the rule's
+in-soil law with the next law of its fallback chain (exact zero slip → the design-speed rule →
+constant speed), β maximised under the limits, and reports which limit binds and up to what
+ground speed each rule (exact zero slip, the design-speed rule) holds at this spacing.
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from planter_ros.kinematics.five_bar import TWO_PI
+
+from .arc import ARC_PIECES, plan_arc, straight_arc
+from .drive import DriveLimits, LoadFigures, LoadSamples
+from .errors import CamInputError
+from .mechanism import RULES, CamMechanism, constant_law, rule_law
+from .piecewise import Piecewise
+
+__all__ = ['CamProfile', 'CamPlan', 'plan_cam', 'constant_profile', 'build_profile',
+           'fallback_laws', 'rule_top_speed', 'rule_top_speeds', 'sampled_tip_sweep',
+           'BRUTE_FORCE_SAMPLES', 'BLEND_STEPS', 'SPEED_RANGE']
+
+BLEND_STEPS = 14                 # bisection steps of β: resolution 2⁻¹⁴
+SPEED_RANGE = (0.01, 3.0)        # ground speeds searched for a rule's top speed, m/s (scene's)
+SOIL_TOLERANCE = 1e-12           # rad: the in-soil fit's largest error against its law
+_MAX_SOIL_PIECES = 4096
+
+
+# --- the in-soil arc -------------------------------------------------------------------------
+
+def _phi_of_distance(law, mech, u, phi0):
+    """Invert s(φ) = u by Newton's method from φ0 (s is increasing over the arc)."""
+    phi = phi0
+    for _ in range(50):
+        s1 = law.derivatives(mech, phi)[0]
+        step = (law.distance(mech, phi) - u) / s1
+        phi -= step
+        if abs(step) <= 1e-16 * max(1.0, abs(phi)):
+            break
+    return phi
+
+
+def quintic_hermite(x, states):
+    """Power-basis coefficients of the C2 quintic through (θ, θ′, θ″) at each x: per piece,
+    c0..c2 from the left end, c3..c5 solved from the right end's deltas (so each break is met
+    to round-off of θ″ itself, not of the large higher coefficients)."""
+    x = np.asarray(x, dtype=float)
+    st = np.asarray(states, dtype=float)
+    h = np.diff(x)
+    y0, d0, a0 = st[:-1, 0], st[:-1, 1], st[:-1, 2]
+    y1, d1, a1 = st[1:, 0], st[1:, 1], st[1:, 2]
+    e0 = y1 - (y0 + d0 * h + 0.5 * a0 * h * h)
+    e1 = (d1 - (d0 + a0 * h)) * h
+    e2 = (a1 - a0) * h * h
+    c3 = (10.0 * e0 - 4.0 * e1 + 0.5 * e2) / h ** 3
+    c4 = (-15.0 * e0 + 7.0 * e1 - e2) / h ** 4
+    c5 = (6.0 * e0 - 3.0 * e1 + 0.5 * e2) / h ** 5
+    return np.column_stack([y0, d0, 0.5 * a0, c3, c4, c5])
+
+
+def soil_arc(mech, law):
+    """The in-soil arc θ(r) as a Piecewise, r from the soil entry (0) to the exit.
+
+    Linear laws are one exact piece; others are quintic Hermite pieces through the exact θ, θ′,
+    θ″ at breaks equally spaced in φ, doubled until the fit is within SOIL_TOLERANCE."""
+    psi = mech.psi
+    u_in = law.half_length(mech)
+    if law.zero_slip == 0.0:
+        rate = 1.0 / law.advance
+        return Piecewise([0.0, 2.0 * u_in], [[math.pi - psi, rate]])
+    pieces = 8
+    while True:
+        phi = np.linspace(-psi, psi, pieces + 1)
+        u = np.array([law.distance(mech, p) for p in phi])
+        states = [[math.pi + p, *law.angle_derivatives(mech, p)[:2]] for p in phi]
+        fit = Piecewise(u + u_in, quintic_hermite(u, states))
+        mid_u = 0.5 * (u[:-1] + u[1:])
+        mid_phi = [_phi_of_distance(law, mech, m, 0.5 * (p0 + p1))
+                   for m, p0, p1 in zip(mid_u, phi[:-1], phi[1:])]
+        err = max(abs(fit.at(m + u_in)[0] - (math.pi + p)) for m, p in zip(mid_u, mid_phi))
+        if err <= SOIL_TOLERANCE:
+            return fit
+        if pieces >= _MAX_SOIL_PIECES:
+            raise CamInputError('depth', mech.depth, f'clear of l1 + l2 = {mech.total:.6g} m '
+                                f'for {law.name}', f'{pieces} pieces fit the in-soil law only '
+                                f'to {err:.1e} rad')
+        pieces *= 2
+
+
+# --- a profile -------------------------------------------------------------------------------
+
+class CamProfile:
+    """θ(s) of a row: plant k at s = k·spacing with θ = π + 2πk; periodic in the spacing.
+
+    `evaluate(s)` gives (θ, θ′, θ″) in rad, rad/m, rad/m² for a scalar s (m) in a few µs:
+    floats only, one bisect and Horner's rule. `period` is one plant's θ(r), r from its soil
+    entry (r = 0, s = −entry) to the next plant's entry (r = spacing)."""
+
+    def __init__(self, mech, law, spacing, period, speed, drive, rule, blend):
+        self.mech = mech
+        self.law = law
+        self.spacing = float(spacing)
+        self.period = period
+        self.entry = law.half_length(mech)      # from the soil entry to the planting instant
+        self.speed = speed                      # ground speed it was planned for (m/s)
+        self.drive = drive
+        self.rule = rule                        # 'constant', 'design_speed' or 'zero_slip'
+        self.blend = blend                      # β: 1 = the rule's law, 0 = constant speed
+        self._samples = None
+
+    def evaluate(self, s):
+        """(θ, θ′, θ″) at travelled distance s (m), θ unwrapped."""
+        d = self.spacing
+        w = s + self.entry
+        k = math.floor(w / d)
+        r = w - k * d
+        if r >= d:                    # w / d rounded up to a whole number
+            r -= d
+            k += 1
+        th, d1, d2 = self.period.at(r)
+        return th + TWO_PI * k, d1, d2
+
+    def values(self, s, order=0):
+        """θ (order 0) or its derivative (1..3) at an array of s (numpy)."""
+        s = np.asarray(s, dtype=float)
+        w = s + self.entry
+        k = np.floor(w / self.spacing)
+        r = w - k * self.spacing
+        out = self.period.values(r, order)
+        return out + TWO_PI * k if order == 0 else out
+
+    def edge_state(self, side):
+        """(θ, θ′, θ″) of plant 0's soil exit (side +1, s = exit) or entry (side −1)."""
+        r = self.period.end if side < 0 else 2.0 * self.entry
+        th, d1, d2 = self.period.at(r)
+        return th - (TWO_PI if side < 0 else 0.0), d1, d2
+
+    @property
+    def loads(self):
+        """The dense samples the load figures come from (computed once)."""
+        if self._samples is None:
+            self._samples = LoadSamples(self.period, self.spacing, self.mech, self.drive)
+        return self._samples
+
+    def figures(self, speed):
+        """Peak loads and utilisations at a steady ground speed (m/s)."""
+        return self.loads.figures(float(speed))
+
+    @property
+    def tip_sweep(self):
+        return self.law.tip_sweep(self.mech)
+
+    @property
+    def hole_width(self):
+        return self.law.hole_width(self.mech)
+
+    @property
+    def tilt(self):
+        return self.law.tilt(self.mech)
+
+
+def _check_spacing_speed(spacing, speed):
+    """Spacing and speed in the scene's ranges (the same as the command line's)."""
+    from planter_ros.config import ConfigError, coerce, spec_of
+    from planter_ros.kinematics.scene_settings import SceneSettings
+    for value, field, name in ((spacing, 'plant_spacing', 'spacing'),
+                               (speed, 'nominal_ground_speed', 'speed')):
+        spec = spec_of(SceneSettings, field)
+        try:
+            coerce(spec, float(value))
+        except (ConfigError, TypeError, ValueError):
+            raise CamInputError(name, value, spec.allowed()) from None
+
+
+def build_profile(mech, spacing, law, speed, drive, rule, blend, pieces=ARC_PIECES):
+    """The profile of `law` in the soil and a planned out-of-soil arc (module doc)."""
+    half = law.half_length(mech)
+    length = spacing - 2.0 * half
+    if not length > 1e-6 * spacing:
+        raise CamInputError('spacing', spacing, f'> {2 * half:.6g} m (the in-soil arc of '
+                            f'{law.name} for this mechanism)')
+    soil = soil_arc(mech, law)
+    start = law.edge_state(mech, +1)
+    end_th, end_d1, end_d2 = law.edge_state(mech, -1)
+    end = (end_th + TWO_PI, end_d1, end_d2)
+    arc = straight_arc(length, start, end)
+    if arc is None:
+        limits = drive.effective(mech)
+        arc, _ = plan_arc(length, start, end, speed, limits,
+                          lambda th: drive.torque_terms(mech, th), pieces)
+    period = Piecewise.join([soil, arc.shifted(2.0 * half)])
+    return CamProfile(mech, law, spacing, period, speed, drive, rule, blend)
+
+
+def constant_profile(mech, spacing, drive=None):
+    """Constant sun-bar speed 2π/d (today's machine), as a profile."""
+    drive = DriveLimits() if drive is None else drive
+    return build_profile(mech, spacing, constant_law(spacing), 0.0, drive, 'constant', 0.0)
+
+
+# --- planning --------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CamPlan:
+    """A planned cam and its report (SI)."""
+
+    profile: CamProfile            # the profile to run (the rule, or its feasible blend)
+    rule: str
+    spacing: float
+    speed: float                   # top ground speed it was planned for
+    blend: float                   # β of the profile's law: 1 = `blend_of`, 0 = `blended_with`
+    blend_of: str                  # the law blended (the rule, or a fallback), by name
+    blended_with: str              # the law it is blended with ('' when β = 1: the rule itself)
+    figures: LoadFigures           # the profile's loads at `speed`
+    rule_figures: LoadFigures      # the rule's own (β = 1) loads at `speed`
+    top_speeds: dict               # rule -> (m/s, limit that stops it) for this spacing
+
+    @property
+    def feasible(self):
+        return self.figures.feasible
+
+    @property
+    def exact(self):
+        """The rule itself runs (no fallback)."""
+        return not self.blended_with
+
+    @property
+    def binding(self):
+        """Which limit binds: the rule's most exceeded limit, else the profile's closest."""
+        return self.rule_figures.binding if not self.rule_figures.feasible else \
+            self.figures.binding
+
+    def as_dict(self):
+        p = self.profile
+        return {'rule': self.rule, 'spacing': self.spacing, 'ground_speed': self.speed,
+                'law': p.law.name, 'blend': self.blend, 'blend_of': self.blend_of,
+                'blended_with': self.blended_with or None,
+                'tip_sweep': p.tip_sweep, 'hole_width': p.hole_width, 'tilt': p.tilt,
+                'feasible': self.feasible, 'binding': self.binding,
+                'rule_exceeds': self.rule_figures.exceeded,
+                'loads': self.figures.as_dict(), 'rule_loads': self.rule_figures.as_dict(),
+                'top_speeds': {k: {'ground_speed': v, 'limit': why}
+                               for k, (v, why) in self.top_speeds.items()}}
+
+
+def fallback_laws(mech, spacing, rule):
+    """The laws tried, in order, when the rule cannot run: from exact zero slip first towards
+    the design-speed rule (the design hole, no tilt), then towards constant speed."""
+    laws = [rule_law(mech, rule)]
+    if rule == 'zero_slip':
+        laws.append(rule_law(mech, 'design_speed'))
+    laws.append(constant_law(spacing))
+    return laws
+
+
+def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=True,
+             pieces=ARC_PIECES):
+    """Plan the cam for `mech` (a CamMechanism, or a five-bar design) at plant spacing
+    `spacing` (m) and top ground speed `speed` (m/s) within `drive`'s limits (module doc).
+
+    When the rule's profile exceeds a limit, the laws of `fallback_laws` are tried in turn;
+    the first that runs is blended with the one before it, β (the share of the one before)
+    maximised by bisection: the feasible profile closest to the rule. If not even constant speed
+    runs, that is returned, infeasible, with its figures. `top_speeds`: also find up to what
+    ground speed each rule holds at this spacing (a few more plans)."""
+    if not isinstance(mech, CamMechanism):
+        mech = CamMechanism.from_design(mech)
+    drive = DriveLimits() if drive is None else drive
+    _check_spacing_speed(spacing, speed)
+    spacing, speed = float(spacing), float(speed)
+    laws = fallback_laws(mech, spacing, rule)
+
+    def build(law, beta):
+        return build_profile(mech, spacing, law, speed, drive, rule, beta, pieces)
+
+    profile = build(laws[0], 1.0)
+    rule_figures = figures = profile.figures(speed)
+    beta, blend_of, blended_with = 1.0, laws[0].name, ''
+    if not rule_figures.feasible:
+        for upper, lower in zip(laws, laws[1:]):
+            candidate = build(lower, 0.0)
+            f = candidate.figures(speed)
+            profile, figures, beta, blend_of, blended_with = (candidate, f, 0.0, upper.name,
+                                                              lower.name)
+            if not f.feasible:
+                continue
+            lo, hi = 0.0, 1.0
+            for _ in range(BLEND_STEPS):
+                mid = 0.5 * (lo + hi)
+                candidate = build(upper.blend(lower, mid), mid)
+                f = candidate.figures(speed)
+                if f.feasible:
+                    lo, profile, figures, beta = mid, candidate, f, mid
+                else:
+                    hi = mid
+            break
+    tops = rule_top_speeds(mech, spacing, drive, speed, pieces) if top_speeds else {}
+    return CamPlan(profile, rule, spacing, speed, beta, blend_of, blended_with, figures,
+                   rule_figures, tops)
+
+
+def rule_top_speeds(mech, spacing, drive=None, hint=0.3, pieces=ARC_PIECES):
+    """Up to what ground speed each rule, and constant speed, holds at this spacing:
+    {'zero_slip' | 'design_speed' | 'constant': (m/s, the limit that stops it)}."""
+    drive = DriveLimits() if drive is None else drive
+    tops = {}
+    for name in RULES:
+        try:
+            tops[name] = rule_top_speed(mech, spacing, name, drive, hint, pieces)
+        except CamInputError as exc:             # zero slip undefined for this depth
+            tops[name] = (0.0, f'undefined here: {exc}')
+    tops['constant'] = constant_profile(mech, spacing, drive).loads.top_speed()
+    return tops
+
+
+def rule_top_speed(mech, spacing, rule, drive, hint=0.3, pieces=ARC_PIECES):
+    """Up to what steady ground speed the rule's full profile (β = 1), planned for that speed,
+    stays within every limit at this spacing: (m/s, the limit that stops it). Searched over
+    SPEED_RANGE; the top of the range if it holds there.
+
+    Fixed point: plan at v, find the fixed profile's own top speed v* (closed form per
+    limit), plan again at v*; a few rounds, then a bisection guard keeps the answer feasible."""
+    law = rule_law(mech, rule)
+    lo_v, hi_v = SPEED_RANGE
+    v = min(max(hint, lo_v), hi_v)
+    best, why = 0.0, 'speed'
+    tried = set()
+    for _ in range(8):
+        profile = build_profile(mech, spacing, law, v, drive, rule, 1.0, pieces)
+        top, limit = profile.loads.top_speed()
+        if profile.figures(v).feasible:
+            best = max(best, v)
+        if top >= hi_v and profile.figures(hi_v).feasible:
+            return hi_v, 'none within the searched range'
+        why = limit
+        nxt = min(max(top, lo_v), hi_v)
+        key = round(nxt, 9)
+        if abs(nxt - v) <= 1e-4 * v or key in tried:
+            v = nxt
+            break
+        tried.add(key)
+        v = nxt
+    profile = build_profile(mech, spacing, law, v, drive, rule, 1.0, pieces)
+    if profile.figures(v).feasible:
+        return v, why
+    # guard: bisect between the best feasible speed seen and v
+    lo, hi = best, v
+    for _ in range(12):
+        mid = 0.5 * (lo + hi)
+        if mid < lo_v:
+            break
+        f = build_profile(mech, spacing, law, mid, drive, rule, 1.0, pieces).figures(mid)
+        if f.feasible:
+            lo = mid
+        else:
+            hi, why = mid, f.binding
+    return lo, why
+
+
+
+BRUTE_FORCE_SAMPLES = 1_000_000
+
+
+def sampled_tip_sweep(profile, samples=BRUTE_FORCE_SAMPLES):
+    """The tip sweep found by brute force, independently of the closed form: θ(s) through
+    scipy's PPoly of the profile's coefficients at `samples` equally spaced distances over one
+    revolution (one spacing, from plant 0's soil entry), the tip from the five-bar's soil
+    trajectory, the extent along the row of the samples in the soil (y ≤ D). It misses each
+    soil edge by less than one step, an error of at most max|dx/ds|·d/samples."""
+    from planter_ros.kinematics.five_bar import soil_trajectory
+    mech = profile.mech
+    r = np.linspace(0.0, profile.spacing, int(samples), endpoint=False)
+    theta = profile.period.to_scipy()(r)
+    x, y = soil_trajectory(mech.l1, mech.l2, theta, 0.0)
+    x = x + r
+    inside = x[y <= mech.depth]
+    return float(inside.max() - inside.min()) if inside.size else 0.0

@@ -1,0 +1,45 @@
+"""Constant speed and the cam side by side, per spacing and ground speed: the figures the
+command line prints, the plot draws and the bench checks (SI, JSON-ready)."""
+
+import time
+
+from .drive import DriveLimits
+from .plan import BRUTE_FORCE_SAMPLES, constant_profile, plan_cam, sampled_tip_sweep
+
+__all__ = ['profile_summary', 'compare']
+
+
+def profile_summary(profile, speed, samples=BRUTE_FORCE_SAMPLES):
+    """Sweep, hole, tilt and loads of a profile at ground speed `speed`; with `samples` > 0
+    also the brute-force sweep and its difference from the closed form (m)."""
+    out = {'law': profile.law.name, 'tip_sweep': profile.tip_sweep,
+           'hole_width': profile.hole_width, 'tilt': profile.tilt,
+           'loads': profile.figures(speed).as_dict()}
+    if samples:
+        t0 = time.perf_counter()
+        sampled = sampled_tip_sweep(profile, samples)
+        out['sweep_check'] = {'samples_per_revolution': int(samples), 'tip_sweep': sampled,
+                              'error': abs(sampled - profile.tip_sweep),
+                              'time': time.perf_counter() - t0}
+    return out
+
+
+def compare(mech, spacing, speed, drive=None, rule='design_speed', samples=BRUTE_FORCE_SAMPLES,
+            plan=None):
+    """Constant speed and the planned cam at one spacing and top ground speed. `plan`: an
+    already planned CamPlan for them (else planned here, timed)."""
+    drive = DriveLimits() if drive is None else drive
+    t0 = time.perf_counter()
+    if plan is None:
+        plan = plan_cam(mech, spacing, speed, drive, rule, top_speeds=False)
+    planned = time.perf_counter() - t0
+    cam = profile_summary(plan.profile, speed, samples)
+    cam.update({'rule': rule, 'blend': plan.blend, 'blend_of': plan.blend_of,
+                'blended_with': plan.blended_with or None, 'feasible': plan.feasible,
+                'binding': plan.binding, 'rule_exceeds': plan.rule_figures.exceeded,
+                'rule_loads': plan.rule_figures.as_dict(), 'plan_time': planned})
+    constant = profile_summary(constant_profile(plan.profile.mech, spacing, drive), speed,
+                               samples)
+    constant['feasible'] = constant['loads']['feasible']
+    return {'spacing': float(spacing), 'ground_speed': float(speed), 'constant': constant,
+            'cam': cam}
