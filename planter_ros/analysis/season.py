@@ -24,6 +24,7 @@ import os
 from pathlib import Path
 import time
 
+from planter_ros.design import to_json
 from planter_ros.output_files import OutputError, atomic_output
 
 from . import tables
@@ -62,7 +63,7 @@ def options_key(overrides, design):
     bag recorded, which the bag's own identity covers) and the fallback design's hash."""
     given = {k: v for k, v in sorted((overrides or {}).items()) if v is not None}
     scene = None if design is None else hashlib.sha256(
-        json.dumps(design, sort_keys=True).encode()).hexdigest()[:16]
+        to_json(design).encode()).hexdigest()[:16]
     return json.dumps({'settings': given, 'scene_design': scene}, sort_keys=True)
 
 
