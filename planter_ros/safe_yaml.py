@@ -1,6 +1,7 @@
 """YAML read safely: `yaml.safe_load` with alias expansion bounded, so a hostile file (an "alias
-bomb") costs neither memory nor a giant error message. Used for scene files and a bag's
-metadata. PyYAML is imported only when a text is read."""
+bomb") costs neither memory nor a giant error message, and a key given twice in one mapping
+refused (PyYAML would keep the last silently). Used for scene files and a bag's metadata.
+PyYAML is imported only when a text is read."""
 
 from typing import Any
 
@@ -18,7 +19,7 @@ def load_yaml(text: str, what: str) -> Any:
     import yaml
     try:
         return yaml.load(text, Loader=_bounded_loader())
-    except _AliasError as exc:
+    except _Refused as exc:
         raise YamlError(f'{what}: {exc}') from None
     except RecursionError:
         raise YamlError(f'{what} is nested too deeply: allowed YAML nested a few hundred '
@@ -28,7 +29,7 @@ def load_yaml(text: str, what: str) -> Any:
                         f'{" ".join(str(exc).split())[:200]}') from None
 
 
-class _AliasError(ValueError):
+class _Refused(ValueError):
     pass
 
 
@@ -52,12 +53,12 @@ def _bounded_loader():
             anchor = event.anchor
             if isinstance(event, yaml.AliasEvent):
                 if anchor in self._open_anchors:
-                    raise _AliasError(f'alias *{anchor} refers to its own anchor: allowed '
+                    raise _Refused(f'alias *{anchor} refers to its own anchor: allowed '
                                       'aliases of finished nodes only')
                 if anchor in self.anchors:
                     self._expanded += self._size(self.anchors[anchor])
                     if self._expanded > MAX_ALIAS_NODES:
-                        raise _AliasError(f'aliases expand to over {MAX_ALIAS_NODES} nodes: '
+                        raise _Refused(f'aliases expand to over {MAX_ALIAS_NODES} nodes: '
                                           f'allowed at most {MAX_ALIAS_NODES}')
                 return super().compose_node(parent, index)
             if anchor is None:
@@ -67,6 +68,16 @@ def _bounded_loader():
                 return super().compose_node(parent, index)
             finally:
                 self._open_anchors.discard(anchor)
+
+        def construct_mapping(self, node, deep=False):
+            seen = set()
+            for key, _ in node.value:
+                if isinstance(key, yaml.ScalarNode) and key.tag != 'tag:yaml.org,2002:merge':
+                    if key.value in seen:
+                        raise _Refused(f'{key.value} is given twice in one mapping (line '
+                                       f'{key.start_mark.line + 1}): allowed each key once')
+                    seen.add(key.value)
+            return super().construct_mapping(node, deep=deep)
 
         def _size(self, node):
             """Nodes `node` stands for once every alias inside it is expanded (memoised)."""

@@ -10,9 +10,8 @@ import re
 
 import pytest
 
-from test_cli_bad_input import assert_one_line_refusal, run
-
 from cli_helpers import REPO
+from test_cli_bad_input import assert_one_line_refusal, run
 
 SAMPLE = REPO / 'bags' / 'sample_tomato.mcap'
 BASES = {name: (REPO / 'config' / f'{name}.yaml').read_text()
@@ -127,6 +126,8 @@ CASES = [
     (demo, 'tomato_five_bar', added('  parameters: {window: 40}\n'),
      'parameters beside ros__parameters', None),
     (demo, 'tomato_five_bar', setting('arm_length', 0.145), 'arm_length', None),
+    (demo, 'tomato_five_bar', added('    plant_spacing: 0.3\n'),
+     'plant_spacing is given twice', None),
     # the three-arm scene, through design, the optimiser, replay and analyze
     (three_arm, 'rice_three_arm', renamed('control_radii:', 'control_radi:'), 'control_radi',
      'control_radii'),

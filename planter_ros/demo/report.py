@@ -5,13 +5,14 @@ the sync process (sample counts, slips, send errors, watchdog trips, control-loo
 design changes)."""
 
 import math
+from typing import Any
 
 from .verdict import RowResult
 
 __all__ = ['command_path_lines', 'progress_line', 'row_summary']
 
 
-def progress_line(t, profile, status, plants, rows):
+def progress_line(t: float, profile: Any, status: dict, plants: int, rows: list) -> str:
     """The line printed every few seconds: time, speed, each row's command (and with one row
     its measured speed and drive state), plants so far. `rows`: the planting rows."""
     shown = status.get('rows', [])
@@ -27,12 +28,13 @@ def progress_line(t, profile, status, plants, rows):
             f'plants = {plants:3d}')
 
 
-def spacing_changes(observer):
+def spacing_changes(observer: Any) -> list[tuple[float, float]]:
     """(t since start, d) of each design change the observer saw."""
     return [(t, design.plant_spacing) for t, design in observer.design_changes()]
 
 
-def row_summary(design, rows, profile, observer, report):
+def row_summary(design: Any, rows: list, profile: Any, observer: Any,
+                report: dict) -> tuple[str, list[RowResult]]:
     """The demo's own figures per planting row and the command path's report:
     (text, [RowResult] for the verdict). `rows`: every row of the scene."""
     import numpy as np
@@ -83,7 +85,7 @@ def row_summary(design, rows, profile, observer, report):
     return '\n'.join(lines), results
 
 
-def command_path_lines(report):
+def command_path_lines(report: dict) -> list[str]:
     """Sample counts, slips, send errors, watchdog trips and the control loop's period
     statistics, from the sync process's report (sync_process.final_report)."""
     lines = [f"  ground-speed samples     {report['accepted']} accepted, rejected "

@@ -3,11 +3,12 @@
 from their JSON-ready results (the keys their --json output has)."""
 
 import math
+from typing import Any
 
 __all__ = ['five_bar_table', 'three_arm_table']
 
 
-def five_bar_table(r):
+def five_bar_table(r: dict[str, Any]) -> str:
     """Human table: lengths in mm, angles in degrees, units labelled."""
     mm = 1000.0
     rows = [
@@ -88,7 +89,7 @@ def _show(value, unit):
     return f'{value * 1000:.2f} mm'
 
 
-def three_arm_table(r):
+def three_arm_table(r: dict[str, Any]) -> str:
     """Human table: mm and degrees, labelled."""
     lines = [f"scene {r['params']}: three-arm, {r['interpolant']} pitch curve",
              f"centre distance a      {r['centre_distance'] * 1000:.6f} mm "

@@ -17,9 +17,12 @@ and `declare_rows` reads a scene's rows that way.
 node was given (in a parameter file or as an override) that it does not declare.
 """
 
+from collections.abc import Sequence
+
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
 from rclpy.exceptions import ParameterUninitializedException
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from planter_ros import config
@@ -140,7 +143,7 @@ def declare_rows(node, default_node_id=None):
     return rows_from_settings(layout.rows, settings, default_node_id)
 
 
-def params_files(arguments):
+def params_files(arguments: Sequence[str] | None) -> list[str]:
     """The `--params-file` paths among a process's arguments (every `--ros-args` section)."""
     files, ros, args = [], False, list(arguments or ())
     for i, arg in enumerate(args):
@@ -153,7 +156,7 @@ def params_files(arguments):
     return files
 
 
-def refuse_undeclared(node, arguments=None):
+def refuse_undeclared(node: Node, arguments: Sequence[str] | None = None) -> None:
     """Refuse (scene.SceneError, one line) a parameter `node` was given but does not declare,
     which rclpy would ignore: a key of a parameter file that is not what the scene's rule allows
     (planter_ros.scene.schema: keys under the node's own entry must be its parameters, keys

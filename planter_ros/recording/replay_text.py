@@ -2,9 +2,13 @@
 labelled), as `planter replay` prints them and the demo shows its own bag's."""
 
 import math
+from typing import TYPE_CHECKING
 
 from planter_ros import interfaces
 from planter_ros.kinematics.spacing_quality import format_quality
+
+if TYPE_CHECKING:
+    from .replay import ReplayResult
 
 __all__ = ['format_summary', 'format_table']
 
@@ -13,7 +17,7 @@ def _named_rows(result):
     return len(result.rows) > 1 or bool(result.rows[0].name)
 
 
-def format_table(result):
+def format_table(result: 'ReplayResult') -> str:
     """Per-plant rows and the summary for people (mm and degrees, labelled)."""
     p = result.plants
     t0 = float(p.time[0]) if len(p) else 0.0
@@ -43,7 +47,7 @@ def _mm(v):
     return 'n/a' if v is None else f'{v * 1e3:.2f} mm'
 
 
-def format_summary(result):
+def format_summary(result: 'ReplayResult') -> str:
     """The replay summary for people: plants, spacing error and quality, hole width (tip sweep
     and nozzle), uprightness, the map; what a figure means where the model is not validated,
     next to it; with rows, one line per row too (positions along each row's own travelled
