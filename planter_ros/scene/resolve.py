@@ -12,7 +12,7 @@ from typing import Any
 from planter_ros.config import ConfigError, from_mapping
 
 from .files import ParameterFile, SceneError, read_parameter_file
-from .schema import merged_parameters, check_scene, node_parameters
+from .schema import check_scene, merged_parameters, node_parameters, shared_entry
 
 __all__ = ['Scene', 'default_scene_path', 'load_scene', 'open_scene']
 
@@ -35,7 +35,7 @@ class Scene:
         if node is None:
             out: dict[str, Any] = {}
             for entry in self.file.entries:
-                if entry.pattern.rstrip('/').rsplit('/', 1)[-1] in ('*', '**'):
+                if shared_entry(entry.pattern):
                     out.update(entry.params)
             return out
         return merged_parameters(self.file, node)

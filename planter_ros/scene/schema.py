@@ -35,7 +35,7 @@ from .files import ParameterFile, SceneError
 
 __all__ = ['NODES', 'ROS_PARAMETERS', 'check_node_file', 'check_scene', 'closest', 'matches',
            'merged_parameters', 'node_classes', 'node_parameters', 'node_specs',
-           'scene_mechanism', 'scene_rows']
+           'scene_mechanism', 'scene_rows', 'shared_entry']
 
 NODES = ('design_node', 'sync_node', 'monitor_node')
 NAMESPACE = '/' + interfaces.NAMESPACE.strip('/')
@@ -138,7 +138,8 @@ def matches(pattern: str, fqn: str) -> bool:
     return match(0, 0)
 
 
-def _shared(pattern: str) -> bool:
+def shared_entry(pattern: str) -> bool:
+    """Is an entry shared by several nodes (its node name a wildcard: `/**`, `/planter/*`)?"""
     return pattern.rstrip('/').rsplit('/', 1)[-1] in ('*', '**')
 
 
@@ -162,7 +163,7 @@ def merged_parameters(pfile: ParameterFile, node: str) -> dict[str, Any]:
     fqn = _fqn(node)
     for own in (False, True):
         for entry in pfile.entries:
-            if _shared(entry.pattern) != own and matches(entry.pattern, fqn):
+            if shared_entry(entry.pattern) != own and matches(entry.pattern, fqn):
                 out.update(entry.params)
     return out
 
@@ -176,7 +177,7 @@ def check_scene(pfile: ParameterFile) -> None:
         reached = [node for node in NODES if matches(entry.pattern, _fqn(node))]
         if not reached:
             _no_node(pfile, entry.pattern)
-        if _shared(entry.pattern):
+        if shared_entry(entry.pattern):
             _check_keys(pfile, entry.params, reached, mechanism, rows)
         else:
             _check_keys(pfile, entry.params, reached, mechanism, rows, own=True)
@@ -200,7 +201,7 @@ def check_node_file(pfile: ParameterFile, node: str, fqn: str,
     for entry in pfile.entries:
         if not matches(entry.pattern, fqn):
             continue
-        if _shared(entry.pattern):
+        if shared_entry(entry.pattern):
             _check_keys(pfile, entry.params, NODES, mechanism, sorted(rows))
             shared |= set(entry.params)
             continue
