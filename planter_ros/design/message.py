@@ -120,9 +120,11 @@ def _value(name, value):
         if not isinstance(value, list) or not all(isinstance(g, dict) for g in value):
             raise DesignMessageError('goals is not a list of objects: allowed [{name, value, '
                                      'lower, upper, unit, passed}, ...]')
+        known = {f.name for f in fields(GoalResult)}
         try:
-            return tuple(GoalResult(**g) for g in value)
-        except TypeError as exc:
+            return tuple(GoalResult(**{k: v for k, v in g.items() if k in known})
+                         for g in value)
+        except TypeError as exc:            # a goal without one of its required fields
             raise DesignMessageError(f'goals: {_short(exc)}') from None
     if isinstance(value, list):
         return tuple(value)
