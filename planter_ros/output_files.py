@@ -9,6 +9,7 @@ user's old file as it was (`atomic_outputs`: a set of files written whole before
 """
 
 from contextlib import contextmanager
+import math
 import os
 from pathlib import Path
 import stat
@@ -175,3 +176,34 @@ def write_text_atomically(path, text):
 def _words(suffixes):
     words = [s if s else 'a directory name without extension' for s in suffixes]
     return words[0] if len(words) == 1 else ', '.join(words[:-1]) + ' or ' + words[-1]
+
+
+def require_finite(result, what):
+    """Raise OutputError naming the first NaN or infinite number in a JSON-like result (a
+    design no one can build must never be printed as one); return the result."""
+    def walk(value, key):
+        if isinstance(value, dict):
+            for k, v in value.items():
+                walk(v, k)
+        elif isinstance(value, (list, tuple)):
+            for v in value:
+                walk(v, key)
+        elif isinstance(value, float) and not math.isfinite(value):
+            raise OutputError(f'{what}: {key} = {value} is not finite: allowed inputs whose '
+                              'result is a finite design')
+    walk(result, what)
+    return result
+
+
+def check_distinct(outputs):
+    """OutputError when two output options ({option: path or None}) name the same file (the
+    later would replace the earlier)."""
+    seen = {}
+    for option, path in outputs.items():
+        if not path:
+            continue
+        key = Path(path).resolve()
+        if key in seen:
+            raise OutputError(f'{option} = {path} is also {seen[key]}: allowed a path no other '
+                              'output option names')
+        seen[key] = option

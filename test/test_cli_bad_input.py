@@ -192,7 +192,7 @@ def test_a_huge_or_special_scene_file_is_refused_unread(tmp_path):
 def test_anchors_and_aliases_of_ordinary_size_still_work(tmp_path):
     scene = tmp_path / 'anchors.yaml'
     scene.write_text((REPO / 'config' / 'rice_three_arm.yaml').read_text().replace(
-        'arm_width: 0.02', 'arm_width: &w 0.02\n    seedling_height_copy: *w'))
+        'arm_width: 0.02', 'arm_width: &w 0.02').replace('nozzle_width: 0.02', 'nozzle_width: *w'))
     code, out, err, caught = run(['design', 'three-arm', '--params', scene, '--json'])
     assert code == 0 and caught == [], err
     assert json.loads(out)['goals_passed'] >= 0

@@ -116,7 +116,7 @@ def test_a_flipped_byte_in_the_first_chunk_keeps_the_other_fourteen(tmp_path):
     assert code == 2 and err.getvalue().count('\n') == 1
     assert 'no design message' in err.getvalue() and '--scene' in err.getvalue()
     assert 'messages logged 0.000 s to' in err.getvalue()
-    from planter_ros.kinematics.scene_design import design_for_scene
+    from planter_ros.design import design_for_scene
     from planter_ros.scene import load_scene
     design = design_for_scene(load_scene(TOMATO_SCENE, 'design_node'))
     full = replay(TOMATO_BAG)
@@ -134,7 +134,7 @@ def test_a_flipped_byte_in_the_first_chunk_keeps_the_other_fourteen(tmp_path):
     # the bag predates the nozzle width in the design (its monitor recorded 0 m); the scene
     # today gives its nozzle, and the holes are the tip sweep plus that
     np.testing.assert_allclose(bad.plants.hole_width,
-                               full.plants.tip_sweep + design['nozzle_width'], rtol=0, atol=1e-12)
+                               full.plants.tip_sweep + design.nozzle_width, rtol=0, atol=1e-12)
     np.testing.assert_allclose(full.plants.hole_width, full.plants.tip_sweep, rtol=0, atol=0)
 
 

@@ -254,7 +254,7 @@ def check_markers(bag, result):
                 assert m.header.frame_id == 'field'
                 kind, row = m.ns.split('/')
                 (stems if kind == 'plants' else paths).setdefault(row, {})[m.id] = m
-    depth = result.design['planting_depth']
+    depth = result.design.planting_depth
     p = result.plants
     for row in result.rows:
         mine = np.flatnonzero(p.row == row.index)          # in time order, as published
@@ -320,12 +320,12 @@ import rclpy
 from geometry_msgs.msg import TwistStamped
 from rclpy.executors import SingleThreadedExecutor
 from planter_ros import interfaces
-from planter_ros.cli.demo import _scene_parameters
+from rclpy.parameter import Parameter
 from planter_ros.nodes.design_node import DesignNode
-from planter_ros.scene import load_scene
+from planter_ros.scene import open_scene
 rclpy.init()
-node = DesignNode(namespace=interfaces.NAMESPACE,
-                  parameter_overrides=_scene_parameters(load_scene(sys.argv[1], 'design_node')))
+node = DesignNode(namespace=interfaces.NAMESPACE, parameter_overrides=[
+    Parameter(k, value=v) for k, v in open_scene(sys.argv[1]).node_overrides('design_node')])
 ex = SingleThreadedExecutor()
 ex.add_node(node)
 sensor = pub = None

@@ -1,5 +1,4 @@
 """design_node: latched design, validated parameter updates, only what the scene needs."""
-import json
 import subprocess
 import sys
 
@@ -7,6 +6,7 @@ import pytest
 from rclpy.parameter import Parameter
 
 from planter_ros import interfaces
+from planter_ros.design import from_json
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.nodes.design_node import DesignNode
 
@@ -17,7 +17,7 @@ NOZZLE = [Parameter('nozzle_width', value=0.04)]
 
 def subscribe(ros, name):
     got = []
-    interfaces.DESIGN.subscribe(ros.node(name), lambda m: got.append(json.loads(m.data)))
+    interfaces.DESIGN.subscribe(ros.node(name), lambda m: got.append(from_json(m.data)))
     return got
 
 
@@ -27,11 +27,11 @@ def test_late_subscriber_gets_the_latched_design(ros):
     got = subscribe(ros, 'late_listener')
     assert ros.spin_until(lambda: got)
     d = got[-1]
-    assert d['mechanism'] == 'five_bar' and d['plants_per_revolution'] == 1
-    assert d['plant_spacing'] == 0.2 and d['planting_depth'] == 0.045
-    assert d['l2'] - d['l1'] > 0 and d['assemblable'] is True
-    assert d['nozzle_width'] == 0.04                     # for the monitor's holes
-    assert abs(d['nominal_mechanism_speed'] - 2 * 3.141592653589793) < 1e-9
+    assert d.mechanism == 'five_bar' and d.plants_per_revolution == 1
+    assert d.plant_spacing == 0.2 and d.planting_depth == 0.045
+    assert d.l2 - d.l1 > 0 and d.assemblable is True
+    assert d.nozzle_width == 0.04                     # for the monitor's holes
+    assert abs(d.nominal_mechanism_speed - 2 * 3.141592653589793) < 1e-9
 
 
 def test_infeasible_update_refused_with_reason_and_old_design_kept(ros):
@@ -56,7 +56,7 @@ def test_out_of_descriptor_range_and_unknown_method_are_refused(ros):
     assert not res.successful and 'exact or paper' in res.reason
     res = node.set_parameters([Parameter('dyad_ratios', value=[0.2, 0.2, 3.0])])[0]
     assert not res.successful and 'dyad' in res.reason
-    assert node.design['method'] == 'exact'
+    assert node.design.method == 'exact'
 
 
 def test_feasible_update_publishes_new_design(ros):
@@ -65,7 +65,7 @@ def test_feasible_update_publishes_new_design(ros):
     assert ros.spin_until(lambda: got)
     assert node.set_parameters([Parameter('plant_spacing', value=0.3)])[0].successful
     assert ros.spin_until(lambda: len(got) == 2)
-    assert got[-1]['plant_spacing'] == 0.3 and got[-1]['l1'] != got[0]['l1']
+    assert got[-1].plant_spacing == 0.3 and got[-1].l1 != got[0].l1
 
 
 def test_parameters_have_descriptions_and_ranges(ros):
@@ -81,7 +81,7 @@ def test_three_arm_scene_is_routed_to_the_three_arm_model(ros):
     res = node.set_parameters([Parameter('mechanism', value='three_arm')])[0]
     assert not res.successful                     # five-bar scene: no three-arm parameters
     assert 'control_radii' in res.reason
-    assert node.design['mechanism'] == 'five_bar'
+    assert node.design.mechanism == 'five_bar'
 
 
 def test_three_arm_scene_declares_its_parameters(ros):
@@ -92,7 +92,7 @@ def test_three_arm_scene_declares_its_parameters(ros):
 
 def test_five_bar_scene_never_imports_the_gear_train():
     code = ('import sys; from planter_ros.scene import load_scene; '
-            'from planter_ros.kinematics.scene_design import design_for_scene; '
+            'from planter_ros.design import design_for_scene; '
             'design_for_scene(load_scene("config/tomato_five_bar.yaml")); '
             'print(sorted(m for m in sys.modules if "three_arm" in m or m == "scipy"))')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,

@@ -1,8 +1,8 @@
 """Design-change authority, pure parts: who published an accepted design, what counts as a
 change by another node, and the demo's verdict that fails on it (and on every other reason)."""
-from planter_ros.cli.demo_verdict import RowResult, SPACING_TOLERANCE, judge
+from planter_ros.demo.verdict import RowResult, SPACING_TOLERANCE, judge
 from planter_ros.control import sync_status
-from planter_ros.design_sources import DesignSources, Endpoint, gid_text
+from planter_ros.scene.design_sources import DesignSources, Endpoint, gid_text
 from planter_ros.sim.spacing import spacing_in_force, spacing_stats
 
 OURS = Endpoint('/planter/design_node', '01.0f.aa')

@@ -237,12 +237,12 @@ def test_a_disabled_row_gets_no_frame_on_the_bus(ros):
 
 def test_a_three_arm_machine_with_rows(machine):
     from pathlib import Path
-    from planter_ros.kinematics.scene_design import design_for_scene
+    from planter_ros.design import design_for_scene, to_dict
     from planter_ros.scene import load_scene
     scene = load_scene(Path(__file__).resolve().parents[1] / 'config' / 'rice_three_arm.yaml')
     design = design_for_scene(scene)
-    d = design['plant_spacing']
-    m = machine(design=design)
+    d = design.plant_spacing
+    m = machine(design=to_dict(design))                # as the topic carries it
     v, w = 0.3, -0.03                                 # a 10 m right turn
     m.drive(v, w, 2.0)
     assert m.joints[-1].name == ['left/carrier', 'right/carrier']

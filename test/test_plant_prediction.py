@@ -5,6 +5,7 @@ from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 
+from planter_ros.design import from_dict
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.five_bar import design_five_bar
 from planter_ros.kinematics.plant_prediction import (
@@ -174,11 +175,11 @@ def test_three_plants_per_revolution_are_set_at_each_arms_planting_angle():
                        np.column_stack(closed.tip_path(around)), atol=1e-9)
     assert np.allclose(closed.tip_path(0.0), 0.0, atol=1e-15)
 
-    three = planting_model_from_design({
+    three = planting_model_from_design(from_dict({
         'mechanism': 'three_arm', 'plants_per_revolution': 3, 'plant_spacing': 0.2,
         'planting_depth': 0.03, 'nozzle_width': 0.02,
         'tip_path': {'angle': phi.tolist(), 'x': (0.1 * np.sin(phi)).tolist(),
-                     'y': (0.2 * np.cos(phi)).tolist()}})
+                     'y': (0.2 * np.cos(phi)).tolist()}}))
     t = np.arange(0.0, 3.0, 0.01)
     omega = 2 * math.pi / 3 * 0.2 / 0.2          # in sync: ω = 2π v / (3 d)
     plants = predict_plants(t, np.full_like(t, 0.2), t, omega * t, np.full_like(t, omega),
@@ -204,7 +205,7 @@ def test_three_plants_per_revolution_are_set_at_each_arms_planting_angle():
 ])
 def test_unusable_designs_are_one_line_errors(design, word):
     with pytest.raises(DesignError) as err:
-        planting_model_from_design(design)
+        planting_model_from_design(from_dict(design))
     assert word in str(err.value) and '\n' not in str(err.value)
 
 
@@ -250,26 +251,24 @@ def test_implausible_ground_speed_samples_do_not_move_plants_live_or_in_replay()
 def test_three_arm_design_topic_carries_what_the_monitor_needs():
     """The rice scene's design JSON builds a three-plants-per-turn path model whose planting
     instants are the arms' lowest points (paper Table 1: arm I plants near 191°)."""
-    import json
     from pathlib import Path
 
-    from planter_ros.kinematics.scene_design import design_for_scene
+    from planter_ros.design import design_for_scene, from_json, to_json
     from planter_ros.scene import load_scene
 
     scene = load_scene(Path(__file__).resolve().parents[1] / 'config' / 'rice_three_arm.yaml')
-    design = json.loads(json.dumps(design_for_scene(scene)))       # as it travels on the topic
+    design = from_json(to_json(design_for_scene(scene)))           # as it travels on the topic
     model = planting_model_from_design(design)
     assert isinstance(model, PathPlanting) and model.plants_per_revolution == 3
     assert abs(math.degrees(model.planting_phase) - 191.0) < 6.0
-    path = design['tip_path']
-    assert min(path['y']) == pytest.approx(float(model._y(model.planting_phase)), abs=1e-4)
+    assert min(design.tip_path.y) == pytest.approx(float(model._y(model.planting_phase)), abs=1e-4)
     # one carrier turn at the synchronous speed sets three plants, d apart
     omega = 2 * math.pi
     v = model.sync_advance * omega
     t = np.arange(0.0, 1.5, 0.005)
     plants = predict_plants(t, np.full_like(t, v), t, omega * t, np.full_like(t, omega), model)
     assert len(plants) == 4
-    np.testing.assert_allclose(plants.spacing[1:], design['plant_spacing'], rtol=1e-6)
+    np.testing.assert_allclose(plants.spacing[1:], design.plant_spacing, rtol=1e-6)
     assert np.all(np.isfinite(plants.hole_width)) and np.all(np.isfinite(plants.tilt))
 
 

@@ -8,7 +8,7 @@ import yaml
 from planter_ros.kinematics.plant_prediction import PLANT_FIELDS
 from planter_ros.recording.recorder import DELIMITER, Recorder, RecorderError, message_definition
 from planter_ros.recording.replay import replay
-from planter_ros.cli.samples import record_sample
+from planter_ros.demo.samples import record_sample
 from planter_ros.sim.bags import write_input_bag
 from planter_ros.sim.runs import five_bar_design_message, simulate_run
 
@@ -115,7 +115,7 @@ def test_replay_matches_the_live_monitor(live_bag):
     assert result.map_settings.max_fix_age == MONITOR_PARAMS['max_fix_age']
     assert result.antenna.antenna_position == MONITOR_PARAMS['antenna_position']
     # the nozzle width is the design's (a scene value): the holes are the tip sweep + it
-    assert result.nozzle_width == result.design['nozzle_width'] == 0.04
+    assert result.nozzle_width == result.design.nozzle_width == 0.04
     assert np.allclose(result.plants.hole_width - result.plants.tip_sweep, 0.04, atol=1e-15)
     assert len(result.plants) == live.shape[0] >= 5
     assert np.allclose(result.plants.table(), live, rtol=0, atol=1e-12, equal_nan=True)

@@ -16,11 +16,13 @@ def test_shipped_scenes_load(path):
     assert params['plant_spacing'] > 0 and params['crop']
 
 
-def test_node_entry_overrides_wildcard(tmp_path):
+@pytest.mark.parametrize('entry', ['/planter/sync_node', '/**/sync_node'])
+def test_a_nodes_own_entry_overrides_the_wildcard_as_rcl_does(tmp_path, entry):
     f = tmp_path / 's.yaml'
-    f.write_text('/**:\n  ros__parameters:\n    a: 1\n    b: 2\n'
-                 'sync_node:\n  ros__parameters:\n    b: 3\n')
-    assert load_scene(f, 'sync_node') == {'a': 1, 'b': 3}
+    f.write_text('/**:\n  ros__parameters:\n    can_channel: can0\n    plant_spacing: 0.3\n'
+                 f'{entry}:\n  ros__parameters:\n    can_channel: can1\n')
+    assert load_scene(f, 'sync_node') == {'can_channel': 'can1', 'plant_spacing': 0.3}
+    assert load_scene(f, 'design_node') == {'can_channel': 'can0', 'plant_spacing': 0.3}
 
 
 @pytest.mark.parametrize('text', ['- 1\n- 2\n', 'x: [unclosed\n', '/**:\n  foo: 1\n'])

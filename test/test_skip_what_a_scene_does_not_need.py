@@ -18,7 +18,8 @@ CLI_MODULES = FIVE_BAR_MODULES | {'planter_ros.cli', 'planter_ros.cli.main',
                                   'planter_ros.cli.design_five_bar', 'planter_ros.cli.options',
                                   'planter_ros.kinematics.scene_settings',
                                   'planter_ros.kinematics.mechanisms',
-                                  'planter_ros.output_files'}
+                                  'planter_ros.output_files', 'planter_ros.design',
+                                  'planter_ros.design.text'}
 
 
 def modules_after(code):

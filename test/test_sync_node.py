@@ -21,7 +21,7 @@ from ros_fixtures import unique_channel
 
 D = 0.2
 TOMATO = {'mechanism': 'five_bar', 'plants_per_revolution': 1, 'plant_spacing': D,
-          'planting_depth': 0.045}
+          'planting_depth': 0.045, 'l1': 0.0194, 'l2': 0.0512}
 
 
 class FlakyBus(VirtualBus):

@@ -171,12 +171,12 @@ def test_a_row_switched_off_stops_within_a_pitch_and_on_starts_a_new_grid(t_off)
 
 
 def test_a_three_arm_machine_with_rows_plants_three_per_turn_on_each_row():
-    from planter_ros.kinematics.scene_design import design_for_scene
+    from planter_ros.design import design_for_scene
     from planter_ros.scene import load_scene
     from pathlib import Path
     scene = load_scene(Path(__file__).resolve().parents[1] / 'config' / 'rice_three_arm.yaml')
     design = design_for_scene(scene)
-    d, n = design['plant_spacing'], design['plants_per_revolution']
+    d, n = design.plant_spacing, design.plants_per_revolution
     profile = field_profile(30.0, 0.4, change=1.0, curves=demo_curves(30.0))
     runs = simulate_rows([1.0, -1.0], profile, 28.0, d, plants_per_revolution=n, dt=0.002)
     for run in runs:
@@ -213,7 +213,7 @@ def test_replay_predicts_a_machine_row_by_row_from_each_rows_own_distance(tmp_pa
     as_json = result.as_json()
     assert [r['name'] for r in as_json['rows']] == ['left', 'right']
     assert as_json['rows'][0]['summary']['plants'] == result.row_summaries[0]['plants']
-    from planter_ros.cli.replay import format_table
+    from planter_ros.recording.replay_text import format_table
     from planter_ros.plots.replay import plot_replay
     text = format_table(result)
     assert text.splitlines()[1].startswith('row ') and '\nleft ' in text
@@ -239,13 +239,13 @@ def test_row_speeds_of_a_recording_follow_the_monitor_rule():
 
 def test_replay_of_a_three_arm_machine_reads_each_rows_carrier(tmp_path):
     from pathlib import Path
-    from planter_ros.kinematics.scene_design import design_for_scene
+    from planter_ros.design import design_for_scene
     from planter_ros.recording.replay import replay
     from planter_ros.scene import load_scene
     from planter_ros.sim.bags import write_machine_bag
     scene = load_scene(Path(__file__).resolve().parents[1] / 'config' / 'rice_three_arm.yaml')
     design = design_for_scene(scene)
-    d = design['plant_spacing']
+    d = design.plant_spacing
     profile = field_profile(16.0, 0.4, change=1.0, curves=[Curve(3.0, 13.0, -10.0)])
     rows = [Row(0, 'a', 1.0, 1), Row(1, 'b', -1.0, 2)]
     runs = simulate_rows([1.0, -1.0], profile, 14.0, d, plants_per_revolution=3, dt=0.002,

@@ -20,7 +20,8 @@ SHAPEFILE = 'as_planted.zip'
 ISOXML = 'TASKDATA.zip'
 EXPORTS = (SHAPEFILE, ISOXML)
 
-__all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'season_runs', 'write_season_exports']
+__all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'format_exports', 'season_exports', 'season_runs',
+           'write_season_exports']
 
 
 def season_runs(out):
@@ -75,3 +76,21 @@ def write_season_exports(out, force=False):
     return {'shapefile': str(out / SHAPEFILE), 'isoxml': str(out / ISOXML), 'plants': plants,
             'placed': placed, 'tasks': tasks,
             'skipped': [{'bag': bag, 'reason': reason} for bag, reason in skipped]}
+
+
+def season_exports(out, force):
+    """The season's Shapefile and ISOXML next to the tables (analysis.exports), with the time
+    it took: written when `force` (bags were analysed) or one is missing; None otherwise."""
+    import time
+    started = time.monotonic()
+    exports = write_season_exports(out, force)
+    if exports is not None:
+        exports['seconds'] = time.monotonic() - started
+    return exports
+
+
+def format_exports(exports):
+    """The exports' line for people."""
+    return (f'exports: {exports["shapefile"]} (Shapefile, {exports["plants"]} plants, '
+            f'{exports["placed"]} with a map position), {exports["isoxml"]} (ISOXML, '
+            f'{exports["tasks"]} tasks) in {exports["seconds"]:.1f} s')

@@ -25,6 +25,7 @@ import os
 from pathlib import Path
 import time
 
+from planter_ros.design import to_json
 from planter_ros.output_files import OutputError, atomic_output
 
 from . import tables
@@ -64,7 +65,7 @@ def options_key(overrides, design):
     bag recorded, which the bag's own identity covers) and the fallback design's hash."""
     given = {k: v for k, v in sorted((overrides or {}).items()) if v is not None}
     scene = None if design is None else hashlib.sha256(
-        json.dumps(design, sort_keys=True).encode()).hexdigest()[:16]
+        to_json(design).encode()).hexdigest()[:16]
     return json.dumps({'settings': given, 'scene_design': scene}, sort_keys=True)
 
 
@@ -300,3 +301,25 @@ def run(season, client, keys, overrides, design, progress=None):
 def _first_line(exc):
     text = str(exc).strip().splitlines()
     return f'{type(exc).__name__}: {text[0]}' if text else type(exc).__name__
+
+
+SHOWN_FAILURES = 10      # failed bags listed for people (all are in the bags table)
+
+
+def format_report(report: Report) -> str:
+    """The run's report for people."""
+    data = report.as_json()
+    lines = [f'{report.found} bags found: {report.analysed} analysed ({report.warnings} with '
+             f'warnings), {report.failed} failed, {report.skipped} skipped (analysed before), '
+             f'{len(report.not_done)} lost; {report.plants} plants']
+    if report.seconds > 0:
+        lines.append(f'{report.seconds:.1f} s on {report.workers} worker(s): '
+                     f'{data["bags_per_second"]:.3g} bags/s, '
+                     f'{data["times_real_time"]:.0f}× real time')
+    lines.append(f'tables: {data["tables"]["bags"]}, {data["tables"]["plants"]}/')
+    for bag, status, reason in report.failures[:SHOWN_FAILURES]:
+        lines.append(f'{status}: {bag}: {reason}')
+    if len(report.failures) > SHOWN_FAILURES:
+        lines.append(f'... and {len(report.failures) - SHOWN_FAILURES} more (column `status` '
+                     'of the bags table)')
+    return '\n'.join(lines)

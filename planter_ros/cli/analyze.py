@@ -17,8 +17,6 @@ import sys
 from planter_ros.cli.options import add_engine_arguments
 from planter_ros.cli.replay import add_settings_arguments, fallback_design, settings_overrides
 
-SHOWN_FAILURES = 10      # failed bags listed on stdout (all are in the bags table)
-
 
 def add_arguments(parser):
     parser.add_argument('paths', nargs='+', metavar='PATH',
@@ -56,6 +54,8 @@ def run(args):
                        'directories holding .mcap files or rosbag2 bag directories')
     version = model_version()
     exports = None
+    from planter_ros.analysis.exports import format_exports, season_exports
+    from planter_ros.analysis.season import format_report
     with seasons.Season(out) as season:
         keys, skipped = season.plan(bags, version, seasons.options_key(overrides, design),
                                     args.force)
@@ -86,46 +86,3 @@ def run(args):
         print(f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again',
               file=sys.stderr)
     return 1 if report.not_done else 0
-
-
-def season_exports(out, force):
-    """The season's Shapefile and ISOXML next to the tables (analysis.exports), with the time
-    it took: written when `force` (bags were analysed) or one is missing; None otherwise."""
-    import time
-    from planter_ros.analysis.exports import write_season_exports
-    from planter_ros.cli.main import BadInput
-    from planter_ros.export import ExportError
-    started = time.monotonic()
-    try:
-        exports = write_season_exports(out, force)
-    except ExportError as exc:
-        raise BadInput(str(exc)) from None
-    if exports is not None:
-        exports['seconds'] = time.monotonic() - started
-    return exports
-
-
-def format_exports(exports):
-    """The exports' line for people."""
-    return (f'exports: {exports["shapefile"]} (Shapefile, {exports["plants"]} plants, '
-            f'{exports["placed"]} with a map position), {exports["isoxml"]} (ISOXML, '
-            f'{exports["tasks"]} tasks) in {exports["seconds"]:.1f} s')
-
-
-def format_report(report):
-    """The run's report for people."""
-    data = report.as_json()
-    lines = [f'{report.found} bags found: {report.analysed} analysed ({report.warnings} with '
-             f'warnings), {report.failed} failed, {report.skipped} skipped (analysed before), '
-             f'{len(report.not_done)} lost; {report.plants} plants']
-    if report.seconds > 0:
-        lines.append(f'{report.seconds:.1f} s on {report.workers} worker(s): '
-                     f'{data["bags_per_second"]:.3g} bags/s, '
-                     f'{data["times_real_time"]:.0f}× real time')
-    lines.append(f'tables: {data["tables"]["bags"]}, {data["tables"]["plants"]}/')
-    for bag, status, reason in report.failures[:SHOWN_FAILURES]:
-        lines.append(f'{status}: {bag}: {reason}')
-    if len(report.failures) > SHOWN_FAILURES:
-        lines.append(f'... and {len(report.failures) - SHOWN_FAILURES} more (column `status` '
-                     'of the bags table)')
-    return '\n'.join(lines)

@@ -6,7 +6,8 @@ the design node's parameters."""
 import json
 import math
 
-from planter_ros.cli.options import output_file, require_finite, spec_option
+from planter_ros.output_files import require_finite
+from planter_ros.cli.options import output_file, spec_option
 from planter_ros.kinematics.scene_settings import SceneSettings
 
 
@@ -85,78 +86,6 @@ def run(args):
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))
     else:
-        print(format_table(result))
+        from planter_ros.design.text import five_bar_table
+        print(five_bar_table(result))
     return 0
-
-
-def format_table(r):
-    """Human table: lengths in mm, angles in degrees, units labelled."""
-    mm = 1000.0
-    rows = [
-        ('method', r['method']),
-        ('planting depth D', f"{r['depth'] * mm:.2f} mm"),
-        ('plant spacing d', f"{r['spacing'] * mm:.2f} mm"),
-        ('hole ratio k', f"{r['hole_ratio']:.4g}"),
-        ('l1 sun bar AB', f"{r['l1'] * mm:.3f} mm"),
-        ('l2 planet bar BC', f"{r['l2'] * mm:.3f} mm"),
-        ('l3 CD', f"{r['l3'] * mm:.3f} mm"),
-        ('l4 DE', f"{r['l4'] * mm:.3f} mm"),
-        ('l5 AE (frame)', f"{r['l5'] * mm:.3f} mm"),
-        ('hole asked k·D', f"{r['requested_hole'] * mm:.4f} mm"),
-        ('hole achieved', f"{r['hole_width'] * mm:.4f} mm ({r['hole_width_error'] * 100:+.3f} %)"),
-        ('dyad assembles', 'yes' if r['assemblable'] else 'NO'),
-        ('min transmission angle', f"{math.degrees(r['min_transmission_angle']):.2f} deg"),
-    ]
-    if 'sun_bar_speed' in r:
-        rows.append(('ground speed v', f"{r['ground_speed']:.4g} m/s"))
-        rows.append(('sun-bar speed ω1', f"{r['sun_bar_speed']:.4f} rad/s "
-                     f"({r['sun_bar_speed'] * 60 / (2 * math.pi):.2f} r/min)"))
-    if 'plot' in r:
-        rows.append(('plot', r['plot']))
-    width = max(len(k) for k, _ in rows)
-    lines = [f'{k:<{width}}  {v}' for k, v in rows]
-    lines += ['', *_sensitivity_table(r)]
-    if 'tolerance' in r:
-        lines += ['', *_tolerance_table(r['tolerance'])]
-    return '\n'.join(lines)
-
-
-# what a person would change each quantity by to see its effect (bar: 0.1 mm, depth: 1 mm,
-# speed ratio: 0.01, i.e. 1 % at the synchronised λ = 1)
-_STEPS = (('l1', 'l1', 1e-4, '+0.1 mm'), ('l2', 'l2', 1e-4, '+0.1 mm'),
-          ('depth', 'depth D', 1e-3, '+1 mm'), ('speed_ratio', 'speed ratio λ', 0.01, '+0.01'))
-
-
-def _sensitivity_table(r):
-    s, hole = r['sensitivity'], r['hole_width']
-    rows = [('hole width sensitivity', 'dW/dx', 'change', 'hole moves')]
-    for key, label, step, shown in _STEPS:
-        unit = 'mm/mm' if key != 'speed_ratio' else 'mm per unit λ'
-        scale = 1.0 if key != 'speed_ratio' else 1000.0
-        moved = s[key] * step
-        rows.append((label, f'{s[key] * scale:+.4g} {unit}', shown,
-                     f'{moved * 1000:+.4f} mm ({moved / hole * 100:+.1f} %)'))
-    return _aligned(rows) + ['(λ = (l2 − l1)·2π/d: a ground 1 % faster than the sun bar lowers '
-                             'λ by about 0.01)']
-
-
-def _tolerance_table(t):
-    mm, nominal = 1000.0, t['nominal']
-    p = t['percentiles']
-
-    def pct(v):
-        return f'{v * mm:.4f} mm ({(v - nominal) / nominal * 100:+.1f} %)'
-    rows = [(f"built machines ({t['samples']:,} samples)",
-             f"bars ±{t['bar_tolerance'] * mm:g} mm, speed ±{t['speed_error'] * 100:g} %"),
-            ('hole width nominal', f'{nominal * mm:.4f} mm'),
-            ('min … max', f"{t['min'] * mm:.4f} … {t['max'] * mm:.4f} mm"),
-            ('1 % … 99 %', f"{pct(p['1'])} … {pct(p['99'])}"),
-            ('5 % … 95 %', f"{pct(p['5'])} … {pct(p['95'])}"),
-            ('median', pct(p['50'])),
-            ('mean ± std', f"{t['mean'] * mm:.4f} ± {t['std'] * mm:.4f} mm")]
-    return _aligned(rows)
-
-
-def _aligned(rows):
-    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
-    return ['  '.join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]

@@ -7,7 +7,8 @@ interrupted run never touches an existing --out."""
 from dataclasses import dataclass
 import sys
 
-from planter_ros.cli.options import output_file, require_finite, spec_option
+from planter_ros.output_files import require_finite
+from planter_ros.cli.options import output_file, spec_option
 from planter_ros.config import check, setting
 
 DEFAULT_WORKERS = 2
@@ -55,18 +56,17 @@ def _progress(elapsed, generation, best, passing, max_time):
 
 
 def run(args):
-    from pathlib import Path
 
-    from planter_ros.cli.design_three_arm import format_table, load_params
+    from planter_ros.cli.design_three_arm import load_params
+    from planter_ros.design.text import three_arm_table
     from planter_ros.cli.main import BadInput
     from planter_ros.kinematics.errors import DesignError
     from planter_ros.kinematics.three_arm import ThreeArmMechanism, design_summary
     from planter_ros.optimize.three_arm import optimize
     from planter_ros.output_files import atomic_output
-    from planter_ros.scene_writer import write_scene
+    from planter_ros.scene import default_scene_path, write_scene
 
-    base_path = args.base or Path(__file__).resolve().parents[2] / 'config' / \
-        'rice_three_arm.yaml'
+    base_path = args.base or default_scene_path('rice_three_arm.yaml')
     base = load_params(base_path, '--base')
     _check_control_angles(base, base_path)
     params, goals, info = optimize(base, seed=args.seed, max_time=args.max_time,
@@ -86,7 +86,7 @@ def run(args):
         write_scene(tmp, params, header)
         load_params(tmp, '--out')            # what is written reads back as a valid scene
     summary['params'] = args.out
-    print(format_table(summary))
+    print(three_arm_table(summary))
     print(f"search: {info['seconds']:.1f} s, {info['generations']} generations, "
           f"{info['evaluations']} designs ({info['designs_per_second']:.0f}/s on "
           f"{info['workers']} process{'es' if info['workers'] > 1 else ''}), "

@@ -80,25 +80,6 @@ def shown(text, limit=40):
     return text if text.isprintable() else repr(text)
 
 
-def require_finite(result, what):
-    """Raise BadInput naming the first NaN or infinite number in a JSON-like result (a design
-    no one can build must never be printed as one)."""
-    from planter_ros.cli.main import BadInput
-
-    def walk(value, key):
-        if isinstance(value, dict):
-            for k, v in value.items():
-                walk(v, k)
-        elif isinstance(value, (list, tuple)):
-            for v in value:
-                walk(v, key)
-        elif isinstance(value, float) and not math.isfinite(value):
-            raise BadInput(f'{what}: {key} = {value} is not finite: allowed inputs whose '
-                           'result is a finite design')
-    walk(result, what)
-    return result
-
-
 def add_engine_arguments(parser):
     """--workers N | --scheduler ADDRESS: where `planter analyze` and `planter simulate` run
     (planter_ros.analysis.engine)."""

@@ -7,14 +7,37 @@ distribution (p99.9) are the figures that say how much margin the loop keeps. `P
 counts gaps in a fixed histogram (0.1 ms bins up to 1 s, one overflow bin above), so it runs
 for hours in constant memory and costs one list increment per frame in the control loop's hot
 path. Pure (numpy), times in seconds passed in explicitly.
+
+`SyncLoopConfig` sets the loop's own timing (parameters of the sync node).
 """
 
+from dataclasses import dataclass
 import math
 
 import numpy as np
 
+from planter_ros.config import check, setting
+
 BIN = 1e-4                  # s, histogram resolution
 SPAN = 1.0                  # s, gaps above this share the overflow bin (their max is kept)
+
+
+@dataclass(frozen=True)
+class SyncLoopConfig:
+    """The sync node's loop timing (fixed at start-up): its period, the diagnostics period and
+    the ground-speed rate the CAN bus-load check budgets for."""
+
+    control_period: float = setting(0.02, 'control loop period: heartbeat, stale handling, '
+                                    'joint_states', unit='s', range=(0.002, 0.1), read_only=True)
+    diagnostics_period: float = setting(1.0, '/diagnostics period', unit='s', range=(0.1, 10.0),
+                                        read_only=True)
+    ground_speed_rate: float = setting(50.0, 'the fastest ground-speed sample rate the CAN '
+                                       'bus-load check budgets for (each sample sends one RPDO '
+                                       'per row)', unit='Hz', range=(1.0, 1000.0),
+                                       read_only=True)
+
+    def __post_init__(self):
+        check(self)
 
 
 class PeriodStats:

@@ -5,8 +5,11 @@ with its binary time log), from one replay (`planter replay`) or a season of the
 and numpy, no ROS.
 """
 
+from planter_ros.output_files import OutputError
+
 __all__ = ['ExportError']
 
 
-class ExportError(ValueError):
-    """Plants a format cannot hold as asked (one line: what and the allowed range)."""
+class ExportError(OutputError):
+    """Plants a format cannot hold as asked (one line: what and the allowed range): an output
+    that cannot be written as asked, so the command line reports it as bad input."""

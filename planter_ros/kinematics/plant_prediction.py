@@ -204,45 +204,28 @@ class PathPlanting:
 
 
 def planting_model_from_design(design, nozzle_width=None):
-    """Build the planting geometry from the `design` topic's JSON dict (SI units).
+    """Build the planting geometry of a typed design (planter_ros.design; SI units).
 
-    five_bar: l1, l2, planting_depth (or depth), plant_spacing (or spacing).
-    three_arm (or any mechanism): tip_path = {angle, x, y} of one arm over one revolution,
-    plants_per_revolution, planting_depth, plant_spacing, optional planting_phase.
-    Every mechanism: nozzle_width (m), the nozzle's width along the row, unless `nozzle_width`
-    is given (it then replaces the design's: replay's override, a bag older than the field).
+    five_bar: l1, l2, planting_depth, plant_spacing. three_arm: tip_path of one arm over one
+    revolution, plants_per_revolution, planting_depth, plant_spacing, planting_phase.
+    Every mechanism: the design's nozzle_width (m), the nozzle's width along the row, unless
+    `nozzle_width` is given (it then replaces the design's: replay's override, a bag older than
+    the field).
     """
-    if not isinstance(design, dict):
-        raise DesignError('design', type(design).__name__, 'a JSON object')
     if nozzle_width is None:
-        nozzle_width = design.get('nozzle_width')
+        nozzle_width = design.nozzle_width
         if nozzle_width is None:
             raise DesignError('design', 'no nozzle_width', "key nozzle_width (m): the nozzle's "
                               'width along the row, a scene value')
-    mechanism = design.get('mechanism', 'five_bar')
-    depth = _first(design, 'planting_depth', 'depth')
-    spacing = _first(design, 'plant_spacing', 'spacing')
-    phase = design.get('planting_phase')
-    if mechanism == 'five_bar' and 'tip_path' not in design:
-        l1, l2 = design.get('l1'), design.get('l2')
-        if l1 is None or l2 is None:
-            raise DesignError('design', 'five_bar without l1/l2', 'keys l1, l2 (m)')
-        return FiveBarPlanting(l1, l2, depth, spacing,
-                               math.pi if phase is None else float(phase), nozzle_width)
-    path = design.get('tip_path')
-    if not isinstance(path, dict) or not all(k in path for k in ('angle', 'x', 'y')):
-        raise DesignError('design', f'{mechanism} without tip_path',
-                          'tip_path = {angle, x, y} (rad, m, m) of one nozzle tip per revolution')
-    n = design.get('plants_per_revolution', 1)
-    return PathPlanting(path['angle'], path['x'], path['y'], n, depth, spacing, phase,
+    phase = design.planting_phase
+    if design.mechanism == 'five_bar':
+        return FiveBarPlanting(design.l1, design.l2, design.planting_depth,
+                               design.plant_spacing, math.pi if phase is None else float(phase),
+                               nozzle_width)
+    path = design.tip_path
+    return PathPlanting(path.angle, path.x, path.y, design.plants_per_revolution,
+                        design.planting_depth, design.plant_spacing, phase,
                         nozzle_width=nozzle_width)
-
-
-def _first(design, *keys):
-    for key in keys:
-        if design.get(key) is not None:
-            return design[key]
-    raise DesignError('design', f'no {keys[0]}', f'key {keys[0]} (m)')
 
 
 def _nozzle_width(value):
@@ -261,7 +244,7 @@ def prediction_notes(design, model):
     {fields, text} (empty for the five-bar the model was made for). Shown next to the figures
     by replay and the demo, and in their JSON."""
     notes = []
-    mechanism = design.get('mechanism', 'five_bar') if isinstance(design, dict) else 'five_bar'
+    mechanism = design.mechanism
     if mechanism != 'five_bar':
         notes.append({'fields': ['tilt', 'upright', 'uprightness_rate'],
                       'text': f"the tilt model (a duckbill holding the stem until it leaves "

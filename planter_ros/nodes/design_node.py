@@ -6,7 +6,6 @@ never imports the three-arm gear train; the three-arm parameters are declared on
 scene's `mechanism` is three_arm. The parameters are the scene's (kinematics.scene_settings).
 """
 
-import json
 import sys
 
 import rclpy
@@ -17,16 +16,16 @@ from std_msgs.msg import String
 
 from planter_ros import interfaces, stop_signals
 from planter_ros.config import ConfigError, spec_of
-from planter_ros.kinematics.scene_design import design_for_scene
 from planter_ros.kinematics.scene_settings import SceneSettings, scene_classes
 from planter_ros.dds_domain import keep_discovery_on_host
-from planter_ros.nodes.parameters import ParameterGroup, declare
+from planter_ros.design import design_for_scene, to_json
+from planter_ros.nodes.parameters import ParameterGroup, declare, refuse_undeclared
 
 
 class DesignNode(Node):
     """Publishes the design of the scene in its parameters; refuses infeasible updates."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, arguments=None, **kwargs):
         super().__init__('design_node', **kwargs)
         mechanism = declare(self, spec_of(SceneSettings, 'mechanism'))
         self._publisher = interfaces.DESIGN.publisher(self)
@@ -34,13 +33,14 @@ class DesignNode(Node):
         scene = ParameterGroup(self, scene_classes(mechanism), build=design_for_scene,
                                on_change=self._publish)
         self.design = scene.value
+        refuse_undeclared(self, arguments)       # a name the scene got wrong: refused
         self._publish(self.design)
-        self.get_logger().info(f"{self.design['mechanism']} design for "
-                               f"{self.design['crop'] or 'unnamed crop'} published")
+        self.get_logger().info(f'{self.design.mechanism} design for '
+                               f"{self.design.crop or 'unnamed crop'} published")
 
     def _publish(self, design):
         self.design = design
-        self._publisher.publish(String(data=json.dumps(design, sort_keys=True)))
+        self._publisher.publish(String(data=to_json(design)))
 
 
 def main(args=None):
@@ -49,7 +49,8 @@ def main(args=None):
     rclpy.init(args=args)
     node = None
     try:
-        node = DesignNode(namespace=interfaces.NAMESPACE)
+        node = DesignNode(namespace=interfaces.NAMESPACE,
+                          arguments=sys.argv if args is None else args)
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -5,7 +5,7 @@ import time
 from rclpy.clock import Clock, ClockType
 
 from planter_ros import interfaces
-from planter_ros.design_sources import Endpoint, gid_text
+from planter_ros.scene.design_sources import Endpoint, gid_text
 
 
 def full_name(name, namespace):

@@ -20,18 +20,19 @@ did, whether or not the sync node compensated the turn). The model is
 `planter_ros.kinematics.plant_prediction`; this node only turns messages into calls of it.
 Inputs stamped 0 are timed by their receive time. Samples before the first design are recorded
 but not predicted (replay does the same). A changed design is logged with the node that
-published it (planter_ros.design_sources), counted in /diagnostics, and scores plants from each
+published it (scene.design_sources), counted in /diagnostics, and scores plants from each
 row's next planting instant on (the plant set next is still the old design's, as in the sync
 law); a design of another mechanism starts a new sequence.
 """
 
 from collections import deque
-import json
 import math
+import sys
 
 import numpy as np
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
@@ -43,7 +44,8 @@ from planter_ros import interfaces, stop_signals
 from planter_ros.config import ConfigError, as_dict
 from planter_ros.control.sync_status import section_states
 from planter_ros.dds_domain import keep_discovery_on_host
-from planter_ros.design_sources import DesignSources
+from planter_ros.design import from_json
+from planter_ros.scene.design_sources import DesignSources
 from planter_ros.geo import AntennaSettings
 from planter_ros.kinematics.plant_prediction import (
     PLANT_FIELDS, PlantPredictor, PredictionSettings, planting_model_from_design)
@@ -51,7 +53,7 @@ from planter_ros.kinematics.spacing_quality import (
     QUALITY_FIELDS, SpacingQuality, format_quality)
 from planter_ros.nodes import graph
 from planter_ros.nodes.markers import marker_array
-from planter_ros.nodes.parameters import ParameterGroup, declare_rows
+from planter_ros.nodes.parameters import ParameterGroup, declare_rows, refuse_undeclared
 from planter_ros.recording.recorder import Recorder, RecorderConfig, RecorderError
 from planter_ros.recording.replay import map_record
 from planter_ros.rows import rows_record
@@ -95,7 +97,8 @@ def _stamp_ns(stamp):
 class MonitorNode(Node):
     """Predicts every plant from measured motion and records the run (see module doc)."""
 
-    def __init__(self, node_name='monitor_node', *, namespace=interfaces.NAMESPACE, **kwargs):
+    def __init__(self, node_name='monitor_node', *, namespace=interfaces.NAMESPACE,
+                 arguments=None, **kwargs):
         super().__init__(node_name, namespace=namespace, **kwargs)
         recording = ParameterGroup(self, RecorderConfig).value
         self._settings = ParameterGroup(self, PredictionSettings,
@@ -103,6 +106,7 @@ class MonitorNode(Node):
         self._map_settings = ParameterGroup(self, MapSettings, on_change=self._on_map_settings)
         self.antenna = ParameterGroup(self, AntennaSettings).value
         self.rows = declare_rows(self)
+        refuse_undeclared(self, arguments)       # a name the scene got wrong: refused
         self._planting = [row for row in self.rows if row.enabled]
         self._labels = {row.index: row.label for row in self.rows}
         self._placer = self._new_placer(self._map_settings.value)
@@ -242,14 +246,14 @@ class MonitorNode(Node):
         if msg.data == self._design_text:
             return
         try:
-            design = json.loads(msg.data)
+            design = from_json(msg.data)
             model = planting_model_from_design(design)
         except (ValueError, ConfigError) as exc:
             self.get_logger().error(f'design ignored: {str(exc).splitlines()[0]}')
             return
         self._design_text = msg.data
         self._model = model
-        mechanism = design.get('mechanism', 'five_bar')
+        mechanism = design.mechanism
         if self._predictors is None or mechanism != self._mechanism:
             # the first design, or another machine: a new sequence
             self._mechanism = mechanism
@@ -476,14 +480,18 @@ def main(args=None):
     rclpy.init(args=args)
     node = None
     try:
-        node = MonitorNode()
+        node = MonitorNode(arguments=sys.argv if args is None else args)
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except (ConfigError, ParameterException) as exc:
+        print(f'monitor_node: error: {str(exc).splitlines()[0]}', file=sys.stderr)
+        return 2
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    return 0
 
 
 __all__ = ['MonitorNode', 'joint_index', 'main', 'plants_message']

@@ -12,11 +12,17 @@ read-only flag), builds the initial value, and follows updates the way the rclpy
 A `prefix` declares the fields as `<prefix><field>`: one row's settings are the parameters
 `<row>.lateral_offset`, ... (a parameter file's nested block `<row>: {lateral_offset: ...}`),
 and `declare_rows` reads a scene's rows that way.
+
+`refuse_undeclared(node, arguments)` refuses what rclpy would silently ignore: a parameter the
+node was given (in a parameter file or as an override) that it does not declare.
 """
+
+from collections.abc import Sequence
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
 from rclpy.exceptions import ParameterUninitializedException
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from planter_ros import config
@@ -135,3 +141,37 @@ def declare_rows(node, default_node_id=None):
     settings = {name: ParameterGroup(node, RowSettings, prefix=f'{name}.').value
                 for name in layout.rows}
     return rows_from_settings(layout.rows, settings, default_node_id)
+
+
+def params_files(arguments: Sequence[str] | None) -> list[str]:
+    """The `--params-file` paths among a process's arguments (every `--ros-args` section)."""
+    files, ros, args = [], False, list(arguments or ())
+    for i, arg in enumerate(args):
+        if arg == '--ros-args':
+            ros = True
+        elif arg == '--' and ros:
+            ros = False
+        elif ros and arg == '--params-file' and i + 1 < len(args):
+            files.append(args[i + 1])
+    return files
+
+
+def refuse_undeclared(node: Node, arguments: Sequence[str] | None = None) -> None:
+    """Refuse (scene.SceneError, one line) a parameter `node` was given but does not declare,
+    which rclpy would ignore: a key of a parameter file that is not what the scene's rule allows
+    (planter_ros.scene.schema: keys under the node's own entry must be its parameters, keys
+    under a shared entry such as `/**` a parameter of some planter node), or an override (`-p`,
+    an in-process node's `parameter_overrides`) it does not declare. Call it once every
+    parameter is declared; `arguments`: the process's arguments (the files are read from
+    them)."""
+    from planter_ros.scene.files import SceneError, read_parameter_file
+    from planter_ros.scene.schema import check_node_file, closest
+    declared = set(node._parameters)
+    shared = set()
+    for path in params_files(arguments):
+        shared |= check_node_file(read_parameter_file(path), node.get_name(),
+                                  node.get_fully_qualified_name(), declared)
+    for name in node._parameter_overrides:        # rclpy keeps what it was given here
+        if name not in declared and name not in shared:
+            raise SceneError(f'parameter {name} given to {node.get_name()} is not one it '
+                             f'declares: did you mean `{closest(name, sorted(declared))}`?')

@@ -14,8 +14,6 @@ answer is reported and left out, the others run. A row's fault, EMCY or lost hea
 A configuration whose CAN bus load exceeds 70 % is refused at start-up.
 """
 
-from dataclasses import dataclass
-import json
 import logging
 import math
 import sys
@@ -33,40 +31,25 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from planter_ros import interfaces, stop_signals
-from planter_ros.config import ConfigError, check, setting
+from planter_ros.config import ConfigError
 from planter_ros.control import sync_status
-from planter_ros.control.loop_timing import PeriodStats
+from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
 from planter_ros.control.machine import Machine, TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig, PlantingAngles
 from planter_ros.dds_domain import keep_discovery_on_host
-from planter_ros.design_sources import DesignSources
+from planter_ros.design import from_json
+from planter_ros.scene.design_sources import DesignSources
+from planter_ros.scene.files import SceneError
 from planter_ros.drive.bus_load import bus_load, check_bus_load
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.drive_set import DriveSet
 from planter_ros.drive.errors import DriveError
 from planter_ros.drive.states import FAULT
 from planter_ros.nodes import graph
-from planter_ros.nodes.parameters import ParameterGroup, declare_rows
+from planter_ros.nodes.parameters import ParameterGroup, declare_rows, refuse_undeclared
 from planter_ros.rows import IMPLICIT
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits
-
-
-@dataclass(frozen=True)
-class SyncLoopConfig:
-    """The node's own timing (fixed at start-up)."""
-
-    control_period: float = setting(0.02, 'control loop period: heartbeat, stale handling, '
-                                    'joint_states', unit='s', range=(0.002, 0.1), read_only=True)
-    diagnostics_period: float = setting(1.0, '/diagnostics period', unit='s', range=(0.1, 10.0),
-                                        read_only=True)
-    ground_speed_rate: float = setting(50.0, 'the fastest ground-speed sample rate the CAN '
-                                       'bus-load check budgets for (each sample sends one RPDO '
-                                       'per row)', unit='Hz', range=(1.0, 1000.0),
-                                       read_only=True)
-
-    def __post_init__(self):
-        check(self)
 
 
 class RowUnit:
@@ -97,7 +80,7 @@ class RowUnit:
 class SyncNode(Node):
     """Keeps each planting mechanism in step with its row's ground through a CiA 402 drive."""
 
-    def __init__(self, bus=None, **kwargs):
+    def __init__(self, bus=None, arguments=None, **kwargs):
         super().__init__('sync_node', **kwargs)
         self.drive_config = ParameterGroup(self, DriveConfig).value
         self.loop = ParameterGroup(self, SyncLoopConfig).value
@@ -106,6 +89,7 @@ class SyncNode(Node):
         self.implicit = len(self.rows) == 1 and self.rows[0].name == IMPLICIT
         law = ParameterGroup(self, (PhaseLockConfig, GroundSpeedLimits, YawRateLimits,
                                     TurnConfig), on_change=self._on_law_parameters)
+        refuse_undeclared(self, arguments)       # before the bus: a misnamed parameter stops it
         self.machine = Machine([row.lateral_offset for row in self.rows], *law.value)
         enabled = [row for row in self.rows if row.enabled]
         self.bus_load = bus_load(len(enabled), cfg.can_bitrate, self.loop.control_period,
@@ -268,10 +252,10 @@ class SyncNode(Node):
         if msg.data == (self._design_key or (None, None, None))[2]:
             return                                  # the design in force, delivered again
         try:
-            design = json.loads(msg.data)
-            spacing = float(design['plant_spacing'])
-            n = int(design['plants_per_revolution'])
-            mechanism = design['mechanism']
+            design = from_json(msg.data)
+            spacing = design.plant_spacing
+            n = design.plants_per_revolution
+            mechanism = design.mechanism
             joints = [unit.row.joint(mechanism) for unit in self.units]
             with self._lock:
                 key = (spacing, n, msg.data)
@@ -292,7 +276,7 @@ class SyncNode(Node):
 
     def _log_design(self, design, spacing, n):
         """Log an accepted design with the node that published it (design_sources)."""
-        what = f"{design['mechanism']}, d = {spacing} m, {n} plant(s) per revolution"
+        what = f'{design.mechanism}, d = {spacing} m, {n} plant(s) per revolution'
         graph.log_accepted_design(self, self.design_sources, what,
                                   "in force from each row's next planting instant")
 
@@ -559,15 +543,18 @@ def main(args=None):
     rclpy.init(args=args)
     library_log = LibraryLog()
     node = None
-    error = None
+    error, code = None, 1
     try:
-        node = SyncNode(namespace=interfaces.NAMESPACE)
+        node = SyncNode(namespace=interfaces.NAMESPACE,
+                        arguments=sys.argv if args is None else args)
         node.enable_drive()
         library_log.node = node
         if stop.received is None:            # not stopped while the drives were enabled
             rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except SceneError as exc:                # a parameter file it refuses: bad input
+        error, code = f'sync_node: error: {str(exc).splitlines()[0]}', 2
     except (DriveError, ConfigError, ParameterException) as exc:
         error = start_error(exc, node.drive_config if node is not None else None)
     finally:
@@ -577,7 +564,7 @@ def main(args=None):
         library_log.close()
     if error is not None:            # last, after the shutdown: nothing follows our line
         print(error, file=sys.stderr)
-        return 1
+        return code
     return 0
 
 

@@ -70,7 +70,7 @@ def _bag_parts(path):
 
 def _listed_files(directory):
     """[(file name, start ns, end ns)] from a rosbag2 metadata.yaml, or [] (none, unreadable)."""
-    from planter_ros.scene import SceneError, load_yaml
+    from planter_ros.safe_yaml import YamlError, load_yaml
     meta = directory / 'metadata.yaml'
     try:
         if not meta.is_file() or meta.stat().st_size > (1 << 20):
@@ -82,7 +82,7 @@ def _listed_files(directory):
             times[entry['path']] = (start, start + int(entry['duration']['nanoseconds']))
         return [(Path(str(name)).name, *times.get(name, (None, None)))
                 for name in info.get('relative_file_paths') or ()]
-    except (OSError, UnicodeDecodeError, SceneError, AttributeError, KeyError, TypeError,
+    except (OSError, UnicodeDecodeError, YamlError, AttributeError, KeyError, TypeError,
             ValueError):
         return []
 

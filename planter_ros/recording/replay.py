@@ -29,6 +29,7 @@ import numpy as np
 
 from planter_ros import config, interfaces
 from planter_ros.config import ConfigError
+from planter_ros.design import Design, from_json, to_dict
 from planter_ros.control.sync_status import section_breaks, section_states
 from planter_ros.geo import AntennaSettings
 from planter_ros.kinematics.plant_prediction import (
@@ -52,7 +53,7 @@ class ReplayError(ValueError):
 @dataclass
 class ReplayResult:
     path: str
-    design: dict
+    design: Design
     settings: PredictionSettings
     plants: Plants
     summary: dict
@@ -76,7 +77,7 @@ class ReplayResult:
         return [PLANT_FIELDS.index(f) for f in self.recorded_fields]
 
     def as_json(self):
-        return {'bag': self.path, 'design': self.design,
+        return {'bag': self.path, 'design': to_dict(self.design),
                 'settings': config.as_dict(self.settings),
                 'map': {**config.as_dict(self.map_settings), **config.as_dict(self.antenna),
                         'fixes': self.fixes,
@@ -110,7 +111,7 @@ def settings_from_recording(recorded, overrides=None, warnings=None):
 def replay(path, settings_overrides=None, with_recorded=False, fallback_design=None):
     """Re-run the prediction model on a bag. Raises ReplayError for an unusable bag and
     ConfigError for a bad setting override (`nozzle_width` among them replaces the design's).
-    `fallback_design` (a design dict, e.g. of the scene the run used) stands in for the whole
+    `fallback_design` (a Design, e.g. of the scene the run used) stands in for the whole
     bag when it holds no usable design message (lost in a damaged part); it is ignored, with a
     warning, when the bag has its own."""
     overrides = dict(settings_overrides or {})
@@ -145,7 +146,7 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
         if designs and designs[-1][1] == text:
             continue
         try:
-            design = json.loads(text)
+            design = from_json(text)
             model = planting_model_from_design(design, nozzle.width(design))
         except (ValueError, ConfigError) as exc:
             rec.warnings.append(f'design message at {log * 1e-9:.3f} s ignored: '
@@ -201,7 +202,7 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
     segments = _mechanism_segments(designs)
     for k, (log, group) in enumerate(segments):
         end = segments[k + 1][0] if k + 1 < len(segments) else np.iinfo(np.int64).max
-        mechanism = group[0][2].get('mechanism', 'five_bar')
+        mechanism = group[0][2].mechanism
         s_sel = (s_log > log) & (s_log <= end)
         j_idx = np.nonzero((j_log > log) & (j_log <= end))[0]
         st = np.where(s_stamp[s_sel] != 0, s_stamp[s_sel], s_log[s_sel]) * 1e-9
@@ -278,7 +279,7 @@ class _NozzleWidth:
     def width(self, design):
         if self.override is not None:
             return self.override
-        if isinstance(design, dict) and design.get('nozzle_width') is not None:
+        if design.nozzle_width is not None:
             return None                          # the design's own
         try:
             width = float(self.recorded)
@@ -360,8 +361,8 @@ def _mechanism_segments(designs):
     next planting instant; another mechanism is another machine and starts a new sequence."""
     segments = []
     for entry in designs:
-        mechanism = entry[2].get('mechanism', 'five_bar')
-        if segments and segments[-1][1][0][2].get('mechanism', 'five_bar') == mechanism:
+        mechanism = entry[2].mechanism
+        if segments and segments[-1][1][0][2].mechanism == mechanism:
             segments[-1][1].append(entry)
         else:
             segments.append((entry[0], [entry]))

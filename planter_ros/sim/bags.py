@@ -2,9 +2,8 @@
 topics, types and QoS the monitor records (interfaces.MONITOR_INPUTS), log time = measurement
 time. Fast; for the replay benchmark and the recording tests."""
 
-import json
-
 from planter_ros import interfaces
+from planter_ros.design import to_json
 from planter_ros.recording.recorder import Recorder
 
 
@@ -47,8 +46,8 @@ def write_machine_bag(rows, runs, profile, design, path, epoch=1_700_000_000.0,
         rec.add_topic(topic.resolved(), topic.type_name, topic.recording_qos())
     rec.add_metadata(interfaces.ROWS_RECORD, rows_record(rows))
     t = runs[0].t
-    rec.write_message(interfaces.DESIGN.resolved(), String(data=json.dumps(design)), ns(-0.001))
-    joints = [row.joint(design['mechanism']) for row in rows]
+    rec.write_message(interfaces.DESIGN.resolved(), String(data=to_json(design)), ns(-0.001))
+    joints = [row.joint(design.mechanism) for row in rows]
     events = sorted([(float(x), 0) for x in np.arange(0.0, t[-1], speed_period)]
                     + [(float(x), 1) for x in np.arange(0.0, t[-1], joint_period)])
     for when, kind in events:

@@ -8,7 +8,6 @@ figures; Observer collects each row's measured mechanism angle to compare.
 """
 
 
-import json
 import math
 
 import numpy as np
@@ -17,6 +16,7 @@ from rclpy.time import Time
 from geometry_msgs.msg import TwistStamped
 
 from planter_ros import interfaces
+from planter_ros.design import from_json
 
 from .gnss import fix_positions, navsatfix
 from .spacing import plant_positions
@@ -98,7 +98,7 @@ class Observer(Node):
         self.start = None            # rclpy Time the field run started
         self.joint = {}              # joint -> [(t since start, angle rad, velocity rad/s)]
         self.command = {}            # joint (None: speed_command) -> [(t since start, rad/s)]
-        self.designs = []            # (rclpy Time received, design dict), each new one
+        self.designs = []            # (rclpy Time received, Design), each new one
         interfaces.JOINT_STATES.subscribe(self, self._on_joint)
         interfaces.SPEED_COMMAND.subscribe(self, self._on_command)
         interfaces.SPEED_COMMANDS.subscribe(self, self._on_commands)
@@ -106,10 +106,9 @@ class Observer(Node):
 
     def _on_design(self, msg):
         try:
-            design = json.loads(msg.data)
-            float(design['plant_spacing'])
-        except (ValueError, KeyError, TypeError):
-            return                   # the nodes refuse it too
+            design = from_json(msg.data)
+        except ValueError:
+            return                   # the nodes refuse it too (DesignMessageError)
         if not self.designs or self.designs[-1][1] != design:
             self.designs.append((self.get_clock().now(), design))
 
@@ -165,7 +164,7 @@ class Observer(Node):
         if len(rows) < 2:
             return np.empty(0), np.empty(0)
         t, angle, _ = (np.array(c) for c in zip(*rows))
-        pitch = 2 * math.pi / design['plants_per_revolution']
+        pitch = 2 * math.pi / design.plants_per_revolution
         # the arm starts at the top and releases half a pitch later (five-bar: the bottom)
         release = angle[0] + 0.5 * pitch
         distance = (profile.row_distance(t, lateral_offset) if hasattr(profile, 'row_distance')

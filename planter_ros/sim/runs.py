@@ -5,13 +5,13 @@ the replay benchmark and many tests are made from them.
 """
 
 from dataclasses import dataclass
-import json
 import math
 
 import numpy as np
 
 from planter_ros import interfaces
 from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
+from planter_ros.design import Design, design_for_scene, to_json
 
 from .closed_loop import DriveModel, simulate
 from .field import speed_profile
@@ -23,7 +23,7 @@ SIM_EPOCH = 1_700_000_000.0      # s: fixed start of simulated time (determinist
 class Run:
     """A simulated measured stream (SI units, times in s on the simulated clock)."""
 
-    design: dict                 # the `design` topic's JSON dict
+    design: Design               # what the `design` topic carries (planter_ros.design)
     speed_t: np.ndarray          # ground speed measurement times
     speed_v: np.ndarray          # measured ground speed (m/s)
     joint_t: np.ndarray          # drive feedback times
@@ -39,9 +39,9 @@ class Run:
         from sensor_msgs.msg import JointState
         from std_msgs.msg import Float64, String
 
-        joint = interfaces.MECHANISM_JOINT[self.design['mechanism']]
+        joint = interfaces.MECHANISM_JOINT[self.design.mechanism]
         t0 = _ns(min(self.speed_t[0], self.joint_t[0])) - 1_000_000
-        yield t0, interfaces.DESIGN, String(data=json.dumps(self.design))
+        yield t0, interfaces.DESIGN, String(data=to_json(self.design))
         events = sorted([(_ns(t), 0, i) for i, t in enumerate(self.speed_t)]
                         + [(_ns(t), 1, i) for i, t in enumerate(self.joint_t)])
         for stamp, kind, i in events:
@@ -65,8 +65,7 @@ def _ns(seconds):
 
 def five_bar_design_message(depth=0.045, spacing=0.2, hole_ratio=0.05, method='exact',
                             ground_speed=0.2, nozzle_width=0.04):
-    """The design topic's dict for a five-bar scene (tomato defaults), as design_node makes it."""
-    from planter_ros.kinematics.scene_design import design_for_scene
+    """The design of a five-bar scene (tomato defaults), as design_node makes it."""
     return design_for_scene({'mechanism': 'five_bar', 'planting_depth': depth,
                              'plant_spacing': spacing, 'hole_ratio': hole_ratio,
                              'design_method': method, 'nominal_ground_speed': ground_speed,
@@ -86,8 +85,8 @@ def simulate_run(design, duration=30.0, cruise=0.2, speed_rate=20.0, joint_rate=
     drags behind the ground, then the phase lock catches up.
     """
     rng = np.random.default_rng(seed)
-    n = design['plants_per_revolution']
-    spacing = design['plant_spacing']
+    n = design.plants_per_revolution
+    spacing = design.plant_spacing
     law = PhaseLock(PhaseLockConfig(phase_gain=phase_gain, phase_lock=phase_gain > 0,
                                     max_acceleration=200.0, max_correction=20.0))
     law.set_design(spacing, n, 0.0)

@@ -19,13 +19,13 @@ there): replay derives the indices and the map from the plants and fixes.
 from collections import deque
 from dataclasses import dataclass, field
 from functools import lru_cache
-import json
 import math
 
 import numpy as np
 
 from planter_ros import interfaces
 from planter_ros.config import check, setting
+from planter_ros.design import to_json
 from planter_ros.rows import Row, implicit_row
 
 from .closed_loop import DriveModel, simulate_rows
@@ -167,7 +167,7 @@ def draw_plan(seed, index, duration, rows):
 
 @lru_cache(maxsize=1)
 def season_design():
-    """The design topic's dict of every simulated run (tomato, geared five-bar)."""
+    """The design of every simulated run (tomato, geared five-bar)."""
     from .runs import five_bar_design_message
     return five_bar_design_message()
 
@@ -222,7 +222,7 @@ def simulate_plan(plan, design=None):
         changes = [(s.start, s.row, DriveModel(time_constant=plan.drive_lag, speed_scale=s.level)),
                    (s.start + s.length, s.row, nominal)]
     runs = simulate_rows([row.lateral_offset for row in plan.rows], profile, plan.duration,
-                         design['plant_spacing'], design['plants_per_revolution'],
+                         design.plant_spacing, design.plants_per_revolution,
                          drive=nominal, dt=STEP, sample_period=SAMPLE_PERIOD,
                          feedback_period=FEEDBACK_PERIOD, sensor=sensor, drive_changes=changes,
                          seed=plan.index)
@@ -342,7 +342,7 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
     plan = run.plan
     rows = list(plan.rows)
     named = len(rows) > 1 or bool(rows[0].name)
-    mechanism = design['mechanism']
+    mechanism = design.mechanism
     joints = [row.joint(mechanism) for row in rows]
     rng = np.random.default_rng([plan.seed, plan.index, 2])
     epoch = int(round(plan.start_time * 1e9))
@@ -381,7 +381,7 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
     monitor = MonitorModel(rows, design, settings, map_settings, antenna)
     start = int(log.min()) - 500_000_000 if log.size else epoch
     clock[0] = start * 1e-9
-    rec.write_message(names[interfaces.DESIGN], String(data=json.dumps(design)), start)
+    rec.write_message(names[interfaces.DESIGN], String(data=to_json(design)), start)
     plants_written = 0
 
     def publish(batches, now):

@@ -25,23 +25,18 @@ P999_TARGET = 0.05          # s
 HOGS = 2
 
 
-def demo_args(duration, bag):
-    from planter_ros.cli.main import build_parser
-    argv = ['demo', '--duration', f'{duration:g}', '--bag', str(bag)]
-    return build_parser(argv).parse_args(argv)
-
-
 def loaded_runs(runs, duration, progress=lambda text: None):
     """`runs` demo runs of `duration` s, each beside HOGS CPU-bound processes; returns a list
     of (seconds the run took, DemoResult)."""
-    from planter_ros.cli.demo import prepare
+    from planter_ros.demo.options import DemoOptions
+    from planter_ros.demo.run import prepare
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
             hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'])
                     for _ in range(HOGS)]
             try:
-                demo = prepare(demo_args(duration, Path(tmp) / f'run{k}.mcap'),
+                demo = prepare(DemoOptions(duration=duration, bag=str(Path(tmp) / f'run{k}.mcap')),
                                out=io.StringIO(), install_signals=False, log_level='error')
                 t0 = time.perf_counter()
                 demo.run()
@@ -59,7 +54,7 @@ def loaded_runs(runs, duration, progress=lambda text: None):
 
 
 @bench_case('control loop under load',
-            requires=('rclpy', 'can', 'planter_ros.cli.demo_sync',
+            requires=('rclpy', 'can', 'planter_ros.demo.sync_process',
                       'planter_ros.control.loop_timing'))
 def control_loop_under_load(ctx):
     from planter_ros.control.loop_timing import PeriodStats

@@ -53,7 +53,6 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
     single-threaded executor, as sync_node's main does."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     import can
-    import json
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -67,6 +66,8 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
     from planter_ros.drive.simulated_drive import SimulatedBus
     from planter_ros.nodes.sync_node import SyncNode
     from planter_ros.dds_domain import claim_private_domain
+    from planter_ros.design import to_json
+    from planter_ros.sim.runs import five_bar_design_message
 
     channel = f'planter-bench-sync-{uuid.uuid4().hex}'
     context = Context()
@@ -89,8 +90,7 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
         source = Node('latency_source', context=context)
         speed_pub = interfaces.GROUND_SPEED.publisher(source)
         design_pub = interfaces.DESIGN.publisher(source)
-        design_pub.publish(String(data=json.dumps(
-            {'mechanism': 'five_bar', 'plants_per_revolution': 1, 'plant_spacing': 0.2})))
+        design_pub.publish(String(data=to_json(five_bar_design_message(spacing=0.2))))
         listener = can.Bus(interface='virtual', channel=channel)
         rpdo_ids = range(0x200 + 1, 0x200 + max(rows, 1) + 1)
 

@@ -3,13 +3,11 @@ trapezoid rule) against an mpmath reference, the build of a gear train, and one 
 all three arms after the build."""
 
 import math
-from pathlib import Path
 
 import numpy as np
 
 from ..registry import Row, Target, bench_case
 
-SCENE = Path(__file__).resolve().parents[3] / 'config' / 'rice_three_arm.yaml'
 CLOSURE_TARGET = 1e-9          # quality target: gear-closure integral <= 1e-9 relative
 CYCLE_TARGET = 1e-3            # ... and a full three-arm cycle <= 1 ms
 CLOSURE_ERROR_OF = ('|a − a_ref| / a_ref, centre distance vs mpmath (30 digits) on the same '
@@ -17,8 +15,8 @@ CLOSURE_ERROR_OF = ('|a − a_ref| / a_ref, centre distance vs mpmath (30 digits
 
 
 def _paper_scene():
-    from planter_ros.scene import load_scene
-    return load_scene(SCENE)
+    from planter_ros.scene import default_scene_path, load_scene
+    return load_scene(default_scene_path('rice_three_arm.yaml'), 'design_node')
 
 
 def _mpmath_mean_ratio(curve, a):

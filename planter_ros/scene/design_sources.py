@@ -15,6 +15,8 @@ from dataclasses import dataclass, replace
 
 from planter_ros.control.sync_status import OK, STALE, WARN, Report
 
+__all__ = ['Attribution', 'DesignSources', 'Endpoint', 'gid_text']
+
 
 @dataclass(frozen=True)
 class Endpoint:

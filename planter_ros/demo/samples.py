@@ -1,9 +1,11 @@
 """The committed sample bags that come from the real monitor node fed a simulated run:
-`python -m planter_ros.cli.samples [--out bags]` regenerates bags/sample_<name>.mcap (the demo
+`python -m planter_ros.demo.samples [--out bags]` regenerates bags/sample_<name>.mcap (the demo
 records the other samples). Refuses to overwrite: delete a bag first to make it anew.
 """
 
 from pathlib import Path
+
+__all__ = ['SAMPLES', 'main', 'record_sample']
 
 SAMPLES = {
     # name: (design kwargs, simulate_run kwargs)

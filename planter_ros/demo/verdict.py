@@ -12,6 +12,8 @@ Pure: no ROS import.
 
 from dataclasses import dataclass, field
 
+__all__ = ['EXIT_FAIL', 'EXIT_PASS', 'RowResult', 'SPACING_TOLERANCE', 'Verdict', 'judge']
+
 # per-row spacing error RMS, as a fraction of d. The demo is the real node graph in real time
 # on whatever host runs it: DDS delivery and scheduling jitter put a loaded 2-core host's runs
 # at 1–2.6 % of d, while what the verdict is for (a cross-talking graph, another design, a
@@ -55,7 +57,7 @@ class Verdict:
 
 def judge(rows, sync_report, start_error='', bag_error='', monitor_design_changes=''):
     """The verdict of a run. `rows`: RowResult per planting row (empty if the run never
-    started); `sync_report`: the sync process's final report (demo_sync.final_report, None if
+    started); `sync_report`: the sync process's final report (sync_process.final_report, None if
     it never came); `start_error`: why the drives did not start; `bag_error`: why there is no
     usable bag; `monitor_design_changes`: the monitor's account of design changes, if any."""
     reasons = []
@@ -84,10 +86,10 @@ def judge(rows, sync_report, start_error='', bag_error='', monitor_design_change
             elif row.rms > SPACING_TOLERANCE:
                 reasons.append(f'{name} spacing error RMS {100 * row.rms:.2f} % of d > '
                                f'{100 * SPACING_TOLERANCE:g} %')
-    design = report.get('design', {})
-    if design.get('changes'):
-        reasons.append(f'design changed by another node during the run ({design["changes"]}x, '
-                       f'the latest from {design["last_change"]})')
+    sources = report.get('design', {})         # who set the design (scene.design_sources)
+    if sources.get('changes'):
+        reasons.append(f'design changed by another node during the run ({sources["changes"]}x, '
+                       f'the latest from {sources["last_change"]})')
     elif monitor_design_changes:
         reasons.append(f'design changed by another node during the run '
                        f'({monitor_design_changes})')

@@ -23,6 +23,9 @@ import multiprocessing
 import threading
 import time
 
+__all__ = ['SyncProcess', 'SyncProcessError', 'SyncProcessSettings', 'child_main',
+           'final_report', 'snapshot']
+
 STATUS_PERIOD = 0.25       # s between status snapshots sent to the demo
 
 

@@ -1,9 +1,12 @@
-"""Write a scene dict as a ROS 2 parameter file (the format load_scene reads)."""
+"""Write a scene dict as a ROS 2 parameter file (the format scene.files reads)."""
 
 from pathlib import Path
+from typing import Any, Mapping
+
+__all__ = ['write_scene']
 
 
-def write_scene(path, params, comment=''):
+def write_scene(path: str | Path, params: Mapping[str, Any], comment: str = '') -> None:
     """Write `params` under `/**: ros__parameters:`; floats keep full precision."""
     import yaml
     data = {'/**': {'ros__parameters': {k: _plain(v) for k, v in params.items()}}}
@@ -12,7 +15,7 @@ def write_scene(path, params, comment=''):
     Path(path).write_text(head + text)
 
 
-def _plain(value):
+def _plain(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [_plain(v) for v in value]
     if hasattr(value, 'item'):          # numpy scalars

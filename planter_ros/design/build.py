@@ -1,28 +1,33 @@
-"""A scene's parameters -> the design JSON the design node publishes (pure, no ROS).
+"""A scene's parameters -> its typed design (pure, no ROS): the one place a design is built.
 
 One dispatcher from `mechanism` to the mechanism's own model. The five-bar path imports only
 the five-bar core; the three-arm model (gear train, splines) is imported only for a three-arm
 scene. A design the machine cannot run (the passive dyad does not assemble) is refused like an
-infeasible one, so a node never publishes it.
+infeasible one, so a node never publishes it. The values are checked against the scene's
+ranges (kinematics.scene_settings) before any model runs.
 """
 
 import math
+from typing import Any, Mapping
 
 from planter_ros.config import as_dict, from_mapping
+from planter_ros.kinematics.errors import DesignError
+from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
+from planter_ros.kinematics.scene_settings import SceneSettings, ThreeArmSettings
 
-from .errors import DesignError
-from .mechanisms import PLANTS_PER_REVOLUTION
-from .scene_settings import SceneSettings, ThreeArmSettings
+from .message import from_dict
+from .model import Design
+
+__all__ = ['TIP_PATH_SAMPLES', 'design_for_scene']
+
+TIP_PATH_SAMPLES = 360     # one per degree of carrier angle, like the paper's own tables
 
 
-def design_for_scene(params):
-    """Return the JSON-ready design dict (SI) for a flat scene parameter dict.
+def design_for_scene(params: Mapping[str, Any]) -> Design:
+    """The design (SI) of a flat scene parameter dict.
 
-    Values the scene leaves out take their defaults (scene_settings). Keys always present:
-    mechanism, plants_per_revolution, plant_spacing (m), planting_depth (m), crop,
-    nominal_ground_speed (m/s), nominal_mechanism_speed (rad/s), nozzle_width (m), then the
-    model's own fields.
-    Raises DesignError (one line) for a value out of range or an infeasible design.
+    Values the scene leaves out take their defaults (scene_settings). Raises DesignError (one
+    line) for a value out of range or an infeasible design.
     """
     scene = from_mapping(SceneSettings, params, DesignError.from_message)
     if scene.mechanism == 'five_bar':
@@ -36,11 +41,11 @@ def design_for_scene(params):
                crop=scene.crop, nominal_ground_speed=scene.nominal_ground_speed,
                nominal_mechanism_speed=2.0 * math.pi * scene.nominal_ground_speed
                / (n * scene.plant_spacing), nozzle_width=scene.nozzle_width)
-    return out
+    return from_dict(out)
 
 
-def _five_bar(scene):
-    from .five_bar import design_five_bar
+def _five_bar(scene: SceneSettings) -> dict[str, Any]:
+    from planter_ros.kinematics.five_bar import design_five_bar
     if len(scene.dyad_ratios) != 3:
         raise DesignError('dyad_ratios', scene.dyad_ratios, 'three ratios (l3, l4, l5)/(l1+l2)')
     design = design_five_bar(scene.planting_depth, scene.plant_spacing, scene.hole_ratio,
@@ -52,13 +57,10 @@ def _five_bar(scene):
     return design.as_dict()
 
 
-TIP_PATH_SAMPLES = 360     # one per degree of carrier angle, like the paper's own tables
-
-
-def _three_arm(params):
+def _three_arm(params: dict[str, Any]) -> dict[str, Any]:
     import numpy as np
 
-    from . import three_arm
+    from planter_ros.kinematics import three_arm
     mech = three_arm.ThreeArmMechanism.from_parameters(params)
     out = three_arm.design_summary(params, mech)
     # what the monitor needs to predict each plant: arm I's tip over one carrier turn (frame,

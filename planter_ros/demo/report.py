@@ -1,0 +1,156 @@
+"""The demo's report for people: per row the plants placed and their spacing error (from the
+measured mechanism angle against the row's true travelled distance), commanded against
+measured speed, in the turns the compensation's effect, then the command path's figures from
+the sync process (sample counts, slips, send errors, watchdog trips, control-loop periods,
+design changes)."""
+
+import math
+from typing import Any
+
+from .verdict import RowResult
+
+__all__ = ['command_path_lines', 'progress_line', 'row_summary']
+
+
+def progress_line(t: float, profile: Any, status: dict, plants: int, rows: list) -> str:
+    """The line printed every few seconds: time, speed, each row's command (and with one row
+    its measured speed and drive state), plants so far. `rows`: the planting rows."""
+    shown = status.get('rows', [])
+    if len(rows) == 1:
+        row = shown[0] if shown else {}
+        return (f't = {t:5.1f} s  v = {profile(t):.3f} m/s  command = '
+                f'{row.get("command", 0.0):6.3f} rad/s  measured = '
+                f'{row.get("velocity", 0.0):6.3f} rad/s  plants = {plants:3d}  '
+                f'drive: {row.get("state", "-")}')
+    commands = ' '.join(f'{row["command"]:5.2f}' for row in shown)
+    return (f't = {t:5.1f} s  v = {profile(t):.3f} m/s  yaw rate = '
+            f'{profile.yaw_rate(t):+.3f} rad/s  commands = {commands} rad/s  '
+            f'plants = {plants:3d}')
+
+
+def spacing_changes(observer: Any) -> list[tuple[float, float]]:
+    """(t since start, d) of each design change the observer saw."""
+    return [(t, design.plant_spacing) for t, design in observer.design_changes()]
+
+
+def row_summary(design: Any, rows: list, profile: Any, observer: Any,
+                report: dict) -> tuple[str, list[RowResult]]:
+    """The demo's own figures per planting row and the command path's report:
+    (text, [RowResult] for the verdict). `rows`: every row of the scene."""
+    import numpy as np
+
+    from planter_ros.sim.spacing import spacing_in_force, spacing_stats
+    d = design.plant_spacing
+    n = design.plants_per_revolution
+    named = bool(rows[0].name)
+    changes = spacing_changes(observer)
+    lines = ['', 'summary']
+    results = []
+    for row in (row for row in rows if row.enabled):
+        joint = row.joint(design.mechanism)
+        times, positions = observer.plants(profile, design, joint, row.lateral_offset)
+        in_force = spacing_in_force(times, d, changes)      # each gap against its design
+        stats = spacing_stats(positions, in_force)
+        gaps = np.diff(positions) - in_force
+        rms = float(np.sqrt(np.mean(gaps ** 2))) if gaps.size else 0.0
+        relative = float(np.sqrt(np.mean((gaps / in_force) ** 2))) if gaps.size else 0.0
+        results.append(RowResult(row.label if named else '', stats.plants, relative))
+        head = f'  row {row.label} (y = {row.lateral_offset:+.2f} m)' if named else ''
+        if head:
+            lines.append(head)
+        pad = '    ' if named else '  '
+        against = (f'd = {d * 1e3:.0f} mm' if not changes else
+                   'd in force: ' + ' -> '.join(f'{x * 1e3:.0f}' for x in
+                                                [d] + [c[1] for c in changes]) + ' mm')
+        lines += [f"{pad}plants placed            {stats.plants}",
+                  f"{pad}spacing error |gap - d|  mean "
+                  f"{stats.mean_abs_spacing_error * 1e3:.2f} mm, RMS {rms * 1e3:.2f} mm, "
+                  f"max {stats.max_abs_spacing_error * 1e3:.2f} mm  ({against})",
+                  f"{pad}drift from the grid      max {stats.max_abs_drift * 1e3:.2f} mm, "
+                  f"last plant {stats.final_drift * 1e3:+.2f} mm"]
+        for label, (a, b) in (('cruise 1', (profile.start + 0.5, profile.t_change)),
+                              ('cruise 2', (profile.t_change + 1.5, profile.t_stop))):
+            expected = 2 * math.pi * profile(0.5 * (a + b)) / (
+                n * _in_force_at(0.5 * (a + b), d, changes))
+            cmd = observer.window('command', a, b, joint)
+            meas = observer.window('velocity', a, b, joint)
+            if cmd.size and meas.size and not named:
+                rms_speed = np.sqrt(np.mean((meas - expected) ** 2))
+                lines.append(f"{pad}{label + ' speed':<24} expected {expected:.3f} rad/s, "
+                             f'commanded {np.mean(cmd):.3f}, measured {np.mean(meas):.3f} '
+                             f'(rms measured - expected {rms_speed:.3f})')
+        lines += _curve_lines(design, profile, observer, row, times, positions, pad, in_force,
+                              changes)
+    lines += command_path_lines(report)
+    return '\n'.join(lines), results
+
+
+def command_path_lines(report: dict) -> list[str]:
+    """Sample counts, slips, send errors, watchdog trips and the control loop's period
+    statistics, from the sync process's report (sync_process.final_report)."""
+    lines = [f"  ground-speed samples     {report['accepted']} accepted, rejected "
+             + ', '.join(f'{k} {v}' for k, v in report['rejected'].items()),
+             f"  yaw-rate samples         {report['yaw_accepted']} accepted, rejected "
+             + ', '.join(f'{k} {v}' for k, v in report['yaw_rejected'].items()),
+             f"  phase slips              {report['phase_slips']}; CAN send errors "
+             f"{report['send_errors']}; mode "
+             f"{'phase-locked' if report['phase_lock'] else 'speed-only'}, turn "
+             f"compensation {'on' if report['turn_compensation'] else 'off'}"]
+    trips = ', '.join(f'node {node}: {why} (0x{code:04X})'
+                      for node, why, code in report['watchdog_trips'])
+    lines.append(f"  drive watchdog trips     {trips or 'none'}")
+    deadline = report['command_timeout']
+    for row in report['rows']:
+        loop = row['loop']
+        name = f' {row["label"]}' if len(report['rows']) > 1 else ''
+        if not loop['gaps']:
+            lines.append(f'  control loop{name:<12} no command frames')
+            continue
+        lines.append(f"  control loop{name:<12} command gap mean {loop['mean'] * 1e3:.1f} "
+                     f"ms, p99.9 {loop['p999'] * 1e3:.1f} ms, max {loop['max'] * 1e3:.1f} "
+                     f"ms over {loop['gaps'] + 1} frames (drive deadline "
+                     f'{deadline * 1e3:.0f} ms)')
+    sources = report['design']
+    lines.append(f"  design                   from {sources['first'] or 'nobody'}"
+                 + (f"; {sources['changes']} change(s) during the run, the latest from "
+                    f"{sources['last_change']}" if sources['changes'] else
+                    '; unchanged during the run'))
+    return lines
+
+
+def _curve_lines(design, profile, observer, row, times, positions, pad, in_force, changes):
+    """Per turn: the row's mean spacing error and speed against 2πv_i/(n·d), next to the
+    bias a machine without turn compensation shows there (−y·d/R)."""
+    import numpy as np
+    d = design.plant_spacing
+    n = design.plants_per_revolution
+    lines = []
+    gaps = np.diff(positions) - in_force
+    for curve in profile.curves:
+        a, b = curve.start + curve.ease, curve.end - curve.ease
+        mine = gaps[(times[:-1] >= a) & (times[1:] <= b)]
+        meas = observer.window('velocity', a, b, row.joint(design.mechanism))
+        grid = np.linspace(a, b, 50)
+        expected = np.mean([2 * math.pi * profile(t) * (1 - row.lateral_offset
+                                                        / curve.radius)
+                            / (n * _in_force_at(t, d, changes)) for t in grid])
+        side = 'left' if curve.radius > 0 else 'right'
+        err = (f'mean {np.mean(mine) * 1e3:+.2f} mm, RMS '
+               f'{np.sqrt(np.mean(mine ** 2)) * 1e3:.2f} mm over {mine.size} gaps'
+               if mine.size else 'n/a')
+        ratio = (f'; speed {np.median(meas) / expected:.3f} x 2πv_i/(n·d)'
+                 if meas.size and expected > 0 else '')
+        bias = (f'; without compensation expect '
+                f'{-row.lateral_offset * d / curve.radius * 1e3:+.2f} mm (-y·d/R)'
+                if row.lateral_offset else '')     # a row at y = 0 sees no difference
+        lines.append(f'{pad}{side + " turn R = " + format(abs(curve.radius), "g") + " m":<24}'
+                     f' spacing error {err}{ratio}{bias}')
+    return lines
+
+
+def _in_force_at(t, spacing, changes):
+    """d (m) in force at t s (by the changes' message times: for speeds, not plants)."""
+    for when, new in changes:
+        if t >= when:
+            spacing = new
+    return spacing

@@ -1,0 +1,344 @@
+"""`planter demo`: the whole machine in one process tree, on a simulated CAN bus.
+
+design_node + sync_node + monitor_node + a simulated ground-speed sensor and GNSS receiver
+(demo.field), and one simulated CiA 402 drive per row (node ids from the scene; one drive for a
+scene without rows) on a python-can virtual bus with a channel of its own. Each node gets the
+scene's parameters for it (scene.Scene.node_overrides), the demo's own choices on top. At the
+end the demo prints per row the plants placed, the spacing error, commanded against measured
+speed and in the turns the compensation's effect (demo.report). The monitor records the run
+(bags/planter_<date-time> unless a bag is given); the demo ends by replaying that bag offline
+and printing the replay summary, then one verdict line: PASS, or FAIL and every reason
+(demo.verdict); the exit code is 0 on PASS, 1 on FAIL. Ctrl-C or SIGTERM stops it cleanly
+(drives shut down, bus closed, bag finalised) with the summaries and the verdict on what ran;
+a second signal forces the exit.
+
+The graph runs in a DDS domain of its own (planter_ros.dds_domain), so no other graph on the
+host reaches it, and the sync node with the simulated drives runs in a process of its own
+(demo.sync_process), so nothing else the demo does can hold up the drives' commands.
+"""
+
+from dataclasses import dataclass
+import os
+import sys
+import time
+from typing import Any, TextIO
+
+from .options import DemoOptions, check_bag_path
+
+__all__ = ['Demo', 'DemoResult', 'prepare']
+
+PROGRESS_PERIOD = 2.0     # s between progress lines
+
+
+def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
+    """The Demo `options` ask for, every input and output checked before anything starts
+    (SceneError, ConfigError, OutputError: the command line's exit 2); kwargs go to Demo."""
+    from planter_ros.dds_domain import keep_discovery_on_host
+    from planter_ros.scene import SceneError, default_scene_path, open_scene
+
+    scene = open_scene(options.scene or default_scene_path())
+    check_bag_path(options.bag)
+    design = scene.design()               # a bad scene fails here, before anything starts
+    node_id = scene.parameters('sync_node').get('drive_node_id', 1)
+    rows = scene.rows(default_node_id=node_id)
+    antenna = scene.antenna()
+    if not any(row.enabled for row in rows):
+        raise SceneError(f'scene {scene.path}: rows = every row has enabled false: allowed at '
+                         'least one enabled row')
+    keep_discovery_on_host()
+    return Demo(scene, design, rows, options, antenna=antenna, **kwargs)
+
+
+class Demo:
+    """One demo run. `out`: where the report goes (stdout); `install_signals`: take over
+    SIGINT/SIGTERM (the command line; a caller that runs demos itself, the bench, keeps its
+    own); `log_level`: the nodes' ROS log level; `antenna`: the GNSS antenna on the machine
+    (geo.AntennaSettings, the scene's)."""
+
+    def __init__(self, scene, design, rows, options: DemoOptions, out: TextIO | None = None,
+                 install_signals: bool = True, log_level: str = 'info', antenna=None) -> None:
+        from planter_ros.geo import AntennaSettings
+        self.scene, self.design, self.rows, self.options = scene, design, rows, options
+        self.antenna = antenna or AntennaSettings()
+        self.planting = [row for row in rows if row.enabled]
+        self.out = out or sys.stdout
+        self.install_signals = install_signals
+        self.log_level = log_level
+        self.result: DemoResult | None = None
+
+    def _print(self, text: str = '') -> None:
+        print(text, file=self.out, flush=True)
+
+    # ---------------------------------------------------------------- the run
+    def run(self) -> int:
+        """The whole run; returns the exit code (0 PASS, 1 FAIL)."""
+        from planter_ros import stop_signals
+        from planter_ros.dds_domain import NoFreeDomainError, claim_private_domain
+
+        stop = (stop_signals.install('planter demo') if self.install_signals
+                else stop_signals.StopSignals('planter demo'))
+        try:
+            # a domain of its own: no other graph on the host (another demo, a stray node in
+            # the default domain 0) can reach this one, nor this one them
+            domain = claim_private_domain()
+        except NoFreeDomainError as exc:
+            print(f'planter demo: error: {exc}', file=sys.stderr)
+            return 1
+        run = _Run(self, domain, stop)
+        try:
+            run.start_and_drive()
+        finally:
+            run.stop()
+        return self.finish(run)
+
+    def finish(self, run: '_Run') -> int:
+        """Summaries, the replay of the bag, the verdict line; the exit code."""
+        from .report import row_summary
+        from .verdict import judge
+        report = run.sync.report if run.sync is not None else None
+        rows = []
+        if run.observer is not None and run.observer.start is not None and report is not None:
+            summary, rows = row_summary(self.design, self.rows, run.profile, run.observer,
+                                        report)
+            self._print(summary)
+        bag_error = run.bag_error()
+        if not bag_error:
+            replayed, bag_error = self.replay_summary(run.monitor.recorder.path)
+            self._print(replayed)
+        monitor_changes = ''
+        if run.monitor is not None and run.monitor.design_sources.changes:
+            sources = run.monitor.design_sources
+            monitor_changes = (f'{sources.changes}x, the latest from '
+                               f'{sources.last_change.text}')
+        verdict = judge(rows, report, run.start_error, bag_error, monitor_changes)
+        verdict.stopped_by, verdict.elapsed = run.stopped_by, run.elapsed
+        self.result = DemoResult(verdict, report, rows, run.domain)
+        self._print('')
+        self._print(verdict.line())
+        return verdict.exit_code
+
+    @staticmethod
+    def replay_summary(bag) -> tuple[str, str]:
+        """Re-read the finished bag offline, as `planter replay` would, and summarise it:
+        (text, why it failed or '')."""
+        from planter_ros.recording.replay import ReplayError, replay
+        from planter_ros.recording.replay_text import format_summary
+        try:
+            result = replay(bag)
+        except ReplayError as exc:
+            return f'\nreplay of {bag} failed: {exc}', f'replay of {bag} failed: {exc}'
+        lines = [f'\nrecorded {bag}; replay (`planter replay {bag}`):']
+        lines += [f'  {line}' for line in format_summary(result).splitlines()]
+        lines += [f'  warning: {w}' for w in result.warnings]
+        return '\n'.join(lines), ''
+
+    def progress(self, t: float, profile, status: dict, observer) -> str:
+        """The progress line at `t` s of the field run."""
+        from .report import progress_line
+        plants = sum(len(observer.plant_positions(profile, self.design,
+                                                  row.joint(self.design.mechanism),
+                                                  row.lateral_offset))
+                     for row in self.planting)
+        return progress_line(t, profile, status, plants, self.planting)
+
+
+class _Run:
+    """The graph of one demo run and its life cycle: the sync process (the command path and
+    the simulated drives) and, in this process, the design node, the monitor, the demo's
+    observer and the field sensors, all in the demo's private DDS domain."""
+
+    START_TIMEOUT = 120.0     # s for the sync process to import, build and enable (loaded host)
+    MATCH_TIMEOUT = 20.0      # s for the graph to discover itself before the field run
+
+    def __init__(self, demo, domain, stop):
+        self.demo, self.domain, self.stop_signal = demo, domain, stop
+        self.sync = self.context = self.executor = self.spinner = None
+        self.monitor = self.observer = self.source = None
+        self.nodes = []
+        self.profile = None
+        self.start_error = ''
+        self.elapsed = 0.0
+
+    @property
+    def stopped_by(self):
+        return self.stop_signal.name_received
+
+    def _stopped(self):
+        return self.stop_signal.received is not None
+
+    def start_and_drive(self):
+        import threading
+
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        from planter_ros import interfaces
+        from planter_ros.nodes.design_node import DesignNode
+        from planter_ros.nodes.monitor_node import MonitorNode
+        from planter_ros.sim.ros_field import Observer
+
+        from .field import field_profile
+        from .sync_process import SyncProcess, SyncProcessError, SyncProcessSettings
+
+        demo, options, design = self.demo, self.demo.options, self.demo.design
+        channel = f'planter_demo_{os.getpid()}_{time.monotonic_ns() % 1_000_000}'
+        self.profile = profile = field_profile(options.duration, design.nominal_ground_speed)
+        ns = interfaces.NAMESPACE
+        # the command path first: it takes longest to start (its own interpreter)
+        self.sync = SyncProcess(SyncProcessSettings(
+            self.domain, channel, tuple(row.drive_node_id for row in demo.planting), ns,
+            tuple(demo.scene.node_overrides('sync_node')) + (
+                ('can_interface', 'virtual'), ('can_channel', channel),
+                ('phase_lock', options.phase_lock),
+                ('turn_compensation', options.turn_compensation)),
+            demo.log_level))
+        self.context = Context()
+        rclpy.init(args=['--ros-args', '--log-level', demo.log_level], context=self.context,
+                   domain_id=self.domain, signal_handler_options=SignalHandlerOptions.NO)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        context = self.context
+        self.nodes.append(DesignNode(context=context, namespace=ns, parameter_overrides=[
+            _param(k, v) for k, v in demo.scene.node_overrides('design_node')]))
+        self.observer = Observer(context=context, namespace=ns)
+        self.nodes.append(self.observer)
+        monitor = dict(demo.scene.node_overrides('monitor_node'))
+        if options.bag:
+            monitor['bag_path'] = options.bag
+        self.monitor = MonitorNode(context=context, namespace=ns, parameter_overrides=[
+            _param(k, v) for k, v in monitor.items()])
+        self.nodes.append(self.monitor)          # per-plant predictions and the bag
+        for node in self.nodes:
+            self.executor.add_node(node)
+        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
+        self.spinner.start()
+        turns = ', '.join(f'{"left" if c.radius > 0 else "right"} turn R = '
+                          f'{abs(c.radius):g} m at {c.start:.1f}-{c.end:.1f} s'
+                          for c in profile.curves)
+        demo._print(f'planter demo: {design.crop} {design.mechanism}, d = '
+                    f'{design.plant_spacing:.3f} m, cruise {profile.cruise:.2f} -> '
+                    f'{profile.cruise * profile.change:.2f} m/s, {turns}, '
+                    f'{options.duration:g} s, '
+                    f"{'phase-locked' if options.phase_lock else 'speed-only'}, turn "
+                    f"compensation {'on' if options.turn_compensation else 'off'}, CAN "
+                    f'virtual:{channel}, '
+                    f'DDS domain {self.domain} (private)')
+        try:
+            built = self.sync.wait_for('built', self.START_TIMEOUT, self._stopped)
+            if built is None:
+                return self._interrupted()
+            if demo.rows[0].name:
+                demo._print('rows: ' + ', '.join(
+                    f'{row.name} (y = {row.lateral_offset:+.2f} m, node {row.drive_node_id}'
+                    f'{"" if row.enabled else ", disabled"})' for row in demo.rows)
+                    + f"; CAN bus load {100 * built['bus_load']:.1f} % of "
+                    f"{built['bitrate']} bit/s")
+            ready = self.sync.wait_for('ready', self.START_TIMEOUT, self._stopped)
+            if ready is None:
+                return self._interrupted()
+        except SyncProcessError as exc:
+            self.start_error = str(exc)
+            demo._print(f'drives not started: {exc}')
+            return None
+        demo._print(('drive enabled' if len(demo.planting) == 1 else
+                     f"{ready['running']} drives enabled")
+                    + ' (CiA 402 profile velocity, sync node in a process of its own); field '
+                    'run starts')
+        self._start_field(profile)
+        return self._drive(profile)
+
+    def _start_field(self, profile):
+        """The simulated sensors, once the graph has found itself (the sync node and the
+        monitor subscribe the ground speed, the sync node has the design): t = 0 then."""
+        from planter_ros import interfaces
+        from planter_ros.sim.gnss import SimulatedGnss
+        from planter_ros.sim.ros_field import GnssSource, GroundSpeedSource
+
+        from .field import glitches
+        options, ns = self.demo.options, interfaces.NAMESPACE
+        self.source = GroundSpeedSource(profile, glitches=glitches(options.duration),
+                                        seed=options.seed, context=self.context, namespace=ns)
+        deadline = time.monotonic() + self.MATCH_TIMEOUT
+        while time.monotonic() < deadline and not self._stopped():
+            self.sync.poll(0.05)
+            if (self.source._pub.get_subscription_count() >= 2
+                    and self.sync.status.get('spacing') is not None):
+                break
+        self.source.restart()
+        # the machine's GNSS receiver, on the same path and clock
+        origin = {name: value for name, value in (
+            ('origin_latitude', options.origin_latitude),
+            ('origin_longitude', options.origin_longitude)) if value is not None}
+        receiver = SimulatedGnss(**origin)
+        antenna = self.demo.antenna.antenna_position
+        gnss = GnssSource(profile, receiver, self.source.start, antenna=antenna,
+                          seed=options.seed, context=self.context, namespace=ns)
+        self.demo._print(
+            f'GNSS: simulated receiver at {receiver.rate:g} Hz from '
+            f'{receiver.origin_latitude:.7f}, {receiver.origin_longitude:.7f} (WGS 84), noise '
+            f'{receiver.noise * 1e3:.0f} mm per axis; antenna x = {antenna[0]:+.2f} m, '
+            f'y = {antenna[1]:+.2f} m on the machine')
+        self.observer.start = self.source.start
+        for node in (self.source, gnss):
+            self.nodes.append(node)
+            self.executor.add_node(node)
+
+    def _drive(self, profile):
+        demo, duration = self.demo, self.demo.options.duration
+        next_print = PROGRESS_PERIOD
+        while True:
+            self.sync.poll()
+            t = self.source.elapsed()
+            self.elapsed = min(t, duration)
+            if self._stopped():
+                return self._interrupted()
+            if t >= duration:
+                return None
+            if t >= next_print:
+                demo._print(demo.progress(t, profile, self.sync.status, self.observer))
+                next_print += PROGRESS_PERIOD
+            time.sleep(0.05)
+
+    def _interrupted(self):
+        self.demo._print(f'\ninterrupted by {self.stopped_by}: stopping')
+        return None
+
+    def stop(self):
+        """Drives shut down first (the sync process), then this process's nodes: the monitor
+        finalises the bag."""
+        if self.sync is not None:
+            self.sync.stop()
+        if self.executor is not None:
+            self.executor.shutdown(timeout_sec=2.0)
+        if self.spinner is not None:
+            self.spinner.join(timeout=2.0)
+        for node in reversed(self.nodes):
+            node.destroy_node()
+        if self.context is not None:
+            self.context.try_shutdown()
+
+    def bag_error(self):
+        """Why the run has no usable bag ('' when it has one)."""
+        if self.monitor is None:
+            return 'the monitor did not start'
+        if self.monitor.recorder is None:
+            return self.monitor.record_error or 'the monitor did not record'
+        if not self.monitor.recorder.closed or self.monitor.record_error:
+            return self.monitor.record_error or f'{self.monitor.recorder.path} not finalised'
+        return ''
+
+
+@dataclass
+class DemoResult:
+    """What a run found, for callers that run demos themselves (the bench)."""
+
+    verdict: Any                  # verdict.Verdict
+    report: dict | None           # the sync process's final report (None if none came)
+    rows: list                    # verdict.RowResult per planting row
+    domain: int                   # the private DDS domain it ran in
+
+
+def _param(name: str, value: Any):
+    from rclpy.parameter import Parameter
+    return Parameter(name, value=value)

@@ -1,0 +1,25 @@
+"""The files the package ships in `config/` (the scenes, the drive's EDS, the Foxglove layout),
+found in one place: the clone's `config/`, else the installed share directory
+(`<prefix>/share/planter_ros/config`, pip or colcon), else the ament index's."""
+
+from pathlib import Path
+import sys
+
+__all__ = ['shipped_file']
+
+PACKAGE = 'planter_ros'
+
+
+def shipped_file(name: str) -> Path:
+    """The path of `config/<name>`; FileNotFoundError naming every place looked in."""
+    candidates = [Path(__file__).resolve().parents[1] / 'config' / name,
+                  Path(sys.prefix) / 'share' / PACKAGE / 'config' / name]
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        candidates.append(Path(get_package_share_directory(PACKAGE)) / 'config' / name)
+    except Exception:                     # not a ROS install, or the package is not indexed
+        pass
+    for path in candidates:
+        if path.is_file():
+            return path
+    raise FileNotFoundError(f'{name} not found in: ' + ', '.join(str(p) for p in candidates))
