@@ -7,6 +7,13 @@ are relative (default namespace /planter) except the ROS-wide ones (/diagnostics
 QoS, chosen on purpose:
 * design: reliable + transient_local + depth 1 ("latched"): a node that starts late (the sync
   node after a restart, the monitor, a recorder) still gets the active design at once.
+* sections: reliable + transient_local + depth 10. Latched like the design, so a late monitor
+  or recorder gets the rows' states at once; but the monitor needs every change, not only the
+  last (a row off and on again is a break in its spacing sequence): ten keep a burst of switches
+  from overwriting each other in the sync node's and a busy reader's queue, and a late joiner
+  gets the last few switches (each message stamped at its switch, so the breaks they make
+  still fall where they were). Each message holds every row's state, so a lost one never
+  leaves a row's state wrong, only a break unseen.
 * ground_speed: the sensor-data profile (best effort, volatile, keep last 5). A late or resent
   speed sample is worse than none (the law integrates distance from receive times and holds the
   last sample), a best-effort subscription also matches a reliable publisher, and a lost sample
@@ -17,10 +24,23 @@ QoS, chosen on purpose:
   that falls behind for a second still gets every plant).
 A recorder subscribes with the same reliability and durability but a deeper queue
 (`Topic.recording_qos`), so it rides out a busy second at 100 Hz.
+
+The sections topic is a sensor_msgs/JointState on purpose: no standard message is a list of
+named switches, and JointState comes closest. It names each row (a reader matches rows by
+name, never by place), carries a stamp (the instant of the switch, which the breaks in the
+spacing sequence need), and its position array holds one number per row (1 on, 0 off), so
+Foxglove plots a row's section as a step next to its plants (`/planter/sections.position[i]`,
+i the row's place in the scene's rows) and replay reads it in bulk with the CDR reader it
+already has for joint_states, without rclpy. The others fall short: diagnostic_msgs/KeyValue
+pairs are health for people (text values, no stamp of their own; the section state used to
+travel there and be parsed back), std_msgs/*MultiArray has no stamp and no names but a label
+string, sensor_msgs/Joy has no names, rcl_interfaces/ParameterEvent means a parameter changed.
 """
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 import importlib
+import math
 
 NAMESPACE = 'planter'
 RECORDING_DEPTH = 100
@@ -123,18 +143,24 @@ PLANT_MARKERS = Topic(
 UPRIGHTNESS_RATE = Topic(
     'uprightness_rate', 'std_msgs/msg/Float64', OUTPUT,
     'rolling fraction (0..1) of upright plants over the last `window` plants')
+SECTIONS = Topic(
+    'sections', 'sensor_msgs/msg/JointState', Qos('reliable', 'transient_local', 10),
+    "each row's section, published by the sync node at start and at every switch: name = the "
+    "rows enabled in the scene (the implicit row of a scene without rows: ''), position = 1 on "
+    '(planting), 0 off (section_fields / section_states), velocity and effort empty, stamped '
+    'at the switch')
 DIAGNOSTICS = Topic(
     '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', STATE,
-    'node health, ~1 Hz, absolute as diagnostic_aggregator expects')
+    'node health, ~1 Hz, absolute as diagnostic_aggregator expects (planter_ros.diagnostics)')
 CLOCK = Topic(
     '/clock', 'rosgraph_msgs/msg/Clock', Qos('reliable', 'volatile', 100),
     'simulated time, published only by the lock-step sample feeder (use_sim_time)')
 
 TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX, PLANTS,
-          UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, DIAGNOSTICS, CLOCK)
+          UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, SECTIONS, DIAGNOSTICS, CLOCK)
 # what the monitor records: its inputs as they arrived, then its own outputs
 MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX,
-                  DIAGNOSTICS)
+                  SECTIONS, DIAGNOSTICS)
 MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS)
 RECORDED = MONITOR_INPUTS + MONITOR_OUTPUTS
 # MCAP metadata record of a monitor's bag holding its prediction settings (name -> repr)
@@ -179,3 +205,19 @@ def row_joint(row_name, mechanism):
     `sun_bar` (`carrier`) for the implicit row of a scene without rows."""
     joint = MECHANISM_JOINT[mechanism]
     return f'{row_name}/{joint}' if row_name else joint
+
+
+# a row's position in `sections`: on (planting) or off; a reader takes >= 0.5 as on
+SECTION_ON, SECTION_OFF = 1.0, 0.0
+
+
+def section_fields(states: Mapping[str, bool]) -> tuple[list[str], list[float]]:
+    """The `sections` message's name and position of the rows' states {row name: on}."""
+    return list(states), [SECTION_ON if on else SECTION_OFF for on in states.values()]
+
+
+def section_states(names: Sequence[str], positions: Sequence[float]) -> dict[str, bool]:
+    """{row name: on} of a `sections` message's name and position (a NaN position, or none,
+    says nothing of its row)."""
+    return {name: position >= 0.5 for name, position in zip(names, positions)
+            if not math.isnan(position)}

@@ -10,8 +10,8 @@ from planter_ros.cam import (CamInputError, CamMechanism, DriveLimits, build_pro
                              rule_top_speed, sampled_tip_sweep)
 from planter_ros.cam.drive import GRAVITY
 from planter_ros.kinematics.five_bar import design_five_bar, hole_geometry
-from planter_ros.kinematics.plant_prediction import (FiveBarPlanting, PredictionSettings,
-                                                     plant_values)
+from planter_ros.kinematics.planting import FiveBarPlanting
+from planter_ros.prediction import PredictionSettings, plant_values
 
 TOMATO_015 = design_five_bar(0.045, 0.15, 0.05)      # the mechanism the issue designs for 0.15 m
 TOMATO_020 = design_five_bar(0.045, 0.2, 0.05)       # the paper's tomato design

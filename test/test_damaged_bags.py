@@ -13,7 +13,7 @@ import pytest
 
 from planter_ros import interfaces
 from planter_ros.cli.main import main
-from planter_ros.kinematics.plant_prediction import PLANT_FIELDS
+from planter_ros.prediction import PLANT_FIELDS
 from planter_ros.recording import recovery
 from planter_ros.recording.recorder import Recorder
 from planter_ros.recording.replay import ReplayError, replay

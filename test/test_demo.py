@@ -18,7 +18,7 @@ import time
 import numpy as np
 import pytest
 
-from planter_ros.kinematics.plant_prediction import PLANT_FIELDS
+from planter_ros.prediction import PLANT_FIELDS
 
 from cli_helpers import REPO, run_planter
 

@@ -1,7 +1,7 @@
 """Design-change authority, pure parts: who published an accepted design, what counts as a
 change by another node, and the demo's verdict that fails on it (and on every other reason)."""
 from planter_ros.demo.verdict import RowResult, SPACING_TOLERANCE, judge
-from planter_ros.control import sync_status
+from planter_ros import diagnostics
 from planter_ros.scene.design_sources import DesignSources, Endpoint, gid_text
 from planter_ros.sim.spacing import spacing_in_force, spacing_stats
 
@@ -14,7 +14,7 @@ def test_the_only_publisher_then_the_new_one_is_named_and_a_foreign_change_count
     sources = DesignSources()
     first = sources.accepted([OURS])
     assert first.first and first.text == '/planter/design_node (publisher 01.0f.aa)'
-    assert sources.report().level == sync_status.OK
+    assert sources.report().level == diagnostics.OK
     # a parameter update of our own design node: a change, not a foreign one
     again = sources.accepted([OURS])
     assert not again.foreign and sources.changes == 1 and sources.foreign_changes == 0
@@ -23,7 +23,7 @@ def test_the_only_publisher_then_the_new_one_is_named_and_a_foreign_change_count
     assert stray.foreign and stray.text == '/planter/design_node (publisher 01.0f.bb)'
     assert sources.changes == 2 and sources.foreign_changes == 1
     report = sources.report()
-    assert report.level == sync_status.WARN
+    assert report.level == diagnostics.WARN
     assert dict(report.values)['design changes by other nodes'] == 1
     # two known publishers and no new one: both named, not counted as foreign for sure
     both = sources.accepted([OURS, STRAY])

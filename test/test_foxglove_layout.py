@@ -4,8 +4,8 @@ import json
 import re
 
 from planter_ros import interfaces
-from planter_ros.kinematics.plant_prediction import PLANT_FIELDS
-from planter_ros.kinematics.spacing_quality import QUALITY_FIELDS
+from planter_ros.prediction import PLANT_FIELDS
+from planter_ros.prediction import QUALITY_FIELDS
 from planter_ros.nodes.markers import FRAME
 
 from cli_helpers import REPO

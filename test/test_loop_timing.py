@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from planter_ros import diagnostics
 from planter_ros.control import sync_status
 from planter_ros.control.loop_timing import PeriodStats
 
@@ -58,14 +59,14 @@ def loop_with(max_gap):
 
 def test_diagnostics_warn_once_half_the_deadline_is_used_and_error_once_missed():
     ok = sync_status.loop_report([('', loop_with(0.03))], 0.2)
-    assert ok.level == sync_status.OK
+    assert ok.level == diagnostics.OK
     values = dict(ok.values)
     assert values['command gap max'] == '30.0 ms' and values['command gap p99.9'] == '15.1 ms'
     assert values['drive command deadline'] == '200 ms'
     warn = sync_status.loop_report([('left', loop_with(0.03)), ('right', loop_with(0.12))], 0.2)
-    assert warn.level == sync_status.WARN and 'right command gap max' in dict(warn.values)
+    assert warn.level == diagnostics.WARN and 'right command gap max' in dict(warn.values)
     late = sync_status.loop_report([('left', loop_with(0.25))], 0.2)
-    assert late.level == sync_status.ERROR and late.message.startswith('deadline missed')
+    assert late.level == diagnostics.ERROR and late.message.startswith('deadline missed')
 
 
 def test_a_histogram_sent_elsewhere_gives_the_same_figures():

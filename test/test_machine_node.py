@@ -7,6 +7,7 @@ import json
 import math
 import time
 
+import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -259,3 +260,49 @@ def test_joint_states_carry_every_row_at_one_instant(machine):
     assert len(msg.position) == len(msg.velocity) == 2
     # both rows run in step: their angles at one stamp agree to the feedback period's travel
     assert abs(msg.position[0] - msg.position[1]) < 0.3
+
+
+def test_a_section_off_and_on_reaches_the_monitor_through_the_sections_topic(machine, ros):
+    """The sync node says each switch on `sections` (latched, stamped at the switch); the
+    monitor ends that row's spacing sequence there, so the first plant after the section is on
+    again has no spacing instead of reading as a miss. The monitor reads nothing from
+    /diagnostics: the old form of the section states there changes nothing."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from planter_ros import diagnostics
+    from planter_ros.nodes.monitor_node import MonitorNode
+    from planter_ros.prediction import Plants
+    params = [Parameter('record', value=False), Parameter('rows', value=list(ROWS))]
+    for name, (y, node) in ROWS.items():
+        params += [Parameter(f'{name}.lateral_offset', value=y),
+                   Parameter(f'{name}.drive_node_id', value=node)]
+    # first: once the drives are enabled, nothing may keep the executor from the control loop
+    monitor = ros.add(MonitorNode(context=ros.context, namespace='/',
+                                  parameter_overrides=params))
+    m = machine(design={**TOMATO, 'nozzle_width': 0.02})
+    sections = []
+    interfaces.SECTIONS.subscribe(m.io, sections.append)
+    assert ros.spin_until(lambda: monitor.has_design and sections)
+    assert list(sections[-1].name) == ['left', 'right'] and list(sections[-1].position) == [1, 1]
+    m.drive(0.2, 0.0, 2.0)
+    assert m.call(SetBool, 'left/section', SetBool.Request(data=False)).success
+    m.drive(0.2, 0.0, 1.5)
+    # the old form on /diagnostics, as the sync node published it before `sections`: the right
+    # row "off" and "on" again; a monitor reading it would break the right row's sequence
+    fake = m.io.create_publisher(DiagnosticArray, '/diagnostics', 10)
+    for state in ('off', 'on'):
+        fake.publish(diagnostics.array([(diagnostics.Report(
+            'right', diagnostics.OK, 'tracking', ((diagnostics.SECTION, state),)), 'x')],
+            'sync_node'))
+        m.drive(0.2, 0.0, 0.1)
+    assert m.call(SetBool, 'left/section', SetBool.Request(data=True)).success
+    on = m.sync.get_clock().now().nanoseconds * 1e-9
+    m.drive(0.2, 0.0, 3.0)
+    assert [list(s.position) for s in sections[-2:]] == [[0, 1], [1, 1]]
+    plants = Plants.from_table(np.vstack(monitor.published_tables()))
+    left = plants.row == 0
+    right = plants.row == 1
+    first_after = np.flatnonzero(left & (plants.time > on))[0]
+    assert np.isnan(plants.spacing[first_after])            # a new sequence, not a miss
+    assert np.count_nonzero(np.isnan(plants.spacing[left])) == 2
+    assert np.nanmax(plants.spacing[left]) < 1.5 * D
+    assert np.count_nonzero(np.isnan(plants.spacing[right])) == 1    # only its first

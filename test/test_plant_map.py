@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from planter_ros.geo import geodesic_distance
-from planter_ros.kinematics.plant_prediction import PLANT_FIELDS, Plants
+from planter_ros.prediction import PLANT_FIELDS, Plants
 from planter_ros.sensing.plant_map import (
     MapSettings, PlantPlacer, fix_sigma, place_plants)
 from planter_ros.sensing.row_speed import motion_samples

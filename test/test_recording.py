@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import yaml
 
-from planter_ros.kinematics.plant_prediction import PLANT_FIELDS
+from planter_ros.prediction import PLANT_FIELDS
 from planter_ros.recording.recorder import DELIMITER, Recorder, RecorderError, message_definition
 from planter_ros.recording.replay import replay
 from planter_ros.demo.samples import record_sample

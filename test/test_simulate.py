@@ -9,7 +9,7 @@ import pytest
 
 from cli_helpers import run_planter
 from planter_ros import interfaces
-from planter_ros.kinematics.plant_prediction import PLANT_FIELDS
+from planter_ros.prediction import PLANT_FIELDS
 from planter_ros.recording.replay import replay
 from planter_ros.sim.field import Curve, Stop
 from planter_ros.sim.season import (
@@ -103,7 +103,7 @@ def test_simulated_bag_has_the_live_monitors_layout(ros, tmp_path):
 def test_the_plants_message_is_the_monitors():
     from rclpy.serialization import serialize_message
 
-    from planter_ros.kinematics.plant_prediction import Plants
+    from planter_ros.prediction import Plants
     from planter_ros.nodes.monitor_node import plants_message as monitor_message
     from planter_ros.sim.season import plants_message
     plants = Plants.from_table(np.arange(3 * len(PLANT_FIELDS), dtype=float).reshape(3, -1))

@@ -5,7 +5,7 @@ from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 
-from planter_ros.kinematics.spacing_quality import (
+from planter_ros.prediction import (
     SpacingQuality, spacing_quality, spacing_quality_by_row)
 
 D = 0.2

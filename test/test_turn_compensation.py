@@ -9,7 +9,7 @@ import pytest
 
 from planter_ros.control.machine import Machine, TurnConfig
 from planter_ros.control.phase_lock import PlantingAngles, stop_angle
-from planter_ros.kinematics.plant_prediction import planting_model_from_design
+from planter_ros.prediction import planting_model_from_design
 from planter_ros.rows import Row
 from planter_ros.sensing.row_speed import row_speed_samples
 from planter_ros.sim.closed_loop import curve_comparison, curve_figures, simulate_rows

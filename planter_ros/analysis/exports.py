@@ -31,7 +31,7 @@ def season_runs(out):
     import pyarrow.parquet as pq
 
     from planter_ros.export.runs import run_of_plants
-    from planter_ros.kinematics.plant_prediction import PLANT_FIELDS, Plants
+    from planter_ros.prediction import PLANT_FIELDS, Plants
 
     from .season import ANALYSED, BAGS_FILE, PLANTS_DIR, read_bags
     out = Path(out)

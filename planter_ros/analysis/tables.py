@@ -60,20 +60,31 @@ def unit_of(column):
 
 def _setting_units():
     from planter_ros.config import specs
-    from planter_ros.kinematics.plant_prediction import PredictionSettings
+    from planter_ros.prediction import PredictionSettings
     return {spec.name: spec.unit or '1' for spec in specs(PredictionSettings)}
 
 
 def flatten(value, prefix=''):
-    """A JSON object as {dotted name: value}; lists are kept as they are."""
+    """A JSON object as {dotted name: value}; lists are kept as they are, less the empty
+    objects in them; an empty object gives no column (Parquet has no type for a struct
+    without fields)."""
     out = {}
     for key, item in value.items():
         name = f'{prefix}{key}'
-        if isinstance(item, dict) and item:
+        if isinstance(item, dict):
             out.update(flatten(item, name + '.'))
         else:
-            out[name] = item
+            out[name] = _without_empty_objects(item)
     return out
+
+
+def _without_empty_objects(value):
+    if isinstance(value, list):
+        return [_without_empty_objects(item) for item in value]
+    if isinstance(value, dict):
+        return {key: _without_empty_objects(item) for key, item in value.items()
+                if item != {}}
+    return value
 
 
 def unflatten(row):

@@ -23,7 +23,7 @@ other way round, as the distance travelled since the planting instant (the botto
 In the soil the tip then moves by x − x_plant = advance · φ − (1 − zero_slip) · a sin φ: the
 five-bar's own closed-form hole (`five_bar.hole_geometry`) of a mechanism with l2 − l1 =
 (1 − zero_slip)·a at that advance, which gives the tip sweep without sampling. The tilt is the
-monitor's model (`plant_prediction.plant_values`) fed the mean advance of the exit climb,
+monitor's model (`kinematics.planting`) fed the mean advance of the exit climb,
 Δs/ψ: the stem is dragged by the slip Δs − a·ψ relative to the synchronous path.
 
 Pure numpy: no ROS.
@@ -34,6 +34,7 @@ import math
 
 from planter_ros.kinematics.five_bar import (
     TWO_PI, bars_depth_angle, hole_geometry, soil_trajectory)
+from planter_ros.kinematics.planting import FiveBarPlanting
 
 from .errors import CamInputError
 
@@ -175,17 +176,12 @@ class SoilLaw:
         psi = mech.psi if psi is None else psi
         return self.distance(mech, psi) / psi
 
-    def tilt(self, mech, settings=None):
+    def tilt(self, mech):
         """The seedling's tilt from vertical (rad, + = top leaning forward) by the monitor's
-        tilt model (`plant_prediction.plant_values`), fed this law's exit climb."""
-        from planter_ros.kinematics.plant_prediction import (
-            FiveBarPlanting, PredictionSettings, plant_values)
+        tilt model (`kinematics.planting`), fed this law's exit climb."""
         model = FiveBarPlanting(mech.l1, mech.l2, mech.depth, mech.design_spacing,
                                 nozzle_width=mech.nozzle_width)
-        settings = PredictionSettings() if settings is None else settings
-        advance = self.climb_advance(mech, model.exit_angle)
-        _, _, _, tilt, _ = plant_values(model, settings, 1.0, advance)
-        return float(tilt)
+        return float(model.tilt(self.climb_advance(mech, model.exit_angle)))
 
     def blend(self, other, beta):
         """β·self + (1 − β)·other (both coefficients): β = 1 is this law, 0 the other."""

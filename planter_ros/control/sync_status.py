@@ -1,22 +1,27 @@
 """The sync node's health policy, pure: when to stop commanding the drive, and what its
 /diagnostics say, from a drive status snapshot and the phase-locked law's state.
 
-Kept out of the node so the policy is tested without ROS or CAN; the node only turns the
-`Report`s into diagnostic_msgs/DiagnosticStatus (levels are the same bytes).
+Kept out of the node so the policy is tested without ROS or CAN; the reports are
+planter_ros.diagnostics `Report`s, which that module turns into the node's DiagnosticArray.
+No canopen here: the CiA 402 state names come from drive.state_names.
 """
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 import math
+from typing import Any
 
-from planter_ros.drive.states import FAULT, OPERATION_ENABLED
+from planter_ros.diagnostics import (BUS, CONTROL_LOOP, DRIVE, ERROR, GROUND_SPEED, OK,
+                                     PHASE_LOCK, SECTION, SECTION_OFF, SECTION_ON, STALE, WARN,
+                                     Report, worst)
+from planter_ros.drive.state_names import FAULT, OPERATION_ENABLED
 
-OK, WARN, ERROR, STALE = 0, 1, 2, 3
+__all__ = ['SEND_ERROR_HOLD', 'FAULTED', 'HEARTBEAT_LOST', 'NOT_ENABLED', 'Halt',
+           'NEVER_ENABLED', 'has_feedback', 'halt_reason', 'drive_report', 'ground_report',
+           'phase_report', 'row_report', 'idle_row_report', 'bus_report', 'LOOP_MARGIN',
+           'loop_report']
+
 SEND_ERROR_HOLD = 2.0      # s a CAN send error keeps the drive status at ERROR
-
-# the value of a row's phase-lock status saying whether its section is on or off; the monitor
-# and replay read it back (`section_states`) so a plant after a section was off has no spacing
-SECTION_KEY = 'section'
-PHASE_LOCK_TASK = 'phase lock'      # the status of a scene without rows (one implicit row)
 
 # kinds of halt, in the order they are checked
 FAULTED, HEARTBEAT_LOST, NOT_ENABLED = 'fault', 'heartbeat lost', 'not enabled'
@@ -33,22 +38,12 @@ class Halt:
 NEVER_ENABLED = Halt(NOT_ENABLED, 'drive not enabled')
 
 
-@dataclass(frozen=True)
-class Report:
-    """One diagnostics status: task name, level (OK..STALE), message, key/value pairs."""
-
-    task: str
-    level: int
-    message: str
-    values: tuple = ()
-
-
-def has_feedback(status):
+def has_feedback(status: Any) -> bool:
     """The drive has sent motion feedback (a TPDO with position and velocity)."""
     return status.stamp is not None and math.isfinite(status.stamp) and status.stamp > 0.0
 
 
-def halt_reason(status, heartbeat_timeout):
+def halt_reason(status: Any, heartbeat_timeout: float) -> Halt | None:
     """Halt (commanding 0) or None when the drive may be commanded."""
     if status.fault or status.state == FAULT:
         why = status.fault_reason or status.state
@@ -60,11 +55,13 @@ def halt_reason(status, heartbeat_timeout):
     return None
 
 
-def drive_report(status, enabled, shut_down, halt, send_errors, last_send_error, command, now):
+def drive_report(status: Any, enabled: bool, shut_down: bool, halt: Halt | None,
+                 send_errors: int, last_send_error: tuple[float, str] | None, command: float,
+                 now: float) -> Report:
     """The drive's status. `last_send_error` = (monotonic time, text) or None."""
     values = [('enabled', enabled), ('send errors', send_errors)]
     if status is None:
-        return Report('drive', STALE if shut_down else ERROR,
+        return Report(DRIVE, STALE if shut_down else ERROR,
                       halt.text if halt else 'not enabled', tuple(values))
     values = [('drive state', status.state), ('statusword', f'0x{status.statusword:04X}'),
               ('error code', f'0x{status.error_code:04X}'),
@@ -74,15 +71,16 @@ def drive_report(status, enabled, shut_down, halt, send_errors, last_send_error,
               ('command', f'{command:.4f} rad/s')] + values
     if last_send_error is not None and now - last_send_error[0] <= SEND_ERROR_HOLD:
         values.append(('last send error', last_send_error[1]))
-        return Report('drive', ERROR, f'CAN send error: {last_send_error[1]}', tuple(values))
+        return Report(DRIVE, ERROR, f'CAN send error: {last_send_error[1]}', tuple(values))
     if halt is not None:
-        return Report('drive', ERROR, halt.text, tuple(values))
+        return Report(DRIVE, ERROR, halt.text, tuple(values))
     if not has_feedback(status):
-        return Report('drive', STALE, 'no feedback from the drive', tuple(values))
-    return Report('drive', OK, 'operation enabled', tuple(values))
+        return Report(DRIVE, STALE, 'no feedback from the drive', tuple(values))
+    return Report(DRIVE, OK, 'operation enabled', tuple(values))
 
 
-def ground_report(law, now, machine=None, stale_state=None):
+def ground_report(law: Any, now: float, machine: Any = None,
+                  stale_state: str | None = None) -> Report:
     """The ground-speed input: fresh, rejecting samples, or stale. `law` runs at the machine's
     reference point; `machine` (control.machine.Machine) adds the yaw rate; `stale_state` says
     what the rows do meanwhile (default: `law.state`)."""
@@ -101,15 +99,15 @@ def ground_report(law, now, machine=None, stale_state=None):
                    ('rejected yaw-rate samples', yaw_rejected)]
         values += [(f'rejected yaw rate {k}', v) for k, v in yaw.rejected.items()]
     if law.stale(now):
-        return Report('ground speed', STALE, stale_state or law.state(now), tuple(values))
+        return Report(GROUND_SPEED, STALE, stale_state or law.state(now), tuple(values))
     if rejected or yaw_rejected:
-        return Report('ground speed', WARN, f'{rejected} speed and {yaw_rejected} yaw-rate '
+        return Report(GROUND_SPEED, WARN, f'{rejected} speed and {yaw_rejected} yaw-rate '
                       'sample(s) rejected since start' if machine is not None else
                       f'{rejected} sample(s) rejected since start', tuple(values))
-    return Report('ground speed', OK, 'fresh', tuple(values))
+    return Report(GROUND_SPEED, OK, 'fresh', tuple(values))
 
 
-def phase_report(law, now, command):
+def phase_report(law: Any, now: float, command: float) -> Report:
     """The phase lock: waiting for a design, tracking, or slipping plants."""
     error = law.last_error
     metres = error * law.plants_per_revolution * law.spacing / (2 * math.pi) \
@@ -119,40 +117,37 @@ def phase_report(law, now, command):
               ('phase error along row', f'{metres:.4f} m'),
               ('phase slips', law.phase_slips),
               ('command', f'{command:.4f} rad/s'),
-              (SECTION_KEY, 'on' if law.section_on else 'off'))
+              (SECTION, SECTION_ON if law.section_on else SECTION_OFF))
     if law.spacing is None:
-        return Report(PHASE_LOCK_TASK, STALE, 'waiting for design', values)
+        return Report(PHASE_LOCK, STALE, 'waiting for design', values)
     if law.phase_slips:
-        return Report(PHASE_LOCK_TASK, WARN,
+        return Report(PHASE_LOCK, WARN,
                       f'{law.phase_slips} plant(s) skipped to stay on the grid', values)
-    return Report(PHASE_LOCK_TASK, OK, law.state(now), values)
+    return Report(PHASE_LOCK, OK, law.state(now), values)
 
 
-# how bad a level is, for merging (diagnostic_msgs numbers STALE above ERROR)
-_SEVERITY = {OK: 0, WARN: 1, STALE: 2, ERROR: 3}
-
-
-def row_report(name, drive, phase, row_values=()):
+def row_report(name: str, drive: Report, phase: Report,
+               row_values: Iterable[tuple[str, Any]] = ()) -> Report:
     """One status per row of a machine: the row's drive and phase lock reports merged (the
     worse level; the drive's message unless the drive is fine) plus the row's own values."""
-    worst = max((drive, phase), key=lambda r: _SEVERITY[r.level])
     message = drive.message if drive.level != OK else phase.message
-    return Report(name, worst.level, message,
+    return Report(name, worst((drive.level, phase.level)), message,
                   tuple(row_values) + tuple(drive.values) + tuple(phase.values))
 
 
-def idle_row_report(name, reason, level, row_values=()):
+def idle_row_report(name: str, reason: str, level: int,
+                    row_values: Iterable[tuple[str, Any]] = ()) -> Report:
     """A row that does not run: disabled in the scene (OK) or left out at start-up (ERROR)."""
     return Report(name, level, reason, tuple(row_values))
 
 
-def bus_report(load, last_send_error, now):
+def bus_report(load: Any, last_send_error: tuple[float, str] | None, now: float) -> Report:
     """The CAN bus: its worst-case load (drive.bus_load.BusLoad) and heartbeat send errors."""
     values = tuple(load.values())
     if last_send_error is not None and now - last_send_error[0] <= SEND_ERROR_HOLD:
-        return Report('bus', ERROR, f'CAN send error: {last_send_error[1]}',
+        return Report(BUS, ERROR, f'CAN send error: {last_send_error[1]}',
                       values + (('last send error', last_send_error[1]),))
-    return Report('bus', OK, f'load {100 * load.load:.1f} % of {load.bitrate} bit/s '
+    return Report(BUS, OK, f'load {100 * load.load:.1f} % of {load.bitrate} bit/s '
                   f'({load.rows} drive(s))', values)
 
 
@@ -161,12 +156,12 @@ def bus_report(load, last_send_error, now):
 LOOP_MARGIN = 0.5
 
 
-def loop_report(periods, deadline):
+def loop_report(periods: Iterable[tuple[str, Any]], deadline: float) -> Report:
     """How the control loop keeps the drives' command deadline: per row (label, PeriodStats of
     its command frames; label '' without rows) the largest gap and p99.9. WARN once a gap ate
     half the deadline, ERROR once one reached it (the drive has quick-stopped)."""
     values = []
-    worst = 0.0
+    longest = 0.0
     p999 = 0.0
     for label, stats in periods:
         prefix = f'{label} ' if label else ''
@@ -177,42 +172,14 @@ def loop_report(periods, deadline):
                    (f'{prefix}command gap mean', f'{stats.mean * 1e3:.1f} ms'),
                    (f'{prefix}command gap p99.9', f'{stats.quantile(0.999) * 1e3:.1f} ms'),
                    (f'{prefix}command gap max', f'{stats.max_gap * 1e3:.1f} ms')]
-        worst = max(worst, stats.max_gap)
+        longest = max(longest, stats.max_gap)
         p999 = max(p999, stats.quantile(0.999))
     values.append(('drive command deadline', f'{deadline * 1e3:.0f} ms'))
-    text = (f'command gap max {worst * 1e3:.1f} ms, p99.9 {p999 * 1e3:.1f} ms (deadline '
+    text = (f'command gap max {longest * 1e3:.1f} ms, p99.9 {p999 * 1e3:.1f} ms (deadline '
             f'{deadline * 1e3:.0f} ms)')
-    if worst >= deadline:
-        return Report('control loop', ERROR, f'deadline missed: {text}', tuple(values))
-    if worst >= LOOP_MARGIN * deadline:
-        return Report('control loop', WARN, f'less than half the deadline left: {text}',
+    if longest >= deadline:
+        return Report(CONTROL_LOOP, ERROR, f'deadline missed: {text}', tuple(values))
+    if longest >= LOOP_MARGIN * deadline:
+        return Report(CONTROL_LOOP, WARN, f'less than half the deadline left: {text}',
                       tuple(values))
-    return Report('control loop', OK, text, tuple(values))
-
-def section_states(statuses):
-    """{row name: section on (bool)} from diagnostic statuses (objects with `name` and `values`
-    of `key`/`value`, as diagnostic_msgs has them): the sync node's status of each row
-    (`<node>: <row>`) or, in a scene without rows, its phase-lock status (row name '').
-    Statuses without the section value are not the sync node's: left out."""
-    states = {}
-    for status in statuses:
-        for item in status.values:
-            if item.key == SECTION_KEY and item.value in ('on', 'off'):
-                task = status.name.rsplit(': ', 1)[-1]
-                states['' if task == PHASE_LOCK_TASK else task] = item.value == 'on'
-                break
-    return states
-
-
-def section_breaks(reports):
-    """Per row name, the times (start, end) across which its section was off, from reports
-    [(t, {row name: on})] in time order: from the last report saying off to the first saying
-    on again. The first plant after such a break has no spacing."""
-    breaks, last_off = {}, {}
-    for t, states in reports:
-        for row, on in states.items():
-            if not on:
-                last_off[row] = t
-            elif row in last_off:
-                breaks.setdefault(row, []).append((last_off.pop(row), t))
-    return breaks
+    return Report(CONTROL_LOOP, OK, text, tuple(values))

@@ -6,17 +6,10 @@ State names, controlword commands and operation modes are canopen's (`State402`,
 
 from canopen.profiles.p402 import OperationMode, State402
 
-# state names exactly as canopen spells them (keys of State402.SW_MASK)
-NOT_READY = 'NOT READY TO SWITCH ON'
-SWITCH_ON_DISABLED = 'SWITCH ON DISABLED'
-READY_TO_SWITCH_ON = 'READY TO SWITCH ON'
-SWITCHED_ON = 'SWITCHED ON'
-OPERATION_ENABLED = 'OPERATION ENABLED'
-QUICK_STOP_ACTIVE = 'QUICK STOP ACTIVE'
-FAULT_REACTION_ACTIVE = 'FAULT REACTION ACTIVE'
-FAULT = 'FAULT'
-STATES = (NOT_READY, SWITCH_ON_DISABLED, READY_TO_SWITCH_ON, SWITCHED_ON, OPERATION_ENABLED,
-          QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE, FAULT)
+# state names exactly as canopen spells them (keys of State402.SW_MASK), declared canopen-free
+from .state_names import (  # noqa: F401 (the master and the simulated drive import them here)
+    FAULT, FAULT_REACTION_ACTIVE, NOT_READY, OPERATION_ENABLED, QUICK_STOP_ACTIVE,
+    READY_TO_SWITCH_ON, STATES, SWITCH_ON_DISABLED, SWITCHED_ON)
 assert set(STATES) == set(State402.SW_MASK), 'canopen renamed a CiA 402 state'
 
 PROFILE_VELOCITY = OperationMode.PROFILED_VELOCITY            # 3

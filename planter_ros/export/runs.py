@@ -25,7 +25,7 @@ class ExportRun:
     records: list                # one dict per plant, in the recording's order (module doc)
     rows: list                   # (index, name) of the machine's rows, in the scene's order
     design_spacing: float = None  # m, the design's plant spacing (the last design's)
-    # row index -> the row's ISO 7256-1 indices (kinematics.spacing_quality: multiple_index,
+    # row index -> the row's ISO 7256-1 indices (prediction.quality: multiple_index,
     # miss_index, quality_of_feed_index, precision; None where undefined)
     row_quality: dict = field(default_factory=dict)
 
@@ -35,7 +35,7 @@ class ExportRun:
 
 
 def run_of_plants(key, plants, rows, design_spacing=None, row_quality=None):
-    """An ExportRun of a Plants table (kinematics.plant_prediction) and the machine's rows
+    """An ExportRun of a Plants table (planter_ros.prediction) and the machine's rows
     [(index, name)]."""
     from planter_ros.recording.export import plant_records
     view = SimpleNamespace(plants=plants,

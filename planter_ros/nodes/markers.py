@@ -61,7 +61,7 @@ def tip_path(model, east, north, heading, advance):
 
 
 def marker_array(plants, placement, model, labels, counts):
-    """MarkerArray of a batch of placed plants (kinematics.plant_prediction.Plants with its
+    """MarkerArray of a batch of placed plants (prediction.Plants with its
     sensing.plant_map.Placement): a stem per plant with a map position, the tip path of each
     row at its newest one. `labels`: row index -> name; `counts`: row index -> plants drawn so
     far (updated)."""

@@ -1,14 +1,14 @@
 """monitor_node: per-plant predictions from measured motion, and the MCAP recording.
 
 Subscribes `ground_speed` (TwistStamped), `joint_states` (JointState), the latched `design`
-(String JSON), `gnss/fix` (NavSatFix) and `/diagnostics` (the sync node's section states);
+(String JSON), `gnss/fix` (NavSatFix) and the latched `sections` (JointState: every row's section);
 publishes each plant on `plants` (std_msgs/Float64MultiArray, labelled layout, fields in
 `PLANT_FIELDS`, SI), the rolling rate on `uprightness_rate` (std_msgs/Float64, fraction 0..1,
 over the last `window` plants of the whole machine), the ISO 7256-1 spacing-quality indices on
 `spacing_quality`, the 3D view on `plant_markers` (visualization_msgs/MarkerArray) and
 `/diagnostics` at 1 Hz. Each plant is placed on the earth from the GNSS fixes
 (sensing.plant_map: held until the fixes that place it are in) before it is published.
-It records its inputs (plus the speed commands and `/diagnostics`) as the CDR bytes that arrived
+It records its inputs (plus the speed commands and /diagnostics) as the CDR bytes that arrived
 (raw subscriptions) and its own outputs, through the one recorder
 (planter_ros.recording.recorder); the topics are interfaces.RECORDED, and the bag's rows record
 names each row index.
@@ -17,7 +17,7 @@ A machine with several rows (the scene's `rows`, planter_ros.rows) is predicted 
 each row from its own joint and its own travelled distance, from the ground speed v, the yaw
 rate ω_z and its lateral offset y (v − ω_z·y, sensing.row_speed: what the row's ground really
 did, whether or not the sync node compensated the turn). The model is
-`planter_ros.kinematics.plant_prediction`; this node only turns messages into calls of it.
+`planter_ros.prediction`; this node only turns messages into calls of it.
 Inputs stamped 0 are timed by their receive time. Samples before the first design are recorded
 but not predicted (replay does the same). A changed design is logged with the node that
 published it (scene.design_sources), counted in /diagnostics, and scores plants from each
@@ -37,19 +37,17 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
-from planter_ros import interfaces, stop_signals
+from planter_ros import diagnostics, interfaces, stop_signals
 from planter_ros.config import ConfigError, as_dict
-from planter_ros.control.sync_status import section_states
 from planter_ros.dds_domain import keep_discovery_on_host
 from planter_ros.design import from_json
 from planter_ros.scene.design_sources import DesignSources
 from planter_ros.geo import AntennaSettings
-from planter_ros.kinematics.plant_prediction import (
-    PLANT_FIELDS, PlantPredictor, PredictionSettings, planting_model_from_design)
-from planter_ros.kinematics.spacing_quality import (
+from planter_ros.prediction import (
+    PLANT_FIELDS, PlantPredictor, PredictionSettings, SectionBreaks, planting_model_from_design)
+from planter_ros.prediction import (
     QUALITY_FIELDS, SpacingQuality, format_quality)
 from planter_ros.nodes import graph
 from planter_ros.nodes.markers import marker_array
@@ -64,6 +62,7 @@ STALE_AFTER = 2.0          # s without input samples before the status says STAL
 PLANTS_LABEL = ','.join(PLANT_FIELDS)
 QUALITY_LABEL = ','.join(('row',) + QUALITY_FIELDS)
 MACHINE = -1               # the `row` of the whole machine's line in spacing_quality
+HARDWARE_ID = 'planter'    # the hardware_id of the monitor's statuses
 
 
 def plants_message(plants):
@@ -113,7 +112,7 @@ class MonitorNode(Node):
         self._quality = {row.index: SpacingQuality() for row in self._planting}
         self._machine_quality = SpacingQuality()
         self._drawn = {}                    # row index -> plants drawn (marker ids)
-        self._last_off = {}                 # row name -> last report of its section off
+        self._sections = SectionBreaks()    # the rows' section states -> breaks
 
         self.recorder = None
         self.record_error = ''
@@ -147,6 +146,7 @@ class MonitorNode(Node):
                     interfaces.SPEED_COMMAND: self._on_command,
                     interfaces.SPEED_COMMANDS: self._on_command,
                     interfaces.GNSS_FIX: self._on_fix,
+                    interfaces.SECTIONS: self._on_sections,
                     interfaces.DIAGNOSTICS: self._on_diagnostics}
         self._subs = [topic.subscribe(self, self._raw_callback(topic, handlers[topic]),
                                       qos=topic.recording_qos(), raw=True)
@@ -311,18 +311,23 @@ class MonitorNode(Node):
         it feeds."""
         self.samples_taken += 1
 
-    def _on_diagnostics(self, msg, t, _now):
+    def _on_sections(self, msg, t, _now):
         """The sync node's section states: a row switched off and on again starts a new
         sequence (its next plant has no spacing), like replay reads them from the bag."""
-        states = section_states(msg.status)
-        if not states or self._predictors is None:
+        self._section_states(t, interfaces.section_states(msg.name, msg.position))
+
+    def _on_diagnostics(self, _msg, _t, _now):
+        """/diagnostics: recorded (the run's health in the bag), nothing read from it."""
+
+    def _section_states(self, t, states):
+        """Rows' section states {row name: on} at `t` (s): each break they end goes to its
+        row's predictor."""
+        ended = {row: (start, end) for row, start, end in self._sections.update(t, states)}
+        if not ended or self._predictors is None:
             return
         for predictor, row in zip(self._predictors, self._planting):
-            on = states.get(row.name)
-            if on is False:
-                self._last_off[row.name] = t
-            elif on and row.name in self._last_off:
-                predictor.add_break(self._last_off.pop(row.name), t)
+            if row.name in ended:
+                predictor.add_break(*ended[row.name])
 
     # -- outputs -------------------------------------------------------------------------
     def _predicted(self, plants, now):
@@ -380,15 +385,19 @@ class MonitorNode(Node):
 
     def _publish_diagnostics(self):
         now = self.get_clock().now()
-        status = DiagnosticStatus(name=f'{self.get_name()}: prediction', hardware_id='planter')
-        stale = (self._last_input is None
-                 or (now.nanoseconds - self._last_input) * 1e-9 > STALE_AFTER)
+        self._pub_diag.publish(diagnostics.array(
+            [(report, HARDWARE_ID) for report in self.reports(now.nanoseconds)],
+            self.get_name(), now.to_msg()))
+
+    def reports(self, now_ns):
+        """The monitor's diagnostics.Reports: prediction, spacing quality, recording, design."""
+        stale = (self._last_input is None or (now_ns - self._last_input) * 1e-9 > STALE_AFTER)
         if not self.has_design:
-            status.level, status.message = DiagnosticStatus.WARN, 'waiting for design'
+            level, message = diagnostics.WARN, 'waiting for design'
         elif stale:
-            status.level, status.message = DiagnosticStatus.STALE, 'no measured motion'
+            level, message = diagnostics.STALE, 'no measured motion'
         else:
-            status.level, status.message = DiagnosticStatus.OK, 'predicting'
+            level, message = diagnostics.OK, 'predicting'
         values = {'plants': self._plants,
                   'uprightness_rate': '' if self._rate is None else f'{self._rate:.4f}',
                   'upright_threshold_rad': f'{self.settings.upright_threshold:.6g}'}
@@ -401,48 +410,36 @@ class MonitorNode(Node):
                 'last_hole_width_m': f'{self._last.hole_width[-1]:.6g}',
                 'last_tilt_rad': f'{self._last.tilt[-1]:.6g}',
                 'last_speed_ratio': f'{self._last.speed_ratio[-1]:.6g}'})
-        status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
-        quality = self._quality_status()
-        rec = DiagnosticStatus(name=f'{self.get_name()}: recording', hardware_id='planter')
+        prediction = diagnostics.Report(diagnostics.PREDICTION, level, message,
+                                        tuple(values.items()))
         if self.recorder is not None:
-            rec.level, rec.message = DiagnosticStatus.OK, 'recording'
-            rec.values = [KeyValue(key='bag', value=str(self.recorder.path)),
-                          KeyValue(key='messages', value=str(self.recorder.message_count)),
-                          KeyValue(key='files', value=str(len(self.recorder.files)))]
+            recording = diagnostics.Report(diagnostics.RECORDING, diagnostics.OK, 'recording', (
+                ('bag', self.recorder.path), ('messages', self.recorder.message_count),
+                ('files', len(self.recorder.files))))
         elif self.record_error:
-            rec.level, rec.message = DiagnosticStatus.ERROR, self.record_error
+            recording = diagnostics.Report(diagnostics.RECORDING, diagnostics.ERROR,
+                                           self.record_error)
         else:
-            rec.level, rec.message = DiagnosticStatus.OK, 'recording off'
-        design = self.design_sources.report()
-        source = DiagnosticStatus(name=f'{self.get_name()}: design', hardware_id='planter',
-                                  level=bytes((design.level,)), message=design.message,
-                                  values=[KeyValue(key=k, value=str(v))
-                                          for k, v in design.values])
-        msg = DiagnosticArray(status=[status, quality, rec, source])
-        msg.header.stamp = now.to_msg()
-        self._pub_diag.publish(msg)
+            recording = diagnostics.Report(diagnostics.RECORDING, diagnostics.OK,
+                                           'recording off')
+        return [prediction, self._quality_report(), recording, self.design_sources.report()]
 
-    def _quality_status(self):
+    def _quality_report(self):
         """The spacing-quality indices so far, the machine's and each row's (no judgement: OK
         once there are spacings; the standard sets no limit)."""
-        status = DiagnosticStatus(name=f'{self.get_name()}: spacing quality',
-                                  hardware_id='planter')
         lines = self.spacing_quality()
         machine = lines[0][1]
-        if not machine['spacings']:
-            status.level, status.message = DiagnosticStatus.OK, 'no spacings yet'
-        else:
-            status.level, status.message = DiagnosticStatus.OK, format_quality(machine)
+        message = format_quality(machine) if machine['spacings'] else 'no spacings yet'
         named = len(self.rows) > 1 or bool(self.rows[0].name)
         values = []
         for row, quality in lines:
             if row != MACHINE and not named:
                 continue                     # one row without a name: the machine's line
             where = '' if row == MACHINE else f' {self._labels[row]}'
-            values += [KeyValue(key=f'{field}{where}', value=_quality_text(quality[field]))
+            values += [(f'{field}{where}', _quality_text(quality[field]))
                        for field in QUALITY_FIELDS]
-        status.values = values
-        return status
+        return diagnostics.Report(diagnostics.SPACING_QUALITY, diagnostics.OK, message,
+                                  tuple(values))
 
     def destroy_node(self):
         """Place and publish the plants still held for fixes, then finalise the bag (summary,

@@ -26,11 +26,10 @@ from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from planter_ros import interfaces, stop_signals
+from planter_ros import diagnostics, interfaces, stop_signals
 from planter_ros.config import ConfigError
 from planter_ros.control import sync_status
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
@@ -118,6 +117,7 @@ class SyncNode(Node):
         self._cmd_pub = (interfaces.SPEED_COMMAND if self.implicit
                          else interfaces.SPEED_COMMANDS).publisher(self)
         self._diag_pub = interfaces.DIAGNOSTICS.publisher(self)
+        self._sections_pub = interfaces.SECTIONS.publisher(self)
         interfaces.GROUND_SPEED.subscribe(self, self._on_ground_speed, callback_group=group)
         interfaces.DESIGN.subscribe(self, self._on_design, callback_group=group)
         for unit in self.units:
@@ -132,6 +132,7 @@ class SyncNode(Node):
         self.create_timer(self.loop.control_period, self._on_control, callback_group=group)
         self.create_timer(self.loop.diagnostics_period, self._on_diagnostics,
                           callback_group=group)
+        self._publish_sections()            # latched: the monitor and recorders know at once
 
     # ---------------------------------------------------------------- the first row
     @property
@@ -325,8 +326,17 @@ class SyncNode(Node):
                                      + (f' at {stop:.3f} rad' if stop is not None else ''))
         self.get_logger().info(response.message)
         if response.success and was != on:
-            self._on_diagnostics()          # the instant of the switch, for the monitor
+            self._publish_sections()        # the instant of the switch, for the monitor
         return response
+
+    def _publish_sections(self):
+        """Every row's section on the latched `sections` topic (rows disabled in the scene
+        never plant: not named)."""
+        names, positions = interfaces.section_fields(
+            {unit.row.name: unit.law.section_on for unit in self.units if unit.drive is not None})
+        msg = JointState(name=names, position=positions)
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._sections_pub.publish(msg)
 
     def _on_law_parameters(self, value):
         with self._lock:
@@ -411,9 +421,8 @@ class SyncNode(Node):
 
     # ---------------------------------------------------------------- diagnostics
     def _on_diagnostics(self):
-        msg = DiagnosticArray(status=self.diagnostics())
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self._diag_pub.publish(msg)
+        self._diag_pub.publish(diagnostics.array(self._reports(), self.get_name(),
+                                                 self.get_clock().now().to_msg()))
 
     def _idle_reason(self, unit):
         if unit.drive is None:
@@ -438,6 +447,10 @@ class SyncNode(Node):
         """The DiagnosticStatus list the next /diagnostics message carries: a scene without
         rows keeps its three statuses (drive, ground speed, phase lock); with rows, one status
         per row; both add the bus (its load)."""
+        return list(diagnostics.array(self._reports(), self.get_name()).status)
+
+    def _reports(self):
+        """(diagnostics.Report, hardware id) of every status, in the order published."""
         now = time.monotonic()
         with self._lock:
             states = [unit.law.state(now) for unit in self.units if unit.running]
@@ -453,8 +466,8 @@ class SyncNode(Node):
                 unit = self.units[0]
                 drive = self._drive_report(unit, now)
                 if unit.status is None and unit.left_out:
-                    drive = sync_status.Report('drive', sync_status.ERROR, unit.left_out,
-                                               drive.values)
+                    drive = diagnostics.Report(diagnostics.DRIVE, diagnostics.ERROR,
+                                               unit.left_out, drive.values)
                 reports = [(drive, unit.hardware_id), (ground, unit.hardware_id),
                            (sync_status.phase_report(unit.law, now, unit.command),
                             unit.hardware_id),
@@ -468,22 +481,19 @@ class SyncNode(Node):
                             unit.label, self._drive_report(unit, now),
                             sync_status.phase_report(unit.law, now, unit.command), values)
                     else:
-                        level = sync_status.OK if unit.drive is None else (
-                            sync_status.ERROR if unit.left_out else sync_status.STALE)
+                        level = diagnostics.OK if unit.drive is None else (
+                            diagnostics.ERROR if unit.left_out else diagnostics.STALE)
                         report = sync_status.idle_row_report(unit.label,
                                                              self._idle_reason(unit), level,
                                                              values)
                     reports.append((report, unit.hardware_id))
                 reports += shared
-        return [DiagnosticStatus(level=bytes((r.level,)), name=f'{self.get_name()}: {r.task}',
-                                 message=r.message, hardware_id=hardware_id,
-                                 values=[KeyValue(key=k, value=str(v)) for k, v in r.values])
-                for r, hardware_id in reports]
+        return reports
 
 
 def _planting_angles(design):
     """Where the design's mechanism plants on its shaft (for section stops), or None."""
-    from planter_ros.kinematics.plant_prediction import planting_model_from_design
+    from planter_ros.prediction import planting_model_from_design
     try:
         model = planting_model_from_design(design)
     except (ValueError, TypeError, KeyError, ConfigError):

@@ -8,7 +8,7 @@ used unless overridden.
 
 The live monitor's rules are applied the same way: samples before the first design are not
 predicted, a changed design is in force from the next planting instant after its message (the
-plant set next is the old design's last; kinematics.plant_prediction), a design of another
+plant set next is the old design's last; planter_ros.prediction), a design of another
 mechanism starts a new sequence, stamps of 0 mean "use the receive (log) time". A machine
 with several rows (the bag's rows record, interfaces.ROWS_RECORD) is predicted row by row,
 each from its own joint and its own travelled distance (ground speed, yaw rate
@@ -17,8 +17,9 @@ bag without the record has one row, the joint `sun_bar` / `carrier`.
 
 Like the monitor, replay places each plant on the earth from the recorded GNSS fixes
 (sensing.plant_map, with the antenna position and map settings of the bag's map record), ends a
-row's spacing sequence where the sync node's diagnostics say its section was switched off, and
-judges the spacings by the ISO 7256-1 indices (kinematics.spacing_quality), per row and overall.
+row's spacing sequence where the sync node's `sections` say its section was switched off (in a
+bag recorded before that topic: its /diagnostics), and judges the spacings by the ISO 7256-1
+indices (prediction.quality), per row and overall.
 """
 
 from dataclasses import dataclass
@@ -27,14 +28,13 @@ import struct
 
 import numpy as np
 
-from planter_ros import config, interfaces
+from planter_ros import config, diagnostics, interfaces
 from planter_ros.config import ConfigError
 from planter_ros.design import Design, from_json, to_dict
-from planter_ros.control.sync_status import section_breaks, section_states
 from planter_ros.geo import AntennaSettings
-from planter_ros.kinematics.plant_prediction import (
+from planter_ros.prediction import (
     PLANT_FIELDS, Plants, PredictionSettings, planting_model_from_design, predict_plants,
-    prediction_notes, summarize)
+    prediction_notes, section_breaks, summarize)
 from planter_ros.rows import implicit_row, rows_from_record
 from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, place_plants
 from planter_ros.sensing.row_speed import motion_samples, row_speed_samples
@@ -43,7 +43,7 @@ from .bag_reader import BagError, read_recording
 from .cdr import decode_joint_states, decode_navsatfix, decode_string, decode_twist
 
 REQUIRED = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES, interfaces.DESIGN)
-OPTIONAL = (interfaces.GNSS_FIX, interfaces.DIAGNOSTICS)
+OPTIONAL = (interfaces.GNSS_FIX, interfaces.SECTIONS, interfaces.DIAGNOSTICS)
 
 
 class ReplayError(ValueError):
@@ -184,7 +184,7 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
             rows = [implicit_row()]
     planting = [row for row in rows if row.enabled]
     offsets = [row.lateral_offset for row in planting]
-    breaks = _section_breaks(rec.topics.get(interfaces.DIAGNOSTICS), planting)
+    breaks = _section_breaks(rec, planting)
 
     speed = rec.topics[interfaces.GROUND_SPEED]
     joint = rec.topics[interfaces.JOINT_STATES]
@@ -331,24 +331,41 @@ def _fixes(topic):
     return (t, *values)
 
 
-def _section_breaks(topic, planting):
+def _section_breaks(rec, planting):
     """{row name: [(start, end)]} when each row's section was off, from the sync node's
-    /diagnostics in the bag (control.sync_status.section_states)."""
+    `sections` in the bag; a bag recorded before that topic: from its /diagnostics."""
+    topic = rec.topics.get(interfaces.SECTIONS)
+    if topic is None or not topic.raw:
+        return _diagnostics_section_breaks(rec.topics.get(interfaces.DIAGNOSTICS), planting)
+    log = np.asarray(topic.log, dtype=np.int64)
+    states = [{} for _ in topic.raw]             # of each message: {row name: on}
+    times = log * 1e-9
+    for k, row in enumerate(planting):
+        stamp, position, _ = decode_joint_states(topic.raw, row.name)
+        if k == 0:
+            times = np.where(stamp != 0, stamp, log) * 1e-9
+        for state, value in zip(states, position.tolist()):
+            state.update(interfaces.section_states([row.name], [value]))
+    return section_breaks(sorted(zip(times.tolist(), states), key=lambda r: r[0]))
+
+
+def _diagnostics_section_breaks(topic, planting):
+    """{row name: [(start, end)]} from the section states of the sync node's /diagnostics in a
+    bag recorded before the `sections` topic (diagnostics.section_states)."""
     if topic is None or not topic.raw:
         return {}
-    from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.serialization import deserialize_message
     names = {row.name for row in planting}
     reports = []
     for log, raw in sorted(zip(topic.log, topic.raw), key=lambda x: x[0]):
         if b'section' not in bytes(raw):       # not the sync node's: not decoded
             continue
         try:
-            msg = deserialize_message(bytes(raw), DiagnosticArray)
-        except Exception:            # rclpy raises its own errors for bytes that are not CDR
+            msg = diagnostics.decode(raw)
+        except ValueError:
             continue
         stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        states = {k: v for k, v in section_states(msg.status).items() if k in names}
+        states = {k: v for k, v in diagnostics.section_states(msg.status).items()
+                  if k in names}
         if states:
             reports.append(((stamp or log) * 1e-9, states))
     reports.sort(key=lambda r: r[0])

@@ -5,7 +5,7 @@ import math
 from typing import TYPE_CHECKING
 
 from planter_ros import interfaces
-from planter_ros.kinematics.spacing_quality import format_quality
+from planter_ros.prediction import format_quality
 
 if TYPE_CHECKING:
     from .replay import ReplayResult

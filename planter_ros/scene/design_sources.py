@@ -13,7 +13,7 @@ when it surely came from none of the publishers of the first design. Pure: no RO
 
 from dataclasses import dataclass, replace
 
-from planter_ros.control.sync_status import OK, STALE, WARN, Report
+from planter_ros.diagnostics import DESIGN, OK, STALE, WARN, Report
 
 __all__ = ['Attribution', 'DesignSources', 'Endpoint', 'gid_text']
 
@@ -129,11 +129,11 @@ class DesignSources:
         """The node's 'design' status: WARN once another node changed the design."""
         values = tuple(self.values())
         if self.first is None:
-            return Report('design', STALE, 'waiting for design', values)
+            return Report(DESIGN, STALE, 'waiting for design', values)
         if self.foreign_changes:
-            return Report('design', WARN, f'{self.foreign_changes} design change(s) by another '
+            return Report(DESIGN, WARN, f'{self.foreign_changes} design change(s) by another '
                           f'node, the latest from {self.last_change.text}', values)
         if self.changes:
-            return Report('design', OK, f'{self.changes} design change(s), the latest from '
+            return Report(DESIGN, OK, f'{self.changes} design change(s), the latest from '
                           f'{self.last_change.text}', values)
-        return Report('design', OK, f'from {self.first.text}', values)
+        return Report(DESIGN, OK, f'from {self.first.text}', values)

@@ -21,11 +21,13 @@ def write_input_bag(run, path, **recorder_options):
 
 
 def write_machine_bag(rows, runs, profile, design, path, epoch=1_700_000_000.0,
-                      speed_period=0.05, joint_period=0.01):
+                      speed_period=0.05, joint_period=0.01, extra=()):
     """Write a simulated machine (sim.closed_loop.simulate_rows: one RowRun per row of `rows`,
     planter_ros.rows.Row) as a monitor would record its inputs: the design, ground speed with
     the profile's true v and yaw rate, one JointState with every row's joint, and the rows
-    record. Times on the simulated clock from `epoch` (s). Returns the closed Recorder."""
+    record. Times on the simulated clock from `epoch` (s). `extra`: (t, interfaces.Topic,
+    message) written too, the message stamped at t if it has a header (e.g. the sync node's
+    section states). Returns the closed Recorder."""
     import numpy as np
     from builtin_interfaces.msg import Time
     from geometry_msgs.msg import TwistStamped
@@ -42,16 +44,23 @@ def write_machine_bag(rows, runs, profile, design, path, epoch=1_700_000_000.0,
         return int(round((epoch + t) * 1e9))
 
     rec = Recorder(path)
-    for topic in (interfaces.DESIGN, interfaces.GROUND_SPEED, interfaces.JOINT_STATES):
+    topics = (interfaces.DESIGN, interfaces.GROUND_SPEED, interfaces.JOINT_STATES)
+    for topic in topics + tuple({topic for _, topic, _ in extra} - set(topics)):
         rec.add_topic(topic.resolved(), topic.type_name, topic.recording_qos())
     rec.add_metadata(interfaces.ROWS_RECORD, rows_record(rows))
     t = runs[0].t
     rec.write_message(interfaces.DESIGN.resolved(), String(data=to_json(design)), ns(-0.001))
     joints = [row.joint(design.mechanism) for row in rows]
-    events = sorted([(float(x), 0) for x in np.arange(0.0, t[-1], speed_period)]
-                    + [(float(x), 1) for x in np.arange(0.0, t[-1], joint_period)])
-    for when, kind in events:
-        if kind == 0:
+    events = sorted([(float(x), 0, None) for x in np.arange(0.0, t[-1], speed_period)]
+                    + [(float(x), 1, None) for x in np.arange(0.0, t[-1], joint_period)]
+                    + [(float(x), 2, k) for k, (x, _, _) in enumerate(extra)])
+    for when, kind, k in events:
+        if kind == 2:
+            _, topic, msg = extra[k]
+            if hasattr(msg, 'header'):
+                msg.header.stamp = stamp(when)
+            rec.write_message(topic.resolved(), msg, ns(when))
+        elif kind == 0:
             msg = TwistStamped()
             msg.header.stamp = stamp(when)
             msg.twist.linear.x = float(profile(when))

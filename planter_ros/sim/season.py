@@ -12,7 +12,7 @@ records, chunks closed every second of log time. The monitor's own outputs (plan
 uprightness_rate) come from its model fed sample by sample in log-time order, as monitor_node
 feeds it (RowSpeedStream, one PlantPredictor per row, the map's PlantPlacer), so replaying the
 bag reproduces them.
-The bag has no /diagnostics, spacing_quality or plant_markers messages (the channels are
+The bag has no /diagnostics, sections, spacing_quality or plant_markers messages (the channels are
 there): replay derives the indices and the map from the plants and fixes.
 """
 
@@ -248,7 +248,7 @@ class MonitorModel:
     once the fixes that place it are in), the machine's rolling upright rate."""
 
     def __init__(self, rows, design, settings, map_settings, antenna):
-        from planter_ros.kinematics.plant_prediction import (PlantPredictor,
+        from planter_ros.prediction import (PlantPredictor,
                                                              planting_model_from_design)
         from planter_ros.sensing.plant_map import PlantPlacer
         from planter_ros.sensing.row_speed import RowSpeedStream
@@ -308,7 +308,7 @@ def plants_message(plants):
     `plants` (dim[0] 'plant' × dim[1] = the field names)."""
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-    from planter_ros.kinematics.plant_prediction import PLANT_FIELDS
+    from planter_ros.prediction import PLANT_FIELDS
     table = plants.table()
     n, f = table.shape
     msg = Float64MultiArray()
@@ -329,7 +329,7 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
 
     from planter_ros.config import as_dict
     from planter_ros.geo import AntennaSettings
-    from planter_ros.kinematics.plant_prediction import PredictionSettings
+    from planter_ros.prediction import PredictionSettings
     from planter_ros.recording.recorder import Recorder
     from planter_ros.recording.replay import map_record
     from planter_ros.sensing.plant_map import MapSettings

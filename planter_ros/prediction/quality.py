@@ -22,9 +22,14 @@ spacings.
 same class. Pure numpy: no ROS.
 """
 
+from collections.abc import Iterable
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+__all__ = ['QUALITY_FIELDS', 'MULTIPLE_LIMIT', 'MISS_LIMIT', 'SpacingQuality', 'spacing_quality',
+           'spacing_quality_by_row', 'format_quality']
 
 # the indices in the order the monitor's topic and the JSON give them ('spacings': the count)
 QUALITY_FIELDS = ('multiple_index', 'miss_index', 'quality_of_feed_index', 'precision',
@@ -36,7 +41,7 @@ MISS_LIMIT = 1.5               # x > 1.5 d: a miss
 class SpacingQuality:
     """Running spacing-quality counts of one row (or of the whole machine)."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.spacings = 0          # spacings counted
         self.multiples = 0
         self.misses = 0
@@ -44,7 +49,7 @@ class SpacingQuality:
         self._mean = 0.0           # running mean and
         self._m2 = 0.0             # sum of squared deviations (Chan et al.'s pairwise update)
 
-    def add(self, spacing, design_spacing):
+    def add(self, spacing: ArrayLike, design_spacing: ArrayLike) -> 'SpacingQuality':
         """Count the spacings (m; NaN ones are skipped) against the design spacing d (m, a
         number or one per spacing). Returns self."""
         x = np.atleast_1d(np.asarray(spacing, dtype=float))
@@ -70,7 +75,7 @@ class SpacingQuality:
             self._singles = n
         return self
 
-    def result(self):
+    def result(self) -> dict[str, float | int | None]:
         """{multiple_index, miss_index, quality_of_feed_index, precision, spacings}: fractions
         0..1 or None when undefined, and the count of spacings used."""
         n = self.spacings
@@ -86,12 +91,14 @@ class SpacingQuality:
                 'precision': precision, 'spacings': n}
 
 
-def spacing_quality(spacing, design_spacing):
+def spacing_quality(spacing: ArrayLike,
+                    design_spacing: ArrayLike) -> dict[str, float | int | None]:
     """The indices of one set of spacings (see the module doc)."""
     return SpacingQuality().add(spacing, design_spacing).result()
 
 
-def spacing_quality_by_row(spacing, design_spacing, row, rows=None):
+def spacing_quality_by_row(spacing: ArrayLike, design_spacing: ArrayLike, row: ArrayLike,
+                           rows: Iterable[int] | None = None) -> tuple[dict[int, dict], dict]:
     """(indices of each row {row index: result}, indices of the whole machine): every row's
     spacings judged alike, the machine's = all rows' spacings together. `rows`: the row indices
     to report (those without plants get an empty result); default: the rows present."""
@@ -104,7 +111,7 @@ def spacing_quality_by_row(spacing, design_spacing, row, rows=None):
     return per_row, spacing_quality(spacing, design_spacing)
 
 
-def format_quality(quality):
+def format_quality(quality: dict) -> str:
     """One line for people: percentages with what each index counts."""
     def pct(value):
         return 'n/a' if value is None else f'{100 * value:.1f} %'

@@ -10,16 +10,12 @@ the three-arm at its lowest point). For each plant:
   interpolated), spacing to the previous plant and its error against the design spacing d;
 * speed ratio λ = A0·ω/v with A0 the synchronous advance (five-bar: l2 - l1 = d/2π);
 * tip sweep: the nozzle tip's swept horizontal extent below the soil line at depth D for the
-  actual advance v/ω (five-bar: closed form `five_bar.hole_geometry`); the tip is a point, so
-  the hole the soil sees is hole width = tip sweep + the nozzle's width along the row (the
-  design's `nozzle_width`, a scene value);
-* tilt: the seedling's root ball is released at the bottom of the path; while the nozzle climbs
-  back to the surface (shaft angle ψ_exit) it moves along the row relative to the soil by
-  (v/ω - A_r)·ψ_exit more than the synchronous path does (A_r: the advance with zero horizontal
-  nozzle speed at release; five-bar A_r = l2 - l1). The stem, held at the surface, is dragged by
-  that slip Δx while the root ball stays put: tilt = atan2(Δx, D) from vertical, positive =
-  top leaning forward (direction of travel). Zero at perfect sync; dragging (λ < 1) leans the
-  plant forward, overspeed (λ > 1) backward. Assumptions are listed in doc/monitor_recording.md.
+  actual advance v/ω; the tip is a point, so the hole the soil sees is hole width = tip sweep +
+  the nozzle's width along the row (the design's `nozzle_width`, a scene value);
+* tilt: how far the stem is dragged from vertical by the nozzle's slip against the soil while
+  it climbs out (positive = top leaning forward). Both come from the mechanism's planting
+  geometry (kinematics.planting, which explains them); the assumptions are listed in
+  doc/monitor_recording.md.
 * upright: the stem's angle to the ground, π/2 - |tilt|, at least `upright_threshold`;
   and a rolling uprightness rate over the last N plants.
 
@@ -35,173 +31,37 @@ old design's last — its spacing is scored against the old d — and every late
 and described with the new design; plants and positions go on across the change (no new
 sequence). Several changes before that plant: the latest applies.
 
+A row's section switched off and on again is a break like an input gap (prediction.sections).
+
 `predict_plants` does a whole recording at once (vectorised, used by replay); `PlantPredictor`
-does the same sample by sample (the live monitor) with the same arithmetic, so both agree.
-Pure numpy/scipy: no ROS here.
+does the same sample by sample (the live monitor) with the same arithmetic, so both agree. The
+plants come as `Plants` (prediction.plants); `planting_model_from_design` builds a design's
+planting geometry. Pure numpy/scipy: no ROS here.
 """
 
+import bisect
 from collections import deque
-from dataclasses import dataclass, fields
+from collections.abc import Sequence
+from dataclasses import dataclass
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from planter_ros.config import ConfigError, check, setting
+from planter_ros.config import check, setting
+from planter_ros.kinematics.errors import DesignError
+from planter_ros.kinematics.planting import TWO_PI, FiveBarPlanting, PathPlanting, Planting
 from planter_ros.sensing.ground_speed_filter import (
     GroundSpeedFilter, GroundSpeedLimits, filter_ground_speed)
 
-from .errors import DesignError
-from .five_bar import depth_angle, hole_geometry, static_trajectory
+from .plants import PLANT_FIELDS, Plants
 
-TWO_PI = 2.0 * math.pi
-
-# Per-plant record, in this order everywhere (topic layout, JSON keys, replay tables). SI units.
-PLANT_FIELDS = (
-    'index',             # plant number since the start of the stream (0, 1, ...)
-    'time',              # s, measurement time of the planting instant (source clock)
-    'position',          # m, travelled distance along the row since the first speed sample
-    'spacing',           # m, distance to the previous plant (NaN for the first plant)
-    'spacing_error',     # m, spacing - design spacing d (NaN for the first plant)
-    'speed_ratio',       # λ = A0·ω/v (1 = in sync; inf when v = 0)
-    'ground_speed',      # m/s, measured ground speed at the planting instant
-    'shaft_speed',       # rad/s, measured mechanism shaft speed at the planting instant
-    'hole_width',        # m, tip_sweep + the nozzle's width along the row: the soil's hole
-    'tilt',              # rad from vertical, + = top leans forward (direction of travel)
-    'upright',           # 1 if the stem's angle to the ground >= upright_threshold, else 0
-    'uprightness_rate',  # fraction upright over the last `window` plants (this one included)
-    'row',               # the planting unit: its index in the machine's rows (0 without rows)
-    # later fields go last, so a consumer reading the older ones by place keeps working
-    'tip_sweep',         # m, swept extent of the nozzle tip (a point) below the soil
-    'latitude',          # deg WGS 84 of the plant (the as-planted map); NaN without GNSS
-    'longitude',         # deg WGS 84; NaN without GNSS
-)
+__all__ = ['planting_model_from_design', 'prediction_notes', 'PredictionSettings',
+           'clean_samples', 'travelled_distance', 'plant_values', 'predict_plants',
+           'PlantPredictor']
 
 
-# ----------------------------------------------------------------------------- mechanisms
-
-class FiveBarPlanting:
-    """The geared five-bar's planting geometry (paper 1), closed form: one plant per revolution
-    at θ ≡ π (the bottom of the path, θ = 0 at the top)."""
-
-    plants_per_revolution = 1
-
-    def __init__(self, l1, l2, depth, spacing, planting_phase=math.pi, nozzle_width=0.0):
-        for name, value in (('l1', l1), ('l2', l2), ('planting_depth', depth),
-                            ('plant_spacing', spacing)):
-            _require_positive(name, value)
-        self.nozzle_width = _nozzle_width(nozzle_width)
-        if not l2 > l1:
-            raise DesignError('l2', l2, f'> l1 = {l1:.6g} m', 'the nozzle must loop')
-        if not depth < 2.0 * (l1 + l2):
-            raise DesignError('planting_depth', depth, f'< 2(l1 + l2) = {2 * (l1 + l2):.6g} m')
-        self.l1, self.l2 = float(l1), float(l2)
-        self.depth, self.spacing = float(depth), float(spacing)
-        self.planting_phase = float(planting_phase)
-        # nozzle tip speed in the frame at the bottom is (l2 - l1)·ω backwards
-        self.sync_advance = self.l2 - self.l1
-        self.release_advance = self.sync_advance
-        self.exit_angle = depth_angle(self.depth, self.l1 + self.l2)
-        self.entry_angle = self.exit_angle          # the path is symmetric about the bottom
-
-    def tip_sweep(self, advance):
-        """The tip's swept extent (m) below the soil for advance v/ω (m/rad, array)."""
-        advance = np.asarray(advance, dtype=float)
-        return np.asarray(hole_geometry(self.l1, self.l2, self.depth, advance).width)
-
-    def tip_path(self, phi):
-        """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
-        at shaft angles `phi` (rad) from the planting instant."""
-        x, y = static_trajectory(self.l1, self.l2, math.pi + np.asarray(phi, dtype=float))
-        return x, y + (self.l1 + self.l2)
-
-
-class PathPlanting:
-    """Any mechanism given by one nozzle tip's closed path in the mechanism frame (the three-arm
-    through its tip trajectory): x forward, y up, as functions of the shaft (carrier) angle over
-    one revolution; n plants per revolution, each arm the same path shifted by 2π/n.
-
-    The samples are joined by a periodic cubic spline; the planting instant is the lowest point
-    (or `planting_phase` if given); the hole is the tip's swept extent in the soil frame between
-    the surface crossings around it, taken on `samples` points of that arc.
-    """
-
-    def __init__(self, angle, x, y, plants_per_revolution, depth, spacing, planting_phase=None,
-                 samples=2048, nozzle_width=0.0):
-        from scipy.interpolate import CubicSpline
-        from scipy.optimize import brentq, minimize_scalar
-
-        _require_positive('planting_depth', depth)
-        _require_positive('plant_spacing', spacing)
-        self.nozzle_width = _nozzle_width(nozzle_width)
-        n = int(plants_per_revolution)
-        if n < 1 or n != plants_per_revolution:
-            raise DesignError('plants_per_revolution', plants_per_revolution, 'integer >= 1')
-        angle = np.asarray(angle, dtype=float)
-        x = np.asarray(x, dtype=float)
-        y = np.asarray(y, dtype=float)
-        if not (angle.ndim == 1 and angle.shape == x.shape == y.shape and angle.size >= 8):
-            raise DesignError('tip_path', f'{angle.size} samples', '>= 8 samples of equal length '
-                              'angle, x, y')
-        if not (np.all(np.isfinite(angle)) and np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-            raise DesignError('tip_path', 'non-finite samples', 'finite angle, x, y')
-        if not (np.all(np.diff(angle) > 0) and angle[-1] - angle[0] < TWO_PI):
-            raise DesignError('tip_path', 'angle samples', 'increasing, spanning < 2π rad')
-        ext = np.append(angle, angle[0] + TWO_PI)
-        self._x = CubicSpline(ext, np.append(x, x[0]), bc_type='periodic')
-        self._y = CubicSpline(ext, np.append(y, y[0]), bc_type='periodic')
-        self._angle0 = angle[0]
-        self.plants_per_revolution = n
-        self.depth, self.spacing = float(depth), float(spacing)
-
-        if planting_phase is None:
-            grid = np.linspace(angle[0], angle[0] + TWO_PI, 4096, endpoint=False)
-            i = int(np.argmin(self._y(grid)))
-            step = TWO_PI / grid.size
-            planting_phase = minimize_scalar(self._y, bracket=None,
-                                             bounds=(grid[i] - step, grid[i] + step),
-                                             method='bounded', options={'xatol': 1e-12}).x
-        phi_p = float(planting_phase)
-        self.planting_phase = phi_p
-        y_soil = float(self._y(phi_p)) + self.depth
-        if float(np.max(self._y(np.linspace(phi_p, phi_p + TWO_PI, 4096)))) <= y_soil:
-            raise DesignError('planting_depth', depth, '< the height of the tip path',
-                              'the nozzle never leaves the soil')
-
-        def below(phi):
-            return float(self._y(phi)) - y_soil
-
-        def crossing(direction):
-            # first surface crossing from the planting point in `direction`
-            grid = phi_p + direction * np.linspace(0.0, math.pi, 4097)[1:]
-            above = np.nonzero(self._y(grid) > y_soil)[0]
-            if above.size == 0:
-                raise DesignError('planting_depth', depth, '< the tip path height within half a '
-                                  'revolution of the planting point')
-            j = above[0]
-            lo = phi_p if j == 0 else grid[j - 1]
-            return brentq(below, min(lo, grid[j]), max(lo, grid[j]), xtol=1e-14)
-
-        phi_in, phi_out = crossing(-1.0), crossing(+1.0)
-        self.exit_angle = phi_out - phi_p
-        self.entry_angle = phi_p - phi_in
-        self._arc = np.linspace(phi_in, phi_out, int(samples)) - phi_p
-        self._arc_x = self._x(self._arc + phi_p)
-        # frame velocity of the tip along x at release: zero slip when v/ω = -dx/dφ
-        self.release_advance = -float(self._x(phi_p, 1))
-        self.sync_advance = n * self.spacing / TWO_PI
-
-    def tip_sweep(self, advance):
-        advance = np.asarray(advance, dtype=float)
-        xs = self._arc_x + advance[..., None] * self._arc
-        return xs.max(axis=-1) - xs.min(axis=-1)
-
-    def tip_path(self, phi):
-        """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
-        at carrier angles `phi` (rad) from the planting instant."""
-        angle = self.planting_phase + np.asarray(phi, dtype=float)
-        p = self.planting_phase
-        return self._x(angle) - float(self._x(p)), self._y(angle) - float(self._y(p))
-
+# ----------------------------------------------------------------------------- the design
 
 def planting_model_from_design(design, nozzle_width=None):
     """Build the planting geometry of a typed design (planter_ros.design; SI units).
@@ -228,17 +88,6 @@ def planting_model_from_design(design, nozzle_width=None):
                         nozzle_width=nozzle_width)
 
 
-def _nozzle_width(value):
-    """The nozzle width checked against the scene's range (DesignError, one line)."""
-    from planter_ros.config import coerce, spec_of
-
-    from .scene_settings import SceneSettings
-    try:
-        return coerce(spec_of(SceneSettings, 'nozzle_width'), value)
-    except ConfigError as exc:
-        raise DesignError.from_message(str(exc)) from None
-
-
 def prediction_notes(design, model):
     """What the figures of this design mean where the model is not validated: a list of
     {fields, text} (empty for the five-bar the model was made for). Shown next to the figures
@@ -261,15 +110,6 @@ def prediction_notes(design, model):
                               f'spacing of {TWO_PI * model.release_advance / n:.3f} m, so '
                               'every hole is wide and every plant leans'})
     return notes
-
-
-def _require_positive(name, value):
-    try:
-        ok = math.isfinite(float(value)) and float(value) > 0
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise DesignError(name, value, 'finite and > 0 m')
 
 
 # ----------------------------------------------------------------------------- settings
@@ -296,88 +136,9 @@ class PredictionSettings:
         check(self, DesignError.from_message)
 
 
-# ----------------------------------------------------------------------------- results
-
-@dataclass
-class Plants:
-    """Per-plant arrays (one entry per plant, fields as in PLANT_FIELDS)."""
-
-    index: np.ndarray
-    time: np.ndarray
-    position: np.ndarray
-    spacing: np.ndarray
-    spacing_error: np.ndarray
-    speed_ratio: np.ndarray
-    ground_speed: np.ndarray
-    shaft_speed: np.ndarray
-    hole_width: np.ndarray
-    tilt: np.ndarray
-    upright: np.ndarray
-    uprightness_rate: np.ndarray
-    row: np.ndarray
-    tip_sweep: np.ndarray
-    latitude: np.ndarray
-    longitude: np.ndarray
-
-    def __len__(self):
-        return int(self.index.size)
-
-    def table(self):
-        """(n_plants, n_fields) float array in PLANT_FIELDS order."""
-        return np.column_stack([np.asarray(getattr(self, f), dtype=float) for f in PLANT_FIELDS]) \
-            if len(self) else np.zeros((0, len(PLANT_FIELDS)))
-
-    def rows(self):
-        """List of dicts, JSON-ready: non-finite values become None."""
-        return [{f: _json_value(v) for f, v in zip(PLANT_FIELDS, row)} for row in self.table()]
-
-    @classmethod
-    def from_table(cls, table):
-        table = np.asarray(table, dtype=float).reshape(-1, len(PLANT_FIELDS))
-        return cls(**{f: table[:, i].copy() for i, f in enumerate(PLANT_FIELDS)})
-
-    @classmethod
-    def concatenate(cls, parts):
-        parts = list(parts)
-        if not parts:
-            return cls.from_table(np.zeros((0, len(PLANT_FIELDS))))
-        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                      for f in fields(cls)})
-
-
-def _json_value(v):
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
-def summarize(plants, spacing, design_spacing=None):
-    """Summary figures (SI) of a run: plant count, spacing error, hole width and tip sweep,
-    uprightness, spacing quality (each plant's spacing against `design_spacing`: one per plant,
-    default `spacing` for all)."""
-    from .spacing_quality import spacing_quality
-    err = plants.spacing_error[np.isfinite(plants.spacing_error)]
-    hole = plants.hole_width
-    sweep = plants.tip_sweep[np.isfinite(plants.tip_sweep)]
-    return {
-        'plants': len(plants),
-        'design_spacing': float(spacing),
-        'spacing_error_mean': float(err.mean()) if err.size else None,
-        'spacing_error_std': float(err.std()) if err.size else None,
-        'spacing_error_max': float(np.abs(err).max()) if err.size else None,
-        'hole_width_mean': float(hole.mean()) if hole.size else None,
-        'hole_width_max': float(hole.max()) if hole.size else None,
-        'tip_sweep_mean': float(sweep.mean()) if sweep.size else None,
-        'tip_sweep_max': float(sweep.max()) if sweep.size else None,
-        'tilt_max': float(np.abs(plants.tilt).max()) if hole.size else None,
-        'uprightness_rate': float(plants.upright.mean()) if hole.size else None,
-        'spacing_quality': spacing_quality(
-            plants.spacing, spacing if design_spacing is None else design_spacing),
-    }
-
-
 # ----------------------------------------------------------------------------- the model
 
-def clean_samples(t, *values):
+def clean_samples(t: ArrayLike, *values: ArrayLike) -> tuple[np.ndarray, ...]:
     """Drop samples with a non-finite time or first value, and samples whose time does not
     increase (out-of-order or repeated stamps). Both paths apply the same rule."""
     t = np.asarray(t, dtype=float)
@@ -393,7 +154,7 @@ def clean_samples(t, *values):
     return (t, *values)
 
 
-def travelled_distance(t, v):
+def travelled_distance(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Trapezoid integral of the ground speed from the first sample (m)."""
     inc = 0.5 * (v[:-1] + v[1:]) * (t[1:] - t[:-1])
     return np.concatenate(([0.0], np.cumsum(inc)))
@@ -432,7 +193,8 @@ def _at_speed(t_e, t0, t1, v0, v1, s0):
     return v_e, s_e
 
 
-def plant_values(model, settings, omega, v):
+def plant_values(model: Planting, settings: PredictionSettings, omega: ArrayLike,
+                 v: ArrayLike) -> tuple[np.ndarray, ...]:
     """λ, tip sweep, hole width (tip sweep + the model's nozzle width), tilt and upright flag
     for arrays of shaft speed ω > 0 and ground speed v."""
     omega = np.asarray(omega, dtype=float)
@@ -441,15 +203,17 @@ def plant_values(model, settings, omega, v):
     with np.errstate(divide='ignore'):
         ratio = np.where(v != 0, model.sync_advance * omega / np.where(v != 0, v, 1.0), np.inf)
     sweep = model.tip_sweep(advance)
-    slip = (advance - model.release_advance) * model.exit_angle
-    tilt = np.arctan2(slip, model.depth)
+    tilt = model.tilt(advance)
     upright = (0.5 * math.pi - np.abs(tilt) >= settings.upright_threshold).astype(float)
     return ratio, sweep, sweep + model.nozzle_width, tilt, upright
 
 
-def predict_plants(speed_t, speed_v, joint_t, joint_pos, joint_vel, model,
-                   settings=PredictionSettings(), row=0, speed_filter=True, changes=(),
-                   breaks=()):
+def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
+                   joint_pos: ArrayLike, joint_vel: ArrayLike, model: Planting,
+                   settings: PredictionSettings = PredictionSettings(), row: int = 0,
+                   speed_filter: bool = True,
+                   changes: Sequence[tuple[float, Planting]] = (),
+                   breaks: Sequence[tuple[float, float]] = ()) -> Plants:
     """All plants of a recording at once (vectorised). Times in s (same clock for both inputs),
     speeds m/s, shaft angle rad (unwrapped), shaft speed rad/s (NaN or empty = not measured).
     `row` goes into every plant's row field; `speed_filter` False takes speeds that already
@@ -579,7 +343,8 @@ class PlantPredictor:
 
     SPEED_HISTORY = 4096      # speed samples kept to locate plants reported late by the drive
 
-    def __init__(self, model, settings=PredictionSettings(), row=0, speed_filter=True):
+    def __init__(self, model: Planting, settings: PredictionSettings = PredictionSettings(),
+                 row: int = 0, speed_filter: bool = True) -> None:
         """`row`: the row field of its plants; `speed_filter` False: speeds already passed
         the plausibility rule (a row's speed from sensing.row_speed)."""
         self.model = model
@@ -598,7 +363,7 @@ class PlantPredictor:
         self._gaps = []                                  # input gaps (start, end) since then
         self._recent = deque(maxlen=settings.window)
 
-    def change_model(self, model, t):
+    def change_model(self, model: Planting, t: float) -> None:
         """A new design arrived at `t` (s): in force from the next planting instant (the
         first crossing later than `t`, still the old design's plant; module doc)."""
         if self._joint is None:                  # nothing turned yet: in force at once
@@ -606,7 +371,7 @@ class PlantPredictor:
             return
         self._changes.append((float(t), model))
 
-    def add_speed(self, t, v):
+    def add_speed(self, t: float, v: float) -> Plants:
         t, v = float(t), float(v)
         if not (math.isfinite(t) and math.isfinite(v)) or not t > self._speed_seen:
             return self._nothing()
@@ -625,12 +390,12 @@ class PlantPredictor:
         self._speed.append((t, v, s))
         return self._resolve()
 
-    def add_break(self, start, end):
+    def add_break(self, start: float, end: float) -> None:
         """The row's section was off from `start` to `end` (s): the first plant after it has
         no spacing (call before that plant is completed)."""
         self._gaps.append((float(start), float(end)))
 
-    def add_joint(self, t, position, velocity=math.nan):
+    def add_joint(self, t: float, position: float, velocity: float = math.nan) -> Plants:
         t, position = float(t), float(position)
         velocity = float(velocity) if velocity is not None else math.nan
         if not (math.isfinite(t) and math.isfinite(position)):
@@ -704,5 +469,4 @@ class PlantPredictor:
 
 
 def _bisect_right(a, x):
-    import bisect
     return bisect.bisect_right(a, x)

@@ -1,0 +1,25 @@
+"""Per-plant predictions from measured motion, the monitor's model and replay's: where each
+seedling went, how wide its hole is and whether it stands upright, judged by the ISO 7256-1
+spacing-quality indices.
+
+`model` turns ground-speed and shaft samples into plants (a whole recording at once, or sample
+by sample for the live monitor) with the prediction settings; `plants` holds the plant fields,
+the `Plants` arrays and a run's summary; `quality` the spacing-quality indices; `sections` the
+breaks a row's section switched off makes in its spacing sequence. The mechanism's
+planting geometry they use is kinematics.planting. Pure numpy/scipy, no ROS; depends downward
+only (kinematics, sensing, config).
+"""
+
+from .model import (PlantPredictor, PredictionSettings, clean_samples, plant_values,
+                    planting_model_from_design, predict_plants, prediction_notes,
+                    travelled_distance)
+from .plants import PLANT_FIELDS, Plants, summarize
+from .quality import (QUALITY_FIELDS, SpacingQuality, format_quality, spacing_quality,
+                      spacing_quality_by_row)
+from .sections import SectionBreaks, section_breaks
+
+__all__ = ['PLANT_FIELDS', 'Plants', 'summarize', 'PredictionSettings', 'PlantPredictor',
+           'predict_plants', 'plant_values', 'planting_model_from_design', 'prediction_notes',
+           'clean_samples', 'travelled_distance', 'QUALITY_FIELDS', 'SpacingQuality',
+           'spacing_quality', 'spacing_quality_by_row', 'format_quality', 'SectionBreaks',
+           'section_breaks']

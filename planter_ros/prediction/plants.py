@@ -1,0 +1,113 @@
+"""The plants a prediction gives: their fields (`PLANT_FIELDS`, SI, in this order everywhere: the
+`plants` topic's layout, JSON keys, replay's tables, the Parquet tables of a season), the
+`Plants` arrays and the summary figures of a run (`summarize`). Pure numpy, no ROS.
+"""
+
+from collections.abc import Iterable
+from dataclasses import dataclass, fields
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .quality import spacing_quality
+
+__all__ = ['PLANT_FIELDS', 'Plants', 'summarize']
+
+# Per-plant record, in this order everywhere (topic layout, JSON keys, replay tables). SI units.
+PLANT_FIELDS = (
+    'index',             # plant number since the start of the stream (0, 1, ...)
+    'time',              # s, measurement time of the planting instant (source clock)
+    'position',          # m, travelled distance along the row since the first speed sample
+    'spacing',           # m, distance to the previous plant (NaN for the first plant)
+    'spacing_error',     # m, spacing - design spacing d (NaN for the first plant)
+    'speed_ratio',       # λ = A0·ω/v (1 = in sync; inf when v = 0)
+    'ground_speed',      # m/s, measured ground speed at the planting instant
+    'shaft_speed',       # rad/s, measured mechanism shaft speed at the planting instant
+    'hole_width',        # m, tip_sweep + the nozzle's width along the row: the soil's hole
+    'tilt',              # rad from vertical, + = top leans forward (direction of travel)
+    'upright',           # 1 if the stem's angle to the ground >= upright_threshold, else 0
+    'uprightness_rate',  # fraction upright over the last `window` plants (this one included)
+    'row',               # the planting unit: its index in the machine's rows (0 without rows)
+    # later fields go last, so a consumer reading the older ones by place keeps working
+    'tip_sweep',         # m, swept extent of the nozzle tip (a point) below the soil
+    'latitude',          # deg WGS 84 of the plant (the as-planted map); NaN without GNSS
+    'longitude',         # deg WGS 84; NaN without GNSS
+)
+
+
+@dataclass
+class Plants:
+    """Per-plant arrays (one entry per plant, fields as in PLANT_FIELDS)."""
+
+    index: np.ndarray
+    time: np.ndarray
+    position: np.ndarray
+    spacing: np.ndarray
+    spacing_error: np.ndarray
+    speed_ratio: np.ndarray
+    ground_speed: np.ndarray
+    shaft_speed: np.ndarray
+    hole_width: np.ndarray
+    tilt: np.ndarray
+    upright: np.ndarray
+    uprightness_rate: np.ndarray
+    row: np.ndarray
+    tip_sweep: np.ndarray
+    latitude: np.ndarray
+    longitude: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.index.size)
+
+    def table(self) -> np.ndarray:
+        """(n_plants, n_fields) float array in PLANT_FIELDS order."""
+        return np.column_stack([np.asarray(getattr(self, f), dtype=float) for f in PLANT_FIELDS]) \
+            if len(self) else np.zeros((0, len(PLANT_FIELDS)))
+
+    def rows(self) -> list[dict[str, float | None]]:
+        """List of dicts, JSON-ready: non-finite values become None."""
+        return [{f: _json_value(v) for f, v in zip(PLANT_FIELDS, row)} for row in self.table()]
+
+    @classmethod
+    def from_table(cls, table: ArrayLike) -> 'Plants':
+        table = np.asarray(table, dtype=float).reshape(-1, len(PLANT_FIELDS))
+        return cls(**{f: table[:, i].copy() for i, f in enumerate(PLANT_FIELDS)})
+
+    @classmethod
+    def concatenate(cls, parts: Iterable['Plants']) -> 'Plants':
+        parts = list(parts)
+        if not parts:
+            return cls.from_table(np.zeros((0, len(PLANT_FIELDS))))
+        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                      for f in fields(cls)})
+
+
+def _json_value(v: float) -> float | None:
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def summarize(plants: Plants, spacing: float,
+              design_spacing: ArrayLike | None = None) -> dict:
+    """Summary figures (SI) of a run: plant count, spacing error, hole width and tip sweep,
+    uprightness, spacing quality (each plant's spacing against `design_spacing`: one per plant,
+    default `spacing` for all)."""
+    err = plants.spacing_error[np.isfinite(plants.spacing_error)]
+    hole = plants.hole_width
+    sweep = plants.tip_sweep[np.isfinite(plants.tip_sweep)]
+    return {
+        'plants': len(plants),
+        'design_spacing': float(spacing),
+        'spacing_error_mean': float(err.mean()) if err.size else None,
+        'spacing_error_std': float(err.std()) if err.size else None,
+        'spacing_error_max': float(np.abs(err).max()) if err.size else None,
+        'hole_width_mean': float(hole.mean()) if hole.size else None,
+        'hole_width_max': float(hole.max()) if hole.size else None,
+        'tip_sweep_mean': float(sweep.mean()) if sweep.size else None,
+        'tip_sweep_max': float(sweep.max()) if sweep.size else None,
+        'tilt_max': float(np.abs(plants.tilt).max()) if hole.size else None,
+        'uprightness_rate': float(plants.upright.mean()) if hole.size else None,
+        'spacing_quality': spacing_quality(
+            plants.spacing, spacing if design_spacing is None else design_spacing),
+    }
