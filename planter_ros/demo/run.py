@@ -121,11 +121,12 @@ class Demo:
     def replay_summary(bag) -> tuple[str, str]:
         """Re-read the finished bag offline, as `planter replay` would, and summarise it:
         (text, why it failed or '')."""
-        from planter_ros.recording.replay import ReplayError, replay
+        from planter_ros.recording.errors import RecordingError
+        from planter_ros.recording.replay import replay
         from planter_ros.recording.replay_text import format_summary
         try:
             result = replay(bag)
-        except ReplayError as exc:
+        except RecordingError as exc:
             return f'\nreplay of {bag} failed: {exc}', f'replay of {bag} failed: {exc}'
         lines = [f'\nrecorded {bag}; replay (`planter replay {bag}`):']
         lines += [f'  {line}' for line in format_summary(result).splitlines()]

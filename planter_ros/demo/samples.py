@@ -28,7 +28,7 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
 
     from planter_ros.dds_domain import claim_private_domain
     from planter_ros.nodes.monitor_node import MonitorNode
-    from planter_ros.recording.recorder import RecorderError
+    from planter_ros.recording.errors import BagWriteError
     from planter_ros.sim.lockstep import LockStepFeeder
 
     context = rclpy.Context()
@@ -39,7 +39,7 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
     try:
         monitor = MonitorNode(context=context, parameter_overrides=params)
         if monitor.recorder is None:
-            raise RecorderError(monitor.record_error or 'the monitor is not recording')
+            raise BagWriteError(monitor.record_error or 'the monitor is not recording')
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(monitor)
         feeder = LockStepFeeder(context, executor, taken=lambda: monitor.samples_taken,

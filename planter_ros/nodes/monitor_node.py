@@ -52,7 +52,8 @@ from planter_ros.prediction import (
 from planter_ros.nodes import graph
 from planter_ros.nodes.markers import marker_array
 from planter_ros.nodes.parameters import ParameterGroup, declare_rows, refuse_undeclared
-from planter_ros.recording.recorder import Recorder, RecorderConfig, RecorderError
+from planter_ros.recording.errors import BagWriteError
+from planter_ros.recording.recorder import Recorder, RecorderConfig
 from planter_ros.recording.replay import map_record
 from planter_ros.rows import rows_record
 from planter_ros.sensing.plant_map import MapSettings, PlantPlacer
@@ -190,7 +191,7 @@ class MonitorNode(Node):
                                      split_size=recording.split_size,
                                      split_duration=recording.split_duration,
                                      flush_period=recording.flush_period)
-        except RecorderError as exc:
+        except BagWriteError as exc:
             self.record_error = str(exc)
             self.get_logger().error(f'not recording: {exc}')
             return

@@ -16,14 +16,10 @@ import re
 
 from planter_ros import interfaces
 
-from .recovery import Loss, UnreadableError, one_line, read_records
+from .errors import BagUnreadableError
+from .recovery import Loss, one_line, read_records
 
 MAGIC = b'\x89MCAP0\r\n'
-
-
-class BagError(ValueError):
-    """A bag that cannot be read (one line: the file and what is wrong)."""
-
 
 def bag_files(path):
     """The .mcap files of a bag: the file itself, or a directory's files in split order."""
@@ -38,12 +34,12 @@ def _bag_parts(path):
     neighbours' messages (filled in by read_recording)."""
     path = Path(path)
     if not path.exists():
-        raise BagError(f'bag {path} does not exist')
+        raise BagUnreadableError(f'bag {path} does not exist')
     if not path.is_dir():
         return [path], []
     files = sorted(path.glob('*.mcap'), key=_split_index)
     if not files:
-        raise BagError(f'bag directory {path} holds no .mcap files')
+        raise BagUnreadableError(f'bag directory {path} holds no .mcap files')
     missing = []
     listed = _listed_files(path)
     if listed:
@@ -93,7 +89,8 @@ def _split_index(path):
 
 
 def check_magic(path):
-    """True if `path` is a finalised MCAP file (magic at both ends); BagError if not MCAP."""
+    """True if `path` is a finalised MCAP file (magic at both ends); BagUnreadableError if it
+    is not MCAP."""
     try:
         with open(path, 'rb') as f:
             head = f.read(len(MAGIC))
@@ -102,9 +99,9 @@ def check_magic(path):
             f.seek(max(size - len(MAGIC), 0))
             tail = f.read(len(MAGIC))
     except OSError as exc:
-        raise BagError(f'cannot read {path}: {exc.strerror or exc}') from None
+        raise BagUnreadableError(f'cannot read {path}: {exc.strerror or exc}') from None
     if head != MAGIC:
-        raise BagError(f'{path} is not an MCAP file (no MCAP magic at its start)')
+        raise BagUnreadableError(f'{path} is not an MCAP file (no MCAP magic at its start)')
     return size > 2 * len(MAGIC) and tail == MAGIC
 
 
@@ -167,9 +164,9 @@ def read_recording(path, wanted):
         if channels is None:
             try:
                 found = read_records(file)
-            except UnreadableError as exc:
+            except BagUnreadableError as exc:
                 if len(files) == 1:
-                    raise BagError(str(exc)) from None
+                    raise
                 warnings.append(f'{exc}: file skipped')
                 found = None
             if found is not None:

@@ -33,13 +33,15 @@ Rules shared by the bulk decoders:
 * Stamps are header.stamp in integer nanoseconds (sec * 1e9 + nanosec, int64).
 * Input is any sequence of bytes-like objects (bytes, bytearray, memoryview); order is kept.
 
-decode_string (one message, std_msgs/String) is strict instead: it raises CdrError, with a
-one-line message, for anything that is not a well-formed CDR string.
+decode_string (one message, std_msgs/String) is strict instead: it raises DecodeError
+(recording.errors), with a one-line message, for anything that is not a well-formed CDR string.
 """
 
 import struct
 
 import numpy as np
+
+from .errors import DecodeError
 
 HEADER = 4                  # encapsulation header bytes; alignment counts from its end
 STAMP = 4                   # header.stamp.sec (int32) at 4, header.stamp.nanosec (uint32) at 8
@@ -52,10 +54,6 @@ _UNPRODUCTIVE = 16
 _WORTH = 256
 
 
-class CdrError(ValueError):
-    """A CDR message that cannot be decoded (one line: what is wrong with it)."""
-
-
 # ----------------------------------------------------------------------------- walking
 
 def _align(pos, size):
@@ -64,26 +62,26 @@ def _align(pos, size):
 
 
 def _byte_order(raw, what):
-    """'<' or '>' from the encapsulation header; CdrError for anything but plain CDR."""
+    """'<' or '>' from the encapsulation header; DecodeError for anything but plain CDR."""
     if len(raw) < HEADER:
-        raise CdrError(f'{what}: {len(raw)} bytes, shorter than the 4-byte CDR encapsulation '
+        raise DecodeError(f'{what}: {len(raw)} bytes, shorter than the 4-byte CDR encapsulation '
                        'header')
     if raw[0] != 0 or raw[1] > 1:
-        raise CdrError(f'{what}: encapsulation {bytes(raw[:2]).hex()} is not plain CDR '
+        raise DecodeError(f'{what}: encapsulation {bytes(raw[:2]).hex()} is not plain CDR '
                        '(0000 big endian or 0001 little endian)')
     return '<' if raw[1] else '>'
 
 
 def _u32(raw, pos, e, what, field):
     if pos + 4 > len(raw):
-        raise CdrError(f'{what}: truncated at {field} (needs bytes {pos}-{pos + 3}, message '
+        raise DecodeError(f'{what}: truncated at {field} (needs bytes {pos}-{pos + 3}, message '
                        f'has {len(raw)})')
     return struct.unpack_from(e + 'I', raw, pos)[0]
 
 
 def _need(raw, end, what, field):
     if end > len(raw):
-        raise CdrError(f'{what}: truncated in {field} (needs {end} bytes, message has '
+        raise DecodeError(f'{what}: truncated in {field} (needs {end} bytes, message has '
                        f'{len(raw)})')
 
 
@@ -91,7 +89,7 @@ def _string_end(raw, pos, e, what, field):
     """End of the CDR string whose length is at pos (checked to fit, length >= 1)."""
     n = _u32(raw, pos, e, what, f'{field} length')
     if n == 0:
-        raise CdrError(f'{what}: {field} has length 0 (a CDR string holds at least its NUL)')
+        raise DecodeError(f'{what}: {field} has length 0 (a CDR string holds at least its NUL)')
     _need(raw, pos + 4 + n, what, field)
     return pos + 4 + n
 
@@ -151,7 +149,7 @@ def _joint_layout(raw, joint):
     pos = _align(pos, 4)
     count = _u32(raw, pos, e, what, 'name count')
     if count > (len(raw) - pos - 4) // 5:           # each name: 4-byte length + at least NUL
-        raise CdrError(f'{what}: name count {count} does not fit in {len(raw)} bytes')
+        raise DecodeError(f'{what}: name count {count} does not fit in {len(raw)} bytes')
     ranges.append((pos, pos + 4))
     pos += 4
     index = None
@@ -179,7 +177,7 @@ def _joint_layout(raw, joint):
 
 def _bulk(raws, layout_of, n_values):
     """Decode messages grouped by layout. layout_of(raw) -> (byte order, offsets, ranges),
-    raising CdrError for a message it cannot walk; an offset is a float64's, or (offset, numpy
+    raising DecodeError for a message it cannot walk; an offset is a float64's, or (offset, numpy
     type code) for another number ('i1', 'u1'). Returns (stamp ns int64 [n], values float64
     [n_values, n]); a left-out message has stamp 0 and NaN values, an absent value (offset
     None) is NaN."""
@@ -204,7 +202,7 @@ def _bulk(raws, layout_of, n_values):
             first = int(pending[0])
             try:
                 e, offsets, ranges = layout_of(raws[idx[first]])
-            except CdrError:
+            except DecodeError:
                 pending = pending[1:]               # left out; others may still decode
                 continue
             if alone:                               # one-off layouts: walk each by itself
@@ -281,16 +279,16 @@ def decode_joint_states(raws, joint_name):
 
 
 def decode_string(raw):
-    """The text of one std_msgs/String CDR message. Raises CdrError (a ValueError) with a
+    """The text of one std_msgs/String CDR message. Raises DecodeError with a
     one-line message for an empty, truncated, unterminated or non-UTF-8 payload."""
     what = 'std_msgs/String'
     e = _byte_order(raw, what)
     end = _string_end(raw, HEADER, e, what, 'data')
     if raw[end - 1] != 0:
-        raise CdrError(f'{what}: data is not NUL-terminated (byte {end - 1} is '
+        raise DecodeError(f'{what}: data is not NUL-terminated (byte {end - 1} is '
                        f'0x{raw[end - 1]:02x})')
     try:
         return bytes(raw[HEADER + 4:end - 1]).decode('utf-8')
     except UnicodeDecodeError as exc:
-        raise CdrError(f'{what}: data is not UTF-8 ({exc.reason} at byte '
+        raise DecodeError(f'{what}: data is not UTF-8 ({exc.reason} at byte '
                        f'{HEADER + 4 + exc.start})') from None

@@ -32,6 +32,8 @@ import yaml
 
 from planter_ros.config import check, setting
 
+from .errors import BagWriteError
+
 PROFILE = 'ros2'
 SCHEMA_ENCODING = 'ros2msg'
 MESSAGE_ENCODING = 'cdr'
@@ -43,10 +45,6 @@ PRIMITIVE_TYPES = frozenset((
 _FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
 # rosbag2's infinite duration in QoS YAML
 _INFINITE = {'sec': 9223372036, 'nsec': 854775807}
-
-
-class RecorderError(RuntimeError):
-    """A bag that cannot be written as asked (one line: the path or value and why)."""
 
 
 @dataclass(frozen=True)
@@ -68,7 +66,7 @@ class RecorderConfig:
                                   read_only=True)
 
     def __post_init__(self):
-        check(self, RecorderError)
+        check(self, BagWriteError)
 
 
 # ----------------------------------------------------------------------------- definitions
@@ -79,7 +77,7 @@ def _share_dir(package):
     try:
         return Path(get_package_share_directory(package))
     except PackageNotFoundError:
-        raise RecorderError(f'message package {package} not found (AMENT_PREFIX_PATH='
+        raise BagWriteError(f'message package {package} not found (AMENT_PREFIX_PATH='
                             f'{os.environ.get("AMENT_PREFIX_PATH")})') from None
 
 
@@ -89,7 +87,7 @@ def _split_type(type_name):
         return parts[0], 'msg', parts[1]
     if len(parts) == 3:
         return tuple(parts)
-    raise RecorderError(f'message type {type_name!r} is not pkg/msg/Type')
+    raise BagWriteError(f'message type {type_name!r} is not pkg/msg/Type')
 
 
 def message_definition(type_name):
@@ -102,7 +100,7 @@ def message_definition(type_name):
         try:
             return path.read_text(), package
         except OSError:
-            raise RecorderError(f'no message definition {path} for {name}') from None
+            raise BagWriteError(f'no message definition {path} for {name}') from None
 
     def append(name):
         text, package = text_of(name)
@@ -211,14 +209,14 @@ class Recorder:
     def __init__(self, path=None, *, split_size=0, split_duration=0.0, flush_period=1.0,
                  chunk_size=1 << 20, bags_dir='bags', monotonic=time.monotonic):
         RecorderConfig(split_size=split_size, split_duration=split_duration,
-                       flush_period=flush_period)          # RecorderError if out of range
+                       flush_period=flush_period)          # BagWriteError if out of range
         path = default_bag_path(bags_dir) if path in (None, '') else Path(path)
         self.single_file = path.suffix == '.mcap'
         if self.single_file and (split_size or split_duration):
-            raise RecorderError(f'bag {path}: splitting needs a bag directory path '
+            raise BagWriteError(f'bag {path}: splitting needs a bag directory path '
                                 '(without .mcap)')
         if path.exists():
-            raise RecorderError(f'bag {path} already exists: choose another path '
+            raise BagWriteError(f'bag {path} already exists: choose another path '
                                 '(recordings are never overwritten)')
         try:
             if self.single_file:
@@ -226,7 +224,7 @@ class Recorder:
             else:
                 path.mkdir(parents=True, exist_ok=False)
         except OSError as exc:
-            raise RecorderError(f'cannot create bag {path}: {exc.strerror or exc}') from None
+            raise BagWriteError(f'cannot create bag {path}: {exc.strerror or exc}') from None
         self.path = path
         self.name = path.stem if self.single_file else path.name
         self.split_size = split_size
@@ -271,10 +269,10 @@ class Recorder:
     def write(self, topic, data, log_time, publish_time=None):
         """Record one CDR message (bytes) received at `log_time` ns, sent at `publish_time`."""
         if self.closed:
-            raise RecorderError(f'bag {self.path} is closed')
+            raise BagWriteError(f'bag {self.path} is closed')
         entry = self._topics.get(topic)
         if entry is None:
-            raise RecorderError(f'topic {topic} was not added to bag {self.path}')
+            raise BagWriteError(f'topic {topic} was not added to bag {self.path}')
         log_time = int(log_time)
         self._maybe_split(log_time)
         self._writer.add_message(entry.channel, log_time, bytes(data),
@@ -366,10 +364,10 @@ class Recorder:
         try:
             raw = open(path, 'xb')
         except FileExistsError:
-            raise RecorderError(f'bag file {path} already exists (recordings are never '
+            raise BagWriteError(f'bag file {path} already exists (recordings are never '
                                 'overwritten)') from None
         except OSError as exc:
-            raise RecorderError(f'cannot create bag file {path}: {exc.strerror or exc}') from None
+            raise BagWriteError(f'cannot create bag file {path}: {exc.strerror or exc}') from None
         self._stream = raw
         self._writer = Writer(raw, chunk_size=self.chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library='planter_ros recorder (mcap python)')
@@ -425,5 +423,5 @@ class Recorder:
             self._open_file()
 
 
-__all__ = ['Recorder', 'RecorderError', 'default_bag_path', 'message_definition', 'qos_yaml',
+__all__ = ['Recorder', 'default_bag_path', 'message_definition', 'qos_yaml',
            'type_hash']

@@ -21,24 +21,14 @@ import mmap
 import struct
 import zlib
 
+from .errors import BagDamagedError, BagUnreadableError
+
 SCAN_LIMIT = 16 << 20          # bytes searched for a first valid record
 MAX_CHUNK = 1 << 30            # a chunk header claiming more than this is not believed
 COMPRESSIONS = ('', 'zstd', 'lz4')
 _OPCODES = range(0x01, 0x10)
 _FOOTER_LENGTH = 20            # summary_start u64, summary_offset_start u64, summary_crc u32
 _MAGIC_SIZE = 8
-
-
-class UnreadableError(ValueError):
-    """No valid MCAP record where one must be (one line)."""
-
-
-class _BadRecord(ValueError):
-    """Not a whole, valid record at `pos`; `reason` says why in a few words."""
-
-    def __init__(self, pos, reason):
-        super().__init__(f'record at byte {pos}: {reason}')
-        self.reason = reason
 
 
 @dataclass
@@ -84,11 +74,11 @@ def one_line(exc):
 
 def read_records(file):
     """Read every intact record of `file` (see the module doc): a Recovered.
-    UnreadableError if no valid record is found at all."""
+    BagUnreadableError if no valid record is found at all."""
     with open(file, 'rb') as f:
         size = f.seek(0, 2)
         if size <= _MAGIC_SIZE:
-            raise UnreadableError(f'{file} holds no MCAP record (file of {size} bytes)')
+            raise BagUnreadableError(f'{file} holds no MCAP record (file of {size} bytes)')
         with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
             summary = read_summary(data)
             if summary is not None and summary['chunks']:
@@ -107,21 +97,21 @@ def read_records(file):
 
 def record_at(data, pos, end=None):
     """(opcode, record or None for an unknown/ignored kind, end offset) of the record at pos;
-    _BadRecord if it is not a whole, valid record. Chunks are opened and CRC-checked."""
+    BagDamagedError if it is not a whole, valid record. Chunks are opened and CRC-checked."""
     from mcap.data_stream import ReadDataStream
     from mcap.records import (
         Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, Metadata, MetadataIndex,
         Schema, Statistics)
     end = len(data) if end is None else end
     if pos + 9 > end:
-        raise _BadRecord(pos, 'record header cut off')
+        raise BagDamagedError('record header cut off', at=pos)
     opcode = data[pos]
     (length,) = struct.unpack_from('<Q', data, pos + 1)
     if opcode not in _OPCODES:
-        raise _BadRecord(pos, f'no record opcode (0x{opcode:02X})')
+        raise BagDamagedError(f'no record opcode (0x{opcode:02X})', at=pos)
     stop = pos + 9 + length
     if stop > end:
-        raise _BadRecord(pos, 'record runs past the end of the file')
+        raise BagDamagedError('record runs past the end of the file', at=pos)
     kinds = {0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
              0x08: ChunkIndex, 0x0B: Statistics, 0x0D: MetadataIndex, 0x0F: DataEnd}
     stream = ReadDataStream(io.BytesIO(data[pos + 9:stop]))
@@ -136,9 +126,11 @@ def record_at(data, pos, end=None):
             record = kinds[opcode].read(stream)
         else:                        # message/attachment indexes, attachments: not needed
             record = None
+    except BagDamagedError as exc:   # the chunk header's own check
+        raise BagDamagedError(exc.reason, at=pos) from None
     except Exception as exc:         # struct, zstd, CRC, UTF-8, mcap's EndOfFile, ...
         reason = 'CRC mismatch' if type(exc).__name__ == 'CRCValidationError' else one_line(exc)
-        raise _BadRecord(pos, reason) from None
+        raise BagDamagedError(reason, at=pos) from None
     return opcode, record, stop
 
 
@@ -146,16 +138,16 @@ def check_chunk_header(data, pos, length):
     """Cheap consistency of a chunk header (before anything is decompressed)."""
     body = pos + 9
     if length < 8 + 8 + 8 + 4 + 4 + 8:
-        raise ValueError('chunk too short')
+        raise BagDamagedError('chunk too short')
     start, end, uncompressed = struct.unpack_from('<QQQ', data, body)
     (n,) = struct.unpack_from('<I', data, body + 28)
     if start > end or uncompressed > MAX_CHUNK or n > 8 or body + 32 + n + 8 > pos + 9 + length:
-        raise ValueError('inconsistent chunk header')
+        raise BagDamagedError('inconsistent chunk header')
     if bytes(data[body + 32:body + 32 + n]).decode('ascii', 'replace') not in COMPRESSIONS:
-        raise ValueError('unknown chunk compression')
+        raise BagDamagedError('unknown chunk compression')
     (records,) = struct.unpack_from('<Q', data, body + 32 + n)
     if body + 32 + n + 8 + records > pos + 9 + length:
-        raise ValueError('chunk records run past the chunk')
+        raise BagDamagedError('chunk records run past the chunk')
 
 
 def _open_chunk(chunk):
@@ -176,7 +168,7 @@ def read_summary(data):
         return None
     try:
         _, footer, _ = record_at(data, footer_at, size - _MAGIC_SIZE)
-    except ValueError:
+    except BagDamagedError:
         return None
     if not isinstance(footer, Footer) or not _MAGIC_SIZE <= footer.summary_start < footer_at:
         return None
@@ -196,7 +188,7 @@ def read_summary(data):
                 out['chunks'].append(record)
             elif isinstance(record, MetadataIndex):
                 out['metadata'].append(record)
-    except ValueError:
+    except BagDamagedError:
         return None
     return out
 
@@ -211,8 +203,8 @@ def _read_indexed(data, summary):
         try:
             _, chunk, _ = record_at(data, index.chunk_start_offset)
             if not isinstance(chunk, Chunk):
-                raise _BadRecord(index.chunk_start_offset, 'not a chunk')
-        except _BadRecord as exc:
+                raise BagDamagedError('not a chunk', at=index.chunk_start_offset)
+        except BagDamagedError as exc:
             out.losses.append(Loss(index.message_start_time, index.message_end_time,
                                    f'damaged chunk at byte {index.chunk_start_offset} '
                                    f'({exc.reason})'))
@@ -222,7 +214,7 @@ def _read_indexed(data, summary):
     for index in summary['metadata']:
         try:
             _, record, _ = record_at(data, index.offset)
-        except ValueError:
+        except BagDamagedError:
             record = None
         if isinstance(record, Metadata):
             out.add(record)
@@ -243,13 +235,13 @@ def _scan(data, file):
     while pos < size:
         try:
             _, record, stop = record_at(data, pos)
-        except ValueError as exc:
+        except BagDamagedError as exc:
             before = out.last_time()
             limit = size if valid else min(size, _MAGIC_SIZE + SCAN_LIMIT)
             found = _next_chunk(data, pos + 1, limit)
             if found is None:
                 if not valid:
-                    raise UnreadableError(
+                    raise BagUnreadableError(
                         f'{file} holds no valid MCAP record in its first '
                         f'{min(size, _MAGIC_SIZE + SCAN_LIMIT)} bytes ({exc})') from None
                 if pos < size - _MAGIC_SIZE or bytes(data[pos:]) != b'\x89MCAP0\r\n':
@@ -282,5 +274,5 @@ def _next_chunk(data, start, stop):
         try:
             _, record, _ = record_at(data, at)
             return at, record
-        except ValueError:
+        except BagDamagedError:
             start = at + 1

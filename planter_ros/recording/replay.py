@@ -39,15 +39,12 @@ from planter_ros.rows import implicit_row, rows_from_record
 from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, place_plants
 from planter_ros.sensing.row_speed import motion_samples, row_speed_samples
 
-from .bag_reader import BagError, read_recording
+from .bag_reader import read_recording
 from .cdr import decode_joint_states, decode_navsatfix, decode_string, decode_twist
+from .errors import DecodeError, ReplayError, TopicMissingError
 
 REQUIRED = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES, interfaces.DESIGN)
 OPTIONAL = (interfaces.GNSS_FIX, interfaces.SECTIONS, interfaces.DIAGNOSTICS)
-
-
-class ReplayError(ValueError):
-    """A bag replay cannot use (one line: the file and what is wrong)."""
 
 
 @dataclass
@@ -109,24 +106,22 @@ def settings_from_recording(recorded, overrides=None, warnings=None):
 
 
 def replay(path, settings_overrides=None, with_recorded=False, fallback_design=None):
-    """Re-run the prediction model on a bag. Raises ReplayError for an unusable bag and
-    ConfigError for a bad setting override (`nozzle_width` among them replaces the design's).
+    """Re-run the prediction model on a bag. Raises a RecordingError for a bag it cannot use
+    (BagUnreadableError, TopicMissingError, ReplayError: recording.errors) and ConfigError
+    for a bad setting override (`nozzle_width` among them replaces the design's).
     `fallback_design` (a Design, e.g. of the scene the run used) stands in for the whole
     bag when it holds no usable design message (lost in a damaged part); it is ignored, with a
     warning, when the bag has its own."""
     overrides = dict(settings_overrides or {})
     nozzle_override = overrides.pop('nozzle_width', None)
     wanted = REQUIRED + OPTIONAL + ((interfaces.PLANTS,) if with_recorded else ())
-    try:
-        rec = read_recording(path, wanted)
-    except BagError as exc:
-        raise ReplayError(str(exc)) from None
+    rec = read_recording(path, wanted)
     required = REQUIRED if fallback_design is None else REQUIRED[:2]
     missing = [t for t in required if t not in rec.topics]
     if missing:
         found = ', '.join(f'{n} ({t})' for n, t in sorted(rec.all_topics.items())) or 'none'
         want = ', '.join(f'.../{t.name} ({t.type_name})' for t in missing)
-        raise ReplayError(f'bag {path} lacks {want}; topics found: {found}')
+        raise TopicMissingError(f'bag {path} lacks {want}; topics found: {found}')
     design_topic = rec.topics.get(interfaces.DESIGN)
     recorded_settings = rec.metadata.get(interfaces.PREDICTION_SETTINGS_RECORD, {})
     settings = settings_from_recording(recorded_settings, overrides, rec.warnings)
@@ -140,8 +135,8 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
                            key=lambda x: x[0]):
         try:
             text = decode_string(raw)
-        except (ValueError, IndexError, struct.error):
-            undecodable += 1     # empty, cut short or not UTF-8 (CdrError is a ValueError)
+        except (DecodeError, IndexError, struct.error):
+            undecodable += 1     # empty, cut short or not UTF-8
             continue
         if designs and designs[-1][1] == text:
             continue
