@@ -86,12 +86,11 @@ def build_parser(argv=()):
 def main(argv=None):
     from planter_ros.config import ConfigError
     from planter_ros.output_files import OutputError
-    from planter_ros.recording.errors import RecordingError
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
         args = build_parser(argv).parse_args(argv)
         return int(args._run(args) or 0)
-    except (BadInput, ConfigError, OutputError, RecordingError) as exc:
+    except (BadInput, ConfigError, OutputError) as exc:
         print(f'planter: error: {one_line(str(exc))}', file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
