@@ -39,6 +39,8 @@ plants come as `Plants` (prediction.plants); `planting_model_from_design` builds
 planting geometry. Pure numpy/scipy: no ROS here.
 """
 
+from __future__ import annotations
+
 import bisect
 from collections import deque
 from collections.abc import Sequence
@@ -46,9 +48,11 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from planter_ros.config import check, setting
+from planter_ros.design.model import Design
+from planter_ros.kinematics.arrays import FloatArray, Floats
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.planting import TWO_PI, FiveBarPlanting, PathPlanting, Planting
 from planter_ros.sensing.ground_speed_filter import (
@@ -63,7 +67,7 @@ __all__ = ['planting_model_from_design', 'prediction_notes', 'PredictionSettings
 
 # ----------------------------------------------------------------------------- the design
 
-def planting_model_from_design(design, nozzle_width=None):
+def planting_model_from_design(design: Design, nozzle_width: float | None = None) -> Planting:
     """Build the planting geometry of a typed design (planter_ros.design; SI units).
 
     five_bar: l1, l2, planting_depth, plant_spacing. three_arm: tip_path of one arm over one
@@ -88,7 +92,7 @@ def planting_model_from_design(design, nozzle_width=None):
                         nozzle_width=nozzle_width)
 
 
-def prediction_notes(design, model):
+def prediction_notes(design: Design, model: Planting) -> list[dict]:
     """What the figures of this design mean where the model is not validated: a list of
     {fields, text} (empty for the five-bar the model was made for). Shown next to the figures
     by replay and the demo, and in their JSON."""
@@ -132,7 +136,7 @@ class PredictionSettings:
     # which ground-speed samples to believe: the sync node's rule (spikes, NaN, too fast)
     speed_limits: GroundSpeedLimits = GroundSpeedLimits()
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self, DesignError.from_message)
 
 
@@ -160,11 +164,11 @@ def travelled_distance(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.concatenate(([0.0], np.cumsum(inc)))
 
 
-def _threshold(model, k):
+def _threshold(model: Planting, k: Floats) -> Floats:
     return model.planting_phase + k * (TWO_PI / model.plants_per_revolution)
 
 
-def _first_k(model, theta0):
+def _first_k(model: Planting, theta0: float) -> int:
     """Smallest planting index k whose angle lies strictly beyond theta0."""
     n = model.plants_per_revolution
     k = math.floor((theta0 - model.planting_phase) * n / TWO_PI)
@@ -175,7 +179,8 @@ def _first_k(model, theta0):
     return k
 
 
-def _crossing(theta_k, t0, t1, th0, th1, w0, w1):
+def _crossing(theta_k: Floats, t0: Floats, t1: Floats, th0: Floats, th1: Floats, w0: Floats,
+              w1: Floats) -> tuple[Floats, Floats]:
     """Instant and shaft speed where the running-maximum shaft angle reaches theta_k."""
     frac = (theta_k - th0) / (th1 - th0)
     t_e = t0 + frac * (t1 - t0)
@@ -185,7 +190,8 @@ def _crossing(theta_k, t0, t1, th0, th1, w0, w1):
     return t_e, omega
 
 
-def _at_speed(t_e, t0, t1, v0, v1, s0):
+def _at_speed(t_e: Floats, t0: Floats, t1: Floats, v0: Floats, v1: Floats,
+              s0: Floats) -> tuple[Floats, Floats]:
     """Ground speed and travelled distance at t_e inside the speed sample interval [t0, t1)."""
     g = (t_e - t0) / (t1 - t0)
     v_e = v0 + g * (v1 - v0)
@@ -255,7 +261,9 @@ def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
                      new_sequence=_after_gap(t_e, -np.inf, starts), row=row)
 
 
-def _crossings(models, change_times, jt, theta, jw):
+def _crossings(models: Sequence[Planting], change_times: Sequence[float], jt: FloatArray,
+               theta: FloatArray, jw: FloatArray
+               ) -> tuple[NDArray[np.intp], FloatArray, FloatArray, NDArray[np.intp]]:
     """Every planting instant of a running-maximum shaft angle `theta` (at times `jt`):
     (index of the joint sample after it, instant, shaft speed, index into `models` of the
     design in force). models[0] is in force from the start, models[c] from the first crossing
@@ -288,13 +296,13 @@ def _crossings(models, change_times, jt, theta, jw):
     return tuple(np.concatenate(c) for c in zip(*parts))
 
 
-def _gaps(t, gap):
+def _gaps(t: FloatArray, gap: float) -> FloatArray:
     """(start, end) of every interval between consecutive samples `t` longer than `gap`."""
     k = np.nonzero(np.diff(t) > gap)[0]
     return np.column_stack((t[k], t[k + 1]))
 
 
-def _after_gap(t_e, t_before, gaps):
+def _after_gap(t_e: FloatArray, t_before: float, gaps: FloatArray) -> NDArray[np.bool_]:
     """For plants at increasing instants `t_e` (the previous one at `t_before`): does an input
     gap (rows of start, end) lie between each plant and the one before it?"""
     if not len(gaps) or not t_e.size:
@@ -306,8 +314,10 @@ def _after_gap(t_e, t_before, gaps):
     return (n > 0) & (latest_end[np.maximum(n - 1, 0)] > before)
 
 
-def _assemble(models, settings, t_e, omega, v_e, s_e, index0, prev_position, recent,
-              new_sequence, row=0):
+def _assemble(models: Planting | Sequence[Planting], settings: PredictionSettings,
+              t_e: FloatArray, omega: FloatArray, v_e: FloatArray, s_e: FloatArray,
+              index0: int, prev_position: float, recent: Sequence[float],
+              new_sequence: NDArray[np.bool_], row: int = 0) -> Plants:
     """Plants from their instants, speeds and positions; `models[p]` is the design in force
     for plant p (one model: for all of them)."""
     n = t_e.size
@@ -395,7 +405,8 @@ class PlantPredictor:
         no spacing (call before that plant is completed)."""
         self._gaps.append((float(start), float(end)))
 
-    def add_joint(self, t: float, position: float, velocity: float = math.nan) -> Plants:
+    def add_joint(self, t: float, position: float,
+                  velocity: float | None = math.nan) -> Plants:
         t, position = float(t), float(position)
         velocity = float(velocity) if velocity is not None else math.nan
         if not (math.isfinite(t) and math.isfinite(position)):
@@ -426,7 +437,7 @@ class PlantPredictor:
         self._joint = (t, th1, velocity)
         return self._resolve()
 
-    def _resolve(self):
+    def _resolve(self) -> Plants:
         if not self._pending or len(self._speed) < 2:
             return self._nothing()
         first_t, last_t = self._speed[0][0], self._speed[-1][0]
@@ -464,9 +475,9 @@ class PlantPredictor:
         self._recent.extend(plants.upright.tolist())
         return plants
 
-    def _nothing(self):
+    def _nothing(self) -> Plants:
         return Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
 
 
-def _bisect_right(a, x):
+def _bisect_right(a: Sequence[float], x: float) -> int:
     return bisect.bisect_right(a, x)
