@@ -65,24 +65,24 @@ def _byte_order(raw, what):
     """'<' or '>' from the encapsulation header; DecodeError for anything but plain CDR."""
     if len(raw) < HEADER:
         raise DecodeError(f'{what}: {len(raw)} bytes, shorter than the 4-byte CDR encapsulation '
-                       'header')
+                          'header')
     if raw[0] != 0 or raw[1] > 1:
         raise DecodeError(f'{what}: encapsulation {bytes(raw[:2]).hex()} is not plain CDR '
-                       '(0000 big endian or 0001 little endian)')
+                          '(0000 big endian or 0001 little endian)')
     return '<' if raw[1] else '>'
 
 
 def _u32(raw, pos, e, what, field):
     if pos + 4 > len(raw):
         raise DecodeError(f'{what}: truncated at {field} (needs bytes {pos}-{pos + 3}, message '
-                       f'has {len(raw)})')
+                          f'has {len(raw)})')
     return struct.unpack_from(e + 'I', raw, pos)[0]
 
 
 def _need(raw, end, what, field):
     if end > len(raw):
         raise DecodeError(f'{what}: truncated in {field} (needs {end} bytes, message has '
-                       f'{len(raw)})')
+                          f'{len(raw)})')
 
 
 def _string_end(raw, pos, e, what, field):
@@ -286,9 +286,9 @@ def decode_string(raw):
     end = _string_end(raw, HEADER, e, what, 'data')
     if raw[end - 1] != 0:
         raise DecodeError(f'{what}: data is not NUL-terminated (byte {end - 1} is '
-                       f'0x{raw[end - 1]:02x})')
+                          f'0x{raw[end - 1]:02x})')
     try:
         return bytes(raw[HEADER + 4:end - 1]).decode('utf-8')
     except UnicodeDecodeError as exc:
         raise DecodeError(f'{what}: data is not UTF-8 ({exc.reason} at byte '
-                       f'{HEADER + 4 + exc.start})') from None
+                          f'{HEADER + 4 + exc.start})') from None

@@ -153,7 +153,7 @@ class IndexedFile:
         data, pos = self._data, index.message_index_offsets[cid]
         if pos + 15 > len(data) or data[pos] != _MESSAGE_INDEX:
             raise BagDamagedError(f'message index of channel {cid} points at byte {pos}, not at a '
-                                'message index')
+                                  'message index')
         (length,) = struct.unpack_from('<Q', data, pos + 1)
         channel, count = struct.unpack_from('<HI', data, pos + 9)
         if channel != cid or count % 16 or 6 + count > length or pos + 9 + length > len(data):

@@ -242,7 +242,7 @@ def _scan(data, file):
             if found is None:
                 if not valid:
                     raise BagUnreadableError(
-                        f'{file} holds no valid MCAP record in its first '
+                                             f'{file} holds no valid MCAP record in its first '
                         f'{min(size, _MAGIC_SIZE + SCAN_LIMIT)} bytes ({exc})') from None
                 if pos < size - _MAGIC_SIZE or bytes(data[pos:]) != b'\x89MCAP0\r\n':
                     out.losses.append(Loss(before, None, f'cut off or damaged from byte {pos} '
