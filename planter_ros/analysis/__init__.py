@@ -4,3 +4,6 @@ distributed (a local cluster or an existing one) into two Parquet tables, `plant
 `task` is what a worker runs, `engine` starts or joins the cluster, `season` keeps the tables
 under --out and decides what is left to do, `progress` reports on stderr.
 """
+
+# the submodules (imported by name, never here)
+__all__ = ['bags', 'engine', 'exports', 'progress', 'season', 'simulate', 'tables', 'task']

@@ -18,14 +18,24 @@ finds and reports exactly what is damaged. A chunk written without message index
 record by record (mcap's parser).
 """
 
+from __future__ import annotations
+
+from collections.abc import Collection
 import mmap
+from pathlib import Path
 import struct
+from typing import TYPE_CHECKING
 import zlib
 
 import numpy as np
+from numpy.typing import NDArray
 
+from .cdr import Raw
 from .errors import BagDamagedError
 from .recovery import check_chunk_header, read_summary, record_at
+
+if TYPE_CHECKING:
+    from mcap.records import ChunkIndex
 
 _MESSAGE = 0x05
 _MESSAGE_INDEX = 0x07
@@ -37,7 +47,7 @@ _DATA = 1 + 8 + 2 + 4 + 8 + 8
 class IndexedFile:
     """A finalised MCAP file opened through its summary (a context manager)."""
 
-    def __init__(self, path):
+    def __init__(self, path: str | Path) -> None:
         self.path = path
         self._file = open(path, 'rb')
         try:
@@ -53,20 +63,20 @@ class IndexedFile:
         self.channels = {cid: (c.topic, summary['schemas'].get(c.schema_id, ''))
                          for cid, c in summary['channels'].items()}
 
-    def close(self):
+    def close(self) -> None:
         data = getattr(self, '_data', None)
         if data is not None:
             data.close()
             self._data = None
         self._file.close()
 
-    def __enter__(self):
+    def __enter__(self) -> IndexedFile:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def metadata(self):
+    def metadata(self) -> dict[str, dict[str, str]]:
         """{record name: {key: value}} of the metadata records the summary indexes."""
         from mcap.records import Metadata
         out = {}
@@ -77,7 +87,7 @@ class IndexedFile:
             out[record.name] = dict(record.metadata)
         return out
 
-    def messages(self, ids):
+    def messages(self, ids: Collection[int]) -> dict[int, tuple[list[int], list[Raw]]]:
         """{channel id: (log times ns, raw CDR memoryviews)} of the channels `ids`, each in
         file order (chunk by chunk, then by position in the chunk)."""
         out = {cid: ([], []) for cid in ids}
@@ -122,7 +132,7 @@ class IndexedFile:
             raws += [view[a:b] for a, b in zip((at + _DATA).tolist(), end.tolist())]
         return out
 
-    def _chunk_records(self, index):
+    def _chunk_records(self, index: ChunkIndex) -> bytes:
         """The uncompressed records of the chunk `index` points at, CRC checked."""
         data, pos = self._data, index.chunk_start_offset
         if pos + 9 > len(data) or data[pos] != 0x06:
@@ -148,7 +158,7 @@ class IndexedFile:
             raise BagDamagedError(f'chunk at byte {pos}: CRC mismatch')
         return records
 
-    def _offsets(self, index, cid, size):
+    def _offsets(self, index: ChunkIndex, cid: int, size: int) -> NDArray[np.int64]:
         """Sorted offsets (int64) of channel `cid`'s messages in the chunk of `index`."""
         data, pos = self._data, index.message_index_offsets[cid]
         if pos + 15 > len(data) or data[pos] != _MESSAGE_INDEX:
@@ -164,7 +174,8 @@ class IndexedFile:
             raise BagDamagedError(f'message index at byte {pos} points outside its chunk')
         return offsets
 
-    def _whole_chunk(self, index, out):
+    def _whole_chunk(self, index: ChunkIndex,
+                     out: dict[int, tuple[list[int], list[Raw]]]) -> None:
         from mcap.records import Message
         _, chunk, _ = record_at(self._data, index.chunk_start_offset)
         for record in chunk.records:

@@ -15,13 +15,22 @@ in the chunk open when they are registered, i.e. the first): if that chunk is da
 messages of later chunks cannot be given a topic and are counted as lost.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass, field
 import io
 import mmap
+from pathlib import Path
 import struct
+from typing import TYPE_CHECKING
 import zlib
 
 from .errors import BagDamagedError, BagUnreadableError
+
+if TYPE_CHECKING:                 # mcap is imported where a file is read
+    from mcap.records import Chunk, McapRecord
+
+Data = bytes | bytearray | memoryview | mmap.mmap        # a file's bytes (mapped), or a copy
 
 SCAN_LIMIT = 16 << 20          # bytes searched for a first valid record
 MAX_CHUNK = 1 << 30            # a chunk header claiming more than this is not believed
@@ -51,7 +60,7 @@ class Recovered:
     losses: list = field(default_factory=list)
     _schemas: dict = field(default_factory=dict)
 
-    def add(self, record):
+    def add(self, record: McapRecord) -> None:
         from mcap.records import Channel, Message, Metadata, Schema
         if isinstance(record, Schema):
             self._schemas[record.id] = record.name
@@ -62,17 +71,17 @@ class Recovered:
         elif isinstance(record, Metadata):
             self.metadata[record.name] = dict(record.metadata)
 
-    def last_time(self):
+    def last_time(self) -> int | None:
         return max((m[1] for m in self.messages[-1000:]), default=None)
 
 
-def one_line(exc):
+def one_line(exc: BaseException) -> str:
     """`Type: first line of the message` of an exception, for a warning."""
     text = str(exc).strip().splitlines()
     return f'{type(exc).__name__}: {text[0]}' if text else type(exc).__name__
 
 
-def read_records(file):
+def read_records(file: str | Path) -> Recovered:
     """Read every intact record of `file` (see the module doc): a Recovered.
     BagUnreadableError if no valid record is found at all."""
     with open(file, 'rb') as f:
@@ -95,7 +104,8 @@ def read_records(file):
 
 # ----------------------------------------------------------------------------- records
 
-def record_at(data, pos, end=None):
+def record_at(data: Data, pos: int,
+              end: int | None = None) -> tuple[int, McapRecord | None, int]:
     """(opcode, record or None for an unknown/ignored kind, end offset) of the record at pos;
     BagDamagedError if it is not a whole, valid record. Chunks are opened and CRC-checked."""
     from mcap.data_stream import ReadDataStream
@@ -134,7 +144,7 @@ def record_at(data, pos, end=None):
     return opcode, record, stop
 
 
-def check_chunk_header(data, pos, length):
+def check_chunk_header(data: Data, pos: int, length: int) -> None:
     """Cheap consistency of a chunk header (before anything is decompressed)."""
     body = pos + 9
     if length < 8 + 8 + 8 + 4 + 4 + 8:
@@ -150,7 +160,7 @@ def check_chunk_header(data, pos, length):
         raise BagDamagedError('chunk records run past the chunk')
 
 
-def _open_chunk(chunk):
+def _open_chunk(chunk: Chunk) -> None:
     """The chunk's records, its CRC checked (a chunk written without CRC must at least parse)."""
     from mcap.stream_reader import breakup_chunk
     chunk.records = breakup_chunk(chunk, validate_crc=True)
@@ -158,7 +168,7 @@ def _open_chunk(chunk):
 
 # ----------------------------------------------------------------------------- with summary
 
-def read_summary(data):
+def read_summary(data: Data) -> dict[str, dict | list] | None:
     """The summary section's schemas, channels, chunk and metadata indexes, if the footer and
     the summary CRC are intact; else None (then the file is scanned)."""
     from mcap.records import Channel, ChunkIndex, Footer, MetadataIndex, Schema
@@ -193,7 +203,7 @@ def read_summary(data):
     return out
 
 
-def _read_indexed(data, summary):
+def _read_indexed(data: Data, summary: dict[str, dict | list]) -> Recovered:
     from mcap.records import Chunk, Metadata
     out = Recovered()
     out._schemas.update(summary['schemas'])
@@ -225,7 +235,7 @@ def _read_indexed(data, summary):
 
 # ----------------------------------------------------------------------------- without
 
-def _scan(data, file):
+def _scan(data: Data, file: str | Path) -> Recovered:
     """Records in file order; resynchronise on the next valid chunk after damage."""
     from mcap.records import Chunk, DataEnd, Footer
     out = Recovered()
@@ -265,7 +275,7 @@ def _scan(data, file):
     return out
 
 
-def _next_chunk(data, start, stop):
+def _next_chunk(data: Data, start: int, stop: int) -> tuple[int, Chunk] | None:
     """(offset, Chunk) of the first intact chunk at or after `start` and before `stop`."""
     while True:
         at = data.find(b'\x06', start, stop)
