@@ -159,13 +159,13 @@ def goal_settings(params: Mapping[str, object]) -> dict[str, float]:
     return out
 
 
-def _take(values: FloatArray, index: ArrayLike) -> FloatArray:
+def _take(values: FloatArray, index: ArrayLike) -> Floats:
     """values[..., index] for an index array of the leading shape (periodic)."""
     n = values.shape[-1]
     return np.take_along_axis(values, (np.asarray(index) % n)[..., None], axis=-1)[..., 0]
 
 
-def _refine_extreme(theta: FloatArray, values: FloatArray, i: ArrayLike) -> FloatArray:
+def _refine_extreme(theta: FloatArray, values: FloatArray, i: ArrayLike) -> Floats:
     """Parabolic refinement of a sampled extreme at index i on a periodic uniform grid."""
     y0, y1, y2 = _take(values, i - 1), _take(values, i), _take(values, i + 1)
     den = y0 - 2.0 * y1 + y2
@@ -228,7 +228,7 @@ def _per_design(mech: ThreeArmMechanism, value: Floats) -> FloatArray:
     return np.reshape(np.asarray(value, dtype=float), mech.batch_shape)
 
 
-def _extremes(theta: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _extremes(theta: FloatArray, y: FloatArray) -> tuple[Floats, Floats]:
     """Carrier angles of the highest and lowest samples of y (..., n), refined."""
     return (_refine_extreme(theta, -y, np.argmax(y, axis=-1)),
             _refine_extreme(theta, y, np.argmin(y, axis=-1)))
@@ -244,7 +244,7 @@ def _at(mech: ThreeArmMechanism, fn: Callable, theta: ArrayLike,
 
 
 def _phases(theta: FloatArray, y: FloatArray, cfg: Mapping[str, float],
-            shape: tuple[int, ...]) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+            shape: tuple[int, ...]) -> tuple[Floats, Floats, Floats, Floats]:
     """(picking, planting, highest, lowest) carrier angles of arm I: the scene's phases where
     given, else the highest and lowest tip points (refined from the samples y)."""
     high, low = _extremes(theta, y)
