@@ -25,6 +25,7 @@ from .recovery import Loss, one_line, read_records
 
 MAGIC = b'\x89MCAP0\r\n'
 
+
 def bag_files(path: str | Path) -> list[Path]:
     """The .mcap files of a bag: the file itself, or a directory's files in split order."""
     return _bag_parts(path)[0]
