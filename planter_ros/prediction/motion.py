@@ -11,10 +11,12 @@ angle θ_k (instant t_k, travelled distance s_k) the tip, relative to the soil, 
 x_path the mechanism's tip path relative to its planting point (`Planting.tip_path`), t(θ) the
 measured shaft angle's inverse (between two joint samples: the cubic Hermite through both
 angles and both measured speeds; linear where a speed is missing), s(t) the travelled distance
-(the trapezoid integral of the measured ground speed, as for the plant's position). Then
+(the trapezoid integral of the measured ground speed, as for the plant's position). The
+Hermite is used where it is monotone (the Fritsch–Carlson bound α² + β² ≤ 9 on the speeds
+against the chord), so both directions, θ(t) and t(θ), are the same curve. Then
 
-* tip sweep = max x − min x over the arc (sampled at ARC_SAMPLES points, each interior extreme
-  refined by the parabola through its neighbours);
+* tip sweep = max x − min x over the arc (ARC_SAMPLES instants equally spaced from the soil
+  entry to the exit, each interior extreme refined by the parabola through its neighbours);
 * tilt = atan2(slip, D) with slip = s(t_exit) − s_k − A_r·exit_angle: the nozzle's travel
   against the soil while it climbs out, beyond what the synchronous path does (A_r the release
   advance; kinematics.planting explains the tilt model).
@@ -30,61 +32,73 @@ keeps the constant-ratio figures at its instant; `covered` says which. The live 
 Pure numpy: no ROS.
 """
 
-from functools import lru_cache
-
 import numpy as np
 
 from planter_ros.kinematics.planting import Planting
 
-__all__ = ['ARC_SAMPLES', 'arc_figures', 'time_at_angle', 'distance_at']
+__all__ = ['ARC_SAMPLES', 'arc_figures', 'angle_at', 'time_at_angle', 'distance_at']
 
-ARC_SAMPLES = 257          # points along the in-soil arc, equally spaced in φ
-_NEWTON_STEPS = 6
+ARC_SAMPLES = 129          # instants along the in-soil arc, equally spaced in time
+_NEWTON_STEPS = 8
 
 
-@lru_cache(maxsize=64)
-def _arc(model: Planting) -> tuple[np.ndarray, np.ndarray]:
-    """The arc's shaft angles φ from the planting instant and the tip's x_path there."""
-    phi = np.linspace(-model.entry_angle, model.exit_angle, ARC_SAMPLES)
-    x, _ = model.tip_path(phi)
-    return phi, np.asarray(x, dtype=float)
+def _intervals(jt, theta, jw, i):
+    """The joint-sample intervals ending at indices `i`: t0, h, θ0, Δθ, the Hermite's end
+    slopes in rad per unit interval, and whether the Hermite is used there."""
+    t0, h = jt[i - 1], jt[i] - jt[i - 1]
+    th0, dth = theta[i - 1], theta[i] - theta[i - 1]
+    w0, w1 = jw[i - 1], jw[i]
+    m0, m1 = w0 * h, w1 * h
+    with np.errstate(invalid='ignore', divide='ignore'):
+        a, b = m0 / dth, m1 / dth
+        hermite = (np.isfinite(w0) & np.isfinite(w1) & (w0 > 0) & (w1 > 0) & (dth > 0)
+                   & (a * a + b * b <= 9.0))
+    return t0, h, th0, dth, np.where(hermite, m0, 0.0), np.where(hermite, m1, 0.0), hermite
+
+
+def _cubic(u, dth, m0, m1):
+    """The unit-interval Hermite's rise from θ0 at u, and its slope d/du."""
+    u2, u3 = u * u, u * u * u
+    f = (-2 * u3 + 3 * u2) * dth + (u3 - 2 * u2 + u) * m0 + (u3 - u2) * m1
+    df = (-6 * u2 + 6 * u) * dth + (3 * u2 - 4 * u + 1) * m0 + (3 * u2 - 2 * u) * m1
+    return f, df
+
+
+def angle_at(t: np.ndarray, jt: np.ndarray, theta: np.ndarray,
+             jw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The measured shaft angle (rad) at instants `t` (s) from joint samples (jt s, non-
+    decreasing angle `theta` rad, speeds `jw` rad/s, NaN = not measured), and the length of
+    the joint-sample interval each fell in (s; inf outside the samples)."""
+    t = np.asarray(t, dtype=float)
+    i = np.searchsorted(jt, t, side='right')
+    inside = (i >= 1) & (i < jt.size)
+    i = np.clip(i, 1, jt.size - 1)
+    t0, h, th0, dth, m0, m1, hermite = _intervals(jt, theta, jw, i)
+    u = (t - t0) / h
+    rise, _ = _cubic(u, dth, m0, m1)
+    return th0 + np.where(hermite, rise, u * dth), np.where(inside, h, np.inf)
 
 
 def time_at_angle(angle: np.ndarray, jt: np.ndarray, theta: np.ndarray,
                   jw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The instant (s) the non-decreasing measured shaft angle `theta` (rad, at times `jt`,
-    speeds `jw` rad/s, NaN = not measured) reached each `angle`, and the length of the
-    joint-sample interval it fell in (s; inf outside the samples). Cubic Hermite between two
-    samples with both speeds measured and positive; linear otherwise."""
+    """The instant (s) the measured shaft angle reached each `angle` (the inverse of
+    `angle_at`), and the length of the joint-sample interval it fell in (s; inf outside)."""
     angle = np.asarray(angle, dtype=float)
     i = np.searchsorted(theta, angle, side='left')
     inside = (i >= 1) & (i < theta.size)
     i = np.clip(i, 1, theta.size - 1)
-    t0, t1 = jt[i - 1], jt[i]
-    th0, th1 = theta[i - 1], theta[i]
-    h = t1 - t0
-    dth = th1 - th0
+    t0, h, th0, dth, m0, m1, hermite = _intervals(jt, theta, jw, i)
+    target = angle - th0
     with np.errstate(divide='ignore', invalid='ignore'):
-        u = np.where(dth > 0, (angle - th0) / dth, 0.0)
-    u = np.clip(u, 0.0, 1.0)
-    w0, w1 = jw[i - 1], jw[i]
-    hermite = np.isfinite(w0) & np.isfinite(w1) & (w0 > 0) & (w1 > 0) & (dth > 0)
+        u = np.clip(np.where(dth > 0, target / dth, 0.0), 0.0, 1.0)
     if np.any(hermite):
-        # θ(u) = th0 + dth·(h00'...) in the unit interval: m0, m1 the slopes in rad per unit
-        m0, m1 = w0 * h, w1 * h
-        target = angle - th0
-        v = u.copy()
+        v = u[hermite]
+        d, a, b, y = dth[hermite], m0[hermite], m1[hermite], target[hermite]
         for _ in range(_NEWTON_STEPS):
-            v2, v3 = v * v, v * v * v
-            f = (-2 * v3 + 3 * v2) * dth + (v3 - 2 * v2 + v) * m0 + (v3 - v2) * m1 - target
-            df = (-6 * v2 + 6 * v) * dth + (3 * v2 - 4 * v + 1) * m0 + (3 * v2 - 2 * v) * m1
+            f, df = _cubic(v, d, a, b)
             with np.errstate(divide='ignore', invalid='ignore'):
-                step = np.where(df > 0, f / df, 0.0)
-            v = np.clip(v - step, 0.0, 1.0)
-        # a Hermite that is not monotone here (speeds far from the chord's): the chord
-        v2 = v * v
-        slope = (-6 * v2 + 6 * v) * dth + (3 * v2 - 4 * v + 1) * m0 + (3 * v2 - 2 * v) * m1
-        u = np.where(hermite & (slope > 0), v, u)
+                v = np.clip(v - np.where(df > 0, (f - y) / df, 0.0), 0.0, 1.0)
+        u[hermite] = v
     return t0 + u * h, np.where(inside, h, np.inf)
 
 
@@ -117,22 +131,29 @@ def arc_figures(model: Planting, theta_k: np.ndarray, jt: np.ndarray, theta: np.
     sweep, tilt = np.full(n, np.nan), np.full(n, np.nan)
     if n == 0 or theta.size < 2 or st.size < 2:
         return sweep, tilt, np.zeros(n, dtype=bool)
-    phi, x_path = _arc(model)
     # times relative to the first joint sample: epoch stamps (1.7e9 s) keep 0.24 µs only
     ref = jt[0]
     jt, st = jt - ref, st - ref
-    # the instant itself through the same interpolation as the arc (the slip is relative)
-    angles = np.column_stack((theta_k, theta_k[:, None] + phi))
-    t, joint_gap = time_at_angle(angles, jt, theta, jw)
-    s, speed_gap = distance_at(t, st, sv, ss)
-    covered = ((theta[-1] >= theta_k + model.exit_angle)
+    # the soil entry, the planting instant and the soil exit
+    ends = np.column_stack((theta_k - model.entry_angle, theta_k, theta_k + model.exit_angle))
+    t_ends, end_gaps = time_at_angle(ends, jt, theta, jw)
+    fraction = np.linspace(0.0, 1.0, ARC_SAMPLES)
+    t = t_ends[:, :1] + (t_ends[:, 2:] - t_ends[:, :1]) * fraction
+    t[:, -1] = t_ends[:, 2]
+    angle, joint_gap = angle_at(t, jt, theta, jw)
+    s, speed_gap = distance_at(np.column_stack((t_ends[:, 1], t)), st, sv, ss)
+    covered = ((theta[-1] >= ends[:, 2])
+               & np.all(end_gaps <= max_input_gap, axis=1)
                & np.all(joint_gap <= max_input_gap, axis=1)
                & np.all(speed_gap <= max_input_gap, axis=1)
-               & (t[:, -1] - t[:, 0] <= max_input_gap))
+               & (t_ends[:, 2] - t_ends[:, 1] <= max_input_gap))
     if not np.any(covered):
         return sweep, tilt, covered
+    phi = angle[covered] - theta_k[covered, None]
+    phi[:, 0], phi[:, -1] = -model.entry_angle, model.exit_angle    # the ends exactly
+    x_path, _ = model.tip_path(phi)
     s0, s_arc = s[covered, :1], s[covered, 1:]
-    x = x_path + (s_arc - s0)
+    x = np.asarray(x_path, dtype=float) + (s_arc - s0)
     sweep[covered] = _extreme(x, np.argmax(x, axis=1), +1) - _extreme(x, np.argmin(x, axis=1),
                                                                       -1)
     slip = s_arc[:, -1] - s0[:, 0] - model.release_advance * model.exit_angle
@@ -142,7 +163,7 @@ def arc_figures(model: Planting, theta_k: np.ndarray, jt: np.ndarray, theta: np.
 
 def _extreme(x: np.ndarray, k: np.ndarray, sign: int) -> np.ndarray:
     """Each row's extreme at sample k, refined by the parabola through k−1, k, k+1 (equal
-    steps in φ) where k is interior."""
+    steps in time; x is smooth in time where the Hermite is) where k is interior."""
     rows = np.arange(x.shape[0])
     value = x[rows, k]
     interior = (k > 0) & (k < x.shape[1] - 1)
