@@ -443,9 +443,13 @@ class MonitorNode(Node):
                                   tuple(values))
 
     def destroy_node(self):
-        """Place and publish the plants still held for fixes, then finalise the bag (summary,
-        statistics, metadata) before the node goes."""
-        self._publish_placed(self._placer.flush(), self.get_clock().now().nanoseconds)
+        """Complete the plants whose arcs were still open, place and publish the plants still
+        held for fixes, then finalise the bag (summary, statistics, metadata) before the node
+        goes."""
+        now = self.get_clock().now().nanoseconds
+        for predictor in self._predictors or ():
+            self._predicted(predictor.finish(), now)
+        self._publish_placed(self._placer.flush(), now)
         if self.recorder is not None:
             try:
                 self.recorder.close()

@@ -101,8 +101,11 @@ def settings_from_recording(recorded: Mapping[str, object],
                             warnings: list[str] | None = None) -> PredictionSettings:
     """The monitor's recorded settings (strings), overridden by explicit values. A recorded
     value out of range is replaced by the default (with a warning); a bad override is an
-    error (ConfigError)."""
+    error (ConfigError). A monitor that recorded its settings before `measured_arc` existed
+    predicted from the speed ratio at each planting instant: replay does the same."""
     values = {}
+    if recorded and 'measured_arc' not in recorded:
+        values['measured_arc'] = False
     for spec in config.specs(PredictionSettings):
         if spec.name in recorded:
             try:
