@@ -2,8 +2,9 @@
 
 `cluster()` gives a Client: of a local cluster of worker processes sized to the machine (one
 single-threaded worker process per usable core, or `workers`), scheduler and workers bound to
-127.0.0.1, no dashboard; or of an existing cluster (`scheduler` = its scheduler's address,
-`tcp://host:8786`). `check_workers` runs a warm-up on every worker (imports the code once, says
+127.0.0.1, no dashboard, each worker dying with this process (worker_plugin); or of an
+existing cluster (`scheduler` = its scheduler's address, `tcp://host:8786`).
+`check_workers` runs a warm-up on every worker (imports the code once, says
 which model version it runs) and refuses a cluster that cannot run ours. `completed` maps a
 function over argument tuples and yields the results as they complete, gathered in batches.
 """
@@ -79,11 +80,12 @@ def cluster(workers=None, scheduler=None):
                               f'{WORKER_WAIT:.0f} s ({_first_line(exc)}): allowed a scheduler '
                               'with at least one worker') from None
     else:
+        from .worker_plugin import DieWithParent
         try:
             local = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
                                  processes=True, host='127.0.0.1', scheduler_port=0,
                                  dashboard_address=None, worker_dashboard_address=None,
-                                 silence_logs=logging.ERROR)
+                                 silence_logs=logging.ERROR, plugins={DieWithParent()})
         except Exception as exc:             # no free port, no processes, ...
             raise EngineError(f'the local cluster did not start ({_first_line(exc)}): allowed '
                               'a machine where Dask can start worker processes on 127.0.0.1') \

@@ -14,7 +14,8 @@ start, a status snapshot four times a second for the progress lines, and at the 
 
 The child ignores SIGINT and SIGTERM (the terminal's Ctrl-C reaches the whole process group):
 the demo decides when it stops. It stops on the demo's request or when the pipe breaks (the
-demo died or was forced out): either way its drives are shut down (0x60FF = 0, disable).
+demo closed it or was forced out): either way its drives are shut down (0x60FF = 0, disable).
+A demo killed outright (SIGKILL) takes the child with it at once (planter_ros.processes).
 """
 
 from dataclasses import dataclass, field
@@ -119,6 +120,10 @@ class SyncProcess:
 def child_main(conn, settings):
     """The child process: the sync node on the simulated bus until asked to stop."""
     from planter_ros import stop_signals
+    from planter_ros.processes import die_with_parent
+    # a demo killed outright (SIGKILL) takes its drives along: the broken pipe below is the
+    # clean way out, but it is only read between status snapshots
+    die_with_parent(multiprocessing.parent_process().pid)
     stop_signals.ignore()
     import rclpy
     from rclpy.context import Context

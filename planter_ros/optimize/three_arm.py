@@ -112,6 +112,10 @@ _WORKER = {}
 
 
 def _worker_init(base, margin, samples):
+    import multiprocessing
+
+    from planter_ros.processes import die_with_parent
+    die_with_parent(multiprocessing.parent_process().pid)    # no orphan when the search dies
     _WORKER['scorer'] = BatchScorer(base, margin, samples)
 
 
