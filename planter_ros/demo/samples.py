@@ -61,7 +61,7 @@ def main(argv=None):
     import argparse
 
     from planter_ros.sim.runs import five_bar_design_message, simulate_run
-    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser = argparse.ArgumentParser(description=main.__doc__, allow_abbrev=False)
     parser.add_argument('--out', default='bags', help='directory for the sample bags')
     args = parser.parse_args(argv)
     for name, (design_kw, run_kw) in SAMPLES.items():
