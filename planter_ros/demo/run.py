@@ -175,6 +175,7 @@ class _Run:
         from rclpy.signals import SignalHandlerOptions
 
         from planter_ros import interfaces
+        from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS
         from planter_ros.nodes.design_node import DesignNode
         from planter_ros.nodes.monitor_node import MonitorNode
         from planter_ros.sim.ros_field import Observer
@@ -195,8 +196,9 @@ class _Run:
                 ('turn_compensation', options.turn_compensation)),
             demo.log_level))
         self.context = Context()
-        rclpy.init(args=['--ros-args', '--log-level', demo.log_level], context=self.context,
-                   domain_id=self.domain, signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=['--ros-args', '--log-level', demo.log_level, *PRIVATE_GRAPH_ROS_ARGS],
+                   context=self.context, domain_id=self.domain,
+                   signal_handler_options=SignalHandlerOptions.NO)
         self.executor = SingleThreadedExecutor(context=self.context)
         context = self.context
         self.nodes.append(DesignNode(context=context, namespace=ns, parameter_overrides=[

@@ -133,6 +133,7 @@ def child_main(conn, settings):
     from rclpy.signals import SignalHandlerOptions
 
     from planter_ros.config import ConfigError
+    from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS
     from planter_ros.drive.errors import DriveError
     from planter_ros.drive.simulated_drive import SimulatedBus
     from planter_ros.nodes.sync_node import LibraryLog, SyncNode, start_error
@@ -147,8 +148,9 @@ def child_main(conn, settings):
     sims = SimulatedBus(settings.channel, list(settings.node_ids), **settings.drive_kwargs)
     sims.start()
     context = Context()
-    rclpy.init(args=['--ros-args', '--log-level', settings.log_level], context=context,
-               domain_id=settings.domain, signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=['--ros-args', '--log-level', settings.log_level, *PRIVATE_GRAPH_ROS_ARGS],
+               context=context, domain_id=settings.domain,
+               signal_handler_options=SignalHandlerOptions.NO)
     executor = SingleThreadedExecutor(context=context)
     library_log = LibraryLog()
     sync = None
