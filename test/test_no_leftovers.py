@@ -101,3 +101,17 @@ def test_a_second_analyze_on_a_directory_being_written_is_refused(tmp_path):
             Season(tmp_path / 'season')
     with Season(tmp_path / 'season'):          # released when the first one ended
         pass
+
+
+def test_a_demo_without_bag_names_its_default_bag_in_its_first_line(tmp_path):
+    cwd, home, tmp, env = places(tmp_path)
+    out = subprocess.run([sys.executable, '-m', 'planter_ros.cli', 'demo', '--duration', '8'],
+                         cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    made = everything_in(cwd)
+    bag = [p for p in made if p.count('/') == 1]             # a rosbag2 bag directory
+    assert len(bag) == 1 and bag[0].startswith('bags/planter_'), made
+    assert {p for p in made if not p.startswith(bag[0])} == {'bags'}
+    first = out.stdout.splitlines()[0]
+    assert first.endswith(f'bag {bag[0]}') or first.endswith(f'bag {cwd / bag[0]}'), first
+    assert everything_in(home) == set() and everything_in(tmp) == set()

@@ -225,7 +225,8 @@ class _Run:
                     f"{'phase-locked' if options.phase_lock else 'speed-only'}, turn "
                     f"compensation {'on' if options.turn_compensation else 'off'}, CAN "
                     f'virtual:{channel}, '
-                    f'DDS domain {self.domain} (private)')
+                    f'DDS domain {self.domain} (private), bag '
+                    f"{getattr(self.monitor.recorder, 'path', None) or 'none (not recording)'}")
         try:
             built = self.sync.wait_for('built', self.START_TIMEOUT, self._stopped)
             if built is None:
