@@ -13,14 +13,19 @@ Linux).
 - `preexec_die_with_parent()`: `subprocess.Popen(..., preexec_fn=preexec_die_with_parent())`.
 - `die_with_parent(parent_pid)`: first thing in a `multiprocessing` child or pool initializer
   (`multiprocessing.parent_process().pid` is the parent's pid there).
+- `die_with_parent(parent_pid, grace=4)`: for a child with something to stop cleanly (drives
+  to shut down) when it sees its parent gone on its own (a pipe's end-of-file): the kernel's
+  signal starts a `grace` s alarm instead, whose default action ends the process however stuck
+  it is (in the main thread, which installs the handler).
 """
 
 import ctypes
+import math
 import os
 import signal
 import sys
 
-__all__ = ['PR_SET_PDEATHSIG', 'die_with_parent', 'parent_death_signal',
+__all__ = ['GRACE_SIGNAL', 'PR_SET_PDEATHSIG', 'die_with_parent', 'parent_death_signal',
            'preexec_die_with_parent', 'supported']
 
 PR_SET_PDEATHSIG = 1            # <linux/prctl.h>
@@ -54,18 +59,36 @@ def parent_death_signal():
     return value.value
 
 
-def _tie(prctl, parent_pid, signum):
+def _tie(prctl, parent_pid, signum, exit_now=True):
     if prctl is not None and prctl(PR_SET_PDEATHSIG, int(signum), 0, 0, 0) != 0:
         errno = ctypes.get_errno()
         raise OSError(errno, f'prctl(PR_SET_PDEATHSIG): {os.strerror(errno)}')
     if os.getppid() != parent_pid:        # the parent died before the request: go now
         os.kill(os.getpid(), signum)
-        os._exit(128 + int(signum))       # a signal this process handles or ignores
+        if exit_now:                      # a signal this process handles or ignores
+            os._exit(128 + int(signum))
 
 
-def die_with_parent(parent_pid, signum=signal.SIGKILL):
+GRACE_SIGNAL = signal.SIGUSR1       # the parent-death signal of a child given a grace period
+
+
+def die_with_parent(parent_pid, signum=signal.SIGKILL, grace=None):
     """In a child process: receive `signum` when the parent goes away. `parent_pid` is the pid
-    of the process that started this one; if it is already gone, this process ends now."""
+    of the process that started this one; if it is already gone, this process ends now. With
+    `grace` (whole seconds >= 1) the signal is GRACE_SIGNAL and only starts an alarm: the
+    process ends `grace` s later unless it has stopped by itself by then."""
+    if grace is not None:
+        seconds = max(1, math.ceil(grace))
+
+        def parent_gone(_signum, _frame):
+            if os.getppid() == parent_pid:          # not the kernel's: the parent is alive
+                return
+            signal.signal(signal.SIGALRM, signal.SIG_DFL)
+            signal.alarm(seconds)
+            signal.signal(GRACE_SIGNAL, signal.SIG_IGN)
+        signal.signal(GRACE_SIGNAL, parent_gone)
+        _tie(_prctl(), parent_pid, GRACE_SIGNAL, exit_now=False)
+        return
     _tie(_prctl(), parent_pid, signum)
 
 

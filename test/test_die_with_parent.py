@@ -130,6 +130,34 @@ def test_a_tied_child_dies_with_its_killed_parent_and_an_untied_one_does_not(tmp
         assert len(left) == 1
 
 
+GRACE_CHILD = """
+import os, subprocess, sys, time
+code = ('import os, sys, time\\n'
+        'from planter_ros.processes import die_with_parent\\n'
+        'die_with_parent(int(sys.argv[1]), grace=2)\\n'
+        'print("tied", flush=True)\\n'
+        'time.sleep(120)\\n')
+child = subprocess.Popen([sys.executable, '-c', code, str(os.getpid())])
+print(child.pid, flush=True)
+time.sleep(120)
+"""
+
+
+def test_a_child_given_grace_outlives_its_killed_parent_by_the_grace_only(tmp_path, reap):
+    """The demo's sync process gets a few seconds to shut its drives down when the demo is
+    killed; a child that does not stop by itself (this one sleeps) is ended after them."""
+    proc = start(['-c', GRACE_CHILD], tmp_path)
+    reap(proc)
+    children = wait_for(proc, lambda children, out: children and 'tied' in out, tmp_path)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(10)
+    killed = time.monotonic()
+    _, alive = psutil.wait_procs(children, timeout=1.0)
+    assert alive                                          # the grace: still there after 1 s
+    _, alive = psutil.wait_procs(children, timeout=GRACE)
+    assert alive == [], time.monotonic() - killed
+
+
 def test_a_child_whose_parent_is_already_gone_ends_at_once():
     env = dict(os.environ, PYTHONPATH=str(REPO))
     # pid 1 is never this child's parent: as if the parent had died before the request

@@ -127,7 +127,9 @@ class Demo:
             result = replay(bag)
         except ReplayError as exc:
             return f'\nreplay of {bag} failed: {exc}', f'replay of {bag} failed: {exc}'
-        lines = [f'\nrecorded {bag}; replay (`planter replay {bag}`):']
+        lines = [f'\nrecorded {bag}; replay (`planter replay {bag}`), plants placed as the '
+                 "machine's monitor places them, at the distance integrated from the recorded "
+                 'ground speed (its noise included):']
         lines += [f'  {line}' for line in format_summary(result).splitlines()]
         lines += [f'  warning: {w}' for w in result.warnings]
         return '\n'.join(lines), ''

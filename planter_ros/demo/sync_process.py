@@ -15,7 +15,8 @@ start, a status snapshot four times a second for the progress lines, and at the 
 The child ignores SIGINT and SIGTERM (the terminal's Ctrl-C reaches the whole process group):
 the demo decides when it stops. It stops on the demo's request or when the pipe breaks (the
 demo closed it or was forced out): either way its drives are shut down (0x60FF = 0, disable).
-A demo killed outright (SIGKILL) takes the child with it at once (planter_ros.processes).
+A demo killed outright (SIGKILL) leaves the child PARENT_GONE_GRACE s for that, then the kernel
+ends it (planter_ros.processes), stuck or not.
 """
 
 from dataclasses import dataclass, field
@@ -28,6 +29,7 @@ __all__ = ['SyncProcess', 'SyncProcessError', 'SyncProcessSettings', 'child_main
            'final_report', 'snapshot']
 
 STATUS_PERIOD = 0.25       # s between status snapshots sent to the demo
+PARENT_GONE_GRACE = 4      # s the child may take to shut its drives down once the demo is gone
 
 
 class SyncProcessError(RuntimeError):
@@ -121,9 +123,10 @@ def child_main(conn, settings):
     """The child process: the sync node on the simulated bus until asked to stop."""
     from planter_ros import stop_signals
     from planter_ros.processes import die_with_parent
-    # a demo killed outright (SIGKILL) takes its drives along: the broken pipe below is the
-    # clean way out, but it is only read between status snapshots
-    die_with_parent(multiprocessing.parent_process().pid)
+    # a demo killed outright (SIGKILL): the broken pipe below is the clean way out (drives shut
+    # down), but it is only read between status snapshots; the kernel's signal ends this
+    # process PARENT_GONE_GRACE s after the demo however stuck it is
+    die_with_parent(multiprocessing.parent_process().pid, grace=PARENT_GONE_GRACE)
     stop_signals.ignore()
     import rclpy
     from rclpy.context import Context
