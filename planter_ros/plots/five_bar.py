@@ -56,8 +56,8 @@ def plot_design(design, path, ground_speed=None):
     ax.set(title='soil-frame trajectory, three plants', xlabel='x along the row (mm)',
            ylabel='height above hole bottom (mm)')
     lo, hi = ax.get_ylim()
-    ax.set_ylim(lo, hi + 0.25 * (hi - lo))           # room for the legend above the loops
-    ax.legend(loc='upper center', fontsize=8, ncol=3)
+    ax.set_ylim(lo, hi + 0.3 * (hi - lo))            # room for the legend above the loops
+    ax.legend(loc='upper center', fontsize=8, ncol=2)
 
     _hole_panel(top[2], design, mm)
 
