@@ -63,7 +63,8 @@ def format_summary(result: ReplayResult) -> str:
     lines = [
         f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
         f'spacing error: mean {_mm(s["spacing_error_mean"])}, sigma '
-        f'{_mm(s["spacing_error_std"])}, max |error| {_mm(s["spacing_error_max"])}',
+        f'{_mm(s["spacing_error_std"])}, max |error| {_mm(s["spacing_error_max"])} (plants at '
+        'the distance integrated from the recorded ground speed)',
         f'spacing quality (ISO 7256-1): {format_quality(s["spacing_quality"])}',
         f'hole width: mean {_mm(s["hole_width_mean"])}, max {_mm(s["hole_width_max"])} (tip '
         f'sweep mean {_mm(s["tip_sweep_mean"])} + nozzle width {nozzle})']
