@@ -17,12 +17,16 @@ PDOs here are asynchronous: no SYNC). Pure, no ROS, no bus.
 
 from dataclasses import dataclass
 
+from . import objects as od
 from .errors import DriveConfigError
+
+__all__ = ['LIMIT', 'RPDO_BYTES', 'TPDO_BYTES', 'HEARTBEAT_BYTES', 'SYNC_BYTES', 'frame_bits',
+           'BusLoad', 'bus_load', 'check_bus_load']
 
 LIMIT = 0.70                 # refused above this share of the bit rate
 
-RPDO_BYTES = 6               # 0x6040 controlword (2) + 0x60FF target velocity (4)
-TPDO_BYTES = (4, 8)          # 0x6041 + 0x603F; 0x6064 + 0x606C
+RPDO_BYTES = od.RPDO_VELOCITY.size                      # controlword + target velocity
+TPDO_BYTES = tuple(layout.size for layout in od.TPDOS)  # status; motion
 HEARTBEAT_BYTES = 1
 SYNC_BYTES = 0
 

@@ -37,7 +37,6 @@ from dataclasses import dataclass
 import logging
 import math
 from pathlib import Path
-import struct
 import threading
 import time
 
@@ -47,7 +46,8 @@ from canopen.pdo.base import PDO_NOT_VALID
 from canopen.profiles.p402 import BaseNode402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
-from planter_ros.drive.config import DriveConfig
+from planter_ros.drive import objects as od
+from planter_ros.drive.config import BusConfig, DeviceConfig, DriveConfig
 from planter_ros.drive.eds import default_eds_path
 from planter_ros.drive.errors import (BusError, DriveConfigError, DriveError,
                                       DriveRefusedError, DriveTimeoutError, NotConnectedError)
@@ -57,16 +57,16 @@ from planter_ros.drive.states import (
     NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY, PROFILE_VELOCITY_SUPPORTED,
     QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON, state_of)
 
-__all__ = ['CanopenBus', 'Cia402Drive', 'DriveConfig', 'DriveError', 'DriveStatus']
+__all__ = ['BusConfig', 'CanopenBus', 'Cia402Drive', 'DeviceConfig', 'DriveConfig', 'DriveError',
+           'DriveStatus']
 
 log = logging.getLogger(__name__)
 
 _INT32 = (-2**31, 2**31 - 1)
-# RPDO1 as _configure_pdos maps it: (index, bit offset, bit length) of each entry, and the
-# frame packed straight from that (the control loop's hot path: canopen's per-entry encoding
-# costs several times the send)
-_RPDO_LAYOUT = ((0x6040, 0, 16), (0x60FF, 16, 32))
-_RPDO_FRAME = struct.Struct('<Hi')
+# RPDO1 as _configure_pdos maps it (drive.objects), and the frame packed straight from that
+# (the control loop's hot path: canopen's per-entry encoding costs several times the send)
+_RPDO = od.RPDO_VELOCITY
+_RPDO_FRAME = _RPDO.frame
 
 # Fault-reset / re-enable: the controlword that moves each state one step towards
 # OPERATION ENABLED (fault state handled separately: one reset edge per request).
@@ -103,7 +103,7 @@ class CanopenBus:
     (can_interface, can_channel, can_bitrate, master_node_id); `bus` = an open python-can bus
     to use (left open on close)."""
 
-    def __init__(self, config: DriveConfig, bus: can.BusABC | None = None):
+    def __init__(self, config: BusConfig, bus: can.BusABC | None = None):
         self.config = config
         self._given_bus = bus
         self._bus: can.BusABC | None = None
@@ -138,7 +138,7 @@ class CanopenBus:
         if network is None:
             raise NotConnectedError(f'CAN bus {self.where}: not open (no heartbeat sent)')
         try:
-            network.send_message(0x700 + self.config.master_node_id, b'\x05')
+            network.send_message(od.heartbeat_cob(self.config.master_node_id), b'\x05')
         except Exception as exc:            # python-can raises CanError, OSError, ValueError...
             raise BusError(f'CAN send of heartbeat failed on {self.where}: '
                            f'{type(exc).__name__}: {exc}') from None
@@ -249,6 +249,12 @@ class Cia402Drive:
             raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}',
                              BusError) from None
 
+    def _write(self, step: str, obj: od.Obj, value: int) -> None:
+        self._sdo_write(step, obj.index, obj.subindex or None, value)
+
+    def _read(self, step: str, obj: od.Obj, optional: bool = False) -> int | None:
+        return self._sdo_read(step, obj.index, obj.subindex or None, optional)
+
     def _send(self, what: str, send) -> None:
         """Run one frame-sending call; any CAN/bus failure becomes a one-line BusError."""
         try:
@@ -265,26 +271,26 @@ class Cia402Drive:
         now = time.monotonic()
         values = {var.index: var.raw for var in pdo_map}
         with self._feedback:
-            if 0x6041 in values:
-                self._statusword = values[0x6041]
+            if od.STATUSWORD.index in values:
+                self._statusword = values[od.STATUSWORD.index]
                 self._sw_received = True
                 self._status_stamp = now
                 if (self._enabled and not self._reset_requested and not self._latched_reason
                         and state_of(self._statusword) != OPERATION_ENABLED):
                     self._latched_reason = ('drive left OPERATION ENABLED '
                                             f'({state_of(self._statusword)})')
-            if 0x603F in values:
-                self._error_code = values[0x603F]
-            if 0x6064 in values:
-                raw = values[0x6064]
+            if od.ERROR_CODE.index in values:
+                self._error_code = values[od.ERROR_CODE.index]
+            if od.POSITION_ACTUAL.index in values:
+                raw = values[od.POSITION_ACTUAL.index]
                 if self._raw_position is None:
                     self._position_counts = raw
                 else:                               # unwrap the 32-bit counter
                     self._position_counts += (raw - self._raw_position + 2**31) % 2**32 - 2**31
                 self._raw_position = raw
                 self._motion_stamp = now
-            if 0x606C in values:
-                self._velocity_counts = values[0x606C]
+            if od.VELOCITY_ACTUAL.index in values:
+                self._velocity_counts = values[od.VELOCITY_ACTUAL.index]
                 self._motion_stamp = now
             self._feedback.notify_all()
 
@@ -337,18 +343,18 @@ class Cia402Drive:
         """Refuse a node that is not the drive the configuration describes."""
         cfg = self.config
         step = 'identify (SDO 0x1000 device type)'
-        device_type = self._sdo_read(step, 0x1000)
+        device_type = self._read(step, od.DEVICE_TYPE)
         if device_type & 0xFFFF != 402:
             raise self._fail(step, f'device type 0x{device_type:08X} is not a CiA 402 drive',
                              DriveRefusedError)
         step = 'check profile velocity support (0x6502)'
-        modes = self._sdo_read(step, 0x6502, optional=True)
+        modes = self._read(step, od.SUPPORTED_MODES, optional=True)
         if modes is not None and not modes & PROFILE_VELOCITY_SUPPORTED:
             raise self._fail(step, f'supported drive modes 0x{modes:08X} lack profile velocity '
                                    '(bit 2)', DriveRefusedError)
         step = 'check encoder resolution (0x608F)'
-        increments = self._sdo_read(step, 0x608F, 1, optional=True)
-        revolutions = self._sdo_read(step, 0x608F, 2, optional=True)
+        increments = self._read(step, od.ENCODER_INCREMENTS, optional=True)
+        revolutions = self._read(step, od.ENCODER_MOTOR_REVOLUTIONS, optional=True)
         if increments and revolutions and increments / revolutions != cfg.counts_per_motor_rev:
             raise self._fail(step, f'drive counts {increments}/{revolutions} increments per motor '
                                    f'rev but counts_per_motor_rev={cfg.counts_per_motor_rev}',
@@ -358,21 +364,21 @@ class Cia402Drive:
         """Heartbeat both ways, quick stop when our frames stop, and a zero target."""
         cfg = self.config
         step = 'heartbeat (0x1017 producer, 0x1016 consumer)'
-        self._sdo_write(step, 0x1017, None, round(cfg.drive_heartbeat_period * 1000))
-        self._sdo_write(step, 0x1016, 1, (cfg.master_node_id << 16)
+        self._write(step, od.HEARTBEAT_PRODUCER, round(cfg.drive_heartbeat_period * 1000))
+        self._write(step, od.HEARTBEAT_CONSUMER, (cfg.master_node_id << 16)
                         | round(cfg.master_heartbeat_timeout * 1000))
         step = 'watchdog (0x6007 abort connection option = quick stop)'
-        self._sdo_write(step, 0x6007, None, ABORT_OPTION_QUICK_STOP)
+        self._write(step, od.ABORT_CONNECTION, ABORT_OPTION_QUICK_STOP)
         step = 'target velocity 0 (0x60FF)'
-        self._sdo_write(step, 0x60FF, None, 0)
+        self._write(step, od.TARGET_VELOCITY, 0)
 
     def _select_profile_velocity(self) -> None:
         """0x6060 = 3, confirmed by reading 0x6061 back (drives switch modes with a delay)."""
         cfg = self.config
         step = 'mode of operation (0x6060 = 3, confirmed by 0x6061)'
-        self._sdo_write(step, 0x6060, None, PROFILE_VELOCITY)
+        self._write(step, od.MODES_OF_OPERATION, PROFILE_VELOCITY)
         deadline = time.monotonic() + cfg.step_timeout
-        while (mode := self._sdo_read(step, 0x6061)) != PROFILE_VELOCITY:
+        while (mode := self._read(step, od.MODES_DISPLAY)) != PROFILE_VELOCITY:
             if time.monotonic() > deadline:
                 raise self._fail(step, f'0x6061 reads {mode} after writing 3 (profile velocity) '
                                        f'for {cfg.step_timeout:.2f} s', DriveTimeoutError)
@@ -452,25 +458,26 @@ class Cia402Drive:
         try:
             rpdo = node.rpdo[1]
             rpdo.clear()
-            rpdo.add_variable(0x6040)
-            rpdo.add_variable(0x60FF)
-            rpdo.cob_id = 0x200 + cfg.drive_node_id
+            for obj in _RPDO.entries:
+                rpdo.add_variable(obj.index, obj.subindex)
+            rpdo.cob_id = _RPDO.cob_id(cfg.drive_node_id)
             rpdo.trans_type = 255
             rpdo.event_timer = round(cfg.command_timeout * 1000)    # deadline monitoring
             rpdo.enabled = True
             rpdo.save()
-            for number, entries in ((1, (0x6041, 0x603F)), (2, (0x6064, 0x606C))):
-                tpdo = node.tpdo[number]
+            for layout in od.TPDOS:
+                tpdo = node.tpdo[layout.number]
                 tpdo.clear()
-                for index in entries:
-                    tpdo.add_variable(index)
-                tpdo.cob_id = 0x80 + 0x100 * number + cfg.drive_node_id
+                for obj in layout.entries:
+                    tpdo.add_variable(obj.index, obj.subindex)
+                tpdo.cob_id = layout.cob_id(cfg.drive_node_id)
                 tpdo.trans_type = 255
                 tpdo.inhibit_time = 0
                 tpdo.event_timer = feedback_ms
                 tpdo.enabled = True
                 tpdo.save()
-            for maps, first_free, base in ((node.rpdo.map, 2, 0x200), (node.tpdo.map, 3, 0x180)):
+            for maps, first_free, base in ((node.rpdo.map, 2, 0x200),
+                                           (node.tpdo.map, len(od.TPDOS) + 1, 0x180)):
                 for number in range(first_free, len(maps) + 1):
                     cob_id = base + 0x100 * (number - 1) + cfg.drive_node_id if number <= 4 else 0
                     maps[number].com_record[1].raw = PDO_NOT_VALID | cob_id
@@ -487,11 +494,12 @@ class Cia402Drive:
         # a second enable attempt in the same session must not add them again
         if self._on_status_tpdo not in node.tpdo[1].callbacks:
             node.setup_pdos(upload=False)
-            for number in (1, 2):
-                node.tpdo[number].add_callback(self._on_status_tpdo)
+            for layout in od.TPDOS:
+                node.tpdo[layout.number].add_callback(self._on_status_tpdo)
         self._rpdo = rpdo
         layout = tuple((var.index, var.offset, var.length) for var in rpdo)
-        self._rpdo_packed = layout == _RPDO_LAYOUT and rpdo.cob_id == 0x200 + cfg.drive_node_id
+        self._rpdo_packed = (layout == _RPDO.bit_layout
+                             and rpdo.cob_id == _RPDO.cob_id(cfg.drive_node_id))
 
     def _transmit(self, controlword: int, counts: int) -> None:
         """One RPDO frame: controlword + target velocity (counts/s)."""
@@ -501,8 +509,8 @@ class Cia402Drive:
                     self._network.send_message(self._rpdo.cob_id,
                                                _RPDO_FRAME.pack(controlword, counts))
                 else:
-                    self._rpdo[0x6040].raw = controlword
-                    self._rpdo[0x60FF].raw = counts
+                    self._rpdo[od.CONTROLWORD.index].raw = controlword
+                    self._rpdo[od.TARGET_VELOCITY.index].raw = counts
                     self._rpdo.transmit()
                 self._last_controlword = controlword
         self._send(f'RPDO (controlword 0x{controlword:04X}, 0x60FF {counts})', send)
@@ -665,7 +673,7 @@ class Cia402Drive:
         try:
             self._node.nmt.state = 'PRE-OPERATIONAL'
             if self._heartbeat_age() < cfg.drive_heartbeat_timeout:
-                self._node.sdo[0x1016][1].raw = 0   # stop watching our heartbeat: we leave
+                self._node.sdo[od.HEARTBEAT_CONSUMER.index][od.HEARTBEAT_CONSUMER.subindex].raw = 0
         except Exception as exc:                    # best effort: the bus may be gone
             log.warning('drive node %d: shutdown: %s: %s', cfg.drive_node_id,
                         type(exc).__name__, exc)

@@ -36,6 +36,7 @@ import can
 import canopen
 from canopen.emcy import EMCY_STRUCT
 
+from planter_ros.drive import objects as objs
 from planter_ros.drive.eds import default_eds_path
 from planter_ros.drive.states import (
     EMCY_HEARTBEAT, EMCY_RPDO_TIMEOUT, FAULT, FAULT_REACTION_ACTIVE, NOT_READY,
@@ -174,7 +175,7 @@ class SimulatedDrive:
     def _reset_application(self) -> None:
         with self._lock:
             self.node.data_store.clear()
-            self.node.data_store.setdefault(0x608F, {})[1] = struct.pack(
+            self.node.data_store.setdefault(objs.ENCODER_INCREMENTS.index, {})[1] = struct.pack(
                 '<I', self.counts_per_motor_rev)
             self._state = NOT_READY
             self._controlword = 0
@@ -192,9 +193,9 @@ class SimulatedDrive:
             self._rpdo_deadline = 0.0         # s, 0 = off
             self._consumer_node = 0
             self._consumer_timeout = 0.0      # s, 0 = off
-            self._heartbeat_period = self._od_default(0x1017) / 1000.0
-            self._abort_option = self._od_default(0x6007)
-            self._quick_stop_option = self._od_default(0x605A)
+            self._heartbeat_period = self._od_default(objs.HEARTBEAT_PRODUCER.index) / 1000.0
+            self._abort_option = self._od_default(objs.ABORT_CONNECTION.index)
+            self._quick_stop_option = self._od_default(objs.QUICK_STOP_OPTION.index)
 
     def _od_default(self, index: int, subindex: int = 0) -> int:
         obj = self.node.object_dictionary[index]
@@ -336,50 +337,51 @@ class SimulatedDrive:
     def _on_read(self, index: int, subindex: int, od):
         """Live values for SDO uploads and TPDO filling."""
         with self._lock:
-            if index == 0x6041:
+            if index == objs.STATUSWORD.index:
                 return self._statusword()
-            if index == 0x6040:
+            if index == objs.CONTROLWORD.index:
                 return self._controlword
-            if index == 0x6061:
+            if index == objs.MODES_DISPLAY.index:
                 return self._mode
-            if index == 0x6064:
+            if index == objs.POSITION_ACTUAL.index:
                 return _wrap_i32(round(self._position))
-            if index == 0x606C:
+            if index == objs.VELOCITY_ACTUAL.index:
                 return _clip_i32(round(self._velocity))
-            if index == 0x60FF:
+            if index == objs.TARGET_VELOCITY.index:
                 return self._target
-            if index == 0x603F:
+            if index == objs.ERROR_CODE.index:
                 return self._error_code
-            if index == 0x1001:
+            if index == objs.ERROR_REGISTER.index:
                 return 0x01 if self._state in (FAULT, FAULT_REACTION_ACTIVE) else 0x00
         return None
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
         """SDO downloads and decoded RPDO entries land here before they are stored."""
         value = od.decode_raw(data)
-        if index == 0x6040:
+        if index == objs.CONTROLWORD.index:
             self._apply_controlword(value)
-        elif index == 0x60FF:
+        elif index == objs.TARGET_VELOCITY.index:
             with self._lock:
                 self._target = value
-        elif index == 0x6060:
+        elif index == objs.MODES_OF_OPERATION.index:
             with self._lock:
                 if value in self.supported_modes:
                     self._mode = value
-        elif index == 0x1017:
+        elif index == objs.HEARTBEAT_PRODUCER.index:
             with self._lock:
                 self._heartbeat_period = value / 1000.0
-        elif index == 0x1016 and subindex == 1:
+        elif index == objs.HEARTBEAT_CONSUMER.index and subindex == 1:
             with self._lock:
                 self._consumer_node = (value >> 16) & 0x7F
                 self._consumer_timeout = (value & 0xFFFF) / 1000.0
                 self._consumed_heartbeat = None
             if self._consumer_node:
-                self.network.subscribe(0x700 + self._consumer_node, self._on_consumed_heartbeat)
-        elif index == 0x6007:
+                self.network.subscribe(objs.heartbeat_cob(self._consumer_node),
+                                       self._on_consumed_heartbeat)
+        elif index == objs.ABORT_CONNECTION.index:
             with self._lock:
                 self._abort_option = value
-        elif index == 0x605A:
+        elif index == objs.QUICK_STOP_OPTION.index:
             with self._lock:
                 self._quick_stop_option = value
 
@@ -425,7 +427,7 @@ class SimulatedDrive:
         self.rpdo_count += 1
         with self._lock:
             self._last_rpdo = wire_time(pdo_map.timestamp)
-        entries = sorted(pdo_map, key=lambda var: var.index == 0x6040)
+        entries = sorted(pdo_map, key=lambda var: var.index == objs.CONTROLWORD.index)
         try:
             for var in entries:
                 self.node.set_data(var.index, var.subindex, var.get_data())
@@ -450,7 +452,7 @@ class SimulatedDrive:
             self._sent_statusword = sw
         try:
             for number, pdo_map in self.node.tpdo.map.items():
-                if pdo_map.enabled and any(var.index == 0x6041 for var in pdo_map):
+                if pdo_map.enabled and any(var.index == objs.STATUSWORD.index for var in pdo_map):
                     self._send_tpdo(pdo_map)
                     self._tpdo_last_sent[number] = time.monotonic()
         except (can.CanError, RuntimeError, OSError) as exc:
@@ -505,7 +507,7 @@ class SimulatedDrive:
 
     def _send_emcy(self, code: int, register: int) -> None:
         try:
-            self.network.send_message(0x80 + self.node_id,
+            self.network.send_message(objs.emcy_cob(self.node_id),
                                       EMCY_STRUCT.pack(code, register, b''))
         except (can.CanError, RuntimeError, OSError) as exc:
             log.debug('simulated drive: EMCY send failed: %s', exc)
@@ -538,11 +540,13 @@ class SimulatedDrive:
             v = self._velocity
             limit = self.max_acceleration * to_counts
             if state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
-                accel = self._od_value(0x6083 if abs(self._target) >= abs(v) else 0x6084)
+                ramp = (objs.PROFILE_ACCELERATION if abs(self._target) >= abs(v)
+                        else objs.PROFILE_DECELERATION)
+                accel = self._od_value(ramp.index)
                 limit = min(limit, accel)
                 wanted = v + (self._target - v) * (1.0 - math.exp(-dt / self.time_constant))
             elif state in (QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE):
-                limit = min(limit, self._od_value(0x6085))
+                limit = min(limit, self._od_value(objs.QUICK_STOP_DECELERATION.index))
                 wanted = 0.0
             else:                                   # power stage off: the load coasts down
                 wanted = v * math.exp(-dt / self.coast_time_constant)
@@ -586,7 +590,7 @@ class SimulatedDrive:
                       and now - self._last_hb_sent >= self._heartbeat_period)
         if hb_due:
             self._last_hb_sent = now
-            self.network.send_message(0x700 + self.node_id,
+            self.network.send_message(objs.heartbeat_cob(self.node_id),
                                       bytes([_NMT_CODE.get(self.node.nmt.state, 0x7F)]))
         if not self._nmt_operational:
             return
