@@ -15,7 +15,6 @@ A configuration whose CAN bus load exceeds 70 % is refused at start-up.
 """
 
 import logging
-import math
 import sys
 import threading
 import time
@@ -35,6 +34,7 @@ from planter_ros.control import sync_status
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
 from planter_ros.control.machine import Machine, TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig, PlantingAngles
+from planter_ros.control.row_loop import RowLoop
 from planter_ros.dds_domain import keep_discovery_on_host
 from planter_ros.design import from_json
 from planter_ros.scene.design_sources import DesignSources
@@ -90,6 +90,7 @@ class SyncNode(Node):
                                     TurnConfig), on_change=self._on_law_parameters)
         refuse_undeclared(self, arguments)       # before the bus: a misnamed parameter stops it
         self.machine = Machine([row.lateral_offset for row in self.rows], *law.value)
+        self.row_loop = RowLoop(self.machine, cfg.heartbeat_period, cfg.drive_heartbeat_timeout)
         enabled = [row for row in self.rows if row.enabled]
         self.bus_load = bus_load(len(enabled), cfg.can_bitrate, self.loop.control_period,
                                  self.loop.ground_speed_rate, cfg.feedback_period,
@@ -110,7 +111,6 @@ class SyncNode(Node):
         self.design_sources = DesignSources()
         self._bus_send_errors = 0
         self._last_bus_error = None          # (monotonic time, message)
-        self._last_heartbeat = -math.inf
 
         group = MutuallyExclusiveCallbackGroup()    # one control thread of execution
         self._joint_pub = interfaces.JOINT_STATES.publisher(self)
@@ -184,6 +184,7 @@ class SyncNode(Node):
                 else:
                     unit.running = True
                     unit.halt = None
+                    self.row_loop.enabled(unit.row.index)
         running = [unit.label for unit in self.units if unit.running]
         if self.implicit:
             self.get_logger().info(f'drive {self.hardware_id} enabled (profile velocity)')
@@ -350,35 +351,28 @@ class SyncNode(Node):
             return
         for unit in self.units:
             if unit.running:
-                self._step_row(unit, now)
-        if now - self._last_heartbeat >= self.drive_config.heartbeat_period:
-            self._last_heartbeat = now          # due: from whichever path runs first, after
-            try:                                # the commands (they are what is waited for)
+                unit.status = unit.drive.status()
+        step = self.row_loop.step([unit.status if unit.running else None
+                                   for unit in self.units],
+                                  [unit.running for unit in self.units], now)
+        for unit, row in zip(self.units, step.rows):
+            if not row.running:
+                continue
+            if row.changed:
+                self._report_halt(unit, row.halt, unit.status)
+            unit.halt = row.halt
+            try:
+                unit.drive.send_velocity(row.command)
+            except DriveError as exc:
+                self._send_failed(now, exc, unit)
+            unit.period.event(time.monotonic())      # when the frame went, not when asked for
+            unit.command = row.command
+        if step.heartbeat:          # due: from whichever path runs first, after the commands
+            try:                    # (they are what is waited for)
                 self.drives.send_heartbeat()
             except DriveError as exc:
                 self._send_failed(now, exc, None)
         self._publish_commands()
-
-    def _step_row(self, unit, now):
-        status = unit.drive.status()
-        unit.status = status
-        if sync_status.has_feedback(status):
-            unit.law.feedback(status.position, status.velocity, status.stamp)
-        halt = sync_status.halt_reason(status, self.drive_config.drive_heartbeat_timeout)
-        if halt != unit.halt:
-            self._report_halt(unit, halt, status)
-            unit.halt = halt
-        if halt is None:
-            command = unit.law.command(now)
-        else:
-            command = 0.0
-            unit.law.halt(now)
-        try:
-            unit.drive.send_velocity(command)
-        except DriveError as exc:
-            self._send_failed(now, exc, unit)
-        unit.period.event(time.monotonic())      # when the frame went, not when asked for
-        unit.command = command
 
     def _publish_commands(self):
         if self.implicit:
