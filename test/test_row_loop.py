@@ -128,3 +128,18 @@ def test_rows_not_running_are_not_commanded_and_no_heartbeat_without_any():
     assert not any(row.running for row in step.rows) and not step.heartbeat
     with pytest.raises(ValueError, match='2 rows'):
         loop.step([None], [False], 0.0)
+
+
+def test_stop_ramps_every_row_to_zero_at_its_acceleration_limit_whatever_the_ground():
+    machine, loop = machine_loop((0.0, 0.5))
+    machine.set_design(D, 1, 0.0)
+    step, _ = run(loop, machine, 0.5, 8.0)
+    before = [row.command for row in step.rows]
+    loop.stop(8.0)
+    assert loop.stopping
+    machine.sample(0.5, 0.0, 8.5)                        # the ground still moves
+    half = loop.step([Snap(stamp=8.5)] * 2, [True, True], 8.5)
+    for row, was in zip(half.rows, before):             # 20 rad/s² for 0.5 s
+        assert row.command == pytest.approx(max(was - 10.0, 0.0))
+    done = loop.step([Snap(stamp=9.5)] * 2, [True, True], 9.5)
+    assert all(row.command == 0.0 for row in done.rows)

@@ -7,7 +7,8 @@ Per running row, in this order: the drive's feedback (angle, speed, stamp) goes 
 `PhaseLock`; the health policy (`sync_status.halt_reason`) says whether the drive may be
 commanded; if so the law's command for `now`, else 0 and the law is told it halted (its next
 commands ramp up from 0). A row whose halt reason changed is flagged (`changed`), so the caller
-logs it once. The master heartbeat is due once per `heartbeat_period` (`heartbeat_due`).
+logs it once. The master heartbeat is due once per `heartbeat_period` (`LoopStep.heartbeat`).
+After `stop(now)` every row ramps from its last command to 0 at its acceleration limit.
 
 Inputs the caller feeds between steps go to the `Machine` (`loop.machine`): ground-speed
 samples (`sample`), designs (`set_design`), section switches (`switch`).
@@ -55,10 +56,21 @@ class RowLoop:
         self.halts: list[Halt | None] = [sync_status.NEVER_ENABLED] * n
         self.commands: list[float] = [0.0] * n
         self._last_heartbeat = -math.inf
+        self._stop: tuple[float, list[float]] | None = None     # (time, commands then)
 
     def enabled(self, i: int) -> None:
         """Row i's drive was just enabled: nothing halts it (a later halt is a change)."""
         self.halts[i] = None
+
+    def stop(self, now: float) -> None:
+        """From `now` on, every row's command ramps from its last value to 0 at the row's
+        acceleration limit, whatever the law says (the shell is gone: stop the machine)."""
+        if self._stop is None:
+            self._stop = (now, list(self.commands))
+
+    @property
+    def stopping(self) -> bool:
+        return self._stop is not None
 
     def step(self, statuses: Sequence[Any], running: Sequence[bool], now: float) -> LoopStep:
         """One step at `now` (monotonic s): `statuses[i]` is row i's drive status snapshot
@@ -86,7 +98,12 @@ class RowLoop:
         halt = sync_status.halt_reason(status, self.heartbeat_timeout)
         changed = halt != self.halts[i]
         self.halts[i] = halt
-        if halt is None:
+        if self._stop is not None:
+            t_stop, commands = self._stop
+            ramp = law.config.max_acceleration * max(now - t_stop, 0.0)
+            command = max(commands[i] - ramp, 0.0) if halt is None else 0.0
+            law.halt(now)
+        elif halt is None:
             command = law.command(now)
         else:
             command = 0.0
