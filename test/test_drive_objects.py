@@ -70,7 +70,7 @@ def test_bus_and_device_settings_are_separate_groups_with_the_old_names():
     bus_names = {f.name for f in fields(BusConfig)}
     device_names = {f.name for f in fields(DeviceConfig)}
     assert bus_names == {'can_interface', 'can_channel', 'can_bitrate', 'master_node_id',
-                         'heartbeat_period'}
+                         'heartbeat_period', 'sync_period'}
     assert 'drive_node_id' in device_names and not bus_names & device_names
     assert {f.name for f in fields(DriveConfig)} == bus_names | device_names
     config = DriveConfig(can_channel='x', drive_node_id=5)

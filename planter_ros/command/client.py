@@ -35,7 +35,7 @@ from planter_ros.drive.errors import DriveError
 from .channel import Channel, ChannelClosed
 from .engine import Feedback, Log
 from .settings import CommandSettings, law_to_data
-from .socket_bus import INTERFACE, socket_pair
+from planter_ros.drive.socket_bus import INTERFACE, socket_pair
 
 __all__ = ['COMMAND_PROCESS', 'CommandProcessError', 'CommandClient']
 
@@ -178,6 +178,7 @@ class CommandClient:
             self.log(logging.ERROR, f'{why}; not restarted ({limit} restart(s) used): the '
                                     "drives' watchdogs have stopped the motors")
             return False
+        self.info = {}
         self.restarts += 1
         self.log(logging.ERROR, f'{why}: restarting it ({self.restarts} of {limit}); the '
                                 "drives' watchdogs stop the motors meanwhile")
@@ -274,6 +275,11 @@ class CommandClient:
         return bool(ok), str(message)
 
     # ---------------------------------------------------------------- outputs
+    @property
+    def running(self) -> int:
+        """Rows whose drives run (as the command process said when ready)."""
+        return int(self.info.get('ready', {}).get('running', 0))
+
     def feedback(self) -> list[Feedback]:
         return [Feedback(*item) for item in self.last_fb.get('feedback', [])]
 

@@ -122,6 +122,11 @@ class CommandEngine:
         return self._bus_send_errors + sum(unit.send_errors for unit in self.units)
 
     @property
+    def running(self) -> int:
+        """Rows whose drives run."""
+        return sum(unit.running for unit in self.units)
+
+    @property
     def shut_down(self) -> bool:
         return self._shut_down
 

@@ -41,7 +41,7 @@ from . import realtime
 from .channel import Channel, ChannelClosed
 from .engine import CommandEngine
 from .settings import CommandSettings, law_from_data
-from .socket_bus import INTERFACE, SocketPairBus
+from planter_ros.drive.socket_bus import INTERFACE, SocketPairBus
 
 __all__ = ['ORPHAN_RAMP_LIMIT', 'main', 'run']
 

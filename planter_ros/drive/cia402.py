@@ -52,7 +52,8 @@ from planter_ros.drive.eds import default_eds_path
 from planter_ros.drive.errors import (BusError, DriveConfigError, DriveError,
                                       DriveRefusedError, DriveTimeoutError, NotConnectedError)
 from planter_ros.drive.states import (
-    ABORT_OPTION_QUICK_STOP, CW_DISABLE_VOLTAGE, CW_ENABLE_OPERATION, CW_FAULT_RESET,
+    ABORT_OPTION_QUICK_STOP, CYCLIC_SYNC_POSITION, MODE_SUPPORTED, CW_DISABLE_VOLTAGE,
+    CW_ENABLE_OPERATION, CW_FAULT_RESET,
     CW_QUICK_STOP, CW_SHUTDOWN, CW_SWITCH_ON, EMCY_HEARTBEAT, FAULT, FAULT_REACTION_ACTIVE,
     NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY, PROFILE_VELOCITY_SUPPORTED,
     QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON, state_of)
@@ -63,10 +64,12 @@ __all__ = ['BusConfig', 'CanopenBus', 'Cia402Drive', 'DeviceConfig', 'DriveConfi
 log = logging.getLogger(__name__)
 
 _INT32 = (-2**31, 2**31 - 1)
-# RPDO1 as _configure_pdos maps it (drive.objects), and the frame packed straight from that
-# (the control loop's hot path: canopen's per-entry encoding costs several times the send)
-_RPDO = od.RPDO_VELOCITY
-_RPDO_FRAME = _RPDO.frame
+_MODE_NAMES = {PROFILE_VELOCITY: 'profile velocity', CYCLIC_SYNC_POSITION: 'cyclic synchronous '
+               'position'}
+
+
+def _wrap_i32(value: int) -> int:
+    return (value + 2**31) % 2**32 - 2**31
 
 # Fault-reset / re-enable: the controlword that moves each state one step towards
 # OPERATION ENABLED (fault state handled separately: one reset edge per request).
@@ -95,6 +98,8 @@ class DriveStatus:                             # snapshot, built without blockin
     resetting: bool = False                    # a requested fault reset is in progress
     enabled: bool = False                      # connected, OPERATION ENABLED, taking commands
     commanded_velocity: float = 0.0            # mechanism rad/s in the last RPDO sent
+    mode: int = 0                              # 3 profile velocity, 8 CSP (0 before enable)
+    commanded_position: float = math.nan       # CSP: mechanism rad in the last RPDO sent
 
 
 class CanopenBus:
@@ -143,6 +148,18 @@ class CanopenBus:
             raise BusError(f'CAN send of heartbeat failed on {self.where}: '
                            f'{type(exc).__name__}: {exc}') from None
 
+    def send_sync(self) -> None:
+        """One SYNC frame (COB-ID 80h, no data): the drives in CSP apply the position targets
+        received since the last one. NON-BLOCKING; raises NotConnectedError / BusError."""
+        network = self.network
+        if network is None:
+            raise NotConnectedError(f'CAN bus {self.where}: not open (no SYNC sent)')
+        try:
+            network.send_message(od.SYNC_COB, b'')
+        except Exception as exc:            # python-can raises CanError, OSError, ValueError...
+            raise BusError(f'CAN send of SYNC failed on {self.where}: '
+                           f'{type(exc).__name__}: {exc}') from None
+
     def close(self) -> None:
         """Stop the Network's notifier; shut the bus down if this object opened it."""
         with self._lock:
@@ -169,7 +186,10 @@ class Cia402Drive:
         self._network: canopen.Network | None = None
         self._node: BaseNode402 | None = None
         self._rpdo = None
-        self._rpdo_packed = False     # RPDO1 has the layout _RPDO_FRAME packs
+        self._rpdo_packed = False     # RPDO1 has the layout self._layout packs
+        self.mode = 0                 # chosen at enable: PROFILE_VELOCITY or CYCLIC_SYNC_POSITION
+        self._layout = od.RPDO_VELOCITY
+        self._target_counts: int | None = None    # CSP: last target position sent (raw)
         self._connected = False       # bus open, PDOs configured, drive operational
         self._enabled = False         # enable sequence finished (cleared by shutdown)
         self._lock = threading.Lock()             # feedback and fault fields
@@ -195,6 +215,7 @@ class Cia402Drive:
         self._reset_edge_sent = False
         self._last_controlword = 0
         self._commanded = 0.0
+        self._commanded_position = math.nan
         #: measured at the last connect_and_enable (s)
         self.enable_duration = math.nan
 
@@ -331,13 +352,15 @@ class Cia402Drive:
         self._configure_pdos()
         heartbeat_written = time.time()
         self._configure_watchdogs()
-        self._select_profile_velocity()
+        if self.mode == CYCLIC_SYNC_POSITION:
+            self._configure_csp()
+        self._select_mode()
         self._wait_drive_heartbeat(since=heartbeat_written)
         self._go_operational()
         self._enable_state_machine()
         self.enable_duration = time.monotonic() - t_start
-        log.info('drive node %d enabled in %.1f ms', self.config.drive_node_id,
-                 1000 * self.enable_duration)
+        log.info('drive node %d enabled in %.1f ms (%s)', self.config.drive_node_id,
+                 1000 * self.enable_duration, _MODE_NAMES[self.mode])
 
     def _identify(self) -> None:
         """Refuse a node that is not the drive the configuration describes."""
@@ -347,11 +370,24 @@ class Cia402Drive:
         if device_type & 0xFFFF != 402:
             raise self._fail(step, f'device type 0x{device_type:08X} is not a CiA 402 drive',
                              DriveRefusedError)
-        step = 'check profile velocity support (0x6502)'
+        step = 'choose the operation mode (0x6502 supported drive modes)'
         modes = self._read(step, od.SUPPORTED_MODES, optional=True)
-        if modes is not None and not modes & PROFILE_VELOCITY_SUPPORTED:
+        wanted = cfg.operation_mode
+        if modes is None:                     # not said: profile velocity, as before
+            modes = PROFILE_VELOCITY_SUPPORTED
+        csp = bool(modes & MODE_SUPPORTED[CYCLIC_SYNC_POSITION])
+        if wanted == 'csp' and not csp:
+            raise self._fail(step, f'supported drive modes 0x{modes:08X} lack cyclic '
+                                   'synchronous position (bit 7); set operation_mode to '
+                                   'velocity or auto', DriveRefusedError)
+        if wanted == 'csp' or (wanted == 'auto' and csp):
+            self.mode = CYCLIC_SYNC_POSITION
+        elif not modes & PROFILE_VELOCITY_SUPPORTED:
             raise self._fail(step, f'supported drive modes 0x{modes:08X} lack profile velocity '
                                    '(bit 2)', DriveRefusedError)
+        else:
+            self.mode = PROFILE_VELOCITY
+        self._layout = od.rpdo_for_mode(self.mode)
         step = 'check encoder resolution (0x608F)'
         increments = self._read(step, od.ENCODER_INCREMENTS, optional=True)
         revolutions = self._read(step, od.ENCODER_MOTOR_REVOLUTIONS, optional=True)
@@ -372,15 +408,36 @@ class Cia402Drive:
         step = 'target velocity 0 (0x60FF)'
         self._write(step, od.TARGET_VELOCITY, 0)
 
-    def _select_profile_velocity(self) -> None:
-        """0x6060 = 3, confirmed by reading 0x6061 back (drives switch modes with a delay)."""
+    def _configure_csp(self) -> None:
+        """CSP: SYNC consumer and its period, the interpolation period, the following-error
+        window, and the target position = where the drive is (no jump when enabled)."""
         cfg = self.config
-        step = 'mode of operation (0x6060 = 3, confirmed by 0x6061)'
-        self._write(step, od.MODES_OF_OPERATION, PROFILE_VELOCITY)
+        step = 'SYNC (0x1005 consumer, 0x1006 period, 0x60C2 interpolation period)'
+        self._write(step, od.SYNC_COB_ID, od.SYNC_COB)
+        self._write(step, od.COMM_CYCLE_PERIOD, round(cfg.sync_period * 1e6))
+        self._write(step, od.INTERPOLATION_PERIOD_VALUE, round(cfg.sync_period * 1e3))
+        self._write(step, od.INTERPOLATION_PERIOD_INDEX, -3)
+        step = 'following error (0x6065 window, 0x6066 time out)'
+        self._write(step, od.FOLLOWING_ERROR_WINDOW,
+                    max(1, round(cfg.following_error_window / self._rad_per_count)))
+        self._write(step, od.FOLLOWING_ERROR_TIMEOUT, round(cfg.following_error_timeout * 1e3))
+        step = 'target position = actual position (0x607A from 0x6064)'
+        actual = self._read(step, od.POSITION_ACTUAL)
+        self._write(step, od.TARGET_POSITION, actual)
+        with self._lock:
+            self._target_counts = actual
+
+    def _select_mode(self) -> None:
+        """0x6060 = the chosen mode, confirmed by reading 0x6061 back (drives switch modes with
+        a delay)."""
+        cfg = self.config
+        mode, name = self.mode, _MODE_NAMES[self.mode]
+        step = f'mode of operation (0x6060 = {mode}, confirmed by 0x6061)'
+        self._write(step, od.MODES_OF_OPERATION, mode)
         deadline = time.monotonic() + cfg.step_timeout
-        while (mode := self._read(step, od.MODES_DISPLAY)) != PROFILE_VELOCITY:
+        while (shown := self._read(step, od.MODES_DISPLAY)) != mode:
             if time.monotonic() > deadline:
-                raise self._fail(step, f'0x6061 reads {mode} after writing 3 (profile velocity) '
+                raise self._fail(step, f'0x6061 reads {shown} after writing {mode} ({name}) '
                                        f'for {cfg.step_timeout:.2f} s', DriveTimeoutError)
             time.sleep(0.005)
 
@@ -414,7 +471,7 @@ class Cia402Drive:
                                            f'0x{self._error_code:04X}); call '
                                            'request_fault_reset() and connect again',
                                  DriveRefusedError)
-            self._transmit(CW_DISABLE_VOLTAGE, 0)
+            self._transmit(CW_DISABLE_VOLTAGE, None)
             self._wait_step('fault reset (0x80)', CW_FAULT_RESET, SWITCH_ON_DISABLED)
         elif state not in (SWITCH_ON_DISABLED, READY_TO_SWITCH_ON):
             # left enabled (or quick-stopped) by an earlier session: start from the bottom
@@ -450,18 +507,22 @@ class Cia402Drive:
     _open = open
 
     def _configure_pdos(self) -> None:
-        """RPDO1 = controlword + target velocity; TPDO1 = statusword + error code,
-        TPDO2 = position + velocity actual; every other PDO disabled."""
+        """RPDO1 = controlword + target velocity (profile velocity, asynchronous) or target
+        position (CSP, synchronous: applied at the next SYNC); TPDO1 = statusword + error code,
+        TPDO2 = position + velocity actual (every feedback period, or every SYNC in CSP);
+        every other PDO disabled (drive.objects declares the layouts)."""
         cfg, node = self.config, self._node
         step = 'configure PDOs (0x1400/0x1600, 0x1800/0x1A00)'
         feedback_ms = max(1, round(cfg.feedback_period * 1000))
         try:
+            csp = self.mode == CYCLIC_SYNC_POSITION
+            layout = self._layout
             rpdo = node.rpdo[1]
             rpdo.clear()
-            for obj in _RPDO.entries:
+            for obj in layout.entries:
                 rpdo.add_variable(obj.index, obj.subindex)
-            rpdo.cob_id = _RPDO.cob_id(cfg.drive_node_id)
-            rpdo.trans_type = 255
+            rpdo.cob_id = layout.cob_id(cfg.drive_node_id)
+            rpdo.trans_type = 1 if csp else 255
             rpdo.event_timer = round(cfg.command_timeout * 1000)    # deadline monitoring
             rpdo.enabled = True
             rpdo.save()
@@ -471,9 +532,9 @@ class Cia402Drive:
                 for obj in layout.entries:
                     tpdo.add_variable(obj.index, obj.subindex)
                 tpdo.cob_id = layout.cob_id(cfg.drive_node_id)
-                tpdo.trans_type = 255
+                tpdo.trans_type = 1 if csp else 255
                 tpdo.inhibit_time = 0
-                tpdo.event_timer = feedback_ms
+                tpdo.event_timer = 0 if csp else feedback_ms
                 tpdo.enabled = True
                 tpdo.save()
             for maps, first_free, base in ((node.rpdo.map, 2, 0x200),
@@ -497,23 +558,38 @@ class Cia402Drive:
             for layout in od.TPDOS:
                 node.tpdo[layout.number].add_callback(self._on_status_tpdo)
         self._rpdo = rpdo
-        layout = tuple((var.index, var.offset, var.length) for var in rpdo)
-        self._rpdo_packed = (layout == _RPDO.bit_layout
-                             and rpdo.cob_id == _RPDO.cob_id(cfg.drive_node_id))
+        mapped = tuple((var.index, var.offset, var.length) for var in rpdo)
+        self._rpdo_packed = (mapped == layout.bit_layout
+                             and rpdo.cob_id == layout.cob_id(cfg.drive_node_id))
 
-    def _transmit(self, controlword: int, counts: int) -> None:
-        """One RPDO frame: controlword + target velocity (counts/s)."""
+    def _hold_counts(self) -> int:
+        """The target that holds the drive: velocity 0, or in CSP the last target sent (the
+        position where it was told to be; the actual one at enable)."""
+        if self.mode != CYCLIC_SYNC_POSITION:
+            return 0
+        with self._lock:
+            if self._target_counts is not None:
+                return self._target_counts
+            return _wrap_i32(self._position_counts)
+
+    def _transmit(self, controlword: int, counts: int | None) -> None:
+        """One RPDO frame: controlword + target velocity (counts/s) or target position
+        (counts, CSP); None = the holding target (`_hold_counts`)."""
+        if counts is None:
+            counts = self._hold_counts()
+        target = self._layout.entries[1]
+
         def send():
             with self._tx_lock:
                 if self._rpdo_packed:
                     self._network.send_message(self._rpdo.cob_id,
-                                               _RPDO_FRAME.pack(controlword, counts))
+                                               self._layout.frame.pack(controlword, counts))
                 else:
                     self._rpdo[od.CONTROLWORD.index].raw = controlword
-                    self._rpdo[od.TARGET_VELOCITY.index].raw = counts
+                    self._rpdo[target.index].raw = counts
                     self._rpdo.transmit()
                 self._last_controlword = controlword
-        self._send(f'RPDO (controlword 0x{controlword:04X}, 0x60FF {counts})', send)
+        self._send(f'RPDO (controlword 0x{controlword:04X}, {target.address} {counts})', send)
 
     def _wait_state(self, step: str, done, what: str, resend=None) -> None:
         deadline = time.monotonic() + self.config.step_timeout
@@ -543,7 +619,7 @@ class Cia402Drive:
 
     def _wait_step(self, step: str, controlword: int, target_state: str) -> None:
         self._wait_state(step, lambda state: state == target_state, 'no statusword',
-                         resend=lambda: self._transmit(controlword, 0))
+                         resend=lambda: self._transmit(controlword, None))
 
     # ------------------------------------------------------------------ non-blocking
     def send_velocity(self, speed: float) -> None:
@@ -554,28 +630,75 @@ class Cia402Drive:
         the reset edge and the re-enable steps, one per call, then speeds again.
         Raises DriveError for a non-finite speed, before connect, or on a CAN send error.
         """
-        if not self._connected or self._rpdo is None:
-            raise NotConnectedError(f'drive node {self.config.drive_node_id}: not connected '
-                             '(call connect_and_enable first)')
+        self._check_connected()
+        if self.mode == CYCLIC_SYNC_POSITION:
+            raise DriveError(f'drive node {self.config.drive_node_id}: runs cyclic synchronous '
+                             'position: send_position(), not send_velocity()')
         if not math.isfinite(speed):
             raise DriveError(f'speed {speed!r} rad/s is not finite (allowed: a finite number)')
         counts = self._counts_per_s(speed)
-        now = time.monotonic()
         with self._lock:
-            self._latch_heartbeat_loss()
-            state = state_of(self._statusword)
-            if self._reset_requested:
-                controlword = self._reset_step(state, now)
-                counts = 0
-            elif self._latched_reason or state != OPERATION_ENABLED:
-                # refuse: zero speed, and a controlword that causes no transition towards
-                # enabled (0x0F holds an enabled drive at zero speed; quick stop elsewhere)
-                controlword = CW_ENABLE_OPERATION if state == OPERATION_ENABLED else CW_QUICK_STOP
-                counts = 0
-            else:
-                controlword = CW_ENABLE_OPERATION
+            controlword, commanding = self._controlword_locked(time.monotonic())
+            counts = counts if commanding else 0
             self._commanded = counts * self._rad_per_count
         self._transmit(controlword, counts)
+
+    def send_position(self, angle: float) -> None:
+        """CSP: send one RPDO: controlword + 0x607A for mechanism angle `angle` (rad, on the
+        unwrapped scale of `status().position`), applied by the drive at the next SYNC.
+        NON-BLOCKING. While faulted (as send_velocity) the frame holds where the drive is;
+        after request_fault_reset() it carries the reset steps. Raises DriveError for a
+        non-finite angle, before connect, in profile velocity mode, or on a CAN send error."""
+        self._check_connected()
+        if self.mode != CYCLIC_SYNC_POSITION:
+            raise DriveError(f'drive node {self.config.drive_node_id}: runs profile velocity: '
+                             'send_velocity(), not send_position()')
+        if not math.isfinite(angle):
+            raise DriveError(f'angle {angle!r} rad is not finite (allowed: a finite number)')
+        with self._lock:
+            controlword, commanding = self._controlword_locked(time.monotonic())
+            if commanding:
+                counts = _wrap_i32(round(angle / self._rad_per_count))
+                self._commanded_position = angle
+            else:                                  # hold where the drive is
+                counts = _wrap_i32(self._position_counts)
+                self._commanded_position = self._position_counts * self._rad_per_count
+            self._commanded = 0.0
+            self._target_counts = counts
+        self._transmit(controlword, counts)
+
+    def send_hold(self) -> None:
+        """Keep the drive fed without moving it: velocity 0, or in CSP the last target
+        (NON-BLOCKING)."""
+        if self.mode == CYCLIC_SYNC_POSITION:
+            self._check_connected()
+            with self._lock:
+                controlword, _ = self._controlword_locked(time.monotonic())
+            self._transmit(controlword, None)
+        else:
+            self.send_velocity(0.0)
+
+    def send_sync(self) -> None:
+        """The SYNC frame (once per bus: `canbus.send_sync()` on a shared CanopenBus)."""
+        self._check_connected()
+        self.canbus.send_sync()
+
+    def _check_connected(self) -> None:
+        if not self._connected or self._rpdo is None:
+            raise NotConnectedError(f'drive node {self.config.drive_node_id}: not connected '
+                                    '(call connect_and_enable first)')
+
+    def _controlword_locked(self, now: float) -> tuple[int, bool]:
+        """(controlword of the next frame, whether it may carry a command); lock held."""
+        self._latch_heartbeat_loss()
+        state = state_of(self._statusword)
+        if self._reset_requested:
+            return self._reset_step(state, now), False
+        if self._latched_reason or state != OPERATION_ENABLED:
+            # refuse: hold, and a controlword that causes no transition towards enabled (0x0F
+            # holds an enabled drive; quick stop elsewhere)
+            return (CW_ENABLE_OPERATION if state == OPERATION_ENABLED else CW_QUICK_STOP), False
+        return CW_ENABLE_OPERATION, True
 
     def _reset_step(self, state: str, now: float) -> int:
         """Controlword for the next frame of an explicit fault reset (lock held)."""
@@ -634,7 +757,8 @@ class Cia402Drive:
                 resetting=self._reset_requested,
                 enabled=(self._enabled and self._connected and not reason
                          and not self._reset_requested and state == OPERATION_ENABLED),
-                commanded_velocity=self._commanded)
+                commanded_velocity=self._commanded, mode=self.mode,
+                commanded_position=self._commanded_position)
 
     def request_fault_reset(self) -> None:
         """Ask for one fault reset: the next send_velocity frames carry the reset edge (0x80)
@@ -685,7 +809,7 @@ class Cia402Drive:
         deadline = time.monotonic() + self.config.step_timeout
         next_heartbeat = 0.0
         while True:
-            self._transmit(controlword, 0)
+            self._transmit(controlword, None)
             now = time.monotonic()
             if now >= next_heartbeat:
                 self.send_heartbeat()

@@ -40,6 +40,10 @@ class BusConfig:
     heartbeat_period: float = setting(0.1, 'our CANopen heartbeat period, sent from the '
                                       'control loop', unit='s', range=(0.01, 1.0),
                                       read_only=True)
+    sync_period: float = setting(0.01, 'SYNC period the command process produces for drives '
+                                 'in cyclic synchronous position (0x1006, 0x60C2): one '
+                                 'position target per row per period', unit='s',
+                                 range=(0.002, 0.1), read_only=True)
 
     def __post_init__(self) -> None:
         check(self, DriveConfigError)
@@ -81,6 +85,17 @@ class DeviceConfig:
                                    unit='s', range=(0.1, 10.0), read_only=True)
     eds_path: str = setting('', "the drive's EDS file; empty = config/planter_drive.eds",
                             read_only=True)
+    operation_mode: str = setting('auto', "'csp': cyclic synchronous position (mode 8, "
+                                  "position targets on SYNC); 'velocity': profile velocity "
+                                  "(mode 3); 'auto': csp when the drive's 0x6502 offers it, "
+                                  'else velocity', choices=('auto', 'csp', 'velocity'),
+                                  read_only=True)
+    following_error_window: float = setting(0.2, 'CSP: following error the drive tolerates '
+                                            '(0x6065), mechanism angle', unit='rad',
+                                            range=(0.001, 10.0), read_only=True)
+    following_error_timeout: float = setting(0.05, 'CSP: a following error beyond the window '
+                                             'for this long faults the drive (0x6066)',
+                                             unit='s', range=(0.0, 1.0), read_only=True)
 
     def __post_init__(self) -> None:
         check(self, DriveConfigError)

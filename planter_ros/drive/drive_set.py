@@ -80,7 +80,7 @@ class DriveSet:
                     self.canbus.send_heartbeat()
                     next_heartbeat = now + self.config.heartbeat_period
                 for drive in ready:
-                    drive.send_velocity(0.0)
+                    drive.send_hold()
             except DriveError as exc:
                 log.warning('while enabling: %s', exc)
             time.sleep(period)

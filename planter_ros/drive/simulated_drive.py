@@ -103,6 +103,37 @@ def _paced(stop_event, tick, work):
         yield dt, now
 
 
+class Gaps:
+    """Gaps between events on the receiver's clock: count, largest, and how many exceeded each
+    of `limits` (s). Constant memory, one comparison per limit per event."""
+
+    def __init__(self, limits: tuple[float, ...] = (0.05, 0.15, 0.2)):
+        self.limits = tuple(limits)
+        self.over = [0] * len(self.limits)
+        self.count = 0
+        self.max_gap = 0.0
+        self._last: float | None = None
+
+    def event(self, now: float) -> None:
+        last, self._last = self._last, now
+        if last is None:
+            return
+        gap = now - last
+        self.count += 1
+        self.max_gap = max(self.max_gap, gap)
+        for i, limit in enumerate(self.limits):
+            if gap > limit:
+                self.over[i] += 1
+
+    def restart(self) -> None:
+        """The next event starts a new series (the sender stopped on purpose)."""
+        self._last = None
+
+    def summary(self) -> dict:
+        return {'gaps': self.count, 'max': self.max_gap,
+                'over': {f'{limit * 1e3:g} ms': n for limit, n in zip(self.limits, self.over)}}
+
+
 class SimulatedDrive:
     """A CiA 402 profile-velocity drive on the bus, with a motor model and its own watchdog."""
 
@@ -170,6 +201,8 @@ class SimulatedDrive:
         #: Frames counted for tests and the demo summary.
         self.rpdo_count = 0
         self.tpdo_count = 0
+        #: Gaps between command frames as this drive received them (its own clock).
+        self.rpdo_gaps = Gaps()
 
     # ---------------------------------------------------------------- life cycle
     def _reset_application(self) -> None:
@@ -407,6 +440,7 @@ class SimulatedDrive:
             self._send_state_tpdos()
         elif not operational:
             self._nmt_operational = False
+            self.rpdo_gaps.restart()
 
     def _load_pdo_configuration(self) -> None:
         """Read the PDO mapping the master wrote (from our own object dictionary)."""
@@ -425,6 +459,7 @@ class SimulatedDrive:
         if not self._nmt_operational:
             return
         self.rpdo_count += 1
+        self.rpdo_gaps.event(time.monotonic())
         with self._lock:
             self._last_rpdo = wire_time(pdo_map.timestamp)
         entries = sorted(pdo_map, key=lambda var: var.index == objs.CONTROLWORD.index)
@@ -608,9 +643,12 @@ class SimulatedBus:
     sent to N drives is copied once, as on a real bus). `drives[i]` has node id `node_ids[i]`;
     keyword arguments go to every SimulatedDrive."""
 
-    def __init__(self, channel: str, node_ids, *, interface: str = 'virtual',
+    def __init__(self, channel: str | can.BusABC, node_ids, *, interface: str = 'virtual',
                  tick: float = 0.002, **drive_kwargs):
-        self.bus = can.Bus(interface=interface, channel=channel)
+        """`channel`: a channel name of `interface` (opened here), or an open python-can bus
+        (e.g. one end of a socket pair to a master in another process; shut down on stop)."""
+        self.bus = (channel if isinstance(channel, can.BusABC)
+                    else can.Bus(interface=interface, channel=channel))
         self.network = canopen.Network(self.bus)
         self.tick = float(tick)
         self.drives = [SimulatedDrive(self.bus, node_id=node_id, network=self.network,
