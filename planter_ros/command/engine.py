@@ -29,7 +29,7 @@ from planter_ros.drive.bus_load import BusLoad, bus_load, check_bus_load
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.drive_set import DriveSet
 from planter_ros.drive.errors import DriveError
-from planter_ros.drive.states import FAULT
+from planter_ros.drive.states import CYCLIC_SYNC_POSITION, FAULT
 from planter_ros.rows import IMPLICIT, Row
 
 __all__ = ['RowUnit', 'CommandEngine', 'Log', 'planting_angles']
@@ -60,6 +60,13 @@ class RowUnit:
         self.period = PeriodStats()         # gaps between its command frames
         self.faults = 0                     # drive faults (and lost heartbeats) seen
         self.last_fault = ''
+        self.target: float | None = None    # CSP: position target of the next SYNC (rad)
+        self.target_time = 0.0              # when it was computed (monotonic s)
+        self.behind = 0.0                   # s of motion still to be made up (late steps)
+
+    @property
+    def csp(self) -> bool:
+        return self.drive is not None and self.drive.mode == CYCLIC_SYNC_POSITION
 
     @property
     def label(self) -> str:
@@ -111,6 +118,7 @@ class CommandEngine:
         self._bus_send_errors = 0
         self._last_bus_error: tuple[float, str] | None = None
         self.stopping = False               # ramping to zero before a shutdown
+        self.csp = False                    # some row runs CSP: SYNC every step, targets
 
     # ---------------------------------------------------------------- the first row
     @property
@@ -154,11 +162,15 @@ class CommandEngine:
                     unit.running = True
                     unit.halt = None
                     self.row_loop.enabled(unit.row.index)
+            self.csp = any(unit.csp for unit in self.units if unit.running)
         running = [unit.label for unit in self.units if unit.running]
+        mode = (f'cyclic synchronous position, SYNC every '
+                f'{1e3 * self.drive_config.sync_period:g} ms' if self.csp
+                else 'profile velocity')
         if self.implicit:
-            self.log(logging.INFO, f'drive {self.hardware_id} enabled (profile velocity)')
+            self.log(logging.INFO, f'drive {self.hardware_id} enabled ({mode})')
         else:
-            self.log(logging.INFO, f'drives enabled (profile velocity): rows '
+            self.log(logging.INFO, f'drives enabled ({mode}): rows '
                                    f'{", ".join(running)} on {self.bus_id}')
         self.log(logging.INFO, f'{len(with_drive)} row(s) on {self.bus_id}: CAN bus load '
                                f'{100 * self.bus_load.load:.1f} % of '
@@ -196,11 +208,18 @@ class CommandEngine:
             return all(unit.command == 0.0 for unit in self.units if unit.running)
 
     # ---------------------------------------------------------------- inputs
+    @property
+    def period(self) -> float:
+        """The loop's period: the SYNC period when a row runs CSP, else the control period."""
+        return self.drive_config.sync_period if self.csp else self.loop.control_period
+
     def sample(self, v: float, yaw_rate: float, now: float) -> None:
-        """A ground-speed sample (m/s, rad/s) received at `now`: the rows' frames go at once."""
+        """A ground-speed sample (m/s, rad/s) received at `now`: in profile velocity the rows'
+        frames go at once; in CSP the targets go with the next SYNC."""
         with self._lock:
             self.machine.sample(v, yaw_rate, now)
-            self.step(now)
+            if not self.csp:
+                self.step(now)
 
     def set_design(self, design: Design, text: str, now: float) -> bool:
         """A design for every row (at its next planting instant); False when it is the one in
@@ -265,10 +284,19 @@ class CommandEngine:
 
     # ---------------------------------------------------------------- the control step
     def step(self, now: float) -> None:
-        """One command per running row and the master heartbeat when due."""
+        """One command per running row and the master heartbeat when due. With rows in CSP:
+        first the SYNC (the drives apply the targets sent last period), then each row's
+        target for the next SYNC: its last target advanced by the row loop's speed over one
+        SYNC period (phase-locked through the law; a halted row restarts from where its
+        drive is)."""
         with self._lock:
             if not any(unit.running for unit in self.units):
                 return
+            if self.csp:
+                try:
+                    self.drives.canbus.send_sync()
+                except DriveError as exc:
+                    self._send_failed(now, exc, None)
             for unit in self.units:
                 if unit.running:
                     unit.status = unit.drive.status()
@@ -282,7 +310,10 @@ class CommandEngine:
                     self._report_halt(unit, row.halt, unit.status)
                 unit.halt = row.halt
                 try:
-                    unit.drive.send_velocity(row.command)
+                    if unit.csp:
+                        self._send_target(unit, row, now)
+                    else:
+                        unit.drive.send_velocity(row.command)
                 except DriveError as exc:
                     self._send_failed(now, exc, unit)
                 unit.period.event(time.monotonic())      # when the frame went
@@ -292,6 +323,26 @@ class CommandEngine:
                     self.drives.send_heartbeat()
                 except DriveError as exc:
                     self._send_failed(now, exc, None)
+
+    def _send_target(self, unit: RowUnit, row: Any, now: float) -> None:
+        """The row's position for the next SYNC: advanced by its speed over the time since the
+        last target (a late step is made up: the angle stays on the distance travelled)."""
+        period = self.drive_config.sync_period
+        if row.halt is not None or unit.target is None:
+            unit.target = unit.status.position if row.halt is None else None
+            unit.behind = 0.0
+        else:
+            # time owed since the last target; at most two periods' worth per SYNC, so a late
+            # step is made up over the next SYNCs at up to twice the speed, never in one jump
+            owed = max(now - unit.target_time, 0.0) + unit.behind
+            step = min(owed, 2.0 * period)
+            unit.behind = min(owed - step, 0.5)
+            unit.target += row.command * step
+        unit.target_time = now
+        if unit.target is None:
+            unit.drive.send_hold()
+        else:
+            unit.drive.send_position(unit.target)
 
     def feedback(self) -> list[Feedback]:
         """Every running row's last measured motion (for joint_states)."""

@@ -148,8 +148,7 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
         pass
     gc.freeze()       # start-up's objects out of the collector's reach: short collections
     orphaned = _loop(engine, channel, settings, terminated)
-    if orphaned:
-        _ramp_down(engine, settings)
+    _ramp_down(engine, orphaned)
     engine.shutdown()
     try:
         channel.send('final', engine.final_report())
@@ -161,7 +160,7 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
 def _loop(engine: CommandEngine, channel: Channel, settings: CommandSettings,
           terminated: _Terminated) -> bool:
     """Until `stop` (False) or orphaned (True)."""
-    period = settings.loop.control_period
+    period = engine.period
     diag_period = settings.loop.diagnostics_period
     next_tick = time.monotonic()
     next_diag = next_tick
@@ -222,17 +221,19 @@ def _handle(engine: CommandEngine, channel: Channel, kind: str, payload: Any) ->
         engine.log(logging.ERROR, f'{kind} ignored: {exc}')
 
 
-def _ramp_down(engine: CommandEngine, settings: CommandSettings) -> None:
-    """Orphaned: every row to 0 at its acceleration limit (frames and heartbeat go on)."""
-    engine.log(logging.ERROR, 'command process orphaned (its shell died): ramping every row '
-                              'to 0, then disabling the drives')
+def _ramp_down(engine: CommandEngine, orphaned: bool) -> None:
+    """Every row to 0 at its acceleration limit (frames, SYNC and heartbeat go on) before the
+    drives are disabled: asked to stop, or orphaned."""
+    if orphaned:
+        engine.log(logging.ERROR, 'command process orphaned (its shell died): ramping every '
+                                  'row to 0, then disabling the drives')
     start = time.monotonic()
     engine.stop_ramp(start)
     while time.monotonic() - start < ORPHAN_RAMP_LIMIT:
         engine.step(time.monotonic())
         if engine.ramped_down:
             return
-        time.sleep(settings.loop.control_period)
+        time.sleep(engine.period)
 
 
 if __name__ == '__main__':

@@ -810,6 +810,8 @@ class Cia402Drive:
         next_heartbeat = 0.0
         while True:
             self._transmit(controlword, None)
+            if self.mode == CYCLIC_SYNC_POSITION:
+                self.canbus.send_sync()          # CSP feedback comes with the SYNC
             now = time.monotonic()
             if now >= next_heartbeat:
                 self.send_heartbeat()

@@ -39,9 +39,9 @@ from canopen.emcy import EMCY_STRUCT
 from planter_ros.drive import objects as objs
 from planter_ros.drive.eds import default_eds_path
 from planter_ros.drive.states import (
-    EMCY_HEARTBEAT, EMCY_RPDO_TIMEOUT, FAULT, FAULT_REACTION_ACTIVE, NOT_READY,
-    OPERATION_ENABLED, PROFILE_VELOCITY, QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON,
-    SWITCH_ON_DISABLED, SWITCHED_ON)
+    CYCLIC_SYNC_POSITION, EMCY_FOLLOWING_ERROR, EMCY_HEARTBEAT, EMCY_RPDO_TIMEOUT, FAULT,
+    FAULT_REACTION_ACTIVE, MODE_SUPPORTED, NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY,
+    QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON)
 
 log = logging.getLogger(__name__)
 
@@ -58,6 +58,8 @@ _STATUS_BITS = {
 SW_REMOTE = 1 << 9
 SW_TARGET_REACHED = 1 << 10
 SW_SPEED_ZERO = 1 << 12         # profile velocity mode: "speed = 0"
+SW_FOLLOWS = 1 << 12            # CSP: "drive follows the command value"
+SW_FOLLOWING_ERROR = 1 << 13    # CSP: following error beyond the window
 
 EMCY_ERROR_RESET = 0x0000
 
@@ -185,6 +187,7 @@ class SimulatedDrive:
         self.node.add_read_callback(self._on_read)
         self.network.add_node(self.node)
         self.network.subscribe(0, self._on_nmt)   # after LocalNode's own NMT handler
+        self.network.subscribe(objs.SYNC_COB, self._on_sync)
         for pdo_map in self.node.rpdo.map.values():
             pdo_map.add_callback(self._on_rpdo)
         self._tx_lock = threading.Lock()          # one TPDO buffer, two sending threads
@@ -203,6 +206,13 @@ class SimulatedDrive:
         self.tpdo_count = 0
         #: Gaps between command frames as this drive received them (its own clock).
         self.rpdo_gaps = Gaps()
+        #: Gaps between SYNC frames (its own clock); late = over 1.5 periods (0x1006),
+        #: missing = whole periods without one.
+        self.sync_gaps = Gaps()
+        self.sync_count = 0
+        self.sync_late = 0
+        self.sync_missing = 0
+        self.following_error_faults = 0
 
     # ---------------------------------------------------------------- life cycle
     def _reset_application(self) -> None:
@@ -214,6 +224,19 @@ class SimulatedDrive:
             self._controlword = 0
             self._mode = 0
             self._target = 0                  # counts/s, 0x60FF
+            # CSP: the target received since the last SYNC, and the segment the drive
+            # interpolates over one SYNC period (from, to, start time)
+            self._csp_pending: int | None = None
+            self._csp_from = 0.0
+            self._csp_to = 0.0
+            self._csp_start = -math.inf
+            self._sync_period = 0.0           # s, 0x1006 (0: not told)
+            self._fe_window = math.inf        # counts, 0x6065
+            self._fe_timeout = 0.0            # s, 0x6066
+            self._fe_since: float | None = None
+            self._following_error = 0.0       # counts
+            self._last_sync: float | None = None
+            self._syncs_seen = 0
             self._velocity = 0.0              # counts/s
             self._position = 0.0              # counts
             self._fault_code = 0
@@ -357,9 +380,24 @@ class SimulatedDrive:
     def heartbeat_period(self) -> float:
         return self._heartbeat_period
 
+    @property
+    def following_error(self) -> float:
+        """CSP: set point − actual position, motor rad."""
+        return self._following_error * 2.0 * math.pi / self.counts_per_motor_rev
+
+    def sync_summary(self) -> dict:
+        """SYNC timing as this drive saw it (its own clock)."""
+        return {'syncs': self.sync_count, 'late': self.sync_late, 'missing': self.sync_missing,
+                'period': self._sync_period, 'gaps': self.sync_gaps.summary(),
+                'following_error_faults': self.following_error_faults}
+
     # ---------------------------------------------------------------- object dictionary hooks
     def _statusword(self) -> int:
         sw = _STATUS_BITS[self._state] | SW_REMOTE
+        if self._state == OPERATION_ENABLED and self._mode == CYCLIC_SYNC_POSITION:
+            sw |= SW_FOLLOWS
+            if abs(self._following_error) > self._fe_window:
+                sw |= SW_FOLLOWING_ERROR
         if self._state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
             if abs(self._velocity - self._target) <= max(1.0, 0.01 * abs(self._target)):
                 sw |= SW_TARGET_REACHED
@@ -382,6 +420,10 @@ class SimulatedDrive:
                 return _clip_i32(round(self._velocity))
             if index == objs.TARGET_VELOCITY.index:
                 return self._target
+            if index == objs.TARGET_POSITION.index:
+                return _wrap_i32(round(self._csp_to))
+            if index == objs.SUPPORTED_MODES.index:
+                return sum(MODE_SUPPORTED.get(mode, 0) for mode in self.supported_modes)
             if index == objs.ERROR_CODE.index:
                 return self._error_code
             if index == objs.ERROR_REGISTER.index:
@@ -396,6 +438,20 @@ class SimulatedDrive:
         elif index == objs.TARGET_VELOCITY.index:
             with self._lock:
                 self._target = value
+        elif index == objs.TARGET_POSITION.index:
+            with self._lock:
+                self._csp_pending = value
+                if self._state != OPERATION_ENABLED or self._syncs_seen == 0:
+                    self._csp_hold(self._unwrap(value))     # no SYNC yet: a set point
+        elif index == objs.COMM_CYCLE_PERIOD.index:
+            with self._lock:
+                self._sync_period = value / 1e6
+        elif index == objs.FOLLOWING_ERROR_WINDOW.index:
+            with self._lock:
+                self._fe_window = float(value)
+        elif index == objs.FOLLOWING_ERROR_TIMEOUT.index:
+            with self._lock:
+                self._fe_timeout = value / 1000.0
         elif index == objs.MODES_OF_OPERATION.index:
             with self._lock:
                 if value in self.supported_modes:
@@ -417,6 +473,52 @@ class SimulatedDrive:
         elif index == objs.QUICK_STOP_OPTION.index:
             with self._lock:
                 self._quick_stop_option = value
+
+    def _unwrap(self, raw: int) -> float:
+        """A 32-bit target position near the current set point (counts, unwrapped)."""
+        return self._csp_to + _wrap_i32(int(raw) - round(self._csp_to))
+
+    def _csp_hold(self, position: float) -> None:
+        self._csp_from = self._csp_to = float(position)
+        self._csp_start = -math.inf
+
+    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
+        """SYNC: count its timing on our clock; in CSP take the target received since the last
+        one and interpolate to it over one period; send the synchronous TPDOs."""
+        now = time.monotonic()
+        with self._lock:
+            self.sync_count += 1
+            self.sync_gaps.event(now)
+            period = self._sync_period
+            if self._last_sync is not None and period > 0:
+                gap = now - self._last_sync
+                if gap > 1.5 * period:
+                    self.sync_late += 1
+                    self.sync_missing += max(int(round(gap / period)) - 1, 0)
+            self._last_sync = now
+            self._syncs_seen += 1
+            if (self._mode == CYCLIC_SYNC_POSITION and self._state == OPERATION_ENABLED
+                    and self._csp_pending is not None):
+                self._csp_from = self._csp_setpoint(now)
+                self._csp_to = self._unwrap(self._csp_pending)
+                self._csp_start = now
+                self._csp_pending = None
+        if not self._nmt_operational:
+            return
+        try:
+            for pdo_map in self.node.tpdo.map.values():
+                if pdo_map.enabled and 1 <= (pdo_map.trans_type or 0) <= 240 and (
+                        self._syncs_seen % pdo_map.trans_type == 0):
+                    self._send_tpdo(pdo_map)
+        except (can.CanError, RuntimeError, OSError) as exc:
+            log.debug('simulated drive: TPDO send failed: %s', exc)
+
+    def _csp_setpoint(self, now: float) -> float:
+        """The interpolated position set point (counts) at `now`: linear over one SYNC period
+        from the previous target to the newest (lock held)."""
+        period = self._sync_period or 0.01
+        share = min(max((now - self._csp_start) / period, 0.0), 1.0)
+        return self._csp_from + (self._csp_to - self._csp_from) * share
 
     def _on_consumed_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
         if (can_id & 0x7F) == self._consumer_node:
@@ -514,6 +616,8 @@ class SimulatedDrive:
                     state = new
                     if state == OPERATION_ENABLED:
                         self._target_at_enable = self._target
+                        if self._mode == CYCLIC_SYNC_POSITION:
+                            self._csp_hold(self._position)
                         self._quick_stopped = False
                     elif state == QUICK_STOP_ACTIVE:
                         self._quick_stopped = True
@@ -558,7 +662,7 @@ class SimulatedDrive:
         """One step of the drive's own work (motor, watchdogs, TPDOs, heartbeat); False once
         stopped."""
         try:
-            self._step_motor(dt)
+            self._step_motor(dt, now)
             self._check_watchdogs(now)
             self._send_state_tpdos()
             self._send_cyclic(now)
@@ -568,13 +672,28 @@ class SimulatedDrive:
             log.warning('simulated drive: bus error: %s', exc)
         return True
 
-    def _step_motor(self, dt: float) -> None:
+    def _step_motor(self, dt: float, now: float | None = None) -> None:
         to_counts = self.counts_per_motor_rev / (2.0 * math.pi)
+        now = time.monotonic() if now is None else now
+        following_fault = False
         with self._lock:
             state = self._state
             v = self._velocity
             limit = self.max_acceleration * to_counts
-            if state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
+            if state == OPERATION_ENABLED and self._mode == CYCLIC_SYNC_POSITION:
+                # position loop on the interpolated set point, with its speed as feed-forward
+                setpoint = self._csp_setpoint(now)
+                period = self._sync_period or 0.01
+                moving = now - self._csp_start < period
+                feed = (self._csp_to - self._csp_from) / period if moving else 0.0
+                wanted = feed + (setpoint - self._position) / self.time_constant
+                self._following_error = setpoint - self._position
+                if abs(self._following_error) > self._fe_window:
+                    self._fe_since = now if self._fe_since is None else self._fe_since
+                    following_fault = now - self._fe_since >= self._fe_timeout
+                else:
+                    self._fe_since = None
+            elif state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
                 ramp = (objs.PROFILE_ACCELERATION if abs(self._target) >= abs(v)
                         else objs.PROFILE_DECELERATION)
                 accel = self._od_value(ramp.index)
@@ -594,6 +713,10 @@ class SimulatedDrive:
             elif (stopped and state == QUICK_STOP_ACTIVE
                   and self._quick_stop_option in (1, 2, 3, 4)):
                 self._state = SWITCH_ON_DISABLED
+        if following_fault:
+            self.following_error_faults += 1
+            self._fe_since = None
+            self.inject_fault(EMCY_FOLLOWING_ERROR)
 
     def _od_value(self, index: int) -> float:
         raw = self.node.data_store.get(index, {}).get(0)
@@ -630,7 +753,8 @@ class SimulatedDrive:
         if not self._nmt_operational:
             return
         for number, pdo_map in self.node.tpdo.map.items():
-            if not pdo_map.enabled or not pdo_map.event_timer:
+            if (not pdo_map.enabled or not pdo_map.event_timer
+                    or (pdo_map.trans_type or 255) <= 240):
                 continue
             if now - self._tpdo_last_sent.get(number, -math.inf) >= pdo_map.event_timer / 1000.0:
                 self._tpdo_last_sent[number] = now

@@ -96,7 +96,9 @@ class SyncNode(Node):
                                 interfaces.SECTION.for_row(row.name),
                                 lambda req, res, r=row: self._on_section(r, req, res),
                                 callback_group=group)
-        self.create_timer(self.loop.control_period, self._on_control, callback_group=group)
+        self._group = group
+        self._control_timer = self.create_timer(self.loop.control_period, self._on_control,
+                                                callback_group=group)
         self.create_timer(self.loop.diagnostics_period, self._on_diagnostics,
                           callback_group=group)
         self._last_fb = -1
@@ -151,6 +153,11 @@ class SyncNode(Node):
         only). A row whose drive does not answer is reported and left out; raises DriveError
         when no row runs (in a scene without rows: that drive's error)."""
         self.engine.enable()
+        if self.in_process and self.engine.period != self.loop.control_period:
+            # CSP in this process: one step (SYNC + targets) per SYNC period
+            self.destroy_timer(self._control_timer)
+            self._control_timer = self.create_timer(self.engine.period, self._on_control,
+                                                    callback_group=self._group)
         self._ready = True
         held, self._held_logs = self._held_logs, []
         for level, text in held:
