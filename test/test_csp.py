@@ -35,10 +35,6 @@ def csp_sim(channel):
     sim.stop()
 
 
-def master(make_drive, **overrides):
-    return make_drive(**overrides)
-
-
 def test_auto_chooses_csp_when_the_drive_offers_it_and_velocity_stays_selectable(
         csp_sim, make_drive):
     drive = make_drive()
@@ -105,7 +101,10 @@ def test_late_and_missing_syncs_are_counted_on_the_drives_clock(csp_sim, make_dr
     assert summary['period'] == pytest.approx(0.01)
 
 
-def engine_on(channel, rows=(Row(0, 'a', 0.0, 1), Row(1, 'b', 1.0, 2)), **drive):
+ROWS = (Row(0, 'a', 0.0, 1), Row(1, 'b', 1.0, 2))
+
+
+def engine_on(channel, rows=ROWS, **drive):
     config = DriveConfig(can_interface='virtual', can_channel=channel, step_timeout=0.5,
                          **drive)
     law = (PhaseLockConfig(), GroundSpeedLimits(), YawRateLimits(), TurnConfig())
