@@ -422,8 +422,9 @@ class SimulatedDrive:
                 return self._target
             if index == objs.TARGET_POSITION.index:
                 return _wrap_i32(round(self._csp_to))
-            if index == objs.SUPPORTED_MODES.index:
-                return sum(MODE_SUPPORTED.get(mode, 0) for mode in self.supported_modes)
+            if index == objs.SUPPORTED_MODES.index:     # the EDS's, plus CSP if it has it
+                return self._od_default(index) | sum(
+                    MODE_SUPPORTED.get(mode, 0) for mode in self.supported_modes)
             if index == objs.ERROR_CODE.index:
                 return self._error_code
             if index == objs.ERROR_REGISTER.index:
