@@ -29,11 +29,11 @@ from typing import Any
 from planter_ros import diagnostics
 from planter_ros.config import ConfigError
 from planter_ros.design import Design
-from planter_ros.drive.bus_load import BusLoad, bus_load, check_bus_load
+from planter_ros.drive.bus_load import BusLoad
 from planter_ros.drive.errors import DriveError
 
 from .channel import Channel, ChannelClosed
-from .engine import Feedback, Log
+from .engine import Feedback, Log, checked_bus_load
 from .settings import CommandSettings, law_to_data
 from planter_ros.drive.socket_bus import INTERFACE, socket_pair
 
@@ -53,14 +53,9 @@ class CommandClient:
     def __init__(self, settings: CommandSettings, log: Log, extra_fds: Sequence[int] = ()):
         self.settings = settings
         self.log = log
-        cfg, loop = settings.drive, settings.loop
-        enabled = [row for row in settings.rows if row.enabled]
-        self.bus_load: BusLoad = bus_load(len(enabled), cfg.can_bitrate, loop.control_period,
-                                          loop.ground_speed_rate, cfg.feedback_period,
-                                          cfg.drive_heartbeat_period, cfg.heartbeat_period)
-        check_bus_load(self.bus_load, [row.label for row in enabled], loop.control_period,
-                       loop.ground_speed_rate, cfg.feedback_period,
-                       cfg.drive_heartbeat_period, cfg.heartbeat_period)
+        cfg = settings.drive
+        self.bus_load: BusLoad = checked_bus_load(cfg, settings.loop,
+                                                  [row for row in settings.rows if row.enabled])
         self.extra_fds = tuple(extra_fds)
         if cfg.can_interface == INTERFACE:
             self.extra_fds += (int(cfg.can_channel),)

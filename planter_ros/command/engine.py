@@ -32,7 +32,8 @@ from planter_ros.drive.errors import DriveError
 from planter_ros.drive.states import CYCLIC_SYNC_POSITION, FAULT
 from planter_ros.rows import IMPLICIT, Row
 
-__all__ = ['RowUnit', 'CommandEngine', 'Log', 'planting_angles']
+__all__ = ['RowUnit', 'CommandEngine', 'Feedback', 'Log', 'checked_bus_load',
+           'machine_bus_load', 'planting_angles']
 
 Log = Callable[[int, str], None]        # (logging level, one line)
 
@@ -98,13 +99,7 @@ class CommandEngine:
         self.machine = Machine([row.lateral_offset for row in self.rows], *law_values)
         self.row_loop = RowLoop(self.machine, cfg.heartbeat_period, cfg.drive_heartbeat_timeout)
         enabled = [row for row in self.rows if row.enabled]
-        self.bus_load: BusLoad = bus_load(len(enabled), cfg.can_bitrate,
-                                          loop_config.control_period,
-                                          loop_config.ground_speed_rate, cfg.feedback_period,
-                                          cfg.drive_heartbeat_period, cfg.heartbeat_period)
-        check_bus_load(self.bus_load, [row.label for row in enabled], loop_config.control_period,
-                       loop_config.ground_speed_rate, cfg.feedback_period,
-                       cfg.drive_heartbeat_period, cfg.heartbeat_period)
+        self.bus_load: BusLoad = checked_bus_load(cfg, loop_config, enabled)
         self.drives = DriveSet(cfg, {row.name: row.drive_node_id for row in enabled}, bus=bus)
         self.bus_id = f'{cfg.can_interface}:{cfg.can_channel}'
         self.units = [RowUnit(row, self.machine.laws[row.index], self.drives.drives.get(row.name),
@@ -163,6 +158,8 @@ class CommandEngine:
                     unit.halt = None
                     self.row_loop.enabled(unit.row.index)
             self.csp = any(unit.csp for unit in self.units if unit.running)
+            self.bus_load = machine_bus_load(self.drive_config, self.loop,
+                                             len(with_drive), self.csp)
         running = [unit.label for unit in self.units if unit.running]
         mode = (f'cyclic synchronous position, SYNC every '
                 f'{1e3 * self.drive_config.sync_period:g} ms' if self.csp
@@ -485,6 +482,27 @@ class CommandEngine:
                 'loop_histogram': everything.histogram(),
                 'command_timeout': self.drive_config.command_timeout,
             }
+
+
+def machine_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: int, csp: bool) -> BusLoad:
+    """The worst-case CAN bus load of `rows` drives in profile velocity or CSP."""
+    return bus_load(rows, cfg.can_bitrate, loop.control_period, loop.ground_speed_rate,
+                    cfg.feedback_period, cfg.drive_heartbeat_period, cfg.heartbeat_period,
+                    cfg.sync_period if csp else 0.0, csp)
+
+
+def checked_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: Sequence[Row]) -> BusLoad:
+    """The load a configuration may make before its drives say which mode they run: CSP's
+    when `operation_mode` allows CSP and it is the larger; refused above the limit with the
+    knobs that fix it (DriveConfigError)."""
+    loads = [machine_bus_load(cfg, loop, len(rows), False)]
+    if cfg.operation_mode != 'velocity':
+        loads.append(machine_bus_load(cfg, loop, len(rows), True))
+    worst = max(loads, key=lambda load: load.load)
+    check_bus_load(worst, [row.label for row in rows], loop.control_period,
+                   loop.ground_speed_rate, cfg.feedback_period, cfg.drive_heartbeat_period,
+                   cfg.heartbeat_period)
+    return worst
 
 
 def planting_angles(design: Design) -> PlantingAngles | None:

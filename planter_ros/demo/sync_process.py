@@ -135,6 +135,7 @@ def child_main(conn, settings):
 
     from planter_ros.config import ConfigError
     from planter_ros.drive.errors import DriveError
+    from planter_ros.control.loop_timing import SyncLoopConfig
     from planter_ros.drive.sim_process import SimProcess
     from planter_ros.drive.simulated_drive import SimulatedBus
     from planter_ros.drive.socket_bus import INTERFACE, socket_pair
@@ -151,7 +152,13 @@ def child_main(conn, settings):
     if settings.command_process:
         # drives | CAN socket pair | command process | channel | this shell (the sync node)
         ours, theirs = socket_pair()
-        sims = SimProcess(ours.fileno(), list(settings.node_ids), **settings.drive_kwargs)
+        # drives that offer CSP (and profile velocity): the command process runs them in CSP
+        # unless the scene says operation_mode: velocity
+        kwargs = {'supported_modes': [3, 8], **settings.drive_kwargs}
+        # the drives stand for hardware: just below the command process's real-time priority
+        priority = dict(parameters).get('realtime_priority', SyncLoopConfig().realtime_priority)
+        sims = SimProcess(ours.fileno(), list(settings.node_ids),
+                          priority=max(int(priority) - 1, 0), **kwargs)
         ours.close()
         parameters = [(k, v) for k, v in parameters if k not in ('can_interface', 'can_channel')]
         parameters += [('can_interface', INTERFACE), ('can_channel', str(theirs.fileno()))]
@@ -213,6 +220,7 @@ def final_report(sync, drives):
     report['watchdog_trips'] = drives.get('watchdog_trips', [])
     if 'rpdo_gaps' in drives:
         report['drive_gaps'] = drives['rpdo_gaps']
+        report['drive_sync'] = drives.get('sync', {})
     sources = sync.design_sources
     report['design'] = {'first': sources.first.text if sources.first else '',
                         'changes': sources.changes, 'foreign_changes': sources.foreign_changes,

@@ -9,7 +9,8 @@ drive would: watchdog trips, gaps between command frames and between SYNCs.
 
 The parent talks to it over stdin/stdout (JSON lines): end-of-file on stdin (the parent asked,
 or died, even by SIGKILL) stops the drives and the process; the last stdout line is the report
-(`{"watchdog_trips": [[node id, reason, EMCY code], ...], "rpdo_gaps": {...}}`). `SimProcess`
+(`{"watchdog_trips": [[node id, reason, EMCY code], ...], "rpdo_gaps": {...}, "sync": {...}}`:
+per drive the gaps between command frames and the SYNC timing on its own clock). `SimProcess`
 is the parent's handle.
 """
 from __future__ import annotations
@@ -30,10 +31,11 @@ class SimProcess:
     """The parent's handle: start the drives' process on `fd` (one end of a CAN socket pair,
     inherited), stop it and read its report."""
 
-    def __init__(self, fd: int, node_ids: list[int], **options: Any):
+    def __init__(self, fd: int, node_ids: list[int], priority: int = 0, **options: Any):
         self.process = subprocess.Popen(
             [sys.executable, '-m', 'planter_ros.drive.sim_process', '--fd', str(fd),
-             '--nodes', ','.join(str(n) for n in node_ids), '--options', json.dumps(options)],
+             '--nodes', ','.join(str(n) for n in node_ids), '--options', json.dumps(options),
+             '--priority', str(priority)],
             pass_fds=(fd,), stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         line = self.process.stdout.readline()
         if not line.startswith('ready'):
@@ -67,12 +69,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--fd', type=int, required=True)
     parser.add_argument('--nodes', required=True)
     parser.add_argument('--options', default='{}')
+    parser.add_argument('--priority', type=int, default=0,
+                        help='SCHED_FIFO priority (0: none): the drives stand for hardware, '
+                             'whose servo loops and heartbeats no host load delays')
     args = parser.parse_args(argv)
+    refused = ''
+    if args.priority > 0:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.priority))
+        except (OSError, ValueError, AttributeError) as exc:
+            refused = f'SCHED_FIFO {args.priority} refused: {exc}'
     signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides
     node_ids = [int(n) for n in args.nodes.split(',') if n]
     sims = SimulatedBus(SocketPairBus(args.fd), node_ids, **json.loads(args.options))
     sims.start()
-    print('ready', os.getpid(), flush=True)
+    print('ready', os.getpid(), refused, flush=True)
     done = threading.Event()
 
     def watch_stdin() -> None:
@@ -82,7 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     done.wait()
     sims.stop()
     report = {'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
-              'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives}}
+              'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
+              'sync': {str(d.node_id): d.sync_summary() for d in sims.drives}}
     print(json.dumps(report), flush=True)
     return 0
 

@@ -213,6 +213,8 @@ class SimulatedDrive:
         self.sync_late = 0
         self.sync_missing = 0
         self.following_error_faults = 0
+        self.last_following_fault = ''
+        self._motor_time: float | None = None
 
     # ---------------------------------------------------------------- life cycle
     def _reset_application(self) -> None:
@@ -484,10 +486,12 @@ class SimulatedDrive:
         self._csp_start = -math.inf
 
     def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
-        """SYNC: count its timing on our clock; in CSP take the target received since the last
-        one and interpolate to it over one period; send the synchronous TPDOs."""
-        now = time.monotonic()
+        """SYNC: count its timing (its time on the bus, as a drive's hardware sees it); in CSP
+        bring the motor up to that instant, take the target received since the last SYNC and
+        interpolate to it over one period; send the synchronous TPDOs."""
+        now = wire_time(timestamp)
         with self._lock:
+            self._advance(now)
             self.sync_count += 1
             self.sync_gaps.event(now)
             period = self._sync_period
@@ -562,7 +566,7 @@ class SimulatedDrive:
         if not self._nmt_operational:
             return
         self.rpdo_count += 1
-        self.rpdo_gaps.event(time.monotonic())
+        self.rpdo_gaps.event(wire_time(pdo_map.timestamp))
         with self._lock:
             self._last_rpdo = wire_time(pdo_map.timestamp)
         entries = sorted(pdo_map, key=lambda var: var.index == objs.CONTROLWORD.index)
@@ -673,51 +677,84 @@ class SimulatedDrive:
             log.warning('simulated drive: bus error: %s', exc)
         return True
 
+    SERVO_STEP = 0.001      # s, the motor model's own step (a drive's servo loop never stalls)
+
     def _step_motor(self, dt: float, now: float | None = None) -> None:
-        to_counts = self.counts_per_motor_rev / (2.0 * math.pi)
+        """The motor from its last instant to `now` (`dt` kept for callers: the model keeps
+        its own time, so a thread that ran late, or frames handled late, change nothing)."""
         now = time.monotonic() if now is None else now
-        following_fault = False
         with self._lock:
-            state = self._state
-            v = self._velocity
-            limit = self.max_acceleration * to_counts
-            if state == OPERATION_ENABLED and self._mode == CYCLIC_SYNC_POSITION:
-                # position loop on the interpolated set point, with its speed as feed-forward
-                setpoint = self._csp_setpoint(now)
-                period = self._sync_period or 0.01
-                moving = now - self._csp_start < period
-                feed = (self._csp_to - self._csp_from) / period if moving else 0.0
-                wanted = feed + (setpoint - self._position) / self.time_constant
-                self._following_error = setpoint - self._position
-                if abs(self._following_error) > self._fe_window:
-                    self._fe_since = now if self._fe_since is None else self._fe_since
-                    following_fault = now - self._fe_since >= self._fe_timeout
-                else:
-                    self._fe_since = None
-            elif state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
-                ramp = (objs.PROFILE_ACCELERATION if abs(self._target) >= abs(v)
-                        else objs.PROFILE_DECELERATION)
-                accel = self._od_value(ramp.index)
-                limit = min(limit, accel)
-                wanted = v + (self._target - v) * (1.0 - math.exp(-dt / self.time_constant))
-            elif state in (QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE):
-                limit = min(limit, self._od_value(objs.QUICK_STOP_DECELERATION.index))
-                wanted = 0.0
-            else:                                   # power stage off: the load coasts down
-                wanted = v * math.exp(-dt / self.coast_time_constant)
-            dv = max(-limit * dt, min(limit * dt, wanted - v))
-            self._velocity = v + dv
-            self._position += 0.5 * (v + self._velocity) * dt
-            stopped = abs(self._velocity) < 0.5
-            if stopped and state == FAULT_REACTION_ACTIVE:
-                self._state = FAULT
-            elif (stopped and state == QUICK_STOP_ACTIVE
-                  and self._quick_stop_option in (1, 2, 3, 4)):
-                self._state = SWITCH_ON_DISABLED
-        if following_fault:
+            fault = self._advance(now)
+        if fault:
+            log.warning('simulated drive %d: %s', self.node_id, self.last_following_fault)
             self.following_error_faults += 1
             self._fe_since = None
             self.inject_fault(EMCY_FOLLOWING_ERROR)
+
+    def _advance(self, now: float) -> bool:
+        """Integrate the motor in SERVO_STEP steps up to `now` (lock held); True when a CSP
+        following error lasted beyond its time-out."""
+        last = self._motor_time
+        if last is None or now - last > 1.0:          # first step, or a paused simulation
+            self._motor_time = now
+            return False
+        if now <= last:
+            return False
+        steps = max(1, math.ceil((now - last) / self.SERVO_STEP - 1e-9))
+        h = (now - last) / steps
+        fault = False
+        for k in range(1, steps + 1):
+            fault = self._motor_substep(h, last + k * h) or fault
+        self._motor_time = now
+        return fault
+
+    def _motor_substep(self, dt: float, now: float) -> bool:
+        to_counts = self.counts_per_motor_rev / (2.0 * math.pi)
+        following_fault = False
+        state = self._state
+        v = self._velocity
+        limit = self.max_acceleration * to_counts
+        if state == OPERATION_ENABLED and self._mode == CYCLIC_SYNC_POSITION:
+            # position loop on the interpolated set point, with its speed as feed-forward
+            setpoint = self._csp_setpoint(now)
+            period = self._sync_period or 0.01
+            moving = now - self._csp_start < period
+            feed = (self._csp_to - self._csp_from) / period if moving else 0.0
+            wanted = feed + (setpoint - self._position) / self.time_constant
+            self._following_error = setpoint - self._position
+            if abs(self._following_error) > self._fe_window:
+                self._fe_since = now if self._fe_since is None else self._fe_since
+                following_fault = now - self._fe_since >= self._fe_timeout
+                if following_fault:
+                    self.last_following_fault = (
+                        f'following error {self._following_error:.0f} counts > window '
+                        f'{self._fe_window:.0f} for {now - self._fe_since:.3f} s (set '
+                        f'point {setpoint:.0f}, segment {self._csp_from:.0f} -> '
+                        f'{self._csp_to:.0f} started {now - self._csp_start:.3f} s ago, '
+                        f'speed {self._velocity:.0f} counts/s, dt {dt:.4f} s)')
+            else:
+                self._fe_since = None
+        elif state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
+            ramp = (objs.PROFILE_ACCELERATION if abs(self._target) >= abs(v)
+                    else objs.PROFILE_DECELERATION)
+            accel = self._od_value(ramp.index)
+            limit = min(limit, accel)
+            wanted = v + (self._target - v) * (1.0 - math.exp(-dt / self.time_constant))
+        elif state in (QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE):
+            limit = min(limit, self._od_value(objs.QUICK_STOP_DECELERATION.index))
+            wanted = 0.0
+        else:                                   # power stage off: the load coasts down
+            wanted = v * math.exp(-dt / self.coast_time_constant)
+        dv = max(-limit * dt, min(limit * dt, wanted - v))
+        self._velocity = v + dv
+        self._position += 0.5 * (v + self._velocity) * dt
+        stopped = abs(self._velocity) < 0.5
+        if stopped and state == FAULT_REACTION_ACTIVE:
+            self._state = FAULT
+        elif (stopped and state == QUICK_STOP_ACTIVE
+              and self._quick_stop_option in (1, 2, 3, 4)):
+            self._state = SWITCH_ON_DISABLED
+        return following_fault
 
     def _od_value(self, index: int) -> float:
         raw = self.node.data_store.get(index, {}).get(0)
