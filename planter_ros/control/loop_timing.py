@@ -18,6 +18,8 @@ import numpy as np
 
 from planter_ros.config import check, setting
 
+__all__ = ['BIN', 'SPAN', 'SyncLoopConfig', 'PeriodStats']
+
 BIN = 1e-4                  # s, histogram resolution
 SPAN = 1.0                  # s, gaps above this share the overflow bin (their max is kept)
 

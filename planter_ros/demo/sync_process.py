@@ -199,8 +199,16 @@ def child_main(conn, settings):
         if sync is not None:
             sync.destroy_node()                    # every row: 0x60FF = 0, disable
         context.try_shutdown()
-        drive_report = sims.stop() if settings.command_process else {
-            'watchdog_trips': [list(trip) for trip in sims.watchdog_trips]}
+        if settings.command_process:
+            drive_report = sims.stop()
+        else:                       # the drives in this process, measured the same way
+            sims.stop()
+            drive_report = {
+                'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
+                'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
+                'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
+                'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
+                                   for d in sims.drives}}
         library_log.close()
     if sync is not None:
         send('final', final_report(sync, drive_report))
@@ -221,6 +229,7 @@ def final_report(sync, drives):
     if 'rpdo_gaps' in drives:
         report['drive_gaps'] = drives['rpdo_gaps']
         report['drive_sync'] = drives.get('sync', {})
+        report['drive_heartbeat_gaps'] = drives.get('heartbeat_gaps', {})
     sources = sync.design_sources
     report['design'] = {'first': sources.first.text if sources.first else '',
                         'changes': sources.changes, 'foreign_changes': sources.foreign_changes,

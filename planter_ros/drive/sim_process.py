@@ -94,7 +94,9 @@ def main(argv: list[str] | None = None) -> int:
     sims.stop()
     report = {'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
               'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
-              'sync': {str(d.node_id): d.sync_summary() for d in sims.drives}}
+              'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
+              'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
+                                 for d in sims.drives}}
     print(json.dumps(report), flush=True)
     return 0
 

@@ -43,6 +43,8 @@ from planter_ros.drive.states import (
     FAULT_REACTION_ACTIVE, MODE_SUPPORTED, NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY,
     QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON)
 
+__all__ = ['Gaps', 'SimulatedDrive', 'SimulatedBus', 'wire_time', 'receive']
+
 log = logging.getLogger(__name__)
 
 _STATUS_BITS = {
@@ -209,6 +211,8 @@ class SimulatedDrive:
         #: Gaps between SYNC frames (its own clock); late = over 1.5 periods (0x1006),
         #: missing = whole periods without one.
         self.sync_gaps = Gaps()
+        #: Gaps between the master's heartbeats (bus time).
+        self.heartbeat_gaps = Gaps()
         self.sync_count = 0
         self.sync_late = 0
         self.sync_missing = 0
@@ -528,6 +532,7 @@ class SimulatedDrive:
     def _on_consumed_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
         if (can_id & 0x7F) == self._consumer_node:
             self._consumed_heartbeat = wire_time(timestamp)
+            self.heartbeat_gaps.event(self._consumed_heartbeat)
 
     # ---------------------------------------------------------------- NMT and PDO
     def _on_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:
