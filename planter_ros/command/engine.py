@@ -114,6 +114,9 @@ class CommandEngine:
         self._last_bus_error: tuple[float, str] | None = None
         self.stopping = False               # ramping to zero before a shutdown
         self.csp = False                    # some row runs CSP: SYNC every step, targets
+        # profile velocity: from a sample's receive time (the shell's, same clock) to the last
+        # row's frame sent for it
+        self.sample_latency = PeriodStats()
 
     # ---------------------------------------------------------------- the first row
     @property
@@ -215,8 +218,9 @@ class CommandEngine:
         frames go at once; in CSP the targets go with the next SYNC."""
         with self._lock:
             self.machine.sample(v, yaw_rate, now)
-            if not self.csp:
+            if not self.csp and any(unit.running for unit in self.units):
                 self.step(now)
+                self.sample_latency.add(time.monotonic() - now)
 
     def set_design(self, design: Design, text: str, now: float) -> bool:
         """A design for every row (at its next planting instant); False when it is the one in
@@ -481,6 +485,8 @@ class CommandEngine:
                 'loop': everything.summary(),
                 'loop_histogram': everything.histogram(),
                 'command_timeout': self.drive_config.command_timeout,
+                'sample_to_frame': self.sample_latency.summary(),
+                'csp': self.csp,
             }
 
 
