@@ -33,14 +33,17 @@ HOLD = 0.3                 # s a joining participant stays
 RATE = 50.0                # Hz, ground speed
 
 JOINER = '''
-import sys, time
+import os, sys, time
 import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
 domain, count, hold = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
+parent = int(sys.argv[4])
 for k in range(count):
+    if os.getppid() != parent:        # the bench is gone: so are we
+        break
     context = Context()
     rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
     node = Node(f'joiner_{k}', context=context)
@@ -109,7 +112,8 @@ def stall_run(command_process, joins, progress=lambda text: None):
         design_pub.publish(String(data=to_json(five_bar_design_message(spacing=0.2))))
         per = max(joins // JOINERS, 1)
         joiners = [subprocess.Popen([sys.executable, '-c', JOINER, str(domain), str(per),
-                                     str(HOLD)], stdout=subprocess.PIPE, text=True,
+                                     str(HOLD), str(os.getpid())], stdout=subprocess.PIPE,
+                                    text=True,
                                     stderr=subprocess.DEVNULL)
                    for _ in range(JOINERS)]
 
