@@ -171,6 +171,9 @@ MAP_RECORD = 'planter_map'
 # MCAP metadata record naming the rows: key 'rows' = JSON list of {index, name, lateral_offset,
 # drive_node_id, enabled}; a plant's `row` field is the index. Absent: one implicit row.
 ROWS_RECORD = 'planter_rows'
+# MCAP metadata record of the crop's acceptance limits the run was judged by
+# (prediction.AcceptanceLimits, name -> repr). Absent: the defaults.
+ACCEPTANCE_RECORD = 'planter_acceptance'
 
 
 @dataclass(frozen=True)

@@ -46,7 +46,8 @@ from planter_ros.design import from_json
 from planter_ros.scene.design_sources import DesignSources
 from planter_ros.geo import AntennaSettings
 from planter_ros.prediction import (
-    PLANT_FIELDS, PlantPredictor, PredictionSettings, SectionBreaks, planting_model_from_design)
+    PLANT_FIELDS, AcceptanceLimits, PlantPredictor, PredictionSettings, SectionBreaks,
+    planting_model_from_design)
 from planter_ros.prediction import (
     QUALITY_FIELDS, SpacingQuality, format_quality)
 from planter_ros.nodes import graph
@@ -104,6 +105,8 @@ class MonitorNode(Node):
                                         on_change=self._on_settings)
         self._map_settings = ParameterGroup(self, MapSettings, on_change=self._on_map_settings)
         self.antenna = ParameterGroup(self, AntennaSettings).value
+        # the crop's acceptance limits: recorded, so replay judges the bag by them
+        self.acceptance = ParameterGroup(self, AcceptanceLimits).value
         self.rows = declare_rows(self)
         refuse_undeclared(self, arguments)       # a name the scene got wrong: refused
         self._planting = [row for row in self.rows if row.enabled]
@@ -201,6 +204,8 @@ class MonitorNode(Node):
         self.recorder.add_metadata(interfaces.PREDICTION_SETTINGS_RECORD, {k: repr(v) for k, v in
                                                      as_dict(self.settings).items()})
         self.recorder.add_metadata(interfaces.ROWS_RECORD, rows_record(self.rows))
+        self.recorder.add_metadata(interfaces.ACCEPTANCE_RECORD, {
+            k: repr(v) for k, v in as_dict(self.acceptance).items()})
         self.recorder.add_metadata(interfaces.MAP_RECORD,
                                    map_record(self._map_settings.value, self.antenna))
         self.get_logger().info(f'recording to {self.recorder.path}')

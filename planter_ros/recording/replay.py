@@ -33,8 +33,8 @@ from planter_ros.config import ConfigError
 from planter_ros.design import Design, from_json, to_dict
 from planter_ros.geo import AntennaSettings
 from planter_ros.prediction import (
-    PLANT_FIELDS, Plants, PredictionSettings, planting_model_from_design, predict_plants,
-    prediction_notes, section_breaks, summarize)
+    PLANT_FIELDS, AcceptanceLimits, Plants, PredictionSettings, judge_acceptance,
+    planting_model_from_design, predict_plants, prediction_notes, section_breaks, summarize)
 from planter_ros.rows import implicit_row, rows_from_record
 from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, place_plants
 from planter_ros.sensing.row_speed import motion_samples, row_speed_samples
@@ -70,6 +70,8 @@ class ReplayResult:
     fixes: int = 0                # usable GNSS fixes in the bag
     nozzle_width: float = None    # m, of the last design's predictions
     recorded_fields: tuple = ()   # the PLANT_FIELDS the live recording has (older: fewer)
+    acceptance: dict = None       # the run judged by the crop's limits (judge_acceptance)
+    acceptance_source: str = ''   # whose limits: the bag's, a scene's, the defaults
 
     def recorded_columns(self):
         """Indices of the plant fields the live recording has: replay and the recording can
@@ -88,6 +90,7 @@ class ReplayResult:
                 'summary': self.summary,
                 'rows': [{**row.as_dict(), 'summary': summary}
                          for row, summary in zip(self.rows, self.row_summaries)],
+                'acceptance': {**(self.acceptance or {}), 'source': self.acceptance_source},
                 'plants': self.plants.rows(), 'notes': self.notes or [],
                 'warnings': self.warnings}
 
@@ -108,14 +111,20 @@ def settings_from_recording(recorded, overrides=None, warnings=None):
     return config.from_mapping(PredictionSettings, values)
 
 
-def replay(path, settings_overrides=None, with_recorded=False, fallback_design=None):
+def replay(path, settings_overrides=None, with_recorded=False, fallback_design=None,
+           acceptance=None):
     """Re-run the prediction model on a bag. Raises ReplayError for an unusable bag and
     ConfigError for a bad setting override (`nozzle_width` among them replaces the design's).
     `fallback_design` (a Design, e.g. of the scene the run used) stands in for the whole
     bag when it holds no usable design message (lost in a damaged part); it is ignored, with a
-    warning, when the bag has its own."""
+    warning, when the bag has its own. `acceptance` (AcceptanceLimits, e.g. a scene's; or the
+    override `acceptance`, a mapping of them) replaces the limits the bag recorded (without
+    either: the defaults) in the run's judgement."""
     overrides = dict(settings_overrides or {})
     nozzle_override = overrides.pop('nozzle_width', None)
+    given = overrides.pop('acceptance', None)       # a scene's limits as a mapping
+    if acceptance is None and given is not None:
+        acceptance = config.from_mapping(AcceptanceLimits, given)
     wanted = REQUIRED + OPTIONAL + ((interfaces.PLANTS,) if with_recorded else ())
     try:
         rec = read_recording(path, wanted)
@@ -158,7 +167,8 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
                             'short or not UTF-8 text): skipped')
     if fallback_design is not None:
         if designs:
-            rec.warnings.append('the bag holds its own design: the scene given is not used')
+            rec.warnings.append("the bag holds its own design: the scene's design is not used "
+                                '(its acceptance limits are)')
         else:
             try:
                 model = planting_model_from_design(fallback_design,
@@ -248,11 +258,17 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
         recorded, recorded_fields = _recorded_plants(rec.topics[interfaces.PLANTS])
     if nozzle.fallback_used:
         rec.warnings.append(nozzle.fallback_used)
+    limits, source = _acceptance_limits(acceptance, rec.metadata, rec.warnings)
+    summary = summarize(plants, last_model.spacing, design_spacing)
+    row_summaries = [summarize(_of_row(plants, row.index), last_model.spacing,
+                               design_spacing[plants.row == row.index]) for row in rows]
+    named = len(rows) > 1 or bool(rows[0].name)
+    judged = ([(row.label, s) for row, s in zip(rows, row_summaries) if row.enabled]
+              if named else [('', summary)])
     return ReplayResult(
         path=str(path), design=last_design, settings=settings, plants=plants,
-        summary=summarize(plants, last_model.spacing, design_spacing), rows=rows,
-        row_summaries=[summarize(_of_row(plants, row.index), last_model.spacing,
-                                 design_spacing[plants.row == row.index]) for row in rows],
+        summary=summary, rows=rows, row_summaries=row_summaries,
+        acceptance=judge_acceptance(limits, judged), acceptance_source=source,
         duration=float((logs.max() - logs.min()) * 1e-9) if logs.size else 0.0,
         messages={interfaces.GROUND_SPEED.name: int(s_log.size),
                   interfaces.JOINT_STATES.name: int(j_log.size),
@@ -264,6 +280,24 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
         notes=prediction_notes(last_design, last_model), map_settings=map_settings,
         antenna=antenna, nozzle_width=last_model.nozzle_width,
         fixes=usable_fixes)
+
+
+def _acceptance_limits(given, metadata, warnings):
+    """(AcceptanceLimits, whose): the limits given, else the bag's record, else the defaults.
+    A recorded value out of range is replaced by its default, with a warning."""
+    if given is not None:
+        return given, 'the scene given'
+    recorded = metadata.get(interfaces.ACCEPTANCE_RECORD)
+    if recorded is None:
+        return AcceptanceLimits(), 'the defaults: the bag records no limits'
+    values = {}
+    for spec in config.specs(AcceptanceLimits):
+        if spec.name in recorded:
+            try:
+                values[spec.name] = config.coerce(spec, recorded[spec.name])
+            except ConfigError as exc:
+                warnings.append(f'recorded acceptance limit ignored, default used: {exc}')
+    return config.from_mapping(AcceptanceLimits, values), "the run's scene, recorded in the bag"
 
 
 class _NozzleWidth:

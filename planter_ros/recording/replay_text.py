@@ -5,7 +5,7 @@ import math
 from typing import TYPE_CHECKING
 
 from planter_ros import interfaces
-from planter_ros.prediction import format_quality
+from planter_ros.prediction import format_acceptance, format_quality
 
 if TYPE_CHECKING:
     from .replay import ReplayResult
@@ -68,6 +68,8 @@ def format_summary(result: 'ReplayResult') -> str:
     lines.append(f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)')
     lines += _notes_for(notes, ('tilt', 'upright', 'uprightness_rate'))
     lines.append(_map_line(result))
+    if result.acceptance is not None:
+        lines.append(format_acceptance(result.acceptance, f'limits: {result.acceptance_source}'))
     if _named_rows(result):
         for row, r in zip(result.rows, result.row_summaries):
             where = f'y = {row.lateral_offset:+.2f} m'

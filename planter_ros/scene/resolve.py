@@ -59,6 +59,15 @@ class Scene:
         except ConfigError as exc:
             raise SceneError(f'scene {self.path}: {exc}') from None
 
+    def acceptance(self):
+        """The crop's acceptance limits (prediction.AcceptanceLimits) as the monitor reads
+        them; the defaults for what the scene does not set."""
+        from planter_ros.prediction import AcceptanceLimits
+        try:
+            return from_mapping(AcceptanceLimits, self.parameters('monitor_node'))
+        except ConfigError as exc:
+            raise SceneError(f'scene {self.path}: {exc}') from None
+
     def antenna(self):
         """The GNSS antenna on the machine (geo.AntennaSettings) as the monitor reads it."""
         from planter_ros.geo import AntennaSettings
