@@ -3,7 +3,8 @@
 Every bag under the paths (.mcap files and rosbag2 bag directories, searched recursively) is
 replayed with the same model and settings as `planter replay` on a Dask cluster: a local one of
 worker processes by default, an existing one with --scheduler. The results go to two Parquet
-tables under DIR as they complete (`plants`: one row per plant, `bags`: one row per bag), with
+tables under DIR as they complete (`plants/`: one row per plant, `bags/`: one row per bag, each
+keyed by the bag's path relative to the analysed root), with
 a progress line on stderr; then the season's as-planted map for farm software next to them
 (as_planted.zip: a Shapefile; TASKDATA.zip: ISO 11783-10 task data; analysis.exports). A bag
 replay cannot read is a row with its one-line reason; a re-run skips the bags the tables hold
@@ -23,7 +24,7 @@ def add_arguments(parser):
                         help='.mcap files and directories holding bags (searched recursively '
                              'for .mcap files and rosbag2 bag directories)')
     parser.add_argument('--out', metavar='DIR', required=True,
-                        help='directory of the tables (bags.parquet, plants/): new, empty, or '
+                        help='directory of the tables (bags/, plants/): new, empty, or '
                              'the output of an earlier run (which it updates)')
     add_engine_arguments(parser)
     parser.add_argument('--force', action='store_true',
@@ -56,9 +57,10 @@ def run(args):
     exports = None
     from planter_ros.analysis.exports import format_exports, season_exports
     from planter_ros.analysis.season import format_report
-    with seasons.Season(out) as season:
-        keys, skipped = season.plan(bags, version, seasons.options_key(overrides, design),
-                                    args.force)
+    root = seasons.analysed_root(args.paths)
+    with seasons.Season(out, root) as season:
+        keys, skipped = season.plan(seasons.bag_keys(bags, root), version,
+                                    seasons.options_key(overrides, design), args.force)
         report = seasons.Report(out=str(out))
         if keys:
             where = args.scheduler or 'the local cluster'
