@@ -100,8 +100,13 @@ def test_a_file_without_summary_resynchronises_after_damage(chunked, tmp_path):
     assert np.any(bad.plants.time > hi + 1.0)                  # read on past the damage
     expected = full.plants.time[((full.plants.time < lo) | (full.plants.time > hi))
                                 & (full.plants.time < end)]
-    assert expected.size - 1 <= len(bad.plants) <= expected.size
-    np.testing.assert_allclose(bad.plants.time, expected[:len(bad.plants)], rtol=0, atol=1e-9)
+    # every plant read is one of the full replay's; a plant next to the lost range or the cut
+    # may be lost too (the joint sample after its instant was in the lost bytes), no other
+    distance = np.abs(bad.plants.time[:, None] - expected[None, :])
+    assert np.all(distance.min(axis=1) <= 1e-9)
+    missing = expected[distance.min(axis=0) > 1e-9]
+    assert missing.size <= 2, missing
+    assert all(lo - 1.0 <= t <= hi + 1.0 or t >= end - 1.0 for t in missing), (missing, lo, hi)
 
 
 def test_a_flipped_byte_in_the_first_chunk_keeps_the_other_fourteen(tmp_path):

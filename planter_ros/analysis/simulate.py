@@ -35,9 +35,10 @@ def check_path(path, names):
 
 
 def simulate_season(path: Path, names: list[str], seed: int, duration: float, rows: int,
-                    workers_wanted: int | None, scheduler: str | None):
-    """Write the bags `names` under `path`: (report, the runs written, [(name, error)]).
-    EngineError when the cluster cannot be had."""
+                    workers_wanted: int | None, scheduler: str | None, scene: str | None = None):
+    """Write the bags `names` under `path`: (report, the runs written, [(name, error)]), each
+    of a `rows`-row machine or of the machine of the scene file `scene` (checked by the
+    caller). EngineError when the cluster cannot be had."""
     from planter_ros.sim.season import bag_name, simulate_bag
     version = model_version()
     where = scheduler or 'the local cluster'
@@ -48,7 +49,7 @@ def simulate_season(path: Path, names: list[str], seed: int, duration: float, ro
         progress = Progress(len(names), what='bags', label='planter simulate')
         started = time.monotonic()
         try:
-            arguments = [(str(path.resolve() / name), seed, k, duration, rows)
+            arguments = [(str(path.resolve() / name), seed, k, duration, rows, scene)
                          for k, name in enumerate(names)]
             for i, result, error in completed(client, simulate_bag, arguments):
                 if error is None:
@@ -64,7 +65,7 @@ def simulate_season(path: Path, names: list[str], seed: int, duration: float, ro
     run_seconds = sum(r['duration'] for r in written)
     size = sum((path / bag_name(seed, r['run'])).stat().st_size for r in written)
     report = {'path': str(path), 'bags': len(written), 'failed': len(errors),
-              'seed': seed, 'duration': duration, 'rows': rows,
+              'seed': seed, 'duration': duration, 'rows': rows, 'scene': scene,
               'workers': workers, 'seconds': seconds, 'bag_seconds': run_seconds,
               'times_real_time': run_seconds / seconds if seconds > 0 else None,
               'bytes': size, 'messages': sum(r['messages'] for r in written),

@@ -23,10 +23,14 @@ def add_arguments(parser):
     parser.add_argument('--duration', metavar='S', default=60.0,
                         type=spec_option(SeasonOptions, 'duration', '--duration'),
                         help='length of each run in seconds, 10..3600 (default 60)')
-    parser.add_argument('--rows', metavar='R', default=4,
+    parser.add_argument('--rows', metavar='R', default=None,
                         type=spec_option(SeasonOptions, 'rows', '--rows'),
                         help='planting rows of the machine, 1..16 (default 4; 1 = a machine '
-                             'without rows)')
+                             'without rows); not with --scene')
+    parser.add_argument('--scene', metavar='FILE',
+                        help="simulate the scene's machine: its design (five-bar or three-arm), "
+                             'rows, monitor settings, acceptance limits and antenna, cruising '
+                             'around its nominal ground speed (default: a tomato five-bar)')
     parser.add_argument('--seed', metavar='K', default=0,
                         type=spec_option(SeasonOptions, 'seed', '--seed'),
                         help='seed of the season, 0..2^32-1 (default 0): the same seed gives '
@@ -40,19 +44,29 @@ def run(args):
     from planter_ros.analysis.simulate import check_path, simulate_season
     from planter_ros.sim.season import bag_name
 
-    names = [bag_name(args.seed, k) for k in range(args.bags)]
-    path = check_path(args.path, names)
     from planter_ros.analysis.engine import EngineError
     from planter_ros.cli.main import BadInput
+    scene, rows = None, 4 if args.rows is None else args.rows
+    if args.scene:
+        if args.rows is not None:
+            raise BadInput(f'--rows = {args.rows} with --scene: allowed one of them (the '
+                           "scene's rows are its machine's)")
+        from pathlib import Path
+
+        from planter_ros.sim.season import scene_machine
+        rows = len(scene_machine(args.scene).rows)        # a bad scene: one line, exit 2
+        scene = str(Path(args.scene).resolve())
+    names = [bag_name(args.seed, k) for k in range(args.bags)]
+    path = check_path(args.path, names)
     try:
         report, written, errors = simulate_season(path, names, args.seed, args.duration,
-                                                  args.rows, args.workers, args.scheduler)
+                                                  rows, args.workers, args.scheduler, scene)
     except EngineError as exc:
         raise BadInput(str(exc)) from None
     if args.json:
         print(json.dumps({**report, 'runs': written}, indent=1, allow_nan=False))
     else:
-        print(f'{len(written)} bags written to {path} ({args.rows} rows, {args.duration:g} s '
+        print(f'{len(written)} bags written to {path} ({rows} rows, {args.duration:g} s '
               f'each, seed {args.seed}): {report["messages"]} messages, {report["plants"]} '
               f'plants, {report["bytes"] / 1e6:.1f} MB')
         print(f'{report["seconds"]:.1f} s on {report["workers"]} worker(s): '

@@ -131,8 +131,12 @@ def machine_rows(count):
                  for i in range(count))
 
 
-def draw_plan(seed, index, duration, rows):
-    """Run `index` of the season of `seed`: the same arguments give the same run."""
+def draw_plan(seed, index, duration, rows, cruise=(0.15, 0.4)):
+    """Run `index` of the season of `seed`: the same arguments give the same run. `rows`: a
+    count (machine_rows) or the machine's rows (a scene's); `cruise`: the range (m/s) its
+    cruise speed is drawn from."""
+    machine = machine_rows(rows) if isinstance(rows, int) else tuple(rows)
+    rows = len(machine)
     rng = np.random.default_rng([int(seed), int(index)])
     d = float(duration)
     stops = []
@@ -158,8 +162,8 @@ def draw_plan(seed, index, duration, rows):
     gnss = SimulatedGnss(origin_latitude=52.0 + float(rng.uniform(-0.05, 0.05)),
                          origin_longitude=5.0 + float(rng.uniform(-0.08, 0.08)),
                          origin_heading=float(rng.uniform(-math.pi, math.pi)))
-    return RunPlan(index=int(index), seed=int(seed), duration=d, rows=machine_rows(rows),
-                   cruise=float(rng.uniform(0.15, 0.4)), change=float(rng.uniform(0.75, 1.35)),
+    return RunPlan(index=int(index), seed=int(seed), duration=d, rows=machine,
+                   cruise=float(rng.uniform(*cruise)), change=float(rng.uniform(0.75, 1.35)),
                    stops=tuple(sorted(stops, key=lambda s: s.start)), curves=tuple(curves),
                    glitches=tuple(sorted(glitches, key=lambda g: g.start)), stall=stall,
                    drive_lag=float(rng.uniform(0.03, 0.1)), gnss=gnss)
@@ -318,9 +322,12 @@ def plants_message(plants):
     return msg
 
 
-def write_monitor_bag(run, path, design=None, settings=None, **recorder_options):
+def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, antenna=None,
+                      **recorder_options):
     """Record `run` (a MachineRun) at `path` as monitor_node would have (see the module doc);
-    `recorder_options` (split_size, split_duration) as the monitor's parameters. Returns a
+    `settings`, `acceptance` and `antenna` the monitor's (a scene's; default the defaults);
+    `recorder_options` (split_size, split_duration) as the monitor's parameters. Every message
+    is written by recording.cdr.encode_message: the same run gives the same bytes. Returns a
     summary dict (SI)."""
     from builtin_interfaces.msg import Time
     from geometry_msgs.msg import TwistStamped
@@ -329,7 +336,7 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
 
     from planter_ros.config import as_dict
     from planter_ros.geo import AntennaSettings
-    from planter_ros.prediction import PredictionSettings
+    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
     from planter_ros.recording.recorder import Recorder
     from planter_ros.recording.replay import map_record
     from planter_ros.sensing.plant_map import MapSettings
@@ -376,7 +383,9 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
     rec.add_metadata(interfaces.PREDICTION_SETTINGS_RECORD,
                      {k: repr(v) for k, v in as_dict(settings).items()})
     rec.add_metadata(interfaces.ROWS_RECORD, rows_record(rows))
-    map_settings, antenna = MapSettings(), AntennaSettings()
+    rec.add_metadata(interfaces.ACCEPTANCE_RECORD, {
+        k: repr(v) for k, v in as_dict(acceptance or AcceptanceLimits()).items()})
+    map_settings, antenna = MapSettings(), antenna or AntennaSettings()
     rec.add_metadata(interfaces.MAP_RECORD, map_record(map_settings, antenna))
     monitor = MonitorModel(rows, design, settings, map_settings, antenna)
     start = int(log.min()) - 500_000_000 if log.size else epoch
@@ -436,15 +445,51 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
             'events': plan.events()}
 
 
-def simulate_bag(path, seed, index, duration, rows):
+@dataclass(frozen=True)
+class SceneMachine:
+    """What a scene gives a simulated run: the design, the rows, the monitor's settings, the
+    crop's acceptance limits, the GNSS antenna and the cruise speeds drawn (m/s, around the
+    scene's nominal ground speed)."""
+
+    design: object
+    rows: tuple
+    settings: object
+    acceptance: object
+    antenna: object
+    cruise: tuple
+
+
+def scene_machine(scene):
+    """The SceneMachine of a scene file (scene.open_scene: SceneError, DesignError one line)."""
+    from planter_ros.config import from_mapping
+    from planter_ros.prediction import PredictionSettings
+    from planter_ros.scene import open_scene
+    opened = open_scene(scene)
+    design = opened.design()
+    monitor = opened.parameters('monitor_node')
+    nominal = float(opened.parameters('design_node').get('nominal_ground_speed', 0.2))
+    return SceneMachine(design, tuple(opened.rows()),
+                        from_mapping(PredictionSettings, monitor), opened.acceptance(),
+                        opened.antenna(), (0.75 * nominal, 1.5 * nominal))
+
+
+def simulate_bag(path, seed, index, duration, rows, scene=None):
     """Draw run `index` of the season of `seed`, simulate it and record it at `path` (a task
-    of `planter simulate`). Returns write_monitor_bag's summary; a bag left unfinished by an
-    error is removed."""
+    of `planter simulate`): a machine of `rows` rows with the season's design, or the machine
+    of the scene file `scene` (its design, rows, monitor settings, limits and antenna). Returns
+    write_monitor_bag's summary; a bag left unfinished by an error is removed."""
     from pathlib import Path
-    plan = draw_plan(seed, index, duration, rows)
+    machine = scene_machine(scene) if scene else None
+    if machine is None:
+        plan = draw_plan(seed, index, duration, rows)
+    else:
+        plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise)
     existed = Path(path).exists()          # the recorder refuses it: never removed here
     try:
-        return write_monitor_bag(simulate_plan(plan), path)
+        if machine is None:
+            return write_monitor_bag(simulate_plan(plan), path)
+        return write_monitor_bag(simulate_plan(plan, machine.design), path, machine.design,
+                                 machine.settings, machine.acceptance, machine.antenna)
     except BaseException:
         if not existed:
             Path(path).unlink(missing_ok=True)
