@@ -299,9 +299,16 @@ def test_tables_people_read_with_pandas_dask_and_duckdb(season, local, tmp_path)
     import pandas as pd
     out, _, _ = local
     assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ['bags', 'plants']
+    schema = pq.read_schema(next((out / 'plants').glob('*.parquet')))
+    assert str(schema.field('upright').type) == 'bool'
+    assert str(schema.field('input_gap').type) == 'bool'
+    assert str(schema.field('status').type) == 'string'
     plants = pd.read_parquet(out / 'plants')
     assert str(plants['index'].dtype) == 'int64' and str(plants['row'].dtype) == 'int64'
-    assert str(plants['upright'].dtype) == 'bool'
+    # upright is null for an instant in an input gap: pandas' nullable boolean
+    nullable = pd.read_parquet(out / 'plants', dtype_backend='numpy_nullable')
+    assert str(nullable['upright'].dtype) == 'boolean'
+    assert nullable['upright'].isna().sum() == plants['input_gap'].sum() > 0
     assert str(plants['time_utc'].dtype).startswith('datetime64[ns, UTC]')
     assert plants['time_utc'].min() > pd.Timestamp('2000-01-01', tz='UTC')
     four = plants[plants['bag'] == 'day1/a.mcap']

@@ -6,7 +6,8 @@ each in its own folder (`bags/`, `plants/`), so `**/*.parquet` never mixes them.
   (PLANTS_COLUMNS): `index` and `row` int64, `row_name` (text: the row's name, `row` for a
   machine without named rows) after `row`, `time_utc` a UTC timestamp (ns; the planting instant
   on the recording's clock, ROS time = s since 1970-01-01 UTC), `upright` bool, lengths `_m`,
-  speeds `_m_s` and `_rad_s`, `tilt_rad`, `latitude_deg` / `longitude_deg`. A field the model
+  speeds `_m_s` and `_rad_s`, `tilt_rad`, `latitude_deg` / `longitude_deg`, `input_gap` bool,
+  `seedlings` int64, `status` and `reason` as text (prediction.seedlings). A field the model
   gains later is a new column under its JSON name. Null where the JSON has null (the first
   plant's spacing). `plant_dicts` turns a table back into the JSON's plant dicts.
 * `bags`: one row per bag: `bag` (relative, as in plants), `status` (ok | warnings | failed |
@@ -56,7 +57,8 @@ UNITS = {
     'fix_window': 's', 'max_fix_sigma': 'm', 'max_fix_age': 's', 'origin': 'deg (WGS 84)',
     'antenna_position': 'm', 'nominal_mechanism_speed': 'rad/s', 'centre_distance': 'm',
     'closure_residual': '1', 'goals_passed': '1', 'carrier_speed': 'rad/s',
-    'requested_hole': 'm', 'psi': 'rad', 'depth': 'm',
+    'requested_hole': 'm', 'psi': 'rad', 'depth': 'm', 'seedlings': '1', 'planted': '1',
+    'empty': '1', 'double': '1', 'unknown': '1', 'input_gap': '1', 'instants': '1',
 }
 # the plants table's column of each JSON plant field (a unit in the name where one is needed)
 PLANTS_COLUMNS = {
@@ -68,7 +70,8 @@ PLANTS_COLUMNS = {
     'latitude': 'latitude_deg', 'longitude': 'longitude_deg',
 }
 INTEGER_FIELDS = ('index', 'row')
-BOOLEAN_FIELDS = ('upright',)
+BOOLEAN_FIELDS = ('upright', 'input_gap')
+CODE_FIELDS = {'status': 'STATUSES', 'reason': 'REASONS'}     # codes -> their names (text)
 UNIT_SUFFIXES = {'_m_s': 'm/s', '_rad_s': 'rad/s', '_m': 'm', '_rad': 'rad',
                  '_deg': 'deg (WGS 84)'}
 _STATISTICS = ('_mean', '_std', '_max', '_min', '_rms')
@@ -214,6 +217,10 @@ def plants_table(bag, plants, rows=()):
             array = pa.array([None if v is None else int(v) for v in values], type=pa.int64())
         elif key in BOOLEAN_FIELDS:
             array = pa.array([None if v is None else bool(v) for v in values], type=pa.bool_())
+        elif key in CODE_FIELDS:
+            array = pa.array([_code_name(key, v) for v in values], type=pa.string())
+        elif key == 'seedlings':
+            array = pa.array([None if v is None else int(v) for v in values], type=pa.int64())
         elif all(v is None or isinstance(v, (int, float)) for v in values):
             array = pa.array(np.array([np.nan if v is None else v for v in values], dtype=float),
                              mask=np.array([v is None for v in values], dtype=bool))
@@ -226,6 +233,18 @@ def plants_table(bag, plants, rows=()):
                                     for v in values], type=pa.string()))
             columns.append('row_name')
     return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
+
+
+def _code_name(field, value):
+    from planter_ros import prediction
+    names = getattr(prediction, CODE_FIELDS[field])
+    return None if value is None or not 0 <= int(value) < len(names) else names[int(value)]
+
+
+def _name_code(field, value):
+    from planter_ros import prediction
+    names = getattr(prediction, CODE_FIELDS[field])
+    return None if value is None else float(names.index(value))
 
 
 def plant_dicts(table):
@@ -241,9 +260,10 @@ def plant_dicts(table):
             field = back.get(name, name)
             if field == 'time' and value is not None:
                 value = value.timestamp() if not hasattr(value, 'value') else value.value * 1e-9
-            elif field in BOOLEAN_FIELDS and value is not None:
-                value = float(value)
-            elif field in INTEGER_FIELDS and value is not None:
+            elif field in CODE_FIELDS:
+                value = _name_code(field, value)
+            elif field in BOOLEAN_FIELDS + INTEGER_FIELDS + ('seedlings',) and \
+                    value is not None:
                 value = float(value)
             plant[field] = value
         out.append(plant)
@@ -262,6 +282,10 @@ def plant_columns(table, fields):
             out.append(np.full(table.num_rows, np.nan))
             continue
         array = table.column(name)
+        if field in CODE_FIELDS:
+            out.append(np.array([np.nan if v is None else _name_code(field, v)
+                                 for v in array.to_pylist()], dtype=float))
+            continue
         if pa.types.is_timestamp(array.type):
             ns = array.cast(pa.int64()).to_numpy(zero_copy_only=False)
             mask = array.is_null().to_numpy(zero_copy_only=False)

@@ -1,15 +1,8 @@
-"""`planter analyze PATH... --out DIR`: replay a season of bags on Dask into Parquet tables.
-
-Every bag under the paths (.mcap files and rosbag2 bag directories, searched recursively) is
-replayed with the same model and settings as `planter replay` on a Dask cluster: a local one of
-worker processes by default, an existing one with --scheduler. The results go to two Parquet
-tables under DIR as they complete (`plants/`: one row per plant, `bags/`: one row per bag, each
-keyed by the bag's path relative to the analysed root), with
-a progress line on stderr; then the season's as-planted map for farm software next to them
-(as_planted.zip: a Shapefile; TASKDATA.zip: ISO 11783-10 task data; analysis.exports). A bag
-replay cannot read is a row with its one-line reason; a re-run skips the bags the tables hold
-for the same model version and settings unless --force.
-Details: doc/analysis.md.
+"""`planter analyze PATH... --out DIR`: replay a season of bags on Dask (a local cluster, or
+--scheduler) into Parquet tables under DIR (`plants/`, `bags/`, keyed by the bag's path from the
+analysed root), the season's Shapefile and ISOXML task data, and the season report; a re-run
+skips the bags analysed before with the same model and settings unless --force.
+Details: doc/analysis.md (planter_ros.analysis).
 """
 
 import json

@@ -73,18 +73,10 @@ def add_settings_arguments(parser):
 
 def settings_overrides(args):
     """The prediction settings given on the command line (None: not given)."""
+    from planter_ros.scene import scene_limits
     return {'upright_threshold': args.upright_threshold, 'nozzle_width': args.nozzle_width,
             'window': args.window, 'max_input_gap': args.max_input_gap,
-            'acceptance': scene_acceptance(args)}
-
-
-def scene_acceptance(args):
-    """The acceptance limits --scene sets, as a mapping (None without --scene)."""
-    if not getattr(args, 'scene', None):
-        return None
-    from planter_ros.config import as_dict
-    from planter_ros.scene import open_scene
-    return as_dict(open_scene(args.scene).acceptance())
+            'acceptance': args.scene and scene_limits(args.scene)}
 
 
 def fallback_design(args):

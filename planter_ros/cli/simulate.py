@@ -1,10 +1,6 @@
-"""`planter simulate PATH --bags N`: a season of realistic bags to analyse, fast, without DDS.
-
-Each run is drawn from the seed and its number (varied speeds, stops, sensor glitches, a stall
-now and then, a curve, GNSS), simulated in closed loop (the sync law against the drive model)
-and written as PATH/run_<seed>_<n>.mcap in the exact layout the monitor records, its plants
-from the monitor's model (planter_ros.sim.season). The runs are simulated in parallel on the
-same Dask engine as `planter analyze` (a local cluster, or --scheduler).
+"""`planter simulate PATH --bags N`: a season of realistic bags (the monitor's exact layout, its
+plants from the monitor's model) written fast without DDS, on the same Dask engine as `planter
+analyze`; the same seed gives the same bytes. Details: doc/analysis.md (planter_ros.sim.season).
 """
 
 import json
@@ -27,40 +23,33 @@ def add_arguments(parser):
                         type=spec_option(SeasonOptions, 'rows', '--rows'),
                         help='planting rows of the machine, 1..16 (default 4; 1 = a machine '
                              'without rows); not with --scene')
-    parser.add_argument('--scene', metavar='FILE',
-                        help="simulate the scene's machine: its design (five-bar or three-arm), "
-                             'rows, monitor settings, acceptance limits and antenna, cruising '
-                             'around its nominal ground speed (default: a tomato five-bar)')
+    parser.add_argument('--scene', metavar='FILE', help="the scene's machine (design, rows, "
+                        'monitor settings, limits, antenna; default: a tomato five-bar)')
     parser.add_argument('--seed', metavar='K', default=0,
                         type=spec_option(SeasonOptions, 'seed', '--seed'),
                         help='seed of the season, 0..2^32-1 (default 0): the same seed gives '
                              'the same bags')
+    for name, default in (('empty', 0.02), ('double', 0.01)):
+        parser.add_argument(f'--{name}-rate', metavar='R', default=default, help=f"share of "
+                            f"the tray's {name} cells, 0..1 (default {default:g})",
+                            type=spec_option(SeasonOptions, f'{name}_rate', f'--{name}-rate'))
     add_engine_arguments(parser)
     parser.add_argument('--json', action='store_true',
                         help='print every bag written and what happens in it as JSON (SI)')
 
 
 def run(args):
-    from planter_ros.analysis.simulate import check_path, simulate_season
-    from planter_ros.sim.season import bag_name
-
     from planter_ros.analysis.engine import EngineError
+    from planter_ros.analysis.simulate import check_path, season_machine, simulate_season
     from planter_ros.cli.main import BadInput
-    scene, rows = None, 4 if args.rows is None else args.rows
-    if args.scene:
-        if args.rows is not None:
-            raise BadInput(f'--rows = {args.rows} with --scene: allowed one of them (the '
-                           "scene's rows are its machine's)")
-        from pathlib import Path
-
-        from planter_ros.sim.season import scene_machine
-        rows = len(scene_machine(args.scene).rows)        # a bad scene: one line, exit 2
-        scene = str(Path(args.scene).resolve())
+    from planter_ros.sim.season import bag_name
+    scene, rows = season_machine(args.scene, args.rows)     # a bad scene: one line, exit 2
     names = [bag_name(args.seed, k) for k in range(args.bags)]
     path = check_path(args.path, names)
     try:
         report, written, errors = simulate_season(path, names, args.seed, args.duration,
-                                                  rows, args.workers, args.scheduler, scene)
+                                                  rows, args.workers, args.scheduler, scene,
+                                                  (args.empty_rate, args.double_rate))
     except EngineError as exc:
         raise BadInput(str(exc)) from None
     if args.json:

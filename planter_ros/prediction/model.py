@@ -20,10 +20,13 @@ the three-arm at its lowest point). For each plant:
   and a rolling uprightness rate over the last N plants.
 
 Gaps in the inputs: where two consecutive joint samples, or two consecutive accepted ground-speed
-samples, are more than `max_input_gap` apart, nothing is known about what happened in between.
-A plant whose instant falls in such a gap is not reported (it would be invented by
-interpolating across the gap), and the first plant after a gap starts a new sequence: it has no
-spacing (NaN), like the first plant of a stream. The plant numbering and the rolling rate go on.
+samples, are more than `max_input_gap` apart, little is known about what happened in between.
+A planting instant inside such a gap is still reported (every instant is accounted for): the
+shaft angle before and after the gap says how many instants there were; their time (from the
+shaft angle) and position (from the travelled distance) are interpolated across the gap, the
+plant is flagged `input_gap` = 1 and its λ, tip sweep, hole, tilt and upright are NaN (not
+known). It has no spacing, and the first plant after a gap starts a new sequence: it has no
+spacing (NaN), like the first plant of a stream. The rolling rate counts the known plants.
 
 A new design (d, the mechanism's geometry) arriving at time t takes effect at the next planting
 instant, as in the sync law: the first plant set after t (its crossing later than t) is the
@@ -244,15 +247,16 @@ def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
     j = np.searchsorted(st, t_e, side='right')
     located = (j >= 1) & (j < st.size)
     jc = np.clip(j, 1, st.size - 1)
-    # a plant inside a gap of either input would be invented by interpolation: not reported
-    keep = located & (jt[i] - jt[i - 1] <= gap) & (st[jc] - st[jc - 1] <= gap)
-    t_e, omega, j, which = t_e[keep], omega[keep], j[keep], which[keep]
+    # a plant inside a gap of either input: reported, interpolated and flagged
+    in_gap = (jt[i] - jt[i - 1] > gap) | (st[jc] - st[jc - 1] > gap)
+    t_e, omega, j, which, in_gap = (t_e[located], omega[located], j[located], which[located],
+                                    in_gap[located])
     v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
     starts = np.concatenate((_gaps(jt, gap), _gaps(st, gap),
                              np.asarray(breaks, dtype=float).reshape(-1, 2)))
     return _assemble([models[w] for w in which], settings, t_e, omega, v_e, s_e, index0=0,
                      prev_position=np.nan, recent=(),
-                     new_sequence=_after_gap(t_e, -np.inf, starts), row=row)
+                     new_sequence=_after_gap(t_e, -np.inf, starts), row=row, in_gap=in_gap)
 
 
 def _crossings(models, change_times, jt, theta, jw):
@@ -307,10 +311,11 @@ def _after_gap(t_e, t_before, gaps):
 
 
 def _assemble(models, settings, t_e, omega, v_e, s_e, index0, prev_position, recent,
-              new_sequence, row=0):
+              new_sequence, row=0, in_gap=None):
     """Plants from their instants, speeds and positions; `models[p]` is the design in force
-    for plant p (one model: for all of them)."""
+    for plant p (one model: for all of them); `in_gap`: the plants inside an input gap."""
     n = t_e.size
+    in_gap = np.zeros(n, dtype=bool) if in_gap is None else np.asarray(in_gap, dtype=bool)
     if not isinstance(models, (list, tuple)):
         models = [models] * n
     ratio, sweep, hole, tilt, upright = (np.zeros(n) for _ in range(5))
@@ -320,20 +325,32 @@ def _assemble(models, settings, t_e, omega, v_e, s_e, index0, prev_position, rec
         ratio[mine], sweep[mine], hole[mine], tilt[mine], upright[mine] = plant_values(
             model, settings, omega[mine], v_e[mine])
         d[mine] = model.spacing
+    for values in (ratio, sweep, hole, tilt, upright):
+        values[in_gap] = np.nan            # interpolated across a gap: not known
     spacing = np.diff(np.concatenate(([prev_position], s_e)))
     spacing[new_sequence] = np.nan         # no spacing across a gap in the inputs
-    # rolling rate over the last `window` plants, continuing from `recent` flags
+    # rolling rate over the last `window` plants, continuing from `recent` flags; a plant
+    # whose uprightness is not known (NaN) counts in neither the upright nor the total
     window = settings.window
     history = np.concatenate((np.asarray(recent, dtype=float), upright))
-    csum = np.concatenate(([0.0], np.cumsum(history)))
+    known = np.isfinite(history)
+    csum = np.concatenate(([0.0], np.cumsum(np.where(known, history, 0.0))))
+    ccount = np.concatenate(([0], np.cumsum(known)))
     end = np.arange(len(recent), len(recent) + n) + 1
     start = np.maximum(end - window, 0)
-    rate = (csum[end] - csum[start]) / (end - start) if n else np.zeros(0)
+    counted = ccount[end] - ccount[start]
+    with np.errstate(invalid='ignore', divide='ignore'):
+        rate = np.where(counted > 0, (csum[end] - csum[start]) / np.maximum(counted, 1),
+                        np.nan) if n else np.zeros(0)
+    from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
     return Plants(index=np.arange(index0, index0 + n, dtype=float), time=t_e, position=s_e,
                   spacing=spacing, spacing_error=spacing - d, speed_ratio=ratio,
                   ground_speed=v_e, shaft_speed=omega, hole_width=hole, tilt=tilt,
                   upright=upright, uprightness_rate=rate, row=np.full(n, float(row)),
-                  tip_sweep=sweep, latitude=np.full(n, np.nan), longitude=np.full(n, np.nan))
+                  tip_sweep=sweep, latitude=np.full(n, np.nan), longitude=np.full(n, np.nan),
+                  input_gap=in_gap.astype(float), seedlings=np.full(n, np.nan),
+                  status=np.full(n, float(UNKNOWN)),
+                  reason=np.where(in_gap, float(INPUT_GAP), float(NO_SENSOR)))
 
 
 class PlantPredictor:
@@ -414,8 +431,8 @@ class PlantPredictor:
         while _threshold(self.model, float(self._next_k)) <= th1:
             theta_k = _threshold(self.model, float(self._next_k))
             t_e, omega = _crossing(theta_k, t0, t, th0, th1, w0, velocity)
-            if not in_gap:             # a crossing inside a gap would be invented
-                self._pending.append((float(t_e), float(omega), self.model))
+            # a crossing inside a gap: reported, interpolated and flagged (module doc)
+            self._pending.append((float(t_e), float(omega), self.model, in_gap))
             self._next_k += 1
             if self._changes and self._changes[0][0] < t_e:
                 # this plant was the old design's last; the latest change before it is in force
@@ -431,31 +448,32 @@ class PlantPredictor:
             return self._nothing()
         first_t, last_t = self._speed[0][0], self._speed[-1][0]
         done, keep = [], []
-        for t_e, omega, model in self._pending:
+        for t_e, omega, model, in_gap in self._pending:
             if t_e >= last_t:
-                keep.append((t_e, omega, model))
+                keep.append((t_e, omega, model, in_gap))
             elif t_e >= first_t:
-                done.append((t_e, omega, model))
+                done.append((t_e, omega, model, in_gap))
             # else: before the first speed sample: no position, dropped (as in replay)
         self._pending = keep
         if not done:
             return self._nothing()
         times = [s[0] for s in self._speed]
         rows, models = [], []
-        for t_e, omega, model in done:
+        for t_e, omega, model, in_gap in done:
             j = _bisect_right(times, t_e)
             (t0, v0, s0), (t1, v1, _) = self._speed[j - 1], self._speed[j]
-            if t1 - t0 > self.settings.max_input_gap:
-                continue                # inside a gap of the ground speed: not reported
+            # inside a gap of the ground speed: reported, interpolated and flagged
+            in_gap = in_gap or t1 - t0 > self.settings.max_input_gap
             v_e, s_e = _at_speed(np.float64(t_e), t0, t1, v0, v1, s0)
-            rows.append((t_e, omega, float(v_e), float(s_e)))
+            rows.append((t_e, omega, float(v_e), float(s_e), in_gap))
             models.append(model)
         if not rows:
             return self._nothing()
-        t_e, omega, v_e, s_e = (np.array(c) for c in zip(*rows))
+        t_e, omega, v_e, s_e, in_gap = (np.array(c) for c in zip(*rows))
         new_sequence = _after_gap(t_e, self._prev_time, np.array(self._gaps).reshape(-1, 2))
         plants = _assemble(models, self.settings, t_e, omega, v_e, s_e, self._count,
-                           self._prev_position, tuple(self._recent), new_sequence, self.row)
+                           self._prev_position, tuple(self._recent), new_sequence, self.row,
+                           in_gap=in_gap.astype(bool))
         self._count += len(plants)
         self._prev_position = float(plants.position[-1])
         self._prev_time = float(plants.time[-1])

@@ -33,7 +33,8 @@ from planter_ros.config import ConfigError
 from planter_ros.design import Design, from_json, to_dict
 from planter_ros.geo import AntennaSettings
 from planter_ros.prediction import (
-    PLANT_FIELDS, AcceptanceLimits, Plants, PredictionSettings, judge_acceptance,
+    PLANT_FIELDS, AcceptanceLimits, Plants, PredictionSettings, SeedlingAccount,
+    design_spacing_of, judge_acceptance,
     planting_model_from_design, predict_plants, prediction_notes, section_breaks, summarize)
 from planter_ros.rows import implicit_row, rows_from_record
 from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, place_plants
@@ -43,7 +44,8 @@ from .bag_reader import BagError, read_recording
 from .cdr import decode_joint_states, decode_navsatfix, decode_string, decode_twist
 
 REQUIRED = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES, interfaces.DESIGN)
-OPTIONAL = (interfaces.GNSS_FIX, interfaces.SECTIONS, interfaces.DIAGNOSTICS)
+OPTIONAL = (interfaces.GNSS_FIX, interfaces.SECTIONS, interfaces.DIAGNOSTICS,
+            interfaces.SEEDLINGS)
 
 
 class ReplayError(ValueError):
@@ -243,7 +245,10 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
         order = np.argsort(segment.time, kind='stable')
         parts.append(Plants.from_table(segment.table()[order]))
     plants = Plants.concatenate(parts)
-    design_spacing = plants.spacing - plants.spacing_error     # each plant's design in force
+    # each instant's seedlings from the rows' cup sensors (prediction.seedlings): its status,
+    # and spacings between the seedlings in the ground
+    design_spacing = design_spacing_of(plants, designs[-1][3].spacing)
+    plants = _seedlings(rec, plants, planting, segments).apply(plants, design_spacing)
     offset_of = {row.index: row.lateral_offset for row in rows}
     placement = place_plants(plants.time, [offset_of.get(int(r), 0.0) for r in plants.row],
                              tuple(np.concatenate(c) for c in zip(*motions)), fixes,
@@ -280,6 +285,26 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
         notes=prediction_notes(last_design, last_model), map_settings=map_settings,
         antenna=antenna, nozzle_width=last_model.nozzle_width,
         fixes=usable_fixes)
+
+
+def _seedlings(rec, plants, planting, segments):
+    """A SeedlingAccount holding every reading of the bag's seedling sensor (by row)."""
+    account = SeedlingAccount()
+    topic = rec.topics.get(interfaces.SEEDLINGS)
+    if topic is None or not topic.raw:
+        return account
+    order = np.argsort(np.asarray(topic.log, dtype=np.int64), kind='stable')
+    raws = [topic.raw[i] for i in order]
+    logs = np.asarray(topic.log, dtype=np.int64)[order]
+    mechanisms = {group[0][2].mechanism for _, group in segments}
+    for row in planting:
+        for mechanism in mechanisms:
+            stamp, count, _ = decode_joint_states(raws, row.joint(mechanism))
+            ok = np.isfinite(count)
+            t = np.where(stamp != 0, stamp, logs) * 1e-9
+            for when, value in zip(t[ok].tolist(), count[ok].tolist()):
+                account.add_reading(row.index, when, value)
+    return account
 
 
 def _acceptance_limits(given, metadata, warnings):

@@ -14,7 +14,7 @@ from planter_ros.config import ConfigError, from_mapping
 from .files import ParameterFile, SceneError, read_parameter_file
 from .schema import check_scene, merged_parameters, node_parameters, shared_entry
 
-__all__ = ['Scene', 'default_scene_path', 'load_scene', 'open_scene']
+__all__ = ['Scene', 'default_scene_path', 'load_scene', 'open_scene', 'scene_limits']
 
 DEFAULT_SCENE = 'tomato_five_bar.yaml'
 
@@ -86,6 +86,13 @@ def open_scene(path: str | Path) -> Scene:
                          'planter node')
     check_scene(pfile)
     return Scene(pfile)
+
+
+def scene_limits(path: str | Path) -> dict[str, Any]:
+    """The crop's acceptance limits a scene file sets (the defaults for the rest), as a
+    mapping (prediction.AcceptanceLimits' fields)."""
+    from planter_ros.config import as_dict
+    return as_dict(open_scene(path).acceptance())
 
 
 def load_scene(path: str | Path, node: str | None = None) -> dict[str, Any]:
