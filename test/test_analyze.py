@@ -336,3 +336,34 @@ def test_tables_people_read_with_pandas_dask_and_duckdb(season, local, tmp_path)
     shutil.copytree(season, moved, ignore=shutil.ignore_patterns('tables'))
     _, again = analyze(moved, '--out', tmp_path / 'tables', '--workers', 1)
     assert again['skipped'] == 6 and again['analysed'] == 0
+
+
+def test_the_season_report_per_field_day_and_row_and_its_html(season, local, tmp_path):
+    """`planter analyze` prints one line per field, day and row (instants, ISO indices,
+    uprightness, hole width, verdict naming what failed) and writes one self-contained HTML
+    report next to the tables: its figures embedded, nothing fetched from elsewhere."""
+    import re
+
+    import pandas as pd
+    out, _, report = local
+    html_path = Path(report['report'])
+    assert html_path == out / 'report.html' and html_path.is_file()
+    r = run_planter('analyze', season, '--out', out, timeout=300)   # nothing to do: printed
+    assert r.returncode == 0, r.stderr[-2000:]
+    lines = r.stdout.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.split()[:2] == ['field', 'day'])
+    end = lines.index(f'season report: {html_path}')
+    table = lines[head + 1:end]
+    plants = pd.read_parquet(out / 'plants')
+    plants['field'] = [str(Path(b).parent) for b in plants['bag']]
+    plants['day'] = plants['time_utc'].dt.strftime('%Y-%m-%d')
+    groups = plants.groupby(['field', 'day', 'row_name']).size()
+    assert len(table) == len(groups)
+    for line in table:
+        field, day, row, instants = line.split()[:4]
+        assert groups[(field, day, row)] == int(instants)
+        assert ' PASS' in line or re.search(r' FAIL  \((max|min)_\w+', line), line
+    text = html_path.read_text()
+    assert text.count('<img alt="figure" src="data:image/png;base64,') >= 3
+    assert not re.search(r'(src|href)="(?!data:)', text)              # self-contained
+    assert text.count('<tr class=') == len(groups)

@@ -67,11 +67,14 @@ def run(args):
             except EngineError as exc:
                 raise BadInput(str(exc)) from None
         exports = season_exports(out, force=bool(keys))
+        from planter_ros.plots.season import season_report
+        table, html = season_report(out)           # per field, day and row; report.html
     report.found, report.skipped = len(bags), skipped
     if args.json:
-        print(json.dumps({**report.as_json(), 'exports': exports}, indent=1, allow_nan=False))
+        print(json.dumps({**report.as_json(), 'exports': exports, 'report': str(html)},
+                         indent=1, allow_nan=False))
     else:
-        print(format_report(report))
+        print(f'{format_report(report)}\n{table}\nseason report: {html}')
         if exports:
             print(format_exports(exports))
     for bag, reason in (exports or {}).get('skipped', []):
