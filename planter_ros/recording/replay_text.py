@@ -39,8 +39,18 @@ def format_table(result: 'ReplayResult') -> str:
         lines.append(f'{row}{int(p.index[i]):>5} {p.time[i] - t0:>8.3f} {p.position[i]:>8.3f} '
                      f'{spacing:>12} {err:>10} {lam:>7} {p.tip_sweep[i] * 1e3:>10.2f} '
                      f'{p.hole_width[i] * 1e3:>9.2f} {math.degrees(p.tilt[i]):>10.2f} '
-                     f'{"yes" if p.upright[i] else "NO":>7}')
+                     f'{_upright(p.upright[i]):>7}'
+                     f'{"  " + _status(p, i) if p.status[i] != 3 or p.input_gap[i] else ""}')
     return '\n'.join(lines + [''] + format_summary(result).splitlines())
+
+
+def _upright(value):
+    return '?' if not math.isfinite(value) else 'yes' if value else 'NO'
+
+
+def _status(p, i):
+    from planter_ros.prediction import reason_name, status_name
+    return f'{status_name(p.status[i])} ({reason_name(p.reason[i])})'
 
 
 def _mm(v):
@@ -57,8 +67,12 @@ def format_summary(result: 'ReplayResult') -> str:
     threshold = math.degrees(result.settings.upright_threshold)
     nozzle = _nozzle(result)
     notes = list(result.notes or [])
+    n = s.get('instants') or {}
     lines = [
-        f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
+        f'plants: {s["plants"]} planting instants (design spacing '
+        f'{s["design_spacing"] * 1e3:.1f} mm): {n.get("planted", 0)} planted, '
+        f'{n.get("empty", 0)} empty, {n.get("double", 0)} double, {n.get("unknown", 0)} '
+        f'unknown ({n.get("input_gap", 0)} in input gaps)',
         f'spacing error: mean {_mm(s["spacing_error_mean"])}, sigma '
         f'{_mm(s["spacing_error_std"])}, max |error| {_mm(s["spacing_error_max"])}',
         f'spacing quality (ISO 7256-1): {format_quality(s["spacing_quality"])}',
