@@ -129,3 +129,67 @@ def test_injected_losses_in_a_simulated_run_are_counted_exactly(tmp_path):
     assert counted['input_gap'] == int(np.count_nonzero(plants.input_gap == 1))
     assert counted['planted'] + counted['empty'] + counted['double'] + counted['unknown'] == \
         len(plants)
+
+
+def test_the_live_monitor_reads_the_seedling_sensor_as_replay_does(ros):
+    """monitor_node fed a run and its cup sensor's readings (one per cycle, half a cycle before
+    the planting angle: 1, 0, 1, 2, 1, ...) marks each instant as replay's arithmetic does."""
+    import math
+
+    from geometry_msgs.msg import TwistStamped
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+
+    from planter_ros.design import to_json
+    from planter_ros.nodes.monitor_node import MonitorNode
+    from planter_ros.prediction import (PredictionSettings, design_spacing_of,
+                                        planting_model_from_design, predict_plants)
+    from planter_ros.sim.runs import five_bar_design_message, simulate_run
+    design = five_bar_design_message()
+    run = simulate_run(design, duration=24.0, seed=7)
+    model = planting_model_from_design(design)
+    theta = np.maximum.accumulate(run.joint_pos)
+    ks = np.arange(math.ceil((theta[0] - model.planting_phase) / (2 * math.pi)),
+                   math.floor((theta[-1] - model.planting_phase) / (2 * math.pi)) + 1)
+    sense = model.planting_phase + (ks - 0.5) * 2 * math.pi
+    read_t = run.joint_t[np.minimum(np.searchsorted(theta, sense), theta.size - 1)]
+    counts = np.array([1, 0, 1, 2, 1, 1])[np.arange(read_t.size) % 6]
+    events = ([(t, 0, i) for i, t in enumerate(run.speed_t)]
+              + [(t, 1, i) for i, t in enumerate(run.joint_t)]
+              + [(t, 2, i) for i, t in enumerate(read_t)])
+    node = MonitorNode(context=ros.context, parameter_overrides=[Parameter('record', value=False)])
+    try:
+        node._on_design(String(data=to_json(design)), run.speed_t[0] - 1.0, 0)
+        for t, kind, i in sorted(events):
+            if kind == 0:
+                msg = TwistStamped()
+                msg.twist.linear.x = float(run.speed_v[i])
+                node._on_speed(msg, t, 0)
+            elif kind == 1:
+                node._on_joint(JointState(name=['sun_bar'], position=[float(run.joint_pos[i])],
+                                          velocity=[float(run.joint_vel[i])]), t, 0)
+            else:
+                node._on_seedlings(JointState(name=['sun_bar'], position=[float(counts[i])]),
+                                   t, 0)
+        live = Plants.from_table(np.vstack(node._tables))
+        quality = node.spacing_quality()
+    finally:
+        node.destroy_node()
+    offline = predict_plants(run.speed_t, run.speed_v, run.joint_t, run.joint_pos,
+                             run.joint_vel, model, PredictionSettings())
+    account = SeedlingAccount()
+    for t, c in zip(read_t, counts):
+        account.add_reading(0, t, c)
+    offline = account.apply(offline, design_spacing_of(offline, model.spacing))
+    n = min(len(live), len(offline))
+    assert n > 15 and len(offline) - len(live) <= 1
+    np.testing.assert_array_equal(live.status[:n], offline.status[:n])
+    np.testing.assert_allclose(live.spacing[:n], offline.spacing[:n], rtol=0, atol=1e-12,
+                               equal_nan=True)
+    assert {1.0, 2.0} <= set(live.status.tolist())
+    machine = dict(quality)[-1]                  # the monitor's running ISO indices
+    spacings = machine['spacings']
+    assert round(machine['multiple_index'] * spacings) == np.count_nonzero(live.status == 2)
+    assert round(machine['miss_index'] * spacings) == \
+        np.count_nonzero(live.spacing > 1.5 * model.spacing) > 0
