@@ -1,8 +1,6 @@
-"""`planter analyze PATH... --out DIR`: replay a season of bags on Dask (a local cluster, or
---scheduler) into Parquet tables under DIR (`plants/`, `bags/`, keyed by the bag's path from the
-analysed root), the season's Shapefile and ISOXML task data, and the season report; a re-run
-skips the bags analysed before with the same model and settings unless --force.
-Details: doc/analysis.md (planter_ros.analysis).
+"""`planter analyze PATH... --out DIR`: a season of bags replayed on Dask into Parquet tables
+(`plants/`, `bags/`), Shapefile, ISOXML and the season report under DIR; a re-run skips the bags
+analysed before with the same model and settings unless --force. Details: doc/analysis.md.
 """
 
 import json
@@ -47,9 +45,8 @@ def run(args):
         raise BadInput(f'PATH = {" ".join(args.paths)} holds no bag: allowed .mcap files and '
                        'directories holding .mcap files or rosbag2 bag directories')
     version = model_version()
-    exports = None
     from planter_ros.analysis.exports import format_exports, season_exports
-    from planter_ros.analysis.season import format_report
+    from planter_ros.plots.season import season_report
     root = seasons.analysed_root(args.paths)
     with seasons.Season(out, root) as season:
         keys, skipped = season.plan(seasons.bag_keys(bags, root), version,
@@ -67,19 +64,17 @@ def run(args):
             except EngineError as exc:
                 raise BadInput(str(exc)) from None
         exports = season_exports(out, force=bool(keys))
-        from planter_ros.plots.season import season_report
         table, html = season_report(out)           # per field, day and row; report.html
     report.found, report.skipped = len(bags), skipped
     if args.json:
         print(json.dumps({**report.as_json(), 'exports': exports, 'report': str(html)},
                          indent=1, allow_nan=False))
     else:
-        print(f'{format_report(report)}\n{table}\nseason report: {html}')
+        print(f'{seasons.format_report(report)}\n{table}\nseason report: {html}')
         if exports:
             print(format_exports(exports))
     for bag, reason in (exports or {}).get('skipped', []):
-        print(f'planter: warning: {bag} not in the ISOXML task data ({reason})',
-              file=sys.stderr)
+        print(f'planter: warning: {bag} not in the ISOXML task data ({reason})', file=sys.stderr)
     for bag, reason in report.not_done:
         print(f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again',
               file=sys.stderr)

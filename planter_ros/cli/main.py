@@ -35,7 +35,11 @@ class BadInput(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports errors in one line (no usage dump, no traceback)."""
+    """argparse that reports errors in one line (no usage dump, no traceback) and takes no
+    abbreviated option (`--dur` for `--duration` would change meaning when an option is added)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs, allow_abbrev=False)
 
     def error(self, message):
         # main() prints 'planter: error: ': name only the sub-command after it

@@ -65,7 +65,7 @@ class AcceptanceLimits:
         0.0, "acceptance: largest mean hole width of each row; 0: not judged (no standard "
         'gives one; set it per crop)', unit='m', range=(0.0, 2.0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self, DesignError.from_message)
 
 

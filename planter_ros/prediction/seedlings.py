@@ -29,6 +29,7 @@ from bisect import bisect_right
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .plants import Plants
 
@@ -41,11 +42,11 @@ REASONS = ('sensed', 'no seedling sensor', 'no sensor reading', 'input gap')
 SENSED, NO_SENSOR, NO_READING, INPUT_GAP = range(4)
 
 
-def status_name(code):
+def status_name(code: float) -> str | None:
     return STATUSES[int(code)] if math.isfinite(code) and 0 <= code < len(STATUSES) else None
 
 
-def reason_name(code):
+def reason_name(code: float) -> str | None:
     return REASONS[int(code)] if math.isfinite(code) and 0 <= code < len(REASONS) else None
 
 
@@ -55,11 +56,11 @@ class SeedlingAccount:
     order per row. A row has a sensor from its first reading on: an instant before it is
     `no seedling sensor`, as the live monitor sees it."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._readings = {}                # row -> ([t], [count])
         self._last = {}                    # row -> (instant time, last seedling position)
 
-    def add_reading(self, row, t, count):
+    def add_reading(self, row: int, t: float, count: float) -> None:
         t, count = float(t), float(count)
         if not math.isfinite(t):
             return
@@ -69,12 +70,12 @@ class SeedlingAccount:
         times.append(t)
         counts.append(count)
 
-    def add_readings(self, rows, times, counts):
+    def add_readings(self, rows: ArrayLike, times: ArrayLike, counts: ArrayLike) -> None:
         for row, t, count in zip(np.asarray(rows).tolist(), np.asarray(times).tolist(),
                                  np.asarray(counts).tolist()):
             self.add_reading(row, t, count)
 
-    def apply(self, plants, design_spacing):
+    def apply(self, plants: Plants, design_spacing: ArrayLike) -> Plants:
         """`plants` (a Plants batch, time order within each row) with seedlings, status,
         reason, spacing and spacing_error set; `design_spacing`: d of each plant (m, array)."""
         n = len(plants)
@@ -117,13 +118,14 @@ class SeedlingAccount:
         return Plants(**values)
 
 
-def design_spacing_of(plants, fallback):
+def design_spacing_of(plants: Plants, fallback: float) -> np.ndarray:
     """d of each plant: spacing − spacing_error where both are known, else `fallback`."""
     d = plants.spacing - plants.spacing_error
     return np.where(np.isfinite(d), d, float(fallback))
 
 
-def seedling_spacings(plants, design_spacing):
+def seedling_spacings(plants: Plants,
+                      design_spacing: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """(spacings, their d) between the seedlings in the ground: each plant's spacing, and a
     spacing of 0 for each seedling past the first of a double (module doc)."""
     d = np.broadcast_to(np.asarray(design_spacing, dtype=float), plants.spacing.shape)
@@ -135,7 +137,7 @@ def seedling_spacings(plants, design_spacing):
     return x, x_d
 
 
-def status_counts(plants):
+def status_counts(plants: Plants) -> dict[str, int]:
     """{status: instants} and {'input_gap': instants in a gap} of a set of plants."""
     out = {name: int(np.count_nonzero(plants.status == code))
            for code, name in enumerate(STATUSES)}

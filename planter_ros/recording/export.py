@@ -14,10 +14,16 @@ CSV: the same table, a header line, empty cells for undefined values, upright an
 1/0.
 """
 
+from __future__ import annotations
+
 import csv
 import io
 import json
 import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .replay import ReplayResult
 
 COORDINATE_DECIMALS = 9
 PROPERTIES = ('row', 'row_name', 'index', 'time', 'spacing', 'spacing_error', 'hole_width',
@@ -27,17 +33,17 @@ CSV_COLUMNS = ('row', 'row_name', 'index', 'time', 'longitude', 'latitude', 'spa
                'input_gap')
 
 
-def _number(value):
+def _number(value: float) -> float | None:
     value = float(value)
     return value if math.isfinite(value) else None
 
 
-def _flag(value):
+def _flag(value: float) -> bool | None:
     value = float(value)
     return bool(value) if math.isfinite(value) else None
 
 
-def plant_records(result):
+def plant_records(result: ReplayResult) -> list[dict]:
     """One dict per plant of a ReplayResult: the CSV columns, None for undefined values."""
     from planter_ros.prediction import reason_name, status_name
     p = result.plants
@@ -55,7 +61,7 @@ def plant_records(result):
     return out
 
 
-def geojson(result):
+def geojson(result: ReplayResult) -> dict:
     """The RFC 7946 FeatureCollection (a dict) of a ReplayResult's plants."""
     features = []
     for record in plant_records(result):
@@ -68,11 +74,11 @@ def geojson(result):
     return {'type': 'FeatureCollection', 'features': features}
 
 
-def geojson_text(result):
+def geojson_text(result: ReplayResult) -> str:
     return json.dumps(geojson(result), allow_nan=False, separators=(',', ':')) + '\n'
 
 
-def csv_text(result):
+def csv_text(result: ReplayResult) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator='\n')
     writer.writerow(CSV_COLUMNS)
