@@ -6,10 +6,14 @@ embedded as base64: the page needs no other file and no network. The figures com
 analysis.report."""
 
 import base64
+from contextlib import contextmanager
 import html
 import io
 import math
+import os
 from pathlib import Path
+import sys
+import tempfile
 
 import numpy as np
 
@@ -26,8 +30,28 @@ def season_report(out):
     plants, bags = read_season(out)
     groups = season_groups(plants, bags)
     path = Path(out) / REPORT_FILE
-    write_season_report(path, groups, plants, bags)
+    with _matplotlib_home():
+        write_season_report(path, groups, plants, bags)
     return format_season_table(groups), path
+
+
+@contextmanager
+def _matplotlib_home():
+    """`planter analyze` writes nothing it was not asked to: matplotlib's font cache goes to
+    a temporary folder, removed afterwards, unless the user has one (MPLCONFIGDIR set, or a
+    matplotlib cache or config folder in the home directory) or matplotlib is loaded already."""
+    home = Path.home()
+    if ('matplotlib' in sys.modules or os.environ.get('MPLCONFIGDIR')
+            or (home / '.cache' / 'matplotlib').is_dir()
+            or (home / '.config' / 'matplotlib').is_dir()):
+        yield
+        return
+    with tempfile.TemporaryDirectory(prefix='planter-mpl-') as scratch:
+        os.environ['MPLCONFIGDIR'] = scratch
+        try:
+            yield
+        finally:
+            os.environ.pop('MPLCONFIGDIR', None)
 
 
 def _png(fig):
