@@ -161,6 +161,12 @@ SECTIONS = Topic(
     "rows enabled in the scene (the implicit row of a scene without rows: ''), position = 1 on "
     '(planting), 0 off (section_fields / section_states), velocity and effort empty, stamped '
     'at the switch')
+SEEDLINGS = Topic(
+    'seedlings', 'sensor_msgs/msg/JointState', SENSOR_DATA,
+    "input (optional): each row's seedling sensor (an optical cup / drop-tube sensor), one "
+    'reading per planting cycle before the planting point: name = row_joint(row, mechanism), '
+    'position = seedlings counted (0 empty cup, 1, 2 a double), velocity and effort empty, '
+    'stamped when read (prediction.seedlings)')
 DIAGNOSTICS = Topic(
     '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', STATE,
     'node health, ~1 Hz, absolute as diagnostic_aggregator expects (planter_ros.diagnostics)')
@@ -170,10 +176,10 @@ CLOCK = Topic(
 
 TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX, PLANTS,
           UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, PLANT_FIXES, PLANT_ROWS, SECTIONS,
-          DIAGNOSTICS, CLOCK)
+          DIAGNOSTICS, CLOCK, SEEDLINGS)
 # what the monitor records: its inputs as they arrived, then its own outputs
 MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX,
-                  SECTIONS, DIAGNOSTICS)
+                  SECTIONS, DIAGNOSTICS, SEEDLINGS)
 MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, PLANT_FIXES,
                    PLANT_ROWS)
 RECORDED = MONITOR_INPUTS + MONITOR_OUTPUTS
@@ -185,6 +191,9 @@ MAP_RECORD = 'planter_map'
 # MCAP metadata record naming the rows: key 'rows' = JSON list of {index, name, lateral_offset,
 # drive_node_id, enabled}; a plant's `row` field is the index. Absent: one implicit row.
 ROWS_RECORD = 'planter_rows'
+# MCAP metadata record of the crop's acceptance limits the run was judged by
+# (prediction.AcceptanceLimits, name -> repr). Absent: the defaults.
+ACCEPTANCE_RECORD = 'planter_acceptance'
 
 
 @dataclass(frozen=True)

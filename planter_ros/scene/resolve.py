@@ -17,11 +17,12 @@ from .files import ParameterFile, SceneError, read_parameter_file
 from .schema import check_scene, merged_parameters, node_parameters, shared_entry
 
 if TYPE_CHECKING:          # loaded when used: a scene's design may need the gear train
+    from planter_ros.prediction import AcceptanceLimits
     from planter_ros.design import Design
     from planter_ros.geo import AntennaSettings
     from planter_ros.rows import Row
 
-__all__ = ['Scene', 'default_scene_path', 'load_scene', 'open_scene']
+__all__ = ['Scene', 'default_scene_path', 'load_scene', 'open_scene', 'scene_limits']
 
 DEFAULT_SCENE = 'tomato_five_bar.yaml'
 
@@ -66,6 +67,15 @@ class Scene:
         except ConfigError as exc:
             raise SceneError(f'scene {self.path}: {exc}') from None
 
+    def acceptance(self) -> 'AcceptanceLimits':
+        """The crop's acceptance limits (prediction.AcceptanceLimits) as the monitor reads
+        them; the defaults for what the scene does not set."""
+        from planter_ros.prediction import AcceptanceLimits
+        try:
+            return from_mapping(AcceptanceLimits, self.parameters('monitor_node'))
+        except ConfigError as exc:
+            raise SceneError(f'scene {self.path}: {exc}') from None
+
     def antenna(self) -> AntennaSettings:
         """The GNSS antenna on the machine (geo.AntennaSettings) as the monitor reads it."""
         from planter_ros.geo import AntennaSettings
@@ -84,6 +94,13 @@ def open_scene(path: str | Path) -> Scene:
                          'planter node')
     check_scene(pfile)
     return Scene(pfile)
+
+
+def scene_limits(path: str | Path) -> dict[str, Any]:
+    """The crop's acceptance limits a scene file sets (the defaults for the rest), as a
+    mapping (prediction.AcceptanceLimits' fields)."""
+    from planter_ros.config import as_dict
+    return as_dict(open_scene(path).acceptance())
 
 
 def load_scene(path: str | Path, node: str | None = None) -> dict[str, Any]:
