@@ -10,7 +10,7 @@ import sys
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import String
 
@@ -45,13 +45,15 @@ class DesignNode(Node):
 
 def main(args=None):
     keep_discovery_on_host()
-    stop_signals.install('design_node')        # SIGTERM stops like Ctrl-C
+    stop = stop_signals.install('design_node')   # SIGTERM stops like Ctrl-C
     rclpy.init(args=args)
     node = None
     try:
         node = DesignNode(namespace=interfaces.NAMESPACE,
                           arguments=sys.argv if args is None else args)
-        rclpy.spin(node)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        stop_signals.spin(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ConfigError, ParameterException) as exc:

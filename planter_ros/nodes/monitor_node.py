@@ -34,7 +34,7 @@ import numpy as np
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
@@ -508,12 +508,14 @@ def joint_index(msg, name):
 
 def main(args=None):
     keep_discovery_on_host()
-    stop_signals.install('monitor_node')       # SIGTERM stops like Ctrl-C: the bag finalised
+    stop = stop_signals.install('monitor_node')   # SIGTERM stops like Ctrl-C: the bag finalised
     rclpy.init(args=args)
     node = None
     try:
         node = MonitorNode(arguments=sys.argv if args is None else args)
-        rclpy.spin(node)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        stop_signals.spin(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ConfigError, ParameterException) as exc:
