@@ -48,9 +48,9 @@ setup(
     entry_points={
         'console_scripts': [
             'planter = planter_ros.cli.main:main',
-            'design_node = planter_ros.nodes.design_node:main',
-            'sync_node = planter_ros.nodes.sync_node:main',
-            'monitor_node = planter_ros.nodes.monitor_node:main',
+            'design_node = planter_ros.nodes.entry:design_node',
+            'sync_node = planter_ros.nodes.entry:sync_node',
+            'monitor_node = planter_ros.nodes.entry:monitor_node',
         ],
     },
 )

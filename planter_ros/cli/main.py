@@ -9,6 +9,8 @@ import argparse
 import importlib
 import sys
 
+from planter_ros.shipped import package_version
+
 # (command words) -> (module, one-line help)
 COMMANDS = {
     ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
@@ -65,6 +67,7 @@ def build_parser(argv=()):
     never loads the code (and the imports) of the commands it does not use."""
     selected = _selected(list(argv))
     parser = _Parser(prog='planter', description='Design and drive a transplanter planting unit.')
+    parser.add_argument('--version', action='version', version=f'planter {package_version()}')
     top = parser.add_subparsers(dest='command', required=True, parser_class=_Parser)
     groups = {}
     for words, (module_name, help_text) in COMMANDS.items():
