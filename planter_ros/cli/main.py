@@ -9,8 +9,6 @@ import argparse
 import importlib
 import sys
 
-from planter_ros.shipped import package_version
-
 # (command words) -> (module, one-line help)
 COMMANDS = {
     ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
@@ -65,6 +63,7 @@ def _selected(argv):
 def build_parser(argv=()):
     """The full command tree; only the selected sub-command's module is imported, so a run
     never loads the code (and the imports) of the commands it does not use."""
+    from planter_ros.shipped import package_version
     selected = _selected(list(argv))
     parser = _Parser(prog='planter', description='Design and drive a transplanter planting unit.')
     parser.add_argument('--version', action='version', version=f'planter {package_version()}')

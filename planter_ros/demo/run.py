@@ -37,6 +37,8 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     from planter_ros.scene import SceneError, default_scene_path, open_scene
 
     scene = open_scene(options.scene or default_scene_path())
+    for warning in scene.warnings:        # unusual but possible values (scene.plausibility)
+        print(f'planter: warning: {warning}', file=sys.stderr)
     check_bag_path(options.bag)
     design = scene.design()               # a bad scene fails here, before anything starts
     node_id = scene.parameters('sync_node').get('drive_node_id', 1)
