@@ -1,5 +1,6 @@
 """ament_python package: installable with colcon on a ROS machine and with pip into a venv."""
 from glob import glob
+import os
 
 from setuptools import find_packages, setup
 
@@ -12,7 +13,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/config', glob('config/*')),
+        ('share/' + package_name + '/config', [p for p in glob('config/*') if os.path.isfile(p)]),
+        ('share/' + package_name + '/config/machines', glob('config/machines/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
     # What the package needs at run time, with the oldest versions it is known to work with;

@@ -235,9 +235,11 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
     plants = Plants.concatenate(parts)
     design_spacing = plants.spacing - plants.spacing_error     # each plant's design in force
     offset_of = {row.index: row.lateral_offset for row in rows}
+    forward_of = {row.index: row.longitudinal_offset for row in rows}
     placement = place_plants(plants.time, [offset_of.get(int(r), 0.0) for r in plants.row],
                              tuple(np.concatenate(c) for c in zip(*motions)), fixes,
-                             map_settings, antenna.antenna_position)
+                             map_settings, antenna.antenna_position,
+                             [forward_of.get(int(r), 0.0) for r in plants.row])
     plants.latitude, plants.longitude = placement.latitude, placement.longitude
     usable_fixes = int(np.count_nonzero(np.isfinite(fix_sigma(*fixes[1:],
                                                               map_settings.max_fix_sigma))))
