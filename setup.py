@@ -39,6 +39,7 @@ setup(
         'pyshp>=2.3',                             # Shapefile export
         'isoxml>=0.0.4',                          # ISO 11783-10 task data export
         'xsdata>=24.7',                           # isoxml's bindings (its date-time type)
+        'cantools>=39.4',                         # ISOBUS speed messages from a DBC
     ],
     extras_require={'test': ['pytest>=8', 'hypothesis>=6.100', 'colcon-common-extensions',
                              'ruff>=0.6', 'pyogrio>=0.10']},
@@ -53,6 +54,7 @@ setup(
             'design_node = planter_ros.nodes.entry:design_node',
             'sync_node = planter_ros.nodes.entry:sync_node',
             'monitor_node = planter_ros.nodes.entry:monitor_node',
+            'ground_speed_node = planter_ros.nodes.entry:ground_speed_node',
         ],
     },
 )

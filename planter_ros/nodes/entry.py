@@ -25,6 +25,11 @@ NODES = {
     'monitor_node': ('planter_ros.nodes.monitor_node',
                      'ground speed + measured shaft motion -> per-plant predictions (position, '
                      'spacing, hole, tilt), the as-planted map, recorded to MCAP'),
+    'ground_speed_node': ('planter_ros.nodes.ground_speed_node',
+                          "the tractor's sensors (ISOBUS speed on a second CAN channel, GNSS "
+                          'velocity, a wheel or radar pulse count; yaw rate from the GNSS course '
+                          'or an IMU) -> /planter/ground_speed, falling back when a source goes '
+                          'quiet'),
 }
 
 
@@ -36,7 +41,6 @@ def own_arguments(argv):
 
 def help_text(node):
     """The node's --help: usage, purpose, every parameter with its range and default."""
-    from planter_ros.scene.schema import node_specs
     _, purpose = NODES[node]
     lines = [f'usage: {node} [-h] [--version] [--ros-args --params-file SCENE.yaml '
              '[-p NAME:=VALUE ...]]', '', f'{node}: {purpose}.', '',
@@ -44,16 +48,27 @@ def help_text(node):
              '(doc/deploy.md); parameters come from a scene file (config/*.yaml).', '',
              'options:', '  -h, --help   show this help and exit (opens nothing)',
              '  --version    print the version and exit', '', 'parameters:']
-    specs = node_specs(node)
+    specs = parameter_specs(node)
     width = max(map(len, specs))
     for name, spec in specs.items():
         default = '(required)' if spec.default is MISSING else f'default {spec.default!r}'
         flag = ', read-only' if spec.read_only else ''
         lines.append(f'  {name:<{width}}  {spec.allowed()}; {default}{flag}')
-    if node != 'design_node':
+    if node in ('sync_node', 'monitor_node'):
         lines.append(f'  {"<row>.<setting>":<{width}}  one block per name in rows '
                      '(lateral_offset, drive_node_id, enabled)')
     return '\n'.join(lines)
+
+
+def parameter_specs(node):
+    """{name: Spec} of every parameter `node` declares (ROS's own too; rows aside)."""
+    if node == 'ground_speed_node':
+        from planter_ros.config import specs
+        from planter_ros.scene.schema import ROS_PARAMETERS
+        from planter_ros.sensing.ground_speed_sources import GroundSpeedSourceConfig
+        return {**ROS_PARAMETERS, **{s.name: s for s in specs(GroundSpeedSourceConfig)}}
+    from planter_ros.scene.schema import node_specs
+    return node_specs(node)
 
 
 def answered(node, argv):
@@ -87,3 +102,7 @@ def sync_node():
 
 def monitor_node():
     return run('monitor_node')
+
+
+def ground_speed_node():
+    return run('ground_speed_node')

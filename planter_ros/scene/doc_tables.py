@@ -44,15 +44,26 @@ def topics_table() -> str:
     return '\n'.join(lines)
 
 
+def node_parameter_specs(node: str) -> dict:
+    """{name: Spec} of the parameters `node` declares (rows aside): the three scene nodes'
+    from the scene's schema, ground_speed_node's from its sources' settings."""
+    if node == 'ground_speed_node':
+        from planter_ros.config import specs
+        from planter_ros.sensing.ground_speed_sources import GroundSpeedSourceConfig
+        return {spec.name: spec for spec in specs(GroundSpeedSourceConfig)}
+    from planter_ros.scene.schema import node_specs
+    return node_specs(node)
+
+
 def parameters_table(node: str) -> str:
-    from planter_ros.scene.schema import ROS_PARAMETERS, node_specs
+    from planter_ros.scene.schema import ROS_PARAMETERS
     lines = ['| parameter | allowed | default | read-only | what |', '|---|---|---|---|---|']
-    for name, spec in node_specs(node).items():
+    for name, spec in node_parameter_specs(node).items():
         if name in ROS_PARAMETERS:
             continue
         lines.append(f'| `{name}` | {_cell(spec.allowed())} | {_cell(_default(spec))} | '
                      f'{"yes" if spec.read_only else "no"} | {_cell(spec.description)} |')
-    if node != 'design_node':
+    if node in ('sync_node', 'monitor_node'):
         from planter_ros.config import specs
         from planter_ros.rows import RowSettings
         for spec in specs(RowSettings):
@@ -78,6 +89,7 @@ TABLES = {
     'parameters:design_node': lambda: parameters_table('design_node'),
     'parameters:sync_node': lambda: parameters_table('sync_node'),
     'parameters:monitor_node': lambda: parameters_table('monitor_node'),
+    'parameters:ground_speed_node': lambda: parameters_table('ground_speed_node'),
     'machine-file': machine_table,
 }
 
