@@ -55,6 +55,28 @@ def node_parameter_specs(node: str) -> dict:
     return node_specs(node)
 
 
+def services_table() -> str:
+    from planter_ros import interfaces
+    lines = ['| service | type | what |', '|---|---|---|']
+    for service in (interfaces.RESET_FAULT, interfaces.SECTION):
+        lines.append(f'| `<row>/{service.name}` (`{service.name}` without rows) | '
+                     f'{service.type_name} | {_cell(service.doc)} |')
+    return '\n'.join(lines)
+
+
+def rows_table() -> str:
+    """The row parameters of a scene (`rows` and each row's block)."""
+    from planter_ros.config import specs
+    from planter_ros.rows import RowLayout, RowSettings
+    lines = ['| parameter | allowed | default | read-only | what |', '|---|---|---|---|---|']
+    for prefix, cls in (('', RowLayout), ('<row>.', RowSettings)):
+        for spec in specs(cls):
+            lines.append(f'| `{prefix}{spec.name}` | {_cell(spec.allowed())} | '
+                         f'{_cell(_default(spec))} | {"yes" if spec.read_only else "no"} | '
+                         f'{_cell(spec.description)} |')
+    return '\n'.join(lines)
+
+
 def parameters_table(node: str) -> str:
     from planter_ros.scene.schema import ROS_PARAMETERS
     lines = ['| parameter | allowed | default | read-only | what |', '|---|---|---|---|---|']
@@ -86,6 +108,8 @@ def machine_table() -> str:
 # table name in a page's marker -> its text
 TABLES = {
     'topics': topics_table,
+    'services': services_table,
+    'rows': rows_table,
     'parameters:design_node': lambda: parameters_table('design_node'),
     'parameters:sync_node': lambda: parameters_table('sync_node'),
     'parameters:monitor_node': lambda: parameters_table('monitor_node'),
