@@ -16,6 +16,7 @@ setup(
         ('share/' + package_name + '/config', [p for p in glob('config/*') if os.path.isfile(p)]),
         ('share/' + package_name + '/config/machines', glob('config/machines/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        ('share/' + package_name + '/systemd', glob('systemd/*')),
     ],
     # What the package needs at run time, with the oldest versions it is known to work with;
     # requirements.txt pins the exact versions the bootstrap and CI install.

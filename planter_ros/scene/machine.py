@@ -23,6 +23,7 @@ Pure: no ROS, no bus.
 from dataclasses import dataclass
 import math
 from pathlib import Path
+import re
 from typing import Any
 
 from planter_ros.config import ConfigError, Spec, from_mapping, setting, specs
@@ -30,10 +31,11 @@ from planter_ros.config import ConfigError, Spec, from_mapping, setting, specs
 from .files import MAX_SCENE_BYTES, SceneError
 from .schema import closest
 
-__all__ = ['CanBus', 'Machine', 'MachineFileError', 'MachineRow', 'SECTIONS', 'open_machine',
-           'parse_machine']
+__all__ = ['CanBus', 'IsobusBus', 'Machine', 'MachineFileError', 'MachineRow', 'SECTIONS',
+           'deployment_parameters', 'open_machine', 'parse_machine']
 
 RPM = 2.0 * math.pi / 60.0
+_INTERFACE_NAME = re.compile(r'[A-Za-z0-9_.-]{1,15}\Z')     # a Linux network interface name
 MODES = ('csp', 'pv')              # CiA 402 cyclic synchronous position (8), profile velocity (3)
 POLARITIES = ('normal', 'reversed')
 
@@ -55,9 +57,26 @@ class CanBus:
     def __post_init__(self):
         from planter_ros.config import check
         check(self)
-        if not self.channel or not self.interface:
-            raise ConfigError(f'channel = {self.channel!r} is out of range: allowed a '
-                              'non-empty name')
+        if not self.interface or not _INTERFACE_NAME.match(self.channel):
+            raise ConfigError(f'channel = {self.channel!r} is out of range: allowed a network '
+                              'interface name (1..15 letters, digits, _ . -)')
+
+
+@dataclass(frozen=True)
+class IsobusBus:
+    """The tractor's ISOBUS (the `isobus` block): ground speed from its speed messages."""
+
+    channel: str = setting('', "SocketCAN network interface of the tractor's ISOBUS (e.g. "
+                           'can1); empty: none (ground speed from GNSS or pulses)')
+    bitrate: int = setting(250_000, 'ISOBUS bit rate (ISO 11783-2: 250 kbit/s)', unit='bit/s',
+                           range=(10_000, 1_000_000))
+
+    def __post_init__(self):
+        from planter_ros.config import check
+        check(self)
+        if self.channel and not _INTERFACE_NAME.match(self.channel):
+            raise ConfigError(f'channel = {self.channel!r} is out of range: allowed a network '
+                              'interface name (1..15 letters, digits, _ . -) or empty')
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -115,6 +134,7 @@ class MachineRow:
 
 # the file's blocks: name -> (class, one line for people); `rows` maps a row name to a block
 SECTIONS = {'can': (CanBus, 'the drives\' CAN bus'),
+            'isobus': (IsobusBus, "the tractor's ISOBUS"),
             'rows': (MachineRow, 'one block per planting unit, named like the scene\'s rows')}
 TOP_KEYS = ('machine', *SECTIONS)
 
@@ -127,6 +147,32 @@ class Machine:
     name: str
     can: CanBus
     rows: dict[str, MachineRow]
+    isobus: IsobusBus = IsobusBus()
+
+    def ip_commands(self) -> list[list[str]]:
+        """The `ip` commands that bring the machine's SocketCAN interfaces up at their bit
+        rates (the systemd unit planter-can.service runs them; restart-ms: a bus-off interface
+        restarts by itself after 100 ms)."""
+        out = []
+        buses = [(self.can.channel, self.can.bitrate)]
+        if self.isobus.channel:
+            buses.append((self.isobus.channel, self.isobus.bitrate))
+        for channel, bitrate in buses:
+            out += [['ip', 'link', 'set', channel, 'down'],
+                    ['ip', 'link', 'set', channel, 'type', 'can', 'bitrate', str(bitrate),
+                     'restart-ms', '100'],
+                    ['ip', 'link', 'set', channel, 'up']]
+        return out
+
+    def node_parameters(self) -> dict[str, dict[str, Any]]:
+        """{node: the parameters the machine file sets for it}: the scene nodes' own share of
+        `scene_parameters()` (a node is given only what it declares), ground_speed_node's
+        ISOBUS channel."""
+        from .schema import NODES, node_parameters
+        params = self.scene_parameters()
+        out = {node: dict(node_parameters(node, params)) for node in NODES}
+        out['ground_speed_node'] = {'isobus_channel': self.isobus.channel}
+        return out
 
     def row_limits(self):
         """Each row's limits at the mechanism's shaft for scene.plausibility."""
@@ -194,6 +240,7 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
     if not isinstance(name, str):
         bad('machine', f'= {name!r} is out of range: allowed a name (text)')
     can = _block(data.get('can', {}), CanBus, 'can', where)
+    isobus = _block(data.get('isobus', {}), IsobusBus, 'isobus', where)
     rows_data = data.get('rows')
     if not isinstance(rows_data, dict) or not rows_data:
         bad('rows', 'is missing or empty: allowed one block per planting unit')
@@ -210,7 +257,7 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
                 "'s: allowed a node id no other row uses")
         owner[row.node_id] = row_name
         rows[str(row_name)] = row
-    return Machine(path, name, can, rows)
+    return Machine(path, name, can, rows, isobus)
 
 
 def _known(mapping, allowed, prefix, where):
@@ -243,3 +290,72 @@ def field_table() -> list[tuple[str, Spec]]:
         key = f'{section}.<row>' if section == 'rows' else section
         out += [(f'{key}.{spec.name}', spec) for spec in specs(cls)]
     return out
+
+
+def deployment_parameters(machine_path: str | Path, scene_path: str | Path,
+                          overrides: dict[str, dict[str, Any]] | None = None
+                          ) -> tuple[dict[str, dict[str, Any]], list[str]]:
+    """({node: parameters}, warnings): what a launch file gives each node on top of the scene
+    file, the machine file's share (`Machine.node_parameters`) and `overrides` (a launch
+    argument's, by node), and the scene's unusual values.
+    Checked first, as the nodes would (SceneError, one line): both files strict, the scene's
+    rows (if it names any) the machine's, and the scene plausible on this machine with its
+    drives' limits (scene.plausibility)."""
+    from . import open_scene
+    from .plausibility import PlausibilityError, check
+    machine = open_machine(machine_path)
+    scene = open_scene(scene_path)
+    rows = scene.parameters('sync_node').get('rows') or []
+    if rows and list(rows) != list(machine.rows):
+        raise MachineFileError(f'scene {scene_path} names the rows {", ".join(rows)}, machine '
+                               f'file {machine_path} has {", ".join(machine.rows)}: allowed '
+                               'the same rows in the same order')
+    out = machine.node_parameters()
+    for node, values in (overrides or {}).items():
+        out.setdefault(node, {}).update(values)
+    params = {**scene.parameters('design_node'), **scene.parameters('sync_node'),
+              **out['sync_node']}
+    try:
+        warnings = check(params, machine.row_limits(), where=f'{scene_path} on {machine_path}: ')
+    except PlausibilityError as exc:
+        raise MachineFileError(str(exc)) from None
+    return out, warnings
+
+
+def main(argv=None) -> int:
+    """`python -m planter_ros.scene.machine --ip-commands FILE`: the `ip` commands that bring the
+    machine's CAN interfaces up, one a line (planter-can.service pipes them to sh);
+    `--check FILE [--scene SCENE]`: the machine file checked, with a scene also the scene's
+    plausibility against the machine's limits. Exit 2 with one line for a bad file."""
+    import argparse
+    import shlex
+    import sys
+    parser = argparse.ArgumentParser(prog='python -m planter_ros.scene.machine',
+                                     description='check a machine file; print its ip commands')
+    parser.add_argument('file')
+    what = parser.add_mutually_exclusive_group(required=True)
+    what.add_argument('--ip-commands', action='store_true')
+    what.add_argument('--check', action='store_true')
+    parser.add_argument('--scene', help='with --check: a scene to judge against the machine')
+    args = parser.parse_args(argv)
+    try:
+        machine = open_machine(args.file)
+        if args.ip_commands:
+            for command in machine.ip_commands():
+                print(shlex.join(command))
+            return 0
+        if args.scene:
+            for warning in deployment_parameters(args.file, args.scene)[1]:
+                print(f'warning: {warning}', file=sys.stderr)
+        print(f'{args.file}: {len(machine.rows)} rows on {machine.can.channel} at '
+              f'{machine.can.bitrate} bit/s' + (f', ISOBUS on {machine.isobus.channel}'
+                                                if machine.isobus.channel else '') + ': ok')
+        return 0
+    except SceneError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+
+
+if __name__ == '__main__':
+    import sys
+    sys.exit(main())
