@@ -21,7 +21,7 @@ LAYERS = (
     ('design',),                                   # the typed design
     ('prediction',),                               # per-plant predictions from motion
     ('cam', 'control'),                            # cam planning; the sync law, the row loop
-    ('recording', 'export', 'optimize', 'sim'),
+    ('recording', 'export', 'optimize', 'sim', 'plausibility'),
     ('scene',),                                    # knows every node's configuration
     ('nodes', 'analysis'),
     ('demo',),

@@ -1,5 +1,5 @@
-"""Plausibility before work (scene.plausibility): 40+ implausible values, each refused or warned
-with the limit (or the typical range) named; the same checks at the command line and in the
+"""Plausibility before work (planter_ros.plausibility): 40+ implausible values, each refused or
+warned with the limit (or the typical range) named; the same checks at the command line and in the
 scene loader."""
 import math
 
@@ -7,7 +7,7 @@ import pytest
 
 from cli_helpers import REPO, run_planter
 from planter_ros.scene import SceneError, load_scene, open_scene
-from planter_ros.scene.plausibility import RowLimits, judge
+from planter_ros.plausibility import RowLimits, judge
 
 TOMATO = {'mechanism': 'five_bar', 'planting_depth': 0.045, 'plant_spacing': 0.2,
           'hole_ratio': 0.05, 'nominal_ground_speed': 0.2, 'nozzle_width': 0.04}

@@ -63,7 +63,7 @@ def run(args):
     from planter_ros.kinematics.five_bar import (design_five_bar, hole_sensitivity,
                                                  hole_tolerance, sun_bar_speed)
     from planter_ros.output_files import atomic_output
-    from planter_ros.scene.plausibility import check_design_query
+    from planter_ros.plausibility import check_design_query
     check_design_query('planter', planting_depth=args.depth, plant_spacing=args.spacing,
                        hole_ratio=args.hole_ratio, nominal_ground_speed=args.speed)
     design = design_five_bar(args.depth, args.spacing, args.hole_ratio, args.method)

@@ -37,7 +37,7 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     from planter_ros.scene import SceneError, default_scene_path, open_scene
 
     scene = open_scene(options.scene or default_scene_path())
-    for warning in scene.warnings:        # unusual but possible values (scene.plausibility)
+    for warning in scene.warnings:        # unusual but possible values (planter_ros.plausibility)
         print(f'planter: warning: {warning}', file=sys.stderr)
     check_bag_path(options.bag)
     design = scene.design()               # a bad scene fails here, before anything starts

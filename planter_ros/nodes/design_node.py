@@ -20,7 +20,7 @@ from planter_ros.kinematics.scene_settings import SceneSettings, scene_classes
 from planter_ros.dds_domain import keep_discovery_on_host
 from planter_ros.design import design_for_scene, to_json
 from planter_ros.nodes.parameters import ParameterGroup, declare, refuse_undeclared
-from planter_ros.scene.plausibility import unusual
+from planter_ros.plausibility import unusual
 
 
 class DesignNode(Node):
@@ -41,7 +41,7 @@ class DesignNode(Node):
 
     def _checked_design(self, values):
         """The design of a candidate set of values (DesignError refuses the update, the last
-        good design stays); its unusual values logged as warnings (scene.plausibility: the
+        good design stays); its unusual values logged as warnings (planter_ros.plausibility: the
         mechanism's checks; the speed, acceleration and bus checks need the sync node's
         limits)."""
         design = design_for_scene(values)

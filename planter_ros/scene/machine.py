@@ -175,8 +175,8 @@ class Machine:
         return out
 
     def row_limits(self):
-        """Each row's limits at the mechanism's shaft for scene.plausibility."""
-        from .plausibility import RowLimits
+        """Each row's limits at the mechanism's shaft for planter_ros.plausibility."""
+        from planter_ros.plausibility import RowLimits
         return [RowLimits(name, max_acceleration=row.max_acceleration,
                           motor_max_speed=row.max_motor_speed, gear_ratio=row.gear_ratio)
                 for name, row in self.rows.items()]
@@ -300,9 +300,9 @@ def deployment_parameters(machine_path: str | Path, scene_path: str | Path,
     argument's, by node), and the scene's unusual values.
     Checked first, as the nodes would (SceneError, one line): both files strict, the scene's
     rows (if it names any) the machine's, and the scene plausible on this machine with its
-    drives' limits (scene.plausibility)."""
+    drives' limits (planter_ros.plausibility)."""
     from . import open_scene
-    from .plausibility import PlausibilityError, check
+    from planter_ros.plausibility import PlausibilityError, check
     machine = open_machine(machine_path)
     scene = open_scene(scene_path)
     rows = scene.parameters('sync_node').get('rows') or []

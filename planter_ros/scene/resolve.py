@@ -21,8 +21,8 @@ DEFAULT_SCENE = 'tomato_five_bar.yaml'
 
 @dataclass(frozen=True)
 class Scene:
-    """A checked scene file; `warnings`: its unusual but possible values (scene.plausibility),
-    for the caller to show."""
+    """A checked scene file; `warnings`: its unusual but possible values
+    (planter_ros.plausibility), for the caller to show."""
 
     file: ParameterFile
     warnings: tuple[str, ...] = ()
@@ -72,13 +72,13 @@ class Scene:
 
 def open_scene(path: str | Path) -> Scene:
     """Read and check a scene file (SceneError, one line, for anything the nodes would not
-    take: see scene.schema, or the machine could not run: scene.plausibility)."""
+    take: see scene.schema, or the machine could not run: planter_ros.plausibility)."""
     pfile = read_parameter_file(path)
     if not any(entry.params for entry in pfile.entries):
         raise SceneError(f'scene file {pfile.path} has no ros__parameters under /** or a '
                          'planter node')
     check_scene(pfile)
-    from .plausibility import PlausibilityError, check
+    from planter_ros.plausibility import PlausibilityError, check
     try:
         warnings = check({**merged_parameters(pfile, 'design_node'),
                           **merged_parameters(pfile, 'sync_node')},

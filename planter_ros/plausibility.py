@@ -24,7 +24,8 @@ warned (the scene runs; the value is unusual, the warning names the typical rang
   no longer keep up.
 
 The same `check()` serves the command line, the scene loader (scene.open_scene) and the design
-node's parameter callback. Pure: no ROS, no bus.
+node's parameter callback. Pure: no ROS, no bus. A design asked at the command line loads only
+what its checks need (the law's limits; no scene files, no bus model, no second design).
 """
 
 from collections.abc import Mapping, Sequence
@@ -86,16 +87,15 @@ def _g(x: float) -> str:
 
 
 def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
-          tractor_acceleration: float = TRACTOR_ACCELERATION, motion: bool = True) -> Verdict:
+          tractor_acceleration: float = TRACTOR_ACCELERATION, motion: bool = True,
+          machine: bool = True, design: bool = True) -> Verdict:
     """Every check on a flat scene dict (the design node's and the sync node's parameters
     together; absent values take their defaults) and a machine file's row limits. `motion`
-    False: the mechanism alone (design and typical ranges; no speed, acceleration or bus
-    check), for a design asked without a ground speed."""
-    from planter_ros.control.loop_timing import SyncLoopConfig
+    False: the mechanism alone (no speed or acceleration check), for a design asked without a
+    ground speed; `machine` False: no bus, rows or bit-rate check (a design at the command
+    line); `design` False: the caller builds the design itself."""
     from planter_ros.control.phase_lock import PhaseLockConfig
-    from planter_ros.drive.config import DriveConfig
     from planter_ros.kinematics.scene_settings import SceneSettings
-    from planter_ros.rows import rows_from_scene
     from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 
     out = Verdict()
@@ -104,17 +104,15 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
             'nozzle_width', 0.0)})
         law = from_mapping(PhaseLockConfig, params)
         ground = from_mapping(GroundSpeedLimits, params)
-        drive = from_mapping(DriveConfig, params)
-        loop = from_mapping(SyncLoopConfig, params)
-        rows = rows_from_scene(params, drive.drive_node_id)
+        if design:
+            _design(params, out)
+        if motion:
+            _motion(out, params, scene, law, ground, row_limits, tractor_acceleration)
+        if machine:
+            _machine(out, params)
     except ConfigError as exc:             # a value outside its own range: the range says it
         out.refused.append(str(exc))
         return out
-
-    _design(params, out)
-    if motion:
-        _motion(out, params, scene, law, ground, drive, loop, rows, row_limits,
-                tractor_acceleration)
     out.warnings += unusual(scene)
     return out
 
@@ -131,8 +129,7 @@ def unusual(scene) -> list[str]:
     return out
 
 
-def _motion(out, params, scene, law, ground, drive, loop, rows, row_limits,
-            tractor_acceleration):
+def _motion(out, params, scene, law, ground, row_limits, tractor_acceleration):
     from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
     n = PLANTS_PER_REVOLUTION[scene.mechanism]
     shaft = 'sun bar' if scene.mechanism == 'five_bar' else 'carrier'
@@ -157,6 +154,16 @@ def _motion(out, params, scene, law, ground, drive, loop, rows, row_limits,
             f'max_ground_speed = {_g(ground.max_ground_speed)} m/s is accepted, but above '
             f'{_g(law.max_speed / per_metre)} m/s the {shaft} is held at max_speed = '
             f'{_g(law.max_speed)} rad/s and plants land farther apart than {_g(d)} m')
+
+
+def _machine(out, params):
+    """The bus, the rows and the bit rate (ConfigError for a value out of its range)."""
+    from planter_ros.control.loop_timing import SyncLoopConfig
+    from planter_ros.drive.config import DriveConfig
+    from planter_ros.rows import rows_from_scene
+    drive = from_mapping(DriveConfig, params)
+    loop = from_mapping(SyncLoopConfig, params)
+    rows = rows_from_scene(params, drive.drive_node_id)
     _bus(out, rows, drive, loop)
     if len(rows) > TYPICAL_ROWS:
         out.warnings.append(f'rows: {len(rows)} planting units is unusual: a transplanter of '
@@ -225,5 +232,8 @@ def check_design_query(program: str, **values: Any) -> None:
     PlausibilityError for a refusal. Without a ground speed only the mechanism is checked."""
     import sys
     given = {k: v for k, v in values.items() if v is not None}
-    for warning in check(given, motion='nominal_ground_speed' in given):
+    verdict = judge(given, motion='nominal_ground_speed' in given, machine=False, design=False)
+    if verdict.refused:
+        raise PlausibilityError(verdict.refused[0])
+    for warning in verdict.warnings:
         print(f'{program}: warning: {warning}', file=sys.stderr)
