@@ -64,10 +64,10 @@ def run(args):
                                                  hole_tolerance, sun_bar_speed)
     from planter_ros.output_files import atomic_output
     from planter_ros.plausibility import check_design_query
-    check_design_query('planter', planting_depth=args.depth, plant_spacing=args.spacing,
-                       hole_ratio=args.hole_ratio, nominal_ground_speed=args.speed)
     design = design_five_bar(args.depth, args.spacing, args.hole_ratio, args.method)
     _check_tolerances(args, design)
+    check_design_query('planter', planting_depth=args.depth, plant_spacing=args.spacing,
+                       hole_ratio=args.hole_ratio, nominal_ground_speed=args.speed)
     result = design.as_dict()
     result['hole_width_error'] = ((design.hole_width - design.requested_hole)
                                   / design.requested_hole)

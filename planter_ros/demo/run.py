@@ -37,8 +37,6 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     from planter_ros.scene import SceneError, default_scene_path, open_scene
 
     scene = open_scene(options.scene or default_scene_path())
-    for warning in scene.warnings:        # unusual but possible values (planter_ros.plausibility)
-        print(f'planter: warning: {warning}', file=sys.stderr)
     check_bag_path(options.bag)
     design = scene.design()               # a bad scene fails here, before anything starts
     node_id = scene.parameters('sync_node').get('drive_node_id', 1)
@@ -47,6 +45,8 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     if not any(row.enabled for row in rows):
         raise SceneError(f'scene {scene.path}: rows = every row has enabled false: allowed at '
                          'least one enabled row')
+    for warning in scene.warnings:        # unusual but possible values (planter_ros.plausibility)
+        print(f'planter: warning: {warning}', file=sys.stderr)
     keep_discovery_on_host()
     return Demo(scene, design, rows, options, antenna=antenna, **kwargs)
 
