@@ -125,6 +125,8 @@ def coerce(spec, value):
             value = spec.kind(value)
         except ValueError:
             pass
+    elif isinstance(value, str) and spec.kind is bool and value in ('True', 'False'):
+        value = value == 'True'            # a recording's repr() of the value
     return _normalise(spec, value)
 
 

@@ -3,22 +3,29 @@ bench, sample and season generators, tests) must be unreachable from any other g
 And the machine's own nodes discover only on this host unless the user widens it on purpose.
 
 ROS 2 graphs in different DDS domains never see each other. A domain counts as free when no
-process of ours holds its lock file and no participant on the host has bound its first unicast
+process of ours holds its claim and no participant on the host has bound its first unicast
 ports (Fast DDS and the other DDS vendors bind 7410 + 250·domain + 2·participant and the port
-after it for each participant, on every interface). The lock is held until the process exits, so
-two runs started at the same instant never pick the same domain. Domain 0 (everybody's default)
-is never chosen. Pure Python: no ROS import.
+after it for each participant, on every interface). The claim is held until the process exits,
+so two runs started at the same instant never pick the same domain. On Linux the claim is a
+socket bound in the abstract namespace (no file: nothing is left behind, however the process
+ends, and it is seen by exactly the processes that share the network, as the DDS ports are);
+elsewhere a lock file in the temporary directory. Domain 0 (everybody's default) is never
+chosen. A private graph writes no log files (`PRIVATE_GRAPH_ROS_ARGS`): its console output is
+its log. Pure Python: no ROS import.
 """
 
 import fcntl
 import os
 import socket
+import sys
 import tempfile
 
 # 1..101: the domain ids whose ports stay below Linux's ephemeral range (32768 and up)
 CANDIDATES = range(1, 102)
 PARTICIPANTS_PROBED = 5
-_held = {}            # domain -> open lock file, kept for the life of the process
+# rclpy.init arguments of a private graph: no log file in ~/.ros/log for each run
+PRIVATE_GRAPH_ROS_ARGS = ('--disable-external-lib-logs',)
+_held = {}            # domain -> bound socket or open lock file, kept for the life of the process
 
 
 class NoFreeDomainError(RuntimeError):
@@ -46,6 +53,29 @@ def _lock_path(domain):
     return os.path.join(tempfile.gettempdir(), f'planter_ros-dds-domain-{domain}.lock')
 
 
+def _claim(domain):
+    """This process's claim on `domain` (held while the returned object is open), or None when
+    another process holds it."""
+    if sys.platform.startswith('linux'):
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        try:
+            sock.bind(f'\0planter_ros-dds-domain-{domain}')
+        except OSError:
+            sock.close()
+            return None
+        return sock
+    try:
+        handle = open(_lock_path(domain), 'a')
+    except OSError:
+        return None
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        handle.close()
+        return None
+    return handle
+
+
 def claim_private_domain():
     """Claim a free DDS domain for this process and return its id (cached: one per process)."""
     if _held:
@@ -53,14 +83,8 @@ def claim_private_domain():
     start = os.getpid() % len(CANDIDATES)
     order = list(CANDIDATES[start:]) + list(CANDIDATES[:start])
     for domain in order:
-        try:
-            handle = open(_lock_path(domain), 'a')
-        except OSError:
-            continue
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.close()
+        handle = _claim(domain)
+        if handle is None:
             continue
         if ports_free(domain):
             _held[domain] = handle

@@ -154,6 +154,18 @@ PLANT_MARKERS = Topic(
     'plant_markers', 'visualization_msgs/msg/MarkerArray', OUTPUT,
     "3D view of the planted plants (stems with their predicted tilt) and each row's tip path, "
     "in the frame 'field' (east, north, up of the as-planted map)")
+PLANT_FIXES = Topic(
+    'plant_fixes', 'sensor_msgs/msg/NavSatFix', OUTPUT,
+    "one message per plant placed on the earth (the as-planted map), for map views (Foxglove's "
+    "Map panel reads NavSatFix): latitude and longitude (deg WGS 84) of the plant, altitude "
+    "NaN, status FIX, covariance unknown; header.stamp = its planting instant, header.frame_id "
+    "= its row's name ('row' for a machine without rows)")
+PLANT_ROWS = Topic(
+    'plant_rows', 'geometry_msgs/msg/Vector3Stamped', OUTPUT,
+    "one message per plant, a key per row for per-row plots: header.frame_id = its row's name "
+    "('row' without rows), header.stamp = its planting instant, vector.x = spacing error (m, NaN "
+    "for a row's first plant), vector.y = speed ratio lambda (1 = in sync), vector.z = tilt "
+    "(rad from vertical)")
 UPRIGHTNESS_RATE = Topic(
     'uprightness_rate', 'std_msgs/msg/Float64', OUTPUT,
     'rolling fraction (0..1) of upright plants over the last `window` plants')
@@ -171,12 +183,13 @@ CLOCK = Topic(
     'simulated time, published only by the lock-step sample feeder (use_sim_time)')
 
 TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX, PLANTS,
-          UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, SECTIONS, DIAGNOSTICS, CLOCK,
-          GNSS_VELOCITY, IMU, WHEEL_PULSES)
+          UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, PLANT_FIXES, PLANT_ROWS, SECTIONS,
+          DIAGNOSTICS, CLOCK, GNSS_VELOCITY, IMU, WHEEL_PULSES)
 # what the monitor records: its inputs as they arrived, then its own outputs
 MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX,
                   SECTIONS, DIAGNOSTICS)
-MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS)
+MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, PLANT_FIXES,
+                   PLANT_ROWS)
 RECORDED = MONITOR_INPUTS + MONITOR_OUTPUTS
 # MCAP metadata record of a monitor's bag holding its prediction settings (name -> repr)
 PREDICTION_SETTINGS_RECORD = 'planter_monitor'

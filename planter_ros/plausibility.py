@@ -226,13 +226,17 @@ def check(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
     return verdict.warnings
 
 
-def check_design_query(program: str, **values: Any) -> None:
-    """The command line's design (`planter design five-bar`): the scene values it was given
-    (None: not given) checked, each warning printed on stderr as `program: warning: ...`;
-    PlausibilityError for a refusal. Without a ground speed only the mechanism is checked."""
+def check_design_query(program: str, depth: float, spacing: float, hole_ratio: float,
+                       speed: float | None) -> None:
+    """The command line's five-bar design (`planter design five-bar`): its depth, spacing,
+    hole ratio and ground speed (None: not given) checked, each warning printed on stderr as
+    `program: warning: ...`; PlausibilityError for a refusal. Without a ground speed only the
+    mechanism is checked."""
     import sys
-    given = {k: v for k, v in values.items() if v is not None}
-    verdict = judge(given, motion='nominal_ground_speed' in given, machine=False, design=False)
+    given = {'planting_depth': depth, 'plant_spacing': spacing, 'hole_ratio': hole_ratio}
+    if speed is not None:
+        given['nominal_ground_speed'] = speed
+    verdict = judge(given, motion=speed is not None, machine=False, design=False)
     if verdict.refused:
         raise PlausibilityError(verdict.refused[0])
     for warning in verdict.warnings:

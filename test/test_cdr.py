@@ -13,8 +13,9 @@ import pytest
 from rosbags.typesys import Stores, get_typestore
 
 from planter_ros.recording import cdr
-from planter_ros.recording.cdr import (CdrError, decode_ground_speed, decode_joint_states,
+from planter_ros.recording.cdr import (decode_ground_speed, decode_joint_states,
                                        decode_string, decode_twist)
+from planter_ros.recording.errors import DecodeError, RecordingError
 
 TS = get_typestore(Stores.ROS2_JAZZY)
 T = TS.types
@@ -540,9 +541,9 @@ BAD_STRINGS = {
 
 @pytest.mark.parametrize('case', list(BAD_STRINGS))
 def test_decode_string_refuses_damaged_payloads_in_one_line(case):
-    with pytest.raises(CdrError) as info:
+    with pytest.raises(DecodeError) as info:
         decode_string(BAD_STRINGS[case])
-    assert isinstance(info.value, ValueError)
+    assert isinstance(info.value, RecordingError)
     text = str(info.value)
     assert text.startswith('std_msgs/String: ') and '\n' not in text and len(text) < 200
     with pytest.raises(Exception):  # noqa: B017  rosbags refuses these too, in its own ways

@@ -79,8 +79,22 @@ def test_optimize_writes_a_params_file_design_reads(tmp_path):
     target = tmp_path / 'opt.yaml'
     out = run_planter('optimize', 'three-arm', '--seed', 2, '--max-time', 2, '--out', target)
     assert out.returncode == 0, out.stderr
-    assert 'goals passing' in out.stderr
+    assert 'best so far' in out.stderr
     again = run_planter('design', 'three-arm', '--params', target, '--json')
+    assert again.returncode == 0, again.stderr
+    assert len(json.loads(again.stdout)['goals']) == 8
+
+
+def test_optimize_without_out_prints_the_scene_on_stdout_and_writes_nothing(tmp_path):
+    """`planter optimize three-arm > rice.yaml`: stdout is the scene file alone, the report
+    goes to stderr, and the working directory stays empty."""
+    out = run_planter('optimize', 'three-arm', '--seed', 2, '--max-time', 2, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert list(tmp_path.iterdir()) == []
+    assert out.stdout.startswith('# written by `planter optimize three-arm --seed 2`')
+    assert 'goals passed' in out.stderr and 'search:' in out.stderr
+    (tmp_path / 'rice.yaml').write_text(out.stdout)
+    again = run_planter('design', 'three-arm', '--params', tmp_path / 'rice.yaml', '--json')
     assert again.returncode == 0, again.stderr
     assert len(json.loads(again.stdout)['goals']) == 8
 
@@ -91,7 +105,7 @@ def test_optimize_two_workers_give_the_one_worker_result(tmp_path):
         out = run_planter('optimize', 'three-arm', '--seed', 3, '--max-time', 1000, '--workers',
                           workers, '--out', target)
         assert out.returncode == 0, out.stderr
-        assert 'best so far' in out.stderr and 'goals passing 8/8' in out.stderr
+        assert 'best so far' in out.stderr and 'most goals 8/8' in out.stderr
         assert f"on {workers} process" in out.stdout and '8 of 8' in out.stdout
     strip = [[line for line in f.read_text().splitlines() if not line.startswith('#')]
              for f in (one, two)]

@@ -16,7 +16,8 @@ from planter_ros.cli.main import main
 from planter_ros.prediction import PLANT_FIELDS
 from planter_ros.recording import recovery
 from planter_ros.recording.recorder import Recorder
-from planter_ros.recording.replay import ReplayError, replay
+from planter_ros.recording.errors import BagUnreadableError
+from planter_ros.recording.replay import replay
 from planter_ros.sim.bags import write_input_bag
 from planter_ros.sim.runs import five_bar_design_message, simulate_run
 
@@ -185,14 +186,15 @@ def test_a_file_of_magic_and_zeros_is_refused_without_reading_it(tmp_path):
     with open(zeros, 'wb') as f:                # 1 GiB, sparse: no disk space used
         f.write(b'\x89MCAP0\r\n')
         f.truncate(1 << 30)
-    with pytest.raises(ReplayError, match='no valid MCAP record in its first 16777224 bytes'):
+    with pytest.raises(BagUnreadableError,
+                       match='no valid MCAP record in its first 16777224 bytes'):
         replay(zeros)
     # the scan is bounded: a valid chunk beyond the first 16 MiB of garbage is not looked for
     late = tmp_path / 'late.mcap'
     with open(late, 'wb') as f:
         f.write(b'\x89MCAP0\r\n' + bytes(recovery.SCAN_LIMIT + 1024))
         f.write(TOMATO_BAG.read_bytes()[8:])
-    with pytest.raises(ReplayError, match='no valid MCAP record'):
+    with pytest.raises(BagUnreadableError, match='no valid MCAP record'):
         replay(late)
     early = tmp_path / 'early.mcap'           # garbage within the bound is skipped
     data = TOMATO_BAG.read_bytes()

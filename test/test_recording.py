@@ -6,7 +6,8 @@ import pytest
 import yaml
 
 from planter_ros.prediction import PLANT_FIELDS
-from planter_ros.recording.recorder import DELIMITER, Recorder, RecorderError, message_definition
+from planter_ros.recording.errors import BagWriteError
+from planter_ros.recording.recorder import DELIMITER, Recorder, message_definition
 from planter_ros.recording.replay import replay
 from planter_ros.demo.samples import record_sample
 from planter_ros.sim.bags import write_input_bag
@@ -156,13 +157,13 @@ def test_split_by_size(tmp_path):
 def test_an_existing_bag_is_never_overwritten(tmp_path):
     target = tmp_path / 'x.mcap'
     target.write_bytes(b'precious')
-    with pytest.raises(RecorderError, match='already exists'):
+    with pytest.raises(BagWriteError, match='already exists'):
         Recorder(target)
     assert target.read_bytes() == b'precious'
     (tmp_path / 'dir').mkdir()
-    with pytest.raises(RecorderError, match='already exists'):
+    with pytest.raises(BagWriteError, match='already exists'):
         Recorder(tmp_path / 'dir')
-    with pytest.raises(RecorderError, match='bag directory'):
+    with pytest.raises(BagWriteError, match='bag directory'):
         Recorder(tmp_path / 'y.mcap', split_size=1000)
 
 

@@ -2,8 +2,9 @@
 
 `cluster()` gives a Client: of a local cluster of worker processes sized to the machine (one
 single-threaded worker process per usable core, or `workers`), scheduler and workers bound to
-127.0.0.1, no dashboard; or of an existing cluster (`scheduler` = its scheduler's address,
-`tcp://host:8786`). `check_workers` runs a warm-up on every worker (imports the code once, says
+127.0.0.1, no dashboard, each worker dying with this process (worker_plugin); or of an
+existing cluster (`scheduler` = its scheduler's address, `tcp://host:8786`).
+`check_workers` runs a warm-up on every worker (imports the code once, says
 which model version it runs) and refuses a cluster that cannot run ours. `completed` maps a
 function over argument tuples and yields the results as they complete, gathered in batches.
 """
@@ -12,6 +13,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 import logging
 import os
+import shutil
+import tempfile
 
 from planter_ros.config import check, setting
 
@@ -63,7 +66,7 @@ def cluster(workers=None, scheduler=None):
     from distributed import Client, LocalCluster
     # the workers inherit the environment: any ROS they touched would stay on loopback
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    local = None
+    local = scratch = None
     if scheduler:
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT, set_as_default=False)
@@ -79,12 +82,19 @@ def cluster(workers=None, scheduler=None):
                               f'{WORKER_WAIT:.0f} s ({_first_line(exc)}): allowed a scheduler '
                               'with at least one worker') from None
     else:
+        import dask
+
+        from .worker_plugin import DieWithParent
+        scratch = scratch_directory()
         try:
-            local = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
-                                 processes=True, host='127.0.0.1', scheduler_port=0,
-                                 dashboard_address=None, worker_dashboard_address=None,
-                                 silence_logs=logging.ERROR)
+            with dask.config.set({'temporary-directory': scratch}):
+                local = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
+                                     processes=True, host='127.0.0.1', scheduler_port=0,
+                                     dashboard_address=None, worker_dashboard_address=None,
+                                     silence_logs=logging.ERROR, plugins={DieWithParent()},
+                                     local_directory=scratch)
         except Exception as exc:             # no free port, no processes, ...
+            shutil.rmtree(scratch, ignore_errors=True)
             raise EngineError(f'the local cluster did not start ({_first_line(exc)}): allowed '
                               'a machine where Dask can start worker processes on 127.0.0.1') \
                 from None
@@ -95,6 +105,34 @@ def cluster(workers=None, scheduler=None):
         client.close()
         if local is not None:
             local.close()
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
+
+
+SCRATCH_PREFIX = 'planter-dask-'
+
+
+def scratch_directory():
+    """A new directory for the local cluster's scratch space (Dask's lock files and spill):
+    removed when the cluster goes, not left in the temporary directory. One a killed run left
+    (its process is gone) is removed here."""
+    base = tempfile.gettempdir()
+    for entry in os.scandir(base):
+        owner = entry.name[len(SCRATCH_PREFIX):].partition('-')[0]
+        if entry.name.startswith(SCRATCH_PREFIX) and owner.isdigit() and entry.is_dir() \
+                and not _alive(int(owner)):
+            shutil.rmtree(entry.path, ignore_errors=True)
+    return tempfile.mkdtemp(prefix=f'{SCRATCH_PREFIX}{os.getpid()}-', dir=base)
+
+
+def _alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:                  # someone else's process
+        return True
+    return True
 
 
 def worker_count(client):

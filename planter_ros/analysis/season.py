@@ -5,8 +5,11 @@ Layout of the output directory:
     bags.parquet                 one row per bag (analysis.tables), replaced atomically
     plants/part-<run>-<n>.parquet  the plants dataset: each write adds one part holding the
                                  plants of the bags completed since the previous write
-    .planter-analyze.lock        held while a run writes (a second run on it is refused)
     as_planted.zip, TASKDATA.zip the season for farm software (analysis.exports)
+
+A run holds a lock on the directory itself (flock on its descriptor) while it writes, so a
+second run on it is refused; the kernel drops it however the run ends, and no lock file is left
+behind (the `.planter-analyze.lock` of earlier versions is removed).
 
 The bags table is the truth: a bag's plants are the rows of its `plants_file` whose `bag` is it.
 A bag is analysed again unless the table holds it with the same key (BagKey: path, size,
@@ -34,7 +37,7 @@ from .exports import EXPORTS
 
 BAGS_FILE = 'bags.parquet'
 PLANTS_DIR = 'plants'
-LOCK_FILE = '.planter-analyze.lock'
+LOCK_FILE = '.planter-analyze.lock'            # earlier versions' lock: removed when seen
 OWNED = (BAGS_FILE, PLANTS_DIR, LOCK_FILE) + EXPORTS
 FLUSH_SECONDS = 2.0          # s between two writes of the tables, at least
 FLUSH_BAGS = 2000            # bags completed that force a write
@@ -146,13 +149,14 @@ class Season:
         self.out = Path(out)
         self.created = not self.out.exists()
         self.out.mkdir(exist_ok=True)
-        self._lock = open(self.out / LOCK_FILE, 'a+')
+        self._lock = os.open(self.out, os.O_RDONLY | os.O_DIRECTORY)
         try:
             fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            self._lock.close()
+            os.close(self._lock)
             raise OutputError(f'--out = {out} is being written by another planter analyze: '
                               'allowed an output directory no other run is writing') from None
+        (self.out / LOCK_FILE).unlink(missing_ok=True)
         self.plants_dir = self.out / PLANTS_DIR
         self.plants_dir.mkdir(exist_ok=True)
         file = self.out / BAGS_FILE
@@ -165,11 +169,13 @@ class Season:
     def close(self):
         """Release the directory; one this run made and left empty (refused before any work)
         is removed again."""
-        self._lock.close()
+        if self._lock is None:
+            return
+        os.close(self._lock)
+        self._lock = None
         if self.created and not self.rows:
             try:
                 self.plants_dir.rmdir()
-                (self.out / LOCK_FILE).unlink()
                 self.out.rmdir()
             except OSError:          # something was put there meanwhile: leave it
                 pass

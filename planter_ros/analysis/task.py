@@ -11,7 +11,8 @@ import importlib.metadata
 from pathlib import Path
 import time
 
-from planter_ros.recording.replay import ReplayError, replay
+from planter_ros.recording.errors import RecordingError
+from planter_ros.recording.replay import replay
 
 from .tables import flatten, plants_table
 
@@ -70,7 +71,7 @@ def analyze_bag(path, identity, options, overrides, design, version):
     table = None
     try:
         result = replay(str(path), overrides, fallback_design=design)
-    except ReplayError as exc:
+    except RecordingError as exc:
         row.update(status='failed', reason=_one_line(str(exc)))
     except Exception as exc:        # one bag's bug in the model must not stop the season
         row.update(status='error', reason=_one_line(f'{type(exc).__name__}: {exc}'))

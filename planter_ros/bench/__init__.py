@@ -4,3 +4,6 @@
 ≥ 30 digits, `registry` holds the bench cases (one small function per row group, in `cases/`),
 `report` formats the table and JSON. Nothing here imports rclpy at module level.
 """
+
+# the submodules (imported by name, never here)
+__all__ = ['cases', 'machine', 'reference', 'registry', 'report', 'timing']

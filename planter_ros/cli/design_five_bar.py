@@ -66,8 +66,7 @@ def run(args):
     from planter_ros.plausibility import check_design_query
     design = design_five_bar(args.depth, args.spacing, args.hole_ratio, args.method)
     _check_tolerances(args, design)
-    check_design_query('planter', planting_depth=args.depth, plant_spacing=args.spacing,
-                       hole_ratio=args.hole_ratio, nominal_ground_speed=args.speed)
+    check_design_query('planter', args.depth, args.spacing, args.hole_ratio, args.speed)
     result = design.as_dict()
     result['hole_width_error'] = ((design.hole_width - design.requested_hole)
                                   / design.requested_hole)

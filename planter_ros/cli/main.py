@@ -1,9 +1,7 @@
 """Entry point of `planter`: builds the sub-command tree and turns bad input into exit code 2.
 
-Each sub-command lives in its own module with `add_arguments(parser)` and `run(args) -> int`;
-those modules import numpy/scipy/matplotlib/rclpy only inside run(), so `planter --help` and a
-five-bar design never load what they do not use.
-"""
+Each sub-command's module has `add_arguments(parser)` and `run(args) -> int` and imports numpy,
+scipy, matplotlib or rclpy only inside run(): `planter --help` loads none of them."""
 
 import argparse
 import importlib
@@ -35,7 +33,11 @@ class BadInput(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports errors in one line (no usage dump, no traceback)."""
+    """argparse that reports errors in one line (no usage dump, no traceback) and takes no
+    abbreviated option (`--dur` for `--duration` would change meaning when an option is added)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs, allow_abbrev=False)
 
     def error(self, message):
         # main() prints 'planter: error: ': name only the sub-command after it

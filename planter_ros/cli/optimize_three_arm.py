@@ -2,7 +2,8 @@
 
 The base scene, the options and the output path are checked before the search starts; the scene
 file is written atomically once the result is known to be a valid design, so a failed or
-interrupted run never touches an existing --out."""
+interrupted run never touches an existing --out. Without --out the scene goes to stdout (and the
+report to stderr): `planter optimize three-arm > rice.yaml` leaves nothing else behind."""
 
 from dataclasses import dataclass
 import sys
@@ -40,23 +41,13 @@ def add_arguments(parser):
     parser.add_argument('--base', metavar='FILE', default=None,
                         help='scene whose crop values and control angles are kept (default '
                              'config/rice_three_arm.yaml)')
-    parser.add_argument('--out', metavar='FILE.yaml', default='three_arm_optimized.yaml',
-                        type=output_file('--out', ('.yaml', '.yml')),
-                        help='parameter file to write, replaced atomically (default '
-                             'three_arm_optimized.yaml)')
-
-
-def _progress(elapsed, generation, best, passing, max_time):
-    width = 30
-    done = min(1.0, elapsed / max_time) if max_time > 0 else 1.0
-    bar = '#' * int(done * width) + '-' * (width - int(done * width))
-    sys.stderr.write(f'\r[{bar}] {elapsed:5.1f}s gen {generation:4d}  best so far: score '
-                     f'{best:9.4f}, goals passing {passing}/8')
-    sys.stderr.flush()
+    parser.add_argument('--out', metavar='FILE.yaml', type=output_file('--out', ('.yaml', '.yml')),
+                        help='parameter file to write, replaced atomically (default: the '
+                             'scene on stdout, the report on stderr)')
 
 
 def run(args):
-
+    import tempfile
     from planter_ros.cli.design_three_arm import load_params
     from planter_ros.design.text import three_arm_table
     from planter_ros.cli.main import BadInput
@@ -70,27 +61,34 @@ def run(args):
     base = load_params(base_path, '--base')
     _check_control_angles(base, base_path)
     params, goals, info = optimize(base, seed=args.seed, max_time=args.max_time,
-                                   progress=_progress, workers=args.workers)
+                                   workers=args.workers, progress=lambda status: print(
+                                       '\r' + status.line(), end='', file=sys.stderr, flush=True))
     sys.stderr.write('\n')
     try:           # the result must be a design before it may replace anything
         summary = design_summary(params, ThreeArmMechanism.from_parameters(params))
     except DesignError as exc:
         raise BadInput(f'no valid design found in {info["seconds"]:.1f} s ({exc}); '
-                       f'{args.out} not written') from None
+                       'nothing written') from None
     require_finite(summary, 'optimised design')
     header = (f"written by `planter optimize three-arm --seed {args.seed}`: "
               f"{sum(g.passed for g in goals) if goals else 0}/8 goals, "
               f"{info['generations']} generations, {info['evaluations']} designs, "
               f"{info['seconds']:.1f} s ({info['stopped']})")
-    with atomic_output(args.out) as tmp:
-        write_scene(tmp, params, header)
-        load_params(tmp, '--out')            # what is written reads back as a valid scene
-    summary['params'] = args.out
-    print(three_arm_table(summary))
+    with tempfile.TemporaryDirectory(prefix='planter-optimize-') as scratch:
+        out = args.out or f'{scratch}/scene.yaml'       # no --out: the scene goes to stdout
+        with atomic_output(out) as tmp:
+            write_scene(tmp, params, header)
+            load_params(tmp, '--out')        # what is written reads back as a valid scene
+        scene = None if args.out else open(out).read()
+    summary['params'] = args.out or '(on stdout)'
+    report = sys.stdout if args.out else sys.stderr      # stdout: the scene file alone
+    print(three_arm_table(summary), file=report)
     print(f"search: {info['seconds']:.1f} s, {info['generations']} generations, "
           f"{info['evaluations']} designs ({info['designs_per_second']:.0f}/s on "
           f"{info['workers']} process{'es' if info['workers'] > 1 else ''}), "
-          f"stopped: {info['stopped']}")
+          f"stopped: {info['stopped']}", file=report)
+    if scene is not None:
+        sys.stdout.write(scene)
     return 0
 
 

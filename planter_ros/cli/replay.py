@@ -87,7 +87,8 @@ def fallback_design(args):
 def run(args):
     from planter_ros.cli.main import BadInput
     from planter_ros.output_files import atomic_output
-    from planter_ros.recording.replay import ReplayError, replay
+    from planter_ros.recording.errors import RecordingError
+    from planter_ros.recording.replay import replay
     from planter_ros.recording.replay_text import format_table
     from planter_ros.output_files import check_distinct
     check_distinct({f'--{o}': getattr(args, o)
@@ -95,7 +96,7 @@ def run(args):
     design = fallback_design(args)
     try:
         result = replay(args.bag, settings_overrides(args), fallback_design=design)
-    except ReplayError as exc:
+    except RecordingError as exc:
         raise BadInput(str(exc)) from None
     for warning in result.warnings:
         print(f'planter: warning: {warning}', file=sys.stderr)

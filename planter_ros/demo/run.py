@@ -123,13 +123,16 @@ class Demo:
     def replay_summary(bag) -> tuple[str, str]:
         """Re-read the finished bag offline, as `planter replay` would, and summarise it:
         (text, why it failed or '')."""
-        from planter_ros.recording.replay import ReplayError, replay
+        from planter_ros.recording.errors import RecordingError
+        from planter_ros.recording.replay import replay
         from planter_ros.recording.replay_text import format_summary
         try:
             result = replay(bag)
-        except ReplayError as exc:
+        except RecordingError as exc:
             return f'\nreplay of {bag} failed: {exc}', f'replay of {bag} failed: {exc}'
-        lines = [f'\nrecorded {bag}; replay (`planter replay {bag}`):']
+        lines = [f'\nrecorded {bag}; replay (`planter replay {bag}`), plants placed as the '
+                 "machine's monitor places them, at the distance integrated from the recorded "
+                 'ground speed (its noise included):']
         lines += [f'  {line}' for line in format_summary(result).splitlines()]
         lines += [f'  warning: {w}' for w in result.warnings]
         return '\n'.join(lines), ''
@@ -177,6 +180,7 @@ class _Run:
         from rclpy.signals import SignalHandlerOptions
 
         from planter_ros import interfaces
+        from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS
         from planter_ros.nodes.design_node import DesignNode
         from planter_ros.nodes.monitor_node import MonitorNode
         from planter_ros.sim.ros_field import Observer
@@ -197,8 +201,9 @@ class _Run:
                 ('turn_compensation', options.turn_compensation)),
             demo.log_level))
         self.context = Context()
-        rclpy.init(args=['--ros-args', '--log-level', demo.log_level], context=self.context,
-                   domain_id=self.domain, signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=['--ros-args', '--log-level', demo.log_level, *PRIVATE_GRAPH_ROS_ARGS],
+                   context=self.context, domain_id=self.domain,
+                   signal_handler_options=SignalHandlerOptions.NO)
         self.executor = SingleThreadedExecutor(context=self.context)
         context = self.context
         self.nodes.append(DesignNode(context=context, namespace=ns, parameter_overrides=[
@@ -225,7 +230,8 @@ class _Run:
                     f"{'phase-locked' if options.phase_lock else 'speed-only'}, turn "
                     f"compensation {'on' if options.turn_compensation else 'off'}, CAN "
                     f'virtual:{channel}, '
-                    f'DDS domain {self.domain} (private)')
+                    f'DDS domain {self.domain} (private), bag '
+                    f"{getattr(self.monitor.recorder, 'path', None) or 'none (not recording)'}")
         try:
             built = self.sync.wait_for('built', self.START_TIMEOUT, self._stopped)
             if built is None:

@@ -26,20 +26,21 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
-    from planter_ros.dds_domain import claim_private_domain
+    from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
     from planter_ros.nodes.monitor_node import MonitorNode
-    from planter_ros.recording.recorder import RecorderError
+    from planter_ros.recording.errors import BagWriteError
     from planter_ros.sim.lockstep import LockStepFeeder
 
     context = rclpy.Context()
-    rclpy.init(context=context, domain_id=claim_private_domain())
+    rclpy.init(args=['--ros-args', *PRIVATE_GRAPH_ROS_ARGS], context=context,
+               domain_id=claim_private_domain())
     params = [Parameter('use_sim_time', value=True), Parameter('bag_path', value=str(bag_path))]
     params += [Parameter(k, value=v) for k, v in (monitor_parameters or {}).items()]
     monitor = feeder = executor = None
     try:
         monitor = MonitorNode(context=context, parameter_overrides=params)
         if monitor.recorder is None:
-            raise RecorderError(monitor.record_error or 'the monitor is not recording')
+            raise BagWriteError(monitor.record_error or 'the monitor is not recording')
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(monitor)
         feeder = LockStepFeeder(context, executor, taken=lambda: monitor.samples_taken,
@@ -61,7 +62,7 @@ def main(argv=None):
     import argparse
 
     from planter_ros.sim.runs import five_bar_design_message, simulate_run
-    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser = argparse.ArgumentParser(description=main.__doc__, allow_abbrev=False)
     parser.add_argument('--out', default='bags', help='directory for the sample bags')
     args = parser.parse_args(argv)
     for name, (design_kw, run_kw) in SAMPLES.items():

@@ -14,7 +14,9 @@ start, a status snapshot four times a second for the progress lines, and at the 
 
 The child ignores SIGINT and SIGTERM (the terminal's Ctrl-C reaches the whole process group):
 the demo decides when it stops. It stops on the demo's request or when the pipe breaks (the
-demo died or was forced out): either way its drives are shut down (0x60FF = 0, disable).
+demo closed it or was forced out): either way its drives are shut down (0x60FF = 0, disable).
+A demo killed outright (SIGKILL) leaves the child PARENT_GONE_GRACE s for that, then the kernel
+ends it (planter_ros.processes), stuck or not.
 """
 
 from dataclasses import dataclass, field
@@ -27,6 +29,7 @@ __all__ = ['SyncProcess', 'SyncProcessError', 'SyncProcessSettings', 'child_main
            'final_report', 'snapshot']
 
 STATUS_PERIOD = 0.25       # s between status snapshots sent to the demo
+PARENT_GONE_GRACE = 4      # s the child may take to shut its drives down once the demo is gone
 
 
 class SyncProcessError(RuntimeError):
@@ -119,6 +122,11 @@ class SyncProcess:
 def child_main(conn, settings):
     """The child process: the sync node on the simulated bus until asked to stop."""
     from planter_ros import stop_signals
+    from planter_ros.processes import die_with_parent
+    # a demo killed outright (SIGKILL): the broken pipe below is the clean way out (drives shut
+    # down), but it is only read between status snapshots; the kernel's signal ends this
+    # process PARENT_GONE_GRACE s after the demo however stuck it is
+    die_with_parent(multiprocessing.parent_process().pid, grace=PARENT_GONE_GRACE)
     stop_signals.ignore()
     import rclpy
     from rclpy.context import Context
@@ -128,6 +136,7 @@ def child_main(conn, settings):
     from rclpy.signals import SignalHandlerOptions
 
     from planter_ros.config import ConfigError
+    from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS
     from planter_ros.drive.errors import DriveError
     from planter_ros.drive.simulated_drive import SimulatedBus
     from planter_ros.nodes.sync_node import LibraryLog, SyncNode, start_error
@@ -142,8 +151,9 @@ def child_main(conn, settings):
     sims = SimulatedBus(settings.channel, list(settings.node_ids), **settings.drive_kwargs)
     sims.start()
     context = Context()
-    rclpy.init(args=['--ros-args', '--log-level', settings.log_level], context=context,
-               domain_id=settings.domain, signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=['--ros-args', '--log-level', settings.log_level, *PRIVATE_GRAPH_ROS_ARGS],
+               context=context, domain_id=settings.domain,
+               signal_handler_options=SignalHandlerOptions.NO)
     executor = SingleThreadedExecutor(context=context)
     library_log = LibraryLog()
     sync = None

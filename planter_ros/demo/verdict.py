@@ -49,9 +49,9 @@ class Verdict:
         stopped = (f' (stopped by {self.stopped_by} after {self.elapsed:.1f} s)'
                    if self.stopped_by else '')
         if self.passed:
-            return (f'verdict: PASS{stopped}: no watchdog trip, no drive fault, spacing RMS '
-                    f'<= {100 * SPACING_TOLERANCE:g} % of d on every row, design unchanged, '
-                    'bag recorded')
+            return (f'verdict: PASS{stopped}: no watchdog trip, no drive fault, spacing error '
+                    f'RMS (true distance) <= {100 * SPACING_TOLERANCE:g} % of d on every row, '
+                    'design unchanged, bag recorded')
         return f'verdict: FAIL{stopped}: ' + '; '.join(self.reasons)
 
 
@@ -85,7 +85,7 @@ def judge(rows, sync_report, start_error='', bag_error='', monitor_design_change
                                '(needs 2)')
             elif row.rms > SPACING_TOLERANCE:
                 reasons.append(f'{name} spacing error RMS {100 * row.rms:.2f} % of d > '
-                               f'{100 * SPACING_TOLERANCE:g} %')
+                               f'{100 * SPACING_TOLERANCE:g} % (true distance)')
     sources = report.get('design', {})         # who set the design (scene.design_sources)
     if sources.get('changes'):
         reasons.append(f'design changed by another node during the run ({sources["changes"]}x, '

@@ -1,8 +1,11 @@
 """The one error type of the core: a bad or infeasible input, said in one line."""
 
+from __future__ import annotations
+
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from planter_ros.config import ConfigError
 
@@ -14,7 +17,7 @@ class DesignError(ConfigError):
     it as is and a node can refuse a parameter update with it.
     """
 
-    def __init__(self, parameter, value, allowed, reason=''):
+    def __init__(self, parameter: str, value: object, allowed: str, reason: str = '') -> None:
         self.parameter = parameter
         self.value = value
         self.allowed = allowed
@@ -26,7 +29,7 @@ class DesignError(ConfigError):
         super().__init__(text)
 
     @classmethod
-    def from_message(cls, text):
+    def from_message(cls, text: str) -> DesignError:
         """A DesignError with a ready one-line message (a config range check's)."""
         err = cls.__new__(cls)
         ConfigError.__init__(err, text)
@@ -34,7 +37,7 @@ class DesignError(ConfigError):
         return err
 
 
-def require_positive_finite(name, value, unit=''):
+def require_positive_finite(name: str, value: npt.ArrayLike, unit: str = '') -> None:
     """Raise DesignError unless value is a finite number > 0 (scalars and arrays alike)."""
     if isinstance(value, (int, float)):
         if not (math.isfinite(value) and value > 0):

@@ -19,12 +19,18 @@ distance l5 (the paper's right triangle A-C-E at the top position). Behind or ah
 mirror-image cycles (x is odd in θ), so the closure checks are the same for both.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 import math
 
 import numpy as np
+from numpy.typing import NDArray
 
+from .arrays import Bools, Floats
 from .errors import DesignError, require_positive_finite
+
 
 TWO_PI = 2.0 * math.pi
 PAPER_DYAD_RATIOS = (1.4, 1.5, 1.3)
@@ -36,7 +42,7 @@ _SERIES_DENOMS = (420.0, 342.0, 272.0, 210.0, 156.0, 110.0, 72.0, 42.0, 20.0)
 _SERIES_LIMIT = 1.0
 
 
-def _series_psi_minus_sin(psi):
+def _series_psi_minus_sin(psi: Floats) -> Floats:
     z = psi * psi
     acc = 1.0
     for den in _SERIES_DENOMS:
@@ -44,7 +50,7 @@ def _series_psi_minus_sin(psi):
     return psi * z / 6.0 * acc
 
 
-def psi_minus_sin(psi):
+def psi_minus_sin(psi: Floats) -> Floats:
     """ψ - sin ψ to full relative precision (series below 1 rad, where the difference cancels)."""
     if isinstance(psi, float):
         return _series_psi_minus_sin(psi) if abs(psi) < _SERIES_LIMIT else psi - math.sin(psi)
@@ -53,12 +59,12 @@ def psi_minus_sin(psi):
     return np.where(small, _series_psi_minus_sin(np.where(small, psi, 0.0)), psi - np.sin(psi))
 
 
-def _one_minus_cos(psi, sin):
+def _one_minus_cos(psi: Floats, sin: Callable) -> Floats:
     s = sin(0.5 * psi)
     return 2.0 * s * s
 
 
-def solve_psi(c):
+def solve_psi(c: Floats) -> Floats:
     """Solve ψ - sin ψ = c for ψ in (0, π]; c in (0, π] (scalar or array).
 
     Three Halley steps from the series inverse s + s³/60 (s = cbrt(6c)) reach round-off over the
@@ -83,13 +89,13 @@ def solve_psi(c):
     return psi
 
 
-def _initial_psi(c):
+def _initial_psi(c: Floats) -> Floats:
     # Inverse of ψ³/6 (1 - ψ²/20): s + s³/60 with s = cbrt(6c); lies below the root for c < 1.
     s = np.cbrt(6.0 * c) if isinstance(c, np.ndarray) else (6.0 * c) ** (1.0 / 3.0)
     return s + s ** 3 / 60.0
 
 
-def depth_angle(depth, total_length):
+def depth_angle(depth: Floats, total_length: Floats) -> Floats:
     """ψ with cos ψ = 1 - D/(l1+l2): half the crank angle spent below the soil surface.
 
     Written as 2·atan2(√D, √(2L - D)) so it keeps full precision for shallow holes (where
@@ -102,7 +108,7 @@ def depth_angle(depth, total_length):
     return 2.0 * np.arctan2(np.sqrt(depth), np.sqrt(np.maximum(2.0 * total_length - depth, 0.0)))
 
 
-def bars_depth_angle(l1, l2, depth):
+def bars_depth_angle(l1: Floats, l2: Floats, depth: Floats) -> Floats:
     """depth_angle for the bars l1, l2 themselves, not their rounded sum.
 
     Near ψ = π (the soil line near the top of the path) ψ ≈ π - 2√((2L - D)/D) is infinitely
@@ -118,7 +124,7 @@ def bars_depth_angle(l1, l2, depth):
     return 2.0 * np.arctan2(np.sqrt(depth), np.sqrt(np.maximum(gap, 0.0)))
 
 
-def hole_ratio_limit(depth, spacing):
+def hole_ratio_limit(depth: Floats, spacing: Floats) -> Floats:
     """Largest feasible k = t/D for (D, d): k·D < d and l1 > 0 (scalar or array)."""
     depth = np.asarray(depth, dtype=float)
     spacing = np.asarray(spacing, dtype=float)
@@ -151,19 +157,19 @@ class FiveBarDesign:
     dyad_ratios: tuple = PAPER_DYAD_RATIOS
 
     @property
-    def requested_hole(self):
+    def requested_hole(self) -> Floats:
         return self.hole_ratio * self.depth
 
     @property
-    def advance(self):
+    def advance(self) -> Floats:
         """Designed travel per radian of sun bar, d/2π (m/rad)."""
         return self.spacing / TWO_PI
 
-    def sun_bar_speed(self, ground_speed):
+    def sun_bar_speed(self, ground_speed: Floats) -> Floats:
         """ω1 = 2π v / d (rad/s) that keeps zero-speed planting at ground speed v (m/s)."""
         return sun_bar_speed(ground_speed, self.spacing)
 
-    def as_dict(self):
+    def as_dict(self) -> dict:
         """Plain SI dict (JSON-ready for scalars)."""
         out = {k: _plain(getattr(self, k)) for k in (
             'l1', 'l2', 'l3', 'l4', 'l5', 'hole_width', 'assemblable', 'min_transmission_angle',
@@ -174,7 +180,7 @@ class FiveBarDesign:
         return out
 
 
-def _plain(v):
+def _plain(v: float | bool | np.bool_ | np.ndarray) -> float | bool | list:
     if isinstance(v, np.ndarray):
         return v.tolist()
     if isinstance(v, (np.bool_, bool)):
@@ -182,15 +188,18 @@ def _plain(v):
     return float(v)
 
 
-def sun_bar_speed(ground_speed, spacing, plants_per_revolution=1):
+def sun_bar_speed(ground_speed: Floats, spacing: Floats,
+                  plants_per_revolution: int = 1) -> Floats:
     """ω = 2π v / (n d) (rad/s): the paper's v = d ω1 / 2π for n plants per revolution."""
     return TWO_PI * np.asarray(ground_speed) / (plants_per_revolution * np.asarray(spacing)) \
         if isinstance(ground_speed, np.ndarray) or isinstance(spacing, np.ndarray) \
         else TWO_PI * ground_speed / (plants_per_revolution * spacing)
 
 
-def design_five_bar(depth, spacing, hole_ratio=0.05, method='exact',
-                    dyad_ratios=PAPER_DYAD_RATIOS):
+def design_five_bar(depth: Floats, spacing: Floats, hole_ratio: Floats = 0.05,
+                    method: str = 'exact',
+                    dyad_ratios: Sequence[float] = PAPER_DYAD_RATIOS
+                    ) -> FiveBarDesign:
     """Reverse design from planting depth D (m), plant spacing d (m) and hole ratio k = t/D.
 
     Scalars give a scalar design in a few microseconds; arrays (broadcast together) give a batch.
@@ -214,13 +223,14 @@ def design_five_bar(depth, spacing, hole_ratio=0.05, method='exact',
                           tuple(float(r) for r in dyad_ratios))
 
 
-def _infeasible(depth, spacing, hole_ratio, why):
+def _infeasible(depth: float, spacing: float, hole_ratio: float, why: str) -> DesignError:
     k_max = hole_ratio_limit(depth, spacing)
     return DesignError('hole_ratio', hole_ratio, f'0 < k < {k_max:.6g} for D = {depth:.6g} m, '
                        f'd = {spacing:.6g} m', why)
 
 
-def _design_scalar(depth, spacing, k, method, ratios):
+def _design_scalar(depth: float, spacing: float, k: float, method: str,
+                   ratios: tuple[float, float, float]) -> FiveBarDesign:
     c = math.pi * k * depth / spacing
     if method == 'exact':
         if not c < math.pi:
@@ -256,7 +266,8 @@ ROUND_OFF_LIMIT = 1e-9
 _TINY = 2.2250738585072014e-308     # smallest normal float: below it the hole has no precision
 
 
-def _achieved_hole(l1, l2, spacing, psi, sin):
+def _achieved_hole(l1: Floats, l2: Floats, spacing: Floats, psi: Floats,
+                   sin: Callable) -> tuple[Floats, Floats]:
     """(ideal, slip): the hole the float bars achieve at advance d/2π is ideal + slip.
 
     Entry-exit distance 2h(ψ), h = adv·ψ - a sin ψ = adv(ψ - sin ψ) + (adv - a) sin ψ with
@@ -266,7 +277,7 @@ def _achieved_hole(l1, l2, spacing, psi, sin):
     return 2.0 * adv * psi_minus_sin(psi), 2.0 * (adv - (l2 - l1)) * sin(psi)
 
 
-def min_hole_ratio(depth, spacing):
+def min_hole_ratio(depth: float, spacing: float) -> float:
     """About the smallest k whose design's bars, as floats, still achieve k·D to 1e-9.
 
     Leading order: the bars round off by ε(l1+l2), moving the hole by 6ε(l1+l2)/(aψ²) relative
@@ -277,7 +288,8 @@ def min_hole_ratio(depth, spacing):
     return psi ** 3 / 6.0 * spacing / (math.pi * depth)
 
 
-def _unrepresentable(depth, spacing, k, total, slip, ideal):
+def _unrepresentable(depth: float, spacing: float, k: float, total: float, slip: float,
+                     ideal: float) -> DesignError:
     moved = f'{abs(slip) / ideal:.1e} of it' if ideal >= _TINY else 'all of it'
     return DesignError('hole_ratio', k, f'k ≳ {min_hole_ratio(depth, spacing):.3g} for '
                        f'D = {depth:.6g} m, d = {spacing:.6g} m',
@@ -285,7 +297,9 @@ def _unrepresentable(depth, spacing, k, total, slip, ideal):
                        f'their round-off alone would move the hole by {moved}')
 
 
-def _design_batch(depth, spacing, k, method, ratios):
+def _design_batch(depth: NDArray[np.float64], spacing: NDArray[np.float64],
+                  k: NDArray[np.float64], method: str,
+                  ratios: tuple[float, float, float]) -> FiveBarDesign:
     c = math.pi * k * depth / spacing
     if method == 'exact':
         bad = ~(c < math.pi)
@@ -331,7 +345,9 @@ def _design_batch(depth, spacing, k, method, ratios):
                          mu, ratios)
 
 
-def _batch_error(depth, spacing, k, i, count, why):
+def _batch_error(depth: NDArray[np.float64], spacing: NDArray[np.float64],
+                 k: NDArray[np.float64], i: int | np.integer, count: int | np.integer,
+                 why: str) -> DesignError:
     err = _infeasible(float(depth.flat[i]), float(spacing.flat[i]), float(k.flat[i]), why)
     err.args = (f'{err.args[0]} at batch index {i} ({count} infeasible)',)
     return err
@@ -339,7 +355,7 @@ def _batch_error(depth, spacing, k, i, count, why):
 
 # --- passive dyad -----------------------------------------------------------------------------
 
-def _distance_range(l1, l2, l5):
+def _distance_range(l1: Floats, l2: Floats, l5: Floats) -> tuple[Floats, Floats]:
     """Min and max over the cycle of |CE| with E = (±l5, 0).
 
     |CE|² = (a s ∓ l5)² + L²(1 - s²) with s = sin θ is a quadratic in s on [-1, 1] (concave,
@@ -350,7 +366,7 @@ def _distance_range(l1, l2, l5):
     total = l1 + l2
     a = (l2 - l1) / total
     e = l5 / total
-    def r2(s):
+    def r2(s: Floats) -> Floats:
         u = a * s - e
         return u * u + (1.0 - s) * (1.0 + s)
     ends_lo = r2(1.0)
@@ -372,7 +388,8 @@ def _distance_range(l1, l2, l5):
     return total * math.sqrt(max(min(vals), 0.0)), total * math.sqrt(max(vals))
 
 
-def dyad_closure(l1, l2, l3, l4, l5):
+def dyad_closure(l1: Floats, l2: Floats, l3: Floats, l4: Floats,
+                 l5: Floats) -> tuple[Bools, Floats]:
     """(assemblable, min transmission angle) of the dyad C-D-E over a full sun-bar turn.
 
     Assemblable: |l3 - l4| < |CE| < l3 + l4 at every angle, so point D exists and its two
@@ -392,7 +409,7 @@ def dyad_closure(l1, l2, l3, l4, l5):
                      transmission_angle(l3, l4, rmax, supplement=True))
 
 
-def transmission_angle(l3, l4, r, supplement=False):
+def transmission_angle(l3: Floats, l4: Floats, r: Floats, supplement: bool = False) -> Floats:
     """Angle μ at D between D-C (l3) and D-E (l4) for |CE| = r, or π - μ with supplement.
 
     tan²(μ/2) = (r² - (l3-l4)²) / ((l3+l4)² - r²), each factor written as a product of sums
@@ -412,7 +429,8 @@ def transmission_angle(l3, l4, r, supplement=False):
     return 2.0 * (atan2(shut, open_) if supplement else atan2(open_, shut))
 
 
-def dyad_positions(design, theta, branch=1):
+def dyad_positions(design: FiveBarDesign, theta: Floats,
+                   branch: int = 1) -> tuple[Floats, Floats, Floats]:
     """Point D (x, y relative to A, m) and transmission angle μ (rad) at sun-bar angles θ.
 
     E = (-l5, 0) (behind A). branch = +1 or -1 picks one of the two assembly modes. Raises
@@ -445,7 +463,9 @@ def dyad_positions(design, theta, branch=1):
 
 # --- forward kinematics -----------------------------------------------------------------------
 
-def chain_kinematics(alpha, omega1, l1, l2, gear_ratio=-2.0, theta1=0.5 * math.pi, theta2=0.0):
+def chain_kinematics(alpha: Floats, omega1: float, l1: float, l2: float,
+                     gear_ratio: float = -2.0, theta1: float = 0.5 * math.pi,
+                     theta2: float = 0.0) -> tuple[tuple[Floats, Floats], ...]:
     """The paper's formula (3): a 2R chain with α2 = gear_ratio·α1 + θ2 (general case).
 
     alpha: sun-bar rotation ω1 t (rad, array). Returns (position, velocity, acceleration), each
@@ -464,12 +484,13 @@ def chain_kinematics(alpha, omega1, l1, l2, gear_ratio=-2.0, theta1=0.5 * math.p
     return pos, vel, acc
 
 
-def static_trajectory(l1, l2, theta):
+def static_trajectory(l1: Floats, l2: Floats, theta: Floats) -> tuple[Floats, Floats]:
     """Nozzle tip C relative to A (m): x = (l2-l1) sin θ, y = (l1+l2) cos θ."""
     return (l2 - l1) * np.sin(theta), (l1 + l2) * np.cos(theta)
 
 
-def soil_trajectory(l1, l2, theta, advance):
+def soil_trajectory(l1: Floats, l2: Floats, theta: Floats,
+                    advance: Floats) -> tuple[Floats, Floats]:
     """Tip in the soil frame (m): bottom of the path at y = 0, soil surface at y = D.
 
     advance = v/ω1 (m travelled per rad of sun bar; d/2π when in sync; any sign).
@@ -478,13 +499,15 @@ def soil_trajectory(l1, l2, theta, advance):
     return (l2 - l1) * np.sin(theta) + advance * theta, (l1 + l2) * (1.0 + np.cos(theta))
 
 
-def soil_velocity(l1, l2, theta, omega1, ground_speed):
+def soil_velocity(l1: Floats, l2: Floats, theta: Floats, omega1: Floats,
+                  ground_speed: Floats) -> tuple[Floats, Floats]:
     """Tip velocity in the soil frame (m/s) at constant ω1 (rad/s) and ground speed v (m/s)."""
     return ((l2 - l1) * omega1 * np.cos(theta) + ground_speed,
             -(l1 + l2) * omega1 * np.sin(theta))
 
 
-def soil_acceleration(l1, l2, theta, omega1):
+def soil_acceleration(l1: Floats, l2: Floats, theta: Floats,
+                      omega1: Floats) -> tuple[Floats, Floats]:
     """Tip acceleration (m/s²) at constant ω1 and v: the frame's ellipse acceleration."""
     return (-(l2 - l1) * omega1 ** 2 * np.sin(theta), -(l1 + l2) * omega1 ** 2 * np.cos(theta))
 
@@ -501,11 +524,11 @@ class Hole:
     width: object        # m, swept extent max_x - min_x (what the soil sees)
 
     @property
-    def entry_exit(self):
+    def entry_exit(self) -> Floats:
         return np.abs(self.exit_x - self.entry_x)
 
 
-def hole_geometry(l1, l2, depth, advance):
+def hole_geometry(l1: Floats, l2: Floats, depth: Floats, advance: Floats) -> Hole:
     """Hole at depth D for any speed ratio λ = (l2-l1)/advance, in closed form (no sampling).
 
     Below the surface the path relative to its bottom is h(φ) = advance·φ - a sin φ, φ in
@@ -518,7 +541,7 @@ def hole_geometry(l1, l2, depth, advance):
     psi = bars_depth_angle(l1, l2, depth)
     arrays = any(isinstance(v, np.ndarray) for v in (l1, l2, depth, advance))
     sin = np.sin if arrays else math.sin
-    def h(phi, adv, a):
+    def h(phi: Floats, adv: Floats, a: Floats) -> Floats:
         # adv·φ - a sin φ written to avoid cancellation when adv ≈ a and φ is small
         return adv * psi_minus_sin(phi) + (adv - a) * sin(phi)
     h_end = h(psi, advance, a)
@@ -559,11 +582,11 @@ class HoleSensitivity:
     depth: object
     speed_ratio: object
 
-    def as_dict(self):
+    def as_dict(self) -> dict:
         return {k: _plain(getattr(self, k)) for k in ('l1', 'l2', 'depth', 'speed_ratio')}
 
 
-def hole_sensitivity(l1, l2, depth, advance):
+def hole_sensitivity(l1: Floats, l2: Floats, depth: Floats, advance: Floats) -> HoleSensitivity:
     """Analytic derivatives of hole_geometry(...).width with respect to l1, l2, depth and λ.
 
     The half-width is |h| at the exit φ = ψ, or at the turning point φ* where that is larger
@@ -597,7 +620,7 @@ def hole_sensitivity(l1, l2, depth, advance):
     slope_end = advance - a * np.cos(psi)         # ∂h/∂φ at the exit
     s_end, s_star = np.sign(h_end), np.sign(h_star)
 
-    def width_change(d_adv, d_a, d_psi):
+    def width_change(d_adv: Floats, d_a: Floats, d_psi: Floats) -> Floats:
         end = s_end * (psi * d_adv - sin_psi * d_a + slope_end * d_psi)
         turn = s_star * (phi_star * d_adv - np.sin(phi_star) * d_a)
         return 2.0 * np.where(star, turn, end)
@@ -621,7 +644,8 @@ TOLERANCE_PERCENTILES = (0.1, 1.0, 5.0, 50.0, 95.0, 99.0, 99.9)
 TOLERANCE_BINS = 20
 
 
-def hole_tolerance(design, bar_tolerance, speed_error, samples=TOLERANCE_SAMPLES, seed=0):
+def hole_tolerance(design: FiveBarDesign, bar_tolerance: float, speed_error: float,
+                   samples: int = TOLERANCE_SAMPLES, seed: int = 0) -> dict:
     """Hole widths of `samples` built machines: l1 and l2 each uniform within ±bar_tolerance
     (m) of the design, the ground speed uniform within ±speed_error (a fraction) of the
     synchronised speed, so advance = (d/2π)(1 + e); depth as designed. One vectorised

@@ -21,6 +21,7 @@ Pure numpy/scipy, no ROS.
 """
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -28,6 +29,7 @@ from numpy.typing import ArrayLike
 
 from planter_ros.config import ConfigError
 
+from .arrays import FloatArray, Floats
 from .errors import DesignError
 from .five_bar import depth_angle, hole_geometry, static_trajectory
 
@@ -53,15 +55,15 @@ class Planting(ABC):
     release_advance: float
 
     @abstractmethod
-    def tip_sweep(self, advance: ArrayLike) -> np.ndarray:
+    def tip_sweep(self, advance: ArrayLike) -> Floats:
         """The tip's swept extent (m) below the soil for advance v/ω (m/rad, array)."""
 
     @abstractmethod
-    def tip_path(self, phi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    def tip_path(self, phi: ArrayLike) -> tuple[Floats, Floats]:
         """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
         at shaft angles `phi` (rad) from the planting instant."""
 
-    def tilt(self, advance: ArrayLike) -> np.ndarray:
+    def tilt(self, advance: ArrayLike) -> Floats:
         """The stem's tilt from vertical (rad, + = top leaning forward) for advance v/ω (m/rad,
         array): the slip of the exit climb against the depth (module doc)."""
         slip = (np.asarray(advance, dtype=float) - self.release_advance) * self.exit_angle
@@ -93,12 +95,12 @@ class FiveBarPlanting(Planting):
         self.exit_angle = depth_angle(self.depth, self.l1 + self.l2)
         self.entry_angle = self.exit_angle          # the path is symmetric about the bottom
 
-    def tip_sweep(self, advance: ArrayLike) -> np.ndarray:
+    def tip_sweep(self, advance: ArrayLike) -> Floats:
         """The tip's swept extent (m) below the soil for advance v/ω (m/rad, array)."""
         advance = np.asarray(advance, dtype=float)
         return np.asarray(hole_geometry(self.l1, self.l2, self.depth, advance).width)
 
-    def tip_path(self, phi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    def tip_path(self, phi: ArrayLike) -> tuple[Floats, Floats]:
         """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
         at shaft angles `phi` (rad) from the planting instant."""
         x, y = static_trajectory(self.l1, self.l2, math.pi + np.asarray(phi, dtype=float))
@@ -115,7 +117,8 @@ class PathPlanting(Planting):
     the surface crossings around it, taken on `samples` points of that arc.
     """
 
-    def __init__(self, angle: ArrayLike, x: ArrayLike, y: ArrayLike,
+    def __init__(self, angle: Sequence[float] | FloatArray, x: Sequence[float] | FloatArray,
+                 y: Sequence[float] | FloatArray,
                  plants_per_revolution: int, depth: float, spacing: float,
                  planting_phase: float | None = None, samples: int = 2048,
                  nozzle_width: float = 0.0) -> None:
@@ -159,10 +162,10 @@ class PathPlanting(Planting):
             raise DesignError('planting_depth', depth, '< the height of the tip path',
                               'the nozzle never leaves the soil')
 
-        def below(phi):
+        def below(phi: float) -> float:
             return float(self._y(phi)) - y_soil
 
-        def crossing(direction):
+        def crossing(direction: float) -> float:
             # first surface crossing from the planting point in `direction`
             grid = phi_p + direction * np.linspace(0.0, math.pi, 4097)[1:]
             above = np.nonzero(self._y(grid) > y_soil)[0]
@@ -182,12 +185,12 @@ class PathPlanting(Planting):
         self.release_advance = -float(self._x(phi_p, 1))
         self.sync_advance = n * self.spacing / TWO_PI
 
-    def tip_sweep(self, advance: ArrayLike) -> np.ndarray:
+    def tip_sweep(self, advance: ArrayLike) -> Floats:
         advance = np.asarray(advance, dtype=float)
         xs = self._arc_x + advance[..., None] * self._arc
         return xs.max(axis=-1) - xs.min(axis=-1)
 
-    def tip_path(self, phi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    def tip_path(self, phi: ArrayLike) -> tuple[Floats, Floats]:
         """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
         at carrier angles `phi` (rad) from the planting instant."""
         angle = self.planting_phase + np.asarray(phi, dtype=float)

@@ -37,7 +37,7 @@ class SceneSettings:
                                   "is the tip's sweep plus this; no default, measure it",
                                   unit='m', range=(0.0, 0.5))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self, DesignError.from_message)
 
 
@@ -77,10 +77,10 @@ class ThreeArmSettings:
     arm_width: float = setting(0.02, 'planting arm shell width, for the non-interference goal',
                                unit='m', range=(0.001, 0.2))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self, DesignError.from_message)
 
 
-def scene_classes(mechanism):
+def scene_classes(mechanism: str) -> tuple[type, ...]:
     """The settings classes a scene of `mechanism` is made of."""
     return (SceneSettings, ThreeArmSettings) if mechanism == 'three_arm' else (SceneSettings,)

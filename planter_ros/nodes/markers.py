@@ -1,5 +1,6 @@
 """The monitor's 3D view (Foxglove, RViz): visualization_msgs/MarkerArray of the planted plants
-and of each row's nozzle tip path, in the `field` frame.
+and of each row's nozzle tip path, in the `field` frame; and for map and plot views, each plant
+as a NavSatFix (`plant_fixes`) and as a Vector3Stamped keyed by its row (`plant_rows`).
 
 The `field` frame is the as-planted map's local frame (sensing.plant_map): x east, y north, z up,
 metres, origin at the first usable GNSS fix, the soil surface at z = 0. Only plants with a map
@@ -108,4 +109,40 @@ def marker_array(plants, placement, model, labels, counts):
                           float(placement.heading[i]), advance)
         marker.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in points]
         out.markers.append(marker)
+    return out
+
+
+def _stamp(t):
+    from builtin_interfaces.msg import Time
+    sec = math.floor(t)
+    return Time(sec=int(sec), nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
+
+
+def plant_fixes(plants, placement, labels):
+    """NavSatFix of each plant of a batch with a map position (interfaces.PLANT_FIXES)."""
+    from sensor_msgs.msg import NavSatFix, NavSatStatus
+    out = []
+    for i in np.flatnonzero(np.isfinite(placement.latitude)).tolist():
+        fix = NavSatFix(latitude=float(placement.latitude[i]),
+                        longitude=float(placement.longitude[i]), altitude=math.nan,
+                        position_covariance_type=NavSatFix.COVARIANCE_TYPE_UNKNOWN)
+        fix.status.status = NavSatStatus.STATUS_FIX
+        fix.header.stamp = _stamp(float(plants.time[i]))
+        fix.header.frame_id = labels.get(int(plants.row[i]), '')
+        out.append(fix)
+    return out
+
+
+def plant_rows(plants, labels):
+    """Vector3Stamped of each plant of a batch, keyed by its row (interfaces.PLANT_ROWS)."""
+    from geometry_msgs.msg import Vector3Stamped
+    out = []
+    for i in range(len(plants)):
+        msg = Vector3Stamped()
+        msg.header.stamp = _stamp(float(plants.time[i]))
+        msg.header.frame_id = labels.get(int(plants.row[i]), '')
+        msg.vector.x = float(plants.spacing_error[i])
+        msg.vector.y = float(plants.speed_ratio[i])
+        msg.vector.z = float(plants.tilt[i])
+        out.append(msg)
     return out

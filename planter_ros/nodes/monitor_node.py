@@ -5,9 +5,10 @@ Subscribes `ground_speed` (TwistStamped), `joint_states` (JointState), the latch
 publishes each plant on `plants` (std_msgs/Float64MultiArray, labelled layout, fields in
 `PLANT_FIELDS`, SI), the rolling rate on `uprightness_rate` (std_msgs/Float64, fraction 0..1,
 over the last `window` plants of the whole machine), the ISO 7256-1 spacing-quality indices on
-`spacing_quality`, the 3D view on `plant_markers` (visualization_msgs/MarkerArray) and
-`/diagnostics` at 1 Hz. Each plant is placed on the earth from the GNSS fixes
-(sensing.plant_map: held until the fixes that place it are in) before it is published.
+`spacing_quality`, the 3D view on `plant_markers` (visualization_msgs/MarkerArray), each plant
+on `plant_fixes` (NavSatFix, for map views) and on `plant_rows` (Vector3Stamped keyed by row,
+for per-row plots) and `/diagnostics` at 1 Hz. Each plant is placed on the earth from the GNSS
+fixes (sensing.plant_map: held until the fixes that place it are in) before it is published.
 It records its inputs (plus the speed commands and /diagnostics) as the CDR bytes that arrived
 (raw subscriptions) and its own outputs, through the one recorder
 (planter_ros.recording.recorder); the topics are interfaces.RECORDED, and the bag's rows record
@@ -50,9 +51,10 @@ from planter_ros.prediction import (
 from planter_ros.prediction import (
     QUALITY_FIELDS, SpacingQuality, format_quality)
 from planter_ros.nodes import graph
-from planter_ros.nodes.markers import marker_array
+from planter_ros.nodes.markers import marker_array, plant_fixes, plant_rows
 from planter_ros.nodes.parameters import ParameterGroup, declare_rows, refuse_undeclared
-from planter_ros.recording.recorder import Recorder, RecorderConfig, RecorderError
+from planter_ros.recording.errors import BagWriteError
+from planter_ros.recording.recorder import Recorder, RecorderConfig
 from planter_ros.recording.replay import map_record
 from planter_ros.rows import rows_record
 from planter_ros.sensing.plant_map import MapSettings, PlantPlacer
@@ -137,6 +139,8 @@ class MonitorNode(Node):
         self._pub_rate = interfaces.UPRIGHTNESS_RATE.publisher(self)
         self._pub_quality = interfaces.SPACING_QUALITY.publisher(self)
         self._pub_markers = interfaces.PLANT_MARKERS.publisher(self)
+        self._pub_fixes = interfaces.PLANT_FIXES.publisher(self)
+        self._pub_rows = interfaces.PLANT_ROWS.publisher(self)
         self._pub_diag = interfaces.DIAGNOSTICS.publisher(self)
         if recording.record:
             self._start_recorder(recording)
@@ -191,7 +195,7 @@ class MonitorNode(Node):
                                      split_size=recording.split_size,
                                      split_duration=recording.split_duration,
                                      flush_period=recording.flush_period)
-        except RecorderError as exc:
+        except BagWriteError as exc:
             self.record_error = str(exc)
             self.get_logger().error(f'not recording: {exc}')
             return
@@ -367,6 +371,10 @@ class MonitorNode(Node):
             self._publish(interfaces.PLANT_MARKERS, self._pub_markers,
                           marker_array(plants, placement, self._model, self._labels,
                                        self._drawn), now)
+        for fix in plant_fixes(plants, placement, self._labels):
+            self._publish(interfaces.PLANT_FIXES, self._pub_fixes, fix, now)
+        for msg in plant_rows(plants, self._labels):
+            self._publish(interfaces.PLANT_ROWS, self._pub_rows, msg, now)
         self._tables.append(plants.table())
         self._plants += len(plants)
         for row in plants.row.astype(int).tolist():
@@ -443,9 +451,13 @@ class MonitorNode(Node):
                                   tuple(values))
 
     def destroy_node(self):
-        """Place and publish the plants still held for fixes, then finalise the bag (summary,
-        statistics, metadata) before the node goes."""
-        self._publish_placed(self._placer.flush(), self.get_clock().now().nanoseconds)
+        """Complete the plants whose arcs were still open, place and publish the plants still
+        held for fixes, then finalise the bag (summary, statistics, metadata) before the node
+        goes."""
+        now = self.get_clock().now().nanoseconds
+        for predictor in self._predictors or ():
+            self._predicted(predictor.finish(), now)
+        self._publish_placed(self._placer.flush(), now)
         if self.recorder is not None:
             try:
                 self.recorder.close()

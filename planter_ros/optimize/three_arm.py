@@ -16,6 +16,7 @@ gives the same search whatever the number of workers. The chosen design is check
 the single-design model before it is returned.
 """
 
+from dataclasses import dataclass
 import math
 import time
 
@@ -112,6 +113,10 @@ _WORKER = {}
 
 
 def _worker_init(base, margin, samples):
+    import multiprocessing
+
+    from planter_ros.processes import die_with_parent
+    die_with_parent(multiprocessing.parent_process().pid)    # no orphan when the search dies
     _WORKER['scorer'] = BatchScorer(base, margin, samples)
 
 
@@ -155,9 +160,34 @@ class PopulationScorer:
         self.close()
 
 
+@dataclass(frozen=True)
+class SearchProgress:
+    """Where the search stands after a generation. The "so far" figures never get worse: the
+    lowest score of any design scored, and the most goals any design met (not necessarily the
+    same design: the score weighs how far each goal is missed); the generation's own best
+    design is reported beside them."""
+
+    elapsed: float                   # s since the search started
+    max_time: float                  # s, the time limit
+    generation: int
+    best_score: float                # lowest so far (0: all eight goals met with the margin)
+    most_goals: int                  # most goals met by one design so far, of 8
+    generation_score: float          # this generation's best design
+    generation_goals: int
+
+    def line(self):
+        """One progress line of fixed width (no newline): time, the bests so far, this
+        generation's best."""
+        n = len(GOAL_NAMES)
+        return (f'gen {self.generation:4d} {self.elapsed:6.1f}/{self.max_time:g} s  best so far: '
+                f'score {self.best_score:8.4f}, most goals {self.most_goals}/{n}  this gen: '
+                f'{self.generation_score:8.4f}, {self.generation_goals}/{n}')
+
+
 def optimize(base, seed=1, max_time=60.0, popsize=POPSIZE, progress=None,
              max_generations=None, workers=1):
     """Run differential evolution from the scene `base`; returns (params, goals, info).
+    `progress(SearchProgress)` is called after every generation.
 
     Stopping on `max_generations` (not on time) makes a run reproducible to the bit; `workers`
     processes share each generation's batch without changing the result.
@@ -166,7 +196,7 @@ def optimize(base, seed=1, max_time=60.0, popsize=POPSIZE, progress=None,
     n = len(base['control_angles'])
     bounds = [RADIUS_BOUNDS] * n + list(INSTALL_BOUNDS.values())
     state = {'best': math.inf, 'passing': 0, 'x': None, 'evaluations': 0, 'generation': 0,
-             'stop': '', 'to_all_goals': None}
+             'stop': '', 'to_all_goals': None, 'most_goals': 0, 'latest': (math.inf, 0)}
     population = PopulationScorer(base, workers)
     start = time.monotonic()
 
@@ -175,6 +205,8 @@ def optimize(base, seed=1, max_time=60.0, popsize=POPSIZE, progress=None,
         scores, passing = population(vectors)
         state['evaluations'] += len(vectors)
         i = int(np.argmin(scores))
+        state['latest'] = (float(scores[i]), int(passing[i]))
+        state['most_goals'] = max(state['most_goals'], int(np.max(passing)))
         if scores[i] < state['best']:               # the best design so far, and its goals
             state.update(best=float(scores[i]), passing=int(passing[i]), x=vectors[i].copy())
         if state['to_all_goals'] is None and np.any(passing == len(GOAL_NAMES)):
@@ -185,7 +217,8 @@ def optimize(base, seed=1, max_time=60.0, popsize=POPSIZE, progress=None,
         state['generation'] += 1
         elapsed = time.monotonic() - start
         if progress is not None:
-            progress(elapsed, state['generation'], state['best'], state['passing'], max_time)
+            progress(SearchProgress(elapsed, max_time, state['generation'], state['best'],
+                                    state['most_goals'], *state['latest']))
         if state['best'] <= 0.0:
             state['stop'] = 'all goals met'
             return True

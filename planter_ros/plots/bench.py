@@ -25,14 +25,15 @@ def plot_tradeoff(machine, rows, path):
                 label=name)
         for r, xi, yi in zip(members, x, y):
             if 'samples' in r.extra:
-                ax.annotate(f"{r.extra['samples']:.0e}", (xi, yi), textcoords='offset points',
-                            xytext=(5, 5), fontsize=8)
+                ax.annotate(f"{r.extra['samples']:,} samples", (xi, yi),
+                            textcoords='offset points', xytext=(5, 5), fontsize=8)
     ax.set_xscale('log')
     ax.set_yscale('log')
     ax.axhline(1e-9, color='gray', ls=':', label='accuracy target 1e-9')
     ax.set(xlabel='run time per item (s, median)',
            ylabel=f'max relative error vs mpmath (0 drawn at {ERROR_FLOOR:g})',
-           title='planter bench: error against run time')
+           title='planter bench: error against run time (down-left is better; the dotted '
+                 'line is the accuracy target)')
     ax.grid(True, which='both', alpha=0.3)
     ax.legend(fontsize=8, loc='best')
     fig.text(0.01, 0.01, machine_line(machine), fontsize=7, color='gray')

@@ -84,8 +84,8 @@ def plot_cam(mech, drive, rule, spacings, speeds, cases, tops, path):
     ax.axhline(mech.depth * mm, color='saddlebrown', label='soil surface (y = D)')
     ax.set(title=f'tip in the soil frame, d = {d_show * mm:.0f} mm (bold: in the soil)',
            xlabel='x along the row from the planting point (mm)',
-           ylabel='height above the hole bottom (mm)', ylim=(-5, 3 * mech.depth * mm))
-    ax.legend(loc='upper right', fontsize=8)
+           ylabel='height above the hole bottom (mm)', ylim=(-5, 4.2 * mech.depth * mm))
+    ax.legend(loc='upper center', fontsize=8)
 
     # (c), (d) sweep and tilt against spacing, infeasible region shaded
     dense = np.linspace(min(grid), max(grid), 200)
@@ -128,8 +128,9 @@ def plot_cam(mech, drive, rule, spacings, speeds, cases, tops, path):
                                               for k, _ in labels[:2]]))) * 1.3
     ax.fill_between(x, rule_top, ceiling, color='red', alpha=0.12,
                     label=f'{rule_name} rule exceeds a limit')
-    for v in speeds:
-        ax.axhline(v, color='0.3', ls=':', lw=1)
+    for k, v in enumerate(speeds):
+        ax.axhline(v, color='0.3', ls=':', lw=1,
+                   label='top speed(s) asked' if k == 0 else None)
     ax.set(title='feasibility map: top ground speed of each law within the limits',
            xlabel='plant spacing d (mm)', ylabel='ground speed (m/s)', ylim=(0, ceiling))
     ax.legend(loc='upper right', fontsize=8)
@@ -140,13 +141,14 @@ def plot_cam(mech, drive, rule, spacings, speeds, cases, tops, path):
         u = [p.figures.utilisation.get(name) for p in plans]
         if all(v is not None for v in u):
             ax.plot(x, np.array(u) * 100, 'o-', label=name)
-    ax.axhline(100.0, color='red', label='limit')
+    ax.axhline(100.0, color='red', label='limit (100 %)')
+    ax.set_ylim(0, 135)                          # the legend above the limit line
     lim = drive.effective(mech)
     ax.set(title=f'cam loads at {top:.3g} m/s against the limits\n(ω ≤ {lim.speed:.3g} rad/s, '
                  f'jerk ≤ {lim.jerk:.3g} rad/s³, T ≤ {lim.torque:.3g} N·m peak, '
                  f'{lim.rms_torque:.3g} N·m RMS)',
            xlabel='plant spacing d (mm)', ylabel='peak over limit (%)')
-    ax.legend(loc='upper right', fontsize=8)
+    ax.legend(loc='upper center', fontsize=8, ncol=3)
 
     for case in cases:
         if case['ground_speed'] == top:

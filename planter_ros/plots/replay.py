@@ -25,16 +25,25 @@ def plot_replay(result, path):
     axes = [fig.add_subplot(grid[i, 0]) for i in range(3)]
 
     ax = axes[0]
-    ax.axhline(0.0, color='0.6', lw=0.8)
+    ax.axhline(0.0, color='0.4', lw=0.8, label='on d (target)')
     for index in np.unique(p.row):
         mine = (p.row == index) & np.isfinite(p.spacing_error)
         ax.plot(p.position[mine], p.spacing_error[mine] * 1e3, '.-', ms=4, lw=0.8,
                 label=labels.get(int(index), f'row {int(index)}') if named else None)
-    if named:
-        ax.legend(fontsize='small', ncol=min(len(rows), 4))
+    # the ISO 7256-1 limits, where the errors come near them (else they would flatten the rest)
+    half = 0.5 * s['design_spacing'] * 1e3
+    worst = float(np.nanmax(np.abs(p.spacing_error))) * 1e3 \
+        if np.isfinite(p.spacing_error).any() else 0.0
+    if worst > 0.3 * half:
+        ax.axhline(half, color='tab:red', ls='--', lw=0.8, label='miss above (x > 1.5 d)')
+        ax.axhline(-half, color='tab:purple', ls='--', lw=0.8,
+                   label='multiple below (x ≤ 0.5 d)')
+    _headroom(ax)
+    ax.legend(fontsize='small', ncol=min(len(rows) + 3, 5), loc='upper center')
     ax.set_xlabel('position along the row [m]')
     ax.set_ylabel('spacing error [mm]')
-    ax.set_title(f'spacing error (design spacing {s["design_spacing"] * 1e3:.0f} mm)')
+    ax.set_title(f'spacing error: gap to the previous plant − d (d = '
+                 f'{s["design_spacing"] * 1e3:.0f} mm), plants at the recorded ground speed')
     ax.grid(alpha=0.3)
 
     ax = axes[1]
@@ -49,15 +58,23 @@ def plot_replay(result, path):
                            color='tab:brown', label='tip sweep' if first else None)
         handles += twin.plot(p.position[mine], p.speed_ratio[mine], color='tab:green', lw=0.6,
                              alpha=0.7, label='speed ratio λ (right axis)' if first else None)
+    design_hole = _design_hole(result)
+    if design_hole is not None:
+        handles.append(ax.axhline(design_hole * 1e3, color='tab:brown', ls='--', lw=0.8,
+                                  label='design hole (k·D + nozzle)'))
     ax.set_xlabel('position along the row [m]')
-    ax.set_ylabel('hole width [mm]')
-    ax.set_title(f'hole at depth: tip sweep + nozzle width {_nozzle_mm(result)}')
+    ax.set_ylabel('hole width, tip sweep [mm]')
+    ax.set_title(f'hole at depth: tip sweep + nozzle width {_nozzle_mm(result)}; speed ratio '
+                 'λ (1 = in sync)')
     ax.grid(alpha=0.3)
-    twin.set_ylabel('speed ratio λ', color='tab:green')
+    twin.set_ylabel('speed ratio λ (1 = in sync)', color='tab:green')
+    twin.axhline(1.0, color='tab:green', lw=0.5, ls=':')
+    _headroom(ax, bottom=0.0)
+    _headroom(twin)
     labelled = [h for h in handles if not h.get_label().startswith('_')]
     if labelled:
         ax.legend(labelled, [h.get_label() for h in labelled], fontsize='small',
-                  loc='upper left')
+                  loc='upper center', ncol=len(labelled))
 
     ax = axes[2]
     tilt = np.degrees(p.tilt)
@@ -129,6 +146,22 @@ def _map_panel(fig, ax, result, labels, named):
     ax.set_xlabel(f'east [m] from {origin[0]:.6f}°, {origin[1]:.6f}°')
     ax.set_ylabel('north [m]')
     ax.grid(alpha=0.3)
+
+
+def _headroom(ax, bottom=None, share=0.3):
+    """Room above the data for a legend drawn at the top (no line under it)."""
+    lo, hi = ax.get_ylim()
+    lo = lo if bottom is None else bottom
+    ax.set_ylim(lo, hi + share * (hi - lo) / (1.0 - share))
+
+
+def _design_hole(result):
+    """The hole the design asks for (m): k·D plus the nozzle's width; None if unknown."""
+    design = getattr(result, 'design', None)
+    k = getattr(design, 'hole_ratio', None)
+    if k is None or design is None:
+        return None
+    return k * design.planting_depth + (getattr(result, 'nozzle_width', None) or 0.0)
 
 
 def _nozzle_mm(result):

@@ -40,8 +40,8 @@ def plot_design(mech, params, path):
     for (cx, cy), name in (((0.0, 0.0), 'O1'), ((o2x, o2y), 'O2'), ((o3x, o3y), 'O3')):
         ax.plot(cx * mm, cy * mm, 'k+')
         ax.annotate(name, (cx * mm, cy * mm), textcoords='offset points', xytext=(4, 4))
-    ax.set_title(f'Pitch curves in mesh at θ = 0 (a = {a * mm:.3f} mm, module '
-                 f'{goals["gear_module"].value * mm:.2f} mm)')
+    ax.set_title(f'Pitch curves in mesh at θ = 0 (a = {a * mm:.3f} mm)\n'
+                 f'gear module {_goal_text(goals["gear_module"], mm, "mm")}')
     _finish(ax, 'x (mm)', 'y (mm)', equal=True)
 
     # (b) relative trajectories (carrier frame)
@@ -72,15 +72,17 @@ def plot_design(mech, params, path):
         ax.plot([(tx - length * math.cos(pa)) * mm, tx * mm],
                 [(ty - length * math.sin(pa)) * mm, ty * mm], 'r--', lw=1.5)
         name = 'picking_angle' if label == 'picking' else 'pushing_angle'
-        ax.annotate(f'{label}\nθ = {math.degrees(th):.1f}°\n'
-                    f'{math.degrees(goals[name].value):.1f}° below horizontal',
-                    (tx * mm, ty * mm), textcoords='offset points', xytext=(8, -30 if label ==
-                    'picking' else 8), fontsize=8)
+        ax.annotate(f'{label} at θ = {math.degrees(th):.1f}°: pusher\n'
+                    f'{_goal_text(goals[name], 180.0 / math.pi, "°")} below horizontal',
+                    (tx * mm, ty * mm), textcoords='offset points',
+                    xytext=(-170, 25) if label == 'picking' else (-150, 110), fontsize=8,
+                    bbox=dict(boxstyle='round', fc='white', ec='0.7', alpha=0.9),
+                    arrowprops=dict(arrowstyle='->', color='0.4'))
     ax.plot([], [], 'k-', lw=2, label='arm O3→tip')
     ax.plot([], [], 'r--', label='pusher axis')
     ax.plot(0, 0, 'k+')
-    ax.set_title(f'Tip in the frame (static machine); height '
-                 f'{goals["trajectory_height"].value * mm:.1f} mm')
+    ax.set_title(f'Tip in the frame (static machine)\ntrajectory height '
+                 f'{_goal_text(goals["trajectory_height"], mm, "mm")}')
     _finish(ax, 'x forward (mm)', 'y up (mm)', equal=True)
 
     # (d) arm angle against carrier angle
@@ -95,15 +97,16 @@ def plot_design(mech, params, path):
     for label, th in marks.items():
         ax.axvline(math.degrees(th), color='grey', lw=0.8)
         ax.annotate(label, (math.degrees(th), ax.get_ylim()[1]), fontsize=8, rotation=90,
-                    va='top', ha='right')
+                    va='top', ha='right', bbox=dict(fc='white', ec='none', alpha=0.8))
     ax.set_xlim(0, 360)
     ax.set_xticks(range(0, 361, 60))
     ax.set_title('Arm angle (O3→tip) against carrier angle θ')
     _finish(ax, 'carrier angle θ (deg)', 'angle (deg)')
 
     passed = sum(g.passed for g in goals.values())
-    fig.suptitle(f'Three-arm non-circular planetary mechanism — {passed}/8 goals pass',
-                 fontsize=13)
+    failing = [name for name, g in goals.items() if not g.passed]
+    fig.suptitle(f'Three-arm non-circular planetary mechanism — {passed}/{len(goals)} goals pass'
+                 + (f' (not met: {", ".join(failing)})' if failing else ''), fontsize=13)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -115,4 +118,16 @@ def _finish(ax, xlabel, ylabel, equal=False):
     ax.grid(True, alpha=0.3)
     if equal:
         ax.set_aspect('equal', adjustable='datalim')
-    ax.legend(fontsize=8, loc='best')
+    ax.legend(fontsize=8, loc='best', framealpha=0.9)
+
+
+def _goal_text(goal, scale, unit):
+    """'7.0° (goal −5…15°: met)': a goal's value next to its range, in the figure's units."""
+    value = f'{goal.value * scale:.1f}{unit}' if unit == '°' else \
+        f'{goal.value * scale:.2f} {unit}'
+    lo = None if goal.lower is None else f'{goal.lower * scale:g}'
+    hi = None if goal.upper is None else f'{goal.upper * scale:g}'
+    space = '' if unit == '°' else ' '
+    wanted = (f'{lo}…{hi}{space}{unit}' if lo is not None and hi is not None else
+              f'≥ {lo}{space}{unit}' if lo is not None else f'≤ {hi}{space}{unit}')
+    return f'{value} (goal {wanted}: {"met" if goal.passed else "NOT met"})'

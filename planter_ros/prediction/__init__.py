@@ -4,7 +4,8 @@ spacing-quality indices.
 
 `model` turns ground-speed and shaft samples into plants (a whole recording at once, or sample
 by sample for the live monitor) with the prediction settings; `plants` holds the plant fields,
-the `Plants` arrays and a run's summary; `quality` the spacing-quality indices; `sections` the
+the `Plants` arrays and a run's summary; `motion` each plant's hole and tilt from the motion
+measured through its in-soil arc; `quality` the spacing-quality indices; `sections` the
 breaks a row's section switched off makes in its spacing sequence. The mechanism's
 planting geometry they use is kinematics.planting. Pure numpy/scipy, no ROS; depends downward
 only (kinematics, sensing, config).

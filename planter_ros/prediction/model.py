@@ -39,6 +39,8 @@ plants come as `Plants` (prediction.plants); `planting_model_from_design` builds
 planting geometry. Pure numpy/scipy: no ROS here.
 """
 
+from __future__ import annotations
+
 import bisect
 from collections import deque
 from collections.abc import Sequence
@@ -46,14 +48,17 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from planter_ros.config import check, setting
+from planter_ros.design.model import Design
+from planter_ros.kinematics.arrays import FloatArray, Floats
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.planting import TWO_PI, FiveBarPlanting, PathPlanting, Planting
 from planter_ros.sensing.ground_speed_filter import (
     GroundSpeedFilter, GroundSpeedLimits, filter_ground_speed)
 
+from .motion import arc_figures
 from .plants import PLANT_FIELDS, Plants
 
 __all__ = ['planting_model_from_design', 'prediction_notes', 'PredictionSettings',
@@ -63,7 +68,7 @@ __all__ = ['planting_model_from_design', 'prediction_notes', 'PredictionSettings
 
 # ----------------------------------------------------------------------------- the design
 
-def planting_model_from_design(design, nozzle_width=None):
+def planting_model_from_design(design: Design, nozzle_width: float | None = None) -> Planting:
     """Build the planting geometry of a typed design (planter_ros.design; SI units).
 
     five_bar: l1, l2, planting_depth, plant_spacing. three_arm: tip_path of one arm over one
@@ -88,7 +93,7 @@ def planting_model_from_design(design, nozzle_width=None):
                         nozzle_width=nozzle_width)
 
 
-def prediction_notes(design, model):
+def prediction_notes(design: Design, model: Planting) -> list[dict]:
     """What the figures of this design mean where the model is not validated: a list of
     {fields, text} (empty for the five-bar the model was made for). Shown next to the figures
     by replay and the demo, and in their JSON."""
@@ -129,10 +134,14 @@ class PredictionSettings:
                                    'samples that is interpolated; a longer gap reports no plant '
                                    'inside it and the first plant after it has no spacing',
                                    unit='s', range=(0.01, 3600.0))
+    measured_arc: bool = setting(True, "each plant's hole and tilt from the motion measured "
+                                 'through its in-soil arc (prediction.motion); false: from the '
+                                 'speed ratio at the planting instant alone, as monitors before '
+                                 'this setting did')
     # which ground-speed samples to believe: the sync node's rule (spikes, NaN, too fast)
     speed_limits: GroundSpeedLimits = GroundSpeedLimits()
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self, DesignError.from_message)
 
 
@@ -160,11 +169,11 @@ def travelled_distance(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.concatenate(([0.0], np.cumsum(inc)))
 
 
-def _threshold(model, k):
+def _threshold(model: Planting, k: Floats) -> Floats:
     return model.planting_phase + k * (TWO_PI / model.plants_per_revolution)
 
 
-def _first_k(model, theta0):
+def _first_k(model: Planting, theta0: float) -> int:
     """Smallest planting index k whose angle lies strictly beyond theta0."""
     n = model.plants_per_revolution
     k = math.floor((theta0 - model.planting_phase) * n / TWO_PI)
@@ -175,7 +184,8 @@ def _first_k(model, theta0):
     return k
 
 
-def _crossing(theta_k, t0, t1, th0, th1, w0, w1):
+def _crossing(theta_k: Floats, t0: Floats, t1: Floats, th0: Floats, th1: Floats, w0: Floats,
+              w1: Floats) -> tuple[Floats, Floats]:
     """Instant and shaft speed where the running-maximum shaft angle reaches theta_k."""
     frac = (theta_k - th0) / (th1 - th0)
     t_e = t0 + frac * (t1 - t0)
@@ -185,7 +195,8 @@ def _crossing(theta_k, t0, t1, th0, th1, w0, w1):
     return t_e, omega
 
 
-def _at_speed(t_e, t0, t1, v0, v1, s0):
+def _at_speed(t_e: Floats, t0: Floats, t1: Floats, v0: Floats, v1: Floats,
+              s0: Floats) -> tuple[Floats, Floats]:
     """Ground speed and travelled distance at t_e inside the speed sample interval [t0, t1)."""
     g = (t_e - t0) / (t1 - t0)
     v_e = v0 + g * (v1 - v0)
@@ -194,9 +205,12 @@ def _at_speed(t_e, t0, t1, v0, v1, s0):
 
 
 def plant_values(model: Planting, settings: PredictionSettings, omega: ArrayLike,
-                 v: ArrayLike) -> tuple[np.ndarray, ...]:
+                 v: ArrayLike, arc_sweep: ArrayLike | None = None,
+                 arc_tilt: ArrayLike | None = None) -> tuple[np.ndarray, ...]:
     """λ, tip sweep, hole width (tip sweep + the model's nozzle width), tilt and upright flag
-    for arrays of shaft speed ω > 0 and ground speed v."""
+    for arrays of shaft speed ω > 0 and ground speed v at the planting instants. The sweep and
+    tilt of the measured arc (`arc_sweep`, `arc_tilt`: prediction.motion; NaN where the
+    measurement does not cover it) replace the constant-ratio ones where given."""
     omega = np.asarray(omega, dtype=float)
     v = np.asarray(v, dtype=float)
     advance = v / omega
@@ -204,6 +218,11 @@ def plant_values(model: Planting, settings: PredictionSettings, omega: ArrayLike
         ratio = np.where(v != 0, model.sync_advance * omega / np.where(v != 0, v, 1.0), np.inf)
     sweep = model.tip_sweep(advance)
     tilt = model.tilt(advance)
+    if arc_sweep is not None:
+        arc_sweep, arc_tilt = np.asarray(arc_sweep, float), np.asarray(arc_tilt, float)
+        covered = np.isfinite(arc_sweep) & np.isfinite(arc_tilt)
+        sweep = np.where(covered, arc_sweep, sweep)
+        tilt = np.where(covered, arc_tilt, tilt)
     upright = (0.5 * math.pi - np.abs(tilt) >= settings.upright_threshold).astype(float)
     return ratio, sweep, sweep + model.nozzle_width, tilt, upright
 
@@ -236,7 +255,8 @@ def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
     theta = np.maximum.accumulate(jp)
 
     models = [model] + [m for _, m in changes]
-    i, t_e, omega, which = _crossings(models, [t for t, _ in changes], jt, theta, jw)
+    i, t_e, omega, which, theta_k = _crossings(models, [t for t, _ in changes], jt, theta,
+                                                jw)
     if not t_e.size:
         return empty
 
@@ -246,20 +266,28 @@ def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
     jc = np.clip(j, 1, st.size - 1)
     # a plant inside a gap of either input would be invented by interpolation: not reported
     keep = located & (jt[i] - jt[i - 1] <= gap) & (st[jc] - st[jc - 1] <= gap)
-    t_e, omega, j, which = t_e[keep], omega[keep], j[keep], which[keep]
+    t_e, omega, j, which, theta_k = t_e[keep], omega[keep], j[keep], which[keep], theta_k[keep]
     v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
+    arcs = (np.full(t_e.size, np.nan), np.full(t_e.size, np.nan))
+    for w in np.unique(which) if settings.measured_arc else ():
+        mine = which == w
+        sweep, tilt, _ = arc_figures(models[w], theta_k[mine], jt, theta, jw, st, sv, ss, gap)
+        arcs[0][mine], arcs[1][mine] = sweep, tilt
     starts = np.concatenate((_gaps(jt, gap), _gaps(st, gap),
                              np.asarray(breaks, dtype=float).reshape(-1, 2)))
     return _assemble([models[w] for w in which], settings, t_e, omega, v_e, s_e, index0=0,
                      prev_position=np.nan, recent=(),
-                     new_sequence=_after_gap(t_e, -np.inf, starts), row=row)
+                     new_sequence=_after_gap(t_e, -np.inf, starts), row=row, arcs=arcs)
 
 
-def _crossings(models, change_times, jt, theta, jw):
+def _crossings(models: Sequence[Planting], change_times: Sequence[float], jt: FloatArray,
+               theta: FloatArray, jw: FloatArray
+               ) -> tuple[NDArray[np.intp], FloatArray, FloatArray, NDArray[np.intp],
+                          FloatArray]:
     """Every planting instant of a running-maximum shaft angle `theta` (at times `jt`):
     (index of the joint sample after it, instant, shaft speed, index into `models` of the
-    design in force). models[0] is in force from the start, models[c] from the first crossing
-    after change_times[c - 1] (that crossing still the earlier design's)."""
+    design in force, planting angle). models[0] is in force from the start, models[c] from
+    the first crossing after change_times[c - 1] (that crossing still the earlier design's)."""
     parts = []
     lo, current = theta[0], 0                  # thresholds strictly beyond lo
     while True:
@@ -275,26 +303,27 @@ def _crossings(models, change_times, jt, theta, jw):
         later = (np.nonzero(t_e > change_times[current])[0] if current < len(change_times)
                  else ())
         if not len(later):
-            parts.append((i, t_e, omega, np.full(t_e.size, current)))
+            parts.append((i, t_e, omega, np.full(t_e.size, current), theta_k))
             break
         last = later[0]                        # the old design's last plant
         parts.append((i[:last + 1], t_e[:last + 1], omega[:last + 1],
-                      np.full(last + 1, current)))
+                      np.full(last + 1, current), theta_k[:last + 1]))
         # in force after it: the latest change before it
         current = int(np.searchsorted(change_times, t_e[last], side='left'))
         lo = theta_k[last]
     if not parts:
-        return (np.zeros(0, dtype=int), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int))
+        return (np.zeros(0, dtype=int), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int),
+                np.zeros(0))
     return tuple(np.concatenate(c) for c in zip(*parts))
 
 
-def _gaps(t, gap):
+def _gaps(t: FloatArray, gap: float) -> FloatArray:
     """(start, end) of every interval between consecutive samples `t` longer than `gap`."""
     k = np.nonzero(np.diff(t) > gap)[0]
     return np.column_stack((t[k], t[k + 1]))
 
 
-def _after_gap(t_e, t_before, gaps):
+def _after_gap(t_e: FloatArray, t_before: float, gaps: FloatArray) -> NDArray[np.bool_]:
     """For plants at increasing instants `t_e` (the previous one at `t_before`): does an input
     gap (rows of start, end) lie between each plant and the one before it?"""
     if not len(gaps) or not t_e.size:
@@ -306,19 +335,24 @@ def _after_gap(t_e, t_before, gaps):
     return (n > 0) & (latest_end[np.maximum(n - 1, 0)] > before)
 
 
-def _assemble(models, settings, t_e, omega, v_e, s_e, index0, prev_position, recent,
-              new_sequence, row=0):
+def _assemble(models: Planting | Sequence[Planting], settings: PredictionSettings,
+              t_e: FloatArray, omega: FloatArray, v_e: FloatArray, s_e: FloatArray,
+              index0: int, prev_position: float, recent: Sequence[float],
+              new_sequence: NDArray[np.bool_], row: int = 0,
+              arcs: tuple[FloatArray, FloatArray] | None = None) -> Plants:
     """Plants from their instants, speeds and positions; `models[p]` is the design in force
-    for plant p (one model: for all of them)."""
+    for plant p (one model: for all of them); `arcs`: (sweep, tilt) of the measured arcs."""
     n = t_e.size
     if not isinstance(models, (list, tuple)):
         models = [models] * n
+    if arcs is None:
+        arcs = (np.full(n, np.nan), np.full(n, np.nan))
     ratio, sweep, hole, tilt, upright = (np.zeros(n) for _ in range(5))
     d = np.zeros(n)
     for model in {id(m): m for m in models}.values():
         mine = np.array([m is model for m in models], dtype=bool)
         ratio[mine], sweep[mine], hole[mine], tilt[mine], upright[mine] = plant_values(
-            model, settings, omega[mine], v_e[mine])
+            model, settings, omega[mine], v_e[mine], arcs[0][mine], arcs[1][mine])
         d[mine] = model.spacing
     spacing = np.diff(np.concatenate(([prev_position], s_e)))
     spacing[new_sequence] = np.nan         # no spacing across a gap in the inputs
@@ -339,7 +373,10 @@ def _assemble(models, settings, t_e, omega, v_e, s_e, index0, prev_position, rec
 class PlantPredictor:
     """The same model fed one sample at a time (the live monitor). `add_speed` and `add_joint`
     return the plants completed by that sample (a Plants, often empty). A plant is completed
-    once a ground speed sample later than its planting instant has arrived."""
+    once the shaft has left the soil after it and a ground speed sample later than that has
+    arrived (its measured arc is then known: prediction.motion), or once `max_input_gap` has
+    passed since its planting instant without that. `finish` completes what is left when the
+    inputs end."""
 
     SPEED_HISTORY = 4096      # speed samples kept to locate plants reported late by the drive
 
@@ -354,6 +391,7 @@ class PlantPredictor:
         self._speed_filter = GroundSpeedFilter(settings.speed_limits) if speed_filter else None
         self._speed_seen = -math.inf                     # latest finite sample time
         self._joint = None                               # last (t, θmax, ω)
+        self._joints = deque(maxlen=self.SPEED_HISTORY)  # (t, θmax, ω) kept for the arcs
         self._next_k = None
         self._pending = []                               # (t_e, ω, model in force)
         self._changes = []                               # (t, model) not yet in force
@@ -395,13 +433,15 @@ class PlantPredictor:
         no spacing (call before that plant is completed)."""
         self._gaps.append((float(start), float(end)))
 
-    def add_joint(self, t: float, position: float, velocity: float = math.nan) -> Plants:
+    def add_joint(self, t: float, position: float,
+                  velocity: float | None = math.nan) -> Plants:
         t, position = float(t), float(position)
         velocity = float(velocity) if velocity is not None else math.nan
         if not (math.isfinite(t) and math.isfinite(position)):
             return self._nothing()
         if self._joint is None:
             self._joint = (t, position, velocity)
+            self._joints.append(self._joint)
             self._next_k = _first_k(self.model, position)
             return self._nothing()
         t0, th0, w0 = self._joint
@@ -415,7 +455,7 @@ class PlantPredictor:
             theta_k = _threshold(self.model, float(self._next_k))
             t_e, omega = _crossing(theta_k, t0, t, th0, th1, w0, velocity)
             if not in_gap:             # a crossing inside a gap would be invented
-                self._pending.append((float(t_e), float(omega), self.model))
+                self._pending.append((float(t_e), float(omega), self.model, theta_k))
             self._next_k += 1
             if self._changes and self._changes[0][0] < t_e:
                 # this plant was the old design's last; the latest change before it is in force
@@ -424,38 +464,65 @@ class PlantPredictor:
                 self._changes = self._changes[n:]
                 self._next_k = _first_k(self.model, theta_k)
         self._joint = (t, th1, velocity)
+        self._joints.append(self._joint)
         return self._resolve()
 
-    def _resolve(self):
+    def finish(self) -> Plants:
+        """The inputs ended: complete every plant that has a position (its arc as far as it
+        was measured, else the figures at its instant)."""
+        return self._resolve(final=True)
+
+    def _arc_done(self, t_e: float, model: Planting, theta_k: float, last_t: float) -> bool:
+        """Is the plant's arc measured as far as it will be (prediction.motion)? Yes once the
+        shaft is past the soil exit and a speed sample later than that has come, or once the
+        inputs have run on `max_input_gap` past the planting instant without that."""
+        exit_angle = theta_k + model.exit_angle
+        t_joint, th_last, _ = self._joint
+        if th_last < exit_angle:
+            return max(t_joint, last_t) - t_e > self.settings.max_input_gap
+        past = t_joint                       # the first joint sample at or past the exit
+        for t, th, _ in reversed(self._joints):
+            if th < exit_angle:
+                break
+            past = t
+        return past < last_t
+
+    def _resolve(self, final: bool = False) -> Plants:
         if not self._pending or len(self._speed) < 2:
             return self._nothing()
         first_t, last_t = self._speed[0][0], self._speed[-1][0]
         done, keep = [], []
-        for t_e, omega, model in self._pending:
+        for t_e, omega, model, theta_k in self._pending:
             if t_e >= last_t:
-                keep.append((t_e, omega, model))
-            elif t_e >= first_t:
-                done.append((t_e, omega, model))
-            # else: before the first speed sample: no position, dropped (as in replay)
+                keep.append((t_e, omega, model, theta_k))
+            elif t_e < first_t:
+                pass        # before the first speed sample: no position, dropped (as in replay)
+            elif (final or not self.settings.measured_arc
+                  or self._arc_done(t_e, model, theta_k, last_t)):
+                done.append((t_e, omega, model, theta_k))
+            else:
+                keep.append((t_e, omega, model, theta_k))
         self._pending = keep
         if not done:
             return self._nothing()
         times = [s[0] for s in self._speed]
         rows, models = [], []
-        for t_e, omega, model in done:
+        for t_e, omega, model, theta_k in done:
             j = _bisect_right(times, t_e)
             (t0, v0, s0), (t1, v1, _) = self._speed[j - 1], self._speed[j]
             if t1 - t0 > self.settings.max_input_gap:
                 continue                # inside a gap of the ground speed: not reported
             v_e, s_e = _at_speed(np.float64(t_e), t0, t1, v0, v1, s0)
-            rows.append((t_e, omega, float(v_e), float(s_e)))
+            rows.append((t_e, omega, float(v_e), float(s_e), theta_k))
             models.append(model)
         if not rows:
             return self._nothing()
-        t_e, omega, v_e, s_e = (np.array(c) for c in zip(*rows))
+        t_e, omega, v_e, s_e, theta_k = (np.array(c) for c in zip(*rows))
+        arcs = self._arcs(models, theta_k) if self.settings.measured_arc else None
         new_sequence = _after_gap(t_e, self._prev_time, np.array(self._gaps).reshape(-1, 2))
         plants = _assemble(models, self.settings, t_e, omega, v_e, s_e, self._count,
-                           self._prev_position, tuple(self._recent), new_sequence, self.row)
+                           self._prev_position, tuple(self._recent), new_sequence, self.row,
+                           arcs)
         self._count += len(plants)
         self._prev_position = float(plants.position[-1])
         self._prev_time = float(plants.time[-1])
@@ -464,9 +531,21 @@ class PlantPredictor:
         self._recent.extend(plants.upright.tolist())
         return plants
 
-    def _nothing(self):
+    def _arcs(self, models: Sequence[Planting],
+              theta_k: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(sweep, tilt) of the measured arcs of plants at `theta_k` (NaN: not covered)."""
+        jt, theta, jw = (np.array(c, dtype=float) for c in zip(*self._joints))
+        st, sv, ss = (np.array(c, dtype=float) for c in zip(*self._speed))
+        sweep, tilt = np.full(theta_k.size, np.nan), np.full(theta_k.size, np.nan)
+        for model in {id(m): m for m in models}.values():
+            mine = np.array([m is model for m in models], dtype=bool)
+            sweep[mine], tilt[mine], _ = arc_figures(model, theta_k[mine], jt, theta, jw, st,
+                                                     sv, ss, self.settings.max_input_gap)
+        return sweep, tilt
+
+    def _nothing(self) -> Plants:
         return Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
 
 
-def _bisect_right(a, x):
+def _bisect_right(a: Sequence[float], x: float) -> int:
     return bisect.bisect_right(a, x)

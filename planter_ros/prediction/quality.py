@@ -113,7 +113,7 @@ def spacing_quality_by_row(spacing: ArrayLike, design_spacing: ArrayLike, row: A
 
 def format_quality(quality: dict) -> str:
     """One line for people: percentages with what each index counts."""
-    def pct(value):
+    def pct(value: float | None) -> str:
         return 'n/a' if value is None else f'{100 * value:.1f} %'
     return (f"quality of feed {pct(quality['quality_of_feed_index'])}, multiples "
             f"{pct(quality['multiple_index'])} (x <= 0.5 d), misses {pct(quality['miss_index'])}"

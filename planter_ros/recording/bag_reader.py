@@ -10,27 +10,28 @@ is reported as a warning with the log-time range it covered, relative to the bag
 message.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 import re
 
 from planter_ros import interfaces
 
-from .recovery import Loss, UnreadableError, one_line, read_records
+from .cdr import Raw
+from .errors import BagUnreadableError
+from .recovery import Loss, one_line, read_records
 
 MAGIC = b'\x89MCAP0\r\n'
 
 
-class BagError(ValueError):
-    """A bag that cannot be read (one line: the file and what is wrong)."""
-
-
-def bag_files(path):
+def bag_files(path: str | Path) -> list[Path]:
     """The .mcap files of a bag: the file itself, or a directory's files in split order."""
     return _bag_parts(path)[0]
 
 
-def _bag_parts(path):
+def _bag_parts(path: str | Path) -> tuple[list[Path], list[tuple[int, Loss]]]:
     """(files present in split order, [(index in that order, Loss)] for missing split files).
 
     A directory's metadata.yaml (rosbag2) lists its files and their time ranges; without it,
@@ -38,12 +39,12 @@ def _bag_parts(path):
     neighbours' messages (filled in by read_recording)."""
     path = Path(path)
     if not path.exists():
-        raise BagError(f'bag {path} does not exist')
+        raise BagUnreadableError(f'bag {path} does not exist')
     if not path.is_dir():
         return [path], []
     files = sorted(path.glob('*.mcap'), key=_split_index)
     if not files:
-        raise BagError(f'bag directory {path} holds no .mcap files')
+        raise BagUnreadableError(f'bag directory {path} holds no .mcap files')
     missing = []
     listed = _listed_files(path)
     if listed:
@@ -68,7 +69,7 @@ def _bag_parts(path):
     return files, missing
 
 
-def _listed_files(directory):
+def _listed_files(directory: Path) -> list[tuple[str, int | None, int | None]]:
     """[(file name, start ns, end ns)] from a rosbag2 metadata.yaml, or [] (none, unreadable)."""
     from planter_ros.safe_yaml import YamlError, load_yaml
     meta = directory / 'metadata.yaml'
@@ -87,13 +88,14 @@ def _listed_files(directory):
         return []
 
 
-def _split_index(path):
+def _split_index(path: Path) -> tuple[int, str]:
     m = re.search(r'_(\d+)$', path.stem)
     return (int(m.group(1)) if m else -1, path.name)
 
 
-def check_magic(path):
-    """True if `path` is a finalised MCAP file (magic at both ends); BagError if not MCAP."""
+def check_magic(path: str | Path) -> bool:
+    """True if `path` is a finalised MCAP file (magic at both ends); BagUnreadableError if it
+    is not MCAP."""
     try:
         with open(path, 'rb') as f:
             head = f.read(len(MAGIC))
@@ -102,9 +104,9 @@ def check_magic(path):
             f.seek(max(size - len(MAGIC), 0))
             tail = f.read(len(MAGIC))
     except OSError as exc:
-        raise BagError(f'cannot read {path}: {exc.strerror or exc}') from None
+        raise BagUnreadableError(f'cannot read {path}: {exc.strerror or exc}') from None
     if head != MAGIC:
-        raise BagError(f'{path} is not an MCAP file (no MCAP magic at its start)')
+        raise BagUnreadableError(f'{path} is not an MCAP file (no MCAP magic at its start)')
     return size > 2 * len(MAGIC) and tail == MAGIC
 
 
@@ -131,7 +133,8 @@ class Recording:
     losses: list = field(default_factory=list)     # one line per lost part (also in warnings)
 
 
-def pick_topics(channels, wanted):
+def pick_topics(channels: Mapping[int, tuple[str, str]], wanted: Iterable[interfaces.Topic]
+                ) -> dict[interfaces.Topic, tuple[int, str]]:
     """channels {id: (name, type)} -> {Topic: (id, name)} for the wanted contract topics."""
     found = {}
     for topic in wanted:
@@ -146,7 +149,7 @@ def pick_topics(channels, wanted):
     return found
 
 
-def read_recording(path, wanted):
+def read_recording(path: str | Path, wanted: Sequence[interfaces.Topic]) -> Recording:
     """Read the `wanted` topics (interfaces.Topic) of a bag as raw CDR, in file order."""
     files, missing = _bag_parts(path)
     topics, all_topics, metadata, warnings = {}, {}, {}, []
@@ -167,9 +170,9 @@ def read_recording(path, wanted):
         if channels is None:
             try:
                 found = read_records(file)
-            except UnreadableError as exc:
+            except BagUnreadableError as exc:
                 if len(files) == 1:
-                    raise BagError(str(exc)) from None
+                    raise
                 warnings.append(f'{exc}: file skipped')
                 found = None
             if found is not None:
@@ -212,9 +215,9 @@ def read_recording(path, wanted):
     return Recording(files, topics, all_topics, metadata, warnings + lost, count, lost)
 
 
-def _lost_range(loss, t0):
+def _lost_range(loss: Loss, t0: int | None) -> str:
     """The log times a loss covered, in s after the bag's first message, for people."""
-    def at(ns):
+    def at(ns: int) -> str:
         return f'{(ns - t0) * 1e-9:.3f} s' if t0 is not None else f'{ns * 1e-9:.3f} s (epoch)'
     if loss.start is not None and loss.end is not None:
         return f'messages logged {at(loss.start)} to {at(loss.end)} after the start are lost'
@@ -225,7 +228,9 @@ def _lost_range(loss, t0):
     return 'the time range lost is unknown'
 
 
-def _read_fast(file, wanted):
+def _read_fast(file: Path, wanted: Iterable[interfaces.Topic]
+               ) -> tuple[dict[int, tuple[str, str]], dict[int, tuple[list[int], list[Raw]]],
+                          dict[str, dict[str, str]]]:
     """A finalised file through its indexes: (channels {id: (topic, type)}, {id: (log times,
     raw CDR)} of the wanted topics' channels, metadata records). Raises on anything damaged."""
     from .indexed import IndexedFile
@@ -234,7 +239,7 @@ def _read_fast(file, wanted):
         return indexed.channels, indexed.messages(ids), indexed.metadata()
 
 
-def _blocks(messages):
+def _blocks(messages: Iterable[tuple[int, int, Raw]]) -> dict[int, tuple[list[int], list[Raw]]]:
     """[(channel id, log time, raw)] in file order -> {channel id: (log times, raws)}."""
     out = {}
     for cid, log_time, data in messages:

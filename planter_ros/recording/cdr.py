@@ -33,13 +33,24 @@ Rules shared by the bulk decoders:
 * Stamps are header.stamp in integer nanoseconds (sec * 1e9 + nanosec, int64).
 * Input is any sequence of bytes-like objects (bytes, bytearray, memoryview); order is kept.
 
-decode_string (one message, std_msgs/String) is strict instead: it raises CdrError, with a
-one-line message, for anything that is not a well-formed CDR string.
+decode_string (one message, std_msgs/String) is strict instead: it raises DecodeError
+(recording.errors), with a one-line message, for anything that is not a well-formed CDR string.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
 import struct
 
 import numpy as np
+from numpy.typing import NDArray
+
+from planter_ros.kinematics.arrays import FloatArray
+
+from .errors import DecodeError
+
+Raw = bytes | bytearray | memoryview                 # one message's CDR bytes
+Ranges = list[tuple[int, int]]                      # byte ranges that fix a layout
 
 HEADER = 4                  # encapsulation header bytes; alignment counts from its end
 STAMP = 4                   # header.stamp.sec (int32) at 4, header.stamp.nanosec (uint32) at 8
@@ -52,51 +63,48 @@ _UNPRODUCTIVE = 16
 _WORTH = 256
 
 
-class CdrError(ValueError):
-    """A CDR message that cannot be decoded (one line: what is wrong with it)."""
-
-
 # ----------------------------------------------------------------------------- walking
 
-def _align(pos, size):
+def _align(pos: int, size: int) -> int:
     """pos rounded up to 4 + a multiple of `size` (XCDR1: aligned after the header)."""
     return pos + (-(pos - HEADER) % size)
 
 
-def _byte_order(raw, what):
-    """'<' or '>' from the encapsulation header; CdrError for anything but plain CDR."""
+def _byte_order(raw: Raw, what: str) -> str:
+    """'<' or '>' from the encapsulation header; DecodeError for anything but plain CDR."""
     if len(raw) < HEADER:
-        raise CdrError(f'{what}: {len(raw)} bytes, shorter than the 4-byte CDR encapsulation '
-                       'header')
+        raise DecodeError(f'{what}: {len(raw)} bytes, shorter than the 4-byte CDR encapsulation '
+                          'header')
     if raw[0] != 0 or raw[1] > 1:
-        raise CdrError(f'{what}: encapsulation {bytes(raw[:2]).hex()} is not plain CDR '
-                       '(0000 big endian or 0001 little endian)')
+        raise DecodeError(f'{what}: encapsulation {bytes(raw[:2]).hex()} is not plain CDR '
+                          '(0000 big endian or 0001 little endian)')
     return '<' if raw[1] else '>'
 
 
-def _u32(raw, pos, e, what, field):
+def _u32(raw: Raw, pos: int, e: str, what: str, field: str) -> int:
     if pos + 4 > len(raw):
-        raise CdrError(f'{what}: truncated at {field} (needs bytes {pos}-{pos + 3}, message '
-                       f'has {len(raw)})')
+        raise DecodeError(f'{what}: truncated at {field} (needs bytes {pos}-{pos + 3}, message '
+                          f'has {len(raw)})')
     return struct.unpack_from(e + 'I', raw, pos)[0]
 
 
-def _need(raw, end, what, field):
+def _need(raw: Raw, end: int, what: str, field: str) -> None:
     if end > len(raw):
-        raise CdrError(f'{what}: truncated in {field} (needs {end} bytes, message has '
-                       f'{len(raw)})')
+        raise DecodeError(f'{what}: truncated in {field} (needs {end} bytes, message has '
+                          f'{len(raw)})')
 
 
-def _string_end(raw, pos, e, what, field):
+def _string_end(raw: Raw, pos: int, e: str, what: str, field: str) -> int:
     """End of the CDR string whose length is at pos (checked to fit, length >= 1)."""
     n = _u32(raw, pos, e, what, f'{field} length')
     if n == 0:
-        raise CdrError(f'{what}: {field} has length 0 (a CDR string holds at least its NUL)')
+        raise DecodeError(f'{what}: {field} has length 0 (a CDR string holds at least its NUL)')
     _need(raw, pos + 4 + n, what, field)
     return pos + 4 + n
 
 
-def _float64_sequence(raw, pos, e, what, field):
+def _float64_sequence(raw: Raw, pos: int, e: str, what: str,
+                      field: str) -> tuple[int, int, int, tuple[int, int]]:
     """(count, offset of element 0, end, count's byte range) of the float64 sequence whose
     count is at pos (after alignment)."""
     pos = _align(pos, 4)
@@ -107,14 +115,14 @@ def _float64_sequence(raw, pos, e, what, field):
     return count, data, end, (pos, pos + 4)
 
 
-def _header(raw, what):
+def _header(raw: Raw, what: str) -> tuple[str, int, Ranges]:
     """(byte order, end of std_msgs/Header, layout-defining byte ranges so far)."""
     e = _byte_order(raw, what)
     end = _string_end(raw, FRAME_ID, e, what, 'header.frame_id')
     return e, end, [(0, 2), (FRAME_ID, FRAME_ID + 4)]
 
 
-def _twist_layout(raw):
+def _twist_layout(raw: Raw) -> tuple[str, tuple[int, int], Ranges]:
     """TwistStamped: (byte order, (linear.x offset, angular.z offset), layout byte ranges).
     twist is six float64 in a row: linear x y z, angular x y z."""
     what = 'TwistStamped'
@@ -124,7 +132,7 @@ def _twist_layout(raw):
     return e, (linear_x, linear_x + 40), ranges
 
 
-def _navsatfix_layout(raw):
+def _navsatfix_layout(raw: Raw) -> tuple[str, tuple[tuple[int, str] | int, ...], Ranges]:
     """NavSatFix: (byte order, offsets of status.status (int8), latitude, longitude,
     position_covariance[0] and [4] (east and north variance, ENU), position_covariance_type
     (uint8), layout byte ranges). After the header: status int8, service uint16, three float64,
@@ -140,7 +148,8 @@ def _navsatfix_layout(raw):
                (kind, 'u1')), ranges
 
 
-def _joint_layout(raw, joint):
+def _joint_layout(raw: Raw, joint: bytes | None) -> tuple[str, tuple[int | None, int | None],
+                                                           Ranges]:
     """JointState: (byte order, (position offset, velocity offset), layout byte ranges) for the
     joint named `joint` (bytes, or None); an offset is None where that value is absent.
 
@@ -151,7 +160,7 @@ def _joint_layout(raw, joint):
     pos = _align(pos, 4)
     count = _u32(raw, pos, e, what, 'name count')
     if count > (len(raw) - pos - 4) // 5:           # each name: 4-byte length + at least NUL
-        raise CdrError(f'{what}: name count {count} does not fit in {len(raw)} bytes')
+        raise DecodeError(f'{what}: name count {count} does not fit in {len(raw)} bytes')
     ranges.append((pos, pos + 4))
     pos += 4
     index = None
@@ -177,9 +186,10 @@ def _joint_layout(raw, joint):
 
 # ----------------------------------------------------------------------------- bulk
 
-def _bulk(raws, layout_of, n_values):
+def _bulk(raws: Sequence[Raw], layout_of: Callable[[Raw], tuple[str, tuple, Ranges]],
+          n_values: int) -> tuple[NDArray[np.int64], FloatArray]:
     """Decode messages grouped by layout. layout_of(raw) -> (byte order, offsets, ranges),
-    raising CdrError for a message it cannot walk; an offset is a float64's, or (offset, numpy
+    raising DecodeError for a message it cannot walk; an offset is a float64's, or (offset, numpy
     type code) for another number ('i1', 'u1'). Returns (stamp ns int64 [n], values float64
     [n_values, n]); a left-out message has stamp 0 and NaN values, an absent value (offset
     None) is NaN."""
@@ -204,7 +214,7 @@ def _bulk(raws, layout_of, n_values):
             first = int(pending[0])
             try:
                 e, offsets, ranges = layout_of(raws[idx[first]])
-            except CdrError:
+            except DecodeError:
                 pending = pending[1:]               # left out; others may still decode
                 continue
             if alone:                               # one-off layouts: walk each by itself
@@ -227,14 +237,16 @@ def _bulk(raws, layout_of, n_values):
     return stamps, values
 
 
-def _field(buf, n, rows, offset, dtype):
+def _field(buf: bytes, n: int, rows: NDArray[np.intp], offset: int, dtype: str) -> np.ndarray:
     """The value at `offset` of each of `rows` in buf, n messages of equal length back to back
     (a strided view: no copy of the messages)."""
     size = len(buf) // n
     return np.ndarray((n,), dtype=dtype, buffer=buf, offset=offset, strides=(size,))[rows]
 
 
-def _read(buf, idx, rows, e, offsets, stamps, values):
+def _read(buf: bytes, idx: NDArray[np.intp], rows: NDArray[np.intp], e: str,
+          offsets: tuple[tuple[int, str] | int | None, ...], stamps: NDArray[np.int64],
+          values: FloatArray) -> None:
     """Stamps and values of `rows` (all of one layout) into the outputs at idx[rows]."""
     out = idx[rows]
     sec = _field(buf, idx.size, rows, STAMP, e + 'i4').astype(np.int64)
@@ -249,20 +261,22 @@ def _read(buf, idx, rows, e, offsets, stamps, values):
 
 # ----------------------------------------------------------------------------- public
 
-def decode_twist(raws):
+def decode_twist(raws: Sequence[Raw]) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
     """(stamp ns int64, twist.linear.x, twist.angular.z float64) of TwistStamped CDR messages;
     a message that cannot be decoded has stamp 0 and NaN values."""
     stamps, values = _bulk(raws, _twist_layout, 2)
     return stamps, values[0], values[1]
 
 
-def decode_ground_speed(raws):
+def decode_ground_speed(raws: Sequence[Raw]) -> tuple[NDArray[np.int64], FloatArray]:
     """(stamp ns int64, twist.linear.x m/s float64) of TwistStamped CDR messages."""
     stamps, linear_x, _ = decode_twist(raws)
     return stamps, linear_x
 
 
-def decode_navsatfix(raws):
+def decode_navsatfix(raws: Sequence[Raw]) -> tuple[NDArray[np.int64], FloatArray, FloatArray,
+                                                  FloatArray, FloatArray, FloatArray,
+                                                  FloatArray]:
     """(stamp ns int64, status, latitude, longitude, east variance, north variance, covariance
     type) of sensor_msgs/NavSatFix CDR messages, the integers as float64; a message that
     cannot be decoded has stamp 0 and NaN values (NaN status: not a fix)."""
@@ -270,7 +284,8 @@ def decode_navsatfix(raws):
     return (stamps, *values)
 
 
-def decode_joint_states(raws, joint_name):
+def decode_joint_states(raws: Sequence[Raw], joint_name: str | None
+                        ) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
     """(stamp ns int64, position, velocity float64) of the joint `joint_name` in JointState CDR
     messages. NaN where the message lacks that joint (NaN position) or its velocity (NaN
     velocity), or cannot be decoded (stamp 0 too). A message with no names and exactly one
@@ -280,17 +295,17 @@ def decode_joint_states(raws, joint_name):
     return stamps, values[0], values[1]
 
 
-def decode_string(raw):
-    """The text of one std_msgs/String CDR message. Raises CdrError (a ValueError) with a
+def decode_string(raw: Raw) -> str:
+    """The text of one std_msgs/String CDR message. Raises DecodeError with a
     one-line message for an empty, truncated, unterminated or non-UTF-8 payload."""
     what = 'std_msgs/String'
     e = _byte_order(raw, what)
     end = _string_end(raw, HEADER, e, what, 'data')
     if raw[end - 1] != 0:
-        raise CdrError(f'{what}: data is not NUL-terminated (byte {end - 1} is '
-                       f'0x{raw[end - 1]:02x})')
+        raise DecodeError(f'{what}: data is not NUL-terminated (byte {end - 1} is '
+                          f'0x{raw[end - 1]:02x})')
     try:
         return bytes(raw[HEADER + 4:end - 1]).decode('utf-8')
     except UnicodeDecodeError as exc:
-        raise CdrError(f'{what}: data is not UTF-8 ({exc.reason} at byte '
-                       f'{HEADER + 4 + exc.start})') from None
+        raise DecodeError(f'{what}: data is not UTF-8 ({exc.reason} at byte '
+                          f'{HEADER + 4 + exc.start})') from None

@@ -10,10 +10,16 @@ tilt (rad, + leaning forward), upright (true/false); an undefined value is null.
 CSV: the same table, a header line, empty cells for undefined values, upright as 1/0.
 """
 
+from __future__ import annotations
+
 import csv
 import io
 import json
 import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .replay import ReplayResult
 
 COORDINATE_DECIMALS = 9
 PROPERTIES = ('row', 'row_name', 'index', 'time', 'spacing', 'spacing_error', 'hole_width',
@@ -22,12 +28,12 @@ CSV_COLUMNS = ('row', 'row_name', 'index', 'time', 'longitude', 'latitude', 'spa
                'spacing_error', 'hole_width', 'tilt', 'upright')
 
 
-def _number(value):
+def _number(value: float) -> float | None:
     value = float(value)
     return value if math.isfinite(value) else None
 
 
-def plant_records(result):
+def plant_records(result: ReplayResult) -> list[dict]:
     """One dict per plant of a ReplayResult: the CSV columns, None for undefined values."""
     p = result.plants
     names = {row.index: row.name for row in result.rows}
@@ -43,7 +49,7 @@ def plant_records(result):
     return out
 
 
-def geojson(result):
+def geojson(result: ReplayResult) -> dict:
     """The RFC 7946 FeatureCollection (a dict) of a ReplayResult's plants."""
     features = []
     for record in plant_records(result):
@@ -56,11 +62,11 @@ def geojson(result):
     return {'type': 'FeatureCollection', 'features': features}
 
 
-def geojson_text(result):
+def geojson_text(result: ReplayResult) -> str:
     return json.dumps(geojson(result), allow_nan=False, separators=(',', ':')) + '\n'
 
 
-def csv_text(result):
+def csv_text(result: ReplayResult) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator='\n')
     writer.writerow(CSV_COLUMNS)

@@ -12,19 +12,30 @@ checked.
 
 The summary is parsed by recovery.read_summary (footer and summary CRC checked). Anything
 inconsistent - no intact summary, a chunk header, a CRC, an index pointing outside its chunk or
-at a record of another kind or channel - raises NotIndexed, IndexMismatch or the decompressor's
-error: the caller then reads the file carefully (recovery.read_records), which finds and
-reports exactly what is damaged. A chunk written without message indexes is read record by
-record (mcap's parser).
+at a record of another kind or channel - raises BagDamagedError (recording.errors) or the
+decompressor's error: the caller then reads the file carefully (recovery.read_records), which
+finds and reports exactly what is damaged. A chunk written without message indexes is read
+record by record (mcap's parser).
 """
 
+from __future__ import annotations
+
+from collections.abc import Collection
 import mmap
+from pathlib import Path
 import struct
+from typing import TYPE_CHECKING
 import zlib
 
 import numpy as np
+from numpy.typing import NDArray
 
+from .cdr import Raw
+from .errors import BagDamagedError
 from .recovery import check_chunk_header, read_summary, record_at
+
+if TYPE_CHECKING:
+    from mcap.records import ChunkIndex
 
 _MESSAGE = 0x05
 _MESSAGE_INDEX = 0x07
@@ -33,18 +44,10 @@ _MESSAGE_INDEX = 0x07
 _DATA = 1 + 8 + 2 + 4 + 8 + 8
 
 
-class NotIndexed(ValueError):
-    """The file has no intact summary with chunk indexes (read it carefully instead)."""
-
-
-class IndexMismatch(ValueError):
-    """An index does not agree with the records it points at (read the file carefully)."""
-
-
 class IndexedFile:
     """A finalised MCAP file opened through its summary (a context manager)."""
 
-    def __init__(self, path):
+    def __init__(self, path: str | Path) -> None:
         self.path = path
         self._file = open(path, 'rb')
         try:
@@ -55,36 +58,36 @@ class IndexedFile:
             raise
         if summary is None or not summary['chunks']:
             self.close()
-            raise NotIndexed(f'{path}: no intact summary with a chunk index')
+            raise BagDamagedError(f'{path}: no intact summary with a chunk index')
         self._summary = summary
         self.channels = {cid: (c.topic, summary['schemas'].get(c.schema_id, ''))
                          for cid, c in summary['channels'].items()}
 
-    def close(self):
+    def close(self) -> None:
         data = getattr(self, '_data', None)
         if data is not None:
             data.close()
             self._data = None
         self._file.close()
 
-    def __enter__(self):
+    def __enter__(self) -> IndexedFile:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def metadata(self):
+    def metadata(self) -> dict[str, dict[str, str]]:
         """{record name: {key: value}} of the metadata records the summary indexes."""
         from mcap.records import Metadata
         out = {}
         for index in self._summary['metadata']:
             _, record, _ = record_at(self._data, index.offset)
             if not isinstance(record, Metadata):
-                raise IndexMismatch(f'metadata index {index.name!r} points at no metadata')
+                raise BagDamagedError(f'metadata index {index.name!r} points at no metadata')
             out[record.name] = dict(record.metadata)
         return out
 
-    def messages(self, ids):
+    def messages(self, ids: Collection[int]) -> dict[int, tuple[list[int], list[Raw]]]:
         """{channel id: (log times ns, raw CDR memoryviews)} of the channels `ids`, each in
         file order (chunk by chunk, then by position in the chunk)."""
         out = {cid: ([], []) for cid in ids}
@@ -123,20 +126,20 @@ class IndexedFile:
             limit = bounds[np.searchsorted(bounds, at, side='right')]
             if (np.any(fields[:, 0] != _MESSAGE) or np.any(channel != cid)
                     or np.any(length < _DATA - 9) or np.any(end > limit)):
-                raise IndexMismatch(f'message index of channel {cid} does not match its records')
+                raise BagDamagedError(f'message index of channel {cid} does not match its records')
             logs, raws = out[cid]
             logs += fields[:, 15:23].copy().view('<u8')[:, 0].tolist()
             raws += [view[a:b] for a, b in zip((at + _DATA).tolist(), end.tolist())]
         return out
 
-    def _chunk_records(self, index):
+    def _chunk_records(self, index: ChunkIndex) -> bytes:
         """The uncompressed records of the chunk `index` points at, CRC checked."""
         data, pos = self._data, index.chunk_start_offset
         if pos + 9 > len(data) or data[pos] != 0x06:
-            raise IndexMismatch(f'chunk index points at byte {pos}, not at a chunk')
+            raise BagDamagedError(f'chunk index points at byte {pos}, not at a chunk')
         (length,) = struct.unpack_from('<Q', data, pos + 1)
         if pos + 9 + length > len(data):
-            raise IndexMismatch(f'chunk at byte {pos} runs past the end of the file')
+            raise BagDamagedError(f'chunk at byte {pos} runs past the end of the file')
         check_chunk_header(data, pos, length)
         body = pos + 9
         _, _, size, crc, n = struct.unpack_from('<QQQII', data, body)
@@ -152,26 +155,27 @@ class IndexedFile:
         else:
             records = raw
         if len(records) != size or (crc and zlib.crc32(records) != crc):
-            raise IndexMismatch(f'chunk at byte {pos}: CRC mismatch')
+            raise BagDamagedError(f'chunk at byte {pos}: CRC mismatch')
         return records
 
-    def _offsets(self, index, cid, size):
+    def _offsets(self, index: ChunkIndex, cid: int, size: int) -> NDArray[np.int64]:
         """Sorted offsets (int64) of channel `cid`'s messages in the chunk of `index`."""
         data, pos = self._data, index.message_index_offsets[cid]
         if pos + 15 > len(data) or data[pos] != _MESSAGE_INDEX:
-            raise IndexMismatch(f'message index of channel {cid} points at byte {pos}, not at a '
-                                'message index')
+            raise BagDamagedError(f'message index of channel {cid} points at byte {pos}, not at a '
+                                  'message index')
         (length,) = struct.unpack_from('<Q', data, pos + 1)
         channel, count = struct.unpack_from('<HI', data, pos + 9)
         if channel != cid or count % 16 or 6 + count > length or pos + 9 + length > len(data):
-            raise IndexMismatch(f'message index at byte {pos} is inconsistent')
+            raise BagDamagedError(f'message index at byte {pos} is inconsistent')
         pairs = np.frombuffer(bytes(data[pos + 15:pos + 15 + count]), dtype='<u8')
         offsets = np.sort(pairs[1::2]).astype(np.int64)
         if offsets.size and (offsets[0] < 0 or offsets[-1] + _DATA > size):
-            raise IndexMismatch(f'message index at byte {pos} points outside its chunk')
+            raise BagDamagedError(f'message index at byte {pos} points outside its chunk')
         return offsets
 
-    def _whole_chunk(self, index, out):
+    def _whole_chunk(self, index: ChunkIndex,
+                     out: dict[int, tuple[list[int], list[Raw]]]) -> None:
         from mcap.records import Message
         _, chunk, _ = record_at(self._data, index.chunk_start_offset)
         for record in chunk.records:

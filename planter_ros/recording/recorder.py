@@ -20,17 +20,30 @@ Messages are written as the CDR bytes they arrived in (raw subscriptions); only 
 caller publishes itself are serialised (`write_message`, rclpy.serialization).
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from enum import Enum
 import json
 import os
 from pathlib import Path
 import re
 import sys
 import time
+from typing import TYPE_CHECKING
 
 import yaml
 
 from planter_ros.config import check, setting
+
+from .errors import BagWriteError
+
+if TYPE_CHECKING:               # rclpy only where a message is serialised: replay needs none
+    from rclpy.duration import Duration
+    from rclpy.qos import QoSProfile
+
+    from planter_ros.interfaces import Qos
 
 PROFILE = 'ros2'
 SCHEMA_ENCODING = 'ros2msg'
@@ -43,10 +56,6 @@ PRIMITIVE_TYPES = frozenset((
 _FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
 # rosbag2's infinite duration in QoS YAML
 _INFINITE = {'sec': 9223372036, 'nsec': 854775807}
-
-
-class RecorderError(RuntimeError):
-    """A bag that cannot be written as asked (one line: the path or value and why)."""
 
 
 @dataclass(frozen=True)
@@ -67,44 +76,44 @@ class RecorderConfig:
                                   'recorder loses', unit='s', range=(0.001, 60.0),
                                   read_only=True)
 
-    def __post_init__(self):
-        check(self, RecorderError)
+    def __post_init__(self) -> None:
+        check(self, BagWriteError)
 
 
 # ----------------------------------------------------------------------------- definitions
 
-def _share_dir(package):
+def _share_dir(package: str) -> Path:
     os.environ.setdefault('AMENT_PREFIX_PATH', sys.prefix)
     from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
     try:
         return Path(get_package_share_directory(package))
     except PackageNotFoundError:
-        raise RecorderError(f'message package {package} not found (AMENT_PREFIX_PATH='
+        raise BagWriteError(f'message package {package} not found (AMENT_PREFIX_PATH='
                             f'{os.environ.get("AMENT_PREFIX_PATH")})') from None
 
 
-def _split_type(type_name):
+def _split_type(type_name: str) -> tuple[str, str, str]:
     parts = type_name.split('/')
     if len(parts) == 2:
         return parts[0], 'msg', parts[1]
     if len(parts) == 3:
         return tuple(parts)
-    raise RecorderError(f'message type {type_name!r} is not pkg/msg/Type')
+    raise BagWriteError(f'message type {type_name!r} is not pkg/msg/Type')
 
 
-def message_definition(type_name):
+def message_definition(type_name: str) -> str:
     """rosbag2's full ros2msg text of `pkg/msg/Type` (dependencies appended, each once)."""
     seen = set()
 
-    def text_of(name):
+    def text_of(name: str) -> tuple[str, str]:
         package, namespace, base = _split_type(name)
         path = _share_dir(package) / namespace / f'{base}.msg'
         try:
             return path.read_text(), package
         except OSError:
-            raise RecorderError(f'no message definition {path} for {name}') from None
+            raise BagWriteError(f'no message definition {path} for {name}') from None
 
-    def append(name):
+    def append(name: str) -> str:
         text, package = text_of(name)
         deps = set()
         for match in _FIELD_TYPE.finditer(text):
@@ -122,7 +131,7 @@ def message_definition(type_name):
     return append(type_name)
 
 
-def type_hash(type_name):
+def type_hash(type_name: str) -> str:
     """RIHS01 hash of a type from the .json the wheels ship next to the .msg ('' if absent)."""
     package, namespace, base = _split_type(type_name)
     try:
@@ -135,7 +144,7 @@ def type_hash(type_name):
     return ''
 
 
-def qos_yaml(qos):
+def qos_yaml(qos: Qos | QoSProfile | dict | None) -> str:
     """offered_qos_profiles YAML (rosbag2 v9 style) of an interfaces.Qos, an rclpy QoSProfile
     or a ready dict."""
     if hasattr(qos, 'profile'):
@@ -149,14 +158,14 @@ def qos_yaml(qos):
     return yaml.safe_dump(profiles, default_flow_style=False, sort_keys=False)
 
 
-def _qos_dict(qos):
-    def duration(d):
+def _qos_dict(qos: QoSProfile) -> dict:
+    def duration(d: Duration) -> dict[str, int]:
         ns = d.nanoseconds
         if ns >= 2 ** 63 - 1:
             return dict(_INFINITE)
         return {'sec': ns // 1_000_000_000, 'nsec': ns % 1_000_000_000}
 
-    def word(enum_value):
+    def word(enum_value: Enum) -> str:
         return enum_value.name.lower()
 
     return {
@@ -180,7 +189,8 @@ class _Channel:
     __slots__ = ('name', 'type_name', 'definition', 'hash', 'qos', 'channel', 'count',
                  'file_count')
 
-    def __init__(self, name, type_name, definition, hash_, qos):
+    def __init__(self, name: str, type_name: str, definition: str, hash_: str,
+                 qos: str) -> None:
         self.name, self.type_name, self.definition = name, type_name, definition
         self.hash, self.qos = hash_, qos
         self.channel = None
@@ -188,7 +198,8 @@ class _Channel:
         self.file_count = 0     # current file
 
 
-def default_bag_path(bags_dir='bags', prefix='planter', now=None):
+def default_bag_path(bags_dir: str | Path = 'bags', prefix: str = 'planter',
+                     now: float | None = None) -> Path:
     """`bags/planter_<YYYY_MM_DD-HH_MM_SS>` (a free name: `-1`, `-2`, ... appended if taken)."""
     stamp = time.strftime('%Y_%m_%d-%H_%M_%S', time.localtime(now))
     base = Path(bags_dir) / f'{prefix}_{stamp}'
@@ -208,17 +219,19 @@ class Recorder:
     Times passed to `write` are integer nanoseconds.
     """
 
-    def __init__(self, path=None, *, split_size=0, split_duration=0.0, flush_period=1.0,
-                 chunk_size=1 << 20, bags_dir='bags', monotonic=time.monotonic):
+    def __init__(self, path: str | Path | None = None, *, split_size: int = 0,
+                 split_duration: float = 0.0, flush_period: float = 1.0,
+                 chunk_size: int = 1 << 20, bags_dir: str | Path = 'bags',
+                 monotonic: Callable[[], float] = time.monotonic) -> None:
         RecorderConfig(split_size=split_size, split_duration=split_duration,
-                       flush_period=flush_period)          # RecorderError if out of range
+                       flush_period=flush_period)          # BagWriteError if out of range
         path = default_bag_path(bags_dir) if path in (None, '') else Path(path)
         self.single_file = path.suffix == '.mcap'
         if self.single_file and (split_size or split_duration):
-            raise RecorderError(f'bag {path}: splitting needs a bag directory path '
+            raise BagWriteError(f'bag {path}: splitting needs a bag directory path '
                                 '(without .mcap)')
         if path.exists():
-            raise RecorderError(f'bag {path} already exists: choose another path '
+            raise BagWriteError(f'bag {path} already exists: choose another path '
                                 '(recordings are never overwritten)')
         try:
             if self.single_file:
@@ -226,7 +239,7 @@ class Recorder:
             else:
                 path.mkdir(parents=True, exist_ok=False)
         except OSError as exc:
-            raise RecorderError(f'cannot create bag {path}: {exc.strerror or exc}') from None
+            raise BagWriteError(f'cannot create bag {path}: {exc.strerror or exc}') from None
         self.path = path
         self.name = path.stem if self.single_file else path.name
         self.split_size = split_size
@@ -251,7 +264,8 @@ class Recorder:
         self._open_file()
 
     # -- public API --------------------------------------------------------------------
-    def add_topic(self, topic, type_name, qos=None):
+    def add_topic(self, topic: str, type_name: str,
+                  qos: Qos | QoSProfile | dict | None = None) -> None:
         """Declare a topic (`/ns/name`, `pkg/msg/Type`, rclpy QoSProfile or v9 dict)."""
         if topic in self._topics:
             return
@@ -262,19 +276,20 @@ class Recorder:
         self._topics[topic] = entry
         self._register(entry)
 
-    def add_metadata(self, name, values):
+    def add_metadata(self, name: str, values: Mapping[str, object]) -> None:
         """An MCAP Metadata record (string key/values), repeated in every split file."""
         values = {str(k): str(v) for k, v in values.items()}
         self._metadata[name] = values
         self._writer.add_metadata(name, values)
 
-    def write(self, topic, data, log_time, publish_time=None):
+    def write(self, topic: str, data: bytes | bytearray | memoryview, log_time: int,
+              publish_time: int | None = None) -> None:
         """Record one CDR message (bytes) received at `log_time` ns, sent at `publish_time`."""
         if self.closed:
-            raise RecorderError(f'bag {self.path} is closed')
+            raise BagWriteError(f'bag {self.path} is closed')
         entry = self._topics.get(topic)
         if entry is None:
-            raise RecorderError(f'topic {topic} was not added to bag {self.path}')
+            raise BagWriteError(f'topic {topic} was not added to bag {self.path}')
         log_time = int(log_time)
         self._maybe_split(log_time)
         self._writer.add_message(entry.channel, log_time, bytes(data),
@@ -288,23 +303,24 @@ class Recorder:
         self._bag_end = log_time if self._bag_end is None else max(self._bag_end, log_time)
         self.tick()
 
-    def write_message(self, topic, msg, log_time, publish_time=None):
+    def write_message(self, topic: str, msg: object, log_time: int,
+                      publish_time: int | None = None) -> None:
         """Serialise a message this process publishes (rclpy.serialization) and record it."""
         from rclpy.serialization import serialize_message
         self.write(topic, serialize_message(msg), log_time, publish_time)
 
-    def tick(self):
+    def tick(self) -> None:
         """Close the open chunk if `flush_period` has passed (call from a timer too)."""
         if self._writer is not None and self._monotonic() - self._last_flush >= self.flush_period:
             self.flush()
 
-    def flush(self):
+    def flush(self) -> None:
         """Close the open chunk and hand it to the OS (survives a SIGKILL of this process)."""
         if self._writer is not None:
             self._writer.flush()
         self._last_flush = self._monotonic()
 
-    def close(self):
+    def close(self) -> None:
         """Finalise: rosbag2 metadata record, summary with statistics; metadata.yaml for a bag
         directory. Safe to call twice."""
         if self.closed:
@@ -319,10 +335,10 @@ class Recorder:
             tmp.replace(self.path / 'metadata.yaml')
 
     @property
-    def message_count(self):
+    def message_count(self) -> int:
         return sum(t.count for t in self._topics.values())
 
-    def metadata(self):
+    def metadata(self) -> dict:
         """rosbag2 BagMetadata (version 9) of everything written so far."""
         files = list(self._file_info)
         if self._writer is not None:
@@ -350,26 +366,26 @@ class Recorder:
             'ros_distro': os.environ.get('ROS_DISTRO', 'jazzy'),
         }
 
-    def __enter__(self):
+    def __enter__(self) -> Recorder:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # -- files -------------------------------------------------------------------------
-    def _file_path(self, index):
+    def _file_path(self, index: int) -> Path:
         return self.path if self.single_file else self.path / f'{self.name}_{index}.mcap'
 
-    def _open_file(self):
+    def _open_file(self) -> None:
         from mcap.writer import CompressionType, Writer
         path = self._file_path(len(self.files))
         try:
             raw = open(path, 'xb')
         except FileExistsError:
-            raise RecorderError(f'bag file {path} already exists (recordings are never '
+            raise BagWriteError(f'bag file {path} already exists (recordings are never '
                                 'overwritten)') from None
         except OSError as exc:
-            raise RecorderError(f'cannot create bag file {path}: {exc.strerror or exc}') from None
+            raise BagWriteError(f'cannot create bag file {path}: {exc.strerror or exc}') from None
         self._stream = raw
         self._writer = Writer(raw, chunk_size=self.chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library='planter_ros recorder (mcap python)')
@@ -383,7 +399,7 @@ class Recorder:
             self._writer.add_metadata(name, values)
         self._last_flush = self._monotonic()
 
-    def _register(self, entry):
+    def _register(self, entry: _Channel) -> None:
         schema = self._schema_ids.get(entry.type_name)
         if schema is None:
             schema = self._writer.register_schema(entry.type_name, SCHEMA_ENCODING,
@@ -395,7 +411,7 @@ class Recorder:
         entry.channel = self._writer.register_channel(entry.name, MESSAGE_ENCODING, schema,
                                                       metadata)
 
-    def _current_file_info(self):
+    def _current_file_info(self) -> dict:
         start = self._file_start or 0
         return {
             'path': self._file_path(len(self.files) - 1).name,
@@ -404,7 +420,7 @@ class Recorder:
             'message_count': sum(t.file_count for t in self._topics.values()),
         }
 
-    def _close_file(self):
+    def _close_file(self) -> None:
         info = self._current_file_info()
         metadata = self.metadata()
         self._writer.add_metadata('rosbag2', {
@@ -415,7 +431,7 @@ class Recorder:
         self._file_info.append(info)
         self._writer = self._stream = None
 
-    def _maybe_split(self, log_time):
+    def _maybe_split(self, log_time: int) -> None:
         if self.single_file or self._file_start is None:
             return
         by_time = self.split_duration_ns and log_time - self._file_start >= self.split_duration_ns
@@ -425,5 +441,5 @@ class Recorder:
             self._open_file()
 
 
-__all__ = ['Recorder', 'RecorderError', 'default_bag_path', 'message_definition', 'qos_yaml',
+__all__ = ['Recorder', 'default_bag_path', 'message_definition', 'qos_yaml',
            'type_hash']

@@ -15,11 +15,22 @@ in the chunk open when they are registered, i.e. the first): if that chunk is da
 messages of later chunks cannot be given a topic and are counted as lost.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass, field
 import io
 import mmap
+from pathlib import Path
 import struct
+from typing import TYPE_CHECKING
 import zlib
+
+from .errors import BagDamagedError, BagUnreadableError
+
+if TYPE_CHECKING:                 # mcap is imported where a file is read
+    from mcap.records import Chunk, McapRecord
+
+Data = bytes | bytearray | memoryview | mmap.mmap        # a file's bytes (mapped), or a copy
 
 SCAN_LIMIT = 16 << 20          # bytes searched for a first valid record
 MAX_CHUNK = 1 << 30            # a chunk header claiming more than this is not believed
@@ -27,18 +38,6 @@ COMPRESSIONS = ('', 'zstd', 'lz4')
 _OPCODES = range(0x01, 0x10)
 _FOOTER_LENGTH = 20            # summary_start u64, summary_offset_start u64, summary_crc u32
 _MAGIC_SIZE = 8
-
-
-class UnreadableError(ValueError):
-    """No valid MCAP record where one must be (one line)."""
-
-
-class _BadRecord(ValueError):
-    """Not a whole, valid record at `pos`; `reason` says why in a few words."""
-
-    def __init__(self, pos, reason):
-        super().__init__(f'record at byte {pos}: {reason}')
-        self.reason = reason
 
 
 @dataclass
@@ -61,7 +60,7 @@ class Recovered:
     losses: list = field(default_factory=list)
     _schemas: dict = field(default_factory=dict)
 
-    def add(self, record):
+    def add(self, record: McapRecord) -> None:
         from mcap.records import Channel, Message, Metadata, Schema
         if isinstance(record, Schema):
             self._schemas[record.id] = record.name
@@ -72,23 +71,23 @@ class Recovered:
         elif isinstance(record, Metadata):
             self.metadata[record.name] = dict(record.metadata)
 
-    def last_time(self):
+    def last_time(self) -> int | None:
         return max((m[1] for m in self.messages[-1000:]), default=None)
 
 
-def one_line(exc):
+def one_line(exc: BaseException) -> str:
     """`Type: first line of the message` of an exception, for a warning."""
     text = str(exc).strip().splitlines()
     return f'{type(exc).__name__}: {text[0]}' if text else type(exc).__name__
 
 
-def read_records(file):
+def read_records(file: str | Path) -> Recovered:
     """Read every intact record of `file` (see the module doc): a Recovered.
-    UnreadableError if no valid record is found at all."""
+    BagUnreadableError if no valid record is found at all."""
     with open(file, 'rb') as f:
         size = f.seek(0, 2)
         if size <= _MAGIC_SIZE:
-            raise UnreadableError(f'{file} holds no MCAP record (file of {size} bytes)')
+            raise BagUnreadableError(f'{file} holds no MCAP record (file of {size} bytes)')
         with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
             summary = read_summary(data)
             if summary is not None and summary['chunks']:
@@ -105,23 +104,24 @@ def read_records(file):
 
 # ----------------------------------------------------------------------------- records
 
-def record_at(data, pos, end=None):
+def record_at(data: Data, pos: int,
+              end: int | None = None) -> tuple[int, McapRecord | None, int]:
     """(opcode, record or None for an unknown/ignored kind, end offset) of the record at pos;
-    _BadRecord if it is not a whole, valid record. Chunks are opened and CRC-checked."""
+    BagDamagedError if it is not a whole, valid record. Chunks are opened and CRC-checked."""
     from mcap.data_stream import ReadDataStream
     from mcap.records import (
         Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, Metadata, MetadataIndex,
         Schema, Statistics)
     end = len(data) if end is None else end
     if pos + 9 > end:
-        raise _BadRecord(pos, 'record header cut off')
+        raise BagDamagedError('record header cut off', at=pos)
     opcode = data[pos]
     (length,) = struct.unpack_from('<Q', data, pos + 1)
     if opcode not in _OPCODES:
-        raise _BadRecord(pos, f'no record opcode (0x{opcode:02X})')
+        raise BagDamagedError(f'no record opcode (0x{opcode:02X})', at=pos)
     stop = pos + 9 + length
     if stop > end:
-        raise _BadRecord(pos, 'record runs past the end of the file')
+        raise BagDamagedError('record runs past the end of the file', at=pos)
     kinds = {0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
              0x08: ChunkIndex, 0x0B: Statistics, 0x0D: MetadataIndex, 0x0F: DataEnd}
     stream = ReadDataStream(io.BytesIO(data[pos + 9:stop]))
@@ -136,29 +136,31 @@ def record_at(data, pos, end=None):
             record = kinds[opcode].read(stream)
         else:                        # message/attachment indexes, attachments: not needed
             record = None
+    except BagDamagedError as exc:   # the chunk header's own check
+        raise BagDamagedError(exc.reason, at=pos) from None
     except Exception as exc:         # struct, zstd, CRC, UTF-8, mcap's EndOfFile, ...
         reason = 'CRC mismatch' if type(exc).__name__ == 'CRCValidationError' else one_line(exc)
-        raise _BadRecord(pos, reason) from None
+        raise BagDamagedError(reason, at=pos) from None
     return opcode, record, stop
 
 
-def check_chunk_header(data, pos, length):
+def check_chunk_header(data: Data, pos: int, length: int) -> None:
     """Cheap consistency of a chunk header (before anything is decompressed)."""
     body = pos + 9
     if length < 8 + 8 + 8 + 4 + 4 + 8:
-        raise ValueError('chunk too short')
+        raise BagDamagedError('chunk too short')
     start, end, uncompressed = struct.unpack_from('<QQQ', data, body)
     (n,) = struct.unpack_from('<I', data, body + 28)
     if start > end or uncompressed > MAX_CHUNK or n > 8 or body + 32 + n + 8 > pos + 9 + length:
-        raise ValueError('inconsistent chunk header')
+        raise BagDamagedError('inconsistent chunk header')
     if bytes(data[body + 32:body + 32 + n]).decode('ascii', 'replace') not in COMPRESSIONS:
-        raise ValueError('unknown chunk compression')
+        raise BagDamagedError('unknown chunk compression')
     (records,) = struct.unpack_from('<Q', data, body + 32 + n)
     if body + 32 + n + 8 + records > pos + 9 + length:
-        raise ValueError('chunk records run past the chunk')
+        raise BagDamagedError('chunk records run past the chunk')
 
 
-def _open_chunk(chunk):
+def _open_chunk(chunk: Chunk) -> None:
     """The chunk's records, its CRC checked (a chunk written without CRC must at least parse)."""
     from mcap.stream_reader import breakup_chunk
     chunk.records = breakup_chunk(chunk, validate_crc=True)
@@ -166,7 +168,7 @@ def _open_chunk(chunk):
 
 # ----------------------------------------------------------------------------- with summary
 
-def read_summary(data):
+def read_summary(data: Data) -> dict[str, dict | list] | None:
     """The summary section's schemas, channels, chunk and metadata indexes, if the footer and
     the summary CRC are intact; else None (then the file is scanned)."""
     from mcap.records import Channel, ChunkIndex, Footer, MetadataIndex, Schema
@@ -176,7 +178,7 @@ def read_summary(data):
         return None
     try:
         _, footer, _ = record_at(data, footer_at, size - _MAGIC_SIZE)
-    except ValueError:
+    except BagDamagedError:
         return None
     if not isinstance(footer, Footer) or not _MAGIC_SIZE <= footer.summary_start < footer_at:
         return None
@@ -196,12 +198,12 @@ def read_summary(data):
                 out['chunks'].append(record)
             elif isinstance(record, MetadataIndex):
                 out['metadata'].append(record)
-    except ValueError:
+    except BagDamagedError:
         return None
     return out
 
 
-def _read_indexed(data, summary):
+def _read_indexed(data: Data, summary: dict[str, dict | list]) -> Recovered:
     from mcap.records import Chunk, Metadata
     out = Recovered()
     out._schemas.update(summary['schemas'])
@@ -211,8 +213,8 @@ def _read_indexed(data, summary):
         try:
             _, chunk, _ = record_at(data, index.chunk_start_offset)
             if not isinstance(chunk, Chunk):
-                raise _BadRecord(index.chunk_start_offset, 'not a chunk')
-        except _BadRecord as exc:
+                raise BagDamagedError('not a chunk', at=index.chunk_start_offset)
+        except BagDamagedError as exc:
             out.losses.append(Loss(index.message_start_time, index.message_end_time,
                                    f'damaged chunk at byte {index.chunk_start_offset} '
                                    f'({exc.reason})'))
@@ -222,7 +224,7 @@ def _read_indexed(data, summary):
     for index in summary['metadata']:
         try:
             _, record, _ = record_at(data, index.offset)
-        except ValueError:
+        except BagDamagedError:
             record = None
         if isinstance(record, Metadata):
             out.add(record)
@@ -233,7 +235,7 @@ def _read_indexed(data, summary):
 
 # ----------------------------------------------------------------------------- without
 
-def _scan(data, file):
+def _scan(data: Data, file: str | Path) -> Recovered:
     """Records in file order; resynchronise on the next valid chunk after damage."""
     from mcap.records import Chunk, DataEnd, Footer
     out = Recovered()
@@ -243,14 +245,14 @@ def _scan(data, file):
     while pos < size:
         try:
             _, record, stop = record_at(data, pos)
-        except ValueError as exc:
+        except BagDamagedError as exc:
             before = out.last_time()
             limit = size if valid else min(size, _MAGIC_SIZE + SCAN_LIMIT)
             found = _next_chunk(data, pos + 1, limit)
             if found is None:
                 if not valid:
-                    raise UnreadableError(
-                        f'{file} holds no valid MCAP record in its first '
+                    raise BagUnreadableError(
+                                             f'{file} holds no valid MCAP record in its first '
                         f'{min(size, _MAGIC_SIZE + SCAN_LIMIT)} bytes ({exc})') from None
                 if pos < size - _MAGIC_SIZE or bytes(data[pos:]) != b'\x89MCAP0\r\n':
                     out.losses.append(Loss(before, None, f'cut off or damaged from byte {pos} '
@@ -273,7 +275,7 @@ def _scan(data, file):
     return out
 
 
-def _next_chunk(data, start, stop):
+def _next_chunk(data: Data, start: int, stop: int) -> tuple[int, Chunk] | None:
     """(offset, Chunk) of the first intact chunk at or after `start` and before `stop`."""
     while True:
         at = data.find(b'\x06', start, stop)
@@ -282,5 +284,5 @@ def _next_chunk(data, start, stop):
         try:
             _, record, _ = record_at(data, at)
             return at, record
-        except ValueError:
+        except BagDamagedError:
             start = at + 1

@@ -22,32 +22,36 @@ bag recorded before that topic: its /diagnostics), and judges the spacings by th
 indices (prediction.quality), per row and overall.
 """
 
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import json
+from pathlib import Path
 import struct
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planter_ros import config, diagnostics, interfaces
 from planter_ros.config import ConfigError
 from planter_ros.design import Design, from_json, to_dict
 from planter_ros.geo import AntennaSettings
+from planter_ros.kinematics.arrays import FloatArray
+from planter_ros.kinematics.planting import Planting
 from planter_ros.prediction import (
     PLANT_FIELDS, Plants, PredictionSettings, planting_model_from_design, predict_plants,
     prediction_notes, section_breaks, summarize)
-from planter_ros.rows import implicit_row, rows_from_record
+from planter_ros.rows import Row, implicit_row, rows_from_record
 from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, place_plants
 from planter_ros.sensing.row_speed import motion_samples, row_speed_samples
 
-from .bag_reader import BagError, read_recording
+from .bag_reader import Recording, TopicMessages, read_recording
 from .cdr import decode_joint_states, decode_navsatfix, decode_string, decode_twist
+from .errors import DecodeError, ReplayError, TopicMissingError
 
 REQUIRED = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES, interfaces.DESIGN)
 OPTIONAL = (interfaces.GNSS_FIX, interfaces.SECTIONS, interfaces.DIAGNOSTICS)
-
-
-class ReplayError(ValueError):
-    """A bag replay cannot use (one line: the file and what is wrong)."""
 
 
 @dataclass
@@ -71,12 +75,12 @@ class ReplayResult:
     nozzle_width: float = None    # m, of the last design's predictions
     recorded_fields: tuple = ()   # the PLANT_FIELDS the live recording has (older: fewer)
 
-    def recorded_columns(self):
+    def recorded_columns(self) -> list[int]:
         """Indices of the plant fields the live recording has: replay and the recording can
         be compared on these."""
         return [PLANT_FIELDS.index(f) for f in self.recorded_fields]
 
-    def as_json(self):
+    def as_json(self) -> dict:
         return {'bag': self.path, 'design': to_dict(self.design),
                 'settings': config.as_dict(self.settings),
                 'map': {**config.as_dict(self.map_settings), **config.as_dict(self.antenna),
@@ -92,11 +96,16 @@ class ReplayResult:
                 'warnings': self.warnings}
 
 
-def settings_from_recording(recorded, overrides=None, warnings=None):
+def settings_from_recording(recorded: Mapping[str, object],
+                            overrides: Mapping[str, object] | None = None,
+                            warnings: list[str] | None = None) -> PredictionSettings:
     """The monitor's recorded settings (strings), overridden by explicit values. A recorded
     value out of range is replaced by the default (with a warning); a bad override is an
-    error (ConfigError)."""
+    error (ConfigError). A monitor that recorded its settings before `measured_arc` existed
+    predicted from the speed ratio at each planting instant: replay does the same."""
     values = {}
+    if recorded and 'measured_arc' not in recorded:
+        values['measured_arc'] = False
     for spec in config.specs(PredictionSettings):
         if spec.name in recorded:
             try:
@@ -108,25 +117,24 @@ def settings_from_recording(recorded, overrides=None, warnings=None):
     return config.from_mapping(PredictionSettings, values)
 
 
-def replay(path, settings_overrides=None, with_recorded=False, fallback_design=None):
-    """Re-run the prediction model on a bag. Raises ReplayError for an unusable bag and
-    ConfigError for a bad setting override (`nozzle_width` among them replaces the design's).
+def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = None,
+           with_recorded: bool = False, fallback_design: Design | None = None) -> ReplayResult:
+    """Re-run the prediction model on a bag. Raises a RecordingError for a bag it cannot use
+    (BagUnreadableError, TopicMissingError, ReplayError: recording.errors) and ConfigError
+    for a bad setting override (`nozzle_width` among them replaces the design's).
     `fallback_design` (a Design, e.g. of the scene the run used) stands in for the whole
     bag when it holds no usable design message (lost in a damaged part); it is ignored, with a
     warning, when the bag has its own."""
     overrides = dict(settings_overrides or {})
     nozzle_override = overrides.pop('nozzle_width', None)
     wanted = REQUIRED + OPTIONAL + ((interfaces.PLANTS,) if with_recorded else ())
-    try:
-        rec = read_recording(path, wanted)
-    except BagError as exc:
-        raise ReplayError(str(exc)) from None
+    rec = read_recording(path, wanted)
     required = REQUIRED if fallback_design is None else REQUIRED[:2]
     missing = [t for t in required if t not in rec.topics]
     if missing:
         found = ', '.join(f'{n} ({t})' for n, t in sorted(rec.all_topics.items())) or 'none'
         want = ', '.join(f'.../{t.name} ({t.type_name})' for t in missing)
-        raise ReplayError(f'bag {path} lacks {want}; topics found: {found}')
+        raise TopicMissingError(f'bag {path} lacks {want}; topics found: {found}')
     design_topic = rec.topics.get(interfaces.DESIGN)
     recorded_settings = rec.metadata.get(interfaces.PREDICTION_SETTINGS_RECORD, {})
     settings = settings_from_recording(recorded_settings, overrides, rec.warnings)
@@ -140,8 +148,8 @@ def replay(path, settings_overrides=None, with_recorded=False, fallback_design=N
                            key=lambda x: x[0]):
         try:
             text = decode_string(raw)
-        except (ValueError, IndexError, struct.error):
-            undecodable += 1     # empty, cut short or not UTF-8 (CdrError is a ValueError)
+        except (DecodeError, IndexError, struct.error):
+            undecodable += 1     # empty, cut short or not UTF-8
             continue
         if designs and designs[-1][1] == text:
             continue
@@ -273,12 +281,12 @@ class _NozzleWidth:
     (a bag recorded before the nozzle width was a scene value) the monitor's recorded setting,
     else 0 m, with a warning."""
 
-    def __init__(self, override, recorded):
+    def __init__(self, override: float | None, recorded: Mapping[str, str]) -> None:
         self.override = override
         self.recorded = recorded.get('nozzle_width')
         self.fallback_used = ''
 
-    def width(self, design):
+    def width(self, design: Design) -> float | None:
         if self.override is not None:
             return self.override
         if design.nozzle_width is not None:
@@ -293,7 +301,8 @@ class _NozzleWidth:
         return width
 
 
-def map_from_recording(record, warnings=None):
+def map_from_recording(record: Mapping[str, str], warnings: list[str] | None = None
+                       ) -> tuple[MapSettings, AntennaSettings]:
     """(MapSettings, AntennaSettings) of the monitor's map record (values as JSON text); the
     defaults for a bag without it, or for a value it cannot use (with a warning)."""
     values = {}
@@ -315,13 +324,13 @@ def map_from_recording(record, warnings=None):
     return tuple(out)
 
 
-def map_record(map_settings, antenna):
+def map_record(map_settings: MapSettings, antenna: AntennaSettings) -> dict[str, str]:
     """The bag metadata record (interfaces.MAP_RECORD) of the monitor's map: values as JSON."""
     return {k: json.dumps(v) for k, v in {**config.as_dict(map_settings),
                                           **config.as_dict(antenna)}.items()}
 
 
-def _fixes(topic):
+def _fixes(topic: TopicMessages | None) -> tuple[FloatArray, ...]:
     """(t s, status, latitude, longitude, east and north variance, covariance type) of the
     recorded fixes in log order, t = header stamp (receive time if 0)."""
     if topic is None or not topic.raw:
@@ -333,7 +342,8 @@ def _fixes(topic):
     return (t, *values)
 
 
-def _section_breaks(rec, planting):
+def _section_breaks(rec: Recording,
+                    planting: Sequence[Row]) -> dict[str, list[tuple[float, float]]]:
     """{row name: [(start, end)]} when each row's section was off, from the sync node's
     `sections` in the bag; a bag recorded before that topic: from its /diagnostics."""
     topic = rec.topics.get(interfaces.SECTIONS)
@@ -351,7 +361,8 @@ def _section_breaks(rec, planting):
     return section_breaks(sorted(zip(times.tolist(), states), key=lambda r: r[0]))
 
 
-def _diagnostics_section_breaks(topic, planting):
+def _diagnostics_section_breaks(topic: TopicMessages | None, planting: Sequence[Row]
+                                ) -> dict[str, list[tuple[float, float]]]:
     """{row name: [(start, end)]} from the section states of the sync node's /diagnostics in a
     bag recorded before the `sections` topic (diagnostics.section_states)."""
     if topic is None or not topic.raw:
@@ -374,7 +385,8 @@ def _diagnostics_section_breaks(topic, planting):
     return section_breaks(reports)
 
 
-def _mechanism_segments(designs):
+def _mechanism_segments(designs: Sequence[tuple[int, str, Design, Planting]]
+                        ) -> list[tuple[int, list[tuple[int, str, Design, Planting]]]]:
     """The design messages (log ns, text, design, model) grouped into runs of one mechanism:
     [(log ns of the run's first, [its designs])]. Within a run a change is in force from the
     next planting instant; another mechanism is another machine and starts a new sequence."""
@@ -388,18 +400,19 @@ def _mechanism_segments(designs):
     return segments
 
 
-def _count_undecodable(warnings, name, stamps, values):
+def _count_undecodable(warnings: list[str], name: str, stamps: NDArray[np.int64],
+                       values: FloatArray) -> None:
     """cdr's bulk decoders leave a message they cannot decode at stamp 0 and value NaN."""
     bad = int(np.count_nonzero((stamps == 0) & np.isnan(values)))
     if bad:
         warnings.append(f'{bad} {name} message(s) could not be decoded: skipped')
 
 
-def _of_row(plants, index):
+def _of_row(plants: Plants, index: int) -> Plants:
     return Plants.from_table(plants.table()[plants.row == index])
 
 
-def _recorded_plants(topic):
+def _recorded_plants(topic: TopicMessages) -> tuple[FloatArray, tuple[str, ...]]:
     """(table, fields): the live monitor's plants in PLANT_FIELDS order, by the labels of each
     message (a field the recording lacks is NaN, e.g. tip_sweep and the map position in a
     recording made before them; `row` is 0 in a recording made before rows existed), and the

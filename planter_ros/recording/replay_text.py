@@ -1,6 +1,9 @@
 """Replay results as text for people: the per-plant table and the summary (mm and degrees,
 labelled), as `planter replay` prints them and the demo shows its own bag's."""
 
+from __future__ import annotations
+
+from collections.abc import Collection
 import math
 from typing import TYPE_CHECKING
 
@@ -13,11 +16,11 @@ if TYPE_CHECKING:
 __all__ = ['format_summary', 'format_table']
 
 
-def _named_rows(result):
+def _named_rows(result: ReplayResult) -> bool:
     return len(result.rows) > 1 or bool(result.rows[0].name)
 
 
-def format_table(result: 'ReplayResult') -> str:
+def format_table(result: ReplayResult) -> str:
     """Per-plant rows and the summary for people (mm and degrees, labelled)."""
     p = result.plants
     t0 = float(p.time[0]) if len(p) else 0.0
@@ -43,11 +46,11 @@ def format_table(result: 'ReplayResult') -> str:
     return '\n'.join(lines + [''] + format_summary(result).splitlines())
 
 
-def _mm(v):
+def _mm(v: float | None) -> str:
     return 'n/a' if v is None else f'{v * 1e3:.2f} mm'
 
 
-def format_summary(result: 'ReplayResult') -> str:
+def format_summary(result: ReplayResult) -> str:
     """The replay summary for people: plants, spacing error and quality, hole width (tip sweep
     and nozzle), uprightness, the map; what a figure means where the model is not validated,
     next to it; with rows, one line per row too (positions along each row's own travelled
@@ -60,7 +63,8 @@ def format_summary(result: 'ReplayResult') -> str:
     lines = [
         f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
         f'spacing error: mean {_mm(s["spacing_error_mean"])}, sigma '
-        f'{_mm(s["spacing_error_std"])}, max |error| {_mm(s["spacing_error_max"])}',
+        f'{_mm(s["spacing_error_std"])}, max |error| {_mm(s["spacing_error_max"])} (plants at '
+        'the distance integrated from the recorded ground speed)',
         f'spacing quality (ISO 7256-1): {format_quality(s["spacing_quality"])}',
         f'hole width: mean {_mm(s["hole_width_mean"])}, max {_mm(s["hole_width_max"])} (tip '
         f'sweep mean {_mm(s["tip_sweep_mean"])} + nozzle width {nozzle})']
@@ -85,11 +89,11 @@ def format_summary(result: 'ReplayResult') -> str:
     return '\n'.join(lines)
 
 
-def _nozzle(result):
+def _nozzle(result: ReplayResult) -> str:
     return _mm(result.nozzle_width)
 
 
-def _notes_for(notes, fields):
+def _notes_for(notes: list[dict], fields: Collection[str]) -> list[str]:
     """The notes about any of `fields` not shown yet, as indented lines (taken from `notes`)."""
     lines = []
     for note in list(notes):
@@ -99,7 +103,7 @@ def _notes_for(notes, fields):
     return lines
 
 
-def _map_line(result):
+def _map_line(result: ReplayResult) -> str:
     placed = int(sum(1 for v in result.plants.latitude if math.isfinite(v)))
     if not result.fixes:
         return 'map: no usable GNSS fix in the bag: no plant has a map position'

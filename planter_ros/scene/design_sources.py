@@ -11,6 +11,9 @@ as it is matched), else every candidate is named ("one of ..."). A change counts
 when it surely came from none of the publishers of the first design. Pure: no ROS import.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 
 from planter_ros.diagnostics import DESIGN, OK, STALE, WARN, Report
@@ -26,7 +29,7 @@ class Endpoint:
     gid: str
 
     @property
-    def named(self):
+    def named(self) -> bool:
         """False while the graph knows the endpoint but not yet its node (rclpy then names it
         '_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_')."""
         return UNKNOWN not in self.node
@@ -35,7 +38,7 @@ class Endpoint:
 UNKNOWN = '_UNKNOWN_'
 
 
-def gid_text(gid_bytes):
+def gid_text(gid_bytes: Iterable[int]) -> str:
     """An endpoint GID as ROS prints it: bytes as two hex digits joined by dots."""
     return '.'.join(f'{b:02x}' for b in gid_bytes)
 
@@ -49,11 +52,11 @@ class Attribution:
     foreign: bool            # surely not from a publisher of the first design
 
     @property
-    def named(self):
+    def named(self) -> bool:
         return all(e.named for e in self.candidates)
 
     @property
-    def text(self):
+    def text(self) -> str:
         nodes = sorted({e.node for e in self.candidates})
         if not nodes:
             return 'a publisher no longer on the graph'
@@ -67,14 +70,14 @@ class Attribution:
 class DesignSources:
     """Attributes, counts and reports the designs one node accepts."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.known = {}              # gid -> node name, every publisher seen on the topic
         self.first = None            # Attribution of the first design
         self.changes = 0             # designs accepted after the first
         self.foreign_changes = 0
         self.last_change = None      # Attribution of the latest change
 
-    def accepted(self, endpoints):
+    def accepted(self, endpoints: Iterable[Endpoint]) -> Attribution:
         """A design was accepted; `endpoints` are the topic's publishers now. Returns its
         Attribution (and counts it)."""
         endpoints = tuple(endpoints)
@@ -96,26 +99,26 @@ class DesignSources:
         self.foreign_changes += foreign
         return self.last_change
 
-    def refresh(self, endpoints):
+    def refresh(self, endpoints: Iterable[Endpoint]) -> None:
         """Learn the node names the graph did not know yet when a design arrived (a latched
         sample can come before its node's discovery) and name the attributions with them."""
         self._learn(endpoints)
         self.first = self.named(self.first)
         self.last_change = self.named(self.last_change)
 
-    def named(self, attribution):
+    def named(self, attribution: Attribution | None) -> Attribution | None:
         """`attribution` with every candidate named as far as the graph has told us."""
         if attribution is None:
             return None
         return replace(attribution, candidates=tuple(
             Endpoint(self.known.get(e.gid, e.node), e.gid) for e in attribution.candidates))
 
-    def _learn(self, endpoints):
+    def _learn(self, endpoints: Iterable[Endpoint]) -> None:
         for e in endpoints:
             if e.named or e.gid not in self.known:
                 self.known[e.gid] = e.node
 
-    def values(self):
+    def values(self) -> list[tuple[str, str | int]]:
         """Key/value pairs for /diagnostics."""
         out = [('design from', self.first.text if self.first else ''),
                ('design changes', self.changes),
@@ -125,7 +128,7 @@ class DesignSources:
             out.append(('last design change from', self.last_change.text))
         return out
 
-    def report(self):
+    def report(self) -> Report:
         """The node's 'design' status: WARN once another node changed the design."""
         values = tuple(self.values())
         if self.first is None:

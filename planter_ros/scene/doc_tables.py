@@ -15,16 +15,18 @@ from pathlib import Path
 import re
 import sys
 
+from planter_ros.config import Spec
+
 __all__ = ['TABLES', 'render', 'update_page']
 
 MARK = re.compile(r'(<!-- generated: ([\w:-]+) -->\n)(.*?)(<!-- end generated -->)', re.S)
 
 
-def _cell(text) -> str:
+def _cell(text: object) -> str:
     return str(text).replace('|', '\\|').replace('\n', ' ')
 
 
-def _default(spec) -> str:
+def _default(spec: Spec) -> str:
     if spec.default is MISSING:
         return 'required'
     if spec.kind is bool:
@@ -127,13 +129,13 @@ def update_page(text: str) -> tuple[str, list[str]]:
     (KeyError for a marker naming no table)."""
     found = []
 
-    def fill(match):
+    def fill(match: re.Match) -> str:
         found.append(match.group(2))
         return match.group(1) + render(match.group(2)) + match.group(4)
     return MARK.sub(fill, text), found
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     doc = Path(__file__).resolve().parents[2] / 'doc'
     for page in sorted(doc.glob('*.md')):
         text = page.read_text()

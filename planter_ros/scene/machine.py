@@ -20,6 +20,7 @@ machine file has `antenna_position` [0, 0] and each row's offsets from the anten
 Pure: no ROS, no bus.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
 from pathlib import Path
@@ -54,7 +55,7 @@ class CanBus:
                            'reads it) and the drives are set to', unit='bit/s',
                            range=(10_000, 1_000_000))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         from planter_ros.config import check
         check(self)
         if not self.interface or not _INTERFACE_NAME.match(self.channel):
@@ -71,7 +72,7 @@ class IsobusBus:
     bitrate: int = setting(250_000, 'ISOBUS bit rate (ISO 11783-2: 250 kbit/s)', unit='bit/s',
                            range=(10_000, 1_000_000))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         from planter_ros.config import check
         check(self)
         if self.channel and not _INTERFACE_NAME.match(self.channel):
@@ -113,7 +114,7 @@ class MachineRow:
     modes: list = setting(['pv'], 'CiA 402 modes the drive supports (0x6502): csp (cyclic '
                           'synchronous position, 8), pv (profile velocity, 3)', item=str)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         from planter_ros.config import check
         check(self)
         bad = [m for m in self.modes if m not in MODES]
@@ -174,7 +175,7 @@ class Machine:
         out['ground_speed_node'] = {'isobus_channel': self.isobus.channel}
         return out
 
-    def row_limits(self):
+    def row_limits(self) -> list:
         """Each row's limits at the mechanism's shaft for planter_ros.plausibility."""
         from planter_ros.plausibility import RowLimits
         return [RowLimits(name, max_acceleration=row.max_acceleration,
@@ -230,7 +231,7 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
     except YamlError as exc:
         raise MachineFileError(str(exc)) from None
 
-    def bad(key, why):
+    def bad(key: str, why: str) -> None:
         raise MachineFileError(f'{where}: {key} {why}')
 
     if not isinstance(data, dict):
@@ -260,14 +261,14 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
     return Machine(path, name, can, rows, isobus)
 
 
-def _known(mapping, allowed, prefix, where):
+def _known(mapping: dict, allowed: Sequence[str], prefix: str, where: str) -> None:
     for key in mapping:
         if key not in allowed:
             raise MachineFileError(f'{where}: {prefix}{key} is not a machine-file key: did you '
                                    f'mean `{prefix}{closest(str(key), allowed)}`?')
 
 
-def _block(block, cls, prefix, where):
+def _block(block: object, cls: type, prefix: str, where: str) -> Any:
     """A block of the file as `cls`; its keys known, its values in range."""
     names = [spec.name for spec in specs(cls)]
     if not isinstance(block, dict):
@@ -322,7 +323,7 @@ def deployment_parameters(machine_path: str | Path, scene_path: str | Path,
     return out, warnings
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     """`python -m planter_ros.scene.machine --ip-commands FILE`: the `ip` commands that bring the
     machine's CAN interfaces up, one a line (planter-can.service pipes them to sh);
     `--check FILE [--scene SCENE]`: the machine file checked, with a scene also the scene's

@@ -5,14 +5,21 @@ it makes, its rows and where its GNSS antenna sits.
 `load_scene(path, node)` is the flat parameter dict one node gets from it.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from planter_ros.config import ConfigError, from_mapping
 
 from .files import ParameterFile, SceneError, read_parameter_file
 from .schema import check_scene, merged_parameters, node_parameters, shared_entry
+
+if TYPE_CHECKING:          # loaded when used: a scene's design may need the gear train
+    from planter_ros.design import Design
+    from planter_ros.geo import AntennaSettings
+    from planter_ros.rows import Row
 
 __all__ = ['Scene', 'default_scene_path', 'load_scene', 'open_scene']
 
@@ -47,12 +54,12 @@ class Scene:
         declares: a node started in-process takes these as its parameter overrides."""
         return node_parameters(node, self.parameters(node))
 
-    def design(self):
+    def design(self) -> Design:
         """The scene's design (planter_ros.design); DesignError (one line) if it has none."""
         from planter_ros.design import design_for_scene
         return design_for_scene(self.parameters('design_node'))
 
-    def rows(self, default_node_id: int | None = None):
+    def rows(self, default_node_id: int | None = None) -> list[Row]:
         """The machine's rows (planter_ros.rows.Row) as the sync node reads them; ConfigError
         naming the file for a bad row."""
         from planter_ros.rows import rows_from_scene
@@ -61,7 +68,7 @@ class Scene:
         except ConfigError as exc:
             raise SceneError(f'scene {self.path}: {exc}') from None
 
-    def antenna(self):
+    def antenna(self) -> AntennaSettings:
         """The GNSS antenna on the machine (geo.AntennaSettings) as the monitor reads it."""
         from planter_ros.geo import AntennaSettings
         try:

@@ -286,9 +286,12 @@ class MonitorModel:
                                                 cov_north, cov_type))
 
     def flush(self):
-        """The plants still held for fixes, placed with the fixes there are (the monitor's
-        end of recording)."""
-        return self._placed(self.placer.flush())
+        """The plants whose arcs were still open, then the plants still held for fixes,
+        placed with the fixes there are (the monitor's end of recording)."""
+        out = []
+        for p in self.predictors:
+            out += self._predicted(p.finish())
+        return out + self._placed(self.placer.flush())
 
     def _predicted(self, plants):
         return self._placed(self.placer.add_plants(plants)) if len(plants) else []

@@ -25,6 +25,19 @@ def plant_positions(angle, distance, pitch, release=math.pi):
     return distance[idx - 1] + frac * (distance[idx] - distance[idx - 1])
 
 
+def error_figures(errors):
+    """(mean, sigma, max |error|, RMS) of spacing errors (m; non-finite ones left out; None
+    each when there is none). The definitions of replay's summary (signed mean, population
+    standard deviation, largest magnitude), so the demo's figures and replay's differ only in
+    where the plants are placed; RMS = (mean² + sigma²)^½ beside them (the demo's verdict)."""
+    errors = np.asarray(errors, dtype=float)
+    errors = errors[np.isfinite(errors)]
+    if not errors.size:
+        return None, None, None, None
+    return (float(errors.mean()), float(errors.std()), float(np.abs(errors).max()),
+            float(np.sqrt(np.mean(errors ** 2))))
+
+
 @dataclass(frozen=True)
 class SpacingStats:
     plants: int

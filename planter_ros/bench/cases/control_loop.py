@@ -30,10 +30,13 @@ def loaded_runs(runs, duration, progress=lambda text: None):
     of (seconds the run took, DemoResult)."""
     from planter_ros.demo.options import DemoOptions
     from planter_ros.demo.run import prepare
+    from planter_ros.processes import preexec_die_with_parent
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
-            hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'])
+            # the hogs die with the bench, also when it is killed (no orphan burning cores)
+            hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'],
+                                     preexec_fn=preexec_die_with_parent())
                     for _ in range(HOGS)]
             try:
                 demo = prepare(DemoOptions(duration=duration, bag=str(Path(tmp) / f'run{k}.mcap')),

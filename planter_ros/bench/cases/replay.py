@@ -74,7 +74,8 @@ def _damaged_row(ctx, run, tmp, whole):
 
 def _garbage_rows(ctx, tmp):
     """Files that start like MCAP and hold no valid record: refused after a bounded scan."""
-    from planter_ros.recording.replay import ReplayError, replay
+    from planter_ros.recording.errors import BagUnreadableError
+    from planter_ros.recording.replay import replay
     zeros, noise = tmp / 'zeros.mcap', tmp / 'noise.mcap'
     size = int(ctx.n(1 << 30, 64 << 20))
     with open(zeros, 'wb') as f:          # sparse: no disk space used
@@ -86,7 +87,7 @@ def _garbage_rows(ctx, tmp):
         def refuse():
             try:
                 replay(path)
-            except ReplayError:
+            except BagUnreadableError:
                 return
             raise RuntimeError(f'{label}: not refused')
         t = ctx.measure(refuse, repeats=5)

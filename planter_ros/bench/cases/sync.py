@@ -65,13 +65,14 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
     from planter_ros import interfaces
     from planter_ros.drive.simulated_drive import SimulatedBus
     from planter_ros.nodes.sync_node import SyncNode
-    from planter_ros.dds_domain import claim_private_domain
+    from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
     from planter_ros.design import to_json
     from planter_ros.sim.runs import five_bar_design_message
 
     channel = f'planter-bench-sync-{uuid.uuid4().hex}'
     context = Context()
-    rclpy.init(context=context, domain_id=claim_private_domain(),
+    rclpy.init(args=['--ros-args', *PRIVATE_GRAPH_ROS_ARGS], context=context,
+               domain_id=claim_private_domain(),
                signal_handler_options=SignalHandlerOptions.NO)
     sims = None
     sync = source = ex = listener = None

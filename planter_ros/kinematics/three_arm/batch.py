@@ -23,10 +23,14 @@ A design the single-design path would refuse (a curve dipping to ρ ≤ 0, H1 �
 `valid` and computed on a harmless stand-in so the batch has no NaN.
 """
 
+from __future__ import annotations
+
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ..arrays import FloatArray
 from ..errors import DesignError
 from .gear_train import ARM_PHASE, ARMS, TABLE_SPLITS, ThreeArmMechanism, quintic_coefficients
 from .goals import MODULE_SAMPLES
@@ -48,7 +52,7 @@ class CurveBasis:
     angles u, so a run of many batches evaluates the basis once.
     """
 
-    def __init__(self, angles, interpolant='periodic_cubic'):
+    def __init__(self, angles: ArrayLike, interpolant: str = 'periodic_cubic') -> None:
         if interpolant not in INTERPOLANTS:
             raise DesignError('interpolant', interpolant, ' | '.join(INTERPOLANTS))
         cls = INTERPOLANTS[interpolant]
@@ -74,7 +78,7 @@ class CurveBasis:
         self.range_nodes = np.r_[np.linspace(0.0, TWO_PI, MODULE_SAMPLES, endpoint=False),
                                  self.pieces]
 
-    def matrix(self, u, nu=0):
+    def matrix(self, u: ArrayLike, nu: int = 0) -> FloatArray:
         """(n, len(u)): row i is the i-th unit curve's nu-th derivative at u."""
         u = np.ascontiguousarray(u, dtype=float)
         key = (u.shape, u.tobytes(), nu)
@@ -90,7 +94,7 @@ class CurveBasis:
 class BatchCurve:
     """The pitch curves of a batch: ρ^(nu) at shared angles u -> (P, len(u))."""
 
-    def __init__(self, basis, radii):
+    def __init__(self, basis: CurveBasis, radii: FloatArray) -> None:
         self.basis = basis
         self.radii = radii
         self.interpolant = basis.interpolant
@@ -103,7 +107,7 @@ class BatchCurve:
             hi = rho.max(axis=-1) if hi is None else np.maximum(hi, rho.max(axis=-1))
         self.rho_min, self.rho_max = lo, hi
 
-    def __call__(self, u, nu=0):
+    def __call__(self, u: ArrayLike, nu: int = 0) -> FloatArray:
         """ρ^(nu) of every design at the shared 1-D angles u (remembered per u)."""
         u = np.ascontiguousarray(np.ravel(u), dtype=float)
         key = (u.shape, u.tobytes(), nu)
@@ -113,7 +117,7 @@ class BatchCurve:
             out = self._memo[key] = np.einsum('pn,nm->pm', self.radii, self.basis.matrix(u, nu))
         return out
 
-    def length(self):
+    def length(self) -> FloatArray:
         b = self.basis
         r, r1 = self(b.length_nodes), self(b.length_nodes, 1)
         return np.sum(b.length_weights * np.hypot(r, r1), axis=-1)
@@ -124,7 +128,7 @@ class _Closure:
 
     method = 'gauss (fixed rule, batch)'
 
-    def __init__(self, a, residual):
+    def __init__(self, a: FloatArray, residual: FloatArray) -> None:
         self.a = a
         self.residual = residual
 
@@ -132,7 +136,7 @@ class _Closure:
 class BatchGearTrain:
     """Closure and the mesh maps Ψ, Θ for every design of a batch (rows)."""
 
-    def __init__(self, curve):
+    def __init__(self, curve: BatchCurve) -> None:
         b = curve.basis
         self.curve = curve
         rho = curve(b.quad_nodes.ravel()).reshape(len(curve.radii), *b.quad_nodes.shape)
@@ -158,7 +162,7 @@ class BatchGearTrain:
         self._flat = (psi + _ROW_OFFSET * np.arange(rows)[:, None]).ravel()
         self._rows = rows
 
-    def _rows_of(self, v):
+    def _rows_of(self, v: ArrayLike) -> FloatArray:
         v = np.asarray(v, dtype=float)
         if v.ndim == 0:
             v = v.reshape(1, 1)
@@ -166,7 +170,7 @@ class BatchGearTrain:
             v = v[None, :]
         return np.broadcast_to(v, (self._rows, v.shape[-1]))
 
-    def psi(self, u, nu=0):
+    def psi(self, u: ArrayLike, nu: int = 0) -> FloatArray:
         """Ψ (or its nu-th derivative) of each row at angles u: (m,), (P, 1) or (P, m)."""
         u = self._rows_of(u)
         turns = np.floor(u / TWO_PI)
@@ -176,7 +180,7 @@ class BatchGearTrain:
         out = _horner(self._psi[np.arange(self._rows)[:, None], idx], s - self._x[idx], nu)
         return out + turns * TWO_PI if nu == 0 else out
 
-    def theta(self, p, nu=0):
+    def theta(self, p: ArrayLike, nu: int = 0) -> FloatArray:
         """Θ = Ψ⁻¹ (or its nu-th derivative) of each row at intermediate angles p."""
         p = self._rows_of(p)
         turns = np.floor(p / TWO_PI)
@@ -192,7 +196,7 @@ class BatchGearTrain:
 _ROW_OFFSET = 8.0       # > 2π: keeps the rows' mesh angles apart in one sorted array
 
 
-def _horner(coef, dx, nu):
+def _horner(coef: FloatArray, dx: FloatArray, nu: int) -> FloatArray:
     """Σ c_j dx^(5−j) (coef (..., 6), highest power first), or its first derivative."""
     if nu == 0:
         out = coef[..., 0]
@@ -207,7 +211,7 @@ def _horner(coef, dx, nu):
     return out
 
 
-def _solve_centre_distance(rho, w, rho_max):
+def _solve_centre_distance(rho: FloatArray, w: FloatArray, rho_max: FloatArray) -> FloatArray:
     """a per row with Σ w ρ/(a−ρ) = 2π: Newton on 1/mean − 1 inside the bracket
     (max ρ at the nodes, 2·max ρ]; rows stop once a step moves a by under 1e-14 of it."""
     rho = rho.reshape(len(rho), -1)
@@ -245,8 +249,9 @@ class MechanismBatch(ThreeArmMechanism):
     (m,) (the same for every design), (P, 1) or (P, m).
     """
 
-    def __init__(self, basis, radii, carrier_initial_angle, arm_initial_angle, arm_length,
-                 pusher_offset, planet_carrier_angle):
+    def __init__(self, basis: CurveBasis, radii: ArrayLike, carrier_initial_angle: ArrayLike,
+                 arm_initial_angle: ArrayLike, arm_length: ArrayLike, pusher_offset: ArrayLike,
+                 planet_carrier_angle: ArrayLike) -> None:
         radii = np.atleast_2d(np.asarray(radii, dtype=float))
         rows = len(radii)
         col = {name: np.broadcast_to(np.asarray(v, dtype=float), (rows,)).copy() for name, v in

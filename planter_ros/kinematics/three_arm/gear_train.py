@@ -34,15 +34,24 @@ cumulative integrals, values plus first and second derivatives in quintic Hermit
 evaluation never rebuilds the spline or re-solves the closure.
 """
 
+from __future__ import annotations
+
+from collections.abc import Mapping
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from planter_ros.config import specs
 
+from ..arrays import FloatArray, Floats
 from ..errors import DesignError
 from ..scene_settings import ThreeArmSettings
 from .pitch_curve import TWO_PI, PitchCurve, leggauss, solve_centre_distance, subdivide
+
+if TYPE_CHECKING:
+    from scipy.interpolate import PPoly
 
 ARMS = 3
 ARM_PHASE = TWO_PI / ARMS
@@ -53,7 +62,7 @@ TABLE_GAUSS = 12            # Gauss–Legendre points per Hermite interval for �
 class GearTrain:
     """Sun/intermediate/planet pitch curves and the mesh maps Ψ (sun→intermediate), Θ = Ψ⁻¹."""
 
-    def __init__(self, curve, closure_method='gauss'):
+    def __init__(self, curve: PitchCurve, closure_method: str = 'gauss') -> None:
         self.curve = curve
         self.closure = solve_centre_distance(curve, closure_method)
         a = self.a = self.closure.a
@@ -76,7 +85,7 @@ class GearTrain:
         self._theta = quintic_hermite(psi, nodes, g, g1)
         self.ratio_range = (float(f.min()), float(f.max()))
 
-    def psi(self, u, nu=0):
+    def psi(self, u: ArrayLike, nu: int = 0) -> Floats:
         """Intermediate polar angle in mesh with the sun's polar angle u (any real u), or its
         nu-th derivative (nu = 1: the transmission ratio ρ/(a−ρ))."""
         u = np.asarray(u, dtype=float)
@@ -84,7 +93,7 @@ class GearTrain:
         out = self._psi(u - turns * TWO_PI, nu)
         return out + turns * TWO_PI if nu == 0 else out
 
-    def theta(self, p, nu=0):
+    def theta(self, p: ArrayLike, nu: int = 0) -> Floats:
         """Inverse of psi: the sun (or planet) polar angle in mesh with intermediate angle p, or
         its nu-th derivative."""
         p = np.asarray(p, dtype=float)
@@ -92,7 +101,7 @@ class GearTrain:
         out = self._theta(p - turns * TWO_PI, nu)
         return out + turns * TWO_PI if nu == 0 else out
 
-    def conjugate_curve(self, samples=720):
+    def conjugate_curve(self, samples: int = 720) -> tuple[FloatArray, FloatArray]:
         """Intermediate pitch curve as (polar angle ψ, radius a − ρ) over one turn."""
         u = np.linspace(0.0, TWO_PI, samples + 1)
         return self.psi(u), self.a - self.curve(u)
@@ -111,8 +120,9 @@ class ThreeArmMechanism:
 
     batch_shape = ()
 
-    def __init__(self, curve, carrier_initial_angle, arm_initial_angle, arm_length,
-                 pusher_offset, planet_carrier_angle, closure_method='gauss'):
+    def __init__(self, curve: PitchCurve, carrier_initial_angle: float,
+                 arm_initial_angle: float, arm_length: float, pusher_offset: float,
+                 planet_carrier_angle: float, closure_method: str = 'gauss') -> None:
         values = dict(carrier_initial_angle=carrier_initial_angle,
                       arm_initial_angle=arm_initial_angle, arm_length=arm_length,
                       pusher_offset=pusher_offset, planet_carrier_angle=planet_carrier_angle)
@@ -137,7 +147,7 @@ class ThreeArmMechanism:
                     for k in range(ARMS)]
 
     @classmethod
-    def from_parameters(cls, params):
+    def from_parameters(cls, params: Mapping[str, object]) -> ThreeArmMechanism:
         """Build from a scene's parameter dict (names as in config/rice_three_arm.yaml)."""
         missing = [k for k in PARAMETER_NAMES if k not in params]
         if missing:
@@ -147,55 +157,56 @@ class ThreeArmMechanism:
         return cls(curve, **{k: _float(params, k) for k in PARAMETER_NAMES[2:]})
 
     # --- angles --------------------------------------------------------------------------
-    def carrier_angle(self, theta, arm=0):
+    def carrier_angle(self, theta: ArrayLike, arm: int = 0) -> Floats:
         """Absolute angle of the carrier line O1→O2 of the arm (eq 4 plus the arm's phase)."""
         return self.phi0 - np.asarray(theta, dtype=float) + arm * ARM_PHASE
 
-    def intermediate_angle(self, theta, arm=0):
+    def intermediate_angle(self, theta: ArrayLike, arm: int = 0) -> Floats:
         """Rotation of the arm's intermediate gear relative to the carrier (clockwise > 0)."""
         u = np.asarray(theta, dtype=float) - arm * ARM_PHASE
         return self.train.psi(u) - self.train.psi(-arm * ARM_PHASE)
 
-    def planet_mesh_angle(self, theta, arm=0):
+    def planet_mesh_angle(self, theta: ArrayLike, arm: int = 0) -> Floats:
         """w(θ): the planet's polar angle in mesh with its intermediate gear."""
         u = np.asarray(theta, dtype=float) - arm * ARM_PHASE
         return self.train.theta(self.train.psi(u) + self._c)
 
-    def planet_relative_angle(self, theta, arm=0):
+    def planet_relative_angle(self, theta: ArrayLike, arm: int = 0) -> Floats:
         """φ_3H: planet rotation relative to the carrier since θ = 0 (counter-clockwise > 0)."""
         return self.planet_mesh_angle(theta, arm) - self._w0[arm]
 
-    def attitude(self, theta, arm=0):
+    def attitude(self, theta: ArrayLike, arm: int = 0) -> Floats:
         """Absolute angle α of the arm line O3→D (rad, counter-clockwise from +x)."""
         return self._attitude(self.carrier_angle(theta, arm), self.planet_mesh_angle(theta, arm))
 
-    def _attitude(self, carrier, mesh):
+    def _attitude(self, carrier: Floats, mesh: Floats) -> Floats:
         return carrier - self.gamma0 + math.pi + mesh - self.beta0
 
-    def pusher_attitude(self, theta, arm=0):
+    def pusher_attitude(self, theta: ArrayLike, arm: int = 0) -> Floats:
         """Absolute angle of the pusher axis (towards the tip): α − asin(H1/S)."""
         return self.attitude(theta, arm) - self.delta
 
     # --- positions -----------------------------------------------------------------------
-    def centres(self, theta, arm=0):
+    def centres(self, theta: ArrayLike,
+                arm: int = 0) -> tuple[tuple[Floats, Floats], tuple[Floats, Floats]]:
         """(O2, O3): intermediate and planet centres, each an (x, y) array pair (eqs 12, 13)."""
         ph = self.carrier_angle(theta, arm)
         o2 = (self.a * np.cos(ph), self.a * np.sin(ph))
         o3 = (o2[0] + self.a * np.cos(ph - self.gamma0), o2[1] + self.a * np.sin(ph - self.gamma0))
         return o2, o3
 
-    def tip(self, theta, arm=0):
+    def tip(self, theta: ArrayLike, arm: int = 0) -> tuple[Floats, Floats]:
         """Tip D of the arm in the frame (absolute, static machine): (x, y) in m (eq 14)."""
         ph = self.carrier_angle(theta, arm)
         return self._tip(ph, self._attitude(ph, self.planet_mesh_angle(theta, arm)))
 
-    def _tip(self, ph, alpha):
+    def _tip(self, ph: Floats, alpha: Floats) -> tuple[Floats, Floats]:
         a, s, g = self.a, self.arm_length, self.gamma0
         x = a * (np.cos(ph) + np.cos(ph - g)) + s * np.cos(alpha)
         y = a * (np.sin(ph) + np.sin(ph - g)) + s * np.sin(alpha)
         return x, y
 
-    def tip_velocity(self, theta, arm=0):
+    def tip_velocity(self, theta: ArrayLike, arm: int = 0) -> tuple[Floats, Floats]:
         """d(tip)/dθ in the frame (m/rad): the carrier turns at −1, the arm at −1 + dw/dθ with
         dw/dθ = Θ'(Ψ(u) + c)·Ψ'(u) from the tabulated gear maps."""
         ph = self.carrier_angle(theta, arm)
@@ -209,19 +220,20 @@ class ThreeArmMechanism:
         dy = -a * (np.cos(ph) + np.cos(ph - g)) + s * np.cos(alpha) * dalpha
         return dx, dy
 
-    def tip_relative(self, theta, arm=0):
+    def tip_relative(self, theta: ArrayLike, arm: int = 0) -> tuple[Floats, Floats]:
         """Tip in the carrier frame (coordinates that turn with the carrier, equal at θ = 0)."""
         theta = np.asarray(theta, dtype=float)
         x, y = self.tip(theta, arm)
         c, s = np.cos(theta), np.sin(theta)
         return c * x - s * y, s * x + c * y
 
-    def tip_ground(self, theta, plant_spacing, arm=0):
+    def tip_ground(self, theta: ArrayLike, plant_spacing: float,
+                   arm: int = 0) -> tuple[Floats, Floats]:
         """Tip relative to the ground while the machine advances 3·d per carrier turn."""
         x, y = self.tip(theta, arm)
         return x + (ARMS * plant_spacing / TWO_PI) * np.asarray(theta, dtype=float), y
 
-    def cycle(self, samples=360):
+    def cycle(self, samples: int = 360) -> tuple[FloatArray, FloatArray, FloatArray]:
         """One carrier revolution of all three arms: θ (n,), tips (..., 3, 2, n), attitudes
         (..., 3, n), the leading axes being batch_shape."""
         theta = np.linspace(0.0, TWO_PI, samples, endpoint=False)
@@ -236,7 +248,7 @@ class ThreeArmMechanism:
             alpha.reshape(shape)
 
 
-def quintic_hermite(x, y, dy, d2y):
+def quintic_hermite(x: FloatArray, y: FloatArray, dy: FloatArray, d2y: FloatArray) -> PPoly:
     """Piecewise quintic through values, slopes and second derivatives (scipy PPoly, C¹…C²).
 
     The vectorised twin of scipy's BPoly.from_derivatives for this one case, which builds a
@@ -246,7 +258,8 @@ def quintic_hermite(x, y, dy, d2y):
     return PPoly(np.moveaxis(quintic_coefficients(x, y, dy, d2y), -1, 0), x, extrapolate=True)
 
 
-def quintic_coefficients(x, y, dy, d2y):
+def quintic_coefficients(x: FloatArray, y: FloatArray, dy: FloatArray,
+                         d2y: FloatArray) -> FloatArray:
     """Coefficients (..., intervals, 6) of the quintic Hermite pieces, highest power first, in
     powers of (x − x_i) (scipy PPoly's order); leading axes are a batch of curves."""
     h = np.diff(x, axis=-1)
@@ -264,14 +277,14 @@ def quintic_coefficients(x, y, dy, d2y):
 PARAMETER_NAMES = tuple(spec.name for spec in specs(ThreeArmSettings) if spec.required)
 
 
-def _float(params, key):
+def _float(params: Mapping[str, object], key: str) -> float:
     value = params[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise DesignError(key, value, 'a number (SI units)')
     return float(value)
 
 
-def _floats(params, key):
+def _floats(params: Mapping[str, object], key: str) -> FloatArray:
     value = params[key]
     if not isinstance(value, (list, tuple, np.ndarray)) or \
             any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):

@@ -42,13 +42,18 @@ The goal arithmetic is written once for one design and for a batch: every array 
 mechanism's `batch_shape` in front (see gear_train.ThreeArmMechanism and batch.MechanismBatch).
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from planter_ros.config import specs
 
+from ..arrays import FloatArray, Floats
 from ..errors import DesignError
 from ..scene_settings import SceneSettings, ThreeArmSettings
 from .gear_train import ARMS, ThreeArmMechanism
@@ -100,12 +105,13 @@ class Goal:
     assumed: dict = field(default_factory=dict)      # the assumed values it rests on (SI)
     derived: dict = field(default_factory=dict)      # figures computed alongside (SI)
 
-    def violation(self, margin=0.0):
+    def violation(self, margin: float = 0.0) -> float:
         """Distance outside [lower + margin, upper − margin] over the goal's scale (0 inside)."""
         return float(violation(self.name, self.value, self.lower, self.upper, margin))
 
 
-def violation(name, value, lower, upper, margin=0.0):
+def violation(name: str, value: Floats, lower: float | None, upper: float | None,
+              margin: float = 0.0) -> Floats:
     """Distance of value(s) outside [lower + margin·scale, upper − margin·scale], over the
     goal's scale; 0 inside (arrays welcome)."""
     scale = BOUNDS[name][3]
@@ -117,7 +123,7 @@ def violation(name, value, lower, upper, margin=0.0):
     return v / scale
 
 
-def goal_bounds(cfg):
+def goal_bounds(cfg: Mapping[str, float]) -> dict[str, tuple[float | None, float | None, str]]:
     """name -> (lower, upper, unit) for the scene values `cfg` (arm_width is goal 1's bound)."""
     out = {}
     for name, (lower, upper, unit, _) in BOUNDS.items():
@@ -125,7 +131,7 @@ def goal_bounds(cfg):
     return out
 
 
-def assumed_values(name, cfg):
+def assumed_values(name: str, cfg: Mapping[str, float]) -> dict[str, float]:
     """The values goal `name` rests on that the paper does not give (SI), by name."""
     if name == 'arm_clearance':
         return {'arm_width': cfg['arm_width']}
@@ -137,7 +143,7 @@ def assumed_values(name, cfg):
     return {}
 
 
-def goal_settings(params):
+def goal_settings(params: Mapping[str, object]) -> dict[str, float]:
     """The goal-related scene values (SI), checked, with defaults for the missing ones."""
     out = {}
     for key, default in GOAL_DEFAULTS.items():
@@ -153,13 +159,13 @@ def goal_settings(params):
     return out
 
 
-def _take(values, index):
+def _take(values: FloatArray, index: ArrayLike) -> Floats:
     """values[..., index] for an index array of the leading shape (periodic)."""
     n = values.shape[-1]
     return np.take_along_axis(values, (np.asarray(index) % n)[..., None], axis=-1)[..., 0]
 
 
-def _refine_extreme(theta, values, i):
+def _refine_extreme(theta: FloatArray, values: FloatArray, i: ArrayLike) -> Floats:
     """Parabolic refinement of a sampled extreme at index i on a periodic uniform grid."""
     y0, y1, y2 = _take(values, i - 1), _take(values, i), _take(values, i + 1)
     den = y0 - 2.0 * y1 + y2
@@ -169,11 +175,12 @@ def _refine_extreme(theta, values, i):
     return theta[i] + np.clip(shift, -1.0, 1.0) * step
 
 
-def _below_horizontal(angle):
+def _below_horizontal(angle: Floats) -> Floats:
     return -np.arctan2(np.sin(angle), np.abs(np.cos(angle)))
 
 
-def _segment_distance(p1, q1, p2, q2):
+def _segment_distance(p1: FloatArray, q1: FloatArray, p2: FloatArray,
+                      q2: FloatArray) -> FloatArray:
     """Smallest distance between segments p1q1 and p2q2 (arrays of shape (2, ...))."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a = np.sum(d1 * d1, axis=0)
@@ -191,7 +198,8 @@ def _segment_distance(p1, q1, p2, q2):
     return np.sqrt(np.sum(diff * diff, axis=0))
 
 
-def gear_module_limit(mech, samples=MODULE_SAMPLES):
+def gear_module_limit(mech: ThreeArmMechanism,
+                      samples: int = MODULE_SAMPLES) -> tuple[Floats, Floats, Floats]:
     """(undercut-free module, pitch-curve length, min |curvature radius|) for the train
     (arrays of the mechanism's batch_shape)."""
     curve, a = mech.train.curve, _per_design(mech, mech.a)[..., None]
@@ -215,18 +223,19 @@ def gear_module_limit(mech, samples=MODULE_SAMPLES):
     return module, length, rmin
 
 
-def _per_design(mech, value):
+def _per_design(mech: ThreeArmMechanism, value: Floats) -> FloatArray:
     """A per-design value (float, or (P, 1) in a batch) in the batch's shape."""
     return np.reshape(np.asarray(value, dtype=float), mech.batch_shape)
 
 
-def _extremes(theta, y):
+def _extremes(theta: FloatArray, y: FloatArray) -> tuple[Floats, Floats]:
     """Carrier angles of the highest and lowest samples of y (..., n), refined."""
     return (_refine_extreme(theta, -y, np.argmax(y, axis=-1)),
             _refine_extreme(theta, y, np.argmin(y, axis=-1)))
 
 
-def _at(mech, fn, theta, arm=0):
+def _at(mech: ThreeArmMechanism, fn: Callable, theta: ArrayLike,
+        arm: int = 0) -> Floats | tuple[Floats, ...]:
     """fn(θ, arm) at one carrier angle per design (θ of batch_shape)."""
     out = fn(np.asarray(theta, dtype=float)[..., None], arm)
     if isinstance(out, tuple):
@@ -234,7 +243,8 @@ def _at(mech, fn, theta, arm=0):
     return out[..., 0]
 
 
-def _phases(theta, y, cfg, shape):
+def _phases(theta: FloatArray, y: FloatArray, cfg: Mapping[str, float],
+            shape: tuple[int, ...]) -> tuple[Floats, Floats, Floats, Floats]:
     """(picking, planting, highest, lowest) carrier angles of arm I: the scene's phases where
     given, else the highest and lowest tip points (refined from the samples y)."""
     high, low = _extremes(theta, y)
@@ -243,7 +253,8 @@ def _phases(theta, y, cfg, shape):
     return pick, plant, high, low
 
 
-def goal_values(mech, cfg, samples=720):
+def goal_values(mech: ThreeArmMechanism, cfg: Mapping[str, float],
+                samples: int = 720) -> dict[str, Floats]:
     """The eight goal values, name -> array of the mechanism's batch_shape, plus the phases
     used ('picking_phase', 'planting_phase') and the zero-slip plant spacing."""
     theta, tips, _ = mech.cycle(samples)
@@ -308,13 +319,14 @@ def goal_values(mech, cfg, samples=720):
     return out
 
 
-def evaluate_goals(mech, params=None, samples=720):
+def evaluate_goals(mech: ThreeArmMechanism, params: Mapping[str, object] | None = None,
+                   samples: int = 720) -> list[Goal]:
     """The eight goals for a built mechanism; params gives the scene values (defaults if None)."""
     cfg = goal_settings(params or {})
     return goals_from_values(goal_values(mech, cfg, samples), cfg)
 
 
-def goals_from_values(values, cfg):
+def goals_from_values(values: Mapping[str, Floats], cfg: Mapping[str, float]) -> list[Goal]:
     """Goal records (one design) from goal_values' output."""
     out = []
     for name, (lower, upper, unit) in goal_bounds(cfg).items():
@@ -329,7 +341,7 @@ def goals_from_values(values, cfg):
     return out
 
 
-def goal_counts(goals):
+def goal_counts(goals: list[Goal]) -> dict[str, tuple[int, int]]:
     """{'paper': (passed, of), 'assumption': (passed, of)} by provenance."""
     out = {}
     for basis in ('paper', 'assumption'):
@@ -338,7 +350,8 @@ def goal_counts(goals):
     return out
 
 
-def design_summary(params, mech=None, goals=None):
+def design_summary(params: Mapping[str, object], mech: ThreeArmMechanism | None = None,
+                   goals: list[Goal] | None = None) -> dict:
     """JSON-ready design of a three-arm scene (SI units) for the `design` topic and the CLI."""
     mech = mech or ThreeArmMechanism.from_parameters(params)
     cfg = goal_settings(params)

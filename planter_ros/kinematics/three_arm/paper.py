@@ -20,6 +20,9 @@ doc/design.md):
 * pitch curve: the four interpolants of pitch_curve.
 """
 
+from __future__ import annotations
+
+from collections.abc import Mapping
 import itertools
 import math
 
@@ -37,23 +40,23 @@ TABLE_1_SOURCE = ('paper 2, Table 1: carrier angle of each arm at picking and pl
                   'its parameter set (§4.1)')
 
 
-def _wrap(angle):
+def _wrap(angle: float) -> float:
     """An angle difference in (−π, π]."""
     return -math.remainder(-float(angle), TWO_PI)
 
 
-def arm_timing(mech, arm, samples=3600):
+def arm_timing(mech: ThreeArmMechanism, arm: int, samples: int = 3600) -> tuple[float, float]:
     """(picking, planting) carrier angles of one arm: its highest and lowest tip points."""
     theta = np.linspace(0.0, TWO_PI, samples, endpoint=False)
     high, low = _extremes(theta, mech.tip(theta, arm)[1])
     return float(np.mod(high, TWO_PI)), float(np.mod(low, TWO_PI))
 
 
-def _attitude_below(mech, theta, arm):
+def _attitude_below(mech: ThreeArmMechanism, theta: float, arm: int) -> float:
     return float(_below_horizontal(mech.pusher_attitude(theta, arm)))
 
 
-def paper_comparison(mech, samples=3600):
+def paper_comparison(mech: ThreeArmMechanism, samples: int = 3600) -> dict:
     """Per arm: the model's picking and planting carrier angles beside Table 1's, their
     differences, and the picking and pushing angles (goals 2 and 3) at both (rad)."""
     arms = []
@@ -80,13 +83,14 @@ def paper_comparison(mech, samples=3600):
 _SENSES = {'cw': 1.0, 'ccw': -1.0}
 
 
-def readings():
+def readings() -> list[tuple[str, str, str, str, str]]:
     """Every reading tried: (γ0 sense, β0 sense, arm offset, planet reference, interpolant)."""
     return list(itertools.product(_SENSES, _SENSES, ('mesh point', 'opposite'),
                                   ('absolute', 'from θ = 0'), tuple(INTERPOLANTS)))
 
 
-def reading_parameters(params, reading):
+def reading_parameters(params: Mapping[str, object],
+                       reading: tuple[str, str, str, str, str]) -> dict[str, object]:
     """The scene values that make our model follow `reading` (see the module doc)."""
     gamma_sense, beta_sense, offset, reference, interpolant = reading
     out = dict(params, interpolant=interpolant)
@@ -100,7 +104,7 @@ def reading_parameters(params, reading):
     return out
 
 
-def reading_table(params, samples=3600):
+def reading_table(params: Mapping[str, object], samples: int = 3600) -> list[dict]:
     """One row per reading: arm I's timing against Table 1 and the attitude goals (rad), and
     the gear module (m)."""
     rows = []

@@ -31,12 +31,21 @@ pieces bisected until two rules agree to 1e-14. The paper's 1° sum (eq. 2, left
 and ``trapezoid`` takes any grid size.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
 from functools import lru_cache
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
+from ..arrays import FloatArray, Floats
 from ..errors import DesignError
+
+if TYPE_CHECKING:
+    from scipy.interpolate import PPoly
 
 TWO_PI = 2.0 * math.pi
 CLOSURE_METHODS = ('gauss', 'trapezoid', 'paper')
@@ -47,7 +56,7 @@ _GL_MAX_SPLITS = 9          # at most 2**9 sub-pieces per knot interval
 
 
 @lru_cache(maxsize=8)
-def leggauss(n):
+def leggauss(n: int) -> tuple[FloatArray, FloatArray]:
     """Gauss–Legendre nodes and weights on [-1, 1] (cached: numpy recomputes them each call)."""
     x, w = np.polynomial.legendre.leggauss(n)
     x.flags.writeable = False
@@ -55,7 +64,7 @@ def leggauss(n):
     return x, w
 
 
-def subdivide(ends, m):
+def subdivide(ends: FloatArray, m: int) -> FloatArray:
     """Split each interval of the sorted `ends` into m equal parts; returns all the new ends."""
     lo, hi = ends[:-1, None], ends[1:, None]
     return np.r_[(lo + (hi - lo) * (np.arange(m) / m)).ravel(), ends[-1]]
@@ -66,18 +75,18 @@ class _PiecewisePolynomial:
 
     linear = True
 
-    def _init_ppoly(self, ppoly, start, knots):
+    def _init_ppoly(self, ppoly: PPoly, start: float, knots: FloatArray) -> None:
         self._pp = (ppoly, ppoly.derivative(1), ppoly.derivative(2))
         self._start = float(start)
         self.breakpoints = np.sort(np.mod(knots, TWO_PI))
 
-    def _wrap(self, theta):
+    def _wrap(self, theta: ArrayLike) -> Floats:
         return np.mod(np.asarray(theta, dtype=float) - self._start, TWO_PI) + self._start
 
-    def __call__(self, theta, nu=0):
+    def __call__(self, theta: ArrayLike, nu: int = 0) -> Floats:
         return self._pp[nu](self._wrap(theta))
 
-    def extrema(self):
+    def extrema(self) -> FloatArray:
         """Polar angles of the local extrema of r (exact roots of the derivative's pieces)."""
         roots = self._pp[1].roots(extrapolate=False)
         roots = roots[np.isfinite(roots)]
@@ -90,7 +99,7 @@ class _PeriodicCubic(_PiecewisePolynomial):
 
     name = 'periodic_cubic'
 
-    def __init__(self, radii, angles):
+    def __init__(self, radii: FloatArray, angles: FloatArray) -> None:
         from scipy.interpolate import CubicSpline
         x = np.r_[angles, angles[0] + TWO_PI]
         y = np.r_[radii, radii[0]]
@@ -106,7 +115,7 @@ class _PolarBSpline(_PiecewisePolynomial):
 
     name = 'bspline_polar'
 
-    def __init__(self, radii, angles):
+    def __init__(self, radii: FloatArray, angles: FloatArray) -> None:
         from scipy.interpolate import BSpline, PPoly
         n = len(radii)
         knots = np.r_[angles[n - 3:] - TWO_PI, angles, angles[:4] + TWO_PI]
@@ -121,7 +130,7 @@ class _Trigonometric:
     name = 'trigonometric'
     linear = True
 
-    def __init__(self, radii, angles):
+    def __init__(self, radii: FloatArray, angles: FloatArray) -> None:
         n = len(radii)
         self._k = np.arange(1, (n - 1) // 2 + 1)
         cols = [np.ones(n)] + [np.cos(k * angles) for k in self._k] + \
@@ -139,7 +148,7 @@ class _Trigonometric:
         self._a0 = angles[0]
         self.breakpoints = np.array([0.0])
 
-    def __call__(self, theta, nu=0):
+    def __call__(self, theta: ArrayLike, nu: int = 0) -> Floats:
         t = np.asarray(theta, dtype=float)
         k = self._k.reshape((-1,) + (1,) * t.ndim)
         m = len(self._k)
@@ -155,7 +164,7 @@ class _Trigonometric:
             out = out + self._c[-1] * n2 ** nu * np.cos(n2 * (t - self._a0) + shift)
         return out
 
-    def extrema(self):
+    def extrema(self) -> FloatArray:
         grid = np.linspace(0.0, TWO_PI, 4097)[:-1]
         d = self(grid, 1)
         idx = np.nonzero(np.sign(d) != np.sign(np.roll(d, -1)))[0]
@@ -184,7 +193,7 @@ class _CartesianBSpline:
     name = 'bspline_cartesian'
     linear = False
 
-    def __init__(self, radii, angles):
+    def __init__(self, radii: FloatArray, angles: FloatArray) -> None:
         n = len(radii)
         pts = np.stack([radii * np.cos(angles), radii * np.sin(angles)], axis=1)
         window = (np.arange(n)[:, None] + np.arange(-1, 3)[None, :]) % n
@@ -198,7 +207,7 @@ class _CartesianBSpline:
         self._begin = begin[self._order]
         self.breakpoints = self._begin.copy()
 
-    def _check_star_shaped(self):
+    def _check_star_shaped(self) -> None:
         """The polar angle must grow along the whole curve: C × C' > 0 (a quintic per segment),
         and the curve must turn once around the centre."""
         poly = np.polynomial.Polynomial
@@ -217,12 +226,12 @@ class _CartesianBSpline:
                               'whose polar angle grows all the way round the gear centre',
                               'the curve does not wind once round the centre')
 
-    def _point(self, seg, t, nu=0):
+    def _point(self, seg: NDArray[np.intp], t: FloatArray, nu: int = 0) -> FloatArray:
         c = self._coef[seg]                       # (..., 4, 2)
         powers = _POWERS[nu](t)
         return sum(p[..., None] * c[..., j, :] for j, p in enumerate(powers))
 
-    def _parameter(self, theta):
+    def _parameter(self, theta: ArrayLike) -> tuple[NDArray[np.intp], FloatArray]:
         """(segment, t) of the curve point at polar angle θ (arrays)."""
         th = np.mod(np.asarray(theta, dtype=float), TWO_PI)
         j = np.searchsorted(self._begin, th, side='right') - 1     # -1: the wrapping segment
@@ -245,7 +254,7 @@ class _CartesianBSpline:
                 break
         return seg, t
 
-    def __call__(self, theta, nu=0):
+    def __call__(self, theta: ArrayLike, nu: int = 0) -> Floats:
         seg, t = self._parameter(theta)
         c, c1 = self._point(seg, t), self._point(seg, t, 1)
         r = np.hypot(c[..., 0], c[..., 1])
@@ -262,7 +271,7 @@ class _CartesianBSpline:
         th_tt = cross2 / (r * r) - 2.0 * cross * dot / r ** 4
         return (r_tt * th_t - r_t * th_tt) / th_t ** 3
 
-    def extrema(self):
+    def extrema(self) -> FloatArray:
         """Polar angles where ρ is stationary: roots of C · C' (a quintic per segment)."""
         poly = np.polynomial.Polynomial
         out = []
@@ -279,7 +288,7 @@ INTERPOLANTS = {cls.name: cls for cls in (_PeriodicCubic, _Trigonometric, _Polar
                                           _CartesianBSpline)}
 
 
-def _check_control_points(radii, angles):
+def _check_control_points(radii: ArrayLike, angles: ArrayLike) -> tuple[FloatArray, FloatArray]:
     radii = np.asarray(radii, dtype=float).ravel()
     angles = np.asarray(angles, dtype=float).ravel()
     if radii.size < 4:
@@ -307,7 +316,8 @@ def _check_control_points(radii, angles):
 class PitchCurve:
     """The sun (and planet) gear pitch curve ρ(θ) in m, θ in rad, periodic with 2π."""
 
-    def __init__(self, radii, angles, interpolant='periodic_cubic'):
+    def __init__(self, radii: ArrayLike, angles: ArrayLike,
+                 interpolant: str = 'periodic_cubic') -> None:
         if interpolant not in INTERPOLANTS:
             raise DesignError('interpolant', interpolant, ' | '.join(INTERPOLANTS))
         self.radii, self.angles = _check_control_points(radii, angles)
@@ -321,30 +331,30 @@ class PitchCurve:
                               f'the {interpolant} interpolant dips to '
                               f'{self.rho_min * 1e3:.3g} mm between the points')
 
-    def __call__(self, theta, nu=0):
+    def __call__(self, theta: ArrayLike, nu: int = 0) -> Floats:
         """ρ (nu=0) or its nu-th derivative with respect to θ."""
         return self._f(theta, nu)
 
     @property
-    def pieces(self):
+    def pieces(self) -> FloatArray:
         """Ends of the pieces in [0, 2π] on which ρ is analytic (knots of the interpolant)."""
         return self._pieces
 
-    def _range(self):
+    def _range(self) -> tuple[float, float]:
         cand = np.r_[self._f.extrema(), self._pieces, np.linspace(0, TWO_PI, 721)]
         values = self(cand)
         return float(values.min()), float(values.max())
 
-    def gauss_nodes(self, splits=0):
+    def gauss_nodes(self, splits: int = 0) -> tuple[FloatArray, FloatArray]:
         """Gauss–Legendre nodes and weights over [0, 2π], 2**splits sub-pieces per piece."""
         return gauss_nodes(self._pieces, splits)
 
-    def curvature_radius(self, theta):
+    def curvature_radius(self, theta: ArrayLike) -> FloatArray:
         """Signed radius of curvature (m) of the pitch curve; > 0 convex, < 0 concave."""
         r, r1, r2 = self(theta), self(theta, 1), self(theta, 2)
         return polar_curvature_radius(r, r1, r2)
 
-    def length(self):
+    def length(self) -> float:
         nodes, weights = self.gauss_nodes(LENGTH_SPLITS)
         return float(np.sum(weights * np.hypot(self(nodes), self(nodes, 1))))
 
@@ -352,7 +362,7 @@ class PitchCurve:
 LENGTH_SPLITS = 2       # Gauss rule of the pitch-curve length: 2**2 sub-pieces per piece
 
 
-def analytic_pieces(breakpoints):
+def analytic_pieces(breakpoints: ArrayLike) -> FloatArray:
     """Ends in [0, 2π] of the pieces on which an interpolant with these knots is analytic.
 
     Knots within 1e-9 rad of the ends 0 and 2π would make pieces of ~0 width (their quintic
@@ -363,7 +373,8 @@ def analytic_pieces(breakpoints):
     return np.unique(np.r_[0.0, knots, TWO_PI])
 
 
-def gauss_nodes(pieces, splits=0, points=_GL_NODES):
+def gauss_nodes(pieces: FloatArray, splits: int = 0,
+                points: int = _GL_NODES) -> tuple[FloatArray, FloatArray]:
     """Gauss–Legendre nodes and weights over [0, 2π], 2**splits sub-pieces per piece."""
     x, w = leggauss(points)
     sub = subdivide(pieces, 2 ** splits)
@@ -372,7 +383,7 @@ def gauss_nodes(pieces, splits=0, points=_GL_NODES):
     return (lo + half * (x + 1.0)).ravel(), (half * w).ravel()
 
 
-def polar_curvature_radius(r, r1, r2):
+def polar_curvature_radius(r: Floats, r1: Floats, r2: Floats) -> FloatArray:
     """Signed radius of curvature of a polar curve from ρ, ρ' and ρ'' (arrays; inf where
     straight)."""
     num = (r * r + r1 * r1) ** 1.5
@@ -381,7 +392,7 @@ def polar_curvature_radius(r, r1, r2):
         return np.where(den == 0.0, np.inf, num / np.where(den == 0.0, 1.0, den))
 
 
-def closure_mean(rho, weights, a):
+def closure_mean(rho: FloatArray, weights: FloatArray, a: float) -> float:
     """(1/2π) Σ w ρ/(a−ρ): the mean transmission ratio for centre distance a (1 = closed)."""
     return float(np.dot(weights, rho / (a - rho))) / TWO_PI
 
@@ -389,18 +400,19 @@ def closure_mean(rho, weights, a):
 class Closure:
     """Centre distance a of the mating pair and how well the closure condition holds."""
 
-    def __init__(self, a, residual, method, evaluations):
+    def __init__(self, a: float, residual: float, method: str, evaluations: int) -> None:
         self.a = a
         self.residual = residual        # |mean ratio − 1| at a, by the refined Gauss rule
         self.method = method
         self.evaluations = evaluations  # ρ samples the method used
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (f'Closure(a={self.a:.12g}, residual={self.residual:.3g}, method={self.method},'
                 f' evaluations={self.evaluations})')
 
 
-def _converged_gauss(curve, a):
+def _converged_gauss(curve: PitchCurve,
+                     a: float) -> tuple[FloatArray, FloatArray, FloatArray, float]:
     """Gauss rule with enough splits that the closure mean is converged at centre distance a."""
     prev = None
     for splits in range(_GL_MAX_SPLITS + 1):
@@ -413,7 +425,8 @@ def _converged_gauss(curve, a):
     return nodes, weights, rho, val
 
 
-def solve_centre_distance(curve, method='gauss', samples=None):
+def solve_centre_distance(curve: PitchCurve, method: str = 'gauss',
+                          samples: int | None = None) -> Closure:
     """Solve (1/2π)∮ρ/(a−ρ)dθ = 1 for the centre distance a (m).
 
     method 'gauss' (default) is exponentially convergent; 'trapezoid' uses `samples` uniform
@@ -449,7 +462,7 @@ def solve_centre_distance(curve, method='gauss', samples=None):
     return Closure(a, abs(mean - 1.0), method, evaluations)
 
 
-def _root(brentq, rho, weights, rmax):
+def _root(brentq: Callable, rho: FloatArray, weights: FloatArray, rmax: float) -> float:
     lo = rmax * (1.0 + 1e-12)
     hi = 2.0 * rmax
     f = lambda a: closure_mean(rho, weights, a) - 1.0  # noqa: E731
