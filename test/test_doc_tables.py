@@ -41,4 +41,5 @@ def test_a_hand_edited_table_is_caught():
 
 def test_a_marker_naming_no_table_is_refused():
     with pytest.raises(KeyError):
-        update_page('<!-- generated: nothing -->\n<!-- end generated -->')
+        update_page('<!-- generated: python -m planter_ros.scene.doc_tables nothing -->\n'
+                    '<!-- end generated -->')

@@ -1,13 +1,15 @@
 """The tables in doc/ that come from the code's one declaration: the topics (interfaces.TOPICS),
 each node's parameters (scene.schema.node_specs, from the configuration classes) and the machine
-file's keys (scene.machine). A page holds a generated table between two markers:
+file's keys (scene.machine). A page holds a generated table as the docs hold every generated
+block, between a marker naming the command that prints it and an end marker:
 
-    <!-- generated: topics -->
+    <!-- generated: python -m planter_ros.scene.doc_tables topics -->
     ...
     <!-- end generated -->
 
-`python -m planter_ros.scene.doc_tables` rewrites every such table in doc/ from the code;
-test/test_doc_tables.py fails when a page's table differs from what the code declares.
+`python -m planter_ros.scene.doc_tables NAME` prints one table; without a name it rewrites
+every such table in doc/ from the code. test/test_doc_tables.py fails when a page's table
+differs from what the code declares.
 """
 
 from dataclasses import MISSING
@@ -19,7 +21,8 @@ from planter_ros.config import Spec
 
 __all__ = ['TABLES', 'render', 'update_page']
 
-MARK = re.compile(r'(<!-- generated: ([\w:-]+) -->\n)(.*?)(<!-- end generated -->)', re.S)
+MARK = re.compile(r'(<!-- generated: python -m planter_ros\.scene\.doc_tables ([\w:-]+) -->\n)'
+                  r'(.*?)(<!-- end generated -->)', re.S)
 
 
 def _cell(text: object) -> str:
@@ -136,6 +139,14 @@ def update_page(text: str) -> tuple[str, list[str]]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv:
+        if argv[0] not in TABLES:
+            print(f'doc_tables: error: {argv[0]!r} is not a table: allowed '
+                  + ', '.join(TABLES), file=sys.stderr)
+            return 2
+        print(TABLES[argv[0]]())
+        return 0
     doc = Path(__file__).resolve().parents[2] / 'doc'
     for page in sorted(doc.glob('*.md')):
         text = page.read_text()
