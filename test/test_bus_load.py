@@ -54,3 +54,31 @@ def test_the_sync_node_refuses_an_overloaded_bus_at_start_up(ros):
     with pytest.raises(DriveConfigError, match=r'CAN bus load .* \(r0, r1, r2, r3, r4, r5 at '
                                                r'125000 bit/s'):
         SyncNode(context=ros.context, parameter_overrides=params)
+
+
+def test_csp_counts_a_sync_and_per_row_an_rpdo_and_two_tpdos_every_period():
+    load = bus_load(8, 500_000, **DEFAULTS, sync_period=0.01, csp=True)
+    per_period = 55 + 8 * (115 + 95 + 135)                  # SYNC + per row RPDO, TPDO1, TPDO2
+    heartbeats = (8 * 10 + 10) * 65                         # per second
+    assert load.bits_per_second == pytest.approx(100 * per_period + heartbeats)
+    assert load.csp and load.load == pytest.approx(0.575, abs=0.001)      # fits at 10 ms
+    # 8 RPDOs alone take 1.84 ms of a 500 kbit/s bus; with the feedback 5.6 ms per period
+    assert 8 * 115 / 500_000 == pytest.approx(1.84e-3)
+    assert load.wire_per_period == pytest.approx(5.75e-3, abs=0.01e-3)
+
+
+def test_a_csp_machine_over_the_limit_is_refused_naming_the_knobs_that_fix_it():
+    names = [f'row{i}' for i in range(8)]
+    load = bus_load(8, 500_000, **DEFAULTS, sync_period=0.004, csp=True)
+    with pytest.raises(DriveConfigError) as info:
+        check_bus_load(load, names, **DEFAULTS)
+    message = str(info.value)
+    assert '\n' not in message
+    for word in ('CAN bus load 141.9 % is out of range', 'cyclic synchronous position',
+                 'sync_period = 4 ms', 'at most 3 rows fit', 'lengthen sync_period',
+                 'raise can_bitrate', 'second bus'):
+        assert word in message, word
+    # the knobs do fix it: 1 Mbit/s at 4 ms is still over, 1 Mbit/s at 5 ms fits
+    assert bus_load(8, 1_000_000, **DEFAULTS, sync_period=0.004, csp=True).load > LIMIT
+    check_bus_load(bus_load(8, 1_000_000, **DEFAULTS, sync_period=0.005, csp=True), names,
+                   **DEFAULTS)

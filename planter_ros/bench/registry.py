@@ -29,6 +29,7 @@ CASE_MODULES = (
     'planter_ros.bench.cases.three_arm',
     'planter_ros.bench.cases.sync',
     'planter_ros.bench.cases.control_loop',
+    'planter_ros.bench.cases.command_path',
     'planter_ros.bench.cases.replay',
     'planter_ros.bench.cases.analyze',
     'planter_ros.bench.cases.cdr',

@@ -1,5 +1,5 @@
-"""Pure control laws (no ROS, no CAN): the sync node translates topics and drive feedback into
-calls of these, so they are tested and simulated without either."""
+"""Pure control laws (no ROS, no CAN): the sync node and the command process translate topics and
+drive feedback into calls of these, so they are tested and simulated without either.
+`row_loop.RowLoop.step` is the whole machine's step: every row's command and status."""
 
-# the submodules (imported by name, never here)
-__all__ = ['loop_timing', 'machine', 'phase_lock', 'sync_status']
+__all__ = ['loop_timing', 'machine', 'phase_lock', 'row_loop', 'sync_status']

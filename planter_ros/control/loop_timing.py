@@ -18,14 +18,17 @@ import numpy as np
 
 from planter_ros.config import check, setting
 
+__all__ = ['BIN', 'SPAN', 'SyncLoopConfig', 'PeriodStats']
+
 BIN = 1e-4                  # s, histogram resolution
 SPAN = 1.0                  # s, gaps above this share the overflow bin (their max is kept)
 
 
 @dataclass(frozen=True)
 class SyncLoopConfig:
-    """The sync node's loop timing (fixed at start-up): its period, the diagnostics period and
-    the ground-speed rate the CAN bus-load check budgets for."""
+    """The sync node's loop (fixed at start-up): its period, the diagnostics period, the
+    ground-speed rate the CAN bus-load check budgets for, and where it runs (the command
+    process, its real-time priority and restarts)."""
 
     control_period: float = setting(0.02, 'control loop period: heartbeat, stale handling, '
                                     'joint_states', unit='s', range=(0.002, 0.1), read_only=True)
@@ -35,6 +38,16 @@ class SyncLoopConfig:
                                        'bus-load check budgets for (each sample sends one RPDO '
                                        'per row)', unit='Hz', range=(1.0, 1000.0),
                                        read_only=True)
+    command_process: bool = setting(True, 'true: the CAN bus, the drives and the row loop run '
+                                    'in a command process of their own (no DDS, no rclpy), '
+                                    'which no ROS graph event can stall; false: in this '
+                                    'node\'s process', read_only=True)
+    realtime_priority: int = setting(40, 'SCHED_FIFO priority the command process asks for '
+                                     '(0 = ask for none); refused = said in the log and in '
+                                     '/diagnostics, it runs on', range=(0, 99), read_only=True)
+    command_restarts: int = setting(3, 'times the node restarts a command process that died '
+                                    "(the drives' own watchdogs stop the motors meanwhile); "
+                                    'then it reports ERROR', range=(0, 100), read_only=True)
 
     def __post_init__(self):
         check(self)

@@ -228,8 +228,7 @@ class _Run:
                     f'{profile.cruise * profile.change:.2f} m/s, {turns}, '
                     f'{options.duration:g} s, '
                     f"{'phase-locked' if options.phase_lock else 'speed-only'}, turn "
-                    f"compensation {'on' if options.turn_compensation else 'off'}, CAN "
-                    f'virtual:{channel}, '
+                    f"compensation {'on' if options.turn_compensation else 'off'}, "
                     f'DDS domain {self.domain} (private), bag '
                     f"{getattr(self.monitor.recorder, 'path', None) or 'none (not recording)'}")
         try:
@@ -251,8 +250,11 @@ class _Run:
             return None
         demo._print(('drive enabled' if len(demo.planting) == 1 else
                      f"{ready['running']} drives enabled")
-                    + ' (CiA 402 profile velocity, sync node in a process of its own); field '
-                    'run starts')
+                    + f" (CiA 402 {ready.get('mode') or 'mode unknown'}; "
+                    + ('CAN bus and drives in a command process without DDS, the simulated '
+                       "drives in a process of their own" if ready.get('command_process') else
+                       f'CAN virtual:{channel}, drives in the sync process')
+                    + '); field run starts')
         self._start_field(profile)
         return self._drive(profile)
 

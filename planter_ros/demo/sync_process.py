@@ -1,23 +1,26 @@
-"""The demo's command path in a process of its own: sync_node and the simulated drives.
+"""The demo's command path in processes of its own: the sync node (a shell), its command
+process, and the simulated drives.
 
-The drives' RPDO deadline (0.2 s) is only as safe as the thread that sends the commands. In
-one process with the monitor, the recorder and its compression, the field sensors and the
-demo's own bookkeeping, that thread shares one GIL and one executor with all of them, and on a
-loaded 2-core machine it was left unscheduled long enough for a drive to quick-stop. Here the
-sync node spins alone in a child process (a single-threaded executor, as `sync_node` runs on
-the machine); python-can's virtual bus reaches only its own process, so the simulated drives
-live there too, as the drives would be other devices on the machine. The child talks to the
-rest of the demo over DDS in the demo's private domain (ground speed and the design in;
-joint_states, speed commands and /diagnostics out) and to the demo itself over a pipe: its
-start, a status snapshot four times a second for the progress lines, and at the end a report
-(sample counts, faults, watchdog trips, the control loop's period statistics, design changes).
+The drives' RPDO deadline (0.2 s) is only as safe as the thread that sends the commands. Here
+the sync node spins alone in a child process (a single-threaded executor, as `sync_node` runs
+on the machine) and, as on the machine, hands the CAN bus to its command process (no DDS, no
+rclpy: planter_ros.command), so neither the demo's other work nor a DDS graph event can hold up
+a command frame. The simulated drives run in a process of their own too
+(drive.sim_process, over a CAN socket pair, doc/command.md), so they see on their own clock
+every gap a real drive would see (`drive_gaps` in the report). The child talks to the rest of
+the demo over DDS in the demo's private domain (ground speed and the design in; joint_states,
+speed commands and /diagnostics out) and to the demo itself over a pipe: its start, a status
+snapshot four times a second for the progress lines, and at the end a report (sample counts,
+faults, watchdog trips, the control loop's period statistics, design changes). With
+`command_process=False` the drives and the engine run in the child on a virtual bus instead.
 
 The child ignores SIGINT and SIGTERM (the terminal's Ctrl-C reaches the whole process group):
 the demo decides when it stops. It stops on the demo's request or when the pipe breaks (the
 demo closed it or was forced out): either way its drives are shut down (0x60FF = 0, disable).
 A demo killed outright (SIGKILL) leaves the child PARENT_GONE_GRACE s for that, then the kernel
-ends it (planter_ros.processes), stuck or not.
-"""
+ends it (planter_ros.processes), stuck or not; if the child itself is killed, its command
+process ramps to zero, disables the drives and exits, and the drives' process ends with its
+parent."""
 
 from dataclasses import dataclass, field
 import gc
@@ -45,6 +48,9 @@ class SyncProcessSettings:
     parameters: tuple = ()           # (name, value) sync node parameter overrides
     log_level: str = 'info'
     drive_kwargs: dict = field(default_factory=dict)
+    # True: the drives in a process of their own and the sync node's command process between
+    # them and the node (as on the machine); False: drives and engine in this child (virtual bus)
+    command_process: bool = True
 
 
 class SyncProcess:
@@ -138,7 +144,10 @@ def child_main(conn, settings):
     from planter_ros.config import ConfigError
     from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS
     from planter_ros.drive.errors import DriveError
+    from planter_ros.control.loop_timing import SyncLoopConfig
+    from planter_ros.drive.sim_process import SimProcess
     from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.drive.socket_bus import INTERFACE, socket_pair
     from planter_ros.nodes.sync_node import LibraryLog, SyncNode, start_error
 
     def send(*message):
@@ -148,8 +157,23 @@ def child_main(conn, settings):
         except (BrokenPipeError, OSError):
             return False
 
-    sims = SimulatedBus(settings.channel, list(settings.node_ids), **settings.drive_kwargs)
-    sims.start()
+    parameters = list(settings.parameters)
+    if settings.command_process:
+        # drives | CAN socket pair | command process | channel | this shell (the sync node)
+        ours, theirs = socket_pair()
+        # drives that offer CSP (and profile velocity): the command process runs them in CSP
+        # unless the scene says operation_mode: velocity
+        kwargs = {'supported_modes': [3, 8], **settings.drive_kwargs}
+        # the drives stand for hardware: just below the command process's real-time priority
+        priority = dict(parameters).get('realtime_priority', SyncLoopConfig().realtime_priority)
+        sims = SimProcess(ours.fileno(), list(settings.node_ids),
+                          priority=max(int(priority) - 1, 0), **kwargs)
+        ours.close()
+        parameters = [(k, v) for k, v in parameters if k not in ('can_interface', 'can_channel')]
+        parameters += [('can_interface', INTERFACE), ('can_channel', str(theirs.fileno()))]
+    else:
+        sims = SimulatedBus(settings.channel, list(settings.node_ids), **settings.drive_kwargs)
+        sims.start()
     context = Context()
     rclpy.init(args=['--ros-args', '--log-level', settings.log_level, *PRIVATE_GRAPH_ROS_ARGS],
                context=context, domain_id=settings.domain,
@@ -159,7 +183,7 @@ def child_main(conn, settings):
     sync = None
     try:
         sync = SyncNode(context=context, namespace=settings.namespace, parameter_overrides=[
-            Parameter(name, value=value) for name, value in settings.parameters])
+            Parameter(name, value=value) for name, value in parameters])
         send('built', {'bus_load': sync.bus_load.load, 'bitrate': sync.bus_load.bitrate})
         sync.enable_drive()                        # blocking; the loop spins right after it
         # what start-up built (canopen's object dictionaries, rclpy, numpy, scipy) lives as
@@ -170,7 +194,8 @@ def child_main(conn, settings):
         spinner = threading.Thread(target=executor.spin, daemon=True, name='sync-executor')
         spinner.start()
         library_log.node = sync
-        send('ready', {'running': sum(unit.running for unit in sync.units)})
+        send('ready', {'running': sync.engine.running, 'mode': sync.engine.mode_text(),
+                       'command_process': settings.command_process})
         while True:
             if conn.poll(STATUS_PERIOD) and conn.recv() == 'stop':
                 break
@@ -185,52 +210,39 @@ def child_main(conn, settings):
         if sync is not None:
             sync.destroy_node()                    # every row: 0x60FF = 0, disable
         context.try_shutdown()
-        sims.stop()
+        if settings.command_process:
+            drive_report = sims.stop()
+        else:                       # the drives in this process, measured the same way
+            sims.stop()
+            drive_report = {
+                'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
+                'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
+                'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
+                'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
+                                   for d in sims.drives}}
         library_log.close()
     if sync is not None:
-        send('final', final_report(sync, sims))
+        send('final', final_report(sync, drive_report))
     conn.close()
 
 
 def snapshot(sync):
     """What the progress lines show: each running row's command, measured speed and state."""
-    rows = []
-    for unit in sync.units:
-        if unit.drive is None:
-            continue
-        status = unit.status
-        rows.append({'label': unit.label, 'command': unit.command,
-                     'velocity': status.velocity if status else 0.0,
-                     'state': status.state if status else '-', 'running': unit.running})
-    return {'rows': rows, 'spacing': sync.law.spacing}
+    return sync.engine.snapshot()
 
 
-def final_report(sync, sims):
-    """The run's figures from the command path (JSON-ready)."""
-    from planter_ros.control.loop_timing import PeriodStats
-    law, yaw = sync.law, sync.machine.filter.yaw
-    everything = PeriodStats()
-    rows = []
-    for unit in sync.units:
-        if unit.drive is None:
-            continue
-        everything.merge(unit.period)
-        rows.append({'label': unit.label, 'faults': unit.faults, 'last_fault': unit.last_fault,
-                     'left_out': unit.left_out, 'loop': unit.period.summary()})
+def final_report(sync, drives):
+    """The run's figures from the command path (JSON-ready); `drives`: what the simulated
+    drives counted (watchdog trips; in a process of their own also the gaps between command
+    frames on their own clock)."""
+    report = dict(sync.engine.final_report())
+    report['watchdog_trips'] = drives.get('watchdog_trips', [])
+    if 'rpdo_gaps' in drives:
+        report['drive_gaps'] = drives['rpdo_gaps']
+        report['drive_sync'] = drives.get('sync', {})
+        report['drive_heartbeat_gaps'] = drives.get('heartbeat_gaps', {})
     sources = sync.design_sources
-    return {
-        'accepted': law.accepted, 'rejected': dict(law.rejected),
-        'yaw_accepted': yaw.accepted, 'yaw_rejected': dict(yaw.rejected),
-        'phase_slips': sum(unit.law.phase_slips for unit in sync.units),
-        'send_errors': sync.send_errors,
-        'phase_lock': law.config.phase_lock,
-        'turn_compensation': sync.machine.turn.turn_compensation,
-        'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
-        'rows': rows,
-        'loop': everything.summary(),
-        'loop_histogram': everything.histogram(),      # for figures over many runs
-        'command_timeout': sync.drive_config.command_timeout,
-        'design': {'first': sources.first.text if sources.first else '',
-                   'changes': sources.changes, 'foreign_changes': sources.foreign_changes,
-                   'last_change': sources.last_change.text if sources.last_change else ''},
-    }
+    report['design'] = {'first': sources.first.text if sources.first else '',
+                        'changes': sources.changes, 'foreign_changes': sources.foreign_changes,
+                        'last_change': sources.last_change.text if sources.last_change else ''}
+    return report

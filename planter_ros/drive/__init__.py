@@ -1,7 +1,7 @@
-"""CAN drive, no ROS: the one CiA 402 master (`cia402`), its settings (`config`), its exception
-family (`errors`), the CiA 402 names and codes (`states`) and a simulated drive
-(`simulated_drive`) for tests and the demo."""
+"""CAN drive, no ROS: the one CiA 402 master (`cia402`), its settings (`config`), the CANopen
+objects and PDO layouts (`objects`), its exception family (`errors`), the CiA 402 names and
+codes (`states`), a simulated drive (`simulated_drive`) for tests and the demo, and the
+drives' own process (`sim_process`) on a CAN bus over a socket pair (`socket_bus`)."""
 
-# the submodules (imported by name, never here)
-__all__ = ['bus_load', 'cia402', 'config', 'drive_set', 'eds', 'errors', 'simulated_drive',
-           'state_names', 'states']
+__all__ = ['bus_load', 'cia402', 'config', 'drive_set', 'eds', 'errors', 'objects',
+           'sim_process', 'simulated_drive', 'socket_bus', 'state_names', 'states']

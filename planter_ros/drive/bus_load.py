@@ -8,21 +8,27 @@ after every four bits after the first: floor((34 + 8n − 1) / 4) more (R. I. Da
 R. J. Bril, J. J. Lukkien: "Controller Area Network (CAN) schedulability analysis: refuted,
 revisited and revised", Real-Time Systems 35(3):239–272, 2007).
 
-The frames of `planter_ros.drive.cia402` per enabled row: the RPDO (controlword + target
-velocity, 6 bytes) once per control period and once per ground-speed sample; TPDO1 (statusword
-+ error code, 4 bytes) and TPDO2 (position + velocity, 8 bytes) every feedback period; the
-drive's heartbeat (1 byte); plus the master's one heartbeat and SYNC (0 bytes) if used (the
-PDOs here are asynchronous: no SYNC). Pure, no ROS, no bus.
+The frames of `planter_ros.drive.cia402` per enabled row (sizes from drive.objects), in
+profile velocity: the RPDO (controlword + target velocity, 6 bytes) once per control period and
+once per ground-speed sample; TPDO1 (statusword + error code, 4 bytes) and TPDO2 (position +
+velocity, 8 bytes) every feedback period. In cyclic synchronous position (`csp`): per SYNC
+period one SYNC (0 bytes) for the bus, and per row the RPDO (controlword + target position,
+6 bytes) and both TPDOs. Either way the drive's heartbeat (1 byte) and the master's one.
+Pure, no ROS, no bus.
 """
 
 from dataclasses import dataclass
 
+from . import objects as od
 from .errors import DriveConfigError
+
+__all__ = ['LIMIT', 'RPDO_BYTES', 'TPDO_BYTES', 'HEARTBEAT_BYTES', 'SYNC_BYTES', 'frame_bits',
+           'BusLoad', 'bus_load', 'check_bus_load']
 
 LIMIT = 0.70                 # refused above this share of the bit rate
 
-RPDO_BYTES = 6               # 0x6040 controlword (2) + 0x60FF target velocity (4)
-TPDO_BYTES = (4, 8)          # 0x6041 + 0x603F; 0x6064 + 0x606C
+RPDO_BYTES = od.RPDO_VELOCITY.size                      # controlword + target velocity
+TPDO_BYTES = tuple(layout.size for layout in od.TPDOS)  # status; motion
 HEARTBEAT_BYTES = 1
 SYNC_BYTES = 0
 
@@ -44,6 +50,16 @@ class BusLoad:
     frames_per_second: float
     bits_per_second: float
     items: tuple              # (what, frames/s, bits/s) per kind of frame
+    sync_period: float = 0.0  # s, the SYNC period of drives in CSP (0: profile velocity)
+
+    @property
+    def csp(self) -> bool:
+        return self.sync_period > 0
+
+    @property
+    def wire_per_period(self) -> float:
+        """CSP: bus time (s) of one SYNC period's frames, worst case."""
+        return self.bits_per_second * self.sync_period / self.bitrate if self.csp else 0.0
 
     @property
     def load(self):
@@ -61,33 +77,54 @@ class BusLoad:
         return out
 
 
-def bus_load(rows, bitrate, control_period, ground_speed_rate, feedback_period,
-             drive_heartbeat_period, heartbeat_period, sync_period=0.0):
-    """Worst-case load of `rows` drives (periods in s, rate in Hz, bit rate in bit/s)."""
+def bus_load(rows: int, bitrate: int, control_period: float, ground_speed_rate: float,
+             feedback_period: float, drive_heartbeat_period: float, heartbeat_period: float,
+             sync_period: float = 0.0, csp: bool = False) -> BusLoad:
+    """Worst-case load of `rows` drives (periods in s, rate in Hz, bit rate in bit/s); `csp`:
+    the drives run cyclic synchronous position on a SYNC every `sync_period`."""
+    if csp and not sync_period > 0:
+        raise ValueError('bus_load: csp needs sync_period > 0 s')
     items = []
 
     def add(what, frames, data_bytes):
         items.append((what, frames, frames * frame_bits(data_bytes)))
 
-    add('RPDO (command)', rows * (1.0 / control_period + ground_speed_rate), RPDO_BYTES)
-    for number, size in enumerate(TPDO_BYTES, 1):
-        add(f'TPDO{number} (feedback)', rows / feedback_period, size)
+    if csp:
+        add('SYNC', 1.0 / sync_period, SYNC_BYTES)
+        add('RPDO (position target)', rows / sync_period, od.RPDO_POSITION.size)
+        for number, size in enumerate(TPDO_BYTES, 1):
+            add(f'TPDO{number} (feedback)', rows / sync_period, size)
+    else:
+        add('RPDO (command)', rows * (1.0 / control_period + ground_speed_rate), RPDO_BYTES)
+        for number, size in enumerate(TPDO_BYTES, 1):
+            add(f'TPDO{number} (feedback)', rows / feedback_period, size)
     add('drive heartbeats', rows / drive_heartbeat_period, HEARTBEAT_BYTES)
     add('master heartbeat', 1.0 / heartbeat_period, HEARTBEAT_BYTES)
-    if sync_period:
+    if sync_period and not csp:
         add('SYNC', 1.0 / sync_period, SYNC_BYTES)
     return BusLoad(rows, int(bitrate), sum(i[1] for i in items), sum(i[2] for i in items),
-                   tuple(items))
+                   tuple(items), sync_period if csp else 0.0)
 
 
-def check_bus_load(load, row_names, control_period, ground_speed_rate, feedback_period,
-                   drive_heartbeat_period, heartbeat_period):
-    """Raise DriveConfigError (one line naming rows, periods and bit rate) above LIMIT."""
+def check_bus_load(load: BusLoad, row_names: list[str], control_period: float,
+                   ground_speed_rate: float, feedback_period: float,
+                   drive_heartbeat_period: float, heartbeat_period: float) -> None:
+    """Raise DriveConfigError (one line naming rows, periods, bit rate and the knobs that fix
+    it: the bit rate, the period, the rows per bus) above LIMIT."""
     if load.load <= LIMIT:
         return
     per_row = load.bits_per_second / max(load.rows, 1)
     fits = int(LIMIT * load.bitrate // per_row) if per_row else 0
     names = ', '.join(row_names) if row_names else f'{load.rows} row(s)'
+    if load.csp:
+        raise DriveConfigError(
+            f'CAN bus load {100 * load.load:.1f} % is out of range: allowed <= '
+            f'{100 * LIMIT:.0f} % ({names} at {load.bitrate} bit/s in cyclic synchronous '
+            f'position: a SYNC and per row an RPDO and 2 TPDOs every sync_period = '
+            f'{load.sync_period * 1e3:g} ms, {load.wire_per_period * 1e3:.2f} ms of wire per '
+            f'period; a heartbeat per drive every {drive_heartbeat_period * 1e3:g} ms: at most '
+            f'{fits} rows fit on this bus; lengthen sync_period, raise can_bitrate, or put the '
+            'other rows on a second bus)')
     raise DriveConfigError(
         f'CAN bus load {100 * load.load:.1f} % is out of range: allowed <= {100 * LIMIT:.0f} % '
         f'({names} at {load.bitrate} bit/s; per row an RPDO every control_period = '

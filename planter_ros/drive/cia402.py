@@ -37,7 +37,6 @@ from dataclasses import dataclass
 import logging
 import math
 from pathlib import Path
-import struct
 import threading
 import time
 
@@ -47,26 +46,30 @@ from canopen.pdo.base import PDO_NOT_VALID
 from canopen.profiles.p402 import BaseNode402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
-from planter_ros.drive.config import DriveConfig
+from planter_ros.drive import objects as od
+from planter_ros.drive.config import BusConfig, DeviceConfig, DriveConfig
 from planter_ros.drive.eds import default_eds_path
 from planter_ros.drive.errors import (BusError, DriveConfigError, DriveError,
                                       DriveRefusedError, DriveTimeoutError, NotConnectedError)
 from planter_ros.drive.states import (
-    ABORT_OPTION_QUICK_STOP, CW_DISABLE_VOLTAGE, CW_ENABLE_OPERATION, CW_FAULT_RESET,
+    ABORT_OPTION_QUICK_STOP, CYCLIC_SYNC_POSITION, MODE_SUPPORTED, CW_DISABLE_VOLTAGE,
+    CW_ENABLE_OPERATION, CW_FAULT_RESET,
     CW_QUICK_STOP, CW_SHUTDOWN, CW_SWITCH_ON, EMCY_HEARTBEAT, FAULT, FAULT_REACTION_ACTIVE,
     NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY, PROFILE_VELOCITY_SUPPORTED,
     QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON, state_of)
 
-__all__ = ['CanopenBus', 'Cia402Drive', 'DriveConfig', 'DriveError', 'DriveStatus']
+__all__ = ['BusConfig', 'CanopenBus', 'Cia402Drive', 'DeviceConfig', 'DriveConfig', 'DriveError',
+           'DriveStatus']
 
 log = logging.getLogger(__name__)
 
 _INT32 = (-2**31, 2**31 - 1)
-# RPDO1 as _configure_pdos maps it: (index, bit offset, bit length) of each entry, and the
-# frame packed straight from that (the control loop's hot path: canopen's per-entry encoding
-# costs several times the send)
-_RPDO_LAYOUT = ((0x6040, 0, 16), (0x60FF, 16, 32))
-_RPDO_FRAME = struct.Struct('<Hi')
+_MODE_NAMES = {PROFILE_VELOCITY: 'profile velocity', CYCLIC_SYNC_POSITION: 'cyclic synchronous '
+               'position'}
+
+
+def _wrap_i32(value: int) -> int:
+    return (value + 2**31) % 2**32 - 2**31
 
 # Fault-reset / re-enable: the controlword that moves each state one step towards
 # OPERATION ENABLED (fault state handled separately: one reset edge per request).
@@ -95,6 +98,8 @@ class DriveStatus:                             # snapshot, built without blockin
     resetting: bool = False                    # a requested fault reset is in progress
     enabled: bool = False                      # connected, OPERATION ENABLED, taking commands
     commanded_velocity: float = 0.0            # mechanism rad/s in the last RPDO sent
+    mode: int = 0                              # 3 profile velocity, 8 CSP (0 before enable)
+    commanded_position: float = math.nan       # CSP: mechanism rad in the last RPDO sent
 
 
 class CanopenBus:
@@ -103,7 +108,7 @@ class CanopenBus:
     (can_interface, can_channel, can_bitrate, master_node_id); `bus` = an open python-can bus
     to use (left open on close)."""
 
-    def __init__(self, config: DriveConfig, bus: can.BusABC | None = None):
+    def __init__(self, config: BusConfig, bus: can.BusABC | None = None):
         self.config = config
         self._given_bus = bus
         self._bus: can.BusABC | None = None
@@ -138,9 +143,21 @@ class CanopenBus:
         if network is None:
             raise NotConnectedError(f'CAN bus {self.where}: not open (no heartbeat sent)')
         try:
-            network.send_message(0x700 + self.config.master_node_id, b'\x05')
+            network.send_message(od.heartbeat_cob(self.config.master_node_id), b'\x05')
         except Exception as exc:            # python-can raises CanError, OSError, ValueError...
             raise BusError(f'CAN send of heartbeat failed on {self.where}: '
+                           f'{type(exc).__name__}: {exc}') from None
+
+    def send_sync(self) -> None:
+        """One SYNC frame (COB-ID 80h, no data): the drives in CSP apply the position targets
+        received since the last one. NON-BLOCKING; raises NotConnectedError / BusError."""
+        network = self.network
+        if network is None:
+            raise NotConnectedError(f'CAN bus {self.where}: not open (no SYNC sent)')
+        try:
+            network.send_message(od.SYNC_COB, b'')
+        except Exception as exc:            # python-can raises CanError, OSError, ValueError...
+            raise BusError(f'CAN send of SYNC failed on {self.where}: '
                            f'{type(exc).__name__}: {exc}') from None
 
     def close(self) -> None:
@@ -169,7 +186,10 @@ class Cia402Drive:
         self._network: canopen.Network | None = None
         self._node: BaseNode402 | None = None
         self._rpdo = None
-        self._rpdo_packed = False     # RPDO1 has the layout _RPDO_FRAME packs
+        self._rpdo_packed = False     # RPDO1 has the layout self._layout packs
+        self.mode = 0                 # chosen at enable: PROFILE_VELOCITY or CYCLIC_SYNC_POSITION
+        self._layout = od.RPDO_VELOCITY
+        self._target_counts: int | None = None    # CSP: last target position sent (raw)
         self._connected = False       # bus open, PDOs configured, drive operational
         self._enabled = False         # enable sequence finished (cleared by shutdown)
         self._lock = threading.Lock()             # feedback and fault fields
@@ -195,6 +215,7 @@ class Cia402Drive:
         self._reset_edge_sent = False
         self._last_controlword = 0
         self._commanded = 0.0
+        self._commanded_position = math.nan
         #: measured at the last connect_and_enable (s)
         self.enable_duration = math.nan
 
@@ -249,6 +270,12 @@ class Cia402Drive:
             raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}',
                              BusError) from None
 
+    def _write(self, step: str, obj: od.Obj, value: int) -> None:
+        self._sdo_write(step, obj.index, obj.subindex or None, value)
+
+    def _read(self, step: str, obj: od.Obj, optional: bool = False) -> int | None:
+        return self._sdo_read(step, obj.index, obj.subindex or None, optional)
+
     def _send(self, what: str, send) -> None:
         """Run one frame-sending call; any CAN/bus failure becomes a one-line BusError."""
         try:
@@ -265,26 +292,26 @@ class Cia402Drive:
         now = time.monotonic()
         values = {var.index: var.raw for var in pdo_map}
         with self._feedback:
-            if 0x6041 in values:
-                self._statusword = values[0x6041]
+            if od.STATUSWORD.index in values:
+                self._statusword = values[od.STATUSWORD.index]
                 self._sw_received = True
                 self._status_stamp = now
                 if (self._enabled and not self._reset_requested and not self._latched_reason
                         and state_of(self._statusword) != OPERATION_ENABLED):
                     self._latched_reason = ('drive left OPERATION ENABLED '
                                             f'({state_of(self._statusword)})')
-            if 0x603F in values:
-                self._error_code = values[0x603F]
-            if 0x6064 in values:
-                raw = values[0x6064]
+            if od.ERROR_CODE.index in values:
+                self._error_code = values[od.ERROR_CODE.index]
+            if od.POSITION_ACTUAL.index in values:
+                raw = values[od.POSITION_ACTUAL.index]
                 if self._raw_position is None:
                     self._position_counts = raw
                 else:                               # unwrap the 32-bit counter
                     self._position_counts += (raw - self._raw_position + 2**31) % 2**32 - 2**31
                 self._raw_position = raw
                 self._motion_stamp = now
-            if 0x606C in values:
-                self._velocity_counts = values[0x606C]
+            if od.VELOCITY_ACTUAL.index in values:
+                self._velocity_counts = values[od.VELOCITY_ACTUAL.index]
                 self._motion_stamp = now
             self._feedback.notify_all()
 
@@ -325,30 +352,45 @@ class Cia402Drive:
         self._configure_pdos()
         heartbeat_written = time.time()
         self._configure_watchdogs()
-        self._select_profile_velocity()
+        if self.mode == CYCLIC_SYNC_POSITION:
+            self._configure_csp()
+        self._select_mode()
         self._wait_drive_heartbeat(since=heartbeat_written)
         self._go_operational()
         self._enable_state_machine()
         self.enable_duration = time.monotonic() - t_start
-        log.info('drive node %d enabled in %.1f ms', self.config.drive_node_id,
-                 1000 * self.enable_duration)
+        log.info('drive node %d enabled in %.1f ms (%s)', self.config.drive_node_id,
+                 1000 * self.enable_duration, _MODE_NAMES[self.mode])
 
     def _identify(self) -> None:
         """Refuse a node that is not the drive the configuration describes."""
         cfg = self.config
         step = 'identify (SDO 0x1000 device type)'
-        device_type = self._sdo_read(step, 0x1000)
+        device_type = self._read(step, od.DEVICE_TYPE)
         if device_type & 0xFFFF != 402:
             raise self._fail(step, f'device type 0x{device_type:08X} is not a CiA 402 drive',
                              DriveRefusedError)
-        step = 'check profile velocity support (0x6502)'
-        modes = self._sdo_read(step, 0x6502, optional=True)
-        if modes is not None and not modes & PROFILE_VELOCITY_SUPPORTED:
+        step = 'choose the operation mode (0x6502 supported drive modes)'
+        modes = self._read(step, od.SUPPORTED_MODES, optional=True)
+        wanted = cfg.operation_mode
+        if modes is None:                     # not said: profile velocity, as before
+            modes = PROFILE_VELOCITY_SUPPORTED
+        csp = bool(modes & MODE_SUPPORTED[CYCLIC_SYNC_POSITION])
+        if wanted == 'csp' and not csp:
+            raise self._fail(step, f'supported drive modes 0x{modes:08X} lack cyclic '
+                                   'synchronous position (bit 7); set operation_mode to '
+                                   'velocity or auto', DriveRefusedError)
+        if wanted == 'csp' or (wanted == 'auto' and csp):
+            self.mode = CYCLIC_SYNC_POSITION
+        elif not modes & PROFILE_VELOCITY_SUPPORTED:
             raise self._fail(step, f'supported drive modes 0x{modes:08X} lack profile velocity '
                                    '(bit 2)', DriveRefusedError)
+        else:
+            self.mode = PROFILE_VELOCITY
+        self._layout = od.rpdo_for_mode(self.mode)
         step = 'check encoder resolution (0x608F)'
-        increments = self._sdo_read(step, 0x608F, 1, optional=True)
-        revolutions = self._sdo_read(step, 0x608F, 2, optional=True)
+        increments = self._read(step, od.ENCODER_INCREMENTS, optional=True)
+        revolutions = self._read(step, od.ENCODER_MOTOR_REVOLUTIONS, optional=True)
         if increments and revolutions and increments / revolutions != cfg.counts_per_motor_rev:
             raise self._fail(step, f'drive counts {increments}/{revolutions} increments per motor '
                                    f'rev but counts_per_motor_rev={cfg.counts_per_motor_rev}',
@@ -358,23 +400,44 @@ class Cia402Drive:
         """Heartbeat both ways, quick stop when our frames stop, and a zero target."""
         cfg = self.config
         step = 'heartbeat (0x1017 producer, 0x1016 consumer)'
-        self._sdo_write(step, 0x1017, None, round(cfg.drive_heartbeat_period * 1000))
-        self._sdo_write(step, 0x1016, 1, (cfg.master_node_id << 16)
+        self._write(step, od.HEARTBEAT_PRODUCER, round(cfg.drive_heartbeat_period * 1000))
+        self._write(step, od.HEARTBEAT_CONSUMER, (cfg.master_node_id << 16)
                         | round(cfg.master_heartbeat_timeout * 1000))
         step = 'watchdog (0x6007 abort connection option = quick stop)'
-        self._sdo_write(step, 0x6007, None, ABORT_OPTION_QUICK_STOP)
+        self._write(step, od.ABORT_CONNECTION, ABORT_OPTION_QUICK_STOP)
         step = 'target velocity 0 (0x60FF)'
-        self._sdo_write(step, 0x60FF, None, 0)
+        self._write(step, od.TARGET_VELOCITY, 0)
 
-    def _select_profile_velocity(self) -> None:
-        """0x6060 = 3, confirmed by reading 0x6061 back (drives switch modes with a delay)."""
+    def _configure_csp(self) -> None:
+        """CSP: SYNC consumer and its period, the interpolation period, the following-error
+        window, and the target position = where the drive is (no jump when enabled)."""
         cfg = self.config
-        step = 'mode of operation (0x6060 = 3, confirmed by 0x6061)'
-        self._sdo_write(step, 0x6060, None, PROFILE_VELOCITY)
+        step = 'SYNC (0x1005 consumer, 0x1006 period, 0x60C2 interpolation period)'
+        self._write(step, od.SYNC_COB_ID, od.SYNC_COB)
+        self._write(step, od.COMM_CYCLE_PERIOD, round(cfg.sync_period * 1e6))
+        self._write(step, od.INTERPOLATION_PERIOD_VALUE, round(cfg.sync_period * 1e3))
+        self._write(step, od.INTERPOLATION_PERIOD_INDEX, -3)
+        step = 'following error (0x6065 window, 0x6066 time out)'
+        self._write(step, od.FOLLOWING_ERROR_WINDOW,
+                    max(1, round(cfg.following_error_window / self._rad_per_count)))
+        self._write(step, od.FOLLOWING_ERROR_TIMEOUT, round(cfg.following_error_timeout * 1e3))
+        step = 'target position = actual position (0x607A from 0x6064)'
+        actual = self._read(step, od.POSITION_ACTUAL)
+        self._write(step, od.TARGET_POSITION, actual)
+        with self._lock:
+            self._target_counts = actual
+
+    def _select_mode(self) -> None:
+        """0x6060 = the chosen mode, confirmed by reading 0x6061 back (drives switch modes with
+        a delay)."""
+        cfg = self.config
+        mode, name = self.mode, _MODE_NAMES[self.mode]
+        step = f'mode of operation (0x6060 = {mode}, confirmed by 0x6061)'
+        self._write(step, od.MODES_OF_OPERATION, mode)
         deadline = time.monotonic() + cfg.step_timeout
-        while (mode := self._sdo_read(step, 0x6061)) != PROFILE_VELOCITY:
+        while (shown := self._read(step, od.MODES_DISPLAY)) != mode:
             if time.monotonic() > deadline:
-                raise self._fail(step, f'0x6061 reads {mode} after writing 3 (profile velocity) '
+                raise self._fail(step, f'0x6061 reads {shown} after writing {mode} ({name}) '
                                        f'for {cfg.step_timeout:.2f} s', DriveTimeoutError)
             time.sleep(0.005)
 
@@ -408,7 +471,7 @@ class Cia402Drive:
                                            f'0x{self._error_code:04X}); call '
                                            'request_fault_reset() and connect again',
                                  DriveRefusedError)
-            self._transmit(CW_DISABLE_VOLTAGE, 0)
+            self._transmit(CW_DISABLE_VOLTAGE, None)
             self._wait_step('fault reset (0x80)', CW_FAULT_RESET, SWITCH_ON_DISABLED)
         elif state not in (SWITCH_ON_DISABLED, READY_TO_SWITCH_ON):
             # left enabled (or quick-stopped) by an earlier session: start from the bottom
@@ -444,33 +507,38 @@ class Cia402Drive:
     _open = open
 
     def _configure_pdos(self) -> None:
-        """RPDO1 = controlword + target velocity; TPDO1 = statusword + error code,
-        TPDO2 = position + velocity actual; every other PDO disabled."""
+        """RPDO1 = controlword + target velocity (profile velocity, asynchronous) or target
+        position (CSP, synchronous: applied at the next SYNC); TPDO1 = statusword + error code,
+        TPDO2 = position + velocity actual (every feedback period, or every SYNC in CSP);
+        every other PDO disabled (drive.objects declares the layouts)."""
         cfg, node = self.config, self._node
         step = 'configure PDOs (0x1400/0x1600, 0x1800/0x1A00)'
         feedback_ms = max(1, round(cfg.feedback_period * 1000))
         try:
+            csp = self.mode == CYCLIC_SYNC_POSITION
+            layout = self._layout
             rpdo = node.rpdo[1]
             rpdo.clear()
-            rpdo.add_variable(0x6040)
-            rpdo.add_variable(0x60FF)
-            rpdo.cob_id = 0x200 + cfg.drive_node_id
-            rpdo.trans_type = 255
+            for obj in layout.entries:
+                rpdo.add_variable(obj.index, obj.subindex)
+            rpdo.cob_id = layout.cob_id(cfg.drive_node_id)
+            rpdo.trans_type = 1 if csp else 255
             rpdo.event_timer = round(cfg.command_timeout * 1000)    # deadline monitoring
             rpdo.enabled = True
             rpdo.save()
-            for number, entries in ((1, (0x6041, 0x603F)), (2, (0x6064, 0x606C))):
-                tpdo = node.tpdo[number]
+            for layout in od.TPDOS:
+                tpdo = node.tpdo[layout.number]
                 tpdo.clear()
-                for index in entries:
-                    tpdo.add_variable(index)
-                tpdo.cob_id = 0x80 + 0x100 * number + cfg.drive_node_id
-                tpdo.trans_type = 255
+                for obj in layout.entries:
+                    tpdo.add_variable(obj.index, obj.subindex)
+                tpdo.cob_id = layout.cob_id(cfg.drive_node_id)
+                tpdo.trans_type = 1 if csp else 255
                 tpdo.inhibit_time = 0
-                tpdo.event_timer = feedback_ms
+                tpdo.event_timer = 0 if csp else feedback_ms
                 tpdo.enabled = True
                 tpdo.save()
-            for maps, first_free, base in ((node.rpdo.map, 2, 0x200), (node.tpdo.map, 3, 0x180)):
+            for maps, first_free, base in ((node.rpdo.map, 2, 0x200),
+                                           (node.tpdo.map, len(od.TPDOS) + 1, 0x180)):
                 for number in range(first_free, len(maps) + 1):
                     cob_id = base + 0x100 * (number - 1) + cfg.drive_node_id if number <= 4 else 0
                     maps[number].com_record[1].raw = PDO_NOT_VALID | cob_id
@@ -487,25 +555,41 @@ class Cia402Drive:
         # a second enable attempt in the same session must not add them again
         if self._on_status_tpdo not in node.tpdo[1].callbacks:
             node.setup_pdos(upload=False)
-            for number in (1, 2):
-                node.tpdo[number].add_callback(self._on_status_tpdo)
+            for layout in od.TPDOS:
+                node.tpdo[layout.number].add_callback(self._on_status_tpdo)
         self._rpdo = rpdo
-        layout = tuple((var.index, var.offset, var.length) for var in rpdo)
-        self._rpdo_packed = layout == _RPDO_LAYOUT and rpdo.cob_id == 0x200 + cfg.drive_node_id
+        mapped = tuple((var.index, var.offset, var.length) for var in rpdo)
+        self._rpdo_packed = (mapped == layout.bit_layout
+                             and rpdo.cob_id == layout.cob_id(cfg.drive_node_id))
 
-    def _transmit(self, controlword: int, counts: int) -> None:
-        """One RPDO frame: controlword + target velocity (counts/s)."""
+    def _hold_counts(self) -> int:
+        """The target that holds the drive: velocity 0, or in CSP the last target sent (the
+        position where it was told to be; the actual one at enable)."""
+        if self.mode != CYCLIC_SYNC_POSITION:
+            return 0
+        with self._lock:
+            if self._target_counts is not None:
+                return self._target_counts
+            return _wrap_i32(self._position_counts)
+
+    def _transmit(self, controlword: int, counts: int | None) -> None:
+        """One RPDO frame: controlword + target velocity (counts/s) or target position
+        (counts, CSP); None = the holding target (`_hold_counts`)."""
+        if counts is None:
+            counts = self._hold_counts()
+        target = self._layout.entries[1]
+
         def send():
             with self._tx_lock:
                 if self._rpdo_packed:
                     self._network.send_message(self._rpdo.cob_id,
-                                               _RPDO_FRAME.pack(controlword, counts))
+                                               self._layout.frame.pack(controlword, counts))
                 else:
-                    self._rpdo[0x6040].raw = controlword
-                    self._rpdo[0x60FF].raw = counts
+                    self._rpdo[od.CONTROLWORD.index].raw = controlword
+                    self._rpdo[target.index].raw = counts
                     self._rpdo.transmit()
                 self._last_controlword = controlword
-        self._send(f'RPDO (controlword 0x{controlword:04X}, 0x60FF {counts})', send)
+        self._send(f'RPDO (controlword 0x{controlword:04X}, {target.address} {counts})', send)
 
     def _wait_state(self, step: str, done, what: str, resend=None) -> None:
         deadline = time.monotonic() + self.config.step_timeout
@@ -535,7 +619,7 @@ class Cia402Drive:
 
     def _wait_step(self, step: str, controlword: int, target_state: str) -> None:
         self._wait_state(step, lambda state: state == target_state, 'no statusword',
-                         resend=lambda: self._transmit(controlword, 0))
+                         resend=lambda: self._transmit(controlword, None))
 
     # ------------------------------------------------------------------ non-blocking
     def send_velocity(self, speed: float) -> None:
@@ -546,28 +630,75 @@ class Cia402Drive:
         the reset edge and the re-enable steps, one per call, then speeds again.
         Raises DriveError for a non-finite speed, before connect, or on a CAN send error.
         """
-        if not self._connected or self._rpdo is None:
-            raise NotConnectedError(f'drive node {self.config.drive_node_id}: not connected '
-                             '(call connect_and_enable first)')
+        self._check_connected()
+        if self.mode == CYCLIC_SYNC_POSITION:
+            raise DriveError(f'drive node {self.config.drive_node_id}: runs cyclic synchronous '
+                             'position: send_position(), not send_velocity()')
         if not math.isfinite(speed):
             raise DriveError(f'speed {speed!r} rad/s is not finite (allowed: a finite number)')
         counts = self._counts_per_s(speed)
-        now = time.monotonic()
         with self._lock:
-            self._latch_heartbeat_loss()
-            state = state_of(self._statusword)
-            if self._reset_requested:
-                controlword = self._reset_step(state, now)
-                counts = 0
-            elif self._latched_reason or state != OPERATION_ENABLED:
-                # refuse: zero speed, and a controlword that causes no transition towards
-                # enabled (0x0F holds an enabled drive at zero speed; quick stop elsewhere)
-                controlword = CW_ENABLE_OPERATION if state == OPERATION_ENABLED else CW_QUICK_STOP
-                counts = 0
-            else:
-                controlword = CW_ENABLE_OPERATION
+            controlword, commanding = self._controlword_locked(time.monotonic())
+            counts = counts if commanding else 0
             self._commanded = counts * self._rad_per_count
         self._transmit(controlword, counts)
+
+    def send_position(self, angle: float) -> None:
+        """CSP: send one RPDO: controlword + 0x607A for mechanism angle `angle` (rad, on the
+        unwrapped scale of `status().position`), applied by the drive at the next SYNC.
+        NON-BLOCKING. While faulted (as send_velocity) the frame holds where the drive is;
+        after request_fault_reset() it carries the reset steps. Raises DriveError for a
+        non-finite angle, before connect, in profile velocity mode, or on a CAN send error."""
+        self._check_connected()
+        if self.mode != CYCLIC_SYNC_POSITION:
+            raise DriveError(f'drive node {self.config.drive_node_id}: runs profile velocity: '
+                             'send_velocity(), not send_position()')
+        if not math.isfinite(angle):
+            raise DriveError(f'angle {angle!r} rad is not finite (allowed: a finite number)')
+        with self._lock:
+            controlword, commanding = self._controlword_locked(time.monotonic())
+            if commanding:
+                counts = _wrap_i32(round(angle / self._rad_per_count))
+                self._commanded_position = angle
+            else:                                  # hold where the drive is
+                counts = _wrap_i32(self._position_counts)
+                self._commanded_position = self._position_counts * self._rad_per_count
+            self._commanded = 0.0
+            self._target_counts = counts
+        self._transmit(controlword, counts)
+
+    def send_hold(self) -> None:
+        """Keep the drive fed without moving it: velocity 0, or in CSP the last target
+        (NON-BLOCKING)."""
+        if self.mode == CYCLIC_SYNC_POSITION:
+            self._check_connected()
+            with self._lock:
+                controlword, _ = self._controlword_locked(time.monotonic())
+            self._transmit(controlword, None)
+        else:
+            self.send_velocity(0.0)
+
+    def send_sync(self) -> None:
+        """The SYNC frame (once per bus: `canbus.send_sync()` on a shared CanopenBus)."""
+        self._check_connected()
+        self.canbus.send_sync()
+
+    def _check_connected(self) -> None:
+        if not self._connected or self._rpdo is None:
+            raise NotConnectedError(f'drive node {self.config.drive_node_id}: not connected '
+                                    '(call connect_and_enable first)')
+
+    def _controlword_locked(self, now: float) -> tuple[int, bool]:
+        """(controlword of the next frame, whether it may carry a command); lock held."""
+        self._latch_heartbeat_loss()
+        state = state_of(self._statusword)
+        if self._reset_requested:
+            return self._reset_step(state, now), False
+        if self._latched_reason or state != OPERATION_ENABLED:
+            # refuse: hold, and a controlword that causes no transition towards enabled (0x0F
+            # holds an enabled drive; quick stop elsewhere)
+            return (CW_ENABLE_OPERATION if state == OPERATION_ENABLED else CW_QUICK_STOP), False
+        return CW_ENABLE_OPERATION, True
 
     def _reset_step(self, state: str, now: float) -> int:
         """Controlword for the next frame of an explicit fault reset (lock held)."""
@@ -626,7 +757,8 @@ class Cia402Drive:
                 resetting=self._reset_requested,
                 enabled=(self._enabled and self._connected and not reason
                          and not self._reset_requested and state == OPERATION_ENABLED),
-                commanded_velocity=self._commanded)
+                commanded_velocity=self._commanded, mode=self.mode,
+                commanded_position=self._commanded_position)
 
     def request_fault_reset(self) -> None:
         """Ask for one fault reset: the next send_velocity frames carry the reset edge (0x80)
@@ -665,7 +797,7 @@ class Cia402Drive:
         try:
             self._node.nmt.state = 'PRE-OPERATIONAL'
             if self._heartbeat_age() < cfg.drive_heartbeat_timeout:
-                self._node.sdo[0x1016][1].raw = 0   # stop watching our heartbeat: we leave
+                self._node.sdo[od.HEARTBEAT_CONSUMER.index][od.HEARTBEAT_CONSUMER.subindex].raw = 0
         except Exception as exc:                    # best effort: the bus may be gone
             log.warning('drive node %d: shutdown: %s: %s', cfg.drive_node_id,
                         type(exc).__name__, exc)
@@ -677,7 +809,9 @@ class Cia402Drive:
         deadline = time.monotonic() + self.config.step_timeout
         next_heartbeat = 0.0
         while True:
-            self._transmit(controlword, 0)
+            self._transmit(controlword, None)
+            if self.mode == CYCLIC_SYNC_POSITION:
+                self.canbus.send_sync()          # CSP feedback comes with the SYNC
             now = time.monotonic()
             if now >= next_heartbeat:
                 self.send_heartbeat()

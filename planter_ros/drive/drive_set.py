@@ -14,8 +14,13 @@ import logging
 import threading
 import time
 
+import can
+
 from .cia402 import CanopenBus, Cia402Drive
+from .config import DriveConfig
 from .errors import DriveError
+
+__all__ = ['DriveSet']
 
 log = logging.getLogger(__name__)
 
@@ -23,7 +28,8 @@ log = logging.getLogger(__name__)
 class DriveSet:
     """Drives by name (a row's name) on one bus. `node_ids`: name -> CANopen node id."""
 
-    def __init__(self, config, node_ids, bus=None):
+    def __init__(self, config: DriveConfig, node_ids: dict[str, int],
+                 bus: can.BusABC | None = None):
         self.config = config
         self.canbus = CanopenBus(config, bus)
         self.drives = {name: Cia402Drive(replace(config, drive_node_id=node_id),
@@ -32,7 +38,7 @@ class DriveSet:
         self.enabled = {}             # name -> drive, the drives enable() brought up
         self.failed = {}              # name -> DriveError, the drives left out
 
-    def enable(self, keep_alive=0.02):
+    def enable(self, keep_alive: float = 0.02) -> dict[str, DriveError]:
         """Open the bus, enable every drive at once; returns {name: DriveError} of the drives
         left out (BLOCKING; see the module doc). Raises DriveError when the bus cannot open."""
         if not self.drives:
@@ -80,16 +86,16 @@ class DriveSet:
                     self.canbus.send_heartbeat()
                     next_heartbeat = now + self.config.heartbeat_period
                 for drive in ready:
-                    drive.send_velocity(0.0)
+                    drive.send_hold()
             except DriveError as exc:
                 log.warning('while enabling: %s', exc)
             time.sleep(period)
 
-    def send_heartbeat(self):
+    def send_heartbeat(self) -> None:
         """The master heartbeat, once for the bus (NON-BLOCKING; raises DriveError)."""
         self.canbus.send_heartbeat()
 
-    def shutdown(self):
+    def shutdown(self) -> None:
         """Shut every enabled drive down at once (BLOCKING, idempotent, never raises), then
         close the bus."""
         drives = list(self.enabled.values())

@@ -36,11 +36,14 @@ import can
 import canopen
 from canopen.emcy import EMCY_STRUCT
 
+from planter_ros.drive import objects as objs
 from planter_ros.drive.eds import default_eds_path
 from planter_ros.drive.states import (
-    EMCY_HEARTBEAT, EMCY_RPDO_TIMEOUT, FAULT, FAULT_REACTION_ACTIVE, NOT_READY,
-    OPERATION_ENABLED, PROFILE_VELOCITY, QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON,
-    SWITCH_ON_DISABLED, SWITCHED_ON)
+    CYCLIC_SYNC_POSITION, EMCY_FOLLOWING_ERROR, EMCY_HEARTBEAT, EMCY_RPDO_TIMEOUT, FAULT,
+    FAULT_REACTION_ACTIVE, MODE_SUPPORTED, NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY,
+    QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON)
+
+__all__ = ['Gaps', 'SimulatedDrive', 'SimulatedBus', 'wire_time', 'receive']
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +60,8 @@ _STATUS_BITS = {
 SW_REMOTE = 1 << 9
 SW_TARGET_REACHED = 1 << 10
 SW_SPEED_ZERO = 1 << 12         # profile velocity mode: "speed = 0"
+SW_FOLLOWS = 1 << 12            # CSP: "drive follows the command value"
+SW_FOLLOWING_ERROR = 1 << 13    # CSP: following error beyond the window
 
 EMCY_ERROR_RESET = 0x0000
 
@@ -100,6 +105,37 @@ def _paced(stop_event, tick, work):
         now = time.monotonic()
         dt, last = now - last, now
         yield dt, now
+
+
+class Gaps:
+    """Gaps between events on the receiver's clock: count, largest, and how many exceeded each
+    of `limits` (s). Constant memory, one comparison per limit per event."""
+
+    def __init__(self, limits: tuple[float, ...] = (0.05, 0.15, 0.2)):
+        self.limits = tuple(limits)
+        self.over = [0] * len(self.limits)
+        self.count = 0
+        self.max_gap = 0.0
+        self._last: float | None = None
+
+    def event(self, now: float) -> None:
+        last, self._last = self._last, now
+        if last is None:
+            return
+        gap = now - last
+        self.count += 1
+        self.max_gap = max(self.max_gap, gap)
+        for i, limit in enumerate(self.limits):
+            if gap > limit:
+                self.over[i] += 1
+
+    def restart(self) -> None:
+        """The next event starts a new series (the sender stopped on purpose)."""
+        self._last = None
+
+    def summary(self) -> dict:
+        return {'gaps': self.count, 'max': self.max_gap,
+                'over': {f'{limit * 1e3:g} ms': n for limit, n in zip(self.limits, self.over)}}
 
 
 class SimulatedDrive:
@@ -153,6 +189,7 @@ class SimulatedDrive:
         self.node.add_read_callback(self._on_read)
         self.network.add_node(self.node)
         self.network.subscribe(0, self._on_nmt)   # after LocalNode's own NMT handler
+        self.network.subscribe(objs.SYNC_COB, self._on_sync)
         for pdo_map in self.node.rpdo.map.values():
             pdo_map.add_callback(self._on_rpdo)
         self._tx_lock = threading.Lock()          # one TPDO buffer, two sending threads
@@ -169,17 +206,43 @@ class SimulatedDrive:
         #: Frames counted for tests and the demo summary.
         self.rpdo_count = 0
         self.tpdo_count = 0
+        #: Gaps between command frames as this drive received them (its own clock).
+        self.rpdo_gaps = Gaps()
+        #: Gaps between SYNC frames (its own clock); late = over 1.5 periods (0x1006),
+        #: missing = whole periods without one.
+        self.sync_gaps = Gaps()
+        #: Gaps between the master's heartbeats (bus time).
+        self.heartbeat_gaps = Gaps()
+        self.sync_count = 0
+        self.sync_late = 0
+        self.sync_missing = 0
+        self.following_error_faults = 0
+        self.last_following_fault = ''
+        self._motor_time: float | None = None
 
     # ---------------------------------------------------------------- life cycle
     def _reset_application(self) -> None:
         with self._lock:
             self.node.data_store.clear()
-            self.node.data_store.setdefault(0x608F, {})[1] = struct.pack(
+            self.node.data_store.setdefault(objs.ENCODER_INCREMENTS.index, {})[1] = struct.pack(
                 '<I', self.counts_per_motor_rev)
             self._state = NOT_READY
             self._controlword = 0
             self._mode = 0
             self._target = 0                  # counts/s, 0x60FF
+            # CSP: the target received since the last SYNC, and the segment the drive
+            # interpolates over one SYNC period (from, to, start time)
+            self._csp_pending: int | None = None
+            self._csp_from = 0.0
+            self._csp_to = 0.0
+            self._csp_start = -math.inf
+            self._sync_period = 0.0           # s, 0x1006 (0: not told)
+            self._fe_window = math.inf        # counts, 0x6065
+            self._fe_timeout = 0.0            # s, 0x6066
+            self._fe_since: float | None = None
+            self._following_error = 0.0       # counts
+            self._last_sync: float | None = None
+            self._syncs_seen = 0
             self._velocity = 0.0              # counts/s
             self._position = 0.0              # counts
             self._fault_code = 0
@@ -192,9 +255,9 @@ class SimulatedDrive:
             self._rpdo_deadline = 0.0         # s, 0 = off
             self._consumer_node = 0
             self._consumer_timeout = 0.0      # s, 0 = off
-            self._heartbeat_period = self._od_default(0x1017) / 1000.0
-            self._abort_option = self._od_default(0x6007)
-            self._quick_stop_option = self._od_default(0x605A)
+            self._heartbeat_period = self._od_default(objs.HEARTBEAT_PRODUCER.index) / 1000.0
+            self._abort_option = self._od_default(objs.ABORT_CONNECTION.index)
+            self._quick_stop_option = self._od_default(objs.QUICK_STOP_OPTION.index)
 
     def _od_default(self, index: int, subindex: int = 0) -> int:
         obj = self.node.object_dictionary[index]
@@ -323,9 +386,24 @@ class SimulatedDrive:
     def heartbeat_period(self) -> float:
         return self._heartbeat_period
 
+    @property
+    def following_error(self) -> float:
+        """CSP: set point − actual position, motor rad."""
+        return self._following_error * 2.0 * math.pi / self.counts_per_motor_rev
+
+    def sync_summary(self) -> dict:
+        """SYNC timing as this drive saw it (its own clock)."""
+        return {'syncs': self.sync_count, 'late': self.sync_late, 'missing': self.sync_missing,
+                'period': self._sync_period, 'gaps': self.sync_gaps.summary(),
+                'following_error_faults': self.following_error_faults}
+
     # ---------------------------------------------------------------- object dictionary hooks
     def _statusword(self) -> int:
         sw = _STATUS_BITS[self._state] | SW_REMOTE
+        if self._state == OPERATION_ENABLED and self._mode == CYCLIC_SYNC_POSITION:
+            sw |= SW_FOLLOWS
+            if abs(self._following_error) > self._fe_window:
+                sw |= SW_FOLLOWING_ERROR
         if self._state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
             if abs(self._velocity - self._target) <= max(1.0, 0.01 * abs(self._target)):
                 sw |= SW_TARGET_REACHED
@@ -336,56 +414,125 @@ class SimulatedDrive:
     def _on_read(self, index: int, subindex: int, od):
         """Live values for SDO uploads and TPDO filling."""
         with self._lock:
-            if index == 0x6041:
+            if index == objs.STATUSWORD.index:
                 return self._statusword()
-            if index == 0x6040:
+            if index == objs.CONTROLWORD.index:
                 return self._controlword
-            if index == 0x6061:
+            if index == objs.MODES_DISPLAY.index:
                 return self._mode
-            if index == 0x6064:
+            if index == objs.POSITION_ACTUAL.index:
                 return _wrap_i32(round(self._position))
-            if index == 0x606C:
+            if index == objs.VELOCITY_ACTUAL.index:
                 return _clip_i32(round(self._velocity))
-            if index == 0x60FF:
+            if index == objs.TARGET_VELOCITY.index:
                 return self._target
-            if index == 0x603F:
+            if index == objs.TARGET_POSITION.index:
+                return _wrap_i32(round(self._csp_to))
+            if index == objs.SUPPORTED_MODES.index:     # the EDS's, plus CSP if it has it
+                return self._od_default(index) | sum(
+                    MODE_SUPPORTED.get(mode, 0) for mode in self.supported_modes)
+            if index == objs.ERROR_CODE.index:
                 return self._error_code
-            if index == 0x1001:
+            if index == objs.ERROR_REGISTER.index:
                 return 0x01 if self._state in (FAULT, FAULT_REACTION_ACTIVE) else 0x00
         return None
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
         """SDO downloads and decoded RPDO entries land here before they are stored."""
         value = od.decode_raw(data)
-        if index == 0x6040:
+        if index == objs.CONTROLWORD.index:
             self._apply_controlword(value)
-        elif index == 0x60FF:
+        elif index == objs.TARGET_VELOCITY.index:
             with self._lock:
                 self._target = value
-        elif index == 0x6060:
+        elif index == objs.TARGET_POSITION.index:
+            with self._lock:
+                self._csp_pending = value
+                if self._state != OPERATION_ENABLED or self._syncs_seen == 0:
+                    self._csp_hold(self._unwrap(value))     # no SYNC yet: a set point
+        elif index == objs.COMM_CYCLE_PERIOD.index:
+            with self._lock:
+                self._sync_period = value / 1e6
+        elif index == objs.FOLLOWING_ERROR_WINDOW.index:
+            with self._lock:
+                self._fe_window = float(value)
+        elif index == objs.FOLLOWING_ERROR_TIMEOUT.index:
+            with self._lock:
+                self._fe_timeout = value / 1000.0
+        elif index == objs.MODES_OF_OPERATION.index:
             with self._lock:
                 if value in self.supported_modes:
                     self._mode = value
-        elif index == 0x1017:
+        elif index == objs.HEARTBEAT_PRODUCER.index:
             with self._lock:
                 self._heartbeat_period = value / 1000.0
-        elif index == 0x1016 and subindex == 1:
+        elif index == objs.HEARTBEAT_CONSUMER.index and subindex == 1:
             with self._lock:
                 self._consumer_node = (value >> 16) & 0x7F
                 self._consumer_timeout = (value & 0xFFFF) / 1000.0
                 self._consumed_heartbeat = None
             if self._consumer_node:
-                self.network.subscribe(0x700 + self._consumer_node, self._on_consumed_heartbeat)
-        elif index == 0x6007:
+                self.network.subscribe(objs.heartbeat_cob(self._consumer_node),
+                                       self._on_consumed_heartbeat)
+        elif index == objs.ABORT_CONNECTION.index:
             with self._lock:
                 self._abort_option = value
-        elif index == 0x605A:
+        elif index == objs.QUICK_STOP_OPTION.index:
             with self._lock:
                 self._quick_stop_option = value
+
+    def _unwrap(self, raw: int) -> float:
+        """A 32-bit target position near the current set point (counts, unwrapped)."""
+        return self._csp_to + _wrap_i32(int(raw) - round(self._csp_to))
+
+    def _csp_hold(self, position: float) -> None:
+        self._csp_from = self._csp_to = float(position)
+        self._csp_start = -math.inf
+
+    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
+        """SYNC: count its timing (its time on the bus, as a drive's hardware sees it); in CSP
+        bring the motor up to that instant, take the target received since the last SYNC and
+        interpolate to it over one period; send the synchronous TPDOs."""
+        now = wire_time(timestamp)
+        with self._lock:
+            self._advance(now)
+            self.sync_count += 1
+            self.sync_gaps.event(now)
+            period = self._sync_period
+            if self._last_sync is not None and period > 0:
+                gap = now - self._last_sync
+                if gap > 1.5 * period:
+                    self.sync_late += 1
+                    self.sync_missing += max(int(round(gap / period)) - 1, 0)
+            self._last_sync = now
+            self._syncs_seen += 1
+            if (self._mode == CYCLIC_SYNC_POSITION and self._state == OPERATION_ENABLED
+                    and self._csp_pending is not None):
+                self._csp_from = self._csp_setpoint(now)
+                self._csp_to = self._unwrap(self._csp_pending)
+                self._csp_start = now
+                self._csp_pending = None
+        if not self._nmt_operational:
+            return
+        try:
+            for pdo_map in self.node.tpdo.map.values():
+                if pdo_map.enabled and 1 <= (pdo_map.trans_type or 0) <= 240 and (
+                        self._syncs_seen % pdo_map.trans_type == 0):
+                    self._send_tpdo(pdo_map)
+        except (can.CanError, RuntimeError, OSError) as exc:
+            log.debug('simulated drive: TPDO send failed: %s', exc)
+
+    def _csp_setpoint(self, now: float) -> float:
+        """The interpolated position set point (counts) at `now`: linear over one SYNC period
+        from the previous target to the newest (lock held)."""
+        period = self._sync_period or 0.01
+        share = min(max((now - self._csp_start) / period, 0.0), 1.0)
+        return self._csp_from + (self._csp_to - self._csp_from) * share
 
     def _on_consumed_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
         if (can_id & 0x7F) == self._consumer_node:
             self._consumed_heartbeat = wire_time(timestamp)
+            self.heartbeat_gaps.event(self._consumed_heartbeat)
 
     # ---------------------------------------------------------------- NMT and PDO
     def _on_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:
@@ -405,6 +552,7 @@ class SimulatedDrive:
             self._send_state_tpdos()
         elif not operational:
             self._nmt_operational = False
+            self.rpdo_gaps.restart()
 
     def _load_pdo_configuration(self) -> None:
         """Read the PDO mapping the master wrote (from our own object dictionary)."""
@@ -423,9 +571,10 @@ class SimulatedDrive:
         if not self._nmt_operational:
             return
         self.rpdo_count += 1
+        self.rpdo_gaps.event(wire_time(pdo_map.timestamp))
         with self._lock:
             self._last_rpdo = wire_time(pdo_map.timestamp)
-        entries = sorted(pdo_map, key=lambda var: var.index == 0x6040)
+        entries = sorted(pdo_map, key=lambda var: var.index == objs.CONTROLWORD.index)
         try:
             for var in entries:
                 self.node.set_data(var.index, var.subindex, var.get_data())
@@ -450,7 +599,7 @@ class SimulatedDrive:
             self._sent_statusword = sw
         try:
             for number, pdo_map in self.node.tpdo.map.items():
-                if pdo_map.enabled and any(var.index == 0x6041 for var in pdo_map):
+                if pdo_map.enabled and any(var.index == objs.STATUSWORD.index for var in pdo_map):
                     self._send_tpdo(pdo_map)
                     self._tpdo_last_sent[number] = time.monotonic()
         except (can.CanError, RuntimeError, OSError) as exc:
@@ -477,6 +626,8 @@ class SimulatedDrive:
                     state = new
                     if state == OPERATION_ENABLED:
                         self._target_at_enable = self._target
+                        if self._mode == CYCLIC_SYNC_POSITION:
+                            self._csp_hold(self._position)
                         self._quick_stopped = False
                     elif state == QUICK_STOP_ACTIVE:
                         self._quick_stopped = True
@@ -505,7 +656,7 @@ class SimulatedDrive:
 
     def _send_emcy(self, code: int, register: int) -> None:
         try:
-            self.network.send_message(0x80 + self.node_id,
+            self.network.send_message(objs.emcy_cob(self.node_id),
                                       EMCY_STRUCT.pack(code, register, b''))
         except (can.CanError, RuntimeError, OSError) as exc:
             log.debug('simulated drive: EMCY send failed: %s', exc)
@@ -521,7 +672,7 @@ class SimulatedDrive:
         """One step of the drive's own work (motor, watchdogs, TPDOs, heartbeat); False once
         stopped."""
         try:
-            self._step_motor(dt)
+            self._step_motor(dt, now)
             self._check_watchdogs(now)
             self._send_state_tpdos()
             self._send_cyclic(now)
@@ -531,30 +682,84 @@ class SimulatedDrive:
             log.warning('simulated drive: bus error: %s', exc)
         return True
 
-    def _step_motor(self, dt: float) -> None:
-        to_counts = self.counts_per_motor_rev / (2.0 * math.pi)
+    SERVO_STEP = 0.001      # s, the motor model's own step (a drive's servo loop never stalls)
+
+    def _step_motor(self, dt: float, now: float | None = None) -> None:
+        """The motor from its last instant to `now` (`dt` kept for callers: the model keeps
+        its own time, so a thread that ran late, or frames handled late, change nothing)."""
+        now = time.monotonic() if now is None else now
         with self._lock:
-            state = self._state
-            v = self._velocity
-            limit = self.max_acceleration * to_counts
-            if state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
-                accel = self._od_value(0x6083 if abs(self._target) >= abs(v) else 0x6084)
-                limit = min(limit, accel)
-                wanted = v + (self._target - v) * (1.0 - math.exp(-dt / self.time_constant))
-            elif state in (QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE):
-                limit = min(limit, self._od_value(0x6085))
-                wanted = 0.0
-            else:                                   # power stage off: the load coasts down
-                wanted = v * math.exp(-dt / self.coast_time_constant)
-            dv = max(-limit * dt, min(limit * dt, wanted - v))
-            self._velocity = v + dv
-            self._position += 0.5 * (v + self._velocity) * dt
-            stopped = abs(self._velocity) < 0.5
-            if stopped and state == FAULT_REACTION_ACTIVE:
-                self._state = FAULT
-            elif (stopped and state == QUICK_STOP_ACTIVE
-                  and self._quick_stop_option in (1, 2, 3, 4)):
-                self._state = SWITCH_ON_DISABLED
+            fault = self._advance(now)
+        if fault:
+            log.warning('simulated drive %d: %s', self.node_id, self.last_following_fault)
+            self.following_error_faults += 1
+            self._fe_since = None
+            self.inject_fault(EMCY_FOLLOWING_ERROR)
+
+    def _advance(self, now: float) -> bool:
+        """Integrate the motor in SERVO_STEP steps up to `now` (lock held); True when a CSP
+        following error lasted beyond its time-out."""
+        last = self._motor_time
+        if last is None or now - last > 1.0:          # first step, or a paused simulation
+            self._motor_time = now
+            return False
+        if now <= last:
+            return False
+        steps = max(1, math.ceil((now - last) / self.SERVO_STEP - 1e-9))
+        h = (now - last) / steps
+        fault = False
+        for k in range(1, steps + 1):
+            fault = self._motor_substep(h, last + k * h) or fault
+        self._motor_time = now
+        return fault
+
+    def _motor_substep(self, dt: float, now: float) -> bool:
+        to_counts = self.counts_per_motor_rev / (2.0 * math.pi)
+        following_fault = False
+        state = self._state
+        v = self._velocity
+        limit = self.max_acceleration * to_counts
+        if state == OPERATION_ENABLED and self._mode == CYCLIC_SYNC_POSITION:
+            # position loop on the interpolated set point, with its speed as feed-forward
+            setpoint = self._csp_setpoint(now)
+            period = self._sync_period or 0.01
+            moving = now - self._csp_start < period
+            feed = (self._csp_to - self._csp_from) / period if moving else 0.0
+            wanted = feed + (setpoint - self._position) / self.time_constant
+            self._following_error = setpoint - self._position
+            if abs(self._following_error) > self._fe_window:
+                self._fe_since = now if self._fe_since is None else self._fe_since
+                following_fault = now - self._fe_since >= self._fe_timeout
+                if following_fault:
+                    self.last_following_fault = (
+                        f'following error {self._following_error:.0f} counts > window '
+                        f'{self._fe_window:.0f} for {now - self._fe_since:.3f} s (set '
+                        f'point {setpoint:.0f}, segment {self._csp_from:.0f} -> '
+                        f'{self._csp_to:.0f} started {now - self._csp_start:.3f} s ago, '
+                        f'speed {self._velocity:.0f} counts/s, dt {dt:.4f} s)')
+            else:
+                self._fe_since = None
+        elif state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
+            ramp = (objs.PROFILE_ACCELERATION if abs(self._target) >= abs(v)
+                    else objs.PROFILE_DECELERATION)
+            accel = self._od_value(ramp.index)
+            limit = min(limit, accel)
+            wanted = v + (self._target - v) * (1.0 - math.exp(-dt / self.time_constant))
+        elif state in (QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE):
+            limit = min(limit, self._od_value(objs.QUICK_STOP_DECELERATION.index))
+            wanted = 0.0
+        else:                                   # power stage off: the load coasts down
+            wanted = v * math.exp(-dt / self.coast_time_constant)
+        dv = max(-limit * dt, min(limit * dt, wanted - v))
+        self._velocity = v + dv
+        self._position += 0.5 * (v + self._velocity) * dt
+        stopped = abs(self._velocity) < 0.5
+        if stopped and state == FAULT_REACTION_ACTIVE:
+            self._state = FAULT
+        elif (stopped and state == QUICK_STOP_ACTIVE
+              and self._quick_stop_option in (1, 2, 3, 4)):
+            self._state = SWITCH_ON_DISABLED
+        return following_fault
 
     def _od_value(self, index: int) -> float:
         raw = self.node.data_store.get(index, {}).get(0)
@@ -586,12 +791,13 @@ class SimulatedDrive:
                       and now - self._last_hb_sent >= self._heartbeat_period)
         if hb_due:
             self._last_hb_sent = now
-            self.network.send_message(0x700 + self.node_id,
+            self.network.send_message(objs.heartbeat_cob(self.node_id),
                                       bytes([_NMT_CODE.get(self.node.nmt.state, 0x7F)]))
         if not self._nmt_operational:
             return
         for number, pdo_map in self.node.tpdo.map.items():
-            if not pdo_map.enabled or not pdo_map.event_timer:
+            if (not pdo_map.enabled or not pdo_map.event_timer
+                    or (pdo_map.trans_type or 255) <= 240):
                 continue
             if now - self._tpdo_last_sent.get(number, -math.inf) >= pdo_map.event_timer / 1000.0:
                 self._tpdo_last_sent[number] = now
@@ -604,9 +810,12 @@ class SimulatedBus:
     sent to N drives is copied once, as on a real bus). `drives[i]` has node id `node_ids[i]`;
     keyword arguments go to every SimulatedDrive."""
 
-    def __init__(self, channel: str, node_ids, *, interface: str = 'virtual',
+    def __init__(self, channel: str | can.BusABC, node_ids, *, interface: str = 'virtual',
                  tick: float = 0.002, **drive_kwargs):
-        self.bus = can.Bus(interface=interface, channel=channel)
+        """`channel`: a channel name of `interface` (opened here), or an open python-can bus
+        (e.g. one end of a socket pair to a master in another process; shut down on stop)."""
+        self.bus = (channel if isinstance(channel, can.BusABC)
+                    else can.Bus(interface=interface, channel=channel))
         self.network = canopen.Network(self.bus)
         self.tick = float(tick)
         self.drives = [SimulatedDrive(self.bus, node_id=node_id, network=self.network,

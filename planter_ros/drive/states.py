@@ -14,6 +14,10 @@ assert set(STATES) == set(State402.SW_MASK), 'canopen renamed a CiA 402 state'
 
 PROFILE_VELOCITY = OperationMode.PROFILED_VELOCITY            # 3
 PROFILE_VELOCITY_SUPPORTED = OperationMode.SUPPORTED['PROFILED VELOCITY']   # 0x6502 bit 2
+CYCLIC_SYNC_POSITION = OperationMode.CYCLIC_SYNCHRONOUS_POSITION              # 8
+CSP_SUPPORTED = OperationMode.SUPPORTED['CYCLIC SYNCHRONOUS POSITION']        # 0x6502 bit 7
+MODE_SUPPORTED = {PROFILE_VELOCITY: PROFILE_VELOCITY_SUPPORTED,
+                  CYCLIC_SYNC_POSITION: CSP_SUPPORTED}
 
 CW_DISABLE_VOLTAGE = State402.CW_DISABLE_VOLTAGE      # 0x00
 CW_QUICK_STOP = State402.CW_QUICK_STOP                # 0x02
@@ -27,6 +31,8 @@ ABORT_OPTION_QUICK_STOP = 3                           # 0x6007: abort connection
 # CiA 301 emergency codes the watchdogs raise
 EMCY_RPDO_TIMEOUT = 0x8250                            # RPDO deadline missed
 EMCY_HEARTBEAT = 0x8130                               # life guard or heartbeat error
+EMCY_FOLLOWING_ERROR = 0x8611                         # CiA 402: following error
+EMCY_SYNC = 0x8700                                    # CiA 301: SYNC data length / missing
 
 
 def state_of(statusword):

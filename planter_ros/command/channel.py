@@ -1,0 +1,124 @@
+"""The local channel between the ROS shell (sync_node) and the command process: JSON messages
+`[kind, payload]` over one end of a Unix-domain SOCK_SEQPACKET socket pair (one message = one
+packet, nothing leaves the host, a dead peer reads as end-of-file).
+
+Two kinds of sending, as the command path needs them:
+* `send(kind, payload, latest=True)` (ground speed): never waits and never queues; when the
+  peer's buffer is full the value is dropped (counted in `dropped`): the next one supersedes it.
+* `send(kind, payload)` (designs, sections, resets, replies, diagnostics): never lost; queued
+  in order when the peer's buffer is full and sent before anything newer (`flush`).
+The receiver takes every waiting message at once (`receive`); of several ground-speed samples
+it uses the newest.
+"""
+from __future__ import annotations
+
+from collections import deque
+import json
+import select
+import socket
+import threading
+from typing import Any
+
+__all__ = ['ChannelClosed', 'Channel', 'MAX_MESSAGE']
+
+MAX_MESSAGE = 1 << 18          # bytes; a diagnostics array of 8 rows is about 10 kB
+
+
+class ChannelClosed(ConnectionError):
+    """The other end is gone (closed, or its process died)."""
+
+
+class Channel:
+    """One end of the shell <-> command process channel (see the module doc). Thread-safe for
+    one receiving thread and any number of sending threads."""
+
+    def __init__(self, sock: socket.socket):
+        sock.setblocking(False)
+        self.sock = sock
+        self._pending: deque[bytes] = deque()
+        self._lock = threading.Lock()
+        self.dropped = 0              # latest-value messages dropped (peer's buffer full)
+        self.closed = False
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+    def send(self, kind: str, payload: Any = None, latest: bool = False) -> bool:
+        """Send one message (see the module doc); False when a latest-value one was dropped.
+        Raises ChannelClosed when the peer is gone."""
+        data = json.dumps([kind, payload], separators=(',', ':')).encode()
+        if len(data) > MAX_MESSAGE:
+            raise ValueError(f'channel message {kind!r} of {len(data)} bytes is too long: '
+                             f'allowed <= {MAX_MESSAGE}')
+        with self._lock:
+            self._flush_locked()
+            if latest:
+                if self._pending:
+                    self.dropped += 1
+                    return False
+                try:
+                    self.sock.send(data)
+                except BlockingIOError:
+                    self.dropped += 1
+                    return False
+                except OSError as exc:
+                    raise self._closed(exc) from None
+                return True
+            self._pending.append(data)
+            self._flush_locked()
+            return True
+
+    def flush(self) -> None:
+        """Send what waits (reliable messages the peer had no room for)."""
+        with self._lock:
+            self._flush_locked()
+
+    @property
+    def waiting(self) -> int:
+        return len(self._pending)
+
+    def _flush_locked(self) -> None:
+        while self._pending:
+            try:
+                self.sock.send(self._pending[0])
+            except BlockingIOError:
+                return
+            except OSError as exc:
+                raise self._closed(exc) from None
+            self._pending.popleft()
+
+    def _closed(self, exc: BaseException | None = None) -> ChannelClosed:
+        self.closed = True
+        return ChannelClosed(f'channel closed ({exc})' if exc else 'channel closed')
+
+    def receive(self, timeout: float | None) -> list[tuple[str, Any]]:
+        """Every waiting message, waiting up to `timeout` s for the first (None: forever).
+        Raises ChannelClosed at end-of-file."""
+        if self.closed:
+            raise self._closed()
+        if self._pending:
+            self.flush()
+        out = []
+        readable, _, _ = select.select([self.sock], [], [], timeout)
+        if not readable:
+            return out
+        while True:
+            try:
+                data = self.sock.recv(MAX_MESSAGE)
+            except BlockingIOError:
+                return out
+            except OSError as exc:
+                raise self._closed(exc) from None
+            if not data:
+                if out:
+                    return out          # the end-of-file is seen by the next call
+                raise self._closed()
+            kind, payload = json.loads(data)
+            out.append((kind, payload))
+
+    def close(self) -> None:
+        self.closed = True
+        try:
+            self.sock.close()
+        except OSError:
+            pass

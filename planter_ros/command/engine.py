@@ -1,0 +1,526 @@
+"""The command path without ROS: the CAN bus, the CiA 402 masters, the heartbeat, the row loop,
+section control, fault resets and the sync node's diagnostics, in one object.
+
+The command process (`planter_ros.command.process`) runs it on its own, fed over a local
+channel; `sync_node` runs the same object in its own process when given a bus object (tests).
+Either way nothing here imports rclpy: inputs are plain values, outputs are drive frames (sent
+here), `diagnostics.Report`s and log lines through the `log(level, text)` callable.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+import logging
+import threading
+import time
+from typing import Any
+
+import can
+
+from planter_ros import diagnostics, interfaces
+from planter_ros.config import ConfigError
+from planter_ros.control import sync_status
+from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
+from planter_ros.control.machine import Machine
+from planter_ros.control.phase_lock import PlantingAngles
+from planter_ros.control.row_loop import RowLoop
+from planter_ros.design import Design
+from planter_ros.drive.bus_load import BusLoad, bus_load, check_bus_load
+from planter_ros.drive.config import DriveConfig
+from planter_ros.drive.drive_set import DriveSet
+from planter_ros.drive.errors import DriveError
+from planter_ros.drive.states import CYCLIC_SYNC_POSITION, FAULT
+from planter_ros.rows import IMPLICIT, Row
+
+__all__ = ['RowUnit', 'CommandEngine', 'Feedback', 'Log', 'checked_bus_load',
+           'machine_bus_load', 'planting_angles']
+
+Log = Callable[[int, str], None]        # (logging level, one line)
+
+
+def _print_log(level: int, text: str) -> None:
+    logging.getLogger('planter_ros.command').log(level, '%s', text)
+
+
+class RowUnit:
+    """One row as the engine runs it: the row, its law, its drive and what it last did."""
+
+    def __init__(self, row: Row, law: Any, drive: Any, hardware_id: str):
+        self.row = row
+        self.law = law
+        self.drive = drive                  # None: disabled in the scene, never on the bus
+        self.hardware_id = hardware_id
+        self.running = False                # enabled at start-up and not shut down
+        self.left_out = ''                  # why the drive was left out at start-up
+        self.status = None
+        self.halt = sync_status.NEVER_ENABLED
+        self.command = 0.0
+        self.send_errors = 0
+        self.last_send_error: tuple[float, str] | None = None
+        self.joint: str | None = None       # joint name, once the design is known
+        self.period = PeriodStats()         # gaps between its command frames
+        self.faults = 0                     # drive faults (and lost heartbeats) seen
+        self.last_fault = ''
+        self.target: float | None = None    # CSP: position target of the next SYNC (rad)
+        self.target_time = 0.0              # when it was computed (monotonic s)
+        self.behind = 0.0                   # s of motion still to be made up (late steps)
+
+    @property
+    def csp(self) -> bool:
+        return self.drive is not None and self.drive.mode == CYCLIC_SYNC_POSITION
+
+    @property
+    def label(self) -> str:
+        return self.row.label
+
+
+@dataclass(frozen=True)
+class Feedback:
+    """A running row's measured motion for joint_states."""
+
+    joint: str
+    position: float
+    velocity: float
+    stamp: float
+
+
+class CommandEngine:
+    """The rows, their drives and the row loop (see the module doc). Thread-safe: every public
+    method takes the engine's lock."""
+
+    def __init__(self, drive_config: DriveConfig, loop_config: SyncLoopConfig,
+                 rows: Sequence[Row], law_values: Sequence[Any], bus: can.BusABC | None = None,
+                 log: Log | None = None):
+        self.drive_config = cfg = drive_config
+        self.loop = loop_config
+        self.log = log or _print_log
+        self.rows = list(rows)
+        self.implicit = len(self.rows) == 1 and self.rows[0].name == IMPLICIT
+        self.machine = Machine([row.lateral_offset for row in self.rows], *law_values)
+        self.row_loop = RowLoop(self.machine, cfg.heartbeat_period, cfg.drive_heartbeat_timeout)
+        enabled = [row for row in self.rows if row.enabled]
+        self.bus_load: BusLoad = checked_bus_load(cfg, loop_config, enabled)
+        self.drives = DriveSet(cfg, {row.name: row.drive_node_id for row in enabled}, bus=bus)
+        self.bus_id = f'{cfg.can_interface}:{cfg.can_channel}'
+        self.units = [RowUnit(row, self.machine.laws[row.index], self.drives.drives.get(row.name),
+                              f'{self.bus_id} node {row.drive_node_id}')
+                      for row in self.rows]
+        self.hardware_id = self.units[0].hardware_id
+        self._lock = threading.RLock()
+        self._shut_down = False
+        self.design_key: tuple | None = None
+        self.mechanism: str | None = None
+        self._bus_send_errors = 0
+        self._last_bus_error: tuple[float, str] | None = None
+        self.stopping = False               # ramping to zero before a shutdown
+        self.csp = False                    # some row runs CSP: SYNC every step, targets
+        # profile velocity: from a sample's receive time (the shell's, same clock) to the last
+        # row's frame sent for it
+        self.sample_latency = PeriodStats()
+
+    # ---------------------------------------------------------------- the first row
+    @property
+    def law(self) -> Any:
+        return self.units[0].law
+
+    @property
+    def send_errors(self) -> int:
+        return self._bus_send_errors + sum(unit.send_errors for unit in self.units)
+
+    @property
+    def running(self) -> int:
+        """Rows whose drives run."""
+        return sum(unit.running for unit in self.units)
+
+    @property
+    def shut_down(self) -> bool:
+        return self._shut_down
+
+    def unit(self, name: str) -> RowUnit:
+        return next(unit for unit in self.units if unit.row.name == name)
+
+    # ---------------------------------------------------------------- life cycle
+    def enable(self) -> None:
+        """BLOCKING: configure and enable every row's drive at once (start-up only). A row whose
+        drive does not answer is reported and left out; raises DriveError when no row runs."""
+        failures = self.drives.enable(keep_alive=self.loop.control_period)
+        with_drive = [unit for unit in self.units if unit.drive is not None]
+        if self.implicit and failures:
+            raise next(iter(failures.values()))
+        if with_drive and all(unit.row.name in failures for unit in with_drive):
+            raise DriveError('no row\'s drive answered: '
+                             + '; '.join(f'{u.label}: {failures[u.row.name]}'
+                                         for u in with_drive))
+        with self._lock:
+            for unit in with_drive:
+                if unit.row.name in failures:
+                    unit.left_out = str(failures[unit.row.name])
+                    self.log(logging.ERROR, f'row {unit.label} left out: {unit.left_out}')
+                else:
+                    unit.running = True
+                    unit.halt = None
+                    self.row_loop.enabled(unit.row.index)
+            self.csp = any(unit.csp for unit in self.units if unit.running)
+            self.bus_load = machine_bus_load(self.drive_config, self.loop,
+                                             len(with_drive), self.csp)
+        running = [unit.label for unit in self.units if unit.running]
+        mode = self.mode_text()
+        if self.implicit:
+            self.log(logging.INFO, f'drive {self.hardware_id} enabled ({mode})')
+        else:
+            self.log(logging.INFO, f'drives enabled ({mode}): rows '
+                                   f'{", ".join(running)} on {self.bus_id}')
+        self.log(logging.INFO, f'{len(with_drive)} row(s) on {self.bus_id}: CAN bus load '
+                               f'{100 * self.bus_load.load:.1f} % of '
+                               f'{self.drive_config.can_bitrate} bit/s (worst case)')
+
+    def shutdown(self) -> None:
+        """BLOCKING, idempotent: every row at once: 0x60FF = 0, disable, NMT pre-operational."""
+        with self._lock:
+            if self._shut_down:
+                return
+            self._shut_down = True
+            was_running = [unit for unit in self.units if unit.running]
+            for unit in self.units:
+                unit.running = False
+        try:
+            self.drives.shutdown()
+            if was_running:
+                self.log(logging.INFO, 'drive shut down (target 0, disabled, pre-operational)'
+                         if self.implicit else
+                         f'drives of rows {", ".join(u.label for u in was_running)} shut down '
+                         '(target 0, disabled, pre-operational)')
+        except DriveError as exc:
+            self.log(logging.ERROR, f'drive shutdown: {exc}')
+
+    def stop_ramp(self, now: float) -> None:
+        """From now on every row's command ramps to 0 at its acceleration limit, whatever the
+        ground speed (the shell is gone); `ramped_down` says when all are at 0."""
+        with self._lock:
+            self.stopping = True
+            self.row_loop.stop(now)
+
+    @property
+    def ramped_down(self) -> bool:
+        with self._lock:
+            return all(unit.command == 0.0 for unit in self.units if unit.running)
+
+    # ---------------------------------------------------------------- inputs
+    @property
+    def period(self) -> float:
+        """The loop's period: the SYNC period when a row runs CSP, else the control period."""
+        return self.drive_config.sync_period if self.csp else self.loop.control_period
+
+    def sample(self, v: float, yaw_rate: float, now: float) -> None:
+        """A ground-speed sample (m/s, rad/s) received at `now`: in profile velocity the rows'
+        frames go at once; in CSP the targets go with the next SYNC."""
+        with self._lock:
+            self.machine.sample(v, yaw_rate, now)
+            if not self.csp and any(unit.running for unit in self.units):
+                self.step(now)
+                self.sample_latency.add(time.monotonic() - now)
+
+    def set_design(self, design: Design, text: str, now: float) -> bool:
+        """A design for every row (at its next planting instant); False when it is the one in
+        force already. Where the mechanism plants is found in a worker thread."""
+        with self._lock:
+            if self.design_key is not None and text == self.design_key[2]:
+                return False
+            spacing, n = design.plant_spacing, design.plants_per_revolution
+            joints = [unit.row.joint(design.mechanism) for unit in self.units]
+            self.machine.set_design(spacing, n, now)
+            key = (spacing, n, text)
+            self.design_key = key
+            self.mechanism = design.mechanism
+            for unit, joint in zip(self.units, joints):
+                unit.joint = joint
+        threading.Thread(target=self._find_planting_angles, args=(design, key), daemon=True,
+                         name='planting-angles').start()
+        return True
+
+    def _find_planting_angles(self, design: Design, key: tuple) -> None:
+        planting = planting_angles(design)
+        with self._lock:
+            if key == self.design_key:
+                self.machine.set_planting(planting)
+
+    def configure(self, law_values: Sequence[Any]) -> None:
+        with self._lock:
+            self.machine.configure(*law_values)
+
+    def reset_fault(self, name: str) -> tuple[bool, str]:
+        unit = self.unit(name)
+        with self._lock:
+            if not unit.running:
+                return False, f'row {unit.label} does not run ({self.idle_reason(unit)})'
+            status = unit.drive.status()
+            if not status.fault and status.state != FAULT:
+                return False, f'no drive fault to reset (state {status.state})'
+            unit.drive.request_fault_reset()
+            message = (f'fault reset requested (error 0x{status.error_code:04X}); the drive '
+                       're-enables if the cause is gone')
+        self.log(logging.WARNING, message if self.implicit else f'row {unit.label}: {message}')
+        return True, message
+
+    def section(self, name: str, on: bool, now: float) -> tuple[bool, str, bool]:
+        """Switch row `name`'s section; (success, message, changed)."""
+        unit = self.unit(name)
+        with self._lock:
+            if unit.drive is None:
+                return False, f'row {unit.label} is disabled in the scene: it never plants', False
+            was = unit.law.section_on
+            unit.law.switch(on, now)
+            if was == on:
+                message = f'row {unit.label} is already {"on" if on else "off"}'
+            elif on:
+                message = f'row {unit.label} on: a new grid starts here'
+            else:
+                stop = unit.law.stop_angle
+                message = (f'row {unit.label} off: coming to rest'
+                           + (f' at {stop:.3f} rad' if stop is not None else ''))
+        self.log(logging.INFO, message)
+        return True, message, was != on
+
+    # ---------------------------------------------------------------- the control step
+    def step(self, now: float) -> None:
+        """One command per running row and the master heartbeat when due. With rows in CSP:
+        first the SYNC (the drives apply the targets sent last period), then each row's
+        target for the next SYNC: its last target advanced by the row loop's speed over one
+        SYNC period (phase-locked through the law; a halted row restarts from where its
+        drive is)."""
+        with self._lock:
+            if not any(unit.running for unit in self.units):
+                return
+            if self.csp:
+                try:
+                    self.drives.canbus.send_sync()
+                except DriveError as exc:
+                    self._send_failed(now, exc, None)
+            for unit in self.units:
+                if unit.running:
+                    unit.status = unit.drive.status()
+            step = self.row_loop.step([unit.status if unit.running else None
+                                       for unit in self.units],
+                                      [unit.running for unit in self.units], now)
+            for unit, row in zip(self.units, step.rows):
+                if not row.running:
+                    continue
+                if row.changed:
+                    self._report_halt(unit, row.halt, unit.status)
+                unit.halt = row.halt
+                try:
+                    if unit.csp:
+                        self._send_target(unit, row, now)
+                    else:
+                        unit.drive.send_velocity(row.command)
+                except DriveError as exc:
+                    self._send_failed(now, exc, unit)
+                unit.period.event(time.monotonic())      # when the frame went
+                unit.command = row.command
+            if step.heartbeat:      # after the commands (they are what is waited for)
+                try:
+                    self.drives.send_heartbeat()
+                except DriveError as exc:
+                    self._send_failed(now, exc, None)
+
+    def _send_target(self, unit: RowUnit, row: Any, now: float) -> None:
+        """The row's position for the next SYNC: advanced by its speed over the time since the
+        last target (a late step is made up: the angle stays on the distance travelled)."""
+        period = self.drive_config.sync_period
+        if row.halt is not None or unit.target is None:
+            unit.target = unit.status.position if row.halt is None else None
+            unit.behind = 0.0
+        else:
+            # time owed since the last target; at most two periods' worth per SYNC, so a late
+            # step is made up over the next SYNCs at up to twice the speed, never in one jump
+            owed = max(now - unit.target_time, 0.0) + unit.behind
+            step = min(owed, 2.0 * period)
+            unit.behind = min(owed - step, 0.5)
+            unit.target += row.command * step
+        unit.target_time = now
+        if unit.target is None:
+            unit.drive.send_hold()
+        else:
+            unit.drive.send_position(unit.target)
+
+    def feedback(self) -> list[Feedback]:
+        """Every running row's last measured motion (for joint_states)."""
+        with self._lock:
+            return [Feedback(unit.joint, unit.status.position, unit.status.velocity,
+                             unit.status.stamp)
+                    for unit in self.units
+                    if unit.running and unit.joint is not None and unit.status is not None
+                    and sync_status.has_feedback(unit.status)]
+
+    def commands(self) -> list[tuple[str, float]]:
+        """(joint, command rad/s) of every running row with a design ('' joint: implicit)."""
+        with self._lock:
+            if self.implicit:
+                return [('', self.units[0].command)]
+            return [(unit.joint, unit.command) for unit in self.units
+                    if unit.running and unit.joint is not None]
+
+    def sections(self) -> dict[str, bool]:
+        with self._lock:
+            return {unit.row.name: unit.law.section_on for unit in self.units
+                    if unit.drive is not None}
+
+    def _report_halt(self, unit: RowUnit, halt: Any, status: Any) -> None:
+        row = '' if self.implicit else f'row {unit.label}: '
+        if halt is not None and halt.kind != sync_status.NOT_ENABLED:
+            unit.faults += 1
+            unit.last_fault = halt.text
+        if halt is None:
+            self.log(logging.INFO, f'{row}drive back in operation: resuming')
+        elif halt.kind == sync_status.FAULTED:
+            service = interfaces.RESET_FAULT.for_row(unit.row.name)
+            self.log(logging.ERROR, f'{row}{halt.text} (state {status.state}): commanding 0; '
+                                    f'call the {service} service once the cause is cleared')
+        else:
+            self.log(logging.WARNING, f'{row}{halt.text}: commanding 0')
+
+    def _send_failed(self, now: float, exc: Exception, unit: RowUnit | None) -> None:
+        last = self._last_bus_error if unit is None else unit.last_send_error
+        first = last is None or now - last[0] > sync_status.SEND_ERROR_HOLD
+        if unit is None:
+            self._bus_send_errors += 1
+            self._last_bus_error = (now, str(exc))
+        else:
+            unit.send_errors += 1
+            unit.last_send_error = (now, str(exc))
+        if first:
+            self.log(logging.ERROR, f'CAN send failed: {exc}')
+
+    # ---------------------------------------------------------------- diagnostics
+    def idle_reason(self, unit: RowUnit) -> str:
+        if unit.drive is None:
+            return 'disabled in the scene: never enabled on the bus'
+        if unit.left_out:
+            return f'left out at start-up: {unit.left_out}'
+        return 'shut down' if self._shut_down else 'not enabled yet'
+
+    def _row_values(self, unit: RowUnit, now: float) -> tuple:
+        law = unit.law
+        return (('lateral offset', f'{unit.row.lateral_offset:.3f} m'),
+                ('drive node id', unit.row.drive_node_id),
+                ('row speed', f'{law.ground_speed_value:.4f} m/s'),
+                ('row travelled', f'{law.travelled(now):.4f} m'))
+
+    def _drive_report(self, unit: RowUnit, now: float) -> diagnostics.Report:
+        return sync_status.drive_report(unit.status, unit.running, self._shut_down, unit.halt,
+                                        unit.send_errors, unit.last_send_error, unit.command,
+                                        now)
+
+    def reports(self, now: float,
+                shared: Sequence[diagnostics.Report] = ()) -> list[tuple[diagnostics.Report, str]]:
+        """(Report, hardware id) of every status, in the order published; `shared` are the
+        shell's own (who set the design, the command process), added after the loop's."""
+        with self._lock:
+            states = [unit.law.state(now) for unit in self.units if unit.running]
+            ramping = [state for state in states if state.startswith('ramping')]
+            ground = sync_status.ground_report(self.machine.reference, now, self.machine,
+                                               (ramping or states or [None])[0])
+            bus = sync_status.bus_report(self.bus_load, self._last_bus_error, now)
+            loop = sync_status.loop_report(
+                [('' if self.implicit else unit.label, unit.period) for unit in self.units
+                 if unit.drive is not None], self.drive_config.command_timeout)
+            tail = [(loop, self.bus_id)] + [(report, self.bus_id) for report in shared]
+            if self.implicit:
+                unit = self.units[0]
+                drive = self._drive_report(unit, now)
+                if unit.status is None and unit.left_out:
+                    drive = diagnostics.Report(diagnostics.DRIVE, diagnostics.ERROR,
+                                               unit.left_out, drive.values)
+                return [(drive, unit.hardware_id), (ground, unit.hardware_id),
+                        (sync_status.phase_report(unit.law, now, unit.command),
+                         unit.hardware_id), (bus, self.bus_id)] + tail
+            reports = [(ground, self.bus_id), (bus, self.bus_id)]
+            for unit in self.units:
+                values = self._row_values(unit, now)
+                if unit.running or (unit.status is not None and self._shut_down):
+                    report = sync_status.row_report(
+                        unit.label, self._drive_report(unit, now),
+                        sync_status.phase_report(unit.law, now, unit.command), values)
+                else:
+                    level = diagnostics.OK if unit.drive is None else (
+                        diagnostics.ERROR if unit.left_out else diagnostics.STALE)
+                    report = sync_status.idle_row_report(unit.label, self.idle_reason(unit),
+                                                         level, values)
+                reports.append((report, unit.hardware_id))
+            return reports + tail
+
+    def mode_text(self) -> str:
+        """The CiA 402 mode the enabled drives run, in words."""
+        return (f'cyclic synchronous position, SYNC every '
+                f'{1e3 * self.drive_config.sync_period:g} ms' if self.csp
+                else 'profile velocity')
+
+    def snapshot(self) -> dict:
+        """What the demo's progress lines show: each row's command, speed and state."""
+        with self._lock:
+            rows = [{'label': unit.label, 'command': unit.command,
+                     'velocity': unit.status.velocity if unit.status else 0.0,
+                     'state': unit.status.state if unit.status else '-',
+                     'running': unit.running}
+                    for unit in self.units if unit.drive is not None]
+            return {'rows': rows, 'spacing': self.law.spacing}
+
+    def final_report(self) -> dict:
+        """The run's figures from the command path (JSON-ready)."""
+        with self._lock:
+            law, yaw = self.law, self.machine.filter.yaw
+            everything = PeriodStats()
+            rows = []
+            for unit in self.units:
+                if unit.drive is None:
+                    continue
+                everything.merge(unit.period)
+                rows.append({'label': unit.label, 'faults': unit.faults,
+                             'last_fault': unit.last_fault, 'left_out': unit.left_out,
+                             'loop': unit.period.summary()})
+            return {
+                'accepted': law.accepted, 'rejected': dict(law.rejected),
+                'yaw_accepted': yaw.accepted, 'yaw_rejected': dict(yaw.rejected),
+                'phase_slips': sum(unit.law.phase_slips for unit in self.units),
+                'send_errors': self.send_errors,
+                'phase_lock': law.config.phase_lock,
+                'turn_compensation': self.machine.turn.turn_compensation,
+                'rows': rows,
+                'loop': everything.summary(),
+                'loop_histogram': everything.histogram(),
+                'command_timeout': self.drive_config.command_timeout,
+                'sample_to_frame': self.sample_latency.summary(),
+                'csp': self.csp,
+            }
+
+
+def machine_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: int, csp: bool) -> BusLoad:
+    """The worst-case CAN bus load of `rows` drives in profile velocity or CSP."""
+    return bus_load(rows, cfg.can_bitrate, loop.control_period, loop.ground_speed_rate,
+                    cfg.feedback_period, cfg.drive_heartbeat_period, cfg.heartbeat_period,
+                    cfg.sync_period if csp else 0.0, csp)
+
+
+def checked_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: Sequence[Row]) -> BusLoad:
+    """The load a configuration may make before its drives say which mode they run: CSP's
+    when `operation_mode` allows CSP and it is the larger; refused above the limit with the
+    knobs that fix it (DriveConfigError)."""
+    loads = [machine_bus_load(cfg, loop, len(rows), False)]
+    if cfg.operation_mode != 'velocity':
+        loads.append(machine_bus_load(cfg, loop, len(rows), True))
+    worst = max(loads, key=lambda load: load.load)
+    check_bus_load(worst, [row.label for row in rows], loop.control_period,
+                   loop.ground_speed_rate, cfg.feedback_period, cfg.drive_heartbeat_period,
+                   cfg.heartbeat_period)
+    return worst
+
+
+def planting_angles(design: Design) -> PlantingAngles | None:
+    """Where the design's mechanism plants on its shaft (for section stops), or None."""
+    from planter_ros.prediction import planting_model_from_design
+    try:
+        model = planting_model_from_design(design)
+    except (ValueError, TypeError, KeyError, ConfigError):
+        return None
+    return PlantingAngles(float(model.planting_phase), float(model.entry_angle),
+                          float(model.exit_angle))

@@ -1,0 +1,49 @@
+"""What the shell hands the command process at start: every setting as plain data (JSON), and
+back into the typed configuration classes."""
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+from planter_ros.control.loop_timing import SyncLoopConfig
+from planter_ros.control.machine import TurnConfig
+from planter_ros.control.phase_lock import PhaseLockConfig
+from planter_ros.drive.config import DriveConfig
+from planter_ros.rows import Row
+from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
+from planter_ros.sensing.row_speed import YawRateLimits
+
+__all__ = ['LAW_CLASSES', 'CommandSettings', 'law_to_data', 'law_from_data']
+
+# the law's configuration classes, in the order Machine(…, *values) takes them
+LAW_CLASSES = (PhaseLockConfig, GroundSpeedLimits, YawRateLimits, TurnConfig)
+
+
+def law_to_data(values: tuple) -> list[dict[str, Any]]:
+    return [asdict(value) for value in values]
+
+
+def law_from_data(data: list[dict[str, Any]]) -> tuple:
+    return tuple(cls(**values) for cls, values in zip(LAW_CLASSES, data))
+
+
+class CommandSettings:
+    """The command process's settings: drive, loop, rows, law; `data()` / `from_data()`."""
+
+    def __init__(self, drive: DriveConfig, loop: SyncLoopConfig, rows: list[Row], law: tuple,
+                 log_level: str = 'info'):
+        self.drive, self.loop, self.rows, self.law = drive, loop, list(rows), tuple(law)
+        self.log_level = log_level
+
+    def data(self) -> dict[str, Any]:
+        return {'drive': asdict(self.drive), 'loop': asdict(self.loop),
+                'rows': [row.as_dict() for row in self.rows], 'law': law_to_data(self.law),
+                'log_level': self.log_level}
+
+    @classmethod
+    def from_data(cls, data: dict[str, Any]) -> 'CommandSettings':
+        rows = [Row(int(r['index']), str(r['name']), float(r['lateral_offset']),
+                    None if r['drive_node_id'] is None else int(r['drive_node_id']),
+                    bool(r['enabled'])) for r in data['rows']]
+        return cls(DriveConfig(**data['drive']), SyncLoopConfig(**data['loop']), rows,
+                   law_from_data(data['law']), data.get('log_level', 'info'))

@@ -1,0 +1,105 @@
+"""Simulated drives in a process of their own, on one end of a CAN socket pair
+(`drive.socket_bus`): `python -m planter_ros.drive.sim_process --fd N --nodes 1,2 [--options
+JSON]`.
+
+In the master's process the simulated drives share its GIL: a master stalled by its process
+(a DDS publish holding the GIL, a collection) stalls them too, and they see no gap a real drive
+would see. Here they run on their own clock, as devices on the cable do, and count what a real
+drive would: watchdog trips, gaps between command frames and between SYNCs.
+
+The parent talks to it over stdin/stdout (JSON lines): end-of-file on stdin (the parent asked,
+or died, even by SIGKILL) stops the drives and the process; the last stdout line is the report
+(`{"watchdog_trips": [[node id, reason, EMCY code], ...], "rpdo_gaps": {...}, "sync": {...}}`:
+per drive the gaps between command frames and the SYNC timing on its own clock). `SimProcess`
+is the parent's handle.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+from typing import Any
+
+__all__ = ['SimProcess', 'main']
+
+
+class SimProcess:
+    """The parent's handle: start the drives' process on `fd` (one end of a CAN socket pair,
+    inherited), stop it and read its report."""
+
+    def __init__(self, fd: int, node_ids: list[int], priority: int = 0, **options: Any):
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'planter_ros.drive.sim_process', '--fd', str(fd),
+             '--nodes', ','.join(str(n) for n in node_ids), '--options', json.dumps(options),
+             '--priority', str(priority)],
+            pass_fds=(fd,), stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        line = self.process.stdout.readline()
+        if not line.startswith('ready'):
+            self.process.kill()
+            self.process.wait()
+            raise RuntimeError(f'the simulated drives did not start: {line.strip()!r}')
+        self.report: dict | None = None
+
+    def stop(self, timeout: float = 10.0) -> dict:
+        """Stop the drives; their report ({} if none came)."""
+        if self.report is not None:
+            return self.report
+        try:
+            self.process.stdin.close()
+            out = self.process.stdout.read()
+            self.process.wait(timeout)
+        except (OSError, subprocess.TimeoutExpired):
+            self.process.kill()
+            self.process.wait()
+            out = ''
+        lines = [line for line in out.splitlines() if line.startswith('{')]
+        self.report = json.loads(lines[-1]) if lines else {}
+        return self.report
+
+
+def main(argv: list[str] | None = None) -> int:
+    from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.drive.socket_bus import SocketPairBus
+
+    parser = argparse.ArgumentParser(prog='planter_ros.drive.sim_process')
+    parser.add_argument('--fd', type=int, required=True)
+    parser.add_argument('--nodes', required=True)
+    parser.add_argument('--options', default='{}')
+    parser.add_argument('--priority', type=int, default=0,
+                        help='SCHED_FIFO priority (0: none): the drives stand for hardware, '
+                             'whose servo loops and heartbeats no host load delays')
+    args = parser.parse_args(argv)
+    refused = ''
+    if args.priority > 0:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.priority))
+        except (OSError, ValueError, AttributeError) as exc:
+            refused = f'SCHED_FIFO {args.priority} refused: {exc}'
+    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides
+    node_ids = [int(n) for n in args.nodes.split(',') if n]
+    sims = SimulatedBus(SocketPairBus(args.fd), node_ids, **json.loads(args.options))
+    sims.start()
+    print('ready', os.getpid(), refused, flush=True)
+    done = threading.Event()
+
+    def watch_stdin() -> None:
+        sys.stdin.read()                 # end-of-file: asked to stop, or the parent died
+        done.set()
+    threading.Thread(target=watch_stdin, daemon=True).start()
+    done.wait()
+    sims.stop()
+    report = {'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
+              'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
+              'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
+              'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
+                                 for d in sims.drives}}
+    print(json.dumps(report), flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
