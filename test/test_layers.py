@@ -21,7 +21,8 @@ LAYERS = (
     ('design',),                                   # the typed design
     ('prediction',),                               # per-plant predictions from motion
     ('cam', 'control'),                            # cam planning; the sync law, the row loop
-    ('recording', 'export', 'optimize', 'sim', 'command'),   # command: the command process
+    ('recording', 'export', 'optimize', 'sim', 'command',   # command: the command process
+     'plausibility'),
     ('scene',),                                    # knows every node's configuration
     ('nodes', 'analysis'),
     ('demo',),

@@ -45,6 +45,8 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     if not any(row.enabled for row in rows):
         raise SceneError(f'scene {scene.path}: rows = every row has enabled false: allowed at '
                          'least one enabled row')
+    for warning in scene.warnings:        # unusual but possible values (planter_ros.plausibility)
+        print(f'planter: warning: {warning}', file=sys.stderr)
     keep_discovery_on_host()
     return Demo(scene, design, rows, options, antenna=antenna, **kwargs)
 

@@ -174,7 +174,8 @@ class MonitorNode(Node):
 
     def _new_placer(self, settings):
         return PlantPlacer(settings, self.antenna.antenna_position,
-                           {row.index: row.lateral_offset for row in self.rows})
+                           {row.index: row.lateral_offset for row in self.rows},
+                           {row.index: row.longitudinal_offset for row in self.rows})
 
     def _on_map_settings(self, settings):
         """A new map from here on: the plants held so far are placed with the old one."""

@@ -258,9 +258,11 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
     design_spacing = design_spacing_of(plants, designs[-1][3].spacing)
     plants = _seedlings(rec, plants, planting, segments).apply(plants, design_spacing)
     offset_of = {row.index: row.lateral_offset for row in rows}
+    forward_of = {row.index: row.longitudinal_offset for row in rows}
     placement = place_plants(plants.time, [offset_of.get(int(r), 0.0) for r in plants.row],
                              tuple(np.concatenate(c) for c in zip(*motions)), fixes,
-                             map_settings, antenna.antenna_position)
+                             map_settings, antenna.antenna_position,
+                             [forward_of.get(int(r), 0.0) for r in plants.row])
     plants.latitude, plants.longitude = placement.latitude, placement.longitude
     usable_fixes = int(np.count_nonzero(np.isfinite(fix_sigma(*fixes[1:],
                                                               map_settings.max_fix_sigma))))

@@ -29,9 +29,11 @@ DEFAULT_SCENE = 'tomato_five_bar.yaml'
 
 @dataclass(frozen=True)
 class Scene:
-    """A checked scene file."""
+    """A checked scene file; `warnings`: its unusual but possible values
+    (planter_ros.plausibility), for the caller to show."""
 
     file: ParameterFile
+    warnings: tuple[str, ...] = ()
 
     @property
     def path(self) -> Path:
@@ -87,13 +89,20 @@ class Scene:
 
 def open_scene(path: str | Path) -> Scene:
     """Read and check a scene file (SceneError, one line, for anything the nodes would not
-    take: see scene.schema)."""
+    take: see scene.schema, or the machine could not run: planter_ros.plausibility)."""
     pfile = read_parameter_file(path)
     if not any(entry.params for entry in pfile.entries):
         raise SceneError(f'scene file {pfile.path} has no ros__parameters under /** or a '
                          'planter node')
     check_scene(pfile)
-    return Scene(pfile)
+    from planter_ros.plausibility import PlausibilityError, check
+    try:
+        warnings = check({**merged_parameters(pfile, 'design_node'),
+                          **merged_parameters(pfile, 'sync_node')},
+                         where=f'scene file {pfile.path}: ')
+    except PlausibilityError as exc:
+        raise SceneError(str(exc)) from None
+    return Scene(pfile, tuple(warnings))
 
 
 def scene_limits(path: str | Path) -> dict[str, Any]:
