@@ -32,7 +32,7 @@ class Channel:
     """One end of the shell <-> command process channel (see the module doc). Thread-safe for
     one receiving thread and any number of sending threads."""
 
-    def __init__(self, sock: socket.socket):
+    def __init__(self, sock: socket.socket) -> None:
         sock.setblocking(False)
         self.sock = sock
         self._pending: deque[bytes] = deque()

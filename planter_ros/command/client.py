@@ -50,7 +50,8 @@ class CommandProcessError(DriveError):
 class CommandClient:
     """The command process of a sync node (see the module doc)."""
 
-    def __init__(self, settings: CommandSettings, log: Log, extra_fds: Sequence[int] = ()):
+    def __init__(self, settings: CommandSettings, log: Log,
+                 extra_fds: Sequence[int] = ()) -> None:
         self.settings = settings
         self.log = log
         cfg = settings.drive

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import logging
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import can
 
@@ -22,8 +22,9 @@ from planter_ros.config import ConfigError
 from planter_ros.control import sync_status
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
 from planter_ros.control.machine import Machine
-from planter_ros.control.phase_lock import PlantingAngles
-from planter_ros.control.row_loop import RowLoop
+from planter_ros.control.phase_lock import PhaseLock, PlantingAngles
+from planter_ros.control.row_loop import RowLoop, RowStep
+from planter_ros.control.sync_status import Halt
 from planter_ros.design import Design
 from planter_ros.drive.bus_load import BusLoad, bus_load, check_bus_load
 from planter_ros.drive.config import DriveConfig
@@ -31,6 +32,9 @@ from planter_ros.drive.drive_set import DriveSet
 from planter_ros.drive.errors import DriveError
 from planter_ros.drive.states import CYCLIC_SYNC_POSITION, FAULT
 from planter_ros.rows import IMPLICIT, Row
+
+if TYPE_CHECKING:
+    from planter_ros.drive.cia402 import Cia402Drive, DriveStatus
 
 __all__ = ['RowUnit', 'CommandEngine', 'Feedback', 'Log', 'checked_bus_load',
            'machine_bus_load', 'planting_angles']
@@ -45,7 +49,8 @@ def _print_log(level: int, text: str) -> None:
 class RowUnit:
     """One row as the engine runs it: the row, its law, its drive and what it last did."""
 
-    def __init__(self, row: Row, law: Any, drive: Any, hardware_id: str):
+    def __init__(self, row: Row, law: PhaseLock, drive: Cia402Drive | None,
+                 hardware_id: str) -> None:
         self.row = row
         self.law = law
         self.drive = drive                  # None: disabled in the scene, never on the bus
@@ -90,7 +95,7 @@ class CommandEngine:
 
     def __init__(self, drive_config: DriveConfig, loop_config: SyncLoopConfig,
                  rows: Sequence[Row], law_values: Sequence[Any], bus: can.BusABC | None = None,
-                 log: Log | None = None):
+                 log: Log | None = None) -> None:
         self.drive_config = cfg = drive_config
         self.loop = loop_config
         self.log = log or _print_log
@@ -120,7 +125,7 @@ class CommandEngine:
 
     # ---------------------------------------------------------------- the first row
     @property
-    def law(self) -> Any:
+    def law(self) -> PhaseLock:
         return self.units[0].law
 
     @property
@@ -323,7 +328,7 @@ class CommandEngine:
                 except DriveError as exc:
                     self._send_failed(now, exc, None)
 
-    def _send_target(self, unit: RowUnit, row: Any, now: float) -> None:
+    def _send_target(self, unit: RowUnit, row: RowStep, now: float) -> None:
         """The row's position for the next SYNC: advanced by its speed over the time since the
         last target (a late step is made up: the angle stays on the distance travelled)."""
         period = self.drive_config.sync_period
@@ -365,7 +370,8 @@ class CommandEngine:
             return {unit.row.name: unit.law.section_on for unit in self.units
                     if unit.drive is not None}
 
-    def _report_halt(self, unit: RowUnit, halt: Any, status: Any) -> None:
+    def _report_halt(self, unit: RowUnit, halt: Halt | None, status: DriveStatus | None) -> None:
+
         row = '' if self.implicit else f'row {unit.label}: '
         if halt is not None and halt.kind != sync_status.NOT_ENABLED:
             unit.faults += 1

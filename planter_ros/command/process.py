@@ -52,7 +52,7 @@ LIBRARY_LOGGERS = ('can', 'canopen', 'planter_ros.drive')
 class _ChannelLog(logging.Handler):
     """python-can's, canopen's and the drive master's warnings, to the shell's log."""
 
-    def __init__(self, channel: Channel):
+    def __init__(self, channel: Channel) -> None:
         super().__init__(logging.WARNING)
         self.channel = channel
 

@@ -31,7 +31,7 @@ class CommandSettings:
     """The command process's settings: drive, loop, rows, law; `data()` / `from_data()`."""
 
     def __init__(self, drive: DriveConfig, loop: SyncLoopConfig, rows: list[Row], law: tuple,
-                 log_level: str = 'info'):
+                 log_level: str = 'info') -> None:
         self.drive, self.loop, self.rows, self.law = drive, loop, list(rows), tuple(law)
         self.log_level = log_level
 

@@ -11,8 +11,11 @@ path. Pure (numpy), times in seconds passed in explicitly.
 `SyncLoopConfig` sets the loop's own timing (parameters of the sync node).
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 import math
+from typing import Any
 
 import numpy as np
 
@@ -49,14 +52,14 @@ class SyncLoopConfig:
                                     "(the drives' own watchdogs stop the motors meanwhile); "
                                     'then it reports ERROR', range=(0, 100), read_only=True)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self)
 
 
 class PeriodStats:
     """Gaps between consecutive events (frames) of one row, from `event(now)` calls."""
 
-    def __init__(self, bin_width=BIN, span=SPAN):
+    def __init__(self, bin_width: float = BIN, span: float = SPAN) -> None:
         self.bin_width = float(bin_width)
         self.counts = np.zeros(int(round(span / bin_width)) + 1, dtype=np.int64)
         self.gaps = 0
@@ -64,18 +67,18 @@ class PeriodStats:
         self.total = 0.0
         self._last = None
 
-    def event(self, now):
+    def event(self, now: float) -> None:
         """One frame sent at `now` (monotonic s)."""
         last, self._last = self._last, now
         if last is not None:
             self.add(now - last)
 
-    def restart(self):
+    def restart(self) -> None:
         """The next event starts a new series (the row stopped sending on purpose: shut
         down, left out): the pause is no gap of the loop."""
         self._last = None
 
-    def add(self, gap):
+    def add(self, gap: float) -> None:
         gap = max(float(gap), 0.0)
         self.counts[min(int(gap / self.bin_width), self.counts.size - 1)] += 1
         self.gaps += 1
@@ -83,7 +86,7 @@ class PeriodStats:
         if gap > self.max_gap:
             self.max_gap = gap
 
-    def quantile(self, q):
+    def quantile(self, q: float) -> float:
         """The gap (s) that a fraction `q` of all gaps do not exceed, to one bin (the upper
         edge of its bin, never more than the largest gap; the largest gap in the overflow
         bin); NaN before two events."""
@@ -96,10 +99,10 @@ class PeriodStats:
         return min((i + 1) * self.bin_width, self.max_gap)
 
     @property
-    def mean(self):
+    def mean(self) -> float:
         return self.total / self.gaps if self.gaps else math.nan
 
-    def merge(self, other):
+    def merge(self, other: PeriodStats) -> PeriodStats:
         """Add another series' gaps (e.g. every row's, for one figure of the machine)."""
         if other.counts.size != self.counts.size or other.bin_width != self.bin_width:
             raise ValueError('PeriodStats.merge: different histograms')
@@ -109,14 +112,14 @@ class PeriodStats:
         self.max_gap = max(self.max_gap, other.max_gap)
         return self
 
-    def histogram(self):
+    def histogram(self) -> dict[str, Any]:
         """The counts as plain data (the nonzero bins), e.g. to send to another process."""
         return {'bin': self.bin_width, 'size': int(self.counts.size), 'max': self.max_gap,
                 'total': self.total,
                 'counts': {int(i): int(self.counts[i]) for i in self.counts.nonzero()[0]}}
 
     @classmethod
-    def from_histogram(cls, data):
+    def from_histogram(cls, data: dict[str, Any]) -> PeriodStats:
         """The PeriodStats `histogram()` describes (without its last event)."""
         stats = cls(data['bin'], data['bin'] * (data['size'] - 1))
         for i, count in data['counts'].items():
@@ -125,9 +128,10 @@ class PeriodStats:
         stats.max_gap, stats.total = data['max'], data['total']
         return stats
 
-    def summary(self):
+    def summary(self) -> dict[str, int | float | None]:
         """JSON-ready figures (s): frames' gaps counted, mean, p99, p99.9, max."""
-        def finite(x):
+        def finite(x: float) -> float | None:
+
             return None if math.isnan(x) else x
         return {'gaps': self.gaps, 'mean': finite(self.mean),
                 'p99': finite(self.quantile(0.99)), 'p999': finite(self.quantile(0.999)),

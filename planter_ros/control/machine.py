@@ -10,13 +10,16 @@ runs on the machine's v, so the difference can be shown. Rows are switched off a
 (section control, `PhaseLock.switch`). Time is passed in explicitly; pure, no ROS.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from planter_ros.config import check, setting
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import MotionFilter, YawRateLimits, row_speed
 
-from .phase_lock import PhaseLock, PhaseLockConfig
+from .phase_lock import PhaseLock, PhaseLockConfig, PlantingAngles
 
 
 @dataclass(frozen=True)
@@ -27,14 +30,16 @@ class TurnConfig:
                                       '(y its lateral offset, ω_z the yaw rate); false: every '
                                       "row on the machine's v (rows off their grids on a curve)")
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self)
 
 
 class Machine:
     """One motion filter, one PhaseLock per row at lateral offset `offsets[i]` (m, + left)."""
 
-    def __init__(self, offsets, config=None, limits=None, yaw_limits=None, turn=None):
+    def __init__(self, offsets: Iterable[float], config: PhaseLockConfig | None = None,
+                 limits: GroundSpeedLimits | None = None,
+                 yaw_limits: YawRateLimits | None = None, turn: TurnConfig | None = None) -> None:
         config = config or PhaseLockConfig()
         self.offsets = [float(y) for y in offsets]
         self.filter = MotionFilter(limits or GroundSpeedLimits(), yaw_limits or YawRateLimits())
@@ -44,26 +49,28 @@ class Machine:
         self.reference = PhaseLock(config, speed_filter=self.filter.speed)
         self.yaw_rate_value = 0.0           # yaw rate of the last sample used (rad/s)
 
-    def configure(self, config, limits, yaw_limits, turn):
+    def configure(self, config: PhaseLockConfig, limits: GroundSpeedLimits,
+                  yaw_limits: YawRateLimits, turn: TurnConfig) -> None:
         """New gains and limits (a parameter update at run time)."""
         self.filter.configure(limits, yaw_limits)
         self.turn = turn
         for law in self.laws + [self.reference]:
             law.config = config
 
-    def set_design(self, spacing, plants_per_revolution, now, planting=None):
+    def set_design(self, spacing: float, plants_per_revolution: int, now: float,
+                   planting: PlantingAngles | None = None) -> None:
         """A design for every row: each row running on its grid takes it at its own next
         planting instant (PhaseLock.set_design)."""
         for law in self.laws:
             law.set_design(spacing, plants_per_revolution, now, planting)
 
-    def set_planting(self, planting):
+    def set_planting(self, planting: PlantingAngles | None) -> None:
         """Where the design's mechanism plants (PlantingAngles or None), found later than the
         design itself; used by the next section stops and design changes."""
         for law in self.laws:
             law.set_planting(planting)
 
-    def sample(self, v, yaw_rate, now):
+    def sample(self, v: float, yaw_rate: float, now: float) -> bool:
         """Offer a ground-speed message's v (m/s) and ω_z (rad/s); True when the rows use it."""
         motion = self.filter.check(v, yaw_rate, now)
         if motion is None:
@@ -76,6 +83,7 @@ class Machine:
             law.row_speed(row_speed(v, used, y), now)
         return True
 
-    def row_speeds(self):
+    def row_speeds(self) -> list[float]:
+
         """The speed each row runs on now (m/s, ≥ 0)."""
         return [law.ground_speed_value for law in self.laws]

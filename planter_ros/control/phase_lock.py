@@ -40,6 +40,8 @@ Choices the papers leave open, made here on purpose:
 Time is passed in explicitly (monotonic seconds), so the law is deterministic and testable.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 import math
 
@@ -80,7 +82,7 @@ class PhaseLockConfig:
                                           '= stale: ramp to 0, then halt', unit='s',
                                           range=(0.05, 10.0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self, ControlConfigError)
 
 
@@ -94,7 +96,8 @@ class PlantingAngles:
     exit: float
 
 
-def stop_angle(theta, omega, max_acceleration, pitch, angles=None, lag=STOP_LAG):
+def stop_angle(theta: float, omega: float, max_acceleration: float, pitch: float,
+               angles: PlantingAngles | None = None, lag: float = STOP_LAG) -> float:
     """Where a row switched off at shaft angle `theta` (rad), turning at `omega` (rad/s), comes
     to rest, braking at `max_acceleration` (rad/s²) through the soonest stop θ_min.
 
@@ -119,7 +122,9 @@ def stop_angle(theta, omega, max_acceleration, pitch, angles=None, lag=STOP_LAG)
 class PhaseLock:
     """Ground speed + measured mechanism angle -> mechanism speed command (rad/s)."""
 
-    def __init__(self, config=None, limits=None, speed_filter=None):
+    def __init__(self, config: PhaseLockConfig | None = None,
+                 limits: GroundSpeedLimits | None = None,
+                 speed_filter: GroundSpeedFilter | None = None) -> None:
         self.config = config or PhaseLockConfig()
         self.spacing = None                 # d (m), None until a design is known
         self.plants_per_revolution = 1
@@ -141,12 +146,13 @@ class PhaseLock:
         self._pending = None                # (d, PlantingAngles, s at its planting instant)
 
     # ------------------------------------------------------------------ inputs
-    def configure(self, config, limits):
+    def configure(self, config: PhaseLockConfig, limits: GroundSpeedLimits) -> None:
         """New gains, limits and sample plausibility rule (a parameter update at run time)."""
         self.config = config
         self.filter.limits = limits
 
-    def set_design(self, spacing, plants_per_revolution, now, planting=None):
+    def set_design(self, spacing: float, plants_per_revolution: int, now: float,
+                   planting: PlantingAngles | None = None) -> None:
         """Use a new spacing d (m) and plants per revolution n (and where the mechanism plants,
         `PlantingAngles`, for section stops); re-anchors the phase."""
         if not (math.isfinite(spacing) and spacing > 0):
@@ -168,7 +174,7 @@ class PhaseLock:
         self._pending = (float(spacing), planting, self._next_planting_distance(now))
         self._switch_design(now)
 
-    def set_planting(self, planting):
+    def set_planting(self, planting: PlantingAngles | None) -> None:
         """Where the design's mechanism plants (PlantingAngles or None), found after the
         design itself: the pending design's, if one waits for its planting instant."""
         if self._pending is not None:
@@ -178,11 +184,11 @@ class PhaseLock:
             self.planting = planting
 
     @property
-    def design_pending(self):
+    def design_pending(self) -> bool:
         """A new design waits for the row's next planting instant."""
         return self._pending is not None
 
-    def _next_planting_distance(self, now):
+    def _next_planting_distance(self, now: float) -> float:
         """Travelled distance at which the current grid sets the mechanism's next plant (the
         first planting angle beyond the measured angle); now's distance when the planting
         angles are not known."""
@@ -195,7 +201,7 @@ class PhaseLock:
         return s0 + (self.planting.phase + k * pitch - theta0) * (
             self.plants_per_revolution * self.spacing) / TWO_PI
 
-    def _switch_design(self, now):
+    def _switch_design(self, now: float) -> None:
         """Once the row has travelled to the pending design's planting instant s_k: the grid
         goes on from the old grid's (θ_k, s_k) at the new spacing."""
         if self._pending is None:
@@ -212,15 +218,15 @@ class PhaseLock:
         self._pending = None
 
     @property
-    def rejected(self):
+    def rejected(self) -> dict[str, int]:
         """Rejected ground-speed samples by reason."""
         return self.filter.rejected
 
     @property
-    def accepted(self):
+    def accepted(self) -> int:
         return self.filter.accepted
 
-    def ground_speed(self, v, now):
+    def ground_speed(self, v: float, now: float) -> str | None:
         """Offer a ground-speed sample (m/s, forward > 0). Returns None or the rejection reason."""
         used, reason = self.filter.check(v, now)
         if used is None:
@@ -229,13 +235,13 @@ class PhaseLock:
         self.row_speed(used, now)
         return reason
 
-    def row_speed(self, v, now):
+    def row_speed(self, v: float, now: float) -> None:
         """Take a speed sample already judged plausible (m/s; ≤ 0 = not moving forward)."""
         self._s = self.travelled(now)
         self._v = max(float(v), 0.0)
         self._t_sample = now
 
-    def switch(self, on, now):
+    def switch(self, on: bool, now: float) -> None:
         """Section control: off = come to rest at `stop_angle` and plant nothing more; on = a
         new grid from the angle the mechanism rests at and the distance travelled now."""
         if on == self.section_on:
@@ -260,17 +266,17 @@ class PhaseLock:
         self.stop_angle = stop_angle(theta, max(omega, self._cmd), self.config.max_acceleration,
                                      TWO_PI / self.plants_per_revolution, self.planting)
         self.parked = False
-    def feedback(self, angle, speed, stamp):
+    def feedback(self, angle: float, speed: float, stamp: float) -> None:
         """Measured mechanism angle (rad, unwrapped) and speed (rad/s) at time `stamp`."""
         if math.isfinite(angle) and math.isfinite(speed):
             self._fb = (float(angle), float(speed), float(stamp))
             self._try_anchor(stamp)
 
     # ------------------------------------------------------------------ state
-    def stale(self, now):
+    def stale(self, now: float) -> bool:
         return self._t_sample is None or now - self._t_sample > self.config.ground_speed_timeout
 
-    def travelled(self, now):
+    def travelled(self, now: float) -> float:
         """Travelled distance s (m): accepted speeds held for at most the stale timeout."""
         if self._t_sample is None:
             return self._s
@@ -278,19 +284,19 @@ class PhaseLock:
         return self._s + self._v * held
 
     @property
-    def ground_speed_value(self):
+    def ground_speed_value(self) -> float:
         return self._v
 
     @property
-    def anchored(self):
+    def anchored(self) -> bool:
         return self._anchor is not None
 
-    def feed_forward(self, now):
+    def feed_forward(self, now: float) -> float:
         if self.spacing is None or self.stale(now):
             return 0.0
         return TWO_PI * self._v / (self.plants_per_revolution * self.spacing)
 
-    def target_angle(self, now):
+    def target_angle(self, now: float) -> float | None:
         """θ the travelled distance asks for (rad), None until anchored."""
         if self._anchor is None:
             return None
@@ -298,13 +304,13 @@ class PhaseLock:
         return theta0 + TWO_PI * (self.travelled(now) - s0) / (
             self.plants_per_revolution * self.spacing)
 
-    def measured_angle(self, now):
+    def measured_angle(self, now: float) -> float | None:
         if self._fb is None:
             return None
         angle, speed, stamp = self._fb
         return angle + speed * min(max(now - stamp, 0.0), _MAX_FEEDBACK_EXTRAPOLATION)
 
-    def phase_error(self, now):
+    def phase_error(self, now: float) -> float:
         """θ_target − θ_measured (rad); 0 until anchored."""
         self._switch_design(now)
         target = self.target_angle(now)
@@ -312,7 +318,7 @@ class PhaseLock:
             return 0.0
         return target - self.measured_angle(now)
 
-    def state(self, now):
+    def state(self, now: float) -> str:
         if self.spacing is None:
             return 'waiting for design'
         if not self.section_on:
@@ -325,7 +331,7 @@ class PhaseLock:
         return 'tracking (new design at the next plant)' if self._pending else 'tracking'
 
     # ------------------------------------------------------------------ output
-    def command(self, now):
+    def command(self, now: float) -> float:
         """Speed command (rad/s, >= 0) for time `now`, acceleration-limited from the last one."""
         cfg = self.config
         self._switch_design(now)
@@ -349,7 +355,7 @@ class PhaseLock:
         self._t_cmd = now
         return self._cmd
 
-    def _start_grid(self, now, feed_forward):
+    def _start_grid(self, now: float, feed_forward: float) -> None:
         """Switched on: the mechanism speeds up from rest on feed-forward alone; the new grid
         is anchored once it turns at 95 % of it, so the ramp's lag shifts the grid instead of
         being made up (which would set the next plants too close)."""
@@ -357,7 +363,7 @@ class PhaseLock:
             self._starting = False
             self._try_anchor(now)
 
-    def _braking(self, now):
+    def _braking(self, now: float) -> float:
         """Switched off: the speed that still stops at stop_angle (0 once at rest there)."""
         if self.parked or self.stop_angle is None:
             self.parked = True
@@ -368,17 +374,18 @@ class PhaseLock:
             return 0.0
         return math.sqrt(2.0 * self.config.max_acceleration * remaining)
 
-    def halt(self, now):
+    def halt(self, now: float) -> None:
         """The drive stopped (fault, disabled): the next commands ramp up again from 0."""
         self._cmd = 0.0
         self._t_cmd = now
 
-    def _try_anchor(self, now):
+    def _try_anchor(self, now: float) -> None:
         if (self._anchor is None and not self._starting and self.spacing is not None
                 and self._fb is not None):
             self._anchor = (self.measured_angle(now), self.travelled(now))
 
-    def _wrapped_error(self, now):
+    def _wrapped_error(self, now: float) -> float:
+
         error = self.phase_error(now)
         pitch = TWO_PI / self.plants_per_revolution
         if abs(error) > pitch:

@@ -46,7 +46,8 @@ class LoopStep:
 class RowLoop:
     """Every row of a `Machine`, stepped at once (see the module doc)."""
 
-    def __init__(self, machine: Machine, heartbeat_period: float, heartbeat_timeout: float):
+    def __init__(self, machine: Machine, heartbeat_period: float,
+                 heartbeat_timeout: float) -> None:
         if not (heartbeat_period > 0 and heartbeat_timeout > 0):
             raise ValueError('heartbeat_period and heartbeat_timeout must be > 0 s')
         self.machine = machine

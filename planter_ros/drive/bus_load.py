@@ -33,7 +33,7 @@ HEARTBEAT_BYTES = 1
 SYNC_BYTES = 0
 
 
-def frame_bits(data_bytes):
+def frame_bits(data_bytes: int) -> int:
     """Worst-case length (bits) of a CAN 2.0A data frame with `data_bytes` bytes (0..8)."""
     if not 0 <= data_bytes <= 8:
         raise ValueError(f'data_bytes = {data_bytes} is out of range: allowed 0..8')
@@ -62,11 +62,11 @@ class BusLoad:
         return self.bits_per_second * self.sync_period / self.bitrate if self.csp else 0.0
 
     @property
-    def load(self):
+    def load(self) -> float:
         """Share of the bit rate, 0..1 (can exceed 1: the bus cannot carry it)."""
         return self.bits_per_second / self.bitrate
 
-    def values(self):
+    def values(self) -> list[tuple[str, str | int]]:
         """Key/value pairs for diagnostics and people."""
         out = [('bus load', f'{100 * self.load:.1f} %'),
                ('bus load limit', f'{100 * LIMIT:.0f} %'),
@@ -86,7 +86,8 @@ def bus_load(rows: int, bitrate: int, control_period: float, ground_speed_rate: 
         raise ValueError('bus_load: csp needs sync_period > 0 s')
     items = []
 
-    def add(what, frames, data_bytes):
+    def add(what: str, frames: float, data_bytes: int) -> None:
+
         items.append((what, frames, frames * frame_bits(data_bytes)))
 
     if csp:

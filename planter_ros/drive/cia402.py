@@ -39,6 +39,7 @@ import math
 from pathlib import Path
 import threading
 import time
+from typing import TYPE_CHECKING
 
 import can
 import canopen
@@ -57,6 +58,12 @@ from planter_ros.drive.states import (
     CW_QUICK_STOP, CW_SHUTDOWN, CW_SWITCH_ON, EMCY_HEARTBEAT, FAULT, FAULT_REACTION_ACTIVE,
     NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY, PROFILE_VELOCITY_SUPPORTED,
     QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON, state_of)
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from canopen.emcy import EmcyError
+    from canopen.pdo.base import PdoMap
 
 __all__ = ['BusConfig', 'CanopenBus', 'Cia402Drive', 'DeviceConfig', 'DriveConfig', 'DriveError',
            'DriveStatus']
@@ -108,7 +115,7 @@ class CanopenBus:
     (can_interface, can_channel, can_bitrate, master_node_id); `bus` = an open python-can bus
     to use (left open on close)."""
 
-    def __init__(self, config: BusConfig, bus: can.BusABC | None = None):
+    def __init__(self, config: BusConfig, bus: can.BusABC | None = None) -> None:
         self.config = config
         self._given_bus = bus
         self._bus: can.BusABC | None = None
@@ -179,7 +186,7 @@ class Cia402Drive:
     CanopenBus's to send)."""
 
     def __init__(self, config: DriveConfig, bus: can.BusABC | None = None,
-                 canbus: CanopenBus | None = None):
+                 canbus: CanopenBus | None = None) -> None:
         self.config = config
         self._owns_canbus = canbus is None
         self.canbus = canbus if canbus is not None else CanopenBus(config, bus)
@@ -251,7 +258,8 @@ class Cia402Drive:
             raise self._fail(step, f'CAN send failed: {type(exc).__name__}: {exc}',
                              BusError) from None
 
-    def _sdo_read(self, step: str, index: int, subindex: int | None = None, optional=False):
+    def _sdo_read(self, step: str, index: int, subindex: int | None = None,
+                  optional: bool = False):
         try:
             var = self._node.sdo[index] if subindex is None else self._node.sdo[index][subindex]
             return var.raw
@@ -276,7 +284,7 @@ class Cia402Drive:
     def _read(self, step: str, obj: od.Obj, optional: bool = False) -> int | None:
         return self._sdo_read(step, obj.index, obj.subindex or None, optional)
 
-    def _send(self, what: str, send) -> None:
+    def _send(self, what: str, send: Callable[[], object]) -> None:
         """Run one frame-sending call; any CAN/bus failure becomes a one-line BusError."""
         try:
             send()
@@ -288,7 +296,7 @@ class Cia402Drive:
                            f'{type(exc).__name__}: {exc}') from None
 
     # ------------------------------------------------------------------ bus callbacks
-    def _on_status_tpdo(self, pdo_map) -> None:
+    def _on_status_tpdo(self, pdo_map: PdoMap) -> None:
         now = time.monotonic()
         values = {var.index: var.raw for var in pdo_map}
         with self._feedback:
@@ -315,7 +323,7 @@ class Cia402Drive:
                 self._motion_stamp = now
             self._feedback.notify_all()
 
-    def _on_emcy(self, entry) -> None:
+    def _on_emcy(self, entry: EmcyError) -> None:
         if entry.code & 0xFF00 == 0:                # "error reset / no error"
             return
         with self._lock:
@@ -591,7 +599,8 @@ class Cia402Drive:
                 self._last_controlword = controlword
         self._send(f'RPDO (controlword 0x{controlword:04X}, {target.address} {counts})', send)
 
-    def _wait_state(self, step: str, done, what: str, resend=None) -> None:
+    def _wait_state(self, step: str, done: Callable[[str], bool], what: str,
+                    resend: Callable[[], object] | None = None) -> None:
         deadline = time.monotonic() + self.config.step_timeout
         next_send = 0.0
         while True:
@@ -805,7 +814,8 @@ class Cia402Drive:
         self._enabled = False
         self._close()
 
-    def _shutdown_wait(self, controlword: int, done, complaint: str) -> None:
+    def _shutdown_wait(self, controlword: int, done: Callable[[DriveStatus], bool],
+                       complaint: str) -> None:
         deadline = time.monotonic() + self.config.step_timeout
         next_heartbeat = 0.0
         while True:
@@ -841,5 +851,6 @@ class Cia402Drive:
     def __enter__(self) -> 'Cia402Drive':
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
+
         self.shutdown()

@@ -9,16 +9,22 @@ others without frames for their command timeout. A drive that fails to enable is
 left out; the others run.
 """
 
+from __future__ import annotations
+
 from dataclasses import replace
 import logging
 import threading
 import time
+from typing import TYPE_CHECKING
 
 import can
 
 from .cia402 import CanopenBus, Cia402Drive
 from .config import DriveConfig
 from .errors import DriveError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = ['DriveSet']
 
@@ -29,7 +35,7 @@ class DriveSet:
     """Drives by name (a row's name) on one bus. `node_ids`: name -> CANopen node id."""
 
     def __init__(self, config: DriveConfig, node_ids: dict[str, int],
-                 bus: can.BusABC | None = None):
+                 bus: can.BusABC | None = None) -> None:
         self.config = config
         self.canbus = CanopenBus(config, bus)
         self.drives = {name: Cia402Drive(replace(config, drive_node_id=node_id),
@@ -48,7 +54,7 @@ class DriveSet:
         done = {}
         lock = threading.Lock()
 
-        def enable_one(name, drive):
+        def enable_one(name: str, drive: Cia402Drive) -> None:
             try:
                 drive.connect_and_enable()
                 outcome = None
@@ -74,7 +80,9 @@ class DriveSet:
                 drive.shutdown()                  # leaves the bus: its node is removed
         return dict(self.failed)
 
-    def _keep_fed(self, finished, done, lock, period):
+    def _keep_fed(self, finished: Callable[[], bool], done: dict[str, DriveError | None],
+                  lock: threading.Lock, period: float) -> None:
+
         """Until `finished()`: command 0 to each drive already enabled, heartbeat on time."""
         next_heartbeat = 0.0
         while not finished():

@@ -31,7 +31,8 @@ class SimProcess:
     """The parent's handle: start the drives' process on `fd` (one end of a CAN socket pair,
     inherited), stop it and read its report."""
 
-    def __init__(self, fd: int, node_ids: list[int], priority: int = 0, **options: Any):
+    def __init__(self, fd: int, node_ids: list[int], priority: int = 0,
+                 **options: Any) -> None:
         self.process = subprocess.Popen(
             [sys.executable, '-m', 'planter_ros.drive.sim_process', '--fd', str(fd),
              '--nodes', ','.join(str(n) for n in node_ids), '--options', json.dumps(options),

@@ -31,6 +31,7 @@ import struct
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import can
 import canopen
@@ -42,6 +43,12 @@ from planter_ros.drive.states import (
     CYCLIC_SYNC_POSITION, EMCY_FOLLOWING_ERROR, EMCY_HEARTBEAT, EMCY_RPDO_TIMEOUT, FAULT,
     FAULT_REACTION_ACTIVE, MODE_SUPPORTED, NOT_READY, OPERATION_ENABLED, PROFILE_VELOCITY,
     QUICK_STOP_ACTIVE, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED, SWITCHED_ON)
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Iterable, Iterator
+
+    from canopen.objectdictionary import ODVariable
+    from canopen.pdo.base import PdoMap
 
 __all__ = ['Gaps', 'SimulatedDrive', 'SimulatedBus', 'wire_time', 'receive']
 
@@ -88,7 +95,8 @@ def _next_state(state: str, controlword: int, quick_stop_option: int) -> str:
     return {READY_TO_SWITCH_ON: SWITCHED_ON, OPERATION_ENABLED: SWITCHED_ON}.get(state, state)
 
 
-def _paced(stop_event, tick, work):
+def _paced(stop_event: threading.Event, tick: float,
+           work: Callable[[], object]) -> Iterator[tuple[float, float]]:
     """Every `tick` s until `stop_event`: run `work()` (read the bus), then yield (seconds since
     the last step, now). A loop that fell behind (a loaded machine) takes up its pace from now
     instead of catching up in a burst."""
@@ -111,7 +119,7 @@ class Gaps:
     """Gaps between events on the receiver's clock: count, largest, and how many exceeded each
     of `limits` (s). Constant memory, one comparison per limit per event."""
 
-    def __init__(self, limits: tuple[float, ...] = (0.05, 0.15, 0.2)):
+    def __init__(self, limits: tuple[float, ...] = (0.05, 0.15, 0.2)) -> None:
         self.limits = tuple(limits)
         self.over = [0] * len(self.limits)
         self.count = 0
@@ -146,7 +154,8 @@ class SimulatedDrive:
                  counts_per_motor_rev: int = 4096, *, interface: str = 'virtual',
                  eds_path: str | Path | None = None, tick: float = 0.002,
                  supported_modes: tuple[int, ...] = (PROFILE_VELOCITY,),
-                 coast_time_constant: float = 0.5, network: canopen.Network | None = None):
+                 coast_time_constant: float = 0.5,
+                 network: canopen.Network | None = None) -> None:
         """Build the drive (no thread yet, call start()).
 
         bus_or_channel: a python-can bus this drive uses (left open on stop()), or a channel
@@ -411,7 +420,7 @@ class SimulatedDrive:
                 sw |= SW_SPEED_ZERO
         return sw
 
-    def _on_read(self, index: int, subindex: int, od):
+    def _on_read(self, index: int, subindex: int, od: ODVariable):
         """Live values for SDO uploads and TPDO filling."""
         with self._lock:
             if index == objs.STATUSWORD.index:
@@ -437,7 +446,7 @@ class SimulatedDrive:
                 return 0x01 if self._state in (FAULT, FAULT_REACTION_ACTIVE) else 0x00
         return None
 
-    def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
+    def _on_write(self, index: int, subindex: int, od: ODVariable, data: bytes) -> None:
         """SDO downloads and decoded RPDO entries land here before they are stored."""
         value = od.decode_raw(data)
         if index == objs.CONTROLWORD.index:
@@ -566,7 +575,7 @@ class SimulatedDrive:
             self._rpdo_deadline = deadline
             self._last_rpdo = None                 # monitoring starts at the next RPDO
 
-    def _on_rpdo(self, pdo_map) -> None:
+    def _on_rpdo(self, pdo_map: PdoMap) -> None:
         """Decode a received RPDO and copy it into the object dictionary (controlword last)."""
         if not self._nmt_operational:
             return
@@ -581,7 +590,7 @@ class SimulatedDrive:
         except canopen.SdoAbortedError as exc:
             log.warning('simulated drive: RPDO entry refused: %s', exc)
 
-    def _send_tpdo(self, pdo_map) -> None:
+    def _send_tpdo(self, pdo_map: PdoMap) -> None:
         with self._tx_lock:
             for var in pdo_map:
                 var.set_data(self.node.get_data(var.index, var.subindex))
@@ -810,8 +819,8 @@ class SimulatedBus:
     sent to N drives is copied once, as on a real bus). `drives[i]` has node id `node_ids[i]`;
     keyword arguments go to every SimulatedDrive."""
 
-    def __init__(self, channel: str | can.BusABC, node_ids, *, interface: str = 'virtual',
-                 tick: float = 0.002, **drive_kwargs):
+    def __init__(self, channel: str | can.BusABC, node_ids: Iterable[int], *,
+                 interface: str = 'virtual', tick: float = 0.002, **drive_kwargs: Any) -> None:
         """`channel`: a channel name of `interface` (opened here), or an open python-can bus
         (e.g. one end of a socket pair to a master in another process; shut down on stop)."""
         self.bus = (channel if isinstance(channel, can.BusABC)
@@ -854,7 +863,8 @@ class SimulatedBus:
         self.bus.shutdown()
 
     @property
-    def watchdog_trips(self):
+    def watchdog_trips(self) -> list[tuple[int, str, int]]:
+
         """(node id, reason, EMCY code) of every drive's watchdog reactions."""
         return [(d.node_id, why, code) for d in self.drives for why, code in d.watchdog_trips]
 

@@ -22,8 +22,12 @@ import select
 import socket
 import struct
 import time
+from typing import TYPE_CHECKING
 
 import can
+
+if TYPE_CHECKING:
+    from can.typechecking import CanFilters
 
 __all__ = ['INTERFACE', 'SocketPairBus', 'socket_pair']
 
@@ -45,7 +49,9 @@ class SocketPairBus(can.BusABC):
     A send that finds the peer's queue full raises CanOperationError (as SocketCAN's ENOBUFS);
     the peer gone raises CanOperationError on send and receive."""
 
-    def __init__(self, channel: socket.socket | int | str, can_filters=None, **kwargs: object):
+    def __init__(self, channel: socket.socket | int | str, can_filters: CanFilters | None = None,
+                 **kwargs: object) -> None:
+
         if isinstance(channel, socket.socket):
             sock = channel
         else:

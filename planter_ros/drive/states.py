@@ -35,7 +35,7 @@ EMCY_FOLLOWING_ERROR = 0x8611                         # CiA 402: following error
 EMCY_SYNC = 0x8700                                    # CiA 301: SYNC data length / missing
 
 
-def state_of(statusword):
+def state_of(statusword: int) -> str:
     """CiA 402 state name of a statusword ('UNKNOWN' if no state matches)."""
     for name, (mask, bits) in State402.SW_MASK.items():
         if statusword & mask == bits:
