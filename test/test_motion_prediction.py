@@ -56,8 +56,9 @@ def model_for(spacing):
 
 
 def test_a_constant_speed_recording_predicts_the_constant_ratio_figures(mech):
-    """At constant speeds the measured arc is the constant-ratio model's (to 1e-9 m)."""
-    for d in (0.15, 0.3):
+    """At constant speeds the measured arc is the constant-ratio model's: exactly where the
+    extremes are the soil edges, to 0.2 µm where one lies inside the arc (overspeed)."""
+    for d in (0.15, 0.3, 0.15 / 1.2):
         model = model_for(d)
         omega = 2 * math.pi * SPEED / d
         jt, st = stamps(6.0, 100.0), stamps(6.5, 20.0)
@@ -65,7 +66,7 @@ def test_a_constant_speed_recording_predicts_the_constant_ratio_figures(mech):
                                 np.full(jt.size, omega), model)
         advance = np.full(len(plants), SPEED / omega)
         assert len(plants) >= 5
-        np.testing.assert_allclose(plants.tip_sweep, model.tip_sweep(advance), atol=1e-9)
+        np.testing.assert_allclose(plants.tip_sweep, model.tip_sweep(advance), atol=2e-7)
         np.testing.assert_allclose(plants.tilt, model.tilt(advance), atol=1e-9)
 
 
