@@ -33,6 +33,7 @@ per second and 0x6064 increments (``counts_per_motor_rev`` per motor revolution,
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import logging
 import math
@@ -897,7 +898,8 @@ class Cia402Drive:
             self._change_mode('back to the running mode after homing', self.mode)
         time.sleep(2.5 * self.config.feedback_period)     # the homed position in the TPDO
 
-    def jog(self, speed: float, until=None, timeout: float = 60.0) -> bool:
+    def jog(self, speed: float, until: Callable[[], bool] | None = None,
+            timeout: float = 60.0) -> bool:
         """Turn at `speed` (mechanism rad/s, slow) in profile velocity mode until `until()`
         returns true (called between frames; None: for `timeout` s), then stop (BLOCKING).
         Returns whether `until` was met. Our frames keep the drive's watchdogs fed."""
