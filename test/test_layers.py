@@ -24,7 +24,7 @@ LAYERS = (
     ('recording', 'export', 'optimize', 'sim', 'command',   # command: the command process
      'plausibility'),
     ('scene',),                                    # knows every node's configuration
-    ('nodes', 'analysis'),
+    ('nodes', 'analysis', 'commission'),           # commission: drive + machine file
     ('demo',),
     ('bench',),
     ('plots',),

@@ -23,6 +23,8 @@ COMMANDS = {
     ('simulate',): ('planter_ros.cli.simulate',
                     'write a season of realistic simulated bags, fast'),
     ('cam', 'five-bar'): ('planter_ros.cli.cam', 'electronic cam: every spacing planted upright'),
+    ('commission',): ('planter_ros.commission.command', 'home, polarity, phase: write the machine '
+                      'file'),
 }
 
 EXIT_BAD_INPUT = 2

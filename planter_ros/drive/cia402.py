@@ -33,6 +33,7 @@ per second and 0x6064 increments (``counts_per_motor_rev`` per motor revolution,
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import logging
 import math
@@ -847,6 +848,119 @@ class Cia402Drive:
         if self._owns_canbus:
             self.canbus.close()
         self._rpdo = None
+
+    # ------------------------------------------------------------------ blocking: commissioning
+    def read_identity(self) -> dict[str, int | None]:
+        """The drive's identity (0x1000, 0x1018:1..4) and supported modes (0x6502) by SDO
+        (BLOCKING; after open(), before or after enabling). A missing entry reads None."""
+        self._check_open()
+        step = 'identify (0x1000, 0x1018, 0x6502)'
+        return {name: self._read(step, obj, optional=True) for name, obj in (
+            ('device_type', od.DEVICE_TYPE), ('vendor_id', od.VENDOR_ID),
+            ('product_code', od.PRODUCT_CODE), ('revision', od.REVISION_NUMBER),
+            ('serial', od.SERIAL_NUMBER), ('supported_modes', od.SUPPORTED_MODES))}
+
+    def set_polarity(self, reversed_: bool) -> None:
+        """0x607E: bits 7 and 6 (position and velocity inverted) or none (BLOCKING)."""
+        self._check_open()
+        self._write('polarity (0x607E)', od.POLARITY, od.POLARITY_REVERSED if reversed_ else 0)
+
+    def read_inputs(self) -> int:
+        """The drive's digital inputs 0x60FD (bit 2 home switch) by SDO (BLOCKING)."""
+        self._check_open()
+        return self._read('digital inputs (0x60FD)', od.DIGITAL_INPUTS)
+
+    def home(self, method: int, switch_speed: float, zero_speed: float,
+             timeout: float = 60.0) -> None:
+        """Home the enabled drive (BLOCKING): homing mode 6 with `method` (0x6098), speeds in
+        mechanism rad/s (0x6099:1 search for the switch, :2 for zero), home offset 0; started
+        with controlword bit 4, finished by statusword bits 12 (attained) and 10 (target
+        reached), refused on bit 13 (homing error) or after `timeout` s. Our frames (RPDO and
+        heartbeat) keep flowing meanwhile; then back to the mode chosen at enable."""
+        self._check_connected()
+        step = f'homing method {method} (0x6098, 0x6099, 0x607C, 0x6060 = 6)'
+        self._write(step, od.HOMING_METHOD, method)
+        self._write(step, od.HOMING_SPEED_SWITCH, abs(self._counts_per_s(switch_speed)))
+        self._write(step, od.HOMING_SPEED_ZERO, abs(self._counts_per_s(zero_speed)))
+        self._write(step, od.HOME_OFFSET, 0)
+        self._transmit(CW_ENABLE_OPERATION, 0)
+        self._change_mode(step, od.HOMING)
+        deadline = time.monotonic() + timeout
+        try:
+            while True:
+                self._transmit(CW_ENABLE_OPERATION | 0x10, 0)
+                self.send_heartbeat()
+                sw = self._read(step, od.STATUSWORD)
+                if sw & 0x2000:
+                    raise self._fail(step, f'the drive reports a homing error (statusword '
+                                           f'0x{sw:04X})', DriveRefusedError)
+                if sw & 0x1400 == 0x1400:
+                    break
+                if state_of(sw) != OPERATION_ENABLED:
+                    raise self._fail(step, f'the drive left operation enabled (statusword '
+                                           f'0x{sw:04X})', DriveRefusedError)
+                if time.monotonic() > deadline:
+                    raise self._fail(step, f'not homed within {timeout:g} s (statusword '
+                                           f'0x{sw:04X})', DriveTimeoutError)
+                time.sleep(0.01)
+        finally:
+            self._transmit(CW_ENABLE_OPERATION, 0)
+            self._change_mode('back to the running mode after homing', self.mode)
+        time.sleep(2.5 * self.config.feedback_period)     # the homed position in the TPDO
+
+    def jog(self, speed: float, until: Callable[[], bool] | None = None,
+            timeout: float = 60.0) -> bool:
+        """Turn at `speed` (mechanism rad/s, slow) in profile velocity mode until `until()`
+        returns true (called between frames; None: for `timeout` s), then stop (BLOCKING).
+        Returns whether `until` was met. Our frames keep the drive's watchdogs fed."""
+        self._check_connected()
+        if self.mode != PROFILE_VELOCITY:
+            raise self._fail('jog', 'needs profile velocity mode (operation_mode velocity)',
+                             DriveConfigError)
+        deadline = time.monotonic() + timeout
+        met = False
+        try:
+            while time.monotonic() < deadline:
+                self.send_velocity(speed)
+                self.send_heartbeat()
+                if until is not None and until():
+                    met = True
+                    break
+                time.sleep(0.005)
+        finally:
+            self.stop_and_wait()
+        return met
+
+    def stop_and_wait(self, timeout: float = 5.0) -> None:
+        """Velocity 0 and wait until the drive reports (almost) no speed (BLOCKING)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.send_velocity(0.0)
+            self.send_heartbeat()
+            with self._lock:
+                moving = abs(self._velocity_counts * self._rad_per_count) > 1e-3
+            if not moving:
+                break
+            time.sleep(0.01)
+        for _ in range(3):                       # one more feedback period at rest
+            self.send_velocity(0.0)
+            self.send_heartbeat()
+            time.sleep(self.config.feedback_period)
+
+    def _change_mode(self, step: str, mode: int) -> None:
+        """0x6060 = `mode`, confirmed by 0x6061."""
+        self._write(step, od.MODES_OF_OPERATION, mode)
+        deadline = time.monotonic() + self.config.step_timeout
+        while (shown := self._read(step, od.MODES_DISPLAY)) != mode:
+            if time.monotonic() > deadline:
+                raise self._fail(step, f'0x6061 reads {shown} after writing {mode}',
+                                 DriveTimeoutError)
+            time.sleep(0.005)
+
+    def _check_open(self) -> None:
+        if self._node is None:
+            raise NotConnectedError(f'drive node {self.config.drive_node_id}: not open '
+                                    '(call open or connect_and_enable first)')
 
     def __enter__(self) -> 'Cia402Drive':
         return self

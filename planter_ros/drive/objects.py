@@ -25,7 +25,9 @@ __all__ = [
     'ENCODER_MOTOR_REVOLUTIONS', 'INTERPOLATION_PERIOD_VALUE', 'INTERPOLATION_PERIOD_INDEX',
     'TARGET_VELOCITY', 'SUPPORTED_MODES', 'RPDO_VELOCITY', 'RPDO_POSITION', 'TPDO_STATUS',
     'TPDO_MOTION', 'TPDOS', 'rpdo_for_mode', 'SYNC_COB', 'heartbeat_cob', 'emcy_cob',
-    'markdown_table',
+    'markdown_table', 'VENDOR_ID', 'PRODUCT_CODE', 'REVISION_NUMBER', 'SERIAL_NUMBER',
+    'HOME_OFFSET', 'POLARITY', 'HOMING_METHOD', 'HOMING_SPEED_SWITCH', 'HOMING_SPEED_ZERO',
+    'DIGITAL_INPUTS', 'POLARITY_REVERSED', 'DI_HOME_SWITCH', 'HOMING',
 ]
 
 # CiA 301 data type codes
@@ -81,6 +83,11 @@ HEARTBEAT_CONSUMER = _o(0x1016, 1, UNSIGNED32, 'consumer heartbeat time 1',
                         "timeout", "ms")
 HEARTBEAT_PRODUCER = _o(0x1017, 0, UNSIGNED16, 'producer heartbeat time',
                         "the drive's heartbeat period", 'ms')
+VENDOR_ID = _o(0x1018, 1, UNSIGNED32, 'vendor-ID', 'commissioning: identify the drive')
+PRODUCT_CODE = _o(0x1018, 2, UNSIGNED32, 'product code', 'commissioning: identify the drive')
+REVISION_NUMBER = _o(0x1018, 3, UNSIGNED32, 'revision number',
+                     'commissioning: identify the drive')
+SERIAL_NUMBER = _o(0x1018, 4, UNSIGNED32, 'serial number', 'commissioning: identify the drive')
 RPDO1_DEADLINE = _o(0x1400, 5, UNSIGNED16, 'RPDO1 event timer',
                     'deadline monitoring: quick stop when commands stop (EMCY 8250h)', 'ms')
 ABORT_CONNECTION = _o(0x6007, 0, INT16, 'abort connection option code',
@@ -102,6 +109,10 @@ VELOCITY_ACTUAL = _o(0x606C, 0, INT32, 'velocity actual value', 'feedback, TPDO2
                      'increments/s')
 TARGET_POSITION = _o(0x607A, 0, INT32, 'target position', 'CSP target for the next SYNC, '
                      'in the RPDO', 'increments')
+HOME_OFFSET = _o(0x607C, 0, INT32, 'home offset', 'homing: the position the home point gets',
+                  'increments')
+POLARITY = _o(0x607E, 0, UNSIGNED8, 'polarity', 'bits 7 (position) and 6 (velocity) set: '
+              'the motor turns the other way (machine file `polarity: reversed`)')
 PROFILE_ACCELERATION = _o(0x6083, 0, UNSIGNED32, 'profile acceleration',
                           'simulated drive ramp', 'increments/s²')
 PROFILE_DECELERATION = _o(0x6084, 0, UNSIGNED32, 'profile deceleration',
@@ -112,6 +123,14 @@ ENCODER_INCREMENTS = _o(0x608F, 1, UNSIGNED32, 'encoder increments',
                         'checked against counts_per_motor_rev')
 ENCODER_MOTOR_REVOLUTIONS = _o(0x608F, 2, UNSIGNED32, 'motor revolutions',
                                'checked against counts_per_motor_rev')
+HOMING_METHOD = _o(0x6098, 0, INT8, 'homing method', 'homing mode 6: the machine file\'s '
+                    '`homing_method`')
+HOMING_SPEED_SWITCH = _o(0x6099, 1, UNSIGNED32, 'speed during search for switch',
+                         'homing mode 6', 'increments/s')
+HOMING_SPEED_ZERO = _o(0x6099, 2, UNSIGNED32, 'speed during search for zero',
+                       'homing mode 6', 'increments/s')
+DIGITAL_INPUTS = _o(0x60FD, 0, UNSIGNED32, 'digital inputs', 'bit 2: home switch (the '
+                    "mechanism's bottom proximity switch), read while commissioning")
 TARGET_VELOCITY = _o(0x60FF, 0, INT32, 'target velocity', 'profile velocity target, in the '
                      'RPDO; 0 before enabling', 'increments/s')
 INTERPOLATION_PERIOD_VALUE = _o(0x60C2, 1, UNSIGNED8, 'interpolation time period value',
@@ -175,6 +194,9 @@ TPDOS: tuple[PdoLayout, ...] = (TPDO_STATUS, TPDO_MOTION)
 LAYOUTS: tuple[PdoLayout, ...] = (RPDO_VELOCITY, RPDO_POSITION, TPDO_STATUS, TPDO_MOTION)
 
 SYNC_COB = 0x080
+HOMING = 6                      # 0x6060 homing mode
+POLARITY_REVERSED = 0xC0        # 0x607E: position (bit 7) and velocity (bit 6) inverted
+DI_HOME_SWITCH = 1 << 2         # 0x60FD bit 2
 
 
 def rpdo_for_mode(mode: int) -> PdoLayout:

@@ -18,7 +18,13 @@ frames (no listener thread of its own):
   It judges each frame by its time on the bus (the frame's timestamp), as a drive's hardware
   receives it, and decodes every waiting frame before it judges: the thread that simulates the
   drive running late (a loaded host) is no missed command;
-* faults and EMCY on demand, and a switch to silence the heartbeat.
+* faults and EMCY on demand, and a switch to silence the heartbeat;
+* a mechanism behind a gear (`gear_ratio` motor turns per mechanism turn), possibly wired the
+  other way round (`motor_reversed`), whose bottom (the planting tip lowest) sits at an unknown
+  `mechanical_offset` from the encoder's zero, with a proximity switch at the bottom wired as
+  the drive's home switch (0x60FD bit 2); the polarity 0x607E (bits 7 position, 6 velocity),
+  and homing mode 6 (0x6098: 19 home switch, 33/34 index pulse, 35/37 current position; speeds
+  0x6099, home offset 0x607C; statusword bit 12 attained, bit 13 error).
 
 Units inside: increments (counts) and counts/s, as on the bus; the introspection properties
 for tests are SI (motor shaft rad, rad/s).
@@ -69,6 +75,9 @@ SW_TARGET_REACHED = 1 << 10
 SW_SPEED_ZERO = 1 << 12         # profile velocity mode: "speed = 0"
 SW_FOLLOWS = 1 << 12            # CSP: "drive follows the command value"
 SW_FOLLOWING_ERROR = 1 << 13    # CSP: following error beyond the window
+SW_HOMING_ATTAINED = 1 << 12    # homing mode
+SW_HOMING_ERROR = 1 << 13       # homing mode
+HOMING_METHODS = (19, 33, 34, 35, 37)
 
 EMCY_ERROR_RESET = 0x0000
 
@@ -154,8 +163,11 @@ class SimulatedDrive:
                  counts_per_motor_rev: int = 4096, *, interface: str = 'virtual',
                  eds_path: str | Path | None = None, tick: float = 0.002,
                  supported_modes: tuple[int, ...] = (PROFILE_VELOCITY,),
-                 coast_time_constant: float = 0.5,
-                 network: canopen.Network | None = None) -> None:
+                 coast_time_constant: float = 0.5, network: canopen.Network | None = None,
+                 gear_ratio: float = 1.0, motor_reversed: bool = False,
+                 mechanical_offset: float = 0.0, home_switch_width: float = 0.2,
+                 identity: tuple[int, int, int, int] = (0x0000_0000, 0x0000_0402, 1, 0)
+                 ) -> None:
         """Build the drive (no thread yet, call start()).
 
         bus_or_channel: a python-can bus this drive uses (left open on stop()), or a channel
@@ -166,6 +178,11 @@ class SimulatedDrive:
         counts_per_motor_rev: encoder increments per motor revolution (0x608F).
         supported_modes: modes the drive accepts in 0x6060 (0x6061 keeps its old value
         otherwise, as many drives do). coast_time_constant: s, speed decay with power off.
+        gear_ratio: motor turns per mechanism turn. motor_reversed: the motor is wired so a
+        positive motor turn turns the mechanism backwards. mechanical_offset: rad, mechanism
+        angle of its bottom (tip lowest) from the encoder's zero, forward. home_switch_width:
+        rad of mechanism angle the bottom proximity switch is active for, centred on the
+        bottom. identity: 0x1018 vendor-ID, product code, revision, serial number.
         """
         if time_constant <= 0 or max_acceleration <= 0 or counts_per_motor_rev <= 0 or tick <= 0:
             raise ValueError('time_constant, max_acceleration, counts_per_motor_rev and tick '
@@ -183,6 +200,11 @@ class SimulatedDrive:
         self.coast_time_constant = float(coast_time_constant)
         self.supported_modes = tuple(supported_modes)
         self.tick = float(tick)
+        self.gear_ratio = float(gear_ratio)
+        self.motor_reversed = bool(motor_reversed)
+        self.mechanical_offset = float(mechanical_offset)
+        self.home_switch_width = float(home_switch_width)
+        self.identity = tuple(int(v) for v in identity)
 
         self._lock = threading.RLock()
         self._stop_event = threading.Event()
@@ -267,6 +289,11 @@ class SimulatedDrive:
             self._heartbeat_period = self._od_default(objs.HEARTBEAT_PRODUCER.index) / 1000.0
             self._abort_option = self._od_default(objs.ABORT_CONNECTION.index)
             self._quick_stop_option = self._od_default(objs.QUICK_STOP_OPTION.index)
+            self._polarity = 0                # 0x607E
+            self._home_shift = 0.0            # counts: reported position - sign * motor counts
+            self._homing: tuple[str, int, float] | None = None    # (phase, direction, speed)
+            self._homing_attained = False
+            self._homing_error = False
 
     def _od_default(self, index: int, subindex: int = 0) -> int:
         obj = self.node.object_dictionary[index]
@@ -406,6 +433,43 @@ class SimulatedDrive:
                 'period': self._sync_period, 'gaps': self.sync_gaps.summary(),
                 'following_error_faults': self.following_error_faults}
 
+    @property
+    def mechanism_angle(self) -> float:
+        """rad, the mechanism's true angle from its bottom (0 = tip lowest), forward +."""
+        with self._lock:
+            return self._mechanism_angle(self._position)
+
+    def mechanism_angle_at(self, position: float) -> float:
+        """The true mechanism angle from the bottom, wrapped to [-pi, pi), where the drive
+        reports `position` (mechanism rad as the master counts them: 0x6064 increments over
+        counts_per_motor_rev * gear_ratio, after polarity and homing)."""
+        with self._lock:
+            user = position * self.counts_per_motor_rev * self.gear_ratio / (2.0 * math.pi)
+            counts = self._sign(0x80) * (user - self._home_shift)
+            return _wrap_angle(self._mechanism_angle(counts))
+
+    @property
+    def home_switch(self) -> bool:
+        """The bottom proximity switch is active."""
+        with self._lock:
+            return self._switch_active(self._position)
+
+    def _mechanism_angle(self, counts: float) -> float:
+        turns = counts / (self.counts_per_motor_rev * self.gear_ratio)
+        wiring = -1.0 if self.motor_reversed else 1.0
+        return wiring * 2.0 * math.pi * turns - self.mechanical_offset
+
+    def _switch_active(self, counts: float) -> bool:
+        return abs(_wrap_angle(self._mechanism_angle(counts))) <= 0.5 * self.home_switch_width
+
+    def _sign(self, bit: int) -> float:
+        """-1 where 0x607E inverts (bit 7 position, bit 6 velocity), else 1."""
+        return -1.0 if self._polarity & bit else 1.0
+
+    def _motor_target(self) -> float:
+        """The profile velocity target at the motor (counts/s, polarity applied)."""
+        return self._sign(0x40) * self._target
+
     # ---------------------------------------------------------------- object dictionary hooks
     def _statusword(self) -> int:
         sw = _STATUS_BITS[self._state] | SW_REMOTE
@@ -413,8 +477,16 @@ class SimulatedDrive:
             sw |= SW_FOLLOWS
             if abs(self._following_error) > self._fe_window:
                 sw |= SW_FOLLOWING_ERROR
+        if self._state == OPERATION_ENABLED and self._mode == objs.HOMING:
+            if self._homing_attained:
+                sw |= SW_HOMING_ATTAINED
+            if self._homing_error:
+                sw |= SW_HOMING_ERROR
+            if self._homing is None:
+                sw |= SW_TARGET_REACHED
         if self._state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
-            if abs(self._velocity - self._target) <= max(1.0, 0.01 * abs(self._target)):
+            target = self._motor_target()
+            if abs(self._velocity - target) <= max(1.0, 0.01 * abs(target)):
                 sw |= SW_TARGET_REACHED
             if abs(self._velocity) < 1.0:
                 sw |= SW_SPEED_ZERO
@@ -430,16 +502,22 @@ class SimulatedDrive:
             if index == objs.MODES_DISPLAY.index:
                 return self._mode
             if index == objs.POSITION_ACTUAL.index:
-                return _wrap_i32(round(self._position))
+                return _wrap_i32(round(self._sign(0x80) * self._position + self._home_shift))
             if index == objs.VELOCITY_ACTUAL.index:
-                return _clip_i32(round(self._velocity))
+                return _clip_i32(round(self._sign(0x40) * self._velocity))
             if index == objs.TARGET_VELOCITY.index:
                 return self._target
             if index == objs.TARGET_POSITION.index:
-                return _wrap_i32(round(self._csp_to))
+                return _wrap_i32(round(self._sign(0x80) * self._csp_to + self._home_shift))
             if index == objs.SUPPORTED_MODES.index:     # the EDS's, plus CSP if it has it
                 return self._od_default(index) | sum(
-                    MODE_SUPPORTED.get(mode, 0) for mode in self.supported_modes)
+                    MODE_SUPPORTED.get(mode, 0) for mode in self.supported_modes) | 0x20
+            if index == objs.POLARITY.index:
+                return self._polarity
+            if index == objs.DIGITAL_INPUTS.index:
+                return objs.DI_HOME_SWITCH if self._switch_active(self._position) else 0
+            if index == objs.VENDOR_ID.index and 1 <= subindex <= 4:
+                return self.identity[subindex - 1]
             if index == objs.ERROR_CODE.index:
                 return self._error_code
             if index == objs.ERROR_REGISTER.index:
@@ -456,6 +534,8 @@ class SimulatedDrive:
                 self._target = value
         elif index == objs.TARGET_POSITION.index:
             with self._lock:
+                if self._polarity & 0x80 or self._home_shift:     # to the motor's counts
+                    value = _wrap_i32(round(self._sign(0x80) * (value - self._home_shift)))
                 self._csp_pending = value
                 if self._state != OPERATION_ENABLED or self._syncs_seen == 0:
                     self._csp_hold(self._unwrap(value))     # no SYNC yet: a set point
@@ -470,8 +550,14 @@ class SimulatedDrive:
                 self._fe_timeout = value / 1000.0
         elif index == objs.MODES_OF_OPERATION.index:
             with self._lock:
-                if value in self.supported_modes:
+                if value in self.supported_modes or value == objs.HOMING:
+                    if value != self._mode:
+                        self._homing = None
+                        self._homing_attained = self._homing_error = False
                     self._mode = value
+        elif index == objs.POLARITY.index:
+            with self._lock:
+                self._polarity = value
         elif index == objs.HEARTBEAT_PRODUCER.index:
             with self._lock:
                 self._heartbeat_period = value / 1000.0
@@ -618,6 +704,12 @@ class SimulatedDrive:
     def _apply_controlword(self, controlword: int) -> None:
         with self._lock:
             rising_reset = bool(controlword & 0x80) and not self._controlword & 0x80
+            homing_edge = bool(controlword & 0x10) and not self._controlword & 0x10
+            if self._mode == objs.HOMING and self._state == OPERATION_ENABLED:
+                if homing_edge:
+                    self._start_homing()
+                elif not controlword & 0x10 and self._homing is not None:
+                    self._homing = ('stop', 1, 0.0)         # interrupted: stop, not attained
             self._controlword = controlword
             state = self._state
             reset_done = False
@@ -748,12 +840,14 @@ class SimulatedDrive:
                         f'speed {self._velocity:.0f} counts/s, dt {dt:.4f} s)')
             else:
                 self._fe_since = None
-        elif state == OPERATION_ENABLED and self._mode == PROFILE_VELOCITY:
-            ramp = (objs.PROFILE_ACCELERATION if abs(self._target) >= abs(v)
+        elif state == OPERATION_ENABLED and self._mode in (PROFILE_VELOCITY, objs.HOMING):
+            target = self._motor_target() if self._mode == PROFILE_VELOCITY else (
+                self._homing_velocity())
+            ramp = (objs.PROFILE_ACCELERATION if abs(target) >= abs(v)
                     else objs.PROFILE_DECELERATION)
             accel = self._od_value(ramp.index)
             limit = min(limit, accel)
-            wanted = v + (self._target - v) * (1.0 - math.exp(-dt / self.time_constant))
+            wanted = v + (target - v) * (1.0 - math.exp(-dt / self.time_constant))
         elif state in (QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE):
             limit = min(limit, self._od_value(objs.QUICK_STOP_DECELERATION.index))
             wanted = 0.0
@@ -761,7 +855,10 @@ class SimulatedDrive:
             wanted = v * math.exp(-dt / self.coast_time_constant)
         dv = max(-limit * dt, min(limit * dt, wanted - v))
         self._velocity = v + dv
+        before = self._position
         self._position += 0.5 * (v + self._velocity) * dt
+        if self._homing is not None and state == OPERATION_ENABLED:
+            self._homing_step(before)
         stopped = abs(self._velocity) < 0.5
         if stopped and state == FAULT_REACTION_ACTIVE:
             self._state = FAULT
@@ -769,6 +866,65 @@ class SimulatedDrive:
               and self._quick_stop_option in (1, 2, 3, 4)):
             self._state = SWITCH_ON_DISABLED
         return following_fault
+
+    # ---------------------------------------------------------------- homing (mode 6)
+    def _start_homing(self) -> None:
+        """Controlword bit 4 rising in homing mode (lock held): method 0x6098."""
+        method = int(self._od_sub(objs.HOMING_METHOD))
+        self._homing_attained = self._homing_error = False
+        fast = self._od_sub(objs.HOMING_SPEED_SWITCH)
+        slow = self._od_sub(objs.HOMING_SPEED_ZERO)
+        if method not in HOMING_METHODS or (method < 35 and (fast <= 0 or slow <= 0)):
+            self._homing_error = True
+            self._homing = None
+        elif method in (35, 37):                   # the current position is home
+            self._set_home(self._position)
+        elif method == 19:                         # home switch: its edge below the switch
+            if self._switch_active(self._position):
+                self._homing = ('leave', -1, slow)
+            else:
+                self._homing = ('search', 1, fast)
+        else:                                      # 33 index pulse backwards, 34 forwards
+            self._homing = ('index', 1 if method == 34 else -1, slow)
+
+    def _homing_velocity(self) -> float:
+        """The motor speed the homing phase asks for (counts/s)."""
+        if self._homing is None:
+            return 0.0
+        _, direction, speed = self._homing
+        return self._sign(0x40) * direction * speed
+
+    def _homing_step(self, before: float) -> None:
+        """After a motor sub-step from `before` counts: switch and index edges."""
+        phase = self._homing[0]
+        now = self._position
+        if phase == 'search' and self._switch_active(now):
+            self._homing = ('leave', -1, self._od_sub(objs.HOMING_SPEED_ZERO))
+        elif phase == 'leave' and not self._switch_active(now):
+            self._set_home(now)
+        elif phase == 'index' and (math.floor(now / self.counts_per_motor_rev)
+                                   != math.floor(before / self.counts_per_motor_rev)):
+            index = self.counts_per_motor_rev * max(math.floor(now / self.counts_per_motor_rev),
+                                                    math.floor(before / self.counts_per_motor_rev))
+            self._set_home(index)
+        elif phase == 'stop' and abs(self._velocity) < 0.5:
+            self._homing = None
+
+    def _set_home(self, counts: float) -> None:
+        """The motor position `counts` becomes the home offset 0x607C; stop, attained."""
+        offset = self._od_sub(objs.HOME_OFFSET)
+        self._home_shift = offset - self._sign(0x80) * counts
+        self._homing = ('stop', 1, 0.0) if abs(self._velocity) >= 0.5 else None
+        self._homing_attained = True
+
+    def _od_sub(self, obj: objs.Obj) -> float:
+        raw = self.node.data_store.get(obj.index, {}).get(obj.subindex)
+        if raw is None:
+            return float(self._od_default(obj.index, obj.subindex))
+        entry = self.node.object_dictionary[obj.index]
+        if obj.subindex:
+            entry = entry[obj.subindex]
+        return float(entry.decode_raw(raw))
 
     def _od_value(self, index: int) -> float:
         raw = self.node.data_store.get(index, {}).get(0)
@@ -901,3 +1057,8 @@ def _wrap_i32(value: int) -> int:
 
 def _clip_i32(value: int) -> int:
     return max(-2**31, min(2**31 - 1, value))
+
+
+def _wrap_angle(angle: float) -> float:
+    """`angle` wrapped to [-pi, pi)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi

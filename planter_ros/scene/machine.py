@@ -33,7 +33,8 @@ from .files import MAX_SCENE_BYTES, SceneError
 from .schema import closest
 
 __all__ = ['CanBus', 'IsobusBus', 'Machine', 'MachineFileError', 'MachineRow', 'SECTIONS',
-           'deployment_parameters', 'open_machine', 'parse_machine']
+           'deployment_parameters', 'machine_text', 'open_machine', 'parse_machine',
+           'write_machine']
 
 RPM = 2.0 * math.pi / 60.0
 _INTERFACE_NAME = re.compile(r'[A-Za-z0-9_.-]{1,15}\Z')     # a Linux network interface name
@@ -259,6 +260,38 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
         owner[row.node_id] = row_name
         rows[str(row_name)] = row
     return Machine(path, name, can, rows, isobus)
+
+
+def machine_text(machine: Machine, comment: str = '') -> str:
+    """The machine file's text for `machine` (every key written; `comment` as # lines on top);
+    parse_machine reads it back to an equal Machine."""
+    import yaml
+    data: dict[str, Any] = {'machine': machine.name}
+    for section, block in (('can', machine.can), ('isobus', machine.isobus)):
+        data[section] = {spec.name: getattr(block, spec.name) for spec in specs(type(block))}
+    data['rows'] = {name: {spec.name: getattr(row, spec.name) for spec in specs(MachineRow)}
+                    for name, row in machine.rows.items()}
+    head = ''.join(f'# {line}\n' for line in comment.splitlines()) if comment else ''
+    return head + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=100)
+
+
+def write_machine(machine: Machine, path: str | Path, comment: str = '') -> None:
+    """Write `machine` to `path` (checked by reading it back strictly first, then replaced in
+    one rename: a reader never sees half a file). MachineFileError (one line) on failure."""
+    import os
+    path = Path(path)
+    text = machine_text(machine, comment)
+    if parse_machine(text, path) != Machine(path, machine.name, machine.can, machine.rows,
+                                            machine.isobus):
+        raise MachineFileError(f'machine file {path}: would not read back as written')
+    tmp = path.with_name(f'.{path.name}.tmp')
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise MachineFileError(f'machine file {path} cannot be written: '
+                               f'{str(exc).splitlines()[0]}') from None
 
 
 def _known(mapping: dict, allowed: Sequence[str], prefix: str, where: str) -> None:

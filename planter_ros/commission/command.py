@@ -1,0 +1,107 @@
+"""`planter commission`: its arguments and its run (the cli module only names it).
+
+Nothing heavy at import: `planter commission --help` opens no bus and reads no file."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = ('Commission the planting units: identify and check each drive '
+                          'against the machine file, set its polarity, home it, measure its '
+                          'phase offset, write the machine file and print a checklist '
+                          '(doc/deploy.md, Commissioning).')
+    parser.add_argument('--machine', required=True, metavar='FILE',
+                        help='the machine file; rewritten with the polarity and phase found')
+    parser.add_argument('--scene', metavar='FILE',
+                        help='a scene to check against the machine first (rows, limits)')
+    parser.add_argument('--row', action='append', metavar='NAME',
+                        help='commission only this row (repeatable); default: every row')
+    parser.add_argument('--simulated', action='store_true',
+                        help='against simulated drives on a virtual bus (random mechanical '
+                        'offset and polarity from --seed), as does a machine file whose '
+                        'can.interface is virtual')
+    parser.add_argument('--seed', type=int, default=0,
+                        help='--simulated: seed of the mechanisms\' offsets and wiring')
+    parser.add_argument('--output', metavar='FILE',
+                        help='write the machine file here instead of over --machine')
+
+
+def run(args: argparse.Namespace) -> int:
+    import dataclasses
+    import math
+    import uuid
+
+    import numpy as np
+
+    from planter_ros.scene.files import SceneError
+    from planter_ros.scene.machine import CanBus, deployment_parameters, open_machine, \
+        write_machine
+
+    from .procedure import (CommissionError, Observer, SimulatedObserver, checklist,
+                            commission_machine, updated_machine)
+
+    def fail(message: str) -> int:
+        print(f'planter: error: commission: {message}', file=sys.stderr)
+        return 2
+
+    try:
+        machine = open_machine(args.machine)
+        if args.scene:
+            for warning in deployment_parameters(args.machine, args.scene)[1]:
+                print(f'warning: {warning}', file=sys.stderr)
+    except SceneError as exc:
+        return fail(str(exc))
+    rows = args.row or list(machine.rows)
+    unknown = [r for r in rows if r not in machine.rows]
+    if unknown:
+        return fail(f'--row {unknown[0]} is not a row of {args.machine}: allowed '
+                    + ', '.join(machine.rows))
+    simulated = args.simulated or machine.can.interface == 'virtual'
+    bus, sims = None, {}
+    observer: Observer = Observer()
+    run_machine = machine
+    try:
+        if simulated:
+            import can
+
+            from planter_ros.drive.simulated_drive import SimulatedDrive
+            channel = f'planter-commission-{uuid.uuid4().hex}'
+            run_machine = dataclasses.replace(machine, can=CanBus(interface='virtual',
+                                                                   channel='vcan0'))
+            rng = np.random.default_rng(args.seed)
+            for name in rows:
+                row = machine.rows[name]
+                modes = tuple({'pv': 3, 'csp': 8}[m] for m in row.modes)
+                sims[name] = SimulatedDrive(
+                    channel, node_id=row.node_id, counts_per_motor_rev=row.encoder_counts,
+                    gear_ratio=row.gear_ratio, supported_modes=modes,
+                    mechanical_offset=float(rng.uniform(0.0, 2.0 * math.pi)),
+                    motor_reversed=bool(rng.random() < 0.5))
+                sims[name].start()
+            bus = can.Bus(interface='virtual', channel=channel)
+            observer = SimulatedObserver(sims)
+        findings = commission_machine(run_machine, rows, observer, bus=bus)
+        output = args.output or args.machine
+        write_machine(updated_machine(machine, findings), output,
+                      comment=f'machine file written by planter commission (rows: '
+                              f'{", ".join(rows)})')
+    except (CommissionError, SceneError) as exc:
+        return fail(str(exc))
+    except EOFError:
+        return fail('no answer on the terminal (the direction must be confirmed by eye)')
+    finally:
+        if bus is not None:
+            bus.shutdown()
+        for sim in sims.values():
+            sim.stop()
+    print(checklist(findings, output))
+    for f in findings:
+        if f.row in sims and f.phase_offset is not None:
+            error = math.degrees(sims[f.row].mechanism_angle_at(f.phase_offset))
+            print(f'simulated row {f.row}: mechanical offset '
+                  f'{math.degrees(sims[f.row].mechanical_offset):.2f} deg, wiring '
+                  f'{"reversed" if sims[f.row].motor_reversed else "normal"}; phase error '
+                  f'{error:+.3f} deg')
+    return 0

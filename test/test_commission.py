@@ -1,0 +1,129 @@
+"""`planter commission` against the simulated drive (issue 22 item 2): a mechanism with a random
+(seeded) offset between the encoder's zero and its bottom, wired reversed or not; commissioning
+must find the polarity and, after homing, the bottom within 0.5 degrees."""
+import dataclasses
+import math
+import shutil
+import uuid
+
+import can
+import numpy as np
+import pytest
+
+from cli_helpers import REPO, run_planter
+
+from planter_ros.commission import (CommissionError, SimulatedObserver, commission_machine,
+                                    updated_machine)
+from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
+from planter_ros.drive.errors import DriveRefusedError
+from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.scene.machine import CanBus, open_machine, write_machine
+
+MACHINE = REPO / 'config' / 'machines' / 'tomato_4row_tractor.yaml'
+ROW = 'left_outer'
+
+
+@pytest.fixture
+def rig():
+    """(machine on a virtual channel, make(simulated drive kwargs) -> sim, bus)."""
+    channel = f'planter-test-{uuid.uuid4().hex}'
+    machine = open_machine(MACHINE)
+    machine = dataclasses.replace(machine, can=CanBus(interface='virtual', channel='vcan0'))
+    bus = can.Bus(interface='virtual', channel=channel)
+    sims = []
+
+    def make(row_changes=None, **kwargs):
+        nonlocal machine
+        if row_changes:
+            rows = dict(machine.rows)
+            rows[ROW] = dataclasses.replace(rows[ROW], **row_changes)
+            machine = dataclasses.replace(machine, rows=rows)
+        row = machine.rows[ROW]
+        kwargs.setdefault('supported_modes', (3, 8))
+        sim = SimulatedDrive(channel, node_id=row.node_id, counts_per_motor_rev=row.encoder_counts,
+                             gear_ratio=row.gear_ratio, **kwargs)
+        sim.start()
+        sims.append(sim)
+        return machine, sim
+
+    yield make, bus
+    bus.shutdown()
+    for sim in sims:
+        sim.stop()
+
+
+@pytest.mark.parametrize('seed, method, reversed_', [(7, 19, True), (11, 34, False)])
+def test_commissioning_finds_a_random_offset_and_the_polarity(rig, tmp_path, seed, method,
+                                                               reversed_):
+    make, bus = rig
+    offset = float(np.random.default_rng(seed).uniform(0.0, 2.0 * math.pi))
+    machine, sim = make({'homing_method': method, 'polarity': 'normal', 'phase_offset': 0.0},
+                        mechanical_offset=offset, motor_reversed=reversed_)
+    [found] = commission_machine(machine, [ROW], SimulatedObserver({ROW: sim}), bus=bus)
+    assert found.polarity == ('reversed' if reversed_ else 'normal')
+    assert found.homed
+    # the stored phase is where the simulated tip is lowest, to 0.5 degrees
+    error = math.degrees(sim.mechanism_angle_at(found.phase_offset))
+    assert abs(error) <= 0.5, error
+    # a forward step of the commanded angle turns the mechanism forward (polarity applied)
+    step = sim.mechanism_angle_at(found.phase_offset + 0.1) - sim.mechanism_angle_at(
+        found.phase_offset)
+    assert step == pytest.approx(0.1, abs=1e-6)
+    assert math.degrees(found.switch_width) == pytest.approx(math.degrees(0.2), abs=0.5)
+    if method == 19:       # home switch: home is its lower edge, so the bottom is half its width
+        assert found.phase_offset == pytest.approx(0.1, abs=math.radians(0.5))
+    # written and read back strictly
+    path = tmp_path / 'machine.yaml'
+    write_machine(updated_machine(machine, [found]), path)
+    row = open_machine(path).rows[ROW]
+    assert row.polarity == found.polarity
+    assert row.phase_offset == pytest.approx(found.phase_offset, abs=1e-6)
+    assert open_machine(path).rows['right_outer'] == machine.rows['right_outer']
+
+
+def test_a_drive_without_the_modes_the_machine_file_needs_is_refused(rig):
+    make, bus = rig
+    machine, sim = make({'modes': ['csp', 'pv']}, supported_modes=(3,))
+    with pytest.raises(CommissionError, match=r'row left_outer: node 1 supports modes '
+                                              r'0x00000024 .*without csp'):
+        commission_machine(machine, [ROW], SimulatedObserver({ROW: sim}), bus=bus)
+
+
+def test_homing_with_a_method_the_drive_lacks_is_a_homing_error(rig):
+    make, bus = rig
+    machine, sim = make()
+    row = machine.rows[ROW]
+    drive = Cia402Drive(DriveConfig(can_interface='virtual', can_channel='vcan0',
+                                    drive_node_id=row.node_id, operation_mode='velocity',
+                                    motor_gear_ratio=row.gear_ratio,
+                                    counts_per_motor_rev=row.encoder_counts), bus=bus)
+    try:
+        drive.connect_and_enable()
+        with pytest.raises(DriveRefusedError, match='homing error'):
+            drive.home(1, 1.0, 0.05, timeout=5.0)
+        # method 35: here is home (position 0), and the drive still jogs afterwards
+        drive.jog(0.5, timeout=0.5)
+        drive.home(35, 1.0, 0.05, timeout=5.0)
+        assert abs(drive.status().position) < 1e-3
+        assert sim.mode_display == 3
+    finally:
+        drive.shutdown()
+
+
+def test_the_command_line_commissions_and_rewrites_the_machine_file(tmp_path):
+    path = tmp_path / 'machine.yaml'
+    shutil.copy(MACHINE, path)
+    before = open_machine(path)
+    done = run_planter('commission', '--machine', str(path), '--simulated', '--seed', '5',
+                       '--row', 'left_inner', timeout=240)
+    assert done.returncode == 0, done.stderr
+    after = open_machine(path)
+    assert after.rows['left_outer'] == before.rows['left_outer']
+    out = done.stdout
+    assert 'row left_inner (node 2):' in out and '[by eye]' in out
+    error = float(out.split('phase error ')[1].split(' deg')[0])
+    assert abs(error) <= 0.5
+    assert f'phase offset {after.rows["left_inner"].phase_offset:.5f} rad' in out
+    refused = run_planter('commission', '--machine', str(path), '--simulated', '--row', 'nope')
+    assert refused.returncode == 2 and refused.stderr.count('\n') == 1
+    assert 'allowed left_outer' in refused.stderr
