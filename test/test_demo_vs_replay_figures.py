@@ -4,7 +4,7 @@ simulator's true travelled distance; the distance integrated from the recorded g
 so a user comparing them knows why they differ."""
 import numpy as np
 
-from planter_ros.prediction.plants import PLANT_FIELDS, Plants, summarize
+from planter_ros.prediction import PLANT_FIELDS, Plants, summarize
 from planter_ros.recording.replay import replay
 from planter_ros.recording.replay_text import format_summary
 from planter_ros.sim.spacing import error_figures

@@ -155,3 +155,19 @@ def test_the_command_line_only_parses_and_calls():
     lines = sum(len(p.read_text().splitlines())
                 for p in (REPO / 'planter_ros' / 'cli').glob('*.py'))
     assert lines <= 1000, f'planter_ros/cli/ has {lines} lines'
+
+
+def test_no_modules_import_each_other_in_a_circle():
+    """Inside a package too, modules depend one way (a package's __init__, which gathers its
+    modules' names, is left out)."""
+    names = {module for module, init, _ in modules() if not init}
+    graph = defaultdict(set)
+    for module, init, path in modules():
+        if init:
+            continue
+        for name in imported(module, init, ast.parse(path.read_text(), str(path))):
+            target = name if name in names else (name or '').rpartition('.')[0]
+            if target in names and target != module:
+                graph[module].add(target)
+    cycles = [sorted(c) for c in strongly_connected(graph) if len(c) > 1]
+    assert cycles == []

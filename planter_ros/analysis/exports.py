@@ -15,9 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-SHAPEFILE = 'as_planted.zip'
-ISOXML = 'TASKDATA.zip'
-EXPORTS = (SHAPEFILE, ISOXML)
+from .season import ANALYSED, BAGS_FILE, EXPORTS, ISOXML, PLANTS_DIR, SHAPEFILE, read_bags
 
 __all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'format_exports', 'season_exports', 'season_runs',
            'write_season_exports']
@@ -31,7 +29,6 @@ def season_runs(out):
     from planter_ros.export.runs import run_of_plants
     from planter_ros.prediction import PLANT_FIELDS, Plants
 
-    from .season import ANALYSED, BAGS_FILE, PLANTS_DIR, read_bags
     from .tables import plant_columns
     out = Path(out)
     bags = [row for row in read_bags(out / BAGS_FILE)

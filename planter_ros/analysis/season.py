@@ -39,7 +39,6 @@ from planter_ros.output_files import OutputError, atomic_output
 
 from . import tables
 from .bags import identity
-from .exports import EXPORTS
 
 BAGS_DIR = 'bags'
 BAGS_FILE = f'{BAGS_DIR}/bags.parquet'
@@ -47,6 +46,10 @@ PLANTS_DIR = 'plants'
 LOCK_FILE = '.planter-analyze.lock'            # earlier versions' lock: removed when seen
 REPORT_FILE = 'report.html'
 LEGACY_BAGS_FILE = 'bags.parquet'     # where an older planter analyze put the bags table
+# the season's exports for farm software (written by analysis.exports)
+SHAPEFILE = 'as_planted.zip'
+ISOXML = 'TASKDATA.zip'
+EXPORTS = (SHAPEFILE, ISOXML)
 OWNED = (BAGS_DIR, PLANTS_DIR, LOCK_FILE, REPORT_FILE, LEGACY_BAGS_FILE) + EXPORTS
 FLUSH_SECONDS = 2.0          # s between two writes of the tables, at least
 FLUSH_BAGS = 2000            # bags completed that force a write

@@ -16,10 +16,11 @@ from .acceptance import (AcceptanceLimits, acceptance_failures, format_acceptanc
 from .model import (PlantPredictor, PredictionSettings, clean_samples, plant_values,
                     planting_model_from_design, predict_plants, prediction_notes,
                     travelled_distance)
-from .plants import PLANT_FIELDS, Plants, summarize
+from .plants import PLANT_FIELDS, Plants
 from .quality import (QUALITY_FIELDS, SpacingQuality, format_quality, spacing_quality,
                       spacing_quality_by_row)
 from .sections import SectionBreaks, section_breaks
+from .summary import summarize
 from .seedlings import (REASONS, STATUSES, SeedlingAccount, design_spacing_of, reason_name,
                         seedling_spacings, status_counts, status_name)
 
