@@ -51,11 +51,13 @@ class Machine:
         for law in self.laws + [self.reference]:
             law.config = config
 
-    def set_design(self, spacing, plants_per_revolution, now, planting=None):
+    def set_design(self, spacing, plants_per_revolution, now, planting=None, cams=None):
         """A design for every row: each row running on its grid takes it at its own next
-        planting instant (PhaseLock.set_design)."""
-        for law in self.laws:
-            law.set_design(spacing, plants_per_revolution, now, planting)
+        planting instant (PhaseLock.set_design). `cams`: each row's cam profile (None:
+        constant speed), or None for constant speed on every row."""
+        cams = cams if cams is not None else [None] * len(self.laws)
+        for law, cam in zip(self.laws, cams):
+            law.set_design(spacing, plants_per_revolution, now, planting, cam)
 
     def set_planting(self, planting):
         """Where the design's mechanism plants (PlantingAngles or None), found later than the
