@@ -148,3 +148,121 @@ def test_a_spacing_change_is_continuous_and_at_the_next_plant(profiles):
     first_new = gaps.index(0.5)
     assert plants[first_new] > V * t_change     # the change waited for the next plant
     assert all(g == 0.15 for g in gaps[:first_new]) and all(g == 0.5 for g in gaps[first_new:])
+
+
+# ---------------------------------------------------------------- the command path (CSP)
+
+def cam_engine(channel, **drive):
+    from planter_ros.command.engine import CommandEngine
+    from planter_ros.control.loop_timing import SyncLoopConfig
+    from planter_ros.control.machine import TurnConfig
+    from planter_ros.drive.cia402 import DriveConfig
+    from planter_ros.rows import Row
+    from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
+    from planter_ros.sensing.row_speed import YawRateLimits
+    config = DriveConfig(can_interface='virtual', can_channel=channel, step_timeout=0.5,
+                         **drive)
+    law = (config_for_engine(), GroundSpeedLimits(), YawRateLimits(), TurnConfig())
+    logs = []
+    engine = CommandEngine(config, SyncLoopConfig(), [Row(0, 'a', 0.0, 1)], law,
+                           log=lambda level, text: logs.append((level, text)))
+    return engine, logs
+
+
+def config_for_engine():
+    return PhaseLockConfig(speed_profile='cam', max_acceleration=100.0, max_speed=30.0)
+
+
+def run_cam(engine, seconds, record=None):
+    """The command process's loop in miniature: a sample every 20 ms, a step every SYNC;
+    `record` gets (integrated target, θ(s) at the next SYNC) of the row after each step."""
+    import time
+    end = time.monotonic() + seconds
+    next_sample = 0.0
+    next_tick = time.monotonic()
+    unit = engine.units[0]
+    while time.monotonic() < end:
+        now = time.monotonic()
+        if now >= next_sample:
+            engine.sample(V, 0.0, now)
+            next_sample = now + 0.02
+        engine.step(now)
+        if record is not None and unit.target is not None:
+            record.append((unit.target, unit.law.target_angle(now + engine.period)))
+        next_tick = max(next_tick + engine.period, time.monotonic())
+        time.sleep(max(next_tick - time.monotonic(), 0.0))
+
+
+def send_design(engine, design):
+    import time
+
+    from planter_ros.design import from_json, to_json
+    text = to_json(design)
+    engine.set_design(from_json(text), text, time.monotonic())
+
+
+def test_csp_targets_follow_the_cam(channel, design):
+    import time
+
+    from drive_helpers import wait_until
+    from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.drive.states import CYCLIC_SYNC_POSITION, OPERATION_ENABLED, PROFILE_VELOCITY
+    sims = SimulatedBus(channel, [1], supported_modes=(PROFILE_VELOCITY, CYCLIC_SYNC_POSITION))
+    sims.start()
+    engine, logs = cam_engine(channel)
+    try:
+        engine.enable()
+        assert engine.csp
+        send_design(engine, dataclasses.replace(design, plant_spacing=0.35))
+        law = engine.units[0].law
+        assert wait_until(lambda: law.speed_profile == 'cam', 5.0)
+        run_cam(engine, 2.0)
+        record = []
+        run_cam(engine, 3.0, record)
+        errors = [abs(target - theta) for target, theta in record]
+        # the targets are θ(s) at the SYNC they apply at (while θ′ changes within every
+        # plant); a step the host made late is made up over the next SYNCs, bounded
+        on_cam = sum(e < 1e-6 for e in errors) / len(errors)
+        assert on_cam > 0.9 and max(errors) < 0.1, (on_cam, max(errors))
+        sim = sims.drives[0]
+        assert sim.state == OPERATION_ENABLED and sim.following_error_faults == 0
+        # the drive follows its targets (its own following error), one to two SYNCs behind
+        # (≈ 0.01-0.02 s · 12.6 rad/s in the soil): the measured phase error
+        assert abs(sim.following_error) < 0.2
+        assert abs(law.phase_error(time.monotonic())) < 0.3
+        row = [r for r, _ in engine.reports(time.monotonic()) if r.task == 'a']
+        assert ('speed profile', 'cam') in row[0].values
+        assert not [text for level, text in logs if 'falls back' in text]
+    finally:
+        engine.shutdown()
+        sims.stop()
+
+
+def test_a_drive_without_csp_falls_back_to_the_mean_speed_with_a_warning(channel, design):
+    import logging
+    import time
+
+    from drive_helpers import wait_until
+    from planter_ros.diagnostics import WARN
+    from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.drive.states import PROFILE_VELOCITY
+    sims = SimulatedBus(channel, [1], supported_modes=(PROFILE_VELOCITY,))
+    sims.start()
+    engine, logs = cam_engine(channel)
+    try:
+        engine.enable()
+        assert not engine.csp
+        send_design(engine, dataclasses.replace(design, plant_spacing=0.35))
+        law = engine.units[0].law
+        assert wait_until(lambda: law.spacing == 0.35, 5.0)
+        assert law.speed_profile == 'constant'
+        warnings = [text for level, text in logs if level == logging.WARNING]
+        assert any('profile velocity' in text and 'mean speed' in text for text in warnings)
+        run_cam(engine, 1.0)
+        assert law.feed_forward(time.monotonic()) == pytest.approx(2 * math.pi * V / 0.35)
+        row = [r for r, _ in engine.reports(time.monotonic()) if r.task == 'a']
+        assert row[0].level == WARN and 'mean speed' in row[0].message
+        assert ('speed profile', 'constant') in row[0].values
+    finally:
+        engine.shutdown()
+        sims.stop()

@@ -347,6 +347,15 @@ class PhaseLock:
         return theta0 + TWO_PI * (self.travelled(now) - s0) / (
             self.plants_per_revolution * self.spacing)
 
+    def cam_target(self, now):
+        """θ(s) of the cam at `now` (rad) while the row tracks its cam (on its grid, section
+        on, fresh ground speed), else None: what a CSP drive's position target should be."""
+        if (self._track is None or self._anchor is None or not self.section_on
+                or self._starting or self.stale(now)):
+            return None
+        self._switch_design(now)
+        return self.target_angle(now)
+
     def measured_angle(self, now):
         if self._fb is None:
             return None
