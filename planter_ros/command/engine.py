@@ -20,8 +20,7 @@ import can
 from planter_ros import diagnostics, interfaces
 from planter_ros.config import ConfigError
 from planter_ros.control import sync_status
-from planter_ros.cam import CamError
-from planter_ros.control.cam_law import plan_row_cam
+from planter_ros.control.cam_law import plan_for_design
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
 from planter_ros.control.machine import Machine
 from planter_ros.control.phase_lock import PlantingAngles
@@ -223,11 +222,19 @@ class CommandEngine:
                 self.step(now)
                 self.sample_latency.add(time.monotonic() - now)
 
-    def set_design(self, design: Design, text: str, now: float) -> bool:
+    def set_design(self, design: Design, text: str, now: float,
+                   planned: tuple[Any, str] | None = None) -> bool:
         """A design for every row (at its next planting instant); False when it is the one in
         force already. Where the mechanism plants is found in a worker thread. With
         `speed_profile: cam` the cam is planned first, in a worker thread too (it takes up to
-        tens of ms: not on the SYNC loop), and the design applies once it is."""
+        tens of ms: not on the SYNC loop), and the design applies once it is; `planned`:
+        (profile or None, why not) when the caller planned it (the command process's shell)."""
+        if planned is not None:
+            with self._lock:
+                if self.design_key is not None and text == self.design_key[2]:
+                    return False
+                self._planning = None
+            return self._apply_design(design, text, now, *planned)
         with self._lock:
             if self.design_key is not None and text == self.design_key[2]:
                 return False
@@ -242,11 +249,7 @@ class CommandEngine:
 
     def _plan_cam(self, design: Design, text: str) -> None:
         """Plan the design's cam (worker thread), then apply the design with it."""
-        rule = self.law.config.cam_rule
-        try:
-            profile, why = plan_row_cam(design, rule), ''
-        except (ValueError, CamError) as exc:
-            profile, why = None, f'no cam for this design ({exc}): constant speed'
+        profile, why = plan_for_design(design, self.law.config.cam_rule)
         with self._lock:
             if self._planning != text:       # a newer design arrived meanwhile
                 return

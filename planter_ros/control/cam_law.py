@@ -14,7 +14,8 @@ from typing import Any
 
 from planter_ros.cam import CamMechanism, CamProfile, CamTrack, DriveLimits, plan_cam
 
-__all__ = ['plan_row_cam', 'anchored_track', 'DEFAULT_TOP_SPEED']
+__all__ = ['plan_row_cam', 'plan_for_design', 'anchored_track', 'profile_to_data',
+           'profile_from_data', 'DEFAULT_TOP_SPEED']
 
 # top ground speed a cam is planned for when the design names none (m/s)
 DEFAULT_TOP_SPEED = 0.3
@@ -49,3 +50,32 @@ def anchored_track(profile: CamProfile, theta: float, s: float) -> CamTrack:
         if hi - lo <= 1e-12 * d:
             break
     return CamTrack(profile, origin=s - lo)
+
+
+def profile_to_data(profile: CamProfile) -> dict:
+    """A planned profile as JSON-ready data (the shell plans, the command process runs it)."""
+    from dataclasses import asdict
+    period = profile.period
+    return {'mech': asdict(profile.mech), 'law': asdict(profile.law),
+            'spacing': profile.spacing, 'speed': profile.speed, 'drive': asdict(profile.drive),
+            'rule': profile.rule, 'blend': profile.blend,
+            'breaks': period.breaks.tolist(), 'coeffs': period.coeffs.tolist()}
+
+
+def profile_from_data(data: dict) -> CamProfile:
+    """The profile `profile_to_data` gave (ValueError/TypeError/KeyError if it is not one)."""
+    from planter_ros.cam import SoilLaw
+    from planter_ros.cam.piecewise import Piecewise
+    return CamProfile(CamMechanism(**data['mech']), SoilLaw(**data['law']),
+                      float(data['spacing']), Piecewise(data['breaks'], data['coeffs']),
+                      float(data['speed']), DriveLimits(**data['drive']), str(data['rule']),
+                      float(data['blend']))
+
+
+def plan_for_design(design: Any, rule: str) -> tuple[CamProfile | None, str]:
+    """(profile, '') for a design the cam can run, else (None, why: constant speed)."""
+    from planter_ros.cam import CamError
+    try:
+        return plan_row_cam(design, rule), ''
+    except (ValueError, CamError) as exc:
+        return None, f'no cam for this design ({exc}): constant speed'
