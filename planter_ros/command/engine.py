@@ -223,18 +223,20 @@ class CommandEngine:
                 self.sample_latency.add(time.monotonic() - now)
 
     def set_design(self, design: Design, text: str, now: float,
-                   planned: tuple[Any, str] | None = None) -> bool:
+                   planned: tuple[Any, str] | None = None,
+                   arrived: float | None = None) -> bool:
         """A design for every row (at its next planting instant); False when it is the one in
         force already. Where the mechanism plants is found in a worker thread. With
         `speed_profile: cam` the cam is planned first, in a worker thread too (it takes up to
         tens of ms: not on the SYNC loop), and the design applies once it is; `planned`:
-        (profile or None, why not) when the caller planned it (the command process's shell)."""
+        (profile or None, why not) when the caller planned it (the command process's shell),
+        `arrived` when the design reached it (monotonic s)."""
         if planned is not None:
             with self._lock:
                 if self.design_key is not None and text == self.design_key[2]:
                     return False
                 self._planning = None
-            return self._apply_design(design, text, now, *planned)
+            return self._apply_design(design, text, now, *planned, since=arrived)
         with self._lock:
             if self.design_key is not None and text == self.design_key[2]:
                 return False
@@ -242,22 +244,22 @@ class CommandEngine:
                 if self._planning == text:
                     return False
                 self._planning = text
-                threading.Thread(target=self._plan_cam, args=(design, text), daemon=True,
+                threading.Thread(target=self._plan_cam, args=(design, text, now), daemon=True,
                                  name='cam-plan').start()
                 return True
         return self._apply_design(design, text, now, None)
 
-    def _plan_cam(self, design: Design, text: str) -> None:
+    def _plan_cam(self, design: Design, text: str, now: float) -> None:
         """Plan the design's cam (worker thread), then apply the design with it."""
         profile, why = plan_for_design(design, self.law.config.cam_rule)
         with self._lock:
             if self._planning != text:       # a newer design arrived meanwhile
                 return
             self._planning = None
-            self._apply_design(design, text, time.monotonic(), profile, why)
+            self._apply_design(design, text, time.monotonic(), profile, why, since=now)
 
     def _apply_design(self, design: Design, text: str, now: float, cam: Any,
-                      why: str = '') -> bool:
+                      why: str = '', since: float | None = None) -> bool:
         with self._lock:
             spacing, n = design.plant_spacing, design.plants_per_revolution
             joints = [unit.row.joint(design.mechanism) for unit in self.units]
@@ -274,7 +276,7 @@ class CommandEngine:
                         self.log(logging.WARNING, fallback if self.implicit
                                  else f'row {unit.label}: {fallback}')
                     unit.law.cam_fallback = fallback
-            self.machine.set_design(spacing, n, now, cams=cams)
+            self.machine.set_design(spacing, n, now, cams=cams, since=since)
             key = (spacing, n, text)
             self.design_key = key
             self.mechanism = design.mechanism

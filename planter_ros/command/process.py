@@ -210,9 +210,10 @@ def _handle(engine: CommandEngine, channel: Channel, kind: str, payload: Any) ->
         if kind == 'design':
             engine.set_design(from_json(payload), payload, now)
         elif kind == 'design_cam':          # the shell planned the cam (speed_profile: cam)
-            text, cam, why = payload
+            text, cam, why, arrived = payload
             profile = None if cam is None else profile_from_data(cam)
-            engine.set_design(from_json(text), text, now, planned=(profile, why))
+            engine.set_design(from_json(text), text, now, planned=(profile, why),
+                              arrived=float(arrived))
         elif kind == 'section':
             ident, name, on = payload
             ok, message, changed = engine.section(name, bool(on), now)

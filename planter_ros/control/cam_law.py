@@ -15,7 +15,7 @@ from typing import Any
 from planter_ros.cam import CamMechanism, CamProfile, CamTrack, DriveLimits, plan_cam
 
 __all__ = ['plan_row_cam', 'plan_for_design', 'anchored_track', 'profile_to_data',
-           'profile_from_data', 'DEFAULT_TOP_SPEED']
+           'profile_from_data', 'warm_up', 'DEFAULT_TOP_SPEED']
 
 # top ground speed a cam is planned for when the design names none (m/s)
 DEFAULT_TOP_SPEED = 0.3
@@ -79,3 +79,11 @@ def plan_for_design(design: Any, rule: str) -> tuple[CamProfile | None, str]:
         return plan_row_cam(design, rule), ''
     except (ValueError, CamError) as exc:
         return None, f'no cam for this design ({exc}): constant speed'
+
+
+def warm_up() -> None:
+    """Plan one cam and throw it away: the first plan of a process imports and sets up the
+    linear-programme solver (about 0.4 s); later ones take tens of ms. Run at start-up, so a
+    spacing changed at run time is planned at once."""
+    mech = CamMechanism(0.0948, 0.1187, 0.045)
+    plan_cam(mech, 0.3, DEFAULT_TOP_SPEED, DriveLimits(), 'design_speed', top_speeds=False)

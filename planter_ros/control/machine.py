@@ -51,13 +51,14 @@ class Machine:
         for law in self.laws + [self.reference]:
             law.config = config
 
-    def set_design(self, spacing, plants_per_revolution, now, planting=None, cams=None):
+    def set_design(self, spacing, plants_per_revolution, now, planting=None, cams=None,
+                   since=None):
         """A design for every row: each row running on its grid takes it at its own next
         planting instant (PhaseLock.set_design). `cams`: each row's cam profile (None:
         constant speed), or None for constant speed on every row."""
         cams = cams if cams is not None else [None] * len(self.laws)
         for law, cam in zip(self.laws, cams):
-            law.set_design(spacing, plants_per_revolution, now, planting, cam)
+            law.set_design(spacing, plants_per_revolution, now, planting, cam, since)
 
     def set_planting(self, planting):
         """Where the design's mechanism plants (PlantingAngles or None), found later than the

@@ -168,10 +168,13 @@ class PhaseLock:
         self.config = config
         self.filter.limits = limits
 
-    def set_design(self, spacing, plants_per_revolution, now, planting=None, cam=None):
+    def set_design(self, spacing, plants_per_revolution, now, planting=None, cam=None,
+                   since=None):
         """Use a new spacing d (m) and plants per revolution n (and where the mechanism plants,
         `PlantingAngles`, for section stops); re-anchors the phase. `cam`: the design's planned
-        cam profile (a `CamProfile` at this spacing), None for constant speed."""
+        cam profile (a `CamProfile` at this spacing), None for constant speed; `since`: when
+        the design arrived (monotonic s; planning the cam takes a while): a cam change takes
+        effect at the next planting instant after then, if its soil exit is still ahead."""
         if not (math.isfinite(spacing) and spacing > 0):
             raise ControlConfigError(f'plant_spacing = {spacing} is out of range: allowed '
                                      'finite and > 0 m')
@@ -193,7 +196,7 @@ class PhaseLock:
             return
         if cam is not None and self._track is not None:
             try:
-                switch_at = self._track.change(cam, self.travelled(now))
+                switch_at = self._track.change(cam, self._change_from(now, since))
             except CamError:
                 # no transition arc fits before the next plant: a new grid from here
                 self._pending, self.spacing, self.planting = None, float(spacing), planting
@@ -206,6 +209,18 @@ class PhaseLock:
             return
         self._pending = (float(spacing), planting, self._next_planting_distance(now))
         self._switch_design(now)
+
+    def _change_from(self, now, since):
+        """The distance a cam change counts its next planting instant from: the row's
+        distance when the design arrived, unless that plant's soil exit is behind already."""
+        s_now = self.travelled(now)
+        if since is None or not since < now:
+            return s_now
+        s_then = max(s_now - self._v * min(now - since, self.config.ground_speed_timeout), 0.0)
+        s_k, profile = self._track.next_plant(s_then)
+        if s_k + profile.law.half_length(profile.mech) <= s_now:
+            return s_now
+        return s_then
 
     def set_planting(self, planting):
         """Where the design's mechanism plants (PlantingAngles or None), found after the
