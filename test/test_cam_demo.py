@@ -87,3 +87,25 @@ def test_the_cam_demo_plants_every_spacing_at_its_d_with_the_planned_sweep(tmp_p
         assert abs(s['sweep_mean'] - plans[d].tip_sweep) <= 0.5e-3, (d, s['sweep_mean'])
         if s['boundary'] is not None:
             assert abs(s['boundary']) <= 0.01 * d, (d, s['boundary'])
+
+
+def test_the_cam_scene_keys_are_strict_one_line_errors(tmp_path):
+    cases = [(lambda s: s.replace('speed_profile: cam ', 'speed_profile: cams '),
+              'speed_profile'),
+             (lambda s: s.replace('cam_rule: design_speed', 'cam_rul: design_speed'),
+              'cam_rul'),
+             (lambda s: s.replace('[15.0, 0.25, 30.0, 0.35, 45.0, 0.5]',
+                                  '[15.0, 0.25, 30.0]'), 'spacing_schedule'),
+             (lambda s: s.replace('[15.0, 0.25, 30.0, 0.35, 45.0, 0.5]',
+                                  '[15.0, 0.25, 10.0, 0.35]'), 'out of order')]
+    text = (REPO / 'config' / 'tomato_cam.yaml').read_text()
+    for i, (change, word) in enumerate(cases):
+        bad = change(text)
+        assert bad != text
+        path = tmp_path / f'bad_{i}.yaml'
+        path.write_text(bad)
+        out = run_planter('demo', '--scene', path, '--duration', '8',
+                          '--bag', tmp_path / f'never_{i}.mcap')
+        assert out.returncode == 2, out.stdout + out.stderr
+        assert len(out.stderr.strip().splitlines()) == 1 and word in out.stderr, out.stderr
+        assert not (tmp_path / f'never_{i}.mcap').exists()
