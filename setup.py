@@ -1,5 +1,6 @@
 """ament_python package: installable with colcon on a ROS machine and with pip into a venv."""
 from glob import glob
+import os
 
 from setuptools import find_packages, setup
 
@@ -12,8 +13,10 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/config', glob('config/*')),
+        ('share/' + package_name + '/config', [p for p in glob('config/*') if os.path.isfile(p)]),
+        ('share/' + package_name + '/config/machines', glob('config/machines/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        ('share/' + package_name + '/systemd', glob('systemd/*')),
     ],
     # What the package needs at run time, with the oldest versions it is known to work with;
     # requirements.txt pins the exact versions the bootstrap and CI install.
@@ -37,6 +40,7 @@ setup(
         'pyshp>=2.3',                             # Shapefile export
         'isoxml>=0.0.4',                          # ISO 11783-10 task data export
         'xsdata>=24.7',                           # isoxml's bindings (its date-time type)
+        'cantools>=39.4',                         # ISOBUS speed messages from a DBC
     ],
     extras_require={'test': ['pytest>=8', 'hypothesis>=6.100', 'colcon-common-extensions',
                              'ruff>=0.6', 'pyogrio>=0.10']},
@@ -48,9 +52,10 @@ setup(
     entry_points={
         'console_scripts': [
             'planter = planter_ros.cli.main:main',
-            'design_node = planter_ros.nodes.design_node:main',
-            'sync_node = planter_ros.nodes.sync_node:main',
-            'monitor_node = planter_ros.nodes.monitor_node:main',
+            'design_node = planter_ros.nodes.entry:design_node',
+            'sync_node = planter_ros.nodes.entry:sync_node',
+            'monitor_node = planter_ros.nodes.entry:monitor_node',
+            'ground_speed_node = planter_ros.nodes.entry:ground_speed_node',
         ],
     },
 )

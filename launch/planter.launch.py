@@ -1,9 +1,12 @@
-"""Launch the planting unit on a ROS machine: design, sync (CAN drive) and monitor nodes.
+"""Launch the planting unit on a ROS machine: design, sync (CAN drive), monitor and ground-speed
+nodes.
 
     ros2 launch planter_ros planter.launch.py scene:=/path/to/scene.yaml can_channel:=can0
 
 Every node reads the same scene file (`/**` parameters); the sync node additionally gets the
-CAN interface and channel. Topics live in the /planter namespace (planter_ros.interfaces).
+CAN interface and channel, the ground-speed node its sources (ISOBUS on `isobus_channel`, empty:
+none; the GNSS velocity on /planter/gnss/vel). Topics live in the /planter namespace
+(planter_ros.interfaces).
 """
 
 from launch import LaunchDescription
@@ -29,6 +32,12 @@ def generate_launch_description():
         DeclareLaunchArgument('can_channel', default_value='can0', description='CAN channel'),
         DeclareLaunchArgument('drive_node_id', default_value='1',
                               description='CANopen node id of the servo drive'),
+        DeclareLaunchArgument('isobus_channel', default_value='',
+                              description="the tractor's ISOBUS CAN channel (e.g. can1); empty: "
+                                          'ground speed from the GNSS velocity only'),
+        Node(package=PACKAGE, executable='ground_speed_node', namespace=NAMESPACE,
+             output='screen',
+             parameters=[{'isobus_channel': LaunchConfiguration('isobus_channel')}]),
         Node(package=PACKAGE, executable='design_node', namespace=NAMESPACE,
              parameters=[scene], output='screen'),
         Node(package=PACKAGE, executable='sync_node', namespace=NAMESPACE, output='screen',

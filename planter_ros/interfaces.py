@@ -105,7 +105,9 @@ class Topic:
 
 GROUND_SPEED = Topic(
     'ground_speed', 'geometry_msgs/msg/TwistStamped', SENSOR_DATA,
-    'input: twist.linear.x = measured ground speed (m/s, forward > 0)')
+    'input: twist.linear.x = measured ground speed (m/s, forward > 0), twist.angular.z = yaw '
+    'rate (rad/s, + counter-clockwise; 0 from a source without one); published by '
+    'ground_speed_node on a machine, by the simulation in the demo')
 DESIGN = Topic(
     'design', 'std_msgs/msg/String', LATCHED,
     'JSON of the active design in SI units; keys at least mechanism (five_bar | three_arm), '
@@ -131,6 +133,18 @@ GNSS_FIX = Topic(
     'gnss/fix', 'sensor_msgs/msg/NavSatFix', SENSOR_DATA,
     "input: the machine's GNSS antenna position (WGS 84), status and covariance as the "
     'receiver reports them; a fix without position (status NO_FIX) is not used')
+GNSS_VELOCITY = Topic(
+    'gnss/vel', 'geometry_msgs/msg/TwistWithCovarianceStamped', SENSOR_DATA,
+    "input of ground_speed_node: the GNSS receiver's velocity, twist.linear.x east and .y "
+    'north (m/s), as nmea_navsat_driver publishes it; |v| is the speed, its course the yaw rate')
+IMU = Topic(
+    'imu/data', 'sensor_msgs/msg/Imu', SENSOR_DATA,
+    'input of ground_speed_node (yaw_rate_source imu): angular_velocity.z = yaw rate (rad/s, + '
+    'counter-clockwise, REP 103 z up)')
+WHEEL_PULSES = Topic(
+    'wheel_pulses', 'std_msgs/msg/UInt32', SENSOR_DATA,
+    'input of ground_speed_node (source pulses): a wheel or radar pulse counter (wraps at 2^32), '
+    'read at its receive time; pulses_per_metre turns it into a speed')
 SPACING_QUALITY = Topic(
     'spacing_quality', 'std_msgs/msg/Float64MultiArray', OUTPUT,
     "ISO 7256-1 spacing-quality indices since the start: dim[0] 'row' (the machine first, "
@@ -161,6 +175,12 @@ SECTIONS = Topic(
     "rows enabled in the scene (the implicit row of a scene without rows: ''), position = 1 on "
     '(planting), 0 off (section_fields / section_states), velocity and effort empty, stamped '
     'at the switch')
+SEEDLINGS = Topic(
+    'seedlings', 'sensor_msgs/msg/JointState', SENSOR_DATA,
+    "input (optional): each row's seedling sensor (an optical cup / drop-tube sensor), one "
+    'reading per planting cycle before the planting point: name = row_joint(row, mechanism), '
+    'position = seedlings counted (0 empty cup, 1, 2 a double), velocity and effort empty, '
+    'stamped when read (prediction.seedlings)')
 DIAGNOSTICS = Topic(
     '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', STATE,
     'node health, ~1 Hz, absolute as diagnostic_aggregator expects (planter_ros.diagnostics)')
@@ -170,10 +190,10 @@ CLOCK = Topic(
 
 TOPICS = (GROUND_SPEED, DESIGN, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX, PLANTS,
           UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, PLANT_FIXES, PLANT_ROWS, SECTIONS,
-          DIAGNOSTICS, CLOCK)
+          DIAGNOSTICS, CLOCK, SEEDLINGS, GNSS_VELOCITY, IMU, WHEEL_PULSES)
 # what the monitor records: its inputs as they arrived, then its own outputs
 MONITOR_INPUTS = (DESIGN, GROUND_SPEED, JOINT_STATES, SPEED_COMMAND, SPEED_COMMANDS, GNSS_FIX,
-                  SECTIONS, DIAGNOSTICS)
+                  SECTIONS, DIAGNOSTICS, SEEDLINGS)
 MONITOR_OUTPUTS = (PLANTS, UPRIGHTNESS_RATE, SPACING_QUALITY, PLANT_MARKERS, PLANT_FIXES,
                    PLANT_ROWS)
 RECORDED = MONITOR_INPUTS + MONITOR_OUTPUTS
@@ -185,6 +205,9 @@ MAP_RECORD = 'planter_map'
 # MCAP metadata record naming the rows: key 'rows' = JSON list of {index, name, lateral_offset,
 # drive_node_id, enabled}; a plant's `row` field is the index. Absent: one implicit row.
 ROWS_RECORD = 'planter_rows'
+# MCAP metadata record of the crop's acceptance limits the run was judged by
+# (prediction.AcceptanceLimits, name -> repr). Absent: the defaults.
+ACCEPTANCE_RECORD = 'planter_acceptance'
 
 
 @dataclass(frozen=True)

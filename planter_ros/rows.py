@@ -56,6 +56,10 @@ class RowSettings:
                                  'drive', range=(1, 127), read_only=True)
     enabled: bool = setting(True, 'false: the row is never enabled on the bus and plants '
                             'nothing (a unit taken off the machine)', read_only=True)
+    longitudinal_offset: float = setting(0.0, "the row's planting point ahead of the machine's "
+                                         'reference point (behind: negative; a machine file '
+                                         'sets it from the GNSS antenna)', unit='m',
+                                         range=(-50.0, 50.0), read_only=True)
 
     def __post_init__(self):
         check(self)
@@ -71,6 +75,7 @@ class Row:
     lateral_offset: float
     drive_node_id: int | None
     enabled: bool = True
+    longitudinal_offset: float = 0.0     # m, + ahead of the reference point
 
     @property
     def label(self):
@@ -83,7 +88,8 @@ class Row:
 
     def as_dict(self):
         return {'index': self.index, 'name': self.name, 'lateral_offset': self.lateral_offset,
-                'drive_node_id': self.drive_node_id, 'enabled': self.enabled}
+                'drive_node_id': self.drive_node_id, 'enabled': self.enabled,
+                'longitudinal_offset': self.longitudinal_offset}
 
 
 def implicit_row(drive_node_id=None):
@@ -96,7 +102,8 @@ def rows_from_settings(names, settings, default_node_id=None):
     if not names:
         return [implicit_row(default_node_id)]
     rows = [Row(i, name, settings[name].lateral_offset, settings[name].drive_node_id,
-                settings[name].enabled) for i, name in enumerate(names)]
+                settings[name].enabled, settings[name].longitudinal_offset)
+            for i, name in enumerate(names)]
     owner = {}
     for row in rows:
         if row.drive_node_id in owner:
@@ -137,6 +144,7 @@ def rows_from_record(record):
         items = json.loads(record['rows'])
         return [Row(int(r['index']), str(r['name']), float(r['lateral_offset']),
                     None if r.get('drive_node_id') is None else int(r['drive_node_id']),
-                    bool(r.get('enabled', True))) for r in items]
+                    bool(r.get('enabled', True)), float(r.get('longitudinal_offset', 0.0)))
+                for r in items]
     except (KeyError, TypeError, ValueError):
         return None

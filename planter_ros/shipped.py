@@ -5,7 +5,7 @@ found in one place: the clone's `config/`, else the installed share directory
 from pathlib import Path
 import sys
 
-__all__ = ['shipped_file']
+__all__ = ['package_version', 'shipped_file']
 
 PACKAGE = 'planter_ros'
 
@@ -23,3 +23,21 @@ def shipped_file(name: str) -> Path:
         if path.is_file():
             return path
     raise FileNotFoundError(f'{name} not found in: ' + ', '.join(str(p) for p in candidates))
+
+
+def package_version() -> str:
+    """planter_ros's version: the installed distribution's, else the clone's package.xml (the
+    one `--version` of every executable prints). Reads, never writes."""
+    from importlib import metadata
+    try:
+        return metadata.version(PACKAGE)
+    except metadata.PackageNotFoundError:
+        pass
+    import re
+    for path in (Path(__file__).resolve().parents[1] / 'package.xml',
+                 Path(sys.prefix) / 'share' / PACKAGE / 'package.xml'):
+        if path.is_file():
+            found = re.search(r'<version>\s*([^<\s]+)\s*</version>', path.read_text())
+            if found:
+                return found.group(1)
+    return 'unknown'

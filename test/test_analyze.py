@@ -19,7 +19,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from cli_helpers import REPO, run_planter
-from planter_ros.analysis.tables import unflatten, units
+from planter_ros.analysis.tables import plant_dicts, unflatten, units
 from planter_ros.cli.main import main
 from planter_ros.sim.season import draw_plan, simulate_bag, simulate_plan, write_monitor_bag
 
@@ -65,15 +65,27 @@ def local(season):
 
 
 def rows_of(out):
-    return {row['bag']: row for row in pq.read_table(out / 'bags.parquet').to_pylist()}
+    """The bags table by bag key (its path from the analysed root)."""
+    return {row['bag']: row for row in pq.read_table(out / 'bags').to_pylist()}
 
 
 def plants_of(out):
+    """The plants table as replay's JSON plant dicts, by bag key."""
     table = pq.read_table(out / 'plants')
     per_bag = {}
-    for row in table.to_pylist():
-        per_bag.setdefault(row.pop('bag'), []).append(row)
+    for bag, plant in zip(table.column('bag').to_pylist(), plant_dicts(table)):
+        per_bag.setdefault(bag, []).append(plant)
     return per_bag, table
+
+
+def same_plants(got, expected):
+    """Plant dicts equal but the time, which the table holds as a UTC timestamp (ns)."""
+    assert len(got) == len(expected)
+    for a, b in zip(got, expected):
+        assert a.keys() == b.keys()
+        assert abs(a['time'] - b['time']) < 1e-6
+        assert {k: v for k, v in a.items() if k != 'time'} == \
+            {k: v for k, v in b.items() if k != 'time'}
 
 
 def test_every_bag_is_found_once_and_the_tables_are_not(season, local):
@@ -81,7 +93,10 @@ def test_every_bag_is_found_once_and_the_tables_are_not(season, local):
     expected = {season / 'day1' / 'a.mcap', season / 'day1' / 'b.mcap',
                 season / 'day2' / 'machine' / 'c.mcap', season / 'day2' / 'split',
                 season / 'day2' / 'cut.mcap', season / 'day2' / 'garbage.mcap'}
-    assert set(rows_of(out)) == {str(p) for p in expected}
+    # keyed by the path from the analysed root (a moved season still joins)
+    assert set(rows_of(out)) == {p.relative_to(season).as_posix() for p in expected}
+    assert all(row['path'] == str(season / bag) for bag, row in rows_of(out).items()
+               if row['status'] != 'failed')
     assert report['bags_found'] == 6 and report['workers'] == 2
     assert report['analysed'] == 5 and report['failed'] == 1 and report['with_warnings'] == 1
     assert r.returncode == 0
@@ -96,7 +111,7 @@ def test_the_tables_equal_planter_replay_json_of_every_bag(season, local, capsys
     bags = rows_of(out)
     plants, table = plants_of(out)
     for bag, row in bags.items():
-        code = main(['replay', bag, '--json'])
+        code = main(['replay', str(season / bag), '--json'])
         captured = capsys.readouterr()
         if row['status'] == 'failed':
             assert code == 2 and bag not in plants
@@ -104,15 +119,16 @@ def test_the_tables_equal_planter_replay_json_of_every_bag(season, local, capsys
             continue
         assert code == 0
         expected = json.loads(captured.out)
-        assert plants.get(bag, []) == expected.pop('plants'), bag
-        got = unflatten({k: v for k, v in row.items() if k not in OWN})
+        same_plants(plants.get(bag, []), expected.pop('plants'))
+        expected['path'] = expected.pop('bag')
+        got = unflatten({k: v for k, v in row.items() if k not in OWN + ('bag',)})
         assert got == expected, bag
         assert row['status'] == ('warnings' if expected['warnings'] else 'ok')
     assert sum(len(p) for p in plants.values()) == table.num_rows > 100
     # SI units in the schemas
-    assert units(table.schema)['spacing_error'] == 'm'
-    assert table.schema.field('tilt').metadata[b'unit'] == b'rad'
-    bags_units = units(pq.read_schema(out / 'bags.parquet'))
+    assert units(table.schema)['spacing_error_m'] == 'm'
+    assert table.schema.field('tilt_rad').metadata[b'unit'] == b'rad'
+    bags_units = units(pq.read_schema(out / 'bags' / 'bags.parquet'))
     assert bags_units['summary.spacing_error_mean'] == 'm'
     assert bags_units['settings.upright_threshold'] == 'rad' and bags_units['duration'] == 's'
 
@@ -120,12 +136,12 @@ def test_the_tables_equal_planter_replay_json_of_every_bag(season, local, capsys
 def test_a_damaged_bag_is_reported_and_the_rest_analysed(season, local):
     out, r, report = local
     bags = rows_of(out)
-    garbage = bags[str(season / 'day2' / 'garbage.mcap')]
+    garbage = bags['day2/garbage.mcap']
     assert garbage['status'] == 'failed' and 'is not an MCAP file' in garbage['reason']
     assert garbage['plants_file'] is None and '\n' not in garbage['reason']
-    cut = bags[str(season / 'day2' / 'cut.mcap')]
+    cut = bags['day2/cut.mcap']
     assert cut['status'] == 'warnings' and any('not finalised' in w for w in cut['warnings'])
-    whole = bags[str(season / 'day1' / 'a.mcap')]
+    whole = bags['day1/a.mcap']
     assert 0 < cut['summary.plants'] < whole['summary.plants']
     assert report['failures'] == [{'bag': garbage['bag'], 'status': 'failed',
                                    'reason': garbage['reason']}]
@@ -195,13 +211,13 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
     out = tmp_path / 'tables'
     _, first = analyze(season, '--out', out, '--workers', 1)
     assert first['analysed'] + first['failed'] == 6 and first['skipped'] == 0
-    before = (out / 'bags.parquet').read_bytes()
+    before = (out / 'bags' / 'bags.parquet').read_bytes()
     plants, table = plants_of(out)
 
     _, again = analyze(season, '--out', out)
     assert again['skipped'] == 6 and again['analysed'] == again['failed'] == 0
     assert again['workers'] == 0                       # no cluster started for nothing
-    assert (out / 'bags.parquet').read_bytes() == before
+    assert (out / 'bags' / 'bags.parquet').read_bytes() == before
 
     changed = season / 'day1' / 'b.mcap'
     stat = changed.stat()
@@ -209,7 +225,7 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
     _, third = analyze(season, '--out', out, '--workers', 1)
     assert third['skipped'] == 5 and third['analysed'] == 1
     rows = rows_of(out)
-    assert rows[str(changed)]['file_mtime_ns'] == stat.st_mtime_ns + 1_000_000_000
+    assert rows['day1/b.mcap']['file_mtime_ns'] == stat.st_mtime_ns + 1_000_000_000
     assert plants_of(out)[0] == plants                 # the same plants, none twice
 
     _, forced = analyze(season, '--out', out, '--workers', 1, '--force')
@@ -229,8 +245,8 @@ def test_out_into_a_bad_place_is_refused_before_any_work(season, tmp_path, capsy
     (tmp_path / 'notes.txt').write_text('mine\n')
     (tmp_path / 'foreign').mkdir()
     (tmp_path / 'foreign' / 'photo.jpg').write_bytes(b'\xff\xd8')
-    (tmp_path / 'broken').mkdir()
-    (tmp_path / 'broken' / 'bags.parquet').write_bytes(b'not parquet')
+    (tmp_path / 'broken' / 'bags').mkdir(parents=True)
+    (tmp_path / 'broken' / 'bags' / 'bags.parquet').write_bytes(b'not parquet')
     cases = {tmp_path / 'notes.txt': 'exists and is not a directory',
              tmp_path / 'missing' / 'out': 'does not exist',
              tmp_path / 'foreign': 'holds other files',
@@ -273,3 +289,81 @@ def test_no_bags_and_no_scheduler_are_refused(tmp_path, capsys, monkeypatch):
     assert 'cannot connect' in err and err.count('\n') == 1
     assert not (tmp_path / 'out').exists()            # made for nothing: removed again
     shutil.rmtree(tmp_path / 'empty')
+
+
+def test_tables_people_read_with_pandas_dask_and_duckdb(season, local, tmp_path):
+    """Row names, UTC times, integer and boolean types, units; each table in its own folder;
+    the reads doc/analysis.md shows; a season moved elsewhere still joins (nothing redone)."""
+    import dask.dataframe as dd
+    import duckdb
+    import pandas as pd
+    out, _, _ = local
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ['bags', 'plants']
+    schema = pq.read_schema(next((out / 'plants').glob('*.parquet')))
+    assert str(schema.field('upright').type) == 'bool'
+    assert str(schema.field('input_gap').type) == 'bool'
+    assert str(schema.field('status').type) == 'string'
+    plants = pd.read_parquet(out / 'plants')
+    assert str(plants['index'].dtype) == 'int64' and str(plants['row'].dtype) == 'int64'
+    # upright is null for an instant in an input gap: pandas' nullable boolean
+    nullable = pd.read_parquet(out / 'plants', dtype_backend='numpy_nullable')
+    assert str(nullable['upright'].dtype) == 'boolean'
+    assert nullable['upright'].isna().sum() == plants['input_gap'].sum() > 0
+    assert str(plants['time_utc'].dtype).startswith('datetime64[ns, UTC]')
+    assert plants['time_utc'].min() > pd.Timestamp('2000-01-01', tz='UTC')
+    four = plants[plants['bag'] == 'day1/a.mcap']
+    assert sorted(four['row_name'].unique()) == sorted(
+        r['name'] for r in rows_of(out)['day1/a.mcap']['rows'])
+    assert set(plants[plants['bag'] == 'day1/b.mcap']['row_name']) <= {'row', 'center'} or \
+        plants[plants['bag'] == 'day1/b.mcap']['row_name'].str.len().min() > 0
+    bags = pd.read_parquet(out / 'bags')
+    assert str(bags['analysed_at'].dtype).startswith('datetime64[ns, UTC]')
+    lazy = dd.read_parquet(str(out / 'plants'))
+    assert len(lazy) == len(plants)
+    per_row = duckdb.sql(
+        f"SELECT bag, row_name, count(*) AS plants, avg(hole_width_m) AS hole_m "
+        f"FROM read_parquet('{out}/plants/*.parquet') GROUP BY ALL").df()
+    assert per_row['plants'].sum() == len(plants)
+    # units: every number of either table has one (schema metadata), the ambiguous in the name
+    for table in (pq.read_table(out / 'plants'), pq.read_table(out / 'bags')):
+        known = units(table.schema)
+        numbers = [f.name for f in table.schema if str(f.type) in ('double', 'int64')]
+        assert [n for n in numbers if n not in known] == []
+    # moved: the same keys, nothing analysed again
+    shutil.copytree(out, tmp_path / 'tables')
+    analyze(season, '--out', tmp_path / 'tables', '--workers', 1)     # up to date (other tests
+    moved = tmp_path / 'moved'                                          # touch the season)
+    shutil.copytree(season, moved, ignore=shutil.ignore_patterns('tables'))
+    _, again = analyze(moved, '--out', tmp_path / 'tables', '--workers', 1)
+    assert again['skipped'] == 6 and again['analysed'] == 0
+
+
+def test_the_season_report_per_field_day_and_row_and_its_html(season, local, tmp_path):
+    """`planter analyze` prints one line per field, day and row (instants, ISO indices,
+    uprightness, hole width, verdict naming what failed) and writes one self-contained HTML
+    report next to the tables: its figures embedded, nothing fetched from elsewhere."""
+    import re
+
+    import pandas as pd
+    out, _, report = local
+    html_path = Path(report['report'])
+    assert html_path == out / 'report.html' and html_path.is_file()
+    r = run_planter('analyze', season, '--out', out, timeout=300)   # nothing to do: printed
+    assert r.returncode == 0, r.stderr[-2000:]
+    lines = r.stdout.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.split()[:2] == ['field', 'day'])
+    end = lines.index(f'season report: {html_path}')
+    table = lines[head + 1:end]
+    plants = pd.read_parquet(out / 'plants')
+    plants['field'] = [str(Path(b).parent) for b in plants['bag']]
+    plants['day'] = plants['time_utc'].dt.strftime('%Y-%m-%d')
+    groups = plants.groupby(['field', 'day', 'row_name']).size()
+    assert len(table) == len(groups)
+    for line in table:
+        field, day, row, instants = line.split()[:4]
+        assert groups[(field, day, row)] == int(instants)
+        assert ' PASS' in line or re.search(r' FAIL  \((max|min)_\w+', line), line
+    text = html_path.read_text()
+    assert text.count('<img alt="figure" src="data:image/png;base64,') >= 3
+    assert not re.search(r'(src|href)="(?!data:)', text)              # self-contained
+    assert text.count('<tr class=') == len(groups)

@@ -107,8 +107,9 @@ def test_any_five_bar_in_range_is_a_finite_design_or_a_one_line_refusal(depth, s
     argv = ['design', 'five-bar', '--depth', repr(depth), '--spacing', repr(spacing),
             '--hole-ratio', repr(ratio), '--method', method, '--speed', repr(speed), '--json']
     code, out, err, caught = run(argv)
-    if code == 0:
-        assert err == '' and caught == [], (argv, err, caught)
+    if code == 0:       # an unusual value is a warning line (planter_ros.plausibility), no more
+        assert caught == [] and all(line.startswith('planter: warning: ')
+                                    for line in err.splitlines()), (argv, err, caught)
 
         def no_constant(name):
             raise AssertionError(f'{name} printed by {argv}')

@@ -50,21 +50,31 @@ def chunked(tmp_path_factory):
 
 
 def assert_gap_respected(damaged, full, lo, hi):
-    """Replay of the damaged bag = the full replay outside the lost range; nothing inside it;
+    """Replay of the damaged bag = the full replay outside the lost range; every planting
+    instant inside it is still there, flagged `input_gap` (its time and position interpolated);
     the first plant after it starts a new sequence (no spacing)."""
-    assert not np.any((damaged.plants.time > lo) & (damaged.plants.time < hi))
-    keep = (full.plants.time < lo) | (full.plants.time > hi)
-    assert (full.plants.time[~keep]).size >= 1                  # plants were lost
-    np.testing.assert_allclose(damaged.plants.time, full.plants.time[keep], rtol=0, atol=1e-9)
-    after = int(np.argmax(damaged.plants.time > hi))
+    flagged = damaged.plants.input_gap == 1
+    inside = (damaged.plants.time > lo) & (damaged.plants.time < hi)
+    assert np.all(flagged[inside]) and flagged.sum() >= 1
+    plain = ~flagged
+    distance = np.abs(full.plants.time[:, None] - damaged.plants.time[plain][None, :])
+    lost = distance.min(axis=1) > 1e-9
+    assert lost.sum() == flagged.sum()                     # every instant accounted for
+    assert np.all((full.plants.time[lost] > lo - 1.0) & (full.plants.time[lost] < hi + 1.0))
+    np.testing.assert_allclose(damaged.plants.time[plain], full.plants.time[~lost], rtol=0,
+                               atol=1e-9)
+    after = int(np.argmax(plain & (damaged.plants.time > hi)))
     assert np.isnan(damaged.plants.spacing[after])
-    assert np.isnan(damaged.plants.spacing).sum() == 2         # the very first, and this one
+    # the very first, the flagged ones and the first after them
+    assert np.isnan(damaged.plants.spacing).sum() == 2 + flagged.sum()
     # before the gap the same plants; after it the same spacing (the distance travelled
     # across the gap is unknown, so positions there are estimates)
-    kept = full.plants.table()[keep]
-    np.testing.assert_allclose(damaged.plants.table()[:after], kept[:after], rtol=0, atol=1e-9,
-                               equal_nan=True)
-    np.testing.assert_allclose(damaged.plants.spacing[after + 1:], kept[after + 1:, 3], rtol=0,
+    kept = full.plants.table()[~lost]
+    first = int(np.argmax(flagged))
+    np.testing.assert_allclose(damaged.plants.table()[:first], kept[:first], rtol=0,
+                               atol=1e-9, equal_nan=True)
+    np.testing.assert_allclose(damaged.plants.spacing[after + 1:],
+                               full.plants.spacing[~lost][after + 1 - flagged.sum():], rtol=0,
                                atol=1e-9)
 
 
@@ -97,12 +107,18 @@ def test_a_file_without_summary_resynchronises_after_damage(chunked, tmp_path):
     assert any('cut off' in w and 'logged after' in w for w in bad.warnings), bad.warnings
     lo, hi = hit.message_start_time * 1e-9, hit.message_end_time * 1e-9
     end = chunks[-2].message_end_time * 1e-9
-    assert not np.any((bad.plants.time > lo) & (bad.plants.time < hi))
+    flagged = bad.plants.input_gap == 1                         # interpolated in the gap
+    assert np.all(flagged[(bad.plants.time > lo) & (bad.plants.time < hi)])
     assert np.any(bad.plants.time > hi + 1.0)                  # read on past the damage
     expected = full.plants.time[((full.plants.time < lo) | (full.plants.time > hi))
                                 & (full.plants.time < end)]
-    assert expected.size - 1 <= len(bad.plants) <= expected.size
-    np.testing.assert_allclose(bad.plants.time, expected[:len(bad.plants)], rtol=0, atol=1e-9)
+    # every plant read is one of the full replay's; a plant next to the lost range or the cut
+    # may be lost too (the joint sample after its instant was in the lost bytes), no other
+    distance = np.abs(bad.plants.time[~flagged][:, None] - expected[None, :])
+    assert np.all(distance.min(axis=1) <= 1e-9)
+    missing = expected[distance.min(axis=0) > 1e-9]
+    assert missing.size <= 2, missing
+    assert all(lo - 1.0 <= t <= hi + 1.0 or t >= end - 1.0 for t in missing), (missing, lo, hi)
 
 
 def test_a_flipped_byte_in_the_first_chunk_keeps_the_other_fourteen(tmp_path):

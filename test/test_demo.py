@@ -220,7 +220,8 @@ def check_map_files(tmp_path, bag, result):
         mine = [f for f in features if f['properties']['row_name'] == name]
         assert all(f['type'] == 'Feature' and f['geometry']['type'] == 'Point' for f in mine)
         assert set(mine[0]['properties']) == {'row', 'row_name', 'index', 'time', 'spacing',
-                                              'spacing_error', 'hole_width', 'tilt', 'upright'}
+                                              'spacing_error', 'hole_width', 'tilt', 'upright',
+                                              'status', 'reason', 'input_gap'}
         lon, lat = np.array([f['geometry']['coordinates'] for f in mine]).T
         assert np.all((np.abs(lat - 52.0) < 0.01) & (np.abs(lon - 5.0) < 0.01))  # [lon, lat]
         step = geodesic_distance(lon[:-1], lat[:-1], lon[1:], lat[1:])

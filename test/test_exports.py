@@ -152,7 +152,7 @@ def test_every_dbf_name_fits_and_new_record_keys_become_columns(result, tmp_path
         record['seedling_height'] = 0.1 + 0.001 * i            # a new number
         record['seedling_heavy'] = i % 2 == 0                   # a new flag
     columns = [a.name for a, _ in attributes_of(run.records)]
-    assert columns[-4:] == ['status', 'reason', 'seedling_h', 'seedling_1']
+    assert columns[-5:] == ['status', 'reason', 'input_gap', 'seedling_h', 'seedling_1']
     shp = tmp_path / 'status.shp'
     write_shapefile(shp, [run])
     _, _, read = read_gdal(shp)

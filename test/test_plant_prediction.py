@@ -282,9 +282,11 @@ def _live(model, settings, st, sv, jt, jp, jw):
                                live.add_joint(jt[i], jp[i], jw[i]) for _, kind, i in arrivals])
 
 
-def test_a_gap_in_the_inputs_reports_no_plant_inside_it_and_restarts_the_spacing():
-    """Joint states lost for 1.4 s and, later, ground speed lost for 1.2 s: no plant is invented
-    across either gap, the first plant after each has no spacing, live and replay agree."""
+def test_a_gap_in_the_inputs_reports_every_instant_inside_it_flagged_and_restarts_the_spacing():
+    """Joint states lost for 1.4 s and, later, ground speed lost for 1.2 s: every planting
+    instant inside either gap is still reported (the shaft angle says how many), flagged
+    `input_gap`, with no hole, tilt, upright or spacing; the first plant after each has no
+    spacing; live and replay agree."""
     run = simulate_run(five_bar_design_message(), duration=20.0, seed=3)
     model = planting_model_from_design(run.design)
     settings = PredictionSettings()
@@ -297,17 +299,23 @@ def test_a_gap_in_the_inputs_reports_no_plant_inside_it_and_restarts_the_spacing
     inputs = (run.speed_t[sk], run.speed_v[sk], run.joint_t[jk], run.joint_pos[jk],
               run.joint_vel[jk])
     cut = predict_plants(*inputs, model, settings)
+    assert len(cut) == len(full) and not np.any(full.input_gap)       # none lost
+    flagged = cut.input_gap == 1
+    inside = np.zeros(len(full), dtype=bool)
     for lo, hi in (j_gap, s_gap):
-        assert np.any((full.time > lo) & (full.time < hi))          # plants were set there
-        assert not np.any((cut.time > lo - 0.05) & (cut.time < hi + 0.05))
+        inside |= (full.time > lo) & (full.time < hi)
+    assert inside.sum() >= 2 and np.array_equal(flagged, inside)
+    for field in ('hole_width', 'tilt', 'upright', 'spacing', 'speed_ratio'):
+        assert np.all(np.isnan(getattr(cut, field)[flagged])), field
+    assert np.all(cut.reason[flagged] == 3) and np.all(cut.status == 3)
+    # interpolated: in the joint gap the instant within a sample interval's share of the gap
+    assert np.max(np.abs(cut.time[flagged] - full.time[flagged])) < 0.5
+    assert np.max(np.abs(cut.position[flagged] - full.position[flagged])) < 0.1
     # outside the gaps the same plants, at the same instants
-    outside = np.ones(len(full), dtype=bool)
-    for lo, hi in (j_gap, s_gap):
-        outside &= (full.time < lo - 0.1) | (full.time > hi + 0.1)
-    np.testing.assert_allclose(cut.time, full.time[outside], rtol=0, atol=1e-9)
-    restarted = [0] + [int(np.argmax(cut.time > hi)) for _, hi in (j_gap, s_gap)]
-    assert np.all(np.isnan(cut.spacing[restarted]))
-    assert np.isnan(cut.spacing).sum() == 3
+    np.testing.assert_allclose(cut.time[~flagged], full.time[~flagged], rtol=0, atol=1e-9)
+    after = [int(np.argmax(cut.time > hi)) for _, hi in (j_gap, s_gap)]
+    assert np.all(np.isnan(cut.spacing[[0] + after]))
+    assert np.isnan(cut.spacing).sum() == 3 + flagged.sum()
     assert np.all(np.diff(cut.index) == 1)                            # numbering goes on
     np.testing.assert_allclose(_live(model, settings, *inputs).table(), cut.table(), rtol=0,
                                atol=1e-12, equal_nan=True)
@@ -345,11 +353,14 @@ def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
     batch = predict_plants(*inputs, model, prediction)
     np.testing.assert_allclose(_live(model, prediction, *inputs).table(), batch.table(),
                                rtol=0, atol=1e-12, equal_nan=True)
-    # no reported plant lies inside a gap longer than the setting
+    # a plant inside a gap longer than the setting is flagged and has no figures, none other
+    inside = np.zeros(len(batch), dtype=bool)
     for t in (inputs[0], inputs[2]):
         k = np.nonzero(np.diff(t) > max_gap)[0]
         for lo, hi in zip(t[k], t[k + 1]):
-            assert not np.any((batch.time > lo) & (batch.time < hi))
+            inside |= (batch.time > lo) & (batch.time < hi)
+    assert np.array_equal(batch.input_gap == 1, inside)
+    assert np.all(np.isnan(batch.hole_width[inside]))
 
 
 _GAP_RUN = simulate_run(five_bar_design_message(), duration=20.0, seed=5)

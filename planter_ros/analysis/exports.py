@@ -11,7 +11,6 @@ Both are rebuilt from the tables (bags.parquet and plants/) whenever a run analy
 one of them is missing, so they always hold what the tables hold.
 """
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -26,14 +25,14 @@ __all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'format_exports', 'season_exports',
 
 def season_runs(out):
     """ExportRuns (export.runs) of every analysed bag in the tables under `out`, in the bags
-    table's order; a bag's name is its path from the bags' common directory."""
-    import pyarrow as pa
+    table's order; a bag's name is its key, its path from the analysed root."""
     import pyarrow.parquet as pq
 
     from planter_ros.export.runs import run_of_plants
     from planter_ros.prediction import PLANT_FIELDS, Plants
 
     from .season import ANALYSED, BAGS_FILE, PLANTS_DIR, read_bags
+    from .tables import plant_columns
     out = Path(out)
     bags = [row for row in read_bags(out / BAGS_FILE)
             if row.get('status') in ANALYSED and row.get('plants_file')]
@@ -41,22 +40,16 @@ def season_runs(out):
         return []
     table = pq.read_table(out / PLANTS_DIR)
     keys = table.column('bag').to_numpy(zero_copy_only=False)
-    columns = np.column_stack([
-        table.column(f).cast(pa.float64()).to_numpy(zero_copy_only=False)
-        if f in table.column_names else np.full(table.num_rows, np.nan) for f in PLANT_FIELDS])
+    columns = np.column_stack(plant_columns(table, PLANT_FIELDS))
     names, inverse = np.unique(keys, return_inverse=True)
     where = {name: np.flatnonzero(inverse == i) for i, name in enumerate(names)}
-    paths = [row['bag'] for row in bags]
-    root = os.path.commonpath([os.path.dirname(p) for p in paths]) if len(paths) > 1 else \
-        os.path.dirname(paths[0])
     runs = []
     for row in bags:
         rows = row.get('rows') or [{'index': 0, 'name': ''}]
         quality = {r['index']: (r.get('summary') or {}).get('spacing_quality') or {}
                    for r in rows}
         plants = Plants.from_table(columns[where.get(row['bag'], np.zeros(0, dtype=int))])
-        runs.append(run_of_plants(os.path.relpath(row['bag'], root) if root else row['bag'],
-                                  plants, [(r['index'], r['name']) for r in rows],
+        runs.append(run_of_plants(row['bag'], plants, [(r['index'], r['name']) for r in rows],
                                   row.get('summary.design_spacing'), quality))
     return runs
 

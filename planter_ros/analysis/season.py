@@ -1,23 +1,29 @@
 """A season's analysis under --out: the tables, the re-run rule and the incremental writes.
 
-Layout of the output directory:
+Layout of the output directory (each table in a folder of its own):
 
-    bags.parquet                 one row per bag (analysis.tables), replaced atomically
+    bags/bags.parquet            one row per bag (analysis.tables), replaced atomically
     plants/part-<run>-<n>.parquet  the plants dataset: each write adds one part holding the
                                  plants of the bags completed since the previous write
     as_planted.zip, TASKDATA.zip the season for farm software (analysis.exports)
+    report.html                  the season report (analysis.report)
+
+Bags are keyed by their path relative to the analysed root (`bag_keys`: the directory given,
+or the common directory of the paths given), so a season moved elsewhere still joins and is
+not analysed again.
 
 A run holds a lock on the directory itself (flock on its descriptor) while it writes, so a
 second run on it is refused; the kernel drops it however the run ends, and no lock file is left
 behind (the `.planter-analyze.lock` of earlier versions is removed).
 
-The bags table is the truth: a bag's plants are the rows of its `plants_file` whose `bag` is it.
-A bag is analysed again unless the table holds it with the same key (BagKey: path, size,
-modification time, model version, options = the settings given and the fallback scene's design)
-or `force`. Before the work starts, the rows of every bag to be analysed again are removed from
-both tables, and so are rows no bag of the table claims (an interrupted write), so the tables
-never hold a bag twice. Results are written as they complete, every FLUSH_SECONDS at least (a
-larger table is rewritten less often), so an interrupted run keeps what it finished.
+The bags table is the truth: a bag's plants are the rows of its
+`plants_file` whose `bag` is it. A bag is analysed again unless the table holds it with the
+same key (BagKey: key, size, modification time, model version, options = the settings given and
+the fallback scene's design) or `force`. Before the work starts, the rows of every bag to be
+analysed again are removed from both tables, and so are rows no bag of the table claims (an
+interrupted write), so the tables never hold a bag twice. Results are written as they complete,
+every FLUSH_SECONDS at least (a larger table is rewritten less often), so an interrupted run
+keeps what it finished.
 """
 
 from dataclasses import dataclass, field
@@ -35,10 +41,13 @@ from . import tables
 from .bags import identity
 from .exports import EXPORTS
 
-BAGS_FILE = 'bags.parquet'
+BAGS_DIR = 'bags'
+BAGS_FILE = f'{BAGS_DIR}/bags.parquet'
 PLANTS_DIR = 'plants'
 LOCK_FILE = '.planter-analyze.lock'            # earlier versions' lock: removed when seen
-OWNED = (BAGS_FILE, PLANTS_DIR, LOCK_FILE) + EXPORTS
+REPORT_FILE = 'report.html'
+LEGACY_BAGS_FILE = 'bags.parquet'     # where an older planter analyze put the bags table
+OWNED = (BAGS_DIR, PLANTS_DIR, LOCK_FILE, REPORT_FILE, LEGACY_BAGS_FILE) + EXPORTS
 FLUSH_SECONDS = 2.0          # s between two writes of the tables, at least
 FLUSH_BAGS = 2000            # bags completed that force a write
 # status of a bag row: replayed (with or without warnings), refused by replay, a model error
@@ -48,19 +57,37 @@ STATUSES = ('ok', 'warnings', 'failed', 'error')
 
 @dataclass(frozen=True)
 class BagKey:
-    """What a bag's analysis depends on: a re-run skips a bag whose key is unchanged."""
+    """What a bag's analysis depends on: a re-run skips a bag whose key is unchanged. `bag`:
+    the path relative to the analysed root (the tables' key); `path`: where it is read."""
 
     bag: str
     file_size: int
     file_mtime_ns: int
     model_version: str
     options: str
+    path: str = ''
 
     def matches(self, row):
         return (row.get('file_size') == self.file_size
                 and row.get('file_mtime_ns') == self.file_mtime_ns
                 and row.get('model_version') == self.model_version
                 and row.get('options') == self.options)
+
+
+def analysed_root(paths):
+    """The directory the bags' keys are relative to: the directory given, a file's own
+    directory, the common directory of several."""
+    roots = []
+    for given in paths:
+        path = Path(given).resolve()
+        roots.append(str(path if path.is_dir() else path.parent))
+    return Path(os.path.commonpath(roots)) if roots else Path('.').resolve()
+
+
+def bag_keys(bags, root):
+    """{bag path: its key}: the path relative to `root`, '/'-separated."""
+    root = Path(root)
+    return {str(bag): Path(os.path.relpath(bag, root)).as_posix() for bag in bags}
 
 
 def options_key(overrides, design):
@@ -101,7 +128,7 @@ class Report:
                 else None,
                 'failures': [{'bag': b, 'status': s, 'reason': r} for b, s, r in self.failures],
                 'lost': [{'bag': b, 'reason': r} for b, r in self.not_done],
-                'tables': {'bags': str(Path(self.out) / BAGS_FILE),
+                'tables': {'bags': str(Path(self.out) / BAGS_DIR),
                            'plants': str(Path(self.out) / PLANTS_DIR)}}
 
 
@@ -145,8 +172,9 @@ def read_bags(file, option='--out'):
 class Season:
     """The tables under one output directory, held (locked) while a run writes them."""
 
-    def __init__(self, out):
+    def __init__(self, out, root=None):
         self.out = Path(out)
+        self.root = root
         self.created = not self.out.exists()
         self.out.mkdir(exist_ok=True)
         self._lock = os.open(self.out, os.O_RDONLY | os.O_DIRECTORY)
@@ -159,6 +187,12 @@ class Season:
         (self.out / LOCK_FILE).unlink(missing_ok=True)
         self.plants_dir = self.out / PLANTS_DIR
         self.plants_dir.mkdir(exist_ok=True)
+        (self.out / BAGS_DIR).mkdir(exist_ok=True)
+        legacy = self.out / LEGACY_BAGS_FILE      # absolute keys: every bag is analysed again
+        if legacy.is_file():
+            legacy.unlink()
+            for part in self.plants_dir.glob('part-*.parquet'):
+                part.unlink()
         file = self.out / BAGS_FILE
         self.rows = {row['bag']: row for row in read_bags(file)} if file.exists() else {}
         self._run = time.strftime('%Y%m%dT%H%M%S') + f'-{os.getpid()}'
@@ -176,6 +210,7 @@ class Season:
         if self.created and not self.rows:
             try:
                 self.plants_dir.rmdir()
+                (self.out / BAGS_DIR).rmdir()
                 self.out.rmdir()
             except OSError:          # something was put there meanwhile: leave it
                 pass
@@ -188,11 +223,11 @@ class Season:
 
     def plan(self, bags, version, options, force=False):
         """(keys of the bags to analyse, number skipped): a bag is skipped when its row has
-        the same key and its plants part is there."""
+        the same key and its plants part is there. `bags`: {path: key} (bag_keys)."""
         todo, skipped = [], 0
-        for bag in bags:
+        for bag, name in bags.items():
             size, mtime = identity(bag)
-            key = BagKey(str(bag), size, mtime, version, options)
+            key = BagKey(name, size, mtime, version, options, str(bag))
             row = self.rows.get(key.bag)
             part = row and row.get('plants_file')
             if (not force and row is not None and key.matches(row)
@@ -245,7 +280,8 @@ class Season:
 
     def write_bags(self):
         import pyarrow.parquet as pq
-        table = tables.table_of([self.rows[bag] for bag in sorted(self.rows)], tables.BAGS)
+        table = tables.table_of([self.rows[bag] for bag in sorted(self.rows)], tables.BAGS,
+                                self.root)
         with atomic_output(self.out / BAGS_FILE) as tmp:
             pq.write_table(table, tmp)
 
@@ -258,7 +294,8 @@ def run(season, client, keys, overrides, design, progress=None):
     report = Report(out=str(season.out))
     if design is not None:                   # one copy per worker, not one per task
         design = client.scatter(design, broadcast=True)
-    arguments = [(k.bag, (k.file_size, k.file_mtime_ns), k.options) for k in keys]
+    arguments = [(k.path or k.bag, k.bag, (k.file_size, k.file_mtime_ns), k.options)
+                 for k in keys]
     pending, last_write, write_cost = [], time.monotonic(), 0.0
     started = time.monotonic()
     done = 0

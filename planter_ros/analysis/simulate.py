@@ -10,7 +10,46 @@ from .engine import check_workers, cluster, completed
 from .progress import Progress
 from .task import model_version, warm_up
 
-__all__ = ['check_path', 'simulate_season']
+__all__ = ['check_path', 'scene_machine', 'season_machine', 'simulate_scene_bag',
+           'simulate_season']
+
+DEFAULT_ROWS = 4
+
+
+def season_machine(scene, rows):
+    """(the scene file as an absolute path or None, the machine's rows) of `planter simulate`'s
+    --scene and --rows (None: not given): ConfigError (one line) for both, or a bad scene."""
+    from planter_ros.config import ConfigError
+    if not scene:
+        return None, DEFAULT_ROWS if rows is None else rows
+    if rows is not None:
+        raise ConfigError(f'--rows = {rows} with --scene: allowed one of them (the scene\'s '
+                          "rows are its machine's)")
+    return str(Path(scene).resolve()), len(scene_machine(scene).rows)
+
+
+def scene_machine(scene):
+    """The sim.season.SceneMachine of a scene file (SceneError, DesignError: one line)."""
+    from planter_ros.config import from_mapping
+    from planter_ros.prediction import PredictionSettings
+    from planter_ros.scene import open_scene
+    from planter_ros.sim.season import SceneMachine
+    opened = open_scene(scene)
+    design = opened.design()
+    monitor = opened.parameters('monitor_node')
+    nominal = float(opened.parameters('design_node').get('nominal_ground_speed', 0.2))
+    return SceneMachine(design, tuple(opened.rows()),
+                        from_mapping(PredictionSettings, monitor), opened.acceptance(),
+                        opened.antenna(), (0.75 * nominal, 1.5 * nominal))
+
+
+def simulate_scene_bag(path, seed, index, duration, rows, scene=None, empty_rate=0.0,
+                       double_rate=0.0):
+    """sim.season.simulate_bag with the machine of the scene file `scene` (None: `rows`
+    rows of the default machine): a task of `planter simulate` on a worker."""
+    from planter_ros.sim.season import simulate_bag
+    return simulate_bag(path, seed, index, duration, rows,
+                        scene_machine(scene) if scene else None, empty_rate, double_rate)
 
 
 def check_path(path, names):
@@ -35,10 +74,12 @@ def check_path(path, names):
 
 
 def simulate_season(path: Path, names: list[str], seed: int, duration: float, rows: int,
-                    workers_wanted: int | None, scheduler: str | None):
-    """Write the bags `names` under `path`: (report, the runs written, [(name, error)]).
-    EngineError when the cluster cannot be had."""
-    from planter_ros.sim.season import bag_name, simulate_bag
+                    workers_wanted: int | None, scheduler: str | None, scene: str | None = None,
+                    tray: tuple = (0.0, 0.0)):
+    """Write the bags `names` under `path`: (report, the runs written, [(name, error)]), each
+    of a `rows`-row machine or of the machine of the scene file `scene` (checked by the
+    caller), its tray (empty rate, double rate). EngineError when the cluster cannot be had."""
+    from planter_ros.sim.season import bag_name
     version = model_version()
     where = scheduler or 'the local cluster'
     written, errors = [], []
@@ -48,9 +89,9 @@ def simulate_season(path: Path, names: list[str], seed: int, duration: float, ro
         progress = Progress(len(names), what='bags', label='planter simulate')
         started = time.monotonic()
         try:
-            arguments = [(str(path.resolve() / name), seed, k, duration, rows)
+            arguments = [(str(path.resolve() / name), seed, k, duration, rows, scene, *tray)
                          for k, name in enumerate(names)]
-            for i, result, error in completed(client, simulate_bag, arguments):
+            for i, result, error in completed(client, simulate_scene_bag, arguments):
                 if error is None:
                     written.append(result)
                 else:
@@ -64,7 +105,8 @@ def simulate_season(path: Path, names: list[str], seed: int, duration: float, ro
     run_seconds = sum(r['duration'] for r in written)
     size = sum((path / bag_name(seed, r['run'])).stat().st_size for r in written)
     report = {'path': str(path), 'bags': len(written), 'failed': len(errors),
-              'seed': seed, 'duration': duration, 'rows': rows,
+              'seed': seed, 'duration': duration, 'rows': rows, 'scene': scene,
+              'empty_rate': tray[0], 'double_rate': tray[1],
               'workers': workers, 'seconds': seconds, 'bag_seconds': run_seconds,
               'times_real_time': run_seconds / seconds if seconds > 0 else None,
               'bytes': size, 'messages': sum(r['messages'] for r in written),

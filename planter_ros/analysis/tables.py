@@ -1,24 +1,31 @@
-"""The season's two tables as Arrow (pyarrow), built generically from `planter replay --json`.
+"""The season's tables as Arrow (pyarrow), built from `planter replay --json`, for people:
+each in its own folder (`bags/`, `plants/`), so `**/*.parquet` never mixes them.
 
-* `plants`: one row per plant, the column `bag` (the bag's absolute path) then every key of
-  the JSON's plant dicts, in their order (PLANT_FIELDS today; a field the model gains is a new
-  column without a change here). Values as in the JSON: numbers, null where the JSON has null
-  (a non-finite value, e.g. the first plant's spacing).
-* `bags`: one row per bag: `bag`, `status` (ok | warnings | failed | error), `reason` (one
-  line, null unless failed or error), the re-run key (`file_size`, `file_mtime_ns`,
-  `model_version`, `options`), `analysed_at`, `analysis_seconds`, `analysis_cpu_seconds`,
-  `plants_file` (the part of the plants dataset holding the bag's rows), then the replay JSON
-  without its plants, flattened: nested objects become dotted columns
-  (`summary.spacing_error_mean`, `settings.window`, `design.l1`, `messages.joint_states`),
-  lists stay lists (`warnings`, `rows` = each row's record and summary).
+* `plants`: one row per plant: `bag` (the bag's path relative to the analysed root, so a season
+  moved elsewhere still joins), then the JSON's plant fields under names that carry their unit
+  (PLANTS_COLUMNS): `index` and `row` int64, `row_name` (text: the row's name, `row` for a
+  machine without named rows) after `row`, `time_utc` a UTC timestamp (ns; the planting instant
+  on the recording's clock, ROS time = s since 1970-01-01 UTC), `upright` bool, lengths `_m`,
+  speeds `_m_s` and `_rad_s`, `tilt_rad`, `latitude_deg` / `longitude_deg`, `input_gap` bool,
+  `seedlings` int64, `status` and `reason` as text (prediction.seedlings). A field the model
+  gains later is a new column under its JSON name. Null where the JSON has null (the first
+  plant's spacing). `plant_dicts` turns a table back into the JSON's plant dicts.
+* `bags`: one row per bag: `bag` (relative, as in plants), `status` (ok | warnings | failed |
+  error), `reason` (one line, null unless failed or error), the re-run key (`file_size`,
+  `file_mtime_ns`, `model_version`, `options`), `analysed_at` (UTC timestamp),
+  `analysis_seconds`, `analysis_cpu_seconds`, `plants_file` (the part of the plants dataset
+  holding the bag's rows), then the replay JSON without its plants, flattened: nested objects
+  become dotted columns (`summary.spacing_error_mean`, `settings.window`, `design.l1`,
+  `messages.joint_states`), lists stay lists (`warnings`, `rows` = each row's record and
+  summary). The JSON's own `bag` (the path replay read) is `path`.
 
 Column types: numbers are float64 (int64 when every value is an integer), booleans bool, text
 string, a column of nulls only float64, anything else as pyarrow infers it. Units (SI; '1' =
 dimensionless) go into each field's metadata (`unit`) and into the schema metadata
-(`planter_ros` = JSON {"table", "units"}), from UNITS by the column's last dotted part, a
-summary statistic (`..._mean`, `_std`, `_max`, `_min`) taking its quantity's unit, the
-prediction settings' units from their declarations. A column the table does not know has no
-unit.
+(`planter_ros` = JSON {"table", "units", "root"}), from UNITS by the column's last dotted part
+(a unit suffix `_m`, `_rad` ... of a people's name taken off first), a summary statistic
+(`..._mean`, `_std`, `_max`, `_min`) taking its quantity's unit, the prediction settings' and
+acceptance limits' units from their declarations. A column the table does not know has no unit.
 """
 
 import json
@@ -37,9 +44,36 @@ UNITS = {
     'plants': '1', 'design_spacing': 'm', 'duration': 's', 'file_size': 'B',
     'file_mtime_ns': 'ns since the epoch', 'analysis_seconds': 's',
     'analysis_cpu_seconds': 's', 'lateral_offset': 'm',
-    'analysed_at': 's since the epoch', 'plant_spacing': 'm', 'planting_depth': 'm',
-    'nominal_ground_speed': 'm/s',
+    'analysed_at': 'UTC timestamp', 'plant_spacing': 'm', 'planting_depth': 'm',
+    'nominal_ground_speed': 'm/s', 'time_utc': 'UTC timestamp',
+    'nozzle_width': 'm', 'drive_node_id': '1', 'spacings': '1', 'fixes': '1',
+    'multiple_index': '1', 'miss_index': '1', 'quality_of_feed_index': '1', 'precision': '1',
+    'tilt_max': 'rad', 'total_read': '1',
+    'l1': 'm', 'l2': 'm', 'l3': 'm', 'l4': 'm', 'l5': 'm', 'hole_ratio': '1',
+    'sun_bar_speed': 'rad/s', 'min_transmission_angle': 'rad', 'arm_width': 'm',
+    'seedling_height': 'm', 'arm_length': 'm', 'pusher_offset': 'm',
+    'carrier_initial_angle': 'rad', 'arm_initial_angle': 'rad', 'planet_carrier_angle': 'rad',
+    'planting_phase': 'rad', 'plants_per_revolution': '1', 'track_length': 'm',
+    'fix_window': 's', 'max_fix_sigma': 'm', 'max_fix_age': 's', 'origin': 'deg (WGS 84)',
+    'antenna_position': 'm', 'nominal_mechanism_speed': 'rad/s', 'centre_distance': 'm',
+    'closure_residual': '1', 'goals_passed': '1', 'carrier_speed': 'rad/s',
+    'requested_hole': 'm', 'psi': 'rad', 'depth': 'm', 'seedlings': '1', 'planted': '1',
+    'empty': '1', 'double': '1', 'unknown': '1', 'input_gap': '1', 'instants': '1',
 }
+# the plants table's column of each JSON plant field (a unit in the name where one is needed)
+PLANTS_COLUMNS = {
+    'index': 'index', 'time': 'time_utc', 'position': 'position_m', 'spacing': 'spacing_m',
+    'spacing_error': 'spacing_error_m', 'speed_ratio': 'speed_ratio',
+    'ground_speed': 'ground_speed_m_s', 'shaft_speed': 'shaft_speed_rad_s',
+    'hole_width': 'hole_width_m', 'tilt': 'tilt_rad', 'upright': 'upright',
+    'uprightness_rate': 'uprightness_rate', 'row': 'row', 'tip_sweep': 'tip_sweep_m',
+    'latitude': 'latitude_deg', 'longitude': 'longitude_deg',
+}
+INTEGER_FIELDS = ('index', 'row')
+BOOLEAN_FIELDS = ('upright', 'input_gap')
+CODE_FIELDS = {'status': 'STATUSES', 'reason': 'REASONS'}     # codes -> their names (text)
+UNIT_SUFFIXES = {'_m_s': 'm/s', '_rad_s': 'rad/s', '_m': 'm', '_rad': 'rad',
+                 '_deg': 'deg (WGS 84)'}
 _STATISTICS = ('_mean', '_std', '_max', '_min', '_rms')
 
 
@@ -48,8 +82,12 @@ def unit_of(column):
     leaf = column.rsplit('.', 1)[-1]
     if column.startswith('messages.'):          # message counts, named after their topics
         return '1'
-    if column.startswith('settings.'):
+    if column.startswith('settings.') or column.startswith('acceptance.limits.'):
         return _setting_units().get(leaf)
+    if '.' not in column:
+        for suffix, unit in UNIT_SUFFIXES.items():
+            if leaf.endswith(suffix):
+                return unit
     if leaf in UNITS:
         return UNITS[leaf]
     for suffix in _STATISTICS:
@@ -60,8 +98,9 @@ def unit_of(column):
 
 def _setting_units():
     from planter_ros.config import specs
-    from planter_ros.prediction import PredictionSettings
-    return {spec.name: spec.unit or '1' for spec in specs(PredictionSettings)}
+    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
+    return {spec.name: spec.unit or '1' for cls in (PredictionSettings, AcceptanceLimits)
+            for spec in specs(cls)}
 
 
 def flatten(value, prefix=''):
@@ -101,8 +140,30 @@ def unflatten(row):
 
 # columns of text whatever values a table happens to hold (a table where every `reason` is
 # null or every `warnings` list is empty keeps their types)
-TEXT = ('bag', 'status', 'reason', 'model_version', 'options', 'plants_file')
+TEXT = ('bag', 'path', 'status', 'reason', 'model_version', 'options', 'plants_file',
+        'row_name')
 TEXT_LISTS = ('warnings',)
+TIMESTAMPS = ('analysed_at',)            # s since the epoch in the row dicts
+
+
+def _epoch_seconds(value):
+    """s since the epoch of a number, or of a datetime a table was read back as; None."""
+    if value is None:
+        return float('nan')
+    if hasattr(value, 'timestamp'):
+        return value.timestamp()
+    return float(value)
+
+
+def utc_timestamps(seconds):
+    """s since 1970-01-01 UTC (None: null; a datetime as it is) as a pyarrow timestamp array
+    (ns, UTC)."""
+    import numpy as np
+    import pyarrow as pa
+    values = np.array([_epoch_seconds(v) for v in seconds], dtype=float)
+    ok = np.isfinite(values)
+    ns = np.where(ok, np.round(np.where(ok, values, 0.0) * 1e9), 0).astype(np.int64)
+    return pa.array(ns, type=pa.timestamp('ns', tz='UTC'), mask=~ok)
 
 
 def column(values, name=''):
@@ -112,6 +173,8 @@ def column(values, name=''):
         return pa.array(values, type=pa.string())
     if name in TEXT_LISTS:
         return pa.array(values, type=pa.list_(pa.string()))
+    if name in TIMESTAMPS:
+        return utc_timestamps(values)
     present = [v for v in values if v is not None]
     if all(isinstance(v, bool) for v in present) and present:
         return pa.array(values, type=pa.bool_())
@@ -124,7 +187,7 @@ def column(values, name=''):
     return pa.array(values)
 
 
-def table_of(rows, kind):
+def table_of(rows, kind, root=None):
     """An Arrow table of row dicts (columns in first-seen order), units in its metadata."""
     import pyarrow as pa
     names = {}
@@ -132,25 +195,110 @@ def table_of(rows, kind):
         for name in row:
             names.setdefault(name, None)
     arrays = [column([row.get(name) for row in rows], name) for name in names]
-    return with_units(pa.Table.from_arrays(arrays, names=list(names)), kind)
+    return with_units(pa.Table.from_arrays(arrays, names=list(names)), kind, root)
 
 
-def plants_table(bag, plants):
-    """The plants table of one bag: the JSON plant dicts of `planter replay --json`."""
+def plants_table(bag, plants, rows=()):
+    """The plants table of one bag (`bag`: its key) from the JSON plant dicts of `planter
+    replay --json` and the machine's rows [(index, name)] (module doc)."""
+    import numpy as np
     import pyarrow as pa
-    keys = list(plants[0]) if plants else []
-    if not plants or any(list(plant) != keys for plant in plants):
-        return table_of([{'bag': bag, **plant} for plant in plants], PLANTS)
-    table = pa.Table.from_pylist(plants)        # the fast reader when every plant has the
-    arrays = [pa.array([bag] * table.num_rows, type=pa.string())]    # same fields
-    for array in table.columns:
-        arrays.append(array.cast(pa.float64()) if pa.types.is_null(array.type) else array)
-    return with_units(pa.Table.from_arrays(arrays, names=['bag', *table.column_names]),
-                      PLANTS)
+    names = {int(i): str(n) for i, n in rows}
+    keys = []
+    for plant in plants:
+        keys += [k for k in plant if k not in keys]
+    arrays, columns = [pa.array([bag] * len(plants), type=pa.string())], ['bag']
+    for key in keys:
+        values = [plant.get(key) for plant in plants]
+        name = PLANTS_COLUMNS.get(key, key)
+        if key == 'time':
+            array = utc_timestamps(values)
+        elif key in INTEGER_FIELDS:
+            array = pa.array([None if v is None else int(v) for v in values], type=pa.int64())
+        elif key in BOOLEAN_FIELDS:
+            array = pa.array([None if v is None else bool(v) for v in values], type=pa.bool_())
+        elif key in CODE_FIELDS:
+            array = pa.array([_code_name(key, v) for v in values], type=pa.string())
+        elif key == 'seedlings':
+            array = pa.array([None if v is None else int(v) for v in values], type=pa.int64())
+        elif all(v is None or isinstance(v, (int, float)) for v in values):
+            array = pa.array(np.array([np.nan if v is None else v for v in values], dtype=float),
+                             mask=np.array([v is None for v in values], dtype=bool))
+        else:
+            array = column(values, name)
+        arrays.append(array)
+        columns.append(name)
+        if key == 'row':
+            arrays.append(pa.array([names.get(None if v is None else int(v), '')
+                                    for v in values], type=pa.string()))
+            columns.append('row_name')
+    return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
 
 
-def with_units(table, kind):
-    """`table` with each known column's unit in its field metadata and the schema's."""
+def _code_name(field, value):
+    from planter_ros import prediction
+    names = getattr(prediction, CODE_FIELDS[field])
+    return None if value is None or not 0 <= int(value) < len(names) else names[int(value)]
+
+
+def _name_code(field, value):
+    from planter_ros import prediction
+    names = getattr(prediction, CODE_FIELDS[field])
+    return None if value is None else float(names.index(value))
+
+
+def plant_dicts(table):
+    """The JSON plant dicts (`planter replay --json`'s `plants`) of a plants table's rows,
+    without `bag` and `row_name`: the inverse of plants_table (times to 1 µs)."""
+    back = {column: field for field, column in PLANTS_COLUMNS.items()}
+    out = []
+    for row in table.to_pylist():
+        plant = {}
+        for name, value in row.items():
+            if name in ('bag', 'row_name'):
+                continue
+            field = back.get(name, name)
+            if field == 'time' and value is not None:
+                value = value.timestamp() if not hasattr(value, 'value') else value.value * 1e-9
+            elif field in CODE_FIELDS:
+                value = _name_code(field, value)
+            elif field in BOOLEAN_FIELDS + INTEGER_FIELDS + ('seedlings',) and \
+                    value is not None:
+                value = float(value)
+            plant[field] = value
+        out.append(plant)
+    return out
+
+
+def plant_columns(table, fields):
+    """The plants table's columns of the JSON plant `fields` as float arrays (NaN for null or a
+    column the table lacks; times in s since the epoch): what the exports read."""
+    import numpy as np
+    import pyarrow as pa
+    out = []
+    for field in fields:
+        name = PLANTS_COLUMNS.get(field, field)
+        if name not in table.column_names:
+            out.append(np.full(table.num_rows, np.nan))
+            continue
+        array = table.column(name)
+        if field in CODE_FIELDS:
+            out.append(np.array([np.nan if v is None else _name_code(field, v)
+                                 for v in array.to_pylist()], dtype=float))
+            continue
+        if pa.types.is_timestamp(array.type):
+            ns = array.cast(pa.int64()).to_numpy(zero_copy_only=False)
+            mask = array.is_null().to_numpy(zero_copy_only=False)
+            values = np.where(mask, np.nan, np.asarray(ns, dtype=float) * 1e-9)
+        else:
+            values = array.cast(pa.float64()).to_numpy(zero_copy_only=False)
+        out.append(np.asarray(values, dtype=float))
+    return out
+
+
+def with_units(table, kind, root=None):
+    """`table` with each known column's unit in its field metadata and the schema's (and the
+    analysed root its `bag` keys are relative to, if given)."""
     import pyarrow as pa
     units = {}
     fields = []
@@ -160,7 +308,10 @@ def with_units(table, kind):
             units[f.name] = unit
             f = f.with_metadata({b'unit': unit.encode()})
         fields.append(f)
-    meta = {METADATA_KEY: json.dumps({'table': kind, 'units': units}).encode()}
+    info = {'table': kind, 'units': units}
+    if root is not None:
+        info['root'] = str(root)
+    meta = {METADATA_KEY: json.dumps(info).encode()}
     return pa.Table.from_arrays(table.columns, schema=pa.schema(fields, metadata=meta))
 
 

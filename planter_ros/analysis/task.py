@@ -54,17 +54,18 @@ def warm_up():
     return model_version()
 
 
-def analyze_bag(path, identity, options, overrides, design, version):
+def analyze_bag(path, key, identity, options, overrides, design, version):
     """Replay the bag at `path` as `planter replay` would with the setting `overrides` (and the
-    fallback `design`, or None): (its `bags` row, its `plants` table or None). A bag replay
-    cannot read is a row with status 'failed' and its one-line reason; any other exception of
-    the model on this bag is status 'error'. `identity`, `options` and `version` are the
-    re-run key the client decided on (season.BagKey)."""
+    fallback `design`, or None): (its `bags` row, its `plants` table or None), both naming it
+    `key` (its path relative to the analysed root). A bag replay cannot read is a row with
+    status 'failed' and its one-line reason; any other exception of the model on this bag is
+    status 'error'. `identity`, `options` and `version` are the re-run key the client decided
+    on (season.BagKey)."""
     started, cpu = time.perf_counter(), time.process_time()
     if model_version() != version:
         raise WorkerMismatch(f'worker runs planter_ros model version {model_version()}, the '
                              f'analysis asked for {version}')
-    row = {'bag': str(path), 'status': None, 'reason': None, 'file_size': identity[0],
+    row = {'bag': key, 'status': None, 'reason': None, 'file_size': identity[0],
            'file_mtime_ns': identity[1], 'model_version': version, 'options': options,
            'analysed_at': time.time(), 'analysis_seconds': None,
            'analysis_cpu_seconds': None, 'plants_file': None}
@@ -78,10 +79,11 @@ def analyze_bag(path, identity, options, overrides, design, version):
     else:
         data = result.as_json()
         plants = data.pop('plants')
+        data['path'] = data.pop('bag')          # where it was read; `bag` is the key
         row.update(flatten(data))
         row['status'] = 'warnings' if data['warnings'] else 'ok'
         if plants:
-            table = plants_table(str(path), plants)
+            table = plants_table(key, plants, [(r.index, r.label) for r in result.rows])
     row['analysis_seconds'] = time.perf_counter() - started
     # CPU time apart from wall time: on shared cores the difference is time spent waiting
     row['analysis_cpu_seconds'] = time.process_time() - cpu

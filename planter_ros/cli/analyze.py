@@ -1,14 +1,6 @@
-"""`planter analyze PATH... --out DIR`: replay a season of bags on Dask into Parquet tables.
-
-Every bag under the paths (.mcap files and rosbag2 bag directories, searched recursively) is
-replayed with the same model and settings as `planter replay` on a Dask cluster: a local one of
-worker processes by default, an existing one with --scheduler. The results go to two Parquet
-tables under DIR as they complete (`plants`: one row per plant, `bags`: one row per bag), with
-a progress line on stderr; then the season's as-planted map for farm software next to them
-(as_planted.zip: a Shapefile; TASKDATA.zip: ISO 11783-10 task data; analysis.exports). A bag
-replay cannot read is a row with its one-line reason; a re-run skips the bags the tables hold
-for the same model version and settings unless --force.
-Details: doc/analysis.md.
+"""`planter analyze PATH... --out DIR`: a season of bags replayed on Dask into Parquet tables
+(`plants/`, `bags/`), Shapefile, ISOXML and the season report under DIR; a re-run skips the bags
+analysed before with the same model and settings unless --force. Details: doc/analysis.md.
 """
 
 import json
@@ -23,7 +15,7 @@ def add_arguments(parser):
                         help='.mcap files and directories holding bags (searched recursively '
                              'for .mcap files and rosbag2 bag directories)')
     parser.add_argument('--out', metavar='DIR', required=True,
-                        help='directory of the tables (bags.parquet, plants/): new, empty, or '
+                        help='directory of the tables (bags/, plants/): new, empty, or '
                              'the output of an earlier run (which it updates)')
     add_engine_arguments(parser)
     parser.add_argument('--force', action='store_true',
@@ -53,12 +45,12 @@ def run(args):
         raise BadInput(f'PATH = {" ".join(args.paths)} holds no bag: allowed .mcap files and '
                        'directories holding .mcap files or rosbag2 bag directories')
     version = model_version()
-    exports = None
     from planter_ros.analysis.exports import format_exports, season_exports
-    from planter_ros.analysis.season import format_report
-    with seasons.Season(out) as season:
-        keys, skipped = season.plan(bags, version, seasons.options_key(overrides, design),
-                                    args.force)
+    from planter_ros.plots.season import season_report
+    root = seasons.analysed_root(args.paths)
+    with seasons.Season(out, root) as season:
+        keys, skipped = season.plan(seasons.bag_keys(bags, root), version,
+                                    seasons.options_key(overrides, design), args.force)
         report = seasons.Report(out=str(out))
         if keys:
             where = args.scheduler or 'the local cluster'
@@ -72,16 +64,17 @@ def run(args):
             except EngineError as exc:
                 raise BadInput(str(exc)) from None
         exports = season_exports(out, force=bool(keys))
+        table, html = season_report(out)           # per field, day and row; report.html
     report.found, report.skipped = len(bags), skipped
     if args.json:
-        print(json.dumps({**report.as_json(), 'exports': exports}, indent=1, allow_nan=False))
+        print(json.dumps({**report.as_json(), 'exports': exports, 'report': str(html)},
+                         indent=1, allow_nan=False))
     else:
-        print(format_report(report))
+        print(f'{seasons.format_report(report)}\n{table}\nseason report: {html}')
         if exports:
             print(format_exports(exports))
     for bag, reason in (exports or {}).get('skipped', []):
-        print(f'planter: warning: {bag} not in the ISOXML task data ({reason})',
-              file=sys.stderr)
+        print(f'planter: warning: {bag} not in the ISOXML task data ({reason})', file=sys.stderr)
     for bag, reason in report.not_done:
         print(f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again',
               file=sys.stderr)

@@ -63,9 +63,10 @@ def run(args):
     from planter_ros.kinematics.five_bar import (design_five_bar, hole_sensitivity,
                                                  hole_tolerance, sun_bar_speed)
     from planter_ros.output_files import atomic_output
-
+    from planter_ros.plausibility import check_design_query
     design = design_five_bar(args.depth, args.spacing, args.hole_ratio, args.method)
     _check_tolerances(args, design)
+    check_design_query('planter', args.depth, args.spacing, args.hole_ratio, args.speed)
     result = design.as_dict()
     result['hole_width_error'] = ((design.hole_width - design.requested_hole)
                                   / design.requested_hole)

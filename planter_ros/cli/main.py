@@ -1,9 +1,7 @@
 """Entry point of `planter`: builds the sub-command tree and turns bad input into exit code 2.
 
-Each sub-command lives in its own module with `add_arguments(parser)` and `run(args) -> int`;
-those modules import numpy/scipy/matplotlib/rclpy only inside run(), so `planter --help` and a
-five-bar design never load what they do not use.
-"""
+Each sub-command's module has `add_arguments(parser)` and `run(args) -> int` and imports numpy,
+scipy, matplotlib or rclpy only inside run(): `planter --help` loads none of them."""
 
 import argparse
 import importlib
@@ -67,8 +65,10 @@ def _selected(argv):
 def build_parser(argv=()):
     """The full command tree; only the selected sub-command's module is imported, so a run
     never loads the code (and the imports) of the commands it does not use."""
+    from planter_ros.shipped import package_version
     selected = _selected(list(argv))
     parser = _Parser(prog='planter', description='Design and drive a transplanter planting unit.')
+    parser.add_argument('--version', action='version', version=f'planter {package_version()}')
     top = parser.add_subparsers(dest='command', required=True, parser_class=_Parser)
     groups = {}
     for words, (module_name, help_text) in COMMANDS.items():

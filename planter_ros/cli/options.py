@@ -1,12 +1,9 @@
 """The one validation layer of command-line options: argparse `type=` adapters.
 
-An option that mirrors a configuration value (a scene's depth, the monitor's window, ...) is
-checked against that value's `config.Spec` (right type, finite, in range, one of the choices),
-so the command line, the scene files and the ROS parameters accept exactly the same values and
-say so with the same allowed range. Output paths are checked with `planter_ros.output_files`.
-The adapters run while the arguments are parsed, before any command starts its work; they raise
-`BadInput` (one line: the option, the value, what is allowed), which argparse passes through.
-"""
+An option mirroring a configuration value (a scene's depth, ...) is checked against its
+`config.Spec`, so the command line, scene files and ROS parameters accept the same values and
+name the same range; output paths by `planter_ros.output_files`. Checks run while the arguments
+are parsed, before any work, raising `BadInput` (one line: option, value, what is allowed)."""
 
 import math
 

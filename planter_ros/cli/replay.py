@@ -61,8 +61,9 @@ def add_settings_arguments(parser):
                         type=spec_option(PredictionSettings, 'window', '--window'),
                         help='plants in the rolling uprightness rate (default: recorded, else 20)')
     parser.add_argument('--scene', metavar='FILE',
-                        help="the run's scene: its design is used if the bag holds no usable "
-                             'design message (lost in a damaged part)')
+                        help="the run's scene: its crop's acceptance limits judge the run "
+                             "(default: the limits recorded in the bag); its design is used if "
+                             'the bag holds no usable design message (lost in a damaged part)')
     parser.add_argument('--max-input-gap', metavar='S',
                         type=spec_option(PredictionSettings, 'max_input_gap',
                                          '--max-input-gap'),
@@ -72,8 +73,10 @@ def add_settings_arguments(parser):
 
 def settings_overrides(args):
     """The prediction settings given on the command line (None: not given)."""
+    from planter_ros.scene import scene_limits
     return {'upright_threshold': args.upright_threshold, 'nozzle_width': args.nozzle_width,
-            'window': args.window, 'max_input_gap': args.max_input_gap}
+            'window': args.window, 'max_input_gap': args.max_input_gap,
+            'acceptance': args.scene and scene_limits(args.scene)}
 
 
 def fallback_design(args):

@@ -1,10 +1,6 @@
-"""`planter simulate PATH --bags N`: a season of realistic bags to analyse, fast, without DDS.
-
-Each run is drawn from the seed and its number (varied speeds, stops, sensor glitches, a stall
-now and then, a curve, GNSS), simulated in closed loop (the sync law against the drive model)
-and written as PATH/run_<seed>_<n>.mcap in the exact layout the monitor records, its plants
-from the monitor's model (planter_ros.sim.season). The runs are simulated in parallel on the
-same Dask engine as `planter analyze` (a local cluster, or --scheduler).
+"""`planter simulate PATH --bags N`: a season of realistic bags (the monitor's exact layout, its
+plants from the monitor's model) written fast without DDS, on the same Dask engine as `planter
+analyze`; the same seed gives the same bytes. Details: doc/analysis.md (planter_ros.sim.season).
 """
 
 import json
@@ -23,36 +19,43 @@ def add_arguments(parser):
     parser.add_argument('--duration', metavar='S', default=60.0,
                         type=spec_option(SeasonOptions, 'duration', '--duration'),
                         help='length of each run in seconds, 10..3600 (default 60)')
-    parser.add_argument('--rows', metavar='R', default=4,
+    parser.add_argument('--rows', metavar='R', default=None,
                         type=spec_option(SeasonOptions, 'rows', '--rows'),
                         help='planting rows of the machine, 1..16 (default 4; 1 = a machine '
-                             'without rows)')
+                             'without rows); not with --scene')
+    parser.add_argument('--scene', metavar='FILE', help="the scene's machine (design, rows, "
+                        'monitor settings, limits, antenna; default: a tomato five-bar)')
     parser.add_argument('--seed', metavar='K', default=0,
                         type=spec_option(SeasonOptions, 'seed', '--seed'),
                         help='seed of the season, 0..2^32-1 (default 0): the same seed gives '
                              'the same bags')
+    for name, default in (('empty', 0.02), ('double', 0.01)):
+        parser.add_argument(f'--{name}-rate', metavar='R', default=default, help=f"share of "
+                            f"the tray's {name} cells, 0..1 (default {default:g})",
+                            type=spec_option(SeasonOptions, f'{name}_rate', f'--{name}-rate'))
     add_engine_arguments(parser)
     parser.add_argument('--json', action='store_true',
                         help='print every bag written and what happens in it as JSON (SI)')
 
 
 def run(args):
-    from planter_ros.analysis.simulate import check_path, simulate_season
+    from planter_ros.analysis.engine import EngineError
+    from planter_ros.analysis.simulate import check_path, season_machine, simulate_season
+    from planter_ros.cli.main import BadInput
     from planter_ros.sim.season import bag_name
-
+    scene, rows = season_machine(args.scene, args.rows)     # a bad scene: one line, exit 2
     names = [bag_name(args.seed, k) for k in range(args.bags)]
     path = check_path(args.path, names)
-    from planter_ros.analysis.engine import EngineError
-    from planter_ros.cli.main import BadInput
     try:
         report, written, errors = simulate_season(path, names, args.seed, args.duration,
-                                                  args.rows, args.workers, args.scheduler)
+                                                  rows, args.workers, args.scheduler, scene,
+                                                  (args.empty_rate, args.double_rate))
     except EngineError as exc:
         raise BadInput(str(exc)) from None
     if args.json:
         print(json.dumps({**report, 'runs': written}, indent=1, allow_nan=False))
     else:
-        print(f'{len(written)} bags written to {path} ({args.rows} rows, {args.duration:g} s '
+        print(f'{len(written)} bags written to {path} ({rows} rows, {args.duration:g} s '
               f'each, seed {args.seed}): {report["messages"]} messages, {report["plants"]} '
               f'plants, {report["bytes"] / 1e6:.1f} MB')
         print(f'{report["seconds"]:.1f} s on {report["workers"]} worker(s): '

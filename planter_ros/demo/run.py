@@ -47,6 +47,8 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     if not any(row.enabled for row in rows):
         raise SceneError(f'scene {scene.path}: rows = every row has enabled false: allowed at '
                          'least one enabled row')
+    for warning in scene.warnings:        # unusual but possible values (planter_ros.plausibility)
+        print(f'planter: warning: {warning}', file=sys.stderr)
     keep_discovery_on_host()
     return Demo(scene, design, rows, options, antenna=antenna, **kwargs)
 
@@ -106,8 +108,9 @@ class Demo:
                                         report)
             self._print(summary)
         bag_error = run.bag_error()
+        acceptance = None
         if not bag_error:
-            replayed, bag_error = self.replay_summary(run.monitor.recorder.path)
+            replayed, bag_error, acceptance = self.replay_summary(run.monitor.recorder.path)
             self._print(replayed)
         monitor_changes = ''
         if (run.monitor is not None
@@ -116,7 +119,7 @@ class Demo:
             monitor_changes = (f'{sources.changes}x, the latest from '
                                f'{sources.last_change.text}')
         verdict = judge(rows, report, run.start_error, bag_error, monitor_changes,
-                        scheduled_changes=run.scheduled_changes)
+                        acceptance, scheduled_changes=run.scheduled_changes)
         verdict.stopped_by, verdict.elapsed = run.stopped_by, run.elapsed
         self.result = DemoResult(verdict, report, rows, run.domain)
         self._print('')
@@ -124,22 +127,24 @@ class Demo:
         return verdict.exit_code
 
     @staticmethod
-    def replay_summary(bag) -> tuple[str, str]:
+    def replay_summary(bag) -> tuple[str, str, dict | None]:
         """Re-read the finished bag offline, as `planter replay` would, and summarise it:
-        (text, why it failed or '')."""
+        (text, why it failed or '', the run judged by the crop's acceptance limits the bag
+        recorded: replay's `acceptance`, None when the replay failed)."""
         from planter_ros.recording.errors import RecordingError
         from planter_ros.recording.replay import replay
         from planter_ros.recording.replay_text import format_summary
         try:
             result = replay(bag)
         except RecordingError as exc:
-            return f'\nreplay of {bag} failed: {exc}', f'replay of {bag} failed: {exc}'
+            return (f'\nreplay of {bag} failed: {exc}', f'replay of {bag} failed: {exc}',
+                    None)
         lines = [f'\nrecorded {bag}; replay (`planter replay {bag}`), plants placed as the '
                  "machine's monitor places them, at the distance integrated from the recorded "
                  'ground speed (its noise included):']
         lines += [f'  {line}' for line in format_summary(result).splitlines()]
         lines += [f'  warning: {w}' for w in result.warnings]
-        return '\n'.join(lines), ''
+        return '\n'.join(lines), '', result.acceptance
 
     def progress(self, t: float, profile, status: dict, observer) -> str:
         """The progress line at `t` s of the field run."""

@@ -6,11 +6,16 @@ A run passes when the machine did what it is for and left a record of it:
 * every planting row placed at least two plants, and its spacing error RMS (gap − d, each gap
   against the design in force when its plant was set) is at most SPACING_TOLERANCE of d;
 * no node changed the design during the run (the demo's own design node publishes once);
-* the bag was recorded, finalised and replays.
+* the bag was recorded, finalised and replays;
+* the crop planted well: every row's ISO 7256-1 indices, uprightness rate and hole width,
+  from the replay of the bag, within the crop's acceptance limits (the scene's, recorded in
+  the bag: prediction.acceptance); each failure names the row, the index, its value and limit.
 Pure: no ROS import.
 """
 
 from dataclasses import dataclass, field
+
+from planter_ros.prediction.acceptance import acceptance_failures
 
 __all__ = ['EXIT_FAIL', 'EXIT_PASS', 'RowResult', 'SPACING_TOLERANCE', 'Verdict', 'judge']
 
@@ -51,16 +56,19 @@ class Verdict:
         if self.passed:
             return (f'verdict: PASS{stopped}: no watchdog trip, no drive fault, spacing error '
                     f'RMS (true distance) <= {100 * SPACING_TOLERANCE:g} % of d on every row, '
-                    'design unchanged, bag recorded')
+                    "design unchanged, bag recorded, every row within the crop's acceptance "
+                    'limits')
         return f'verdict: FAIL{stopped}: ' + '; '.join(self.reasons)
 
 
 def judge(rows, sync_report, start_error='', bag_error='', monitor_design_changes='',
-          scheduled_changes=0):
+          acceptance=None, scheduled_changes=0):
     """The verdict of a run. `rows`: RowResult per planting row (empty if the run never
     started); `sync_report`: the sync process's final report (sync_process.final_report, None if
     it never came); `start_error`: why the drives did not start; `bag_error`: why there is no
     usable bag; `monitor_design_changes`: the monitor's account of design changes, if any;
+    `acceptance`: the replay's judgement of the bag by the crop's limits
+    (prediction.judge_acceptance; None: no replay, `bag_error` says why);
     `scheduled_changes`: design changes the scene's spacing schedule made (not a fault)."""
     reasons = []
     if start_error:
@@ -97,4 +105,7 @@ def judge(rows, sync_report, start_error='', bag_error='', monitor_design_change
                        f'({monitor_design_changes})')
     if bag_error:
         reasons.append(f'no bag: {bag_error}')
+    if not start_error:
+        reasons += [f'below the crop\'s limits: {text}' for text in
+                    acceptance_failures(acceptance)]
     return Verdict(reasons)

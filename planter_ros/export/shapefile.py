@@ -47,8 +47,9 @@ ATTRIBUTES = (
     Attribute('time', 'time_s', 'N', 20, 6, 's', 'planting instant, s since 1970-01-01 UTC '
               "(the recording's clock)"),
     Attribute('utc', 'utc', 'C', 24, text='the same instant, ISO 8601 UTC'),
-    Attribute('spacing', 'spacing_m', 'N', 16, 6, 'm', 'distance to the previous plant of the '
-              'row along its travelled path (null for the first of a sequence)'),
+    Attribute('spacing', 'spacing_m', 'N', 16, 6, 'm', 'distance to the previous seedling of '
+              'the row along its travelled path (null for the first of a sequence and for an '
+              'empty cup)'),
     Attribute('spacing_error', 'sp_err_m', 'N', 16, 6, 'm', 'spacing minus the design spacing'),
     Attribute('hole_width', 'hole_w_m', 'N', 16, 6, 'm', 'the hole along the row: tip sweep + '
               'nozzle width'),
@@ -60,8 +61,10 @@ ATTRIBUTES = (
     Attribute('status', 'status', 'C', text='planted, empty, double or unknown (when the '
               'records carry it)'),
     Attribute('reason', 'reason', 'C', text='why the status is what it is'),
+    Attribute('input_gap', 'input_gap', 'L', text='the instant fell in a gap of the inputs '
+              '(position interpolated; hole, tilt, upright unknown)'),
 )
-LATER = ('status', 'reason')               # keys records gain with a seedling sensor
+LATER = ('status', 'reason', 'input_gap')  # keys records gain with a seedling sensor
 GEOMETRY = ('longitude', 'latitude')      # record keys that are the point, not attributes
 SIDECARS = ('.shx', '.dbf', '.prj', '.cpg')
 STALE = ('.qix', '.sbn', '.sbx')           # spatial indexes other programs build from a .shp

@@ -10,7 +10,7 @@ import sys
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import String
 
@@ -20,6 +20,7 @@ from planter_ros.kinematics.scene_settings import SceneSettings, scene_classes
 from planter_ros.dds_domain import keep_discovery_on_host
 from planter_ros.design import design_for_scene, to_json
 from planter_ros.nodes.parameters import ParameterGroup, declare, refuse_undeclared
+from planter_ros.plausibility import unusual
 
 
 class DesignNode(Node):
@@ -30,13 +31,23 @@ class DesignNode(Node):
         mechanism = declare(self, spec_of(SceneSettings, 'mechanism'))
         self._publisher = interfaces.DESIGN.publisher(self)
         # a bad scene raises ConfigError here, at start-up
-        scene = ParameterGroup(self, scene_classes(mechanism), build=design_for_scene,
+        scene = ParameterGroup(self, scene_classes(mechanism), build=self._checked_design,
                                on_change=self._publish)
         self.design = scene.value
         refuse_undeclared(self, arguments)       # a name the scene got wrong: refused
         self._publish(self.design)
         self.get_logger().info(f'{self.design.mechanism} design for '
                                f"{self.design.crop or 'unnamed crop'} published")
+
+    def _checked_design(self, values):
+        """The design of a candidate set of values (DesignError refuses the update, the last
+        good design stays); its unusual values logged as warnings (planter_ros.plausibility: the
+        mechanism's checks; the speed, acceleration and bus checks need the sync node's
+        limits)."""
+        design = design_for_scene(values)
+        for warning in unusual(design):
+            self.get_logger().warning(warning)
+        return design
 
     def _publish(self, design):
         self.design = design
@@ -45,13 +56,15 @@ class DesignNode(Node):
 
 def main(args=None):
     keep_discovery_on_host()
-    stop_signals.install('design_node')        # SIGTERM stops like Ctrl-C
+    stop = stop_signals.install('design_node')   # SIGTERM stops like Ctrl-C
     rclpy.init(args=args)
     node = None
     try:
         node = DesignNode(namespace=interfaces.NAMESPACE,
                           arguments=sys.argv if args is None else args)
-        rclpy.spin(node)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        stop_signals.spin(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ConfigError, ParameterException) as exc:

@@ -91,8 +91,10 @@ def marker_array(plants, placement, model, labels, counts):
         r, g, b = plant_colour(plants.upright[i], float(plants.spacing_error[i]),
                                model.spacing)
         marker.color = ColorRGBA(r=r, g=g, b=b, a=1.0)
+        tilt = float(plants.tilt[i])            # NaN in an input gap: drawn upright
         root, top = stem(float(placement.east[i]), float(placement.north[i]),
-                         float(placement.heading[i]), float(plants.tilt[i]), model.depth)
+                         float(placement.heading[i]), tilt if math.isfinite(tilt) else 0.0,
+                         model.depth)
         marker.points = [Point(x=root[0], y=root[1], z=root[2]),
                          Point(x=top[0], y=top[1], z=top[2])]
         out.markers.append(marker)

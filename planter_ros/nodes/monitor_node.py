@@ -34,7 +34,7 @@ import numpy as np
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
@@ -47,7 +47,8 @@ from planter_ros.design import from_json
 from planter_ros.scene.design_sources import DesignSources
 from planter_ros.geo import AntennaSettings
 from planter_ros.prediction import (
-    PLANT_FIELDS, PlantPredictor, PredictionSettings, SectionBreaks, planting_model_from_design)
+    PLANT_FIELDS, AcceptanceLimits, PlantPredictor, PredictionSettings, SectionBreaks,
+    Plants, SeedlingAccount, design_spacing_of, planting_model_from_design, seedling_spacings)
 from planter_ros.prediction import (
     QUALITY_FIELDS, SpacingQuality, format_quality)
 from planter_ros.nodes import graph
@@ -106,6 +107,8 @@ class MonitorNode(Node):
                                         on_change=self._on_settings)
         self._map_settings = ParameterGroup(self, MapSettings, on_change=self._on_map_settings)
         self.antenna = ParameterGroup(self, AntennaSettings).value
+        # the crop's acceptance limits: recorded, so replay judges the bag by them
+        self.acceptance = ParameterGroup(self, AcceptanceLimits).value
         self.rows = declare_rows(self)
         refuse_undeclared(self, arguments)       # a name the scene got wrong: refused
         self._planting = [row for row in self.rows if row.enabled]
@@ -115,6 +118,7 @@ class MonitorNode(Node):
         self._machine_quality = SpacingQuality()
         self._drawn = {}                    # row index -> plants drawn (marker ids)
         self._sections = SectionBreaks()    # the rows' section states -> breaks
+        self._seedlings = SeedlingAccount()  # the rows' seedling sensors -> each instant's
 
         self.recorder = None
         self.record_error = ''
@@ -151,7 +155,8 @@ class MonitorNode(Node):
                     interfaces.SPEED_COMMANDS: self._on_command,
                     interfaces.GNSS_FIX: self._on_fix,
                     interfaces.SECTIONS: self._on_sections,
-                    interfaces.DIAGNOSTICS: self._on_diagnostics}
+                    interfaces.DIAGNOSTICS: self._on_diagnostics,
+                    interfaces.SEEDLINGS: self._on_seedlings}
         self._subs = [topic.subscribe(self, self._raw_callback(topic, handlers[topic]),
                                       qos=topic.recording_qos(), raw=True)
                       for topic in interfaces.MONITOR_INPUTS]
@@ -169,7 +174,8 @@ class MonitorNode(Node):
 
     def _new_placer(self, settings):
         return PlantPlacer(settings, self.antenna.antenna_position,
-                           {row.index: row.lateral_offset for row in self.rows})
+                           {row.index: row.lateral_offset for row in self.rows},
+                           {row.index: row.longitudinal_offset for row in self.rows})
 
     def _on_map_settings(self, settings):
         """A new map from here on: the plants held so far are placed with the old one."""
@@ -205,6 +211,8 @@ class MonitorNode(Node):
         self.recorder.add_metadata(interfaces.PREDICTION_SETTINGS_RECORD, {k: repr(v) for k, v in
                                                      as_dict(self.settings).items()})
         self.recorder.add_metadata(interfaces.ROWS_RECORD, rows_record(self.rows))
+        self.recorder.add_metadata(interfaces.ACCEPTANCE_RECORD, {
+            k: repr(v) for k, v in as_dict(self.acceptance).items()})
         self.recorder.add_metadata(interfaces.MAP_RECORD,
                                    map_record(self._map_settings.value, self.antenna))
         self.get_logger().info(f'recording to {self.recorder.path}')
@@ -323,6 +331,17 @@ class MonitorNode(Node):
     def _on_diagnostics(self, _msg, _t, _now):
         """/diagnostics: recorded (the run's health in the bag), nothing read from it."""
 
+    def _on_seedlings(self, msg, t, _now):
+        """A seedling sensor reading: each planting row's count (by its joint name), for the
+        row's next planting instant (prediction.seedlings), as replay reads it."""
+        self.samples_taken += 1
+        if self._mechanism is None:
+            return
+        for row in self._planting:
+            i = joint_index(msg, row.joint(self._mechanism))
+            if i is not None and len(msg.position) > i:
+                self._seedlings.add_reading(row.index, t, msg.position[i])
+
     def _section_states(self, t, states):
         """Rows' section states {row name: on} at `t` (s): each break they end goes to its
         row's predictor."""
@@ -335,8 +354,11 @@ class MonitorNode(Node):
 
     # -- outputs -------------------------------------------------------------------------
     def _predicted(self, plants, now):
-        """Plants just predicted: to the map, published once placed."""
+        """Plants just predicted: their seedlings and status, to the map, published once
+        placed."""
         if len(plants):
+            plants = self._seedlings.apply(plants, design_spacing_of(plants,
+                                                                     self._model.spacing))
             self._publish_placed(self._placer.add_plants(plants), now)
 
     def _publish_placed(self, placed, now):
@@ -355,15 +377,17 @@ class MonitorNode(Node):
         if not len(plants):
             return
         self._publish(interfaces.PLANTS, self._pub_plants, plants_message(plants), now)
-        self._recent.extend(plants.upright.tolist())
-        rate = Float64(data=float(sum(self._recent) / len(self._recent)))
+        self._recent.extend(u for u in plants.upright.tolist() if math.isfinite(u))
+        rate = Float64(data=float(sum(self._recent) / len(self._recent)) if self._recent
+                       else math.nan)
         self._publish(interfaces.UPRIGHTNESS_RATE, self._pub_rate, rate, now)
-        design_spacing = plants.spacing - plants.spacing_error
+        design_spacing = design_spacing_of(plants, self._model.spacing)
         for row in set(plants.row.astype(int).tolist()):
             mine = plants.row == row
-            self._quality.setdefault(row, SpacingQuality()).add(plants.spacing[mine],
-                                                                design_spacing[mine])
-        self._machine_quality.add(plants.spacing, design_spacing)
+            x, x_d = seedling_spacings(Plants.from_table(plants.table()[mine]),
+                                       design_spacing[mine])
+            self._quality.setdefault(row, SpacingQuality()).add(x, x_d)
+        self._machine_quality.add(*seedling_spacings(plants, design_spacing))
         self._publish(interfaces.SPACING_QUALITY, self._pub_quality,
                       quality_message(self.spacing_quality()), now)
         if self._model is not None and np.any(np.isfinite(placement.east)):
@@ -485,12 +509,14 @@ def joint_index(msg, name):
 
 def main(args=None):
     keep_discovery_on_host()
-    stop_signals.install('monitor_node')       # SIGTERM stops like Ctrl-C: the bag finalised
+    stop = stop_signals.install('monitor_node')   # SIGTERM stops like Ctrl-C: the bag finalised
     rclpy.init(args=args)
     node = None
     try:
         node = MonitorNode(arguments=sys.argv if args is None else args)
-        rclpy.spin(node)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        stop_signals.spin(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ConfigError, ParameterException) as exc:

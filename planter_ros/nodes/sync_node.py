@@ -25,7 +25,7 @@ import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -332,7 +332,9 @@ def main(args=None):
         node.enable_drive()
         library_log.node = node
         if stop.received is None:            # not stopped while the drives were enabled
-            rclpy.spin(node)
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            stop_signals.spin(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except SceneError as exc:                # a parameter file it refuses: bad input

@@ -11,6 +11,8 @@ planting geometry they use is kinematics.planting. Pure numpy/scipy, no ROS; dep
 only (kinematics, sensing, config).
 """
 
+from .acceptance import (AcceptanceLimits, acceptance_failures, format_acceptance,
+                         judge_acceptance)
 from .model import (PlantPredictor, PredictionSettings, clean_samples, plant_values,
                     planting_model_from_design, predict_plants, prediction_notes,
                     travelled_distance)
@@ -18,9 +20,13 @@ from .plants import PLANT_FIELDS, Plants, summarize
 from .quality import (QUALITY_FIELDS, SpacingQuality, format_quality, spacing_quality,
                       spacing_quality_by_row)
 from .sections import SectionBreaks, section_breaks
+from .seedlings import (REASONS, STATUSES, SeedlingAccount, design_spacing_of, reason_name,
+                        seedling_spacings, status_counts, status_name)
 
-__all__ = ['PLANT_FIELDS', 'Plants', 'summarize', 'PredictionSettings', 'PlantPredictor',
+__all__ = ['AcceptanceLimits', 'acceptance_failures', 'format_acceptance', 'judge_acceptance',
+           'PLANT_FIELDS', 'Plants', 'summarize', 'PredictionSettings', 'PlantPredictor',
            'predict_plants', 'plant_values', 'planting_model_from_design', 'prediction_notes',
            'clean_samples', 'travelled_distance', 'QUALITY_FIELDS', 'SpacingQuality',
            'spacing_quality', 'spacing_quality_by_row', 'format_quality', 'SectionBreaks',
-           'section_breaks']
+           'section_breaks', 'REASONS', 'STATUSES', 'SeedlingAccount', 'design_spacing_of',
+           'reason_name', 'seedling_spacings', 'status_counts', 'status_name']

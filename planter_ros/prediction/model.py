@@ -20,10 +20,13 @@ the three-arm at its lowest point). For each plant:
   and a rolling uprightness rate over the last N plants.
 
 Gaps in the inputs: where two consecutive joint samples, or two consecutive accepted ground-speed
-samples, are more than `max_input_gap` apart, nothing is known about what happened in between.
-A plant whose instant falls in such a gap is not reported (it would be invented by
-interpolating across the gap), and the first plant after a gap starts a new sequence: it has no
-spacing (NaN), like the first plant of a stream. The plant numbering and the rolling rate go on.
+samples, are more than `max_input_gap` apart, little is known about what happened in between.
+A planting instant inside such a gap is still reported (every instant is accounted for): the
+shaft angle before and after the gap says how many instants there were; their time (from the
+shaft angle) and position (from the travelled distance) are interpolated across the gap, the
+plant is flagged `input_gap` = 1 and its λ, tip sweep, hole, tilt and upright are NaN (not
+known). It has no spacing, and the first plant after a gap starts a new sequence: it has no
+spacing (NaN), like the first plant of a stream. The rolling rate counts the known plants.
 
 A new design (d, the mechanism's geometry) arriving at time t takes effect at the next planting
 instant, as in the sync law: the first plant set after t (its crossing later than t) is the
@@ -264,9 +267,11 @@ def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
     j = np.searchsorted(st, t_e, side='right')
     located = (j >= 1) & (j < st.size)
     jc = np.clip(j, 1, st.size - 1)
-    # a plant inside a gap of either input would be invented by interpolation: not reported
-    keep = located & (jt[i] - jt[i - 1] <= gap) & (st[jc] - st[jc - 1] <= gap)
+    # a plant inside a gap of either input: reported, interpolated and flagged
+    in_gap = (jt[i] - jt[i - 1] > gap) | (st[jc] - st[jc - 1] > gap)
+    keep = located
     t_e, omega, j, which, theta_k = t_e[keep], omega[keep], j[keep], which[keep], theta_k[keep]
+    in_gap = in_gap[keep]
     v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
     arcs = (np.full(t_e.size, np.nan), np.full(t_e.size, np.nan))
     for w in np.unique(which) if settings.measured_arc else ():
@@ -277,7 +282,8 @@ def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
                              np.asarray(breaks, dtype=float).reshape(-1, 2)))
     return _assemble([models[w] for w in which], settings, t_e, omega, v_e, s_e, index0=0,
                      prev_position=np.nan, recent=(),
-                     new_sequence=_after_gap(t_e, -np.inf, starts), row=row, arcs=arcs)
+                     new_sequence=_after_gap(t_e, -np.inf, starts), row=row, arcs=arcs,
+                     in_gap=in_gap)
 
 
 def _crossings(models: Sequence[Planting], change_times: Sequence[float], jt: FloatArray,
@@ -339,10 +345,13 @@ def _assemble(models: Planting | Sequence[Planting], settings: PredictionSetting
               t_e: FloatArray, omega: FloatArray, v_e: FloatArray, s_e: FloatArray,
               index0: int, prev_position: float, recent: Sequence[float],
               new_sequence: NDArray[np.bool_], row: int = 0,
-              arcs: tuple[FloatArray, FloatArray] | None = None) -> Plants:
+              arcs: tuple[FloatArray, FloatArray] | None = None,
+              in_gap: NDArray[np.bool_] | None = None) -> Plants:
     """Plants from their instants, speeds and positions; `models[p]` is the design in force
-    for plant p (one model: for all of them); `arcs`: (sweep, tilt) of the measured arcs."""
+    for plant p (one model: for all of them); `arcs`: (sweep, tilt) of the measured arcs;
+    `in_gap`: the plants inside an input gap."""
     n = t_e.size
+    in_gap = np.zeros(n, dtype=bool) if in_gap is None else np.asarray(in_gap, dtype=bool)
     if not isinstance(models, (list, tuple)):
         models = [models] * n
     if arcs is None:
@@ -354,20 +363,32 @@ def _assemble(models: Planting | Sequence[Planting], settings: PredictionSetting
         ratio[mine], sweep[mine], hole[mine], tilt[mine], upright[mine] = plant_values(
             model, settings, omega[mine], v_e[mine], arcs[0][mine], arcs[1][mine])
         d[mine] = model.spacing
+    for values in (ratio, sweep, hole, tilt, upright):
+        values[in_gap] = np.nan            # interpolated across a gap: not known
     spacing = np.diff(np.concatenate(([prev_position], s_e)))
     spacing[new_sequence] = np.nan         # no spacing across a gap in the inputs
-    # rolling rate over the last `window` plants, continuing from `recent` flags
+    # rolling rate over the last `window` plants, continuing from `recent` flags; a plant
+    # whose uprightness is not known (NaN) counts in neither the upright nor the total
     window = settings.window
     history = np.concatenate((np.asarray(recent, dtype=float), upright))
-    csum = np.concatenate(([0.0], np.cumsum(history)))
+    known = np.isfinite(history)
+    csum = np.concatenate(([0.0], np.cumsum(np.where(known, history, 0.0))))
+    ccount = np.concatenate(([0], np.cumsum(known)))
     end = np.arange(len(recent), len(recent) + n) + 1
     start = np.maximum(end - window, 0)
-    rate = (csum[end] - csum[start]) / (end - start) if n else np.zeros(0)
+    counted = ccount[end] - ccount[start]
+    with np.errstate(invalid='ignore', divide='ignore'):
+        rate = np.where(counted > 0, (csum[end] - csum[start]) / np.maximum(counted, 1),
+                        np.nan) if n else np.zeros(0)
+    from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
     return Plants(index=np.arange(index0, index0 + n, dtype=float), time=t_e, position=s_e,
                   spacing=spacing, spacing_error=spacing - d, speed_ratio=ratio,
                   ground_speed=v_e, shaft_speed=omega, hole_width=hole, tilt=tilt,
                   upright=upright, uprightness_rate=rate, row=np.full(n, float(row)),
-                  tip_sweep=sweep, latitude=np.full(n, np.nan), longitude=np.full(n, np.nan))
+                  tip_sweep=sweep, latitude=np.full(n, np.nan), longitude=np.full(n, np.nan),
+                  input_gap=in_gap.astype(float), seedlings=np.full(n, np.nan),
+                  status=np.full(n, float(UNKNOWN)),
+                  reason=np.where(in_gap, float(INPUT_GAP), float(NO_SENSOR)))
 
 
 class PlantPredictor:
@@ -454,8 +475,8 @@ class PlantPredictor:
         while _threshold(self.model, float(self._next_k)) <= th1:
             theta_k = _threshold(self.model, float(self._next_k))
             t_e, omega = _crossing(theta_k, t0, t, th0, th1, w0, velocity)
-            if not in_gap:             # a crossing inside a gap would be invented
-                self._pending.append((float(t_e), float(omega), self.model, theta_k))
+            # a crossing inside a gap: reported, interpolated and flagged (module doc)
+            self._pending.append((float(t_e), float(omega), self.model, theta_k, in_gap))
             self._next_k += 1
             if self._changes and self._changes[0][0] < t_e:
                 # this plant was the old design's last; the latest change before it is in force
@@ -492,37 +513,38 @@ class PlantPredictor:
             return self._nothing()
         first_t, last_t = self._speed[0][0], self._speed[-1][0]
         done, keep = [], []
-        for t_e, omega, model, theta_k in self._pending:
-            if t_e >= last_t:
-                keep.append((t_e, omega, model, theta_k))
+        for pending in self._pending:
+            t_e, _, model, theta_k, _ = pending
+            if keep or t_e >= last_t:
+                keep.append(pending)    # in order: none completes before an earlier one
             elif t_e < first_t:
                 pass        # before the first speed sample: no position, dropped (as in replay)
             elif (final or not self.settings.measured_arc
                   or self._arc_done(t_e, model, theta_k, last_t)):
-                done.append((t_e, omega, model, theta_k))
+                done.append(pending)
             else:
-                keep.append((t_e, omega, model, theta_k))
+                keep.append(pending)
         self._pending = keep
         if not done:
             return self._nothing()
         times = [s[0] for s in self._speed]
         rows, models = [], []
-        for t_e, omega, model, theta_k in done:
+        for t_e, omega, model, theta_k, in_gap in done:
             j = _bisect_right(times, t_e)
             (t0, v0, s0), (t1, v1, _) = self._speed[j - 1], self._speed[j]
-            if t1 - t0 > self.settings.max_input_gap:
-                continue                # inside a gap of the ground speed: not reported
+            # inside a gap of the ground speed: reported, interpolated and flagged
+            in_gap = in_gap or t1 - t0 > self.settings.max_input_gap
             v_e, s_e = _at_speed(np.float64(t_e), t0, t1, v0, v1, s0)
-            rows.append((t_e, omega, float(v_e), float(s_e), theta_k))
+            rows.append((t_e, omega, float(v_e), float(s_e), theta_k, in_gap))
             models.append(model)
         if not rows:
             return self._nothing()
-        t_e, omega, v_e, s_e, theta_k = (np.array(c) for c in zip(*rows))
+        t_e, omega, v_e, s_e, theta_k, in_gap = (np.array(c) for c in zip(*rows))
         arcs = self._arcs(models, theta_k) if self.settings.measured_arc else None
         new_sequence = _after_gap(t_e, self._prev_time, np.array(self._gaps).reshape(-1, 2))
         plants = _assemble(models, self.settings, t_e, omega, v_e, s_e, self._count,
                            self._prev_position, tuple(self._recent), new_sequence, self.row,
-                           arcs)
+                           arcs, in_gap=in_gap.astype(bool))
         self._count += len(plants)
         self._prev_position = float(plants.position[-1])
         self._prev_time = float(plants.time[-1])

@@ -33,6 +33,11 @@ PLANT_FIELDS = (
     'tip_sweep',         # m, swept extent of the nozzle tip (a point) below the soil
     'latitude',          # deg WGS 84 of the plant (the as-planted map); NaN without GNSS
     'longitude',         # deg WGS 84; NaN without GNSS
+    'input_gap',         # 1: the instant fell in a gap of the ground speed or joint samples
+                         # (time and position interpolated; hole, tilt, upright NaN), else 0
+    'seedlings',         # seedlings the row's cup sensor counted for this instant (NaN: none)
+    'status',            # prediction.seedlings.STATUSES: 0 planted, 1 empty, 2 double, 3 unknown
+    'reason',            # prediction.seedlings.REASONS: why the status (0 = sensed)
 )
 
 
@@ -56,6 +61,10 @@ class Plants:
     tip_sweep: np.ndarray
     latitude: np.ndarray
     longitude: np.ndarray
+    input_gap: np.ndarray
+    seedlings: np.ndarray
+    status: np.ndarray
+    reason: np.ndarray
 
     def __len__(self) -> int:
         return int(self.index.size)
@@ -70,9 +79,15 @@ class Plants:
         return [{f: _json_value(v) for f, v in zip(PLANT_FIELDS, row)} for row in self.table()]
 
     @classmethod
-    def from_table(cls, table: ArrayLike) -> 'Plants':
-        table = np.asarray(table, dtype=float).reshape(-1, len(PLANT_FIELDS))
-        return cls(**{f: table[:, i].copy() for i, f in enumerate(PLANT_FIELDS)})
+    def from_table(cls, table: ArrayLike, fields: tuple = PLANT_FIELDS) -> 'Plants':
+        """Plants of a table whose columns are `fields` (an older layout: fewer; a field it
+        lacks is NaN, but input_gap 0 and status/reason unknown/no sensor)."""
+        table = np.asarray(table, dtype=float).reshape(-1, len(fields))
+        have = {f: table[:, i].copy() for i, f in enumerate(fields)}
+        n = table.shape[0]
+        defaults = {'input_gap': 0.0, 'status': 3.0, 'reason': 1.0}
+        return cls(**{f: have[f] if f in have else np.full(n, defaults.get(f, np.nan))
+                      for f in PLANT_FIELDS})
 
     @classmethod
     def concatenate(cls, parts: Iterable['Plants']) -> 'Plants':
@@ -93,11 +108,18 @@ def summarize(plants: Plants, spacing: float,
     """Summary figures (SI) of a run: plant count, spacing error, hole width and tip sweep,
     uprightness, spacing quality (each plant's spacing against `design_spacing`: one per plant,
     default `spacing` for all)."""
+    from .seedlings import seedling_spacings, status_counts
     err = plants.spacing_error[np.isfinite(plants.spacing_error)]
-    hole = plants.hole_width
+    hole = plants.hole_width[np.isfinite(plants.hole_width)]
     sweep = plants.tip_sweep[np.isfinite(plants.tip_sweep)]
+    upright = plants.upright[np.isfinite(plants.upright)]
+    tilt = plants.tilt[np.isfinite(plants.tilt)]
+    d = np.broadcast_to(np.asarray(spacing if design_spacing is None else design_spacing,
+                                   dtype=float), plants.spacing.shape)
+    x, x_d = seedling_spacings(plants, d)
     return {
         'plants': len(plants),
+        'instants': status_counts(plants),
         'design_spacing': float(spacing),
         'spacing_error_mean': float(err.mean()) if err.size else None,
         'spacing_error_std': float(err.std()) if err.size else None,
@@ -106,8 +128,7 @@ def summarize(plants: Plants, spacing: float,
         'hole_width_max': float(hole.max()) if hole.size else None,
         'tip_sweep_mean': float(sweep.mean()) if sweep.size else None,
         'tip_sweep_max': float(sweep.max()) if sweep.size else None,
-        'tilt_max': float(np.abs(plants.tilt).max()) if hole.size else None,
-        'uprightness_rate': float(plants.upright.mean()) if hole.size else None,
-        'spacing_quality': spacing_quality(
-            plants.spacing, spacing if design_spacing is None else design_spacing),
+        'tilt_max': float(np.abs(tilt).max()) if tilt.size else None,
+        'uprightness_rate': float(upright.mean()) if upright.size else None,
+        'spacing_quality': spacing_quality(x, x_d),
     }

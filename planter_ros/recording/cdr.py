@@ -309,3 +309,87 @@ def decode_string(raw: Raw) -> str:
     except UnicodeDecodeError as exc:
         raise DecodeError(f'{what}: data is not UTF-8 ({exc.reason} at byte '
                           f'{HEADER + 4 + exc.start})') from None
+
+
+# ----------------------------------------------------------------------------- encoding
+
+# primitive type -> (struct format, size = alignment)
+_PRIMITIVES = {'bool': ('?', 1), 'boolean': ('?', 1), 'byte': ('B', 1), 'octet': ('B', 1),
+               'char': ('B', 1), 'int8': ('b', 1), 'uint8': ('B', 1), 'int16': ('h', 2),
+               'uint16': ('H', 2), 'int32': ('i', 4), 'uint32': ('I', 4), 'int64': ('q', 8),
+               'uint64': ('Q', 8), 'float': ('f', 4), 'double': ('d', 8)}
+_ENCAPSULATION = b'\x00\x01\x00\x00'          # CDR little endian, no options
+
+
+def encode_message(msg: object) -> bytes:
+    """The CDR bytes (XCDR1 little endian, rosbag2's `cdr`) of an rclpy message, written
+    deterministically: every alignment padding byte 0 and nothing after the last field.
+
+    rclpy's serialize_message leaves padding uninitialised and can end a message with 4 bytes
+    past its last field (a JointState: rosbags refuses it with "CDR message size mismatch"), so
+    two recordings of the same messages differ. This encoder walks the message's own field
+    types (`get_fields_and_field_types`): primitives, strings, nested messages, fixed arrays and
+    (bounded) sequences of any of them; wide strings are refused (ValueError)."""
+    out = bytearray(_ENCAPSULATION)
+    _encode_fields(out, msg)
+    return bytes(out)
+
+
+def _pad(out: bytearray, size: int) -> None:
+    extra = (len(out) - HEADER) % size
+    if extra:
+        out.extend(b'\x00' * (size - extra))
+
+
+def _encode_fields(out: bytearray, msg: object) -> None:
+    for name, kind in msg.get_fields_and_field_types().items():
+        _encode_value(out, kind, getattr(msg, name))
+
+
+def _element(kind: str) -> tuple[str, int | None]:
+    """(element type, fixed length or None for a sequence) of an array or sequence type."""
+    if kind.startswith('sequence<'):
+        inner = kind[len('sequence<'):-1]
+        return inner.split(',')[0].strip(), None
+    base, _, count = kind.rpartition('[')
+    return base, int(count.rstrip(']'))
+
+
+def _encode_value(out: bytearray, kind: str, value: object) -> None:
+    if kind.startswith('sequence<') or kind.endswith(']'):
+        element, count = _element(kind)
+        items = list(value) if not isinstance(value, (bytes, bytearray)) else list(value)
+        if count is None:
+            _pad(out, 4)
+            out.extend(struct.pack('<I', len(items)))
+        if not items:
+            return
+        primitive = _PRIMITIVES.get(element)
+        if primitive is not None:
+            fmt, size = primitive
+            _pad(out, size)
+            if fmt == 'B':
+                items = [v if isinstance(v, int) else ord(v) for v in items]
+            out.extend(struct.pack(f'<{len(items)}{fmt}', *items))
+            return
+        for item in items:
+            _encode_value(out, element, item)
+        return
+    primitive = _PRIMITIVES.get(kind)
+    if primitive is not None:
+        fmt, size = primitive
+        _pad(out, size)
+        if fmt == 'B' and not isinstance(value, int):
+            value = ord(value) if isinstance(value, (str, bytes)) else int(value)
+        out.extend(struct.pack('<' + fmt, value))
+        return
+    if kind == 'string' or kind.startswith('string<'):
+        data = value.encode('utf-8') + b'\x00'
+        _pad(out, 4)
+        out.extend(struct.pack('<I', len(data)))
+        out.extend(data)
+        return
+    if kind.startswith('wstring'):
+        raise ValueError(f'CDR encoding of {kind} is not supported: allowed primitives, '
+                         'strings, messages, arrays and sequences of them')
+    _encode_fields(out, value)

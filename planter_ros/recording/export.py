@@ -6,8 +6,12 @@ order, WGS 84), with COORDINATE_DECIMALS decimals (1e-9 degrees is about 0.1 mm:
 RFC 7946 suggests are 0.1 m, half a plant spacing); a plant without a map position (no GNSS) is
 a Feature whose geometry is null, as RFC 7946 allows for unlocated features. Properties: row
 (index), row_name, index, time (s, the recording's clock), spacing, spacing_error, hole_width (m),
-tilt (rad, + leaning forward), upright (true/false); an undefined value is null.
-CSV: the same table, a header line, empty cells for undefined values, upright as 1/0.
+tilt (rad, + leaning forward), upright (true/false), status (planted | empty | double |
+unknown), reason (sensed | no seedling sensor | no sensor reading | input gap), input_gap
+(true: the instant fell in a gap of the inputs, its position interpolated); an undefined value
+is null. Every planting instant is a feature: an empty cup's and an input gap's too.
+CSV: the same table, a header line, empty cells for undefined values, upright and input_gap as
+1/0.
 """
 
 from __future__ import annotations
@@ -23,9 +27,10 @@ if TYPE_CHECKING:
 
 COORDINATE_DECIMALS = 9
 PROPERTIES = ('row', 'row_name', 'index', 'time', 'spacing', 'spacing_error', 'hole_width',
-              'tilt', 'upright')
+              'tilt', 'upright', 'status', 'reason', 'input_gap')
 CSV_COLUMNS = ('row', 'row_name', 'index', 'time', 'longitude', 'latitude', 'spacing',
-               'spacing_error', 'hole_width', 'tilt', 'upright')
+               'spacing_error', 'hole_width', 'tilt', 'upright', 'status', 'reason',
+               'input_gap')
 
 
 def _number(value: float) -> float | None:
@@ -33,8 +38,14 @@ def _number(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
+def _flag(value: float) -> bool | None:
+    value = float(value)
+    return bool(value) if math.isfinite(value) else None
+
+
 def plant_records(result: ReplayResult) -> list[dict]:
     """One dict per plant of a ReplayResult: the CSV columns, None for undefined values."""
+    from planter_ros.prediction import reason_name, status_name
     p = result.plants
     names = {row.index: row.name for row in result.rows}
     out = []
@@ -45,7 +56,8 @@ def plant_records(result: ReplayResult) -> list[dict]:
                     'latitude': _number(p.latitude[i]), 'spacing': _number(p.spacing[i]),
                     'spacing_error': _number(p.spacing_error[i]),
                     'hole_width': _number(p.hole_width[i]), 'tilt': _number(p.tilt[i]),
-                    'upright': bool(p.upright[i])})
+                    'upright': _flag(p.upright[i]), 'status': status_name(p.status[i]),
+                    'reason': reason_name(p.reason[i]), 'input_gap': bool(p.input_gap[i] == 1)})
     return out
 
 
@@ -74,7 +86,7 @@ def csv_text(result: ReplayResult) -> str:
         cells = []
         for column in CSV_COLUMNS:
             value = record[column]
-            if column == 'upright':
+            if column in ('upright', 'input_gap') and value is not None:
                 value = int(value)
             elif column in ('longitude', 'latitude') and value is not None:
                 value = f'{value:.{COORDINATE_DECIMALS}f}'

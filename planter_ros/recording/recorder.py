@@ -305,9 +305,12 @@ class Recorder:
 
     def write_message(self, topic: str, msg: object, log_time: int,
                       publish_time: int | None = None) -> None:
-        """Serialise a message this process publishes (rclpy.serialization) and record it."""
-        from rclpy.serialization import serialize_message
-        self.write(topic, serialize_message(msg), log_time, publish_time)
+        """Serialise a message this process publishes and record it: CDR written
+        deterministically (recording.cdr.encode_message: padding zeroed, no bytes after the
+        last field, unlike rclpy's serialize_message), so the same messages give the same
+        bytes and every reader decodes them without a size mismatch."""
+        from .cdr import encode_message
+        self.write(topic, encode_message(msg), log_time, publish_time)
 
     def tick(self) -> None:
         """Close the open chunk if `flush_period` has passed (call from a timer too)."""

@@ -40,7 +40,8 @@ from planter_ros.geo import AntennaSettings
 from planter_ros.kinematics.arrays import FloatArray
 from planter_ros.kinematics.planting import Planting
 from planter_ros.prediction import (
-    PLANT_FIELDS, Plants, PredictionSettings, planting_model_from_design, predict_plants,
+    PLANT_FIELDS, AcceptanceLimits, Plants, PredictionSettings, SeedlingAccount,
+    design_spacing_of, judge_acceptance, planting_model_from_design, predict_plants,
     prediction_notes, section_breaks, summarize)
 from planter_ros.rows import Row, implicit_row, rows_from_record
 from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, place_plants
@@ -51,7 +52,8 @@ from .cdr import decode_joint_states, decode_navsatfix, decode_string, decode_tw
 from .errors import DecodeError, ReplayError, TopicMissingError
 
 REQUIRED = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES, interfaces.DESIGN)
-OPTIONAL = (interfaces.GNSS_FIX, interfaces.SECTIONS, interfaces.DIAGNOSTICS)
+OPTIONAL = (interfaces.GNSS_FIX, interfaces.SECTIONS, interfaces.DIAGNOSTICS,
+            interfaces.SEEDLINGS)
 
 
 @dataclass
@@ -74,6 +76,8 @@ class ReplayResult:
     fixes: int = 0                # usable GNSS fixes in the bag
     nozzle_width: float = None    # m, of the last design's predictions
     recorded_fields: tuple = ()   # the PLANT_FIELDS the live recording has (older: fewer)
+    acceptance: dict = None       # the run judged by the crop's limits (judge_acceptance)
+    acceptance_source: str = ''   # whose limits: the bag's, a scene's, the defaults
 
     def recorded_columns(self) -> list[int]:
         """Indices of the plant fields the live recording has: replay and the recording can
@@ -92,6 +96,7 @@ class ReplayResult:
                 'summary': self.summary,
                 'rows': [{**row.as_dict(), 'summary': summary}
                          for row, summary in zip(self.rows, self.row_summaries)],
+                'acceptance': {**(self.acceptance or {}), 'source': self.acceptance_source},
                 'plants': self.plants.rows(), 'notes': self.notes or [],
                 'warnings': self.warnings}
 
@@ -118,15 +123,21 @@ def settings_from_recording(recorded: Mapping[str, object],
 
 
 def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = None,
-           with_recorded: bool = False, fallback_design: Design | None = None) -> ReplayResult:
+           with_recorded: bool = False, fallback_design: Design | None = None,
+           acceptance: AcceptanceLimits | None = None) -> ReplayResult:
     """Re-run the prediction model on a bag. Raises a RecordingError for a bag it cannot use
     (BagUnreadableError, TopicMissingError, ReplayError: recording.errors) and ConfigError
     for a bad setting override (`nozzle_width` among them replaces the design's).
     `fallback_design` (a Design, e.g. of the scene the run used) stands in for the whole
     bag when it holds no usable design message (lost in a damaged part); it is ignored, with a
-    warning, when the bag has its own."""
+    warning, when the bag has its own. `acceptance` (AcceptanceLimits, e.g. a scene's; or the
+    override `acceptance`, a mapping of them) replaces the limits the bag recorded (without
+    either: the defaults) in the run's judgement."""
     overrides = dict(settings_overrides or {})
     nozzle_override = overrides.pop('nozzle_width', None)
+    given = overrides.pop('acceptance', None)       # a scene's limits as a mapping
+    if acceptance is None and given is not None:
+        acceptance = config.from_mapping(AcceptanceLimits, given)
     wanted = REQUIRED + OPTIONAL + ((interfaces.PLANTS,) if with_recorded else ())
     rec = read_recording(path, wanted)
     required = REQUIRED if fallback_design is None else REQUIRED[:2]
@@ -166,7 +177,8 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
                             'short or not UTF-8 text): skipped')
     if fallback_design is not None:
         if designs:
-            rec.warnings.append('the bag holds its own design: the scene given is not used')
+            rec.warnings.append("the bag holds its own design: the scene's design is not used "
+                                '(its acceptance limits are)')
         else:
             try:
                 model = planting_model_from_design(fallback_design,
@@ -241,11 +253,16 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         order = np.argsort(segment.time, kind='stable')
         parts.append(Plants.from_table(segment.table()[order]))
     plants = Plants.concatenate(parts)
-    design_spacing = plants.spacing - plants.spacing_error     # each plant's design in force
+    # each instant's seedlings from the rows' cup sensors (prediction.seedlings): its status,
+    # and spacings between the seedlings in the ground
+    design_spacing = design_spacing_of(plants, designs[-1][3].spacing)
+    plants = _seedlings(rec, plants, planting, segments).apply(plants, design_spacing)
     offset_of = {row.index: row.lateral_offset for row in rows}
+    forward_of = {row.index: row.longitudinal_offset for row in rows}
     placement = place_plants(plants.time, [offset_of.get(int(r), 0.0) for r in plants.row],
                              tuple(np.concatenate(c) for c in zip(*motions)), fixes,
-                             map_settings, antenna.antenna_position)
+                             map_settings, antenna.antenna_position,
+                             [forward_of.get(int(r), 0.0) for r in plants.row])
     plants.latitude, plants.longitude = placement.latitude, placement.longitude
     usable_fixes = int(np.count_nonzero(np.isfinite(fix_sigma(*fixes[1:],
                                                               map_settings.max_fix_sigma))))
@@ -256,11 +273,17 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         recorded, recorded_fields = _recorded_plants(rec.topics[interfaces.PLANTS])
     if nozzle.fallback_used:
         rec.warnings.append(nozzle.fallback_used)
+    limits, source = _acceptance_limits(acceptance, rec.metadata, rec.warnings)
+    summary = summarize(plants, last_model.spacing, design_spacing)
+    row_summaries = [summarize(_of_row(plants, row.index), last_model.spacing,
+                               design_spacing[plants.row == row.index]) for row in rows]
+    named = len(rows) > 1 or bool(rows[0].name)
+    judged = ([(row.label, s) for row, s in zip(rows, row_summaries) if row.enabled]
+              if named else [('', summary)])
     return ReplayResult(
         path=str(path), design=last_design, settings=settings, plants=plants,
-        summary=summarize(plants, last_model.spacing, design_spacing), rows=rows,
-        row_summaries=[summarize(_of_row(plants, row.index), last_model.spacing,
-                                 design_spacing[plants.row == row.index]) for row in rows],
+        summary=summary, rows=rows, row_summaries=row_summaries,
+        acceptance=judge_acceptance(limits, judged), acceptance_source=source,
         duration=float((logs.max() - logs.min()) * 1e-9) if logs.size else 0.0,
         messages={interfaces.GROUND_SPEED.name: int(s_log.size),
                   interfaces.JOINT_STATES.name: int(j_log.size),
@@ -272,6 +295,46 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         notes=prediction_notes(last_design, last_model), map_settings=map_settings,
         antenna=antenna, nozzle_width=last_model.nozzle_width,
         fixes=usable_fixes)
+
+
+def _seedlings(rec: Recording, plants: Plants, planting: Sequence[Row],
+               segments: Sequence) -> SeedlingAccount:
+    """A SeedlingAccount holding every reading of the bag's seedling sensor (by row)."""
+    account = SeedlingAccount()
+    topic = rec.topics.get(interfaces.SEEDLINGS)
+    if topic is None or not topic.raw:
+        return account
+    order = np.argsort(np.asarray(topic.log, dtype=np.int64), kind='stable')
+    raws = [topic.raw[i] for i in order]
+    logs = np.asarray(topic.log, dtype=np.int64)[order]
+    mechanisms = {group[0][2].mechanism for _, group in segments}
+    for row in planting:
+        for mechanism in mechanisms:
+            stamp, count, _ = decode_joint_states(raws, row.joint(mechanism))
+            ok = np.isfinite(count)
+            t = np.where(stamp != 0, stamp, logs) * 1e-9
+            for when, value in zip(t[ok].tolist(), count[ok].tolist()):
+                account.add_reading(row.index, when, value)
+    return account
+
+
+def _acceptance_limits(given: AcceptanceLimits | None, metadata: Mapping[str, Mapping],
+                       warnings: list[str]) -> tuple[AcceptanceLimits, str]:
+    """(AcceptanceLimits, whose): the limits given, else the bag's record, else the defaults.
+    A recorded value out of range is replaced by its default, with a warning."""
+    if given is not None:
+        return given, 'the scene given'
+    recorded = metadata.get(interfaces.ACCEPTANCE_RECORD)
+    if recorded is None:
+        return AcceptanceLimits(), 'the defaults: the bag records no limits'
+    values = {}
+    for spec in config.specs(AcceptanceLimits):
+        if spec.name in recorded:
+            try:
+                values[spec.name] = config.coerce(spec, recorded[spec.name])
+            except ConfigError as exc:
+                warnings.append(f'recorded acceptance limit ignored, default used: {exc}')
+    return config.from_mapping(AcceptanceLimits, values), "the run's scene, recorded in the bag"
 
 
 class _NozzleWidth:

@@ -8,9 +8,10 @@ import math
 from typing import TYPE_CHECKING
 
 from planter_ros import interfaces
-from planter_ros.prediction import format_quality
+from planter_ros.prediction import format_acceptance, format_quality
 
 if TYPE_CHECKING:
+    from planter_ros.prediction import Plants
     from .replay import ReplayResult
 
 __all__ = ['format_summary', 'format_table']
@@ -42,8 +43,18 @@ def format_table(result: ReplayResult) -> str:
         lines.append(f'{row}{int(p.index[i]):>5} {p.time[i] - t0:>8.3f} {p.position[i]:>8.3f} '
                      f'{spacing:>12} {err:>10} {lam:>7} {p.tip_sweep[i] * 1e3:>10.2f} '
                      f'{p.hole_width[i] * 1e3:>9.2f} {math.degrees(p.tilt[i]):>10.2f} '
-                     f'{"yes" if p.upright[i] else "NO":>7}')
+                     f'{_upright(p.upright[i]):>7}'
+                     f'{"  " + _status(p, i) if p.status[i] != 3 or p.input_gap[i] else ""}')
     return '\n'.join(lines + [''] + format_summary(result).splitlines())
+
+
+def _upright(value: float) -> str:
+    return '?' if not math.isfinite(value) else 'yes' if value else 'NO'
+
+
+def _status(p: Plants, i: int) -> str:
+    from planter_ros.prediction import reason_name, status_name
+    return f'{status_name(p.status[i])} ({reason_name(p.reason[i])})'
 
 
 def _mm(v: float | None) -> str:
@@ -60,8 +71,12 @@ def format_summary(result: ReplayResult) -> str:
     threshold = math.degrees(result.settings.upright_threshold)
     nozzle = _nozzle(result)
     notes = list(result.notes or [])
+    n = s.get('instants') or {}
     lines = [
-        f'plants: {s["plants"]} (design spacing {s["design_spacing"] * 1e3:.1f} mm)',
+        f'plants: {s["plants"]} planting instants (design spacing '
+        f'{s["design_spacing"] * 1e3:.1f} mm): {n.get("planted", 0)} planted, '
+        f'{n.get("empty", 0)} empty, {n.get("double", 0)} double, {n.get("unknown", 0)} '
+        f'unknown ({n.get("input_gap", 0)} in input gaps)',
         f'spacing error: mean {_mm(s["spacing_error_mean"])}, sigma '
         f'{_mm(s["spacing_error_std"])}, max |error| {_mm(s["spacing_error_max"])} (plants at '
         'the distance integrated from the recorded ground speed)',
@@ -72,6 +87,8 @@ def format_summary(result: ReplayResult) -> str:
     lines.append(f'uprightness: {rate} (threshold {threshold:.1f} deg to the ground)')
     lines += _notes_for(notes, ('tilt', 'upright', 'uprightness_rate'))
     lines.append(_map_line(result))
+    if result.acceptance is not None:
+        lines.append(format_acceptance(result.acceptance, f'limits: {result.acceptance_source}'))
     if _named_rows(result):
         for row, r in zip(result.rows, result.row_summaries):
             where = f'y = {row.lateral_offset:+.2f} m'

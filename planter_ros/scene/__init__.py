@@ -6,14 +6,14 @@ nodes, read strictly, resolved and written here.
   unknown key or a value out of range is refused naming the key, the file and the closest
   valid key. The nodes check the files they are started with by the same rule;
 * `resolve`: a checked scene (`open_scene`), what each node gets from it, its design, rows
-  and antenna; `load_scene` for one node's flat parameters;
+  antenna and acceptance limits; `load_scene` for one node's flat parameters;
 * `writer`: writing a scene (the optimiser's result);
 * `design_sources`: who may set the design: the publisher of every design a node accepts.
 """
 
 from .files import MAX_ALIAS_NODES, MAX_SCENE_BYTES, SceneError, read_parameter_file
-from .resolve import Scene, default_scene_path, load_scene, open_scene
+from .resolve import Scene, default_scene_path, load_scene, open_scene, scene_limits
 from .writer import write_scene
 
 __all__ = ['MAX_ALIAS_NODES', 'MAX_SCENE_BYTES', 'Scene', 'SceneError', 'default_scene_path',
-           'load_scene', 'open_scene', 'read_parameter_file', 'write_scene']
+           'load_scene', 'open_scene', 'read_parameter_file', 'scene_limits', 'write_scene']

@@ -17,20 +17,23 @@ from .files import ParameterFile, SceneError, read_parameter_file
 from .schema import check_scene, merged_parameters, node_parameters, shared_entry
 
 if TYPE_CHECKING:          # loaded when used: a scene's design may need the gear train
+    from planter_ros.prediction import AcceptanceLimits
     from planter_ros.design import Design
     from planter_ros.geo import AntennaSettings
     from planter_ros.rows import Row
 
-__all__ = ['Scene', 'default_scene_path', 'load_scene', 'open_scene']
+__all__ = ['Scene', 'default_scene_path', 'load_scene', 'open_scene', 'scene_limits']
 
 DEFAULT_SCENE = 'tomato_five_bar.yaml'
 
 
 @dataclass(frozen=True)
 class Scene:
-    """A checked scene file."""
+    """A checked scene file; `warnings`: its unusual but possible values
+    (planter_ros.plausibility), for the caller to show."""
 
     file: ParameterFile
+    warnings: tuple[str, ...] = ()
 
     @property
     def path(self) -> Path:
@@ -66,6 +69,15 @@ class Scene:
         except ConfigError as exc:
             raise SceneError(f'scene {self.path}: {exc}') from None
 
+    def acceptance(self) -> 'AcceptanceLimits':
+        """The crop's acceptance limits (prediction.AcceptanceLimits) as the monitor reads
+        them; the defaults for what the scene does not set."""
+        from planter_ros.prediction import AcceptanceLimits
+        try:
+            return from_mapping(AcceptanceLimits, self.parameters('monitor_node'))
+        except ConfigError as exc:
+            raise SceneError(f'scene {self.path}: {exc}') from None
+
     def antenna(self) -> AntennaSettings:
         """The GNSS antenna on the machine (geo.AntennaSettings) as the monitor reads it."""
         from planter_ros.geo import AntennaSettings
@@ -77,13 +89,27 @@ class Scene:
 
 def open_scene(path: str | Path) -> Scene:
     """Read and check a scene file (SceneError, one line, for anything the nodes would not
-    take: see scene.schema)."""
+    take: see scene.schema, or the machine could not run: planter_ros.plausibility)."""
     pfile = read_parameter_file(path)
     if not any(entry.params for entry in pfile.entries):
         raise SceneError(f'scene file {pfile.path} has no ros__parameters under /** or a '
                          'planter node')
     check_scene(pfile)
-    return Scene(pfile)
+    from planter_ros.plausibility import PlausibilityError, check
+    try:
+        warnings = check({**merged_parameters(pfile, 'design_node'),
+                          **merged_parameters(pfile, 'sync_node')},
+                         where=f'scene file {pfile.path}: ')
+    except PlausibilityError as exc:
+        raise SceneError(str(exc)) from None
+    return Scene(pfile, tuple(warnings))
+
+
+def scene_limits(path: str | Path) -> dict[str, Any]:
+    """The crop's acceptance limits a scene file sets (the defaults for the rest), as a
+    mapping (prediction.AcceptanceLimits' fields)."""
+    from planter_ros.config import as_dict
+    return as_dict(open_scene(path).acceptance())
 
 
 def load_scene(path: str | Path, node: str | None = None) -> dict[str, Any]:

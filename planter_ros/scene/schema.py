@@ -58,7 +58,7 @@ def node_classes() -> dict[str, tuple[type, ...]]:
     from planter_ros.control.phase_lock import PhaseLockConfig
     from planter_ros.drive.config import DriveConfig
     from planter_ros.geo import AntennaSettings
-    from planter_ros.prediction import PredictionSettings
+    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
     from planter_ros.kinematics.scene_settings import SceneSettings, ThreeArmSettings
     from planter_ros.recording.recorder import RecorderConfig
     from planter_ros.rows import RowLayout
@@ -70,7 +70,7 @@ def node_classes() -> dict[str, tuple[type, ...]]:
         'sync_node': (DriveConfig, SyncLoopConfig, RowLayout, PhaseLockConfig,
                       GroundSpeedLimits, YawRateLimits, TurnConfig),
         'monitor_node': (RecorderConfig, PredictionSettings, MapSettings, AntennaSettings,
-                         RowLayout),
+                         AcceptanceLimits, RowLayout),
     }
 
 

@@ -277,18 +277,22 @@ class FixTrack:
         return (self.first_heading is not None or self.times[-1] > t + window
                 or motion_seen > t + window + age)
 
-    def place(self, t, lateral_offset, pose):
+    def place(self, t, lateral_offset, pose, forward_offset=None):
         """(east, north, heading) in the local frame of plants at times t (array) on rows at
-        `lateral_offset` (array), the machine's dead-reckoned pose at t given; NaN where no
+        `lateral_offset` and `forward_offset` (arrays, m from the machine's reference point;
+        forward None: on its line), the machine's dead-reckoned pose at t given; NaN where no
         transform applies."""
         t = np.asarray(t, dtype=float)
+        if forward_offset is None:
+            forward_offset = np.zeros(t.size)
         out = np.full((3, t.size), np.nan)
         for i, ti in enumerate(t.tolist()):
             transform = self.transform_for(ti) if self.times else None
             if transform is None or not math.isfinite(pose[0][i]):
                 continue
             phi, tx, ty = transform
-            px, py = on_machine(pose[0][i], pose[1][i], pose[2][i], 0.0, lateral_offset[i])
+            px, py = on_machine(pose[0][i], pose[1][i], pose[2][i], forward_offset[i],
+                                lateral_offset[i])
             c, s = math.cos(phi), math.sin(phi)
             out[:, i] = (c * px - s * py + tx, s * px + c * py + ty, pose[2][i] + phi)
         return out
@@ -308,8 +312,8 @@ class Placement:
     origin: tuple | None          # (latitude, longitude) of the local frame, None without fixes
 
 
-def _placement(track, t, offsets, pose):
-    east, north, heading = track.place(t, offsets, pose)
+def _placement(track, t, offsets, pose, forward=None):
+    east, north, heading = track.place(t, offsets, pose, forward)
     lat = np.full(east.shape, np.nan)
     lon = np.full(east.shape, np.nan)
     ok = np.isfinite(east)
@@ -319,10 +323,12 @@ def _placement(track, t, offsets, pose):
     return Placement(east, north, heading, lat, lon, origin)
 
 
-def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna):
+def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna, plant_forward=None):
     """Replay's map: where each plant is (Placement), from all the recording's motion samples
     `motion` = (t, v, ω_z) as the rows used them and `fixes` = (t, status, latitude, longitude,
-    east variance, north variance, covariance type) in arrival order, stamps in s."""
+    east variance, north variance, covariance type) in arrival order, stamps in s. Each plant's
+    row sits `plant_offset` left and `plant_forward` forward (None: 0) of the machine's
+    reference point (a machine file's lever arms: the antenna is the reference point)."""
     plant_t = np.asarray(plant_t, dtype=float)
     track = FixTrack(settings, antenna, keep_all=True)
     mt, mv, mw = (np.asarray(a, dtype=float) for a in motion)
@@ -345,8 +351,9 @@ def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna):
         for k, i in enumerate(taken.tolist()):
             track.add(ft[i], lat[i], lon[i], sigma[i], (px[k], py[k], ppsi[k]),
                       (east[k], north[k]))
+    forward = None if plant_forward is None else np.asarray(plant_forward, dtype=float)
     return _placement(track, plant_t, np.asarray(plant_offset, dtype=float),
-                      _pose_inside(mt, x, y, psi, plant_t))
+                      _pose_inside(mt, x, y, psi, plant_t), forward)
 
 
 def _pose_inside(t_dr, x, y, psi, t):
@@ -364,10 +371,11 @@ class PlantPlacer:
     the plants released by that input as a list of (plants, Placement), in the order the
     plants came in."""
 
-    def __init__(self, settings, antenna, lateral_offsets):
+    def __init__(self, settings, antenna, lateral_offsets, forward_offsets=None):
         import pyproj  # noqa: F401  (loaded now, not in the callback of the first fix)
         self.settings = settings
         self.offsets = dict(lateral_offsets)          # row index -> lateral offset (m)
+        self.forward = dict(forward_offsets or {})    # row index -> forward offset (m)
         self.track = FixTrack(settings, antenna)
         self.dr = DeadReckoning(keep=settings.fix_window + settings.max_fix_age + 5.0)
         self._fixes = deque()                         # usable fixes waiting for the motion
@@ -421,9 +429,10 @@ class PlantPlacer:
                 for t in self._pending[0].time.tolist())):
             plants = self._pending.popleft()
             offsets = np.array([self.offsets.get(int(r), 0.0) for r in plants.row])
+            forward = np.array([self.forward.get(int(r), 0.0) for r in plants.row])
             pose = _pose_inside(np.asarray(self.dr.t), np.asarray(self.dr.x),
                                 np.asarray(self.dr.y), np.asarray(self.dr.psi), plants.time)
-            placement = _placement(self.track, plants.time, offsets, pose)
+            placement = _placement(self.track, plants.time, offsets, pose, forward)
             plants.latitude = placement.latitude
             plants.longitude = placement.longitude
             out.append((plants, placement))

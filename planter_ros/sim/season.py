@@ -12,6 +12,10 @@ records, chunks closed every second of log time. The monitor's own outputs (plan
 uprightness_rate) come from its model fed sample by sample in log-time order, as monitor_node
 feeds it (RowSpeedStream, one PlantPredictor per row, the map's PlantPlacer), so replaying the
 bag reproduces them.
+Every row has a seedling sensor fed by a simulated tray (`tray_readings`: a cell empty with
+`empty_rate`, two seedlings with `double_rate`): one `seedlings` reading per planting cycle,
+half a cycle before the planting angle; the monitor's model accounts every instant by it
+(prediction.seedlings).
 The bag has no /diagnostics, sections, spacing_quality or plant_markers messages (the channels are
 there): replay derives the indices and the map from the plants and fixes.
 """
@@ -52,6 +56,10 @@ class SeasonOptions:
                         range=(1, 16))
     seed: int = setting(0, 'seed of the season: the same seed gives the same bags',
                         range=(0, 2 ** 32 - 1))
+    empty_rate: float = setting(0.02, "share of the tray's cells that are empty (the seedling "
+                                'sensor reads 0)', range=(0.0, 1.0))
+    double_rate: float = setting(0.01, "share of the tray's cells holding two seedlings (the "
+                                 'sensor reads 2)', range=(0.0, 1.0))
 
     def __post_init__(self):
         check(self)
@@ -99,6 +107,9 @@ class RunPlan:
     stall: Stall | None = None
     drive_lag: float = 0.05       # s, the drives' velocity time constant
     gnss: SimulatedGnss = field(default_factory=SimulatedGnss)
+    empty_rate: float = 0.0       # the tray: share of empty cells, of cells with two seedlings
+    double_rate: float = 0.0
+    seedling_sensor: bool = True  # each row's cup sensor reads every cycle (topic seedlings)
 
     @property
     def start_time(self):
@@ -131,8 +142,13 @@ def machine_rows(count):
                  for i in range(count))
 
 
-def draw_plan(seed, index, duration, rows):
-    """Run `index` of the season of `seed`: the same arguments give the same run."""
+def draw_plan(seed, index, duration, rows, cruise=(0.15, 0.4), empty_rate=0.0,
+              double_rate=0.0):
+    """Run `index` of the season of `seed`: the same arguments give the same run. `rows`: a
+    count (machine_rows) or the machine's rows (a scene's); `cruise`: the range (m/s) its
+    cruise speed is drawn from."""
+    machine = machine_rows(rows) if isinstance(rows, int) else tuple(rows)
+    rows = len(machine)
     rng = np.random.default_rng([int(seed), int(index)])
     d = float(duration)
     stops = []
@@ -158,11 +174,12 @@ def draw_plan(seed, index, duration, rows):
     gnss = SimulatedGnss(origin_latitude=52.0 + float(rng.uniform(-0.05, 0.05)),
                          origin_longitude=5.0 + float(rng.uniform(-0.08, 0.08)),
                          origin_heading=float(rng.uniform(-math.pi, math.pi)))
-    return RunPlan(index=int(index), seed=int(seed), duration=d, rows=machine_rows(rows),
-                   cruise=float(rng.uniform(0.15, 0.4)), change=float(rng.uniform(0.75, 1.35)),
+    return RunPlan(index=int(index), seed=int(seed), duration=d, rows=machine,
+                   cruise=float(rng.uniform(*cruise)), change=float(rng.uniform(0.75, 1.35)),
                    stops=tuple(sorted(stops, key=lambda s: s.start)), curves=tuple(curves),
                    glitches=tuple(sorted(glitches, key=lambda g: g.start)), stall=stall,
-                   drive_lag=float(rng.uniform(0.03, 0.1)), gnss=gnss)
+                   drive_lag=float(rng.uniform(0.03, 0.1)), gnss=gnss,
+                   empty_rate=float(empty_rate), double_rate=float(double_rate))
 
 
 @lru_cache(maxsize=1)
@@ -189,6 +206,9 @@ class MachineRun:
     latitude: np.ndarray
     longitude: np.ndarray
     altitude: np.ndarray
+    # the rows' seedling sensor readings: (row position in plan.rows, time s, count), in time
+    # order; the count is what the tray put in that cycle's cup (0 empty, 1, 2 double)
+    seedlings: tuple = ()
 
 
 def simulate_plan(plan, design=None):
@@ -237,8 +257,35 @@ def simulate_plan(plan, design=None):
         (np.zeros(0),) * 3
     gnss_t = np.arange(0.0, plan.duration, GNSS_PERIOD)
     lat, lon, alt = fix_positions(profile, gnss_t, plan.gnss, rng=rng)
+    seedlings = tray_readings(plan, design, runs) if plan.seedling_sensor else ()
     return MachineRun(plan, speed_t, speed_v, speed_w, t, joint_pos, joint_vel, command,
-                      gnss_t, lat, lon, alt)
+                      gnss_t, lat, lon, alt, seedlings)
+
+
+def tray_readings(plan, design, runs):
+    """The seedling sensor readings of a run: for every planting instant of every row one
+    reading, half a planting cycle before the planting angle (the cup passing the sensor), of
+    what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1."""
+    from planter_ros.prediction import planting_model_from_design
+    model = planting_model_from_design(design)
+    n = model.plants_per_revolution
+    rng = np.random.default_rng([plan.seed, plan.index, 3])
+    out = []
+    for r, run in enumerate(runs):
+        theta = np.maximum.accumulate(run.angle)
+        first = math.ceil((theta[0] - model.planting_phase) * n / (2 * math.pi) + 0.5)
+        last = math.floor((theta[-1] - model.planting_phase) * n / (2 * math.pi) + 0.5)
+        ks = np.arange(first, last + 1)
+        if not ks.size:
+            continue
+        sense = model.planting_phase + (ks - 0.5) * 2 * math.pi / n
+        i = np.searchsorted(theta, sense, side='left')
+        i = i[i < theta.size]
+        draw = rng.random(i.size)
+        counts = np.where(draw < plan.empty_rate, 0,
+                          np.where(draw < plan.empty_rate + plan.double_rate, 2, 1))
+        out += [(r, float(run.t[k]), int(c)) for k, c in zip(i.tolist(), counts.tolist())]
+    return tuple(sorted(out, key=lambda x: (x[1], x[0])))
 
 
 class MonitorModel:
@@ -248,8 +295,8 @@ class MonitorModel:
     once the fixes that place it are in), the machine's rolling upright rate."""
 
     def __init__(self, rows, design, settings, map_settings, antenna):
-        from planter_ros.prediction import (PlantPredictor,
-                                                             planting_model_from_design)
+        from planter_ros.prediction import (PlantPredictor, SeedlingAccount,
+                                            planting_model_from_design)
         from planter_ros.sensing.plant_map import PlantPlacer
         from planter_ros.sensing.row_speed import RowSpeedStream
         model = planting_model_from_design(design)
@@ -261,6 +308,8 @@ class MonitorModel:
         self.placer = PlantPlacer(map_settings, antenna.antenna_position,
                                   {row.index: row.lateral_offset for row in rows})
         self.recent = deque(maxlen=settings.window)
+        self.seedlings = SeedlingAccount()
+        self.spacing = model.spacing
 
     def speed(self, t, v, w):
         """Plants batches placed after a ground-speed message (t s, v m/s, ω_z rad/s)."""
@@ -293,17 +342,26 @@ class MonitorModel:
             out += self._predicted(p.finish())
         return out + self._placed(self.placer.flush())
 
+    def seedling(self, t, row, count):
+        """A seedling sensor reading of planting row `row` (its index) at `t` (s)."""
+        self.seedlings.add_reading(row, t, count)
+
     def _predicted(self, plants):
-        return self._placed(self.placer.add_plants(plants)) if len(plants) else []
+        from planter_ros.prediction import design_spacing_of
+        if not len(plants):
+            return []
+        plants = self.seedlings.apply(plants, design_spacing_of(plants, self.spacing))
+        return self._placed(self.placer.add_plants(plants))
 
     @staticmethod
     def _placed(placed):
         return [plants for plants, _ in placed]
 
     def rate(self, plants):
-        """The machine's rolling upright rate after `plants` (what uprightness_rate carries)."""
-        self.recent.extend(plants.upright.tolist())
-        return float(sum(self.recent) / len(self.recent))
+        """The machine's rolling upright rate after `plants` (what uprightness_rate carries:
+        the plants whose uprightness is known)."""
+        self.recent.extend(u for u in plants.upright.tolist() if math.isfinite(u))
+        return float(sum(self.recent) / len(self.recent)) if self.recent else math.nan
 
 
 def plants_message(plants):
@@ -321,9 +379,12 @@ def plants_message(plants):
     return msg
 
 
-def write_monitor_bag(run, path, design=None, settings=None, **recorder_options):
+def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, antenna=None,
+                      **recorder_options):
     """Record `run` (a MachineRun) at `path` as monitor_node would have (see the module doc);
-    `recorder_options` (split_size, split_duration) as the monitor's parameters. Returns a
+    `settings`, `acceptance` and `antenna` the monitor's (a scene's; default the defaults);
+    `recorder_options` (split_size, split_duration) as the monitor's parameters. Every message
+    is written by recording.cdr.encode_message: the same run gives the same bytes. Returns a
     summary dict (SI)."""
     from builtin_interfaces.msg import Time
     from geometry_msgs.msg import TwistStamped
@@ -332,7 +393,7 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
 
     from planter_ros.config import as_dict
     from planter_ros.geo import AntennaSettings
-    from planter_ros.prediction import PredictionSettings
+    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
     from planter_ros.recording.recorder import Recorder
     from planter_ros.recording.replay import map_record
     from planter_ros.sensing.plant_map import MapSettings
@@ -366,6 +427,9 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
             joint_stamp + rng.integers(500_000, 2_000_000, joint_stamp.size),
             command_stamp + rng.integers(200_000, 1_000_000, joint_stamp.size),
             gnss_stamp + rng.integers(5_000_000, 30_000_000, gnss_stamp.size))
+    seed_t = np.array([t for _, t, _ in run.seedlings], dtype=float)
+    seedling_stamp = ns(seed_t)
+    logs += (seedling_stamp + rng.integers(200_000, 1_000_000, seedling_stamp.size),)
     kinds = np.concatenate([np.full(a.size, k, dtype=np.int8) for k, a in enumerate(logs)])
     index = np.concatenate([np.arange(a.size) for a in logs])
     log = np.concatenate(logs)
@@ -379,7 +443,9 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
     rec.add_metadata(interfaces.PREDICTION_SETTINGS_RECORD,
                      {k: repr(v) for k, v in as_dict(settings).items()})
     rec.add_metadata(interfaces.ROWS_RECORD, rows_record(rows))
-    map_settings, antenna = MapSettings(), AntennaSettings()
+    rec.add_metadata(interfaces.ACCEPTANCE_RECORD, {
+        k: repr(v) for k, v in as_dict(acceptance or AcceptanceLimits()).items()})
+    map_settings, antenna = MapSettings(), antenna or AntennaSettings()
     rec.add_metadata(interfaces.MAP_RECORD, map_record(map_settings, antenna))
     monitor = MonitorModel(rows, design, settings, map_settings, antenna)
     start = int(log.min()) - 500_000_000 if log.size else epoch
@@ -426,6 +492,12 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
             else:
                 rec.write_message(names[interfaces.SPEED_COMMAND], Float64(data=commands[i][0]),
                                   now, now)
+        elif kind == 4:
+            r, _, count = run.seedlings[i]
+            msg = JointState(name=[joints[r]], position=[float(count)])
+            msg.header.stamp = stamp(seedling_stamp[i])
+            rec.write_message(names[interfaces.SEEDLINGS], msg, now, int(seedling_stamp[i]))
+            monitor.seedling(int(seedling_stamp[i]) * 1e-9, rows[r].index, count)
         else:
             msg = navsatfix(stamp(gnss_stamp[i]), lat[i], lon[i], alt[i], plan.gnss.noise)
             rec.write_message(names[interfaces.GNSS_FIX], msg, now, int(gnss_stamp[i]))
@@ -434,20 +506,46 @@ def write_monitor_bag(run, path, design=None, settings=None, **recorder_options)
                                 cov[0], cov[4], msg.position_covariance_type), now)
     publish(monitor.flush(), int(log.max()) if log.size else start)
     rec.close()
+    counts = [c for _, _, c in run.seedlings]
     return {'bag': str(path), 'run': plan.index, 'duration': plan.duration,
             'rows': len(rows), 'messages': rec.message_count, 'plants': plants_written,
-            'events': plan.events()}
+            'events': {**plan.events(), 'empty_cells': counts.count(0),
+                       'double_cells': counts.count(2)}}
 
 
-def simulate_bag(path, seed, index, duration, rows):
+@dataclass(frozen=True)
+class SceneMachine:
+    """What a scene gives a simulated run (analysis.simulate.scene_machine builds it): the
+    design, the rows, the monitor's settings, the crop's acceptance limits, the GNSS antenna
+    and the cruise speeds drawn (m/s, around the scene's nominal ground speed)."""
+
+    design: object
+    rows: tuple
+    settings: object
+    acceptance: object
+    antenna: object
+    cruise: tuple
+
+
+def simulate_bag(path, seed, index, duration, rows, machine=None, empty_rate=0.0,
+                 double_rate=0.0):
     """Draw run `index` of the season of `seed`, simulate it and record it at `path` (a task
-    of `planter simulate`). Returns write_monitor_bag's summary; a bag left unfinished by an
-    error is removed."""
+    of `planter simulate`): a machine of `rows` rows with the season's design, or `machine` (a
+    SceneMachine: a scene's design, rows, monitor settings, limits and antenna), its tray with
+    `empty_rate` empty cells and `double_rate` doubles. Returns write_monitor_bag's summary; a
+    bag left unfinished by an error is removed."""
     from pathlib import Path
-    plan = draw_plan(seed, index, duration, rows)
+    tray = {'empty_rate': empty_rate, 'double_rate': double_rate}
+    if machine is None:
+        plan = draw_plan(seed, index, duration, rows, **tray)
+    else:
+        plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise, **tray)
     existed = Path(path).exists()          # the recorder refuses it: never removed here
     try:
-        return write_monitor_bag(simulate_plan(plan), path)
+        if machine is None:
+            return write_monitor_bag(simulate_plan(plan), path)
+        return write_monitor_bag(simulate_plan(plan, machine.design), path, machine.design,
+                                 machine.settings, machine.acceptance, machine.antenna)
     except BaseException:
         if not existed:
             Path(path).unlink(missing_ok=True)

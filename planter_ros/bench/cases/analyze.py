@@ -66,8 +66,10 @@ def _analyse(bags, out, workers):
     with cluster(workers=workers) as client:
         check_workers(client, warm_up, version, 'the local cluster')
         startup = time.monotonic() - started
-        with seasons.Season(out) as season:
-            keys, _ = season.plan(bags, version, seasons.options_key({}, None))
+        root = seasons.analysed_root([Path(bags[0]).parent])
+        with seasons.Season(out, root) as season:
+            keys, _ = season.plan(seasons.bag_keys(bags, root), version,
+                                  seasons.options_key({}, None))
             report = seasons.run(season, client, keys, {}, None)
     return report, startup
 
@@ -88,10 +90,11 @@ def _replay_error(bag, out):
 
     import pyarrow.dataset as ds
 
+    from planter_ros.analysis.tables import plant_dicts
     from planter_ros.recording.replay import replay
     expected = replay(str(bag)).as_json()['plants']
-    table = ds.dataset(out / 'plants').to_table(filter=ds.field('bag') == str(bag))
-    got = [{k: v for k, v in row.items() if k != 'bag'} for row in table.to_pylist()]
+    table = ds.dataset(out / 'plants').to_table(filter=ds.field('bag') == Path(bag).name)
+    got = plant_dicts(table)
     if len(got) != len(expected):
         raise RuntimeError(f'{bag}: {len(got)} plants in the table, replay finds '
                            f'{len(expected)}')
@@ -150,7 +153,7 @@ def season_analysis(ctx):
                 runs_of.append((report.seconds, out, report))
             timing = from_samples(walls)
             best, out, report = min(runs_of, key=lambda r: r[0])
-            table = pq.read_table(out / 'bags.parquet', columns=[
+            table = pq.read_table(out / 'bags', columns=[
                 'analysis_seconds', 'analysis_cpu_seconds']).to_pydict()
             worker_s = statistics.median(table['analysis_seconds'])
             worker_cpu = statistics.median(table['analysis_cpu_seconds'])

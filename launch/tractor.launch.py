@@ -1,0 +1,59 @@
+"""Launch a transplanter on a tractor: several rows from a machine file, ground speed from the
+tractor's ISOBUS with GNSS as the fallback (doc/deploy.md).
+
+    ros2 launch planter_ros tractor.launch.py machine:=/etc/planter/machine.yaml \
+        scene:=/etc/planter/scene.yaml
+
+Every node reads the scene file; on top, each gets its share of the machine file (the CAN bus,
+the rows, their drives and lever arms: planter_ros.scene.machine.deployment_parameters, which
+checks both files and the scene's plausibility on this machine first and refuses to launch
+otherwise). ground_speed_node gets the ISOBUS channel from the machine file and its sources
+from `speed_sources`. Topics live in the /planter namespace.
+"""
+
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+from planter_ros.interfaces import NAMESPACE
+
+PACKAGE = 'planter_ros'
+NODES = ('ground_speed_node', 'design_node', 'sync_node', 'monitor_node')
+# launch argument -> (node, parameter) it sets; `machine` and `scene` are files
+ARGUMENT_PARAMETERS = {
+    'speed_sources': ('ground_speed_node', 'sources'),
+    'yaw_rate_source': ('ground_speed_node', 'yaw_rate_source'),
+}
+
+
+def _nodes(context):
+    from planter_ros.scene.machine import deployment_parameters
+    machine = LaunchConfiguration('machine').perform(context)
+    scene = LaunchConfiguration('scene').perform(context)
+    overrides = {'ground_speed_node': {
+        'sources': [s.strip() for s in
+                    LaunchConfiguration('speed_sources').perform(context).split(',')],
+        'yaw_rate_source': LaunchConfiguration('yaw_rate_source').perform(context)}}
+    params, warnings = deployment_parameters(machine, scene, overrides)
+    actions = [LogInfo(msg=f'planter: warning: {w}') for w in warnings]
+    for name in NODES:
+        files = [] if name == 'ground_speed_node' else [scene]
+        actions.append(Node(package=PACKAGE, executable=name, namespace=NAMESPACE,
+                            output='screen', parameters=files + [params[name]]))
+    return actions
+
+
+def generate_launch_description():
+    return LaunchDescription([
+        DeclareLaunchArgument('machine', default_value='/etc/planter/machine.yaml',
+                              description='machine file (doc/machine_file.md)'),
+        DeclareLaunchArgument('scene', default_value='/etc/planter/scene.yaml',
+                              description='scene parameter file (crop + mechanism)'),
+        DeclareLaunchArgument('speed_sources', default_value='isobus_selected,isobus_ground,gnss',
+                              description='ground-speed sources in order of preference, comma '
+                                          'separated (doc/ground_speed.md)'),
+        DeclareLaunchArgument('yaw_rate_source', default_value='gnss',
+                              description='yaw rate from gnss, imu or none'),
+        OpaqueFunction(function=_nodes),
+    ])

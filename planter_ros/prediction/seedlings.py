@@ -1,0 +1,147 @@
+"""Every planting instant accounted for: was a seedling planted, was the cup empty, were there two,
+or is it not known, and why.
+
+A planting instant is each time a row's mechanism passes its planting angle (prediction.model).
+What it put in the ground comes from the row's seedling sensor, when the machine has one: an
+optical cup sensor that counts the seedlings in the cup (or falling through the drop tube) on
+its way to the planting point, one reading per cycle (topic `seedlings`,
+interfaces.SEEDLINGS: sensor_msgs/JointState, `name` = the row's joint, `position` = the count,
+header.stamp = when it was read). Each instant takes the last reading of its row after the
+previous instant and not after it:
+
+* status `planted` (1 seedling), `empty` (0), `double` (2 or more): reason `sensed`;
+* status `unknown`: reason `no seedling sensor` (no reading of the row in the whole run),
+  `no sensor reading` (the sensor is there but said nothing this cycle), or `input gap` (the
+  instant fell in a gap of the ground speed or joint samples: its time and position are
+  interpolated and the model's hole, tilt and upright are unknown; prediction.model).
+
+Spacing (ISO 7256-1, prediction.quality) is measured between the seedlings in the ground: an
+empty instant has no spacing and the next seedling's spacing reaches back over it (two spacings
+of d become one of 2d: a miss); a double adds a spacing of 0 (a multiple); an unknown instant is
+taken as one seedling (without a sensor that is all a machine can say). The plant's `spacing`
+field is that spacing (to the previous seedling of its row); a sequence starts again, without a
+spacing, after an input gap, a section switched off or a design of another mechanism (as the
+model's NaN spacing says). `SeedlingAccount` applies this to plants as they come (the live
+monitor) or all at once (replay) with the same arithmetic. Pure numpy.
+"""
+
+from bisect import bisect_right
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .plants import Plants
+
+__all__ = ['REASONS', 'STATUSES', 'SeedlingAccount', 'design_spacing_of', 'seedling_spacings',
+           'status_counts', 'status_name', 'reason_name']
+
+STATUSES = ('planted', 'empty', 'double', 'unknown')
+PLANTED, EMPTY, DOUBLE, UNKNOWN = range(4)
+REASONS = ('sensed', 'no seedling sensor', 'no sensor reading', 'input gap')
+SENSED, NO_SENSOR, NO_READING, INPUT_GAP = range(4)
+
+
+def status_name(code: float) -> str | None:
+    return STATUSES[int(code)] if math.isfinite(code) and 0 <= code < len(STATUSES) else None
+
+
+def reason_name(code: float) -> str | None:
+    return REASONS[int(code)] if math.isfinite(code) and 0 <= code < len(REASONS) else None
+
+
+class SeedlingAccount:
+    """Statuses and seedling spacings of a machine's plants (module doc). Feed the sensor's
+    readings with `add_reading` (time order within a row) and the plants with `apply` in time
+    order per row. A row has a sensor from its first reading on: an instant before it is
+    `no seedling sensor`, as the live monitor sees it."""
+
+    def __init__(self) -> None:
+        self._readings = {}                # row -> ([t], [count])
+        self._last = {}                    # row -> (instant time, last seedling position)
+
+    def add_reading(self, row: int, t: float, count: float) -> None:
+        t, count = float(t), float(count)
+        if not math.isfinite(t):
+            return
+        times, counts = self._readings.setdefault(int(row), ([], []))
+        if times and t <= times[-1]:
+            return                         # out of order or repeated: the first is kept
+        times.append(t)
+        counts.append(count)
+
+    def add_readings(self, rows: ArrayLike, times: ArrayLike, counts: ArrayLike) -> None:
+        for row, t, count in zip(np.asarray(rows).tolist(), np.asarray(times).tolist(),
+                                 np.asarray(counts).tolist()):
+            self.add_reading(row, t, count)
+
+    def apply(self, plants: Plants, design_spacing: ArrayLike) -> Plants:
+        """`plants` (a Plants batch, time order within each row) with seedlings, status,
+        reason, spacing and spacing_error set; `design_spacing`: d of each plant (m, array)."""
+        n = len(plants)
+        d = np.broadcast_to(np.asarray(design_spacing, dtype=float), (n,))
+        seedlings, status, reason = np.full(n, np.nan), np.full(n, float(UNKNOWN)), \
+            np.full(n, float(NO_SENSOR))
+        spacing = np.full(n, np.nan)
+        for p in range(n):
+            row = int(plants.row[p])
+            t = float(plants.time[p])
+            prev_t, last_pos = self._last.get(row, (-math.inf, math.nan))
+            gap = plants.input_gap[p] == 1
+            if not math.isfinite(plants.spacing[p]) or gap:
+                last_pos = math.nan                  # the model's sequence starts again
+            count = None
+            if gap:
+                reason[p] = INPUT_GAP
+            else:
+                times, counts = self._readings.get(row, ([], []))
+                k = bisect_right(times, t) - 1
+                if k >= 0 and times[k] > prev_t and math.isfinite(counts[k]) and \
+                        counts[k] >= 0:
+                    count = counts[k]
+                    reason[p] = SENSED
+                elif k >= 0:
+                    reason[p] = NO_READING
+            if count is not None:
+                seedlings[p] = count
+                status[p] = EMPTY if count < 0.5 else DOUBLE if count >= 1.5 else PLANTED
+            position = float(plants.position[p])
+            if status[p] == EMPTY:
+                spacing[p] = math.nan
+            else:
+                spacing[p] = position - last_pos
+                last_pos = position
+            self._last[row] = (t, last_pos)
+        values = {f: getattr(plants, f) for f in plants.__dataclass_fields__}
+        values.update(seedlings=seedlings, status=status, reason=reason, spacing=spacing,
+                      spacing_error=spacing - d)
+        return Plants(**values)
+
+
+def design_spacing_of(plants: Plants, fallback: float) -> np.ndarray:
+    """d of each plant: spacing − spacing_error where both are known, else `fallback`."""
+    d = plants.spacing - plants.spacing_error
+    return np.where(np.isfinite(d), d, float(fallback))
+
+
+def seedling_spacings(plants: Plants,
+                      design_spacing: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(spacings, their d) between the seedlings in the ground: each plant's spacing, and a
+    spacing of 0 for each seedling past the first of a double (module doc)."""
+    d = np.broadcast_to(np.asarray(design_spacing, dtype=float), plants.spacing.shape)
+    extra = np.where(plants.status == DOUBLE,
+                     np.maximum(np.nan_to_num(plants.seedlings, nan=2.0) - 1.0, 1.0), 0.0)
+    extra = extra.astype(int)
+    x = np.concatenate((plants.spacing, np.zeros(int(extra.sum()))))
+    x_d = np.concatenate((d, np.repeat(d, extra)))
+    return x, x_d
+
+
+def status_counts(plants: Plants) -> dict[str, int]:
+    """{status: instants} and {'input_gap': instants in a gap} of a set of plants."""
+    out = {name: int(np.count_nonzero(plants.status == code))
+           for code, name in enumerate(STATUSES)}
+    out['input_gap'] = int(np.count_nonzero(plants.input_gap == 1))
+    out['seedlings'] = int(np.nansum(np.where(plants.status == UNKNOWN, 1.0,
+                                              plants.seedlings)))
+    return out

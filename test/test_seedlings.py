@@ -1,0 +1,195 @@
+"""Every planting instant accounted for: the seedling sensor's empty cups and doubles and the
+instants inside input gaps are counted exactly, in the plants, the indices and the tables."""
+import numpy as np
+
+from planter_ros.prediction import (
+    PLANT_FIELDS, Plants, SeedlingAccount, seedling_spacings, spacing_quality, status_counts,
+    summarize)
+from planter_ros.recording.replay import replay
+from planter_ros.sim.field import Curve
+from planter_ros.sim.season import Glitch, RunPlan, machine_rows, simulate_plan, write_monitor_bag
+
+D = 0.2
+
+
+def instants(n, row=0, t0=100.0, spacing=D):
+    table = np.full((n, len(PLANT_FIELDS)), np.nan)
+    plants = Plants.from_table(table)
+    plants.index[:] = np.arange(n)
+    plants.time[:] = t0 + np.arange(n)
+    plants.position[:] = spacing * np.arange(n)
+    plants.spacing[:] = np.concatenate(([np.nan], np.full(n - 1, spacing)))
+    plants.spacing_error[:] = plants.spacing - D
+    plants.row[:] = row
+    plants.input_gap[:] = 0.0
+    return plants
+
+
+def test_empty_cups_and_doubles_become_misses_and_multiples():
+    counts = [1, 1, 0, 1, 2, 1, 0, 0, 1, 1]
+    plants = instants(len(counts))
+    account = SeedlingAccount()
+    for k, c in enumerate(counts):
+        account.add_reading(0, 99.5 + k, c)             # half a cycle before each instant
+    out = account.apply(plants, np.full(len(plants), D))
+    assert [int(s) for s in out.status] == [0, 0, 1, 0, 2, 0, 1, 1, 0, 0]
+    assert np.all(out.reason == 0)
+    # spacing between the seedlings in the ground: over one empty 2d, over two empties 3d
+    np.testing.assert_allclose(out.spacing, [np.nan, D, np.nan, 2 * D, D, D, np.nan, np.nan,
+                                             3 * D, D], equal_nan=True)
+    x, x_d = seedling_spacings(out, D)
+    quality = spacing_quality(x, x_d)
+    n = quality['spacings']
+    assert n == 6 + 1                                    # 6 spacings and the double's 0
+    assert round(quality['miss_index'] * n) == 2        # the two runs of empties
+    assert round(quality['multiple_index'] * n) == 1    # the double
+    counted = status_counts(out)
+    assert (counted['planted'], counted['empty'], counted['double'], counted['unknown']) == \
+        (6, 3, 1, 0)
+    assert counted['seedlings'] == 6 + 2
+    # no sensor: unknown, taken as one seedling each: the kinematic indices
+    bare = SeedlingAccount().apply(instants(len(counts)), np.full(len(counts), D))
+    assert np.all(bare.status == 3) and np.all(bare.reason == 1)
+    assert summarize(bare, D)['spacing_quality']['miss_index'] == 0.0
+    # a cycle the sensor missed: unknown with its reason, the next one read again
+    account = SeedlingAccount()
+    for k in (0, 1, 3):
+        account.add_reading(0, 99.5 + k, 1)
+    partial = account.apply(instants(4), np.full(4, D))
+    assert [int(r) for r in partial.reason] == [0, 0, 2, 0]
+
+
+def test_injected_losses_in_a_simulated_run_are_counted_exactly(tmp_path):
+    """A two-row run with a tray of 10 % empty cells and 5 % doubles and a 1.2 s ground-speed
+    drop-out: every sensed instant carries its own reading; the statuses, the ISO misses and
+    multiples and the instants in the gap equal what was injected, live and in replay."""
+    rows = 2
+    plan = RunPlan(index=1, seed=21, duration=30.0, rows=machine_rows(rows), cruise=0.3,
+                   change=1.0, curves=(Curve(40.0, 41.0, 20.0),),
+                   glitches=(Glitch('dropout', 14.0, length=1.2),), drive_lag=0.05,
+                   empty_rate=0.1, double_rate=0.05)
+    plan = RunPlan(**{**plan.__dict__, 'curves': ()})
+    run = simulate_plan(plan)
+    summary = write_monitor_bag(run, tmp_path / 'run.mcap')
+    result = replay(tmp_path / 'run.mcap', with_recorded=True)
+    plants = result.plants
+    live = result.recorded_plants
+    order = np.lexsort((plants.index, plants.row))
+    live_order = np.lexsort((live[:, 0], live[:, PLANT_FIELDS.index('row')]))
+    np.testing.assert_allclose(plants.table()[order], live[live_order], rtol=0, atol=1e-12,
+                               equal_nan=True)
+    injected = summary['events']
+    assert injected['empty_cells'] > 3 and injected['double_cells'] > 1
+    t0 = plan.start_time
+    k = int(np.argmax(np.diff(run.speed_t) > 0.5))          # the drop-out in the samples
+    gap_lo, gap_hi = t0 + run.speed_t[k], t0 + run.speed_t[k + 1]
+    assert 1.1 < gap_hi - gap_lo < 1.4
+    misses = multiples = 0
+    for r in range(rows):
+        mine = np.flatnonzero(plants.row == r)
+        times = plants.time[mine]
+        readings = [(t0 + t, c) for row, t, c in run.seedlings if row == r]
+        # each instant's own reading: the last one before it and after the one before it
+        own = {}
+        for t, c in readings:
+            k = int(np.searchsorted(times, t, side='left'))
+            if k < len(times):
+                own[k] = c
+        sensed = plants.reason[mine] == 0
+        assert set(own) >= set(np.flatnonzero(sensed).tolist())
+        for k in np.flatnonzero(sensed).tolist():
+            assert plants.seedlings[mine][k] == own[k]
+        # the instants inside the drop-out: flagged, unknown, none lost
+        in_gap = (times > gap_lo) & (times < gap_hi)
+        assert in_gap.sum() >= 1
+        assert np.array_equal(plants.input_gap[mine] == 1, in_gap)
+        assert np.all(plants.reason[mine][in_gap] == 3)
+        # expected ISO counts from the injected cells: a double is a multiple, a run of empty
+        # cells between two seedlings of one sequence a miss
+        status = plants.status[mine].astype(int)
+        multiples += int(np.count_nonzero(status == 2))
+        seen = pending = False               # a seedling since the sequence began; empties
+        for k in range(len(mine)):
+            if in_gap[k] or (k and in_gap[k - 1]):          # the sequence starts again
+                seen = pending = False
+                if in_gap[k]:
+                    continue
+            if status[k] == 1:
+                pending = seen
+            else:
+                misses += pending
+                seen, pending = True, False
+    quality = result.summary['spacing_quality']
+    n = quality['spacings']
+    assert round(quality['multiple_index'] * n) == multiples == \
+        int(np.count_nonzero(plants.status == 2))
+    assert round(quality['miss_index'] * n) == misses > 0
+    counted = result.summary['instants']
+    assert counted['empty'] == int(np.count_nonzero(plants.status == 1))
+    assert counted['input_gap'] == int(np.count_nonzero(plants.input_gap == 1))
+    assert counted['planted'] + counted['empty'] + counted['double'] + counted['unknown'] == \
+        len(plants)
+
+
+def test_the_live_monitor_reads_the_seedling_sensor_as_replay_does(ros):
+    """monitor_node fed a run and its cup sensor's readings (one per cycle, half a cycle before
+    the planting angle: 1, 0, 1, 2, 1, ...) marks each instant as replay's arithmetic does."""
+    import math
+
+    from geometry_msgs.msg import TwistStamped
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+
+    from planter_ros.design import to_json
+    from planter_ros.nodes.monitor_node import MonitorNode
+    from planter_ros.prediction import (PredictionSettings, design_spacing_of,
+                                        planting_model_from_design, predict_plants)
+    from planter_ros.sim.runs import five_bar_design_message, simulate_run
+    design = five_bar_design_message()
+    run = simulate_run(design, duration=24.0, seed=7)
+    model = planting_model_from_design(design)
+    theta = np.maximum.accumulate(run.joint_pos)
+    ks = np.arange(math.ceil((theta[0] - model.planting_phase) / (2 * math.pi)),
+                   math.floor((theta[-1] - model.planting_phase) / (2 * math.pi)) + 1)
+    sense = model.planting_phase + (ks - 0.5) * 2 * math.pi
+    read_t = run.joint_t[np.minimum(np.searchsorted(theta, sense), theta.size - 1)]
+    counts = np.array([1, 0, 1, 2, 1, 1])[np.arange(read_t.size) % 6]
+    events = ([(t, 0, i) for i, t in enumerate(run.speed_t)]
+              + [(t, 1, i) for i, t in enumerate(run.joint_t)]
+              + [(t, 2, i) for i, t in enumerate(read_t)])
+    node = MonitorNode(context=ros.context, parameter_overrides=[Parameter('record', value=False)])
+    try:
+        node._on_design(String(data=to_json(design)), run.speed_t[0] - 1.0, 0)
+        for t, kind, i in sorted(events):
+            if kind == 0:
+                msg = TwistStamped()
+                msg.twist.linear.x = float(run.speed_v[i])
+                node._on_speed(msg, t, 0)
+            elif kind == 1:
+                node._on_joint(JointState(name=['sun_bar'], position=[float(run.joint_pos[i])],
+                                          velocity=[float(run.joint_vel[i])]), t, 0)
+            else:
+                node._on_seedlings(JointState(name=['sun_bar'], position=[float(counts[i])]),
+                                   t, 0)
+        live = Plants.from_table(np.vstack(node._tables))
+        quality = node.spacing_quality()
+    finally:
+        node.destroy_node()
+    offline = predict_plants(run.speed_t, run.speed_v, run.joint_t, run.joint_pos,
+                             run.joint_vel, model, PredictionSettings())
+    account = SeedlingAccount()
+    for t, c in zip(read_t, counts):
+        account.add_reading(0, t, c)
+    offline = account.apply(offline, design_spacing_of(offline, model.spacing))
+    n = min(len(live), len(offline))
+    assert n > 15 and len(offline) - len(live) <= 1
+    np.testing.assert_array_equal(live.status[:n], offline.status[:n])
+    np.testing.assert_allclose(live.spacing[:n], offline.spacing[:n], rtol=0, atol=1e-12,
+                               equal_nan=True)
+    assert {1.0, 2.0} <= set(live.status.tolist())
+    machine = dict(quality)[-1]                  # the monitor's running ISO indices
+    spacings = machine['spacings']
+    assert round(machine['multiple_index'] * spacings) == np.count_nonzero(live.status == 2)
+    assert round(machine['miss_index'] * spacings) == \
+        np.count_nonzero(live.spacing > 1.5 * model.spacing) > 0
