@@ -52,10 +52,7 @@ from dataclasses import dataclass
 import math
 
 from planter_ros.config import ConfigError, check, setting
-from planter_ros.cam import CamError
 from planter_ros.sensing.ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits
-
-from .cam_law import anchored_track
 
 TWO_PI = 2.0 * math.pi
 # measured angle is extrapolated with the measured speed for at most this long (s)
@@ -195,6 +192,7 @@ class PhaseLock:
             self._try_anchor(now)
             return
         if cam is not None and self._track is not None:
+            from planter_ros.cam import CamError     # only with a cam: scipy's solver behind it
             try:
                 switch_at = self._track.change(cam, self._change_from(now, since))
             except CamError:
@@ -451,6 +449,7 @@ class PhaseLock:
                 and self._fb is not None):
             self._anchor = (self.measured_angle(now), self.travelled(now))
             if self.cam is not None:
+                from .cam_law import anchored_track
                 self._track = anchored_track(self.cam, *self._anchor)
                 self._cam_offset = 0.0
 
