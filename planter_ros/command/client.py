@@ -34,6 +34,8 @@ from planter_ros.drive.errors import DriveError
 
 from .channel import Channel, ChannelClosed
 from .engine import Feedback, Log, checked_bus_load
+from planter_ros.control.cam_law import plan_for_design, profile_to_data, warm_up
+
 from .settings import CommandSettings, law_to_data
 from planter_ros.drive.socket_bus import INTERFACE, socket_pair
 
@@ -78,6 +80,11 @@ class CommandClient:
         self.stopping = False
         self.dead = False                   # gone and not restarted
         self._design: str | None = None
+        # the last design as sent ([kind, payload]); with a cam, once planned
+        self._design_message: tuple[str, Any] | None = None
+        self._cam = settings.law[0].speed_profile == 'cam'
+        if self._cam:           # the first plan imports and sets up the LP solver (~0.4 s)
+            threading.Thread(target=warm_up, daemon=True, name='cam-warm-up').start()
         self._sections: dict[str, bool] = {row.name: True for row in settings.rows
                                            if row.enabled}
         self._reader: threading.Thread | None = None
@@ -181,7 +188,10 @@ class CommandClient:
         try:
             self._spawn()
             if self._design is not None:
-                self.channel.send('design', self._design)
+                if self._design_message is not None:
+                    self.channel.send(*self._design_message)
+                elif not self._cam:
+                    self.channel.send('design', self._design)
             for name, on in self._sections.items():
                 if not on:
                     self.channel.send('section', [0, name, False])
@@ -240,8 +250,25 @@ class CommandClient:
         if text == self._design:
             return False
         self._design = text
+        if self._cam:
+            # planned here, in the shell, not in the command process (a plan holds the
+            # interpreter for up to tens of ms: the SYNC loop must not wait for it)
+            self._design_message = None
+            threading.Thread(target=self._plan_cam, args=(design, text, now), daemon=True,
+                             name='cam-plan').start()
+            return True
+        self._design_message = ('design', text)
         self._send('design', text)
         return True
+
+    def _plan_cam(self, design: Design, text: str, arrived: float) -> None:
+        profile, why = plan_for_design(design, self.settings.law[0].cam_rule)
+        if text != self._design:            # a newer design came meanwhile
+            return
+        message = ('design_cam', [text, None if profile is None else profile_to_data(profile),
+                                  why, arrived])
+        self._design_message = message
+        self._send(*message)
 
     def configure(self, law_values: Sequence[Any]) -> None:
         self._send('configure', law_to_data(tuple(law_values)))

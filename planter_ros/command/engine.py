@@ -20,6 +20,7 @@ import can
 from planter_ros import diagnostics, interfaces
 from planter_ros.config import ConfigError
 from planter_ros.control import sync_status
+from planter_ros.control.cam_law import plan_for_design
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
 from planter_ros.control.machine import Machine
 from planter_ros.control.phase_lock import PhaseLock, PlantingAngles
@@ -114,6 +115,7 @@ class CommandEngine:
         self._lock = threading.RLock()
         self._shut_down = False
         self.design_key: tuple | None = None
+        self._planning: str | None = None   # the design whose cam is being planned
         self.mechanism: str | None = None
         self._bus_send_errors = 0
         self._last_bus_error: tuple[float, str] | None = None
@@ -225,15 +227,61 @@ class CommandEngine:
                 self.step(now)
                 self.sample_latency.add(time.monotonic() - now)
 
-    def set_design(self, design: Design, text: str, now: float) -> bool:
+    def set_design(self, design: Design, text: str, now: float,
+                   planned: tuple[Any, str] | None = None,
+                   arrived: float | None = None) -> bool:
         """A design for every row (at its next planting instant); False when it is the one in
-        force already. Where the mechanism plants is found in a worker thread."""
+        force already. Where the mechanism plants is found in a worker thread. With
+        `speed_profile: cam` the cam is planned first, in a worker thread too (it takes up to
+        tens of ms: not on the SYNC loop), and the design applies once it is; `planned`:
+        (profile or None, why not) when the caller planned it (the command process's shell),
+        `arrived` when the design reached it (monotonic s)."""
+        if planned is not None:
+            with self._lock:
+                if self.design_key is not None and text == self.design_key[2]:
+                    return False
+                self._planning = None
+            return self._apply_design(design, text, now, *planned, since=arrived)
         with self._lock:
             if self.design_key is not None and text == self.design_key[2]:
                 return False
+            if self.law.config.speed_profile == 'cam':
+                if self._planning == text:
+                    return False
+                self._planning = text
+                threading.Thread(target=self._plan_cam, args=(design, text, now), daemon=True,
+                                 name='cam-plan').start()
+                return True
+        return self._apply_design(design, text, now, None)
+
+    def _plan_cam(self, design: Design, text: str, now: float) -> None:
+        """Plan the design's cam (worker thread), then apply the design with it."""
+        profile, why = plan_for_design(design, self.law.config.cam_rule)
+        with self._lock:
+            if self._planning != text:       # a newer design arrived meanwhile
+                return
+            self._planning = None
+            self._apply_design(design, text, time.monotonic(), profile, why, since=now)
+
+    def _apply_design(self, design: Design, text: str, now: float, cam: Any,
+                      why: str = '', since: float | None = None) -> bool:
+        with self._lock:
             spacing, n = design.plant_spacing, design.plants_per_revolution
             joints = [unit.row.joint(design.mechanism) for unit in self.units]
-            self.machine.set_design(spacing, n, now)
+            cams = None
+            if self.law.config.speed_profile == 'cam':
+                cams = []
+                for unit in self.units:
+                    fallback = why
+                    if not fallback and unit.drive is not None and not unit.csp:
+                        fallback = ('the drive runs profile velocity (no CSP): the cam falls '
+                                    'back to the mean speed (constant profile)')
+                    cams.append(None if fallback else cam)
+                    if fallback and fallback != unit.law.cam_fallback:
+                        self.log(logging.WARNING, fallback if self.implicit
+                                 else f'row {unit.label}: {fallback}')
+                    unit.law.cam_fallback = fallback
+            self.machine.set_design(spacing, n, now, cams=cams, since=since)
             key = (spacing, n, text)
             self.design_key = key
             self.mechanism = design.mechanism
@@ -342,6 +390,8 @@ class CommandEngine:
             step = min(owed, 2.0 * period)
             unit.behind = min(owed - step, 0.5)
             unit.target += row.command * step
+            if not self.stopping:
+                unit.target = _on_cam(unit.law, unit.target, now + period, step)
         unit.target_time = now
         if unit.target is None:
             unit.drive.send_hold()
@@ -498,6 +548,18 @@ class CommandEngine:
                 'sample_to_frame': self.sample_latency.summary(),
                 'csp': self.csp,
             }
+
+
+def _on_cam(law: Any, target: float, at: float, step: float) -> float:
+    """A cam row's CSP target: the integrated `target` pulled onto θ(s) of the row's distance
+    at the SYNC it applies at, by at most 1.5 times the law's correction bound over `step` (so a
+    cam row's targets are θ(s) itself while it tracks, and a row catching up after a halt
+    closes in gradually). Rows without a cam, or not tracking, keep the integrated target."""
+    want = law.cam_target(at)
+    if want is None:
+        return target
+    pull = 1.5 * law.config.max_correction * step
+    return target + min(max(want - target, -pull), pull)
 
 
 def machine_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: int, csp: bool) -> BusLoad:

@@ -34,6 +34,7 @@ import time
 from typing import Any
 
 from planter_ros.config import ConfigError
+from planter_ros.control.cam_law import profile_from_data
 from planter_ros.design import from_json
 from planter_ros.drive.errors import DriveError
 
@@ -208,6 +209,11 @@ def _handle(engine: CommandEngine, channel: Channel, kind: str, payload: Any) ->
     try:
         if kind == 'design':
             engine.set_design(from_json(payload), payload, now)
+        elif kind == 'design_cam':          # the shell planned the cam (speed_profile: cam)
+            text, cam, why, arrived = payload
+            profile = None if cam is None else profile_from_data(cam)
+            engine.set_design(from_json(text), text, now, planned=(profile, why),
+                              arrived=float(arrived))
         elif kind == 'section':
             ident, name, on = payload
             ok, message, changed = engine.section(name, bool(on), now)

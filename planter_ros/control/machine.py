@@ -12,8 +12,9 @@ runs on the machine's v, so the difference can be shown. Rows are switched off a
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from planter_ros.config import check, setting
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
@@ -58,11 +59,14 @@ class Machine:
             law.config = config
 
     def set_design(self, spacing: float, plants_per_revolution: int, now: float,
-                   planting: PlantingAngles | None = None) -> None:
+                   planting: PlantingAngles | None = None, cams: Sequence[Any] | None = None,
+                   since: float | None = None) -> None:
         """A design for every row: each row running on its grid takes it at its own next
-        planting instant (PhaseLock.set_design)."""
-        for law in self.laws:
-            law.set_design(spacing, plants_per_revolution, now, planting)
+        planting instant (PhaseLock.set_design). `cams`: each row's cam profile (None:
+        constant speed), or None for constant speed on every row."""
+        cams = cams if cams is not None else [None] * len(self.laws)
+        for law, cam in zip(self.laws, cams):
+            law.set_design(spacing, plants_per_revolution, now, planting, cam, since)
 
     def set_planting(self, planting: PlantingAngles | None) -> None:
         """Where the design's mechanism plants (PlantingAngles or None), found later than the

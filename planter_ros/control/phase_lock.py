@@ -37,6 +37,14 @@ Choices the papers leave open, made here on purpose:
   per revolution (another mechanism), the design applies at once (the target still continuous
   for the former, a new grid for the latter).
 
+* `speed_profile: cam` (doc/cam.md): a design handed in with a planned cam profile
+  (`cam_law.plan_row_cam`) makes the row's target θ(s) of its own phase-locked travelled
+  distance, the feed-forward θ′(s)·v, instead of the straight line 2πs/(n·d). The cam is held
+  in a `CamTrack` anchored where the grid is anchored (θ there = the measured angle); a new
+  cam while the row runs on its grid goes through `CamTrack.change`: it takes effect at the
+  track's next planting instant with θ, θ′ and θ″ continuous. Without a profile (constant, a
+  drive without CSP, another mechanism) the law is the straight line, unchanged.
+
 Time is passed in explicitly (monotonic seconds), so the law is deterministic and testable.
 """
 
@@ -44,6 +52,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import Any
 
 from planter_ros.config import ConfigError, check, setting
 from planter_ros.sensing.ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits
@@ -81,6 +90,13 @@ class PhaseLockConfig:
     ground_speed_timeout: float = setting(0.5, 'no accepted ground-speed sample for this long '
                                           '= stale: ramp to 0, then halt', unit='s',
                                           range=(0.05, 10.0))
+    speed_profile: str = setting('constant', "the sun bar's motion within each plant: constant "
+                                 '(2πv/(n·d)) or cam (θ(s) of the row\'s travelled distance, '
+                                 'five-bar only, CSP drives only; doc/cam.md)',
+                                 choices=('constant', 'cam'), read_only=True)
+    cam_rule: str = setting('design_speed', "the cam's in-soil law: design_speed (the "
+                            "mechanism's own zero-speed ratio) or zero_slip",
+                            choices=('design_speed', 'zero_slip'), read_only=True)
 
     def __post_init__(self) -> None:
         check(self, ControlConfigError)
@@ -144,6 +160,10 @@ class PhaseLock:
         self._t_cmd = None
         self.last_error = 0.0               # phase error at the last command (rad)
         self._pending = None                # (d, PlantingAngles, s at its planting instant)
+        self.cam = None                     # CamProfile in force (or next), None: constant
+        self._track = None                  # CamTrack of the grid, once anchored with a cam
+        self._cam_offset = 0.0              # whole pitches given up on the cam's grid (rad)
+        self.cam_fallback = ''              # why a cam was asked for and is not run
 
     # ------------------------------------------------------------------ inputs
     def configure(self, config: PhaseLockConfig, limits: GroundSpeedLimits) -> None:
@@ -152,27 +172,60 @@ class PhaseLock:
         self.filter.limits = limits
 
     def set_design(self, spacing: float, plants_per_revolution: int, now: float,
-                   planting: PlantingAngles | None = None) -> None:
+                   planting: PlantingAngles | None = None, cam: Any = None,
+                   since: float | None = None) -> None:
         """Use a new spacing d (m) and plants per revolution n (and where the mechanism plants,
-        `PlantingAngles`, for section stops); re-anchors the phase."""
+        `PlantingAngles`, for section stops); re-anchors the phase. `cam`: the design's planned
+        cam profile (a `CamProfile` at this spacing), None for constant speed; `since`: when
+        the design arrived (monotonic s; planning the cam takes a while): a cam change takes
+        effect at the next planting instant after then, if its soil exit is still ahead."""
         if not (math.isfinite(spacing) and spacing > 0):
             raise ControlConfigError(f'plant_spacing = {spacing} is out of range: allowed '
                                      'finite and > 0 m')
         if plants_per_revolution not in (1, 2, 3, 4, 5, 6):
             raise ControlConfigError(f'plants_per_revolution = {plants_per_revolution} is out '
                                      'of range: allowed 1..6')
-        if (self._anchor is None or not self.section_on or self._starting
+        same_kind = (cam is None) == (self.cam is None)
+        if (self._anchor is None or not self.section_on or self._starting or not same_kind
                 or int(plants_per_revolution) != self.plants_per_revolution):
             # no grid to continue: the design applies at once, a grid starts from here
             self._pending = None
             self.spacing = float(spacing)
             self.plants_per_revolution = int(plants_per_revolution)
             self.planting = planting
+            self.cam = cam
             self._anchor = None
+            self._track = None
             self._try_anchor(now)
+            return
+        if cam is not None and self._track is not None:
+            from planter_ros.cam import CamError     # only with a cam: scipy's solver behind it
+            try:
+                switch_at = self._track.change(cam, self._change_from(now, since))
+            except CamError:
+                # no transition arc fits before the next plant: a new grid from here
+                self._pending, self.spacing, self.planting = None, float(spacing), planting
+                self.cam, self._anchor, self._track = cam, None, None
+                self._try_anchor(now)
+                return
+            self.cam = cam
+            self._pending = (float(spacing), planting, switch_at)
+            self._switch_design(now)
             return
         self._pending = (float(spacing), planting, self._next_planting_distance(now))
         self._switch_design(now)
+
+    def _change_from(self, now: float, since: float | None) -> float:
+        """The distance a cam change counts its next planting instant from: the row's
+        distance when the design arrived, unless that plant's soil exit is behind already."""
+        s_now = self.travelled(now)
+        if since is None or not since < now:
+            return s_now
+        s_then = max(s_now - self._v * min(now - since, self.config.ground_speed_timeout), 0.0)
+        s_k, profile = self._track.next_plant(s_then)
+        if s_k + profile.law.half_length(profile.mech) <= s_now:
+            return s_now
+        return s_then
 
     def set_planting(self, planting: PlantingAngles | None) -> None:
         """Where the design's mechanism plants (PlantingAngles or None), found after the
@@ -256,6 +309,7 @@ class PhaseLock:
             self.stop_angle = None
             self.parked = False
             self._anchor = None
+            self._track = None
             self._starting = True           # the grid starts once up to speed (command())
             return
         theta = self.measured_angle(now)
@@ -291,18 +345,36 @@ class PhaseLock:
     def anchored(self) -> bool:
         return self._anchor is not None
 
+    @property
+    def speed_profile(self) -> str:
+        """'cam' while the row follows a cam, else 'constant'."""
+        return 'cam' if self.cam is not None else 'constant'
+
     def feed_forward(self, now: float) -> float:
         if self.spacing is None or self.stale(now):
             return 0.0
+        if self._track is not None:
+            return max(self._track.evaluate(self.travelled(now))[1], 0.0) * self._v
         return TWO_PI * self._v / (self.plants_per_revolution * self.spacing)
 
     def target_angle(self, now: float) -> float | None:
         """θ the travelled distance asks for (rad), None until anchored."""
         if self._anchor is None:
             return None
+        if self._track is not None:
+            return self._track.evaluate(self.travelled(now))[0] + self._cam_offset
         theta0, s0 = self._anchor
         return theta0 + TWO_PI * (self.travelled(now) - s0) / (
             self.plants_per_revolution * self.spacing)
+
+    def cam_target(self, now: float) -> float | None:
+        """θ(s) of the cam at `now` (rad) while the row tracks its cam (on its grid, section
+        on, fresh ground speed), else None: what a CSP drive's position target should be."""
+        if (self._track is None or self._anchor is None or not self.section_on
+                or self._starting or self.stale(now)):
+            return None
+        self._switch_design(now)
+        return self.target_angle(now)
 
     def measured_angle(self, now: float) -> float | None:
         if self._fb is None:
@@ -383,6 +455,10 @@ class PhaseLock:
         if (self._anchor is None and not self._starting and self.spacing is not None
                 and self._fb is not None):
             self._anchor = (self.measured_angle(now), self.travelled(now))
+            if self.cam is not None:
+                from .cam_law import anchored_track
+                self._track = anchored_track(self.cam, *self._anchor)
+                self._cam_offset = 0.0
 
     def _wrapped_error(self, now: float) -> float:
 
@@ -392,6 +468,7 @@ class PhaseLock:
             slips = round(error / pitch)
             theta0, s0 = self._anchor
             self._anchor = (theta0 - slips * pitch, s0)
+            self._cam_offset -= slips * pitch
             self.phase_slips += abs(slips)
             error -= slips * pitch
         return error

@@ -118,6 +118,10 @@ def phase_report(law: Any, now: float, command: float) -> Report:
               ('phase slips', law.phase_slips),
               ('command', f'{command:.4f} rad/s'),
               (SECTION, SECTION_ON if law.section_on else SECTION_OFF))
+    if law.config.speed_profile == 'cam':
+        values += (('speed profile', law.speed_profile),)
+        if law.cam_fallback and law.spacing is not None:
+            return Report(PHASE_LOCK, WARN, law.cam_fallback, values)
     if law.spacing is None:
         return Report(PHASE_LOCK, STALE, 'waiting for design', values)
     if law.phase_slips:

@@ -39,6 +39,8 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     scene = open_scene(options.scene or default_scene_path())
     check_bag_path(options.bag)
     design = scene.design()               # a bad scene fails here, before anything starts
+    from .schedule import spacing_schedule
+    spacing_schedule(scene.parameters('design_node'), scene.path)
     node_id = scene.parameters('sync_node').get('drive_node_id', 1)
     rows = scene.rows(default_node_id=node_id)
     antenna = scene.antenna()
@@ -67,6 +69,8 @@ class Demo:
         self.install_signals = install_signals
         self.log_level = log_level
         self.result: DemoResult | None = None
+        from .schedule import spacing_schedule
+        self.schedule = spacing_schedule(scene.parameters('design_node'), scene.path)
 
     def _print(self, text: str = '') -> None:
         print(text, file=self.out, flush=True)
@@ -109,12 +113,13 @@ class Demo:
             replayed, bag_error, acceptance = self.replay_summary(run.monitor.recorder.path)
             self._print(replayed)
         monitor_changes = ''
-        if run.monitor is not None and run.monitor.design_sources.changes:
+        if (run.monitor is not None
+                and run.monitor.design_sources.changes > run.scheduled_changes):
             sources = run.monitor.design_sources
             monitor_changes = (f'{sources.changes}x, the latest from '
                                f'{sources.last_change.text}')
         verdict = judge(rows, report, run.start_error, bag_error, monitor_changes,
-                        acceptance)
+                        acceptance, scheduled_changes=run.scheduled_changes)
         verdict.stopped_by, verdict.elapsed = run.stopped_by, run.elapsed
         self.result = DemoResult(verdict, report, rows, run.domain)
         self._print('')
@@ -167,6 +172,9 @@ class _Run:
         self.profile = None
         self.start_error = ''
         self.elapsed = 0.0
+        self.design_node = None
+        self._next_switch = 0           # the spacing schedule's next switch
+        self.scheduled_changes = 0      # design changes the schedule made (not foreign)
 
     @property
     def stopped_by(self):
@@ -210,8 +218,9 @@ class _Run:
                    signal_handler_options=SignalHandlerOptions.NO)
         self.executor = SingleThreadedExecutor(context=self.context)
         context = self.context
-        self.nodes.append(DesignNode(context=context, namespace=ns, parameter_overrides=[
-            _param(k, v) for k, v in demo.scene.node_overrides('design_node')]))
+        self.design_node = DesignNode(context=context, namespace=ns, parameter_overrides=[
+            _param(k, v) for k, v in demo.scene.node_overrides('design_node')])
+        self.nodes.append(self.design_node)
         self.observer = Observer(context=context, namespace=ns)
         self.nodes.append(self.observer)
         monitor = dict(demo.scene.node_overrides('monitor_node'))
@@ -309,10 +318,29 @@ class _Run:
                 return self._interrupted()
             if t >= duration:
                 return None
+            self._switch_spacing(t)
             if t >= next_print:
                 demo._print(demo.progress(t, profile, self.sync.status, self.observer))
                 next_print += PROGRESS_PERIOD
             time.sleep(0.05)
+
+    def _switch_spacing(self, t):
+        """The scene's spacing schedule: at each switch's time, the design node's
+        plant_spacing is set (it publishes the new design)."""
+        schedule = self.demo.schedule
+        while self._next_switch < len(schedule) and t >= schedule[self._next_switch][0]:
+            at, spacing = schedule[self._next_switch]
+            self._next_switch += 1
+            if spacing == self.design_node.design.plant_spacing:
+                continue
+            result = self.design_node.set_parameters([_param('plant_spacing', spacing)])[0]
+            if result.successful:
+                self.scheduled_changes += 1
+                self.demo._print(f'{t:6.1f} s  spacing schedule: plant_spacing -> '
+                                 f'{spacing:.3f} m (from the next plant)')
+            else:
+                self.demo._print(f'{t:6.1f} s  spacing schedule: {spacing} m refused: '
+                                 f'{result.reason}')
 
     def _interrupted(self):
         self.demo._print(f'\ninterrupted by {self.stopped_by}: stopping')

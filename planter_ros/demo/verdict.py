@@ -62,13 +62,14 @@ class Verdict:
 
 
 def judge(rows, sync_report, start_error='', bag_error='', monitor_design_changes='',
-          acceptance=None):
+          acceptance=None, scheduled_changes=0):
     """The verdict of a run. `rows`: RowResult per planting row (empty if the run never
     started); `sync_report`: the sync process's final report (sync_process.final_report, None if
     it never came); `start_error`: why the drives did not start; `bag_error`: why there is no
     usable bag; `monitor_design_changes`: the monitor's account of design changes, if any;
     `acceptance`: the replay's judgement of the bag by the crop's limits
-    (prediction.judge_acceptance; None: no replay, `bag_error` says why)."""
+    (prediction.judge_acceptance; None: no replay, `bag_error` says why);
+    `scheduled_changes`: design changes the scene's spacing schedule made (not a fault)."""
     reasons = []
     if start_error:
         reasons.append(f'drives not started: {start_error}')
@@ -96,7 +97,7 @@ def judge(rows, sync_report, start_error='', bag_error='', monitor_design_change
                 reasons.append(f'{name} spacing error RMS {100 * row.rms:.2f} % of d > '
                                f'{100 * SPACING_TOLERANCE:g} % (true distance)')
     sources = report.get('design', {})         # who set the design (scene.design_sources)
-    if sources.get('changes'):
+    if sources.get('changes', 0) > scheduled_changes:
         reasons.append(f'design changed by another node during the run ({sources["changes"]}x, '
                        f'the latest from {sources["last_change"]})')
     elif monitor_design_changes:

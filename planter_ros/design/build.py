@@ -48,7 +48,8 @@ def _five_bar(scene: SceneSettings) -> dict[str, Any]:
     from planter_ros.kinematics.five_bar import design_five_bar
     if len(scene.dyad_ratios) != 3:
         raise DesignError('dyad_ratios', scene.dyad_ratios, 'three ratios (l3, l4, l5)/(l1+l2)')
-    design = design_five_bar(scene.planting_depth, scene.plant_spacing, scene.hole_ratio,
+    built_for = scene.design_spacing or scene.plant_spacing
+    design = design_five_bar(scene.planting_depth, built_for, scene.hole_ratio,
                              scene.design_method, tuple(scene.dyad_ratios))
     if not design.assemblable:
         raise DesignError('dyad_ratios', list(scene.dyad_ratios), 'ratios whose passive dyad '
