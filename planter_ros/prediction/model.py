@@ -496,11 +496,14 @@ class PlantPredictor:
     def _arc_done(self, t_e: float, model: Planting, theta_k: float, last_t: float) -> bool:
         """Is the plant's arc measured as far as it will be (prediction.motion)? Yes once the
         shaft is past the soil exit and a speed sample later than that has come, or once the
-        inputs have run on `max_input_gap` past the planting instant without that."""
+        joint samples have run on `max_input_gap` past the planting instant without that (a
+        plant whose feedback stops waits for it, or for `finish`)."""
         exit_angle = theta_k + model.exit_angle
         t_joint, th_last, _ = self._joint
         if th_last < exit_angle:
-            return max(t_joint, last_t) - t_e > self.settings.max_input_gap
+            # the exit comes later than max_input_gap after the instant: not covered (judged
+            # on the joint stamps alone: speed samples may run ahead of late feedback)
+            return t_joint - t_e > self.settings.max_input_gap
         past = t_joint                       # the first joint sample at or past the exit
         for t, th, _ in reversed(self._joints):
             if th < exit_angle:
