@@ -139,13 +139,16 @@ def test_the_command_path_drives_csp_rows_phase_locked_and_ramps_a_stale_speed_t
         run_engine(engine, 5.0, 0.3, w=0.1)
         before = [sim.motor_position for sim in sims.drives]
         run_engine(engine, 2.0, 0.3, w=0.1)
+        means = []
         for unit, sim, start in zip(engine.units, sims.drives, before):
             want = 2 * math.pi * unit.law.ground_speed_value / D      # 9.4 and 6.3 rad/s
-            mean = (sim.motor_position - start) / 2.0
-            assert mean == pytest.approx(want, rel=0.03), unit.label
+            means.append((sim.motor_position - start) / 2.0)
+            assert means[-1] == pytest.approx(want, rel=0.03), unit.label
             assert abs(unit.law.phase_error(time.monotonic())) < 0.15
             assert abs(sim.following_error) < 0.2
-        assert sims.drives[1].motor_velocity < sims.drives[0].motor_velocity   # y = 1 m inside
+        # y = 1 m inside the curve: slower over the 2 s (an instant's speed jitters with the
+        # SYNC interpolation)
+        assert means[1] < means[0]
         assert all(sim.sync_count > 300 for sim in sims.drives)
         # the ground speed goes stale: the targets come to rest, no fault, no watchdog
         run_engine(engine, 3.0, None)
