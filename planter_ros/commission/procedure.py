@@ -232,8 +232,8 @@ def checklist(findings: list[RowFindings], machine_path) -> str:
         lines.append('  [found] homing: ' + (f'method {f.homing_method}, attained'
                                               if f.homed else 'none (method 0)'))
         if f.phase_offset is None:
-            lines.append('  [TODO]  no home switch seen within a turn: jog the unit until the tip '
-                         f'is lowest and write that angle as rows.{f.row}.phase_offset')
+            lines.append('  [by hand] no home switch seen within a turn: jog the unit until the '
+                         f'tip is lowest and write that angle as rows.{f.row}.phase_offset')
         else:
             lines.append(f'  [found] bottom switch: {math.degrees(f.switch_width):.2f} deg wide, '
                          f'phase offset {f.phase_offset:.5f} rad '

@@ -17,7 +17,7 @@ import time
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
 from planter_ros import diagnostics, interfaces, stop_signals
@@ -162,13 +162,15 @@ class GroundSpeedNode(Node):
 
 def main(args=None):
     keep_discovery_on_host()
-    stop_signals.install(NAME)
+    stop = stop_signals.install(NAME)
     rclpy.init(args=args)
     node = None
     try:
         node = GroundSpeedNode(namespace=interfaces.NAMESPACE,
                                arguments=sys.argv if args is None else args)
-        rclpy.spin(node)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        stop_signals.spin(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ConfigError, ParameterException, OSError) as exc:
