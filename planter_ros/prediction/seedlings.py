@@ -70,10 +70,21 @@ class SeedlingAccount:
         times.append(t)
         counts.append(count)
 
-    def add_readings(self, rows: ArrayLike, times: ArrayLike, counts: ArrayLike) -> None:
-        for row, t, count in zip(np.asarray(rows).tolist(), np.asarray(times).tolist(),
-                                 np.asarray(counts).tolist()):
-            self.add_reading(row, t, count)
+    def add_readings(self, row: int, times: ArrayLike, counts: ArrayLike) -> None:
+        """Many readings of one row at once, as `add_reading` one by one would keep them."""
+        t = np.asarray(times, dtype=float)
+        count = np.asarray(counts, dtype=float)
+        finite = np.isfinite(t)
+        t, count = t[finite], count[finite]
+        if not t.size:
+            return
+        held, counts_held = self._readings.setdefault(int(row), ([], []))
+        latest = held[-1] if held else -math.inf
+        # kept: later than every reading before it (a kept one is the latest so far)
+        before = np.maximum.accumulate(np.concatenate(([latest], t[:-1])))
+        keep = t > before
+        held += t[keep].tolist()
+        counts_held += count[keep].tolist()
 
     def apply(self, plants: Plants, design_spacing: ArrayLike) -> Plants:
         """`plants` (a Plants batch, time order within each row) with seedlings, status,

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 import re
 
+import numpy as np
+
 from planter_ros import interfaces
 
 from .cdr import Raw
@@ -112,12 +114,23 @@ def check_magic(path: str | Path) -> bool:
 
 @dataclass
 class TopicMessages:
-    """One contract topic's messages in a bag: its recorded name, log times (ns), raw CDR."""
+    """One contract topic's messages in a bag: its recorded name, log times (ns), raw CDR.
+    One finalised file gives them as read (an int64 array and a cdr.Packed: no object per
+    message); several files or a careful read, as lists."""
 
     topic: interfaces.Topic
     name: str
-    log: list = field(default_factory=list)
-    raw: list = field(default_factory=list)
+    log: Sequence[int] = field(default_factory=list)
+    raw: Sequence[Raw] = field(default_factory=list)
+
+    def add(self, logs: Sequence[int], raws: Sequence[Raw]) -> None:
+        """Messages of the next file (in file order after the ones held)."""
+        if not len(self.raw):
+            self.log, self.raw = logs, raws
+            return
+        self.log = [*np.asarray(self.log, dtype=np.int64).tolist(),
+                    *np.asarray(logs, dtype=np.int64).tolist()]
+        self.raw = [*self.raw, *raws]
 
 
 @dataclass
@@ -193,12 +206,12 @@ def read_recording(path: str | Path, wanted: Sequence[interfaces.Topic]) -> Reco
         first = last = None
         for cid, (logs, raws) in blocks.items():
             topic = by_channel.get(cid)
-            if topic is not None and logs:
-                topics[topic].log += logs
-                topics[topic].raw += raws
+            if topic is not None and len(logs):
+                topics[topic].add(logs, raws)
                 count += len(logs)
-                first = min(logs) if first is None else min(first, min(logs))
-                last = max(logs) if last is None else max(last, max(logs))
+                lo, hi = int(np.min(logs)), int(np.max(logs))
+                first = lo if first is None else min(first, lo)
+                last = hi if last is None else max(last, hi)
         spans.append((first, last))
         losses += [(loss, file) for loss in file_losses]
     for before, loss in missing:     # a missing split file lies between its neighbours

@@ -52,6 +52,49 @@ from .errors import DecodeError
 Raw = bytes | bytearray | memoryview                 # one message's CDR bytes
 Ranges = list[tuple[int, int]]                      # byte ranges that fix a layout
 
+
+class Packed(Sequence):
+    """Messages lying in one buffer, message i = data[start[i]:end[i]] (what the indexed reader
+    gives: the records of a decompressed chunk, no object per message). A sequence of memoryviews
+    to whoever iterates it; the bulk decoders read its messages of one length straight from the
+    buffer (a row gather, no join)."""
+
+    __slots__ = ('data', 'start', 'end')
+
+    def __init__(self, data: bytes, start: NDArray[np.int64], end: NDArray[np.int64]) -> None:
+        self.data = data
+        self.start = np.asarray(start, dtype=np.int64)
+        self.end = np.asarray(end, dtype=np.int64)
+
+    def __len__(self) -> int:
+        return int(self.start.size)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return Packed(self.data, self.start[i], self.end[i])
+        return memoryview(self.data)[int(self.start[i]):int(self.end[i])]
+
+    def take(self, idx: NDArray[np.intp]) -> Packed:
+        """The messages `idx`, in that order (no copy of their bytes)."""
+        return Packed(self.data, self.start[idx], self.end[idx])
+
+    def lengths(self) -> NDArray[np.int64]:
+        return self.end - self.start
+
+    def block(self, idx: NDArray[np.intp], size: int) -> NDArray[np.uint8]:
+        """(len(idx), size) bytes: the first `size` bytes of the messages `idx` (each at least
+        that long), one row each."""
+        from numpy.lib.stride_tricks import sliding_window_view
+        head = np.frombuffer(self.data, dtype=np.uint8)
+        return sliding_window_view(head, size)[self.start[idx]]
+
+
+def take(raws: Sequence[Raw], idx: NDArray[np.intp]) -> Sequence[Raw]:
+    """The messages `idx` of `raws`, in that order (a Packed stays packed)."""
+    if isinstance(raws, Packed):
+        return raws.take(np.asarray(idx, dtype=np.intp))
+    return [raws[i] for i in np.asarray(idx).tolist()]
+
 HEADER = 4                  # encapsulation header bytes; alignment counts from its end
 STAMP = 4                   # header.stamp.sec (int32) at 4, header.stamp.nanosec (uint32) at 8
 FRAME_ID = 12               # header.frame_id length (uint32) at 12, its bytes from 16
@@ -148,13 +191,14 @@ def _navsatfix_layout(raw: Raw) -> tuple[str, tuple[tuple[int, str] | int, ...],
                (kind, 'u1')), ranges
 
 
-def _joint_layout(raw: Raw, joint: bytes | None) -> tuple[str, tuple[int | None, int | None],
-                                                           Ranges]:
-    """JointState: (byte order, (position offset, velocity offset), layout byte ranges) for the
-    joint named `joint` (bytes, or None); an offset is None where that value is absent.
+def _joint_layout(raw: Raw, joints: Sequence[bytes | None]
+                  ) -> tuple[str, tuple[int | None, ...], Ranges]:
+    """JointState: (byte order, (position offset, velocity offset) of each joint named in
+    `joints` (bytes, or None) one after the other, layout byte ranges); an offset is None where
+    that value is absent.
 
-    The joint is the first one of that name; a JointState with no names and exactly one
-    position is taken to be that joint (a single-joint publisher that leaves names out)."""
+    A joint is the first one of its name; a JointState with no names and exactly one position
+    is taken to be that joint (a single-joint publisher that leaves names out)."""
     what = 'JointState'
     e, pos, ranges = _header(raw, what)
     pos = _align(pos, 4)
@@ -163,13 +207,12 @@ def _joint_layout(raw: Raw, joint: bytes | None) -> tuple[str, tuple[int | None,
         raise DecodeError(f'{what}: name count {count} does not fit in {len(raw)} bytes')
     ranges.append((pos, pos + 4))
     pos += 4
-    index = None
+    index = {}
     for i in range(count):
         pos = _align(pos, 4)
         end = _string_end(raw, pos, e, what, f'name[{i}]')
         ranges.append((pos, end))                   # length and text: they fix the index
-        if index is None and joint is not None and bytes(raw[pos + 4:end - 1]) == joint:
-            index = i
+        index.setdefault(bytes(raw[pos + 4:end - 1]), i)
         pos = end
     n_pos, pos_data, pos, span = _float64_sequence(raw, pos, e, what, 'position')
     ranges.append(span)
@@ -177,11 +220,14 @@ def _joint_layout(raw: Raw, joint: bytes | None) -> tuple[str, tuple[int | None,
     ranges.append(span)
     _, _, _, span = _float64_sequence(raw, pos, e, what, 'effort')   # only: does it fit
     ranges.append(span)
-    if index is None and count == 0 and n_pos == 1:
-        index = 0
-    p = pos_data + 8 * index if index is not None and index < n_pos else None
-    v = vel_data + 8 * index if index is not None and index < n_vel else None
-    return e, (p, v), ranges
+    offsets = []
+    for joint in joints:
+        k = index.get(joint) if joint is not None else None
+        if k is None and count == 0 and n_pos == 1:
+            k = 0
+        offsets.append(pos_data + 8 * k if k is not None and k < n_pos else None)
+        offsets.append(vel_data + 8 * k if k is not None and k < n_vel else None)
+    return e, tuple(offsets), ranges
 
 
 # ----------------------------------------------------------------------------- bulk
@@ -198,22 +244,27 @@ def _bulk(raws: Sequence[Raw], layout_of: Callable[[Raw], tuple[str, tuple, Rang
     values = np.full((n_values, count), np.nan)
     if not count:
         return stamps, values
-    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=count)
+    packed = isinstance(raws, Packed)
+    lengths = raws.lengths() if packed else np.fromiter(map(len, raws), dtype=np.int64,
+                                                        count=count)
     order = np.argsort(lengths, kind='stable')
     cuts = np.flatnonzero(np.diff(lengths[order])) + 1
     for idx in np.split(order, cuts):               # one group per message length
         size = int(lengths[idx[0]])
         if size < FRAME_ID + 4:                     # not even a header: all left out
             continue
-        # one length (the usual case): idx is 0..n-1 in order (stable sort), join as given
-        buf = b''.join(raws if idx.size == count else [raws[i] for i in idx])
-        block = np.frombuffer(buf, dtype=np.uint8).reshape(idx.size, size)
+        if packed:                                  # rows gathered from the chunk buffer
+            block = raws.block(idx, size)
+        else:
+            # one length (the usual case): idx is 0..n-1 in order (stable sort), join as given
+            buf = b''.join(raws if idx.size == count else [raws[i] for i in idx])
+            block = np.frombuffer(buf, dtype=np.uint8).reshape(idx.size, size)
         pending = np.arange(idx.size)               # rows of `block` not yet decided
         unproductive = backoff = alone = 0
         while pending.size:
             first = int(pending[0])
             try:
-                e, offsets, ranges = layout_of(raws[idx[first]])
+                e, offsets, ranges = layout_of(raws[int(idx[first])])
             except DecodeError:
                 pending = pending[1:]               # left out; others may still decode
                 continue
@@ -233,30 +284,31 @@ def _bulk(raws: Sequence[Raw], layout_of: Callable[[Raw], tuple[str, tuple, Rang
                 else:
                     unproductive = backoff = 0
                 pending = pending[~match]
-            _read(buf, idx, rows, e, offsets, stamps, values)
+            _read(block, idx, rows, e, offsets, stamps, values)
     return stamps, values
 
 
-def _field(buf: bytes, n: int, rows: NDArray[np.intp], offset: int, dtype: str) -> np.ndarray:
-    """The value at `offset` of each of `rows` in buf, n messages of equal length back to back
-    (a strided view: no copy of the messages)."""
-    size = len(buf) // n
-    return np.ndarray((n,), dtype=dtype, buffer=buf, offset=offset, strides=(size,))[rows]
+def _field(block: NDArray[np.uint8], rows: NDArray[np.intp], offset: int,
+           dtype: str) -> np.ndarray:
+    """The value at `offset` of each of `rows` of `block` (messages of equal length, one per
+    row, C order): a strided view, then the rows."""
+    n, size = block.shape
+    return np.ndarray((n,), dtype=dtype, buffer=block, offset=offset, strides=(size,))[rows]
 
 
-def _read(buf: bytes, idx: NDArray[np.intp], rows: NDArray[np.intp], e: str,
+def _read(block: NDArray[np.uint8], idx: NDArray[np.intp], rows: NDArray[np.intp], e: str,
           offsets: tuple[tuple[int, str] | int | None, ...], stamps: NDArray[np.int64],
           values: FloatArray) -> None:
     """Stamps and values of `rows` (all of one layout) into the outputs at idx[rows]."""
     out = idx[rows]
-    sec = _field(buf, idx.size, rows, STAMP, e + 'i4').astype(np.int64)
-    nsec = _field(buf, idx.size, rows, STAMP + 4, e + 'u4').astype(np.int64)
+    sec = _field(block, rows, STAMP, e + 'i4').astype(np.int64)
+    nsec = _field(block, rows, STAMP + 4, e + 'u4').astype(np.int64)
     stamps[out] = sec * 1_000_000_000 + nsec
     for k, offset in enumerate(offsets):
         if offset is None:
             continue
         offset, kind = offset if isinstance(offset, tuple) else (offset, 'f8')
-        values[k, out] = _field(buf, idx.size, rows, offset, e + kind)
+        values[k, out] = _field(block, rows, offset, e + kind)
 
 
 # ----------------------------------------------------------------------------- public
@@ -290,9 +342,17 @@ def decode_joint_states(raws: Sequence[Raw], joint_name: str | None
     messages. NaN where the message lacks that joint (NaN position) or its velocity (NaN
     velocity), or cannot be decoded (stamp 0 too). A message with no names and exactly one
     position counts as that joint; joint_name None matches only such messages."""
-    joint = None if joint_name is None else joint_name.encode('utf-8')
-    stamps, values = _bulk(raws, lambda raw: _joint_layout(raw, joint), 2)
-    return stamps, values[0], values[1]
+    stamps, positions, velocities = decode_joints(raws, [joint_name])
+    return stamps, positions[0], velocities[0]
+
+
+def decode_joints(raws: Sequence[Raw], joint_names: Sequence[str | None]
+                  ) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+    """decode_joint_states of several joints in one pass: (stamp ns int64 [n], positions
+    [joints, n], velocities [joints, n]), row k for joint_names[k]."""
+    joints = [None if name is None else name.encode('utf-8') for name in joint_names]
+    stamps, values = _bulk(raws, lambda raw: _joint_layout(raw, joints), 2 * len(joints))
+    return stamps, values[0::2], values[1::2]
 
 
 def decode_string(raw: Raw) -> str:

@@ -30,7 +30,7 @@ import zlib
 import numpy as np
 from numpy.typing import NDArray
 
-from .cdr import Raw
+from .cdr import Packed, Raw
 from .errors import BagDamagedError
 from .recovery import check_chunk_header, read_summary, record_at
 
@@ -87,17 +87,21 @@ class IndexedFile:
             out[record.name] = dict(record.metadata)
         return out
 
-    def messages(self, ids: Collection[int]) -> dict[int, tuple[list[int], list[Raw]]]:
-        """{channel id: (log times ns, raw CDR memoryviews)} of the channels `ids`, each in
-        file order (chunk by chunk, then by position in the chunk)."""
-        out = {cid: ([], []) for cid in ids}
+    def messages(self, ids: Collection[int]) -> dict[int, tuple[NDArray[np.int64], Packed]]:
+        """{channel id: (log times ns, raw CDR)} of the channels `ids`, each in file order
+        (chunk by chunk, then by position in the chunk): the log times an int64 array, the
+        messages a cdr.Packed over the decompressed chunks (a list of memoryviews for a file
+        written without message indexes)."""
+        out = {cid: (np.zeros(0, dtype=np.int64), Packed(b'', [], [])) for cid in ids}
         chunks = sorted(self._summary['chunks'], key=lambda c: c.chunk_start_offset)
         if not ids:
             return out
         if any(index.message_index_length == 0 for index in chunks):
+            lists = {cid: ([], []) for cid in ids}
             for index in chunks:                  # a writer without message indexes
-                self._whole_chunk(index, out)
-            return out
+                self._whole_chunk(index, lists)
+            return {cid: (np.asarray(logs, dtype=np.int64), raws)
+                    for cid, (logs, raws) in lists.items()}
         # the chunks holding wanted channels, decompressed into one buffer, and every wanted
         # message's offset in it: then one vectorised pass per channel
         buffers, offsets, size = [], {cid: [] for cid in ids}, 0
@@ -112,24 +116,24 @@ class IndexedFile:
             size += len(records)
         data = b''.join(buffers)
         head = np.frombuffer(data, dtype=np.uint8)
-        view = memoryview(data)
+        # a record may not run past its own chunk: past the next chunk's start at most
+        bounds = np.cumsum([len(b) for b in buffers])
         for cid in ids:
             if not offsets[cid]:
                 continue
             at = np.concatenate(offsets[cid])
-            fields = head[at[:, None] + np.arange(_DATA)]
+            if at.size and at[-1] + _DATA > head.size:
+                raise BagDamagedError(f'message index of channel {cid} points past its chunks')
+            fields = np.lib.stride_tricks.sliding_window_view(head, _DATA)[at]
             length = fields[:, 1:9].copy().view('<u8')[:, 0].astype(np.int64)
             channel = fields[:, 9:11].copy().view('<u2')[:, 0]
             end = at + 9 + length
-            # a record may not run past its own chunk: past the next chunk's start at most
-            bounds = np.cumsum([len(b) for b in buffers])
             limit = bounds[np.searchsorted(bounds, at, side='right')]
             if (np.any(fields[:, 0] != _MESSAGE) or np.any(channel != cid)
                     or np.any(length < _DATA - 9) or np.any(end > limit)):
                 raise BagDamagedError(f'message index of channel {cid} does not match its records')
-            logs, raws = out[cid]
-            logs += fields[:, 15:23].copy().view('<u8')[:, 0].tolist()
-            raws += [view[a:b] for a, b in zip((at + _DATA).tolist(), end.tolist())]
+            logs = fields[:, 15:23].copy().view('<u8')[:, 0].astype(np.int64)
+            out[cid] = (logs, Packed(data, at + _DATA, end))
         return out
 
     def _chunk_records(self, index: ChunkIndex) -> bytes:

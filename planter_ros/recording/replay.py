@@ -48,7 +48,8 @@ from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, pla
 from planter_ros.sensing.row_speed import motion_samples, row_speed_samples
 
 from .bag_reader import Recording, TopicMessages, read_recording
-from .cdr import decode_joint_states, decode_navsatfix, decode_string, decode_twist
+from .cdr import (
+    decode_joint_states, decode_joints, decode_navsatfix, decode_string, decode_twist, take)
 from .errors import DecodeError, ReplayError, TopicMissingError
 
 REQUIRED = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES, interfaces.DESIGN)
@@ -214,7 +215,7 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
     j_order = np.argsort(j_log, kind='stable')
     s_log = s_log[s_order]
     j_log = j_log[j_order]
-    s_stamp, s_v, s_w = decode_twist([speed.raw[i] for i in s_order])
+    s_stamp, s_v, s_w = decode_twist(take(speed.raw, s_order))
     _count_undecodable(rec.warnings, interfaces.GROUND_SPEED.name, s_stamp, s_v)
     fixes_topic = rec.topics.get(interfaces.GNSS_FIX)
     fixes = _fixes(fixes_topic)          # the map's dead reckoning needs the yaw rate
@@ -233,18 +234,21 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         motions.append(motion)
         rt, rv = row_speed_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits,
                                    motion=motion)
-        raws = [joint.raw[j_order[i]] for i in j_idx]
+        raws = take(joint.raw, j_order[j_idx])
+        j_stamp, j_positions, j_velocities = decode_joints(
+            raws, [row.joint(mechanism) for row in planting])
         # a change before the first joint sample is in force at once (nothing turned yet),
         # a later one from the next planting instant after its message, as the live monitor
         first_joint = j_log[j_idx[0]] if j_idx.size else np.iinfo(np.int64).max
         model = [m for t, _, _, m in group if t < first_joint or t == log][-1]
         changes = [(t * 1e-9, m) for t, _, _, m in group if t >= first_joint and t != log]
         segment = []
+        if planting:
+            _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp,
+                               j_positions[0])
+        jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
         for r, row in enumerate(planting):
-            j_stamp, j_pos, j_vel = decode_joint_states(raws, row.joint(mechanism))
-            if r == 0:
-                _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp, j_pos)
-            jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
+            j_pos, j_vel = j_positions[r], j_velocities[r]
             # another mechanism starts a new sequence, numbered from 0 like the live monitor
             segment.append(predict_plants(rt, rv[r], jt, j_pos, j_vel, model, settings,
                                           row=row.index, speed_filter=False, changes=changes,
@@ -305,16 +309,15 @@ def _seedlings(rec: Recording, plants: Plants, planting: Sequence[Row],
     if topic is None or not topic.raw:
         return account
     order = np.argsort(np.asarray(topic.log, dtype=np.int64), kind='stable')
-    raws = [topic.raw[i] for i in order]
+    raws = take(topic.raw, order)
     logs = np.asarray(topic.log, dtype=np.int64)[order]
     mechanisms = {group[0][2].mechanism for _, group in segments}
-    for row in planting:
-        for mechanism in mechanisms:
-            stamp, count, _ = decode_joint_states(raws, row.joint(mechanism))
-            ok = np.isfinite(count)
-            t = np.where(stamp != 0, stamp, logs) * 1e-9
-            for when, value in zip(t[ok].tolist(), count[ok].tolist()):
-                account.add_reading(row.index, when, value)
+    joints = [(row, row.joint(mechanism)) for row in planting for mechanism in mechanisms]
+    stamp, counts, _ = decode_joints(raws, [joint for _, joint in joints])
+    t = np.where(stamp != 0, stamp, logs) * 1e-9
+    for (row, _), count in zip(joints, counts):
+        ok = np.isfinite(count)
+        account.add_readings(row.index, t[ok], count[ok])
     return account
 
 
@@ -398,7 +401,7 @@ def _fixes(topic: TopicMessages | None) -> tuple[FloatArray, ...]:
         return tuple(np.zeros(0) for _ in range(7))
     log = np.asarray(topic.log, dtype=np.int64)
     order = np.argsort(log, kind='stable')
-    stamp, *values = decode_navsatfix([topic.raw[i] for i in order])
+    stamp, *values = decode_navsatfix(take(topic.raw, order))
     t = np.where(stamp != 0, stamp, log[order]) * 1e-9
     return (t, *values)
 
