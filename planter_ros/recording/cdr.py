@@ -69,7 +69,7 @@ class Packed(Sequence):
     def __len__(self) -> int:
         return int(self.start.size)
 
-    def __getitem__(self, i):
+    def __getitem__(self, i: int | slice) -> memoryview | Packed:
         if isinstance(i, slice):
             return Packed(self.data, self.start[i], self.end[i])
         return memoryview(self.data)[int(self.start[i]):int(self.end[i])]
