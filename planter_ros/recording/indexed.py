@@ -49,6 +49,7 @@ class IndexedFile:
 
     def __init__(self, path: str | Path) -> None:
         self.path = path
+        self._zstd = None
         self._file = open(path, 'rb')
         try:
             self._data = mmap.mmap(self._file.fileno(), 0, access=mmap.ACCESS_READ)
@@ -151,8 +152,10 @@ class IndexedFile:
         (stored,) = struct.unpack_from('<Q', data, body + 32 + n)
         raw = data[body + 40 + n:body + 40 + n + stored]
         if compression == 'zstd':
-            import zstandard
-            records = zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
+            if self._zstd is None:            # one per file: a context costs as much as a chunk
+                import zstandard
+                self._zstd = zstandard.ZstdDecompressor()
+            records = self._zstd.decompress(raw, max_output_size=size)
         elif compression == 'lz4':
             import lz4.frame
             records = lz4.frame.decompress(raw)
