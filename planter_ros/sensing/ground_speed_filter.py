@@ -11,6 +11,8 @@ forward, and nothing integrates distance backwards. Pure Python, no ROS.
 from dataclasses import dataclass
 import math
 
+import numpy as np
+
 from planter_ros.config import check, setting
 
 REJECT_REASONS = ('non_finite', 'too_fast', 'spike', 'negative')
@@ -83,3 +85,46 @@ def filter_ground_speed(t, v, limits=GroundSpeedLimits()):
             kept_t.append(ti)
             kept_v.append(used)
     return kept_t, kept_v
+
+
+_WINDOW = 256        # samples checked at once against their predecessor (plausible_run)
+
+
+def plausible_run(x, t, max_abs, max_rate, tolerance):
+    """Which samples x (at increasing times t, arrays) a filter applying `implausible` one by
+    one would take: a boolean array. Each sample is judged against the last one taken, as the
+    stateful filters do, with the same arithmetic; a run of samples that are all taken is
+    judged at once (each against its predecessor), only the samples after a rejection one by
+    one until the next one is taken."""
+    x = np.asarray(x, dtype=float)
+    t = np.asarray(t, dtype=float)
+    taken = np.zeros(x.size, dtype=bool)
+    with np.errstate(invalid='ignore'):
+        candidates = np.flatnonzero(np.isfinite(x) & (np.abs(x) <= max_abs))
+    if not candidates.size:
+        return taken
+    ref = int(candidates[0])                 # nothing taken before it: no spike rule
+    taken[ref] = True
+    k, n = 1, candidates.size
+    while k < n:
+        # a window of candidates, each against the one before it (valid while all are taken)
+        block = candidates[k:k + _WINDOW]
+        before = np.concatenate(([ref], block[:-1]))
+        spike = np.abs(x[block] - x[before]) > tolerance + max_rate * (t[block] - t[before])
+        bad = np.flatnonzero(spike)
+        upto = bad[0] if bad.size else block.size
+        taken[block[:upto]] = True
+        if upto:
+            ref = int(block[upto - 1])
+        k += int(upto)
+        if not bad.size:
+            continue
+        # a rejection: the next candidates against the last one taken, until one is taken
+        while k < n:
+            i = int(candidates[k])
+            k += 1
+            if not abs(x[i] - x[ref]) > tolerance + max_rate * (t[i] - t[ref]):
+                taken[i] = True
+                ref = i
+                break
+    return taken

@@ -27,7 +27,8 @@ import numpy as np
 
 from planter_ros.config import check, setting
 
-from .ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits, implausible
+from .ground_speed_filter import (
+    GroundSpeedFilter, GroundSpeedLimits, implausible, plausible_run)
 
 YAW_REJECT_REASONS = ('non_finite', 'too_fast', 'spike')
 
@@ -158,17 +159,35 @@ def _row_speeds(v, yaw_rate, offsets):
 
 def motion_samples(t, v, w, offsets, limits=None, yaw_limits=None, yaw=None):
     """The machine's motion over a whole recording as the rows use it: (times, v, ω_z), each
-    (n,), of the samples `RowSpeedStream.motion` keeps, in order. `w` may be None (no yaw rate
-    recorded: straight); `yaw` as for RowSpeedStream."""
+    (n,), of the samples `RowSpeedStream.motion` keeps, in order, with its arithmetic
+    (vectorised: ground_speed_filter.plausible_run). `w` may be None (no yaw rate recorded:
+    straight); `yaw` as for RowSpeedStream."""
     t = np.asarray(t, dtype=float)
     v = np.asarray(v, dtype=float)
     w = np.zeros_like(v) if w is None else np.asarray(w, dtype=float)
-    stream = RowSpeedStream(offsets, limits, yaw_limits, yaw)
-    kept = [sample for sample in map(stream.motion, t.tolist(), v.tolist(), w.tolist())
-            if sample is not None]
-    if not kept:
+    limits = limits or GroundSpeedLimits()
+    yaw_limits = yaw_limits or YawRateLimits()
+    use_yaw = bool(np.any(np.asarray(offsets, dtype=float))) if yaw is None else bool(yaw)
+    # the stream's gate: a finite time and speed, the time after every such one before it
+    finite = np.isfinite(t) & np.isfinite(v)
+    seen = np.maximum.accumulate(np.where(finite, t, -np.inf))
+    gate = finite & (t > np.concatenate(([-np.inf], seen[:-1])))
+    t, v, w = t[gate], v[gate], w[gate]
+    kept = plausible_run(v, t, limits.max_ground_speed, limits.max_ground_acceleration,
+                         limits.ground_speed_tolerance)
+    if not kept.any():
         return np.zeros(0), np.zeros(0), np.zeros(0)
-    return tuple(np.asarray(c) for c in zip(*kept))
+    if use_yaw:
+        # the yaw rate in use: the last accepted one (this sample's own included), while fresh
+        taken = plausible_run(w, t, yaw_limits.max_yaw_rate, yaw_limits.max_yaw_acceleration,
+                              yaw_limits.yaw_rate_tolerance)
+        last = np.maximum.accumulate(np.where(taken, np.arange(t.size), -1))
+        at = np.maximum(last, 0)
+        fresh = (last >= 0) & (t - t[at] <= yaw_limits.yaw_rate_timeout)
+        used = np.where(fresh, w[at], 0.0)
+    else:
+        used = np.zeros(t.size)
+    return t[kept], v[kept], used[kept]
 
 
 def row_speed_samples(t, v, w, offsets, limits=None, yaw_limits=None, motion=None):
