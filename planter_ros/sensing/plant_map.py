@@ -227,6 +227,109 @@ class FixTrack:
             cut = bisect_right(self.times, horizon) - 1
             del self.times[:cut], self.transforms[:cut]
 
+    def add_all(self, t, latitude, longitude, sigma, pose, east, north):
+        """`add` of every usable fix of a recording at once, on a new track that keeps every
+        transform (replay): arrays of the fixes' instants (increasing), positions, σ, the
+        dead-reckoned poses (x, y, ψ arrays) and the fixes in the local frame. The same
+        arithmetic as one `add` after the other, sum for sum and rebase for rebase: the
+        running sums are accumulated in order (numpy's accumulate adds one after the other),
+        the windows found with searchsorted (path and time only grow), and the angles, the
+        path steps and the weights taken from `math` and Python floats as `add` takes them."""
+        if not self.keep_all or self._t:
+            raise ValueError('FixTrack.add_all: only on a new track keeping every transform')
+        t = np.asarray(t, dtype=float)
+        m = t.size
+        if not m:
+            return
+        settings = self.settings
+        self.anchor(latitude[0], longitude[0])
+        ax, ay = on_machine(np.asarray(pose[0], dtype=float), np.asarray(pose[1], dtype=float),
+                            np.asarray(pose[2], dtype=float), *self.antenna)
+        ax, ay = np.asarray(ax, dtype=float), np.asarray(ay, dtype=float)
+        e, n = np.asarray(east, dtype=float), np.asarray(north, dtype=float)
+        xs, ys = ax.tolist(), ay.tolist()
+        steps = [math.hypot(xs[k] - xs[k - 1], ys[k] - ys[k - 1]) for k in range(1, m)]
+        path = np.add.accumulate(np.concatenate(([0.0], steps)))
+        w = np.array([1.0 / float(s) ** 2 for s in np.asarray(sigma, dtype=float).tolist()])
+        increments = np.column_stack((w, w * ax, w * ay, w * e, w * n,
+                                      w * (ax * ax + ay * ay), w * (ax * e + ay * n),
+                                      w * (ax * n - ay * e)))
+        # each fix's window: the first fix not past its track length nor its time window
+        past = np.maximum(np.searchsorted(path[1:], path - settings.track_length, side='right'),
+                          np.searchsorted(t, t - settings.fix_window, side='left'))
+        first = np.maximum.accumulate(np.minimum(past, np.arange(m)))
+        # where the running sums restart (add's rebase) and what each fit subtracts
+        sums = np.zeros((m, 8))
+        fits = np.zeros((m, 8))
+        offset, done = 0, 0
+        events = []
+        for k, f in enumerate(first.tolist()):
+            if f - offset > self.REBASE:
+                events.append(k)
+                offset = f - 1
+        previous = np.zeros(8)
+        for stop in sorted(set(events) | {m - 1}):
+            block = np.add.accumulate(np.vstack((previous, increments[done:stop + 1])))[1:]
+            sums[done:stop + 1] = block
+            if stop in events:
+                # fits before the rebase at `stop` see the sums as they were
+                self._fit_inputs(sums, first, done, stop, fits)
+                base = sums[first[stop] - 1].copy()
+                sums[first[stop] - 1:stop + 1] -= base
+                self._fit_inputs(sums, first, stop, stop + 1, fits)
+            else:
+                self._fit_inputs(sums, first, done, stop + 1, fits)
+            previous = sums[stop]
+            done = stop + 1
+        transforms = self._fit_all(fits)
+        self._t, self._path = t[offset:].tolist(), path[offset:].tolist()
+        self._sums = [tuple(row) for row in sums[offset:].tolist()]
+        self._first = int(first[-1]) - offset
+        self._antenna_at = (xs[-1], ys[-1])
+        self.fixes += m
+        self.times += t.tolist()
+        self.transforms += transforms
+        for k, transform in enumerate(transforms):
+            if transform is not None:
+                self.first_heading = (float(t[k]), transform)
+                break
+
+    @staticmethod
+    def _fit_inputs(sums, first, lo, hi, out):
+        """The window sums of fixes lo..hi-1 (each fix's sums less those before its window) as
+        `add` forms them; `first`: each fix's window start (absolute index)."""
+        if hi <= lo:
+            return
+        k = np.arange(lo, hi)
+        before = np.where((first[k] > 0)[:, None], sums[np.maximum(first[k] - 1, 0)], 0.0)
+        out[lo:hi] = sums[lo:hi] - before
+
+    def _fit_all(self, fits):
+        """`_fit` of every row of window sums, in order (the rotation kept where the window
+        gives no heading)."""
+        total, sax, say, sbx, sby, saa, sab, sacb = fits.T
+        amx, amy, bmx, bmy = sax / total, say / total, sbx / total, sby / total
+        spread = saa - total * (amx * amx + amy * amy)
+        spread = np.where(0.0 > spread, 0.0, spread)          # max(spread, 0.0), NaN kept
+        extent = np.sqrt(12.0 * spread / total)
+        heading = extent >= 0.5 * self.settings.track_length
+        cross = sacb - total * (amx * bmy - amy * bmx)
+        dot = sab - total * (amx * bmx + amy * bmy)
+        out = []
+        phi = self._phi
+        for k, (has, y, x, mx, my, bx, by) in enumerate(zip(
+                heading.tolist(), cross.tolist(), dot.tolist(), amx.tolist(), amy.tolist(),
+                bmx.tolist(), bmy.tolist())):
+            if has:
+                phi = math.atan2(y, x)
+            if phi is None:
+                out.append(None)
+                continue
+            c, s = math.cos(phi), math.sin(phi)
+            out.append((phi, bx - (c * mx - s * my), by - (s * mx + c * my)))
+        self._phi = phi
+        return out
+
     def _rebase(self, first):
         """Drop the fixes before the one preceding the window's first and restart the running
         sums there (they stay of the window's size: no precision lost over a long run)."""
@@ -281,20 +384,37 @@ class FixTrack:
         """(east, north, heading) in the local frame of plants at times t (array) on rows at
         `lateral_offset` and `forward_offset` (arrays, m from the machine's reference point;
         forward None: on its line), the machine's dead-reckoned pose at t given; NaN where no
-        transform applies."""
+        transform applies (`transform_for`, for all plants at once)."""
         t = np.asarray(t, dtype=float)
-        if forward_offset is None:
-            forward_offset = np.zeros(t.size)
+        lateral_offset = np.asarray(lateral_offset, dtype=float)
+        forward_offset = (np.zeros(t.size) if forward_offset is None
+                          else np.asarray(forward_offset, dtype=float))
         out = np.full((3, t.size), np.nan)
-        for i, ti in enumerate(t.tolist()):
-            transform = self.transform_for(ti) if self.times else None
-            if transform is None or not math.isfinite(pose[0][i]):
-                continue
-            phi, tx, ty = transform
-            px, py = on_machine(pose[0][i], pose[1][i], pose[2][i], forward_offset[i],
-                                lateral_offset[i])
-            c, s = math.cos(phi), math.sin(phi)
-            out[:, i] = (c * px - s * py + tx, s * px + c * py + ty, pose[2][i] + phi)
+        if not self.times or not t.size:
+            return out
+        settings = self.settings
+        times = np.asarray(self.times, dtype=float)
+        k = np.searchsorted(times, t, side='right') - 1
+        at = np.maximum(k, 0)
+        recent = (k >= 0) & ~(t - times[at] > settings.max_fix_age)
+        # each fix's transform (cos and sin as `math` gives them); None: not yet a heading
+        own = np.array([tr is not None for tr in self.transforms])
+        values = np.array([(tr[0], math.cos(tr[0]), math.sin(tr[0]), tr[1], tr[2])
+                           if tr is not None else (np.nan,) * 5 for tr in self.transforms])
+        which = np.where(recent & own[at], at, -1)
+        first = self.first_heading
+        if first is not None:
+            phi = first[1][0]
+            values = np.vstack((values, (phi, math.cos(phi), math.sin(phi), *first[1][1:])))
+            late = recent & ~own[at] & (first[0] - t <= settings.fix_window)
+            which = np.where(late, len(self.transforms), which)
+        placed = (which >= 0) & np.isfinite(pose[0])
+        if not placed.any():
+            return out
+        phi, c, s, tx, ty = values[which[placed]].T
+        x, y, heading = (np.asarray(p, dtype=float)[placed] for p in pose[:3])
+        px, py = on_machine(x, y, heading, forward_offset[placed], lateral_offset[placed])
+        out[:, placed] = (c * px - s * py + tx, s * px + c * py + ty, heading + phi)
         return out
 
 
@@ -348,9 +468,8 @@ def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna, plant_
         # the poses and the local frame of all fixes at once; each fix then as live
         px, py, ppsi = _pose(mt, x, y, psi, ft[taken])
         east, north = track.frame.to_east_north(lon[taken], lat[taken])
-        for k, i in enumerate(taken.tolist()):
-            track.add(ft[i], lat[i], lon[i], sigma[i], (px[k], py[k], ppsi[k]),
-                      (east[k], north[k]))
+        track.add_all(ft[taken], lat[taken], lon[taken], sigma[taken], (px, py, ppsi), east,
+                      north)
     forward = None if plant_forward is None else np.asarray(plant_forward, dtype=float)
     return _placement(track, plant_t, np.asarray(plant_offset, dtype=float),
                       _pose_inside(mt, x, y, psi, plant_t), forward)
