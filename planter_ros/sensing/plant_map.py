@@ -317,9 +317,9 @@ class FixTrack:
         dot = sab - total * (amx * bmx + amy * bmy)
         out = []
         phi = self._phi
-        for k, (has, y, x, mx, my, bx, by) in enumerate(zip(
+        for has, y, x, mx, my, bx, by in zip(
                 heading.tolist(), cross.tolist(), dot.tolist(), amx.tolist(), amy.tolist(),
-                bmx.tolist(), bmy.tolist())):
+                bmx.tolist(), bmy.tolist()):
             if has:
                 phi = math.atan2(y, x)
             if phi is None:
