@@ -235,6 +235,45 @@ def plants_table(bag, plants, rows=()):
     return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
 
 
+def plants_arrays_table(bag, plants, rows=()):
+    """`plants_table(bag, plants.rows(), rows)` straight from a prediction.Plants (its arrays,
+    no dict per plant): the same table, value for value (a non-finite value is null)."""
+    import numpy as np
+    import pyarrow as pa
+
+    from planter_ros import prediction
+    names = {int(i): str(n) for i, n in rows}
+    n = len(plants)
+    arrays, columns = [pa.array([bag] * n, type=pa.string())], ['bag']
+    for key in prediction.PLANT_FIELDS:
+        values = np.asarray(getattr(plants, key), dtype=float)
+        null = ~np.isfinite(values)
+        whole = np.where(null, 0.0, values).astype(np.int64)       # int(v) of each v
+        name = PLANTS_COLUMNS.get(key, key)
+        if key == 'time':
+            ns = np.where(null, 0, np.round(np.where(null, 0.0, values) * 1e9)).astype(np.int64)
+            array = pa.array(ns, type=pa.timestamp('ns', tz='UTC'), mask=null)
+        elif key in INTEGER_FIELDS or key == 'seedlings':
+            array = pa.array(whole, type=pa.int64(), mask=null)
+        elif key in BOOLEAN_FIELDS:
+            array = pa.array(values != 0.0, type=pa.bool_(), mask=null)
+        elif key in CODE_FIELDS:
+            codes = getattr(prediction, CODE_FIELDS[key])
+            known = ~null & (whole >= 0) & (whole < len(codes))
+            array = pa.array([codes[c] if ok else None
+                              for c, ok in zip(whole.tolist(), known.tolist())],
+                             type=pa.string())
+        else:
+            array = pa.array(np.where(null, np.nan, values), mask=null)
+        arrays.append(array)
+        columns.append(name)
+        if key == 'row':
+            arrays.append(pa.array([names.get(None if bad else r, '') for r, bad in
+                                    zip(whole.tolist(), null.tolist())], type=pa.string()))
+            columns.append('row_name')
+    return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
+
+
 def _code_name(field, value):
     from planter_ros import prediction
     names = getattr(prediction, CODE_FIELDS[field])

@@ -14,7 +14,7 @@ import time
 from planter_ros.recording.errors import RecordingError
 from planter_ros.recording.replay import replay
 
-from .tables import flatten, plants_table
+from .tables import flatten, plants_arrays_table
 
 # planter_ros packages whose code cannot change a replay's result (not in the model version)
 NOT_MODEL = ('analysis', 'bench', 'cli', 'nodes', 'optimize', 'plots', 'sim')
@@ -77,13 +77,13 @@ def analyze_bag(path, key, identity, options, overrides, design, version):
     except Exception as exc:        # one bag's bug in the model must not stop the season
         row.update(status='error', reason=_one_line(f'{type(exc).__name__}: {exc}'))
     else:
-        data = result.as_json()
-        plants = data.pop('plants')
+        data = result.as_json(plants=False)
         data['path'] = data.pop('bag')          # where it was read; `bag` is the key
         row.update(flatten(data))
         row['status'] = 'warnings' if data['warnings'] else 'ok'
-        if plants:
-            table = plants_table(key, plants, [(r.index, r.label) for r in result.rows])
+        if len(result.plants):
+            table = plants_arrays_table(key, result.plants,
+                                        [(r.index, r.label) for r in result.rows])
     row['analysis_seconds'] = time.perf_counter() - started
     # CPU time apart from wall time: on shared cores the difference is time spent waiting
     row['analysis_cpu_seconds'] = time.process_time() - cpu

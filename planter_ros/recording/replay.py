@@ -85,8 +85,10 @@ class ReplayResult:
         be compared on these."""
         return [PLANT_FIELDS.index(f) for f in self.recorded_fields]
 
-    def as_json(self) -> dict:
-        return {'bag': self.path, 'design': to_dict(self.design),
+    def as_json(self, plants: bool = True) -> dict:
+        """replay --json's object; `plants` False: without the plants (a caller that takes
+        them from `self.plants` as arrays)."""
+        out = {'bag': self.path, 'design': to_dict(self.design),
                 'settings': config.as_dict(self.settings),
                 'map': {**config.as_dict(self.map_settings), **config.as_dict(self.antenna),
                         'fixes': self.fixes,
@@ -98,8 +100,13 @@ class ReplayResult:
                 'rows': [{**row.as_dict(), 'summary': summary}
                          for row, summary in zip(self.rows, self.row_summaries)],
                 'acceptance': {**(self.acceptance or {}), 'source': self.acceptance_source},
-                'plants': self.plants.rows(), 'notes': self.notes or [],
+                'plants': None, 'notes': self.notes or [],
                 'warnings': self.warnings}
+        if plants:
+            out['plants'] = self.plants.rows()
+        else:
+            del out['plants']
+        return out
 
 
 def settings_from_recording(recorded: Mapping[str, object],
