@@ -289,16 +289,38 @@ class Season:
             pq.write_table(table, tmp)
 
 
+BATCH_MAX = 16       # bags per task at most (a task costs the scheduler and client 2-5 ms)
+BATCH_SHARE = 4      # a task takes at most 1/(BATCH_SHARE × workers) of the bags left
+
+
+def batches(count, workers):
+    """The bags 0..count-1 in tasks, in order: guided self-scheduling, each task a share of
+    what is left (at most BATCH_MAX bags, at least one), so the first tasks carry many bags
+    (the scheduler's cost spread over them) and the last ones few (no worker waits long for
+    another's last task)."""
+    out, start = [], 0
+    while start < count:
+        size = max(1, min(BATCH_MAX, (count - start) // (BATCH_SHARE * max(1, workers))))
+        out.append(range(start, start + size))
+        start += size
+    return out
+
+
 def run(season, client, keys, overrides, design, progress=None):
     """Analyse the bags `keys` on `client`'s cluster into `season`: a Report (without the
-    counts of bags found and skipped, which the caller knows)."""
-    from .engine import completed
-    from .task import analyze_bag
+    counts of bags found and skipped, which the caller knows). The bags go in tasks of several
+    (`batches`); a task the engine lost is tried again bag by bag, so only a bag no worker
+    can run is lost."""
+    from .engine import completed, worker_count
+    from .task import analyze_bags
+    tables.load_pyarrow()                    # once per process, before the clock starts
     report = Report(out=str(season.out))
     if design is not None:                   # one copy per worker, not one per task
         design = client.scatter(design, broadcast=True)
     arguments = [(k.path or k.bag, k.bag, (k.file_size, k.file_mtime_ns), k.options)
                  for k in keys]
+    options = {'overrides': overrides, 'design': design,
+               'version': keys[0].model_version if keys else None}
     pending, last_write, write_cost = [], time.monotonic(), 0.0
     started = time.monotonic()
     done = 0
@@ -311,14 +333,22 @@ def run(season, client, keys, overrides, design, progress=None):
         last_write = time.monotonic()
         write_cost = last_write - t0
 
-    try:
-        for i, result, error in completed(client, analyze_bag, arguments, overrides=overrides,
-                                          design=design, version=keys[0].model_version
-                                          if keys else None):
-            done += 1
+    def tasks(groups, retry):
+        """Run the tasks `groups` (bag positions); a lost task of several bags goes to
+        `retry`, a lost bag to the report."""
+        nonlocal done
+        work = [([arguments[i] for i in group],) for group in groups]
+        for g, results, error in completed(client, analyze_bags, work, **options):
             if error is not None:
-                report.not_done.append((keys[i].bag, _first_line(error)))
-            else:
+                if len(groups[g]) > 1 and retry is not None:
+                    retry.extend(groups[g])
+                    continue
+                results = [None] * len(groups[g])
+            for i, result in zip(groups[g], results):
+                done += 1
+                if result is None:
+                    report.not_done.append((keys[i].bag, _first_line(error)))
+                    continue
                 row, table = result
                 pending.append((row, table))
                 if row['status'] in ANALYSED:
@@ -335,6 +365,12 @@ def run(season, client, keys, overrides, design, progress=None):
             if pending and (len(pending) >= FLUSH_BAGS or time.monotonic() - last_write >=
                             max(FLUSH_SECONDS, 20.0 * write_cost)):
                 write()
+
+    try:
+        retry = []
+        tasks(batches(len(keys), worker_count(client) if keys else 1), retry)
+        if retry:
+            tasks([[i] for i in sorted(retry)], None)
         report.seconds = time.monotonic() - started
     finally:
         if pending:

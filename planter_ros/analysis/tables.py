@@ -103,6 +103,13 @@ def _setting_units():
             for spec in specs(cls)}
 
 
+def load_pyarrow():
+    """Import pyarrow and what it loads when it builds its first array (pandas: a second or
+    more), so the first table of a run does not pay for it."""
+    import pyarrow as pa
+    pa.array([0.0])
+
+
 def flatten(value, prefix=''):
     """A JSON object as {dotted name: value}; lists are kept as they are, less the empty
     objects in them; an empty object gives no column (Parquet has no type for a struct

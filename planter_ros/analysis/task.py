@@ -44,13 +44,16 @@ def model_version():
 
 def warm_up():
     """Run on every worker before the first bag: loads what a replay imports only when first
-    needed (the indexed reader, zstd, pyarrow: a quarter second), so no bag pays for it, and
+    needed (the indexed reader, zstd, pyarrow and the pandas it loads with its first array: a
+    second or more), so no bag pays for it, and
     returns the model version the worker runs."""
     import mcap.records  # noqa: F401
-    import pyarrow  # noqa: F401
     import zstandard  # noqa: F401
 
     from planter_ros.recording import indexed  # noqa: F401
+
+    from .tables import load_pyarrow
+    load_pyarrow()
     return model_version()
 
 
@@ -93,3 +96,9 @@ def analyze_bag(path, key, identity, options, overrides, design, version):
 def _one_line(text):
     lines = text.strip().splitlines()
     return lines[0] if lines else text
+
+
+def analyze_bags(bags, overrides, design, version):
+    """`analyze_bag` of each (path, key, identity, options) in `bags`, in order: one task of
+    several bags (the scheduler's and client's cost per task shared among them)."""
+    return [analyze_bag(*bag, overrides, design, version) for bag in bags]
