@@ -61,8 +61,9 @@ def test_empty_cups_and_doubles_become_misses_and_multiples():
 
 def test_injected_losses_in_a_simulated_run_are_counted_exactly(tmp_path):
     """A two-row run with a tray of 10 % empty cells and 5 % doubles and a 1.2 s ground-speed
-    drop-out: every sensed instant carries its own reading; the statuses, the ISO misses and
-    multiples and the instants in the gap equal what was injected, live and in replay."""
+    drop-out: every sensed instant carries its own reading, also inside the gap; the statuses,
+    the ISO misses and multiples and the instants in the gap equal what was injected, live and
+    in replay."""
     rows = 2
     plan = RunPlan(index=1, seed=21, duration=30.0, rows=machine_rows(rows), cruise=0.3,
                    change=1.0, curves=(Curve(40.0, 41.0, 20.0),),
@@ -99,11 +100,14 @@ def test_injected_losses_in_a_simulated_run_are_counted_exactly(tmp_path):
         assert set(own) >= set(np.flatnonzero(sensed).tolist())
         for k in np.flatnonzero(sensed).tolist():
             assert plants.seedlings[mine][k] == own[k]
-        # the instants inside the drop-out: flagged, unknown, none lost
+        # the instants inside the drop-out: flagged, none lost, and each still counted by its
+        # own reading (the cup sensor has no gap)
         in_gap = (times > gap_lo) & (times < gap_hi)
         assert in_gap.sum() >= 1
         assert np.array_equal(plants.input_gap[mine] == 1, in_gap)
-        assert np.all(plants.reason[mine][in_gap] == 3)
+        assert np.all(plants.reason[mine][in_gap] == 0)
+        for k in np.flatnonzero(in_gap).tolist():
+            assert plants.seedlings[mine][k] == own[k]
         # expected ISO counts from the injected cells: a double is a multiple, a run of empty
         # cells between two seedlings of one sequence a miss
         status = plants.status[mine].astype(int)
@@ -193,3 +197,50 @@ def test_the_live_monitor_reads_the_seedling_sensor_as_replay_does(ros):
     assert round(machine['multiple_index'] * spacings) == np.count_nonzero(live.status == 2)
     assert round(machine['miss_index'] * spacings) == \
         np.count_nonzero(live.spacing > 1.5 * model.spacing) > 0
+
+
+def test_a_small_simulated_season_accounts_for_every_injected_cell(tmp_path):
+    """Three short runs with a tray of empty cells and doubles, one with a ground-speed drop-out
+    long enough to hold planting instants: analysed as `planter analyze` does (the worker's
+    task, Parquet rows), every cell the cup sensors read is counted at its instant or named
+    where it went (before the first placed instant, after the last), kind by kind, exactly;
+    the instants in the gap keep their readings; the ISO misses and multiples are the runs of
+    empty cells, the doubles and the kinematic ones."""
+    import pyarrow as pa
+
+    from planter_ros.analysis import losses
+    from planter_ros.analysis.tables import plant_columns
+    from planter_ros.analysis.task import analyze_bag, model_version
+    from planter_ros.sim.season import draw_plan
+    total = losses.empty_account()
+    misses = multiples = 0
+    for k in range(3):
+        plan = draw_plan(7, k, 10.0, 2, empty_rate=0.15, double_rate=0.08)
+        if k == 0:
+            plan = RunPlan(**{**plan.__dict__, 'glitches': (Glitch('dropout', 5.0, length=1.3),)})
+        path = tmp_path / f'run_{k}.mcap'
+        summary = write_monitor_bag(simulate_plan(plan), path)
+        row, table = analyze_bag(str(path), path.name, (0, 0), '{}', {}, None, model_version())
+        assert row['status'] == 'ok'
+        readings = replay(path).seedling_readings
+        one = losses.account(readings, *plant_columns(table, (
+            'row', 'time', 'status', 'seedlings', 'input_gap', 'spacing', 'spacing_error')))
+        # the cup sensors read what the tray put in
+        assert one['injected']['empty'] == summary['events']['empty_cells']
+        assert one['injected']['double'] == summary['events']['double_cells']
+        assert losses.is_exact(one), one
+        if k == 0:
+            assert sum(one['in_gap'].values()) >= 1 and one['gap_unknown'] == 0
+        n = row['summary.spacing_quality.spacings']
+        misses += round(row['summary.spacing_quality.miss_index'] * n)
+        multiples += round(row['summary.spacing_quality.multiple_index'] * n)
+        losses.add(total, one)
+        assert isinstance(table, pa.Table)
+    assert total['injected']['empty'] >= 5 and total['injected']['double'] >= 2
+    assert total['counted']['empty'] + total['counted']['double'] > 0
+    assert misses == total['misses_of_empties'] + total['misses_kinematic']
+    assert total['misses_of_empties'] > 0
+    assert multiples == total['multiples_of_doubles'] + total['multiples_kinematic']
+    assert total['multiples_of_doubles'] == total['counted']['double']
+    text = '\n'.join(losses.lines(total, 3, misses, multiples))
+    assert 'exact' in text and 'NOT exact' not in text

@@ -11,9 +11,14 @@ previous instant and not after it:
 
 * status `planted` (1 seedling), `empty` (0), `double` (2 or more): reason `sensed`;
 * status `unknown`: reason `no seedling sensor` (no reading of the row in the whole run),
-  `no sensor reading` (the sensor is there but said nothing this cycle), or `input gap` (the
-  instant fell in a gap of the ground speed or joint samples: its time and position are
-  interpolated and the model's hole, tilt and upright are unknown; prediction.model).
+  `no sensor reading` (the sensor is there but said nothing this cycle), or `input gap` (no
+  reading, and the instant fell in a gap of the ground speed or joint samples).
+
+An instant inside an input gap (prediction.model: its time and position interpolated, the
+model's hole, tilt and upright unknown, flagged `input_gap`) still takes its cycle's reading:
+the cup sensor is an input of its own, and a gap in the ground speed or the drive feedback says
+nothing about what was in the cup. So an empty cup or a double is counted wherever it falls,
+and the tray's losses are counted exactly (a test injects them into simulated runs with gaps).
 
 Spacing (ISO 7256-1, prediction.quality) is measured between the seedlings in the ground: an
 empty instant has no spacing and the next seedling's spacing reaches back over it (two spacings
@@ -86,6 +91,11 @@ class SeedlingAccount:
         held += t[keep].tolist()
         counts_held += count[keep].tolist()
 
+    def readings(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """{row: (times s, counts)} of the readings kept, in time order."""
+        return {row: (np.asarray(t, dtype=float), np.asarray(c, dtype=float))
+                for row, (t, c) in self._readings.items()}
+
     def apply(self, plants: Plants, design_spacing: ArrayLike) -> Plants:
         """`plants` (a Plants batch, time order within each row) with seedlings, status,
         reason, spacing and spacing_error set; `design_spacing`: d of each plant (m, array)."""
@@ -102,17 +112,15 @@ class SeedlingAccount:
             if not math.isfinite(plants.spacing[p]) or gap:
                 last_pos = math.nan                  # the model's sequence starts again
             count = None
-            if gap:
+            times, counts = self._readings.get(row, ([], []))
+            k = bisect_right(times, t) - 1
+            if k >= 0 and times[k] > prev_t and math.isfinite(counts[k]) and counts[k] >= 0:
+                count = counts[k]
+                reason[p] = SENSED
+            elif gap:
                 reason[p] = INPUT_GAP
-            else:
-                times, counts = self._readings.get(row, ([], []))
-                k = bisect_right(times, t) - 1
-                if k >= 0 and times[k] > prev_t and math.isfinite(counts[k]) and \
-                        counts[k] >= 0:
-                    count = counts[k]
-                    reason[p] = SENSED
-                elif k >= 0:
-                    reason[p] = NO_READING
+            elif k >= 0:
+                reason[p] = NO_READING
             if count is not None:
                 seedlings[p] = count
                 status[p] = EMPTY if count < 0.5 else DOUBLE if count >= 1.5 else PLANTED

@@ -79,6 +79,7 @@ class ReplayResult:
     recorded_fields: tuple = ()   # the PLANT_FIELDS the live recording has (older: fewer)
     acceptance: dict = None       # the run judged by the crop's limits (judge_acceptance)
     acceptance_source: str = ''   # whose limits: the bag's, a scene's, the defaults
+    seedling_readings: dict = None  # {row index: (times s, counts)} the cup sensors read
 
     def recorded_columns(self) -> list[int]:
         """Indices of the plant fields the live recording has: replay and the recording can
@@ -267,7 +268,8 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
     # each instant's seedlings from the rows' cup sensors (prediction.seedlings): its status,
     # and spacings between the seedlings in the ground
     design_spacing = design_spacing_of(plants, designs[-1][3].spacing)
-    plants = _seedlings(rec, plants, planting, segments).apply(plants, design_spacing)
+    account = _seedlings(rec, plants, planting, segments)
+    plants = account.apply(plants, design_spacing)
     offset_of = {row.index: row.lateral_offset for row in rows}
     forward_of = {row.index: row.longitudinal_offset for row in rows}
     placement = place_plants(plants.time, [offset_of.get(int(r), 0.0) for r in plants.row],
@@ -305,7 +307,7 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         placement=placement,
         notes=prediction_notes(last_design, last_model), map_settings=map_settings,
         antenna=antenna, nozzle_width=last_model.nozzle_width,
-        fixes=usable_fixes)
+        fixes=usable_fixes, seedling_readings=account.readings())
 
 
 def _seedlings(rec: Recording, plants: Plants, planting: Sequence[Row],

@@ -239,3 +239,93 @@ def season_analysis(ctx):
               from_samples([per_task]),
               note=f'{1 / per_task:.0f} tasks/s: the scheduler and client cost of one bag',
               extra={'tasks_per_second': 1 / per_task})
+
+
+LOSSES = 'injected losses (planter simulate → planter analyze)'
+LOSS_TRAY = (0.05, 0.03)        # empty cells, doubles: enough of both in short runs
+
+
+def _simulate_season(directory, count, duration, rows, tray):
+    """`count` distinct runs of `duration` s on the local cluster: {bag name: summary}."""
+    from planter_ros.analysis.engine import check_workers, cluster, completed
+    from planter_ros.analysis.task import model_version, warm_up
+    from planter_ros.sim.season import bag_name, simulate_bag
+    names = [bag_name(1, k) for k in range(count)]
+    out = {}
+    with cluster() as client:
+        check_workers(client, warm_up, model_version(), 'the local cluster')
+        arguments = [(str(directory / name), 1, k, duration, rows, None, *tray)
+                     for k, name in enumerate(names)]
+        for i, summary, error in completed(client, simulate_bag, arguments):
+            if error is not None:
+                raise error
+            out[names[i]] = summary
+    return out
+
+
+@bench_case('losses', requires=('distributed', 'pyarrow', 'planter_ros.analysis.losses'))
+def injected_losses(ctx):
+    """A season simulated with a tray of empty cells and doubles and the usual glitches (speed
+    drop-outs among them), analysed by `planter analyze`'s code path; each bag's plants from
+    the Parquet table against what its cup sensors read (analysis.losses): injected against
+    counted, every difference by its place, and the ISO misses and multiples by their cause."""
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    import pyarrow.dataset as pads
+    import pyarrow.parquet as pq
+
+    from planter_ros.analysis import losses
+    from planter_ros.analysis.bags import find_bags
+    from planter_ros.analysis.tables import plant_columns
+    from planter_ros.recording.replay import replay
+    count, duration = ctx.n(200, 6), ctx.n(15.0, 12.0)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        season_dir = tmp / 'season'
+        season_dir.mkdir()
+        ctx.progress(f'  simulating {count} runs of {duration:.0f} s with a tray of '
+                     f'{LOSS_TRAY[0]:.0%} empty cells, {LOSS_TRAY[1]:.0%} doubles ...')
+        started = time.monotonic()
+        summaries = _simulate_season(season_dir, count, duration, ROWS, LOSS_TRAY)
+        simulated = time.monotonic() - started
+        bags = find_bags([season_dir])
+        ctx.progress(f'  analysing {count} bags ...')
+        report, _, _, _, _ = _analyse(bags, tmp / 'out', 2)
+        ctx.progress('  accounting ...')
+        plants = pads.dataset(tmp / 'out' / 'plants').to_table()
+        table = pq.read_table(tmp / 'out' / 'bags', columns=[
+            'bag', 'summary.spacing_quality.miss_index',
+            'summary.spacing_quality.multiple_index',
+            'summary.spacing_quality.spacings']).to_pylist()
+        fields = ('row', 'time', 'status', 'seedlings', 'input_gap', 'spacing', 'spacing_error')
+        total, misses, multiples, dropouts, sensor = losses.empty_account(), 0, 0, 0, True
+        for entry in table:
+            mine = plants.filter(pads.field('bag') == entry['bag'])
+            readings = replay(season_dir / entry['bag']).seedling_readings
+            one = losses.account(readings, *plant_columns(mine, fields))
+            losses.add(total, one)
+            n = entry['summary.spacing_quality.spacings'] or 0
+            misses += round((entry['summary.spacing_quality.miss_index'] or 0.0) * n)
+            multiples += round((entry['summary.spacing_quality.multiple_index'] or 0.0) * n)
+            events = summaries[entry['bag']]['events']
+            dropouts += sum(g['kind'] == 'dropout' for g in events['glitches'])
+            sensor &= (events['empty_cells'] == one['injected']['empty']
+                       and events['double_cells'] == one['injected']['double'])
+        exact = losses.is_exact(total) and sensor
+        iso = (misses == total['misses_of_empties'] + total['misses_kinematic']
+               and multiples == total['multiples_of_doubles'] + total['multiples_kinematic'])
+        text = losses.lines(total, report.analysed, misses, multiples)
+        for line in text:
+            ctx.progress(line)
+        yield Row(LOSSES, f'{count} bags of {duration:.0f} s, {ROWS} rows', count, 'bag',
+                  from_samples([simulated + report.seconds]),
+                  targets=[Target('injected empty cells and doubles = counted + read outside '
+                                  'the planting instants, exactly', exact),
+                           Target('ISO misses and multiples = runs of empty cells, doubles '
+                                  'and the kinematic ones, exactly', iso)],
+                  note=' / '.join(line.strip() for line in text)
+                  + f'; {dropouts} ground-speed drop-outs injected (every instant inside one '
+                    'reported, interpolated, flagged input_gap); the simulated tray reads '
+                    'what the simulation says it put in (events: empty_cells, double_cells): '
+                  + ('yes' if sensor else 'NO'),
+                  extra={'accounting': total, 'iso_misses': misses,
+                         'iso_multiples': multiples, 'dropouts': dropouts, 'exact': exact})
