@@ -25,7 +25,9 @@ def add_arguments(parser):
                         help="every row on the machine's speed, not its own on the curves, "
                              'for comparison')
     parser.add_argument('--seed', type=spec_option(DemoOptions, 'seed', '--seed'), default=0,
-                        help='sensor noise seed, 0..2^32-1 (default 0)')
+                        help='sensor noise and tray seed, 0..2^32-1 (default 0)')
+    from planter_ros.sim.tray import add_tray_arguments
+    add_tray_arguments(parser, DemoOptions, (0.0, 0.0), spec_option)
     from planter_ros.sim.gnss import SimulatedGnss
     for name, word in (('origin_latitude', 'latitude'), ('origin_longitude', 'longitude')):
         spec = spec_of(SimulatedGnss, name)
@@ -38,10 +40,10 @@ def add_arguments(parser):
 
 def options(args):
     """The DemoOptions the parsed arguments ask for."""
-    return DemoOptions(scene=args.scene, duration=args.duration, bag=args.bag,
-                       phase_lock=not args.speed_only,
-                       turn_compensation=not args.no_turn_compensation, seed=args.seed,
-                       origin_latitude=args.origin_latitude,
+    return DemoOptions(scene=args.scene, duration=args.duration, bag=args.bag, seed=args.seed,
+                       phase_lock=not args.speed_only, empty_rate=args.empty_rate,
+                       turn_compensation=not args.no_turn_compensation,
+                       double_rate=args.double_rate, origin_latitude=args.origin_latitude,
                        origin_longitude=args.origin_longitude)
 
 

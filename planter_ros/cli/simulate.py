@@ -29,10 +29,8 @@ def add_arguments(parser):
                         type=spec_option(SeasonOptions, 'seed', '--seed'),
                         help='seed of the season, 0..2^32-1 (default 0): the same seed gives '
                              'the same bags')
-    for name, default in (('empty', 0.02), ('double', 0.01)):
-        parser.add_argument(f'--{name}-rate', metavar='R', default=default, help=f"share of "
-                            f"the tray's {name} cells, 0..1 (default {default:g})",
-                            type=spec_option(SeasonOptions, f'{name}_rate', f'--{name}-rate'))
+    from planter_ros.sim.tray import add_tray_arguments
+    add_tray_arguments(parser, SeasonOptions, (0.02, 0.01), spec_option)
     add_engine_arguments(parser)
     parser.add_argument('--json', action='store_true',
                         help='print every bag written and what happens in it as JSON (SI)')

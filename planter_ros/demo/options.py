@@ -3,7 +3,7 @@
 from dataclasses import dataclass
 from pathlib import Path
 
-from planter_ros.config import check, setting
+from planter_ros.config import ConfigError, check, setting
 
 __all__ = ['DEFAULT_SCENE', 'DemoOptions', 'check_bag_path']
 
@@ -20,12 +20,19 @@ class DemoOptions:
     bag: str | None = None          # bag to record; None: bags/planter_<date-time>
     phase_lock: bool = True         # False: feed-forward speed only, for comparison
     turn_compensation: bool = True  # False: every row on the machine's speed, for comparison
-    seed: int = setting(0, 'sensor noise seed', range=(0, 2 ** 32 - 1))
+    seed: int = setting(0, "sensor noise and tray seed", range=(0, 2 ** 32 - 1))
+    empty_rate: float = setting(0.0, "share of the simulated tray's cells that are empty (each "
+                                "row's cup sensor reads 0)", range=(0.0, 1.0))
+    double_rate: float = setting(0.0, "share of the simulated tray's cells holding two "
+                                 'seedlings (the cup sensor reads 2)', range=(0.0, 1.0))
     origin_latitude: float | None = None    # deg WGS 84; None: the simulated receiver's default
     origin_longitude: float | None = None   # deg WGS 84; None: the simulated receiver's default
 
     def __post_init__(self) -> None:
         check(self)
+        if self.empty_rate + self.double_rate > 1.0:
+            raise ConfigError(f'empty_rate + double_rate = {self.empty_rate:g} + '
+                              f'{self.double_rate:g}: allowed at most 1 together')
 
 
 def check_bag_path(bag: str | None) -> None:

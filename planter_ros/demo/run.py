@@ -302,8 +302,15 @@ class _Run:
             f'{receiver.origin_latitude:.7f}, {receiver.origin_longitude:.7f} (WGS 84), noise '
             f'{receiver.noise * 1e3:.0f} mm per axis; antenna x = {antenna[0]:+.2f} m, '
             f'y = {antenna[1]:+.2f} m on the machine')
+        from planter_ros.sim.ros_field import SeedlingSensor
+        seedlings = SeedlingSensor(self.demo.design, self.demo.planting, options.empty_rate,
+                                   options.double_rate, seed=options.seed,
+                                   context=self.context, namespace=ns)
+        self.demo._print(f'seedling sensor: a cup sensor per row on a simulated tray, '
+                         f'{options.empty_rate:.0%} empty cells, {options.double_rate:.0%} '
+                         'doubles (topic seedlings)')
         self.observer.start = self.source.start
-        for node in (self.source, gnss):
+        for node in (self.source, gnss, seedlings):
             self.nodes.append(node)
             self.executor.add_node(node)
 

@@ -1,4 +1,5 @@
-"""The simulated field of the demo: a ground-speed sensor and an observer of the mechanism.
+"""The simulated field of the demo: a ground-speed sensor, a GNSS receiver, the rows' cup
+sensors on a simulated tray and an observer of the mechanism.
 
 GroundSpeedSource publishes TwistStamped along a field profile (t -> true speed, m/s, and the
 yaw rate on its curves in twist.angular.z) with Gaussian noise and, at given times, the glitches
@@ -87,6 +88,39 @@ class GnssSource(Node):
                                       self._rng)
         self._pub.publish(navsatfix(now.to_msg(), lat[0], lon[0], alt[0], self.gnss.noise))
         self.fixes += 1
+
+
+class SeedlingSensor(Node):
+    """Each planting row's cup sensor on a simulated tray (sim.tray): follows the rows' measured
+    shaft angles (joint_states) and publishes `seedlings` (one JointState per cup: the row's
+    joint, the count 0/1/2, stamped with the feedback sample that saw the cup pass the sensor,
+    half a cycle before its planting angle), as `planter simulate`'s runs record it. `rows`:
+    the planting rows; each row's tray draws from its own generator of `seed`."""
+
+    def __init__(self, design, rows, empty_rate=0.0, double_rate=0.0, seed=0, **kwargs):
+        super().__init__('seedling_sensor', **kwargs)
+        from planter_ros.prediction import planting_model_from_design
+        from sensor_msgs.msg import JointState
+
+        from .tray import SensedCycles, Tray
+        self._message = JointState
+        model = planting_model_from_design(design, 0.0)      # its phase and cycle only
+        self._rows = {row.joint(design.mechanism): SensedCycles(
+            model, Tray(empty_rate, double_rate, np.random.default_rng([seed, row.index, 3])))
+            for row in rows}
+        self.read = {joint: [] for joint in self._rows}       # joint -> [count] published
+        self._pub = interfaces.SEEDLINGS.publisher(self)
+        interfaces.JOINT_STATES.subscribe(self, self._on_joint)
+
+    def _on_joint(self, msg):
+        names = list(msg.name) or [next(iter(self._rows))]   # a drive that leaves names out
+        for name, angle in zip(names, msg.position):
+            cycles = self._rows.get(name)
+            for _, count in cycles.add(angle) if cycles is not None else ():
+                out = self._message(name=[name], position=[float(count)])
+                out.header.stamp = msg.header.stamp
+                self._pub.publish(out)
+                self.read[name].append(count)
 
 
 class Observer(Node):

@@ -12,9 +12,9 @@ records, chunks closed every second of log time. The monitor's own outputs (plan
 uprightness_rate) come from its model fed sample by sample in log-time order, as monitor_node
 feeds it (RowSpeedStream, one PlantPredictor per row, the map's PlantPlacer), so replaying the
 bag reproduces them.
-Every row has a seedling sensor fed by a simulated tray (`tray_readings`: a cell empty with
-`empty_rate`, two seedlings with `double_rate`): one `seedlings` reading per planting cycle,
-half a cycle before the planting angle; the monitor's model accounts every instant by it
+Every row has a seedling sensor fed by a simulated tray (`tray_readings`, sim.tray: a cell
+empty with `empty_rate`, two seedlings with `double_rate`): one `seedlings` reading per planting
+cycle, half a cycle before the planting angle; the monitor's model accounts every instant by it
 (prediction.seedlings).
 The bag has no /diagnostics, sections, spacing_quality or plant_markers messages (the channels are
 there): replay derives the indices and the map from the plants and fixes.
@@ -267,9 +267,12 @@ def tray_readings(plan, design, runs):
     reading, half a planting cycle before the planting angle (the cup passing the sensor), of
     what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1."""
     from planter_ros.prediction import planting_model_from_design
+
+    from .tray import Tray, sense_angle
     model = planting_model_from_design(design)
     n = model.plants_per_revolution
-    rng = np.random.default_rng([plan.seed, plan.index, 3])
+    tray = Tray(plan.empty_rate, plan.double_rate,
+                np.random.default_rng([plan.seed, plan.index, 3]))
     out = []
     for r, run in enumerate(runs):
         theta = np.maximum.accumulate(run.angle)
@@ -278,12 +281,9 @@ def tray_readings(plan, design, runs):
         ks = np.arange(first, last + 1)
         if not ks.size:
             continue
-        sense = model.planting_phase + (ks - 0.5) * 2 * math.pi / n
-        i = np.searchsorted(theta, sense, side='left')
+        i = np.searchsorted(theta, sense_angle(model, ks), side='left')
         i = i[i < theta.size]
-        draw = rng.random(i.size)
-        counts = np.where(draw < plan.empty_rate, 0,
-                          np.where(draw < plan.empty_rate + plan.double_rate, 2, 1))
+        counts = tray.cells(i.size)
         out += [(r, float(run.t[k]), int(c)) for k, c in zip(i.tolist(), counts.tolist())]
     return tuple(sorted(out, key=lambda x: (x[1], x[0])))
 
