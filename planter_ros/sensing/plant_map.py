@@ -455,16 +455,16 @@ def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna, plant_
     x, y, psi = dead_reckoning(mt, mv, mw)
     ft, status, lat, lon, ce, cn, kind = (np.asarray(a, dtype=float) for a in fixes)
     sigma = fix_sigma(status, lat, lon, ce, cn, kind, settings.max_fix_sigma)
-    usable, seen = [], -math.inf
-    for i in range(ft.size):
-        if not (math.isfinite(ft[i]) and ft[i] > seen):
-            continue                       # out of order or repeated: dropped, as live
-        seen = ft[i]
-        if math.isfinite(sigma[i]):
-            usable.append(i)
-    if usable:
+    # out of order or repeated stamps are dropped, as live: each fix must come after every
+    # finite stamp before it
+    finite = np.isfinite(ft)
+    latest = np.maximum.accumulate(np.where(finite, ft, -np.inf))
+    arrived = finite & (ft > np.concatenate(([-np.inf], latest[:-1])))
+    usable = np.flatnonzero(arrived & np.isfinite(sigma))
+    if usable.size:
         track.anchor(lat[usable[0]], lon[usable[0]])
-        taken = np.array([i for i in usable if mt.size and mt[0] <= ft[i] <= mt[-1]], dtype=int)
+        taken = usable[(ft[usable] >= mt[0]) & (ft[usable] <= mt[-1])] if mt.size else \
+            usable[:0]
         # the poses and the local frame of all fixes at once; each fix then as live
         px, py, ppsi = _pose(mt, x, y, psi, ft[taken])
         east, north = track.frame.to_east_north(lon[taken], lat[taken])
