@@ -105,14 +105,18 @@ class IndexedFile:
                     for cid, (logs, raws) in lists.items()}
         # the chunks holding wanted channels, decompressed into one buffer, and every wanted
         # message's offset in it: then one vectorised pass per channel
-        buffers, offsets, size = [], {cid: [] for cid in ids}, 0
+        buffers, size = [], 0
+        pieces = {cid: [] for cid in ids}     # each chunk's message index pairs (bytes)
+        spans = {cid: [] for cid in ids}      # (chunk start in the buffer, its size, count)
         for index in chunks:
             mine = [cid for cid in ids if cid in index.message_index_offsets]
             if not mine:
                 continue
             records = self._chunk_records(index)
             for cid in mine:
-                offsets[cid].append(self._offsets(index, cid, len(records)) + size)
+                pairs = self._index_pairs(index, cid)
+                pieces[cid].append(pairs)
+                spans[cid].append((size, len(records), len(pairs) // 16))
             buffers.append(records)
             size += len(records)
         data = b''.join(buffers)
@@ -120,9 +124,17 @@ class IndexedFile:
         # a record may not run past its own chunk: past the next chunk's start at most
         bounds = np.cumsum([len(b) for b in buffers])
         for cid in ids:
-            if not offsets[cid]:
+            if not pieces[cid]:
                 continue
-            at = np.concatenate(offsets[cid])
+            # every offset inside its chunk, then all of them in the buffer, sorted (chunks
+            # follow each other in it: one sort orders each chunk's and keeps their order)
+            offset = np.frombuffer(b''.join(pieces[cid]), dtype='<u8')[1::2]
+            start, chunk, count = (np.array(c, dtype=np.int64) for c in zip(*spans[cid]))
+            inside = offset < np.uint64(1 << 62)          # no wrap-around below
+            offset = offset.astype(np.int64)
+            if not np.all(inside) or np.any(offset + _DATA > np.repeat(chunk, count)):
+                raise BagDamagedError(f'message index of channel {cid} points outside its chunk')
+            at = np.sort(offset + np.repeat(start, count))
             if at.size and at[-1] + _DATA > head.size:
                 raise BagDamagedError(f'message index of channel {cid} points past its chunks')
             fields = np.lib.stride_tricks.sliding_window_view(head, _DATA)[at]
@@ -165,8 +177,9 @@ class IndexedFile:
             raise BagDamagedError(f'chunk at byte {pos}: CRC mismatch')
         return records
 
-    def _offsets(self, index: ChunkIndex, cid: int, size: int) -> NDArray[np.int64]:
-        """Sorted offsets (int64) of channel `cid`'s messages in the chunk of `index`."""
+    def _index_pairs(self, index: ChunkIndex, cid: int) -> bytes:
+        """The (log time, offset) pairs (u64 each) of channel `cid`'s message index in the
+        chunk of `index`, its record checked."""
         data, pos = self._data, index.message_index_offsets[cid]
         if pos + 15 > len(data) or data[pos] != _MESSAGE_INDEX:
             raise BagDamagedError(f'message index of channel {cid} points at byte {pos}, not at a '
@@ -175,11 +188,7 @@ class IndexedFile:
         channel, count = struct.unpack_from('<HI', data, pos + 9)
         if channel != cid or count % 16 or 6 + count > length or pos + 9 + length > len(data):
             raise BagDamagedError(f'message index at byte {pos} is inconsistent')
-        pairs = np.frombuffer(bytes(data[pos + 15:pos + 15 + count]), dtype='<u8')
-        offsets = np.sort(pairs[1::2]).astype(np.int64)
-        if offsets.size and (offsets[0] < 0 or offsets[-1] + _DATA > size):
-            raise BagDamagedError(f'message index at byte {pos} points outside its chunk')
-        return offsets
+        return data[pos + 15:pos + 15 + count]
 
     def _whole_chunk(self, index: ChunkIndex,
                      out: dict[int, tuple[list[int], list[Raw]]]) -> None:
