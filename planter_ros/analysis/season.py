@@ -51,7 +51,7 @@ SHAPEFILE = 'as_planted.zip'
 ISOXML = 'TASKDATA.zip'
 EXPORTS = (SHAPEFILE, ISOXML)
 OWNED = (BAGS_DIR, PLANTS_DIR, LOCK_FILE, REPORT_FILE, LEGACY_BAGS_FILE) + EXPORTS
-FLUSH_SECONDS = 2.0          # s between two writes of the tables, at least
+FLUSH_SECONDS = 5.0          # s between two writes of the tables, at least
 FLUSH_BAGS = 2000            # bags completed that force a write
 # status of a bag row: replayed (with or without warnings), refused by replay, a model error
 ANALYSED = ('ok', 'warnings')

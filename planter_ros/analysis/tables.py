@@ -183,6 +183,9 @@ def column(values, name=''):
     if name in TIMESTAMPS:
         return utc_timestamps(values)
     present = [v for v in values if v is not None]
+    kinds = set(map(type, present))
+    if kinds and kinds <= {int, float}:       # the usual column: decided in one pass
+        return pa.array(values, type=pa.int64() if kinds == {int} else pa.float64())
     if all(isinstance(v, bool) for v in present) and present:
         return pa.array(values, type=pa.bool_())
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in present):
