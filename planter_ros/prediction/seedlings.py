@@ -101,36 +101,38 @@ class SeedlingAccount:
         reason, spacing and spacing_error set; `design_spacing`: d of each plant (m, array)."""
         n = len(plants)
         d = np.broadcast_to(np.asarray(design_spacing, dtype=float), (n,))
-        seedlings, status, reason = np.full(n, np.nan), np.full(n, float(UNKNOWN)), \
-            np.full(n, float(NO_SENSOR))
-        spacing = np.full(n, np.nan)
-        for p in range(n):
-            row = int(plants.row[p])
-            t = float(plants.time[p])
+        seedlings, status, reason = [math.nan] * n, [float(UNKNOWN)] * n, [float(NO_SENSOR)] * n
+        spacing = [math.nan] * n
+        # plain floats: one plant at a time (the live monitor's batches are a plant or two)
+        for p, (row, t, model_spacing, gap, position) in enumerate(zip(
+                plants.row.tolist(), plants.time.tolist(), plants.spacing.tolist(),
+                plants.input_gap.tolist(), plants.position.tolist())):
+            row = int(row)
             prev_t, last_pos = self._last.get(row, (-math.inf, math.nan))
-            gap = plants.input_gap[p] == 1
-            if not math.isfinite(plants.spacing[p]) or gap:
+            gap = gap == 1
+            if not math.isfinite(model_spacing) or gap:
                 last_pos = math.nan                  # the model's sequence starts again
             count = None
             times, counts = self._readings.get(row, ([], []))
             k = bisect_right(times, t) - 1
             if k >= 0 and times[k] > prev_t and math.isfinite(counts[k]) and counts[k] >= 0:
                 count = counts[k]
-                reason[p] = SENSED
+                reason[p] = float(SENSED)
             elif gap:
-                reason[p] = INPUT_GAP
+                reason[p] = float(INPUT_GAP)
             elif k >= 0:
-                reason[p] = NO_READING
+                reason[p] = float(NO_READING)
             if count is not None:
                 seedlings[p] = count
-                status[p] = EMPTY if count < 0.5 else DOUBLE if count >= 1.5 else PLANTED
-            position = float(plants.position[p])
+                status[p] = float(EMPTY if count < 0.5 else DOUBLE if count >= 1.5 else PLANTED)
             if status[p] == EMPTY:
                 spacing[p] = math.nan
             else:
                 spacing[p] = position - last_pos
                 last_pos = position
             self._last[row] = (t, last_pos)
+        seedlings, status, reason, spacing = (np.array(v, dtype=float) for v in (
+            seedlings, status, reason, spacing))
         values = {f: getattr(plants, f) for f in plants.__dataclass_fields__}
         values.update(seedlings=seedlings, status=status, reason=reason, spacing=spacing,
                       spacing_error=spacing - d)
