@@ -141,7 +141,8 @@ def lines(acc, bags=None, misses=None, multiples=None):
     head = f'{bags} bags: ' if bags is not None else ''
     out = [f"{head}cells read by the cup sensors: {sum(acc['injected'].values())} "
            f"({kinds(acc['injected'])}); planting instants: {acc['instants']} "
-           f"({kinds(acc['counted'])} (planted), {acc['unknown']} unknown)",
+           f"({acc['counted']['empty']} empty, {acc['counted']['single']} planted, "
+           f"{acc['counted']['double']} double, {acc['unknown']} unknown)",
            f"  inside input gaps (position interpolated, reading kept): "
            f"{sum(acc['in_gap'].values())} instants ({kinds(acc['in_gap'])}), "
            f"{acc['gap_unknown']} unknown (no reading)",
