@@ -36,6 +36,7 @@ SCAN_LIMIT = 16 << 20          # bytes searched for a first valid record
 MAX_CHUNK = 1 << 30            # a chunk header claiming more than this is not believed
 COMPRESSIONS = ('', 'zstd', 'lz4')
 _OPCODES = range(0x01, 0x10)
+_SUMMARY_KINDS = (0x03, 0x04, 0x08, 0x0D)   # schema, channel, chunk index, metadata index
 _FOOTER_LENGTH = 20            # summary_start u64, summary_offset_start u64, summary_crc u32
 _MAGIC_SIZE = 8
 
@@ -219,6 +220,13 @@ def read_summary(data: Data) -> dict[str, dict | list] | None:
     pos = footer.summary_start
     try:
         while pos < footer_at:
+            if pos + 9 <= footer_at and data[pos] not in _SUMMARY_KINDS:
+                # statistics, summary offsets, ...: not needed, only checked to fit
+                (length,) = struct.unpack_from('<Q', data, pos + 1)
+                if data[pos] not in _OPCODES or pos + 9 + length > footer_at:
+                    return None
+                pos += 9 + length
+                continue
             _, record, pos = record_at(data, pos, footer_at)
             if isinstance(record, Schema):
                 out['schemas'][record.id] = record.name
