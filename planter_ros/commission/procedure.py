@@ -179,6 +179,12 @@ def updated_machine(machine, findings: list[RowFindings]):
     rows = dict(machine.rows)
     for f in findings:
         row = replace(rows[f.row], polarity=f.polarity)
+        # the drive found is the one every start checks for (0x1018), unless the file says
+        for key, found in (('vendor_id', f.identity.get('vendor_id')),
+                           ('product_code', f.identity.get('product_code')),
+                           ('revision', f.identity.get('revision'))):
+            if getattr(row, key) == -1 and found is not None:
+                row = replace(row, **{key: int(found)})
         if f.phase_offset is not None:
             row = replace(row, phase_offset=round(f.phase_offset, 6) % TWO_PI)
         rows[f.row] = row

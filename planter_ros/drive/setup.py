@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, replace
 import math
 from pathlib import Path
 from typing import Any
+from collections.abc import Callable
 
 from . import objects as od
 
@@ -144,7 +145,7 @@ def eds_mismatch(path: str | Path, setup: DriveSetup) -> str:
     return ''
 
 
-def pdo_mismatch(layout: od.PdoLayout, node_id: int, read) -> str:
+def pdo_mismatch(layout: od.PdoLayout, node_id: int, read: Callable[[int, int], int]) -> str:
     """'' when the drive's PDO `layout` reads back as written, else the first entry that
     differs. `read(index, subindex)` reads one object by SDO."""
     base = 0x1400 if layout.kind == 'RPDO' else 0x1800
