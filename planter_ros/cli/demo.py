@@ -25,7 +25,13 @@ def add_arguments(parser):
                         help="every row on the machine's speed, not its own on the curves, "
                              'for comparison')
     parser.add_argument('--seed', type=spec_option(DemoOptions, 'seed', '--seed'), default=0,
-                        help='sensor noise seed, 0..2^32-1 (default 0)')
+                        help='sensor noise seed, 0..2^32-1 (default 0); with --machine also '
+                             "the simulated mechanisms' wiring (as `planter commission "
+                             "--simulated --seed`)")
+    parser.add_argument('--machine', metavar='FILE',
+                        help='a machine file (commissioned): its rows and drives, each drive '
+                             'checked, homed and phased at start; prints how far the first '
+                             'plant lands from where the machine recorded it')
     from planter_ros.sim.gnss import SimulatedGnss
     for name, word in (('origin_latitude', 'latitude'), ('origin_longitude', 'longitude')):
         spec = spec_of(SimulatedGnss, name)
@@ -42,7 +48,7 @@ def options(args):
                        phase_lock=not args.speed_only,
                        turn_compensation=not args.no_turn_compensation, seed=args.seed,
                        origin_latitude=args.origin_latitude,
-                       origin_longitude=args.origin_longitude)
+                       origin_longitude=args.origin_longitude, machine=args.machine)
 
 
 def run(args):

@@ -23,6 +23,7 @@ class DemoOptions:
     seed: int = setting(0, 'sensor noise seed', range=(0, 2 ** 32 - 1))
     origin_latitude: float | None = None    # deg WGS 84; None: the simulated receiver's default
     origin_longitude: float | None = None   # deg WGS 84; None: the simulated receiver's default
+    machine: str | None = None      # machine file (demo.machine); None: the scene's rows alone
 
     def __post_init__(self) -> None:
         check(self)
