@@ -15,10 +15,11 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ['POWER_UP', 'first_plant_errors', 'first_plant_lines', 'machine_rows',
-           'simulated_drives']
+__all__ = ['FIRST_PLANT_LIMIT', 'POWER_UP', 'first_plant_errors', 'first_plant_lines',
+           'first_plant_reasons', 'machine_rows', 'simulated_drives']
 
 POWER_UP = 1        # the demo's power-up of the simulated drives (commissioning's is 0)
+FIRST_PLANT_LIMIT = 0.005   # m: a commissioned machine's first plant lands this close (issue 22)
 
 
 def machine_rows(scene: Any, machine: Any) -> list:
@@ -88,3 +89,17 @@ def first_plant_lines(errors: dict[str, dict]) -> list[str]:
                      f'tip truly lowest at {found["true"]:.4f} m along the row: error '
                      f'{found["error"] * 1e3:+.2f} mm')
     return lines
+
+
+def first_plant_reasons(errors: dict[str, dict]) -> list[str]:
+    """The verdict's reasons: a row whose first plant was not measured or lands farther than
+    FIRST_PLANT_LIMIT from where the machine recorded it."""
+    out = []
+    for label, found in errors.items():
+        if found['error'] is None:
+            out.append(f'row {label}: first plant not measured ({found["why"]})')
+        elif abs(found['error']) > FIRST_PLANT_LIMIT:
+            out.append(f'row {label}: first plant {found["error"] * 1e3:+.1f} mm from where the '
+                       f'machine recorded it > {FIRST_PLANT_LIMIT * 1e3:g} mm (polarity, homing '
+                       'or phase offset wrong: commission again)')
+    return out

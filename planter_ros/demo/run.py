@@ -139,6 +139,9 @@ class Demo:
             self._print('\n'.join(first_plant_lines(first_plants)))
         verdict = judge(rows, report, run.start_error, bag_error, monitor_changes,
                         acceptance, scheduled_changes=run.scheduled_changes)
+        if first_plants:
+            from .machine import first_plant_reasons
+            verdict.reasons += first_plant_reasons(first_plants)
         verdict.stopped_by, verdict.elapsed = run.stopped_by, run.elapsed
         self.result = DemoResult(verdict, report, rows, run.domain, first_plants)
         self._print('')
