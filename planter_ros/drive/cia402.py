@@ -348,10 +348,12 @@ class Cia402Drive:
     def connect_and_enable(self) -> None:
         """Open the bus, configure the drive and enable it (BLOCKING; raises DriveError).
 
-        NMT pre-operational; SDO: identify (0x1000, 0x6502, 0x608F), PDO mapping, heartbeat
-        both ways, watchdog (0x1400:5 deadline, 0x6007 = quick stop), 0x60FF = 0, mode 3
-        confirmed via 0x6061; NMT operational; then 0x06 -> 0x07 -> 0x0F, each step waiting
-        at most step_timeout for the statusword. A drive found in FAULT is only reset if
+        NMT pre-operational; SDO: identify (0x1000, 0x6502, 0x608F), the machine file's checks
+        (`setup`: 0x1018, 0x6502, the drive's EDS), PDO mapping written and read back, heartbeat
+        both ways, watchdog (0x1400:5 deadline, 0x6007 = quick stop), 0x60FF = 0, the
+        machine file's polarity (0x607E), mode 3 confirmed via 0x6061; NMT operational; then
+        0x06 -> 0x07 -> 0x0F, each step waiting at most step_timeout for the statusword; then
+        homing with the machine file's method. A drive found in FAULT is only reset if
         request_fault_reset() was called first. After this returns, the control loop must call
         send_velocity() at least every command_timeout and send_heartbeat() every
         heartbeat_period, or the drive's watchdog quick-stops the motor.
