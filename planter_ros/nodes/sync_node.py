@@ -15,6 +15,12 @@ The machine has one planting unit (a scene without `rows`) or several (planter_r
 with its own servo drive on the one CAN bus. A row's fault, EMCY or lost heartbeat commands 0
 to that row only and waits for that row's `reset_fault`; `section` switches a row off and on.
 A configuration whose CAN bus load exceeds 70 % is refused at start-up.
+
+With `machine_file` (doc/machine_file.md) the machine file's bus, rows, node ids, lever arms
+and drive train are the defaults of those parameters, and each row's drive is checked against
+it and set up from it at every start (drive.setup, in the command path's configure step). The
+law's run-time limits are refused, with the reason and the limit, when the design in force
+could not run within them (planter_ros.plausibility.check_law).
 """
 
 import logging
