@@ -177,15 +177,18 @@ def test_polarity_and_homing_at_start_put_the_commissioned_phase_where_the_tip_i
     first, wiring = simulated_mechanism(3, 1, 0)
     again, _ = simulated_mechanism(3, 1, 1)
     assert wiring and abs(first - again) > 0.5          # reversed; powered up elsewhere
-    sim = make(mechanical_offset=first, motor_reversed=wiring)
+    # a wide switch: commissioning polls it by SDO, which a loaded host may make slow
+    switch = {'motor_reversed': wiring, 'home_switch_width': 0.5}
+    sim = make(mechanical_offset=first, **switch)
     [found] = commission_machine(machine, [ROW], SimulatedObserver({ROW: sim}), bus=bus)
+    assert found.phase_offset is not None and found.homed
     path = tmp_path / 'machine.yaml'
     write_machine(updated_machine(machine, [found]), path)
     commissioned = open_machine(path)
     setup = commissioned.drive_setups()[ROW]
     assert setup.polarity == 'reversed' and setup.vendor_id == 0 and setup.revision == 1
     sim.stop()
-    sim = make(mechanical_offset=again, motor_reversed=wiring)
+    sim = make(mechanical_offset=again, **switch)
     drive = master(setup, operation_mode='velocity')
     drive.connect_and_enable()
     error = math.degrees(sim.mechanism_angle_at(setup.phase_offset))
@@ -196,7 +199,7 @@ def test_polarity_and_homing_at_start_put_the_commissioned_phase_where_the_tip_i
     drive.shutdown()
     sim.stop()
     # the same start without the machine file's setup: neither homed nor turned round
-    sim = make(mechanical_offset=again, motor_reversed=wiring)
+    sim = make(mechanical_offset=again, **switch)
     plain = master(None, operation_mode='velocity')
     plain.connect_and_enable()
     assert abs(math.degrees(sim.mechanism_angle_at(setup.phase_offset))) > 5.0
@@ -251,6 +254,8 @@ def test_commissioned_then_a_demo_plants_its_first_plant_within_5_mm(tmp_path):
                        timeout=240)
     assert done.returncode == 0, done.stderr
     assert open_machine(path).rows[ROW].polarity == 'reversed'
+    # the bottom found (the phase offset 0.0 a missed switch would leave is 0.1 rad off)
+    assert abs(float(done.stdout.split('phase error ')[1].split(' deg')[0])) <= 0.5
     demo = run_planter('demo', '--machine', str(path), '--seed', '1', '--duration', '8',
                        '--bag', str(tmp_path / 'bag'), timeout=400)
     assert demo.returncode == 0, demo.stdout[-3000:] + demo.stderr[-2000:]
