@@ -264,3 +264,24 @@ def test_commissioned_then_a_demo_plants_its_first_plant_within_5_mm(tmp_path):
     assert found, demo.stdout[-3000:]
     assert abs(float(found.group(3))) <= 5.0
     assert float(found.group(2)) >= 0.0
+
+
+def test_placing_the_phase_offset_moves_every_angle_the_law_holds_so_nothing_jumps():
+    from planter_ros.command.engine import bottom_angle
+    from planter_ros.control.phase_lock import PhaseLock
+    law = PhaseLock(PhaseLockConfig())
+    law.ground_speed(0.3, 0.0)
+    law.feedback(1.0, 9.0, 0.0)
+    law.set_design(0.2, 1, 0.0)
+    law.ground_speed(0.3, 0.1)
+    law.feedback(1.85, 9.4, 0.1)
+    before = law.phase_error(0.1)
+    law.shift_angle(math.pi - 0.25)            # the five-bar's bottom minus a phase offset
+    assert law.phase_error(0.1) == pytest.approx(before, abs=1e-12)
+    assert law.measured_angle(0.1) == pytest.approx(1.85 + math.pi - 0.25)
+    law.command(0.1)
+    assert law.command(0.2) > 0.0                 # and it keeps turning forward
+    # where a design's tip is lowest: the five-bar's π (θ = 0 at the top)
+    from planter_ros.design import from_json
+    from test_sync_node import TOMATO
+    assert bottom_angle(from_json(json.dumps(TOMATO))) == math.pi
