@@ -24,8 +24,10 @@ warned (the scene runs; the value is unusual, the warning names the typical rang
   no longer keep up.
 
 The same `check()` serves the command line, the scene loader (scene.open_scene) and the design
-node's parameter callback. Pure: no ROS, no bus. A design asked at the command line loads only
-what its checks need (the law's limits; no scene files, no bus model, no second design).
+node's parameter callback; `check_law()` the same speed and acceleration checks for the sync
+node's run-time limits against the design in force. Pure: no ROS, no bus. A design asked at
+the command line loads only what its checks need (the law's limits; no scene files, no bus
+model, no second design).
 """
 
 from collections.abc import Mapping, Sequence
@@ -36,7 +38,7 @@ from typing import Any
 from planter_ros.config import ConfigError, from_mapping
 
 __all__ = ['PlausibilityError', 'RowLimits', 'TYPICAL', 'TRACTOR_ACCELERATION', 'Verdict',
-           'check', 'judge', 'unusual']
+           'check', 'check_law', 'judge', 'unusual']
 
 RPM = 60.0 / (2.0 * math.pi)              # r/min per rad/s
 
@@ -131,10 +133,33 @@ def unusual(scene) -> list[str]:
 
 def _motion(out, params, scene, law, ground, row_limits, tractor_acceleration):
     from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
-    n = PLANTS_PER_REVOLUTION[scene.mechanism]
-    shaft = 'sun bar' if scene.mechanism == 'five_bar' else 'carrier'
-    d, v = scene.plant_spacing, scene.nominal_ground_speed
+    _motion_of(out, scene.mechanism, PLANTS_PER_REVOLUTION[scene.mechanism],
+               scene.plant_spacing, scene.nominal_ground_speed, law, ground, row_limits,
+               tractor_acceleration, 'max_ground_speed' in params)
+
+
+def check_law(design, law, ground, row_limits: Sequence[RowLimits] = (),
+              tractor_acceleration: float = TRACTOR_ACCELERATION) -> list[str]:
+    """The sync node's run-time limits (`law` a PhaseLockConfig, `ground` its
+    GroundSpeedLimits) against the design in force (planter_ros.design: its mechanism, spacing,
+    plants per revolution and nominal ground speed) and the machine file's `row_limits`: the
+    same speed and acceleration checks as a scene's. PlausibilityError (the reason and the
+    limit) for a refusal; the warnings."""
+    out = Verdict()
+    _motion_of(out, design.mechanism, design.plants_per_revolution, design.plant_spacing,
+               design.nominal_ground_speed, law, ground, row_limits, tractor_acceleration,
+               True)
+    if out.refused:
+        raise PlausibilityError(out.refused[0])
+    return out.warnings
+
+
+def _motion_of(out, mechanism, n, d, v, law, ground, row_limits, tractor_acceleration,
+               ground_limit_given):
+    shaft = 'sun bar' if mechanism == 'five_bar' else 'carrier'
     per_metre = 2.0 * math.pi / (n * d)   # shaft rad per metre travelled
+    if v is None:                          # a design without a nominal speed: no speed check
+        v = 0.0
     _speed(out, shaft, per_metre, d, v, law.max_speed, 'max_speed', 'the sync law')
     _acceleration(out, shaft, per_metre, d, tractor_acceleration, law.max_acceleration,
                   'max_acceleration', 'the sync law')
@@ -149,7 +174,7 @@ def _motion(out, params, scene, law, ground, row_limits, tractor_acceleration):
         if row.max_acceleration:
             _acceleration(out, shaft, per_metre, d, tractor_acceleration, row.max_acceleration,
                           'max_acceleration', where)
-    if 'max_ground_speed' in params and per_metre * ground.max_ground_speed > law.max_speed:
+    if ground_limit_given and per_metre * ground.max_ground_speed > law.max_speed:
         out.warnings.append(
             f'max_ground_speed = {_g(ground.max_ground_speed)} m/s is accepted, but above '
             f'{_g(law.max_speed / per_metre)} m/s the {shaft} is held at max_speed = '

@@ -15,19 +15,19 @@ def add_arguments(parser):
     parser.add_argument('--duration', type=spec_option(DemoOptions, 'duration', '--duration'),
                         default=30.0, metavar='S',
                         help='length of the field run in seconds, 8..3600 (default 30)')
-    parser.add_argument('--bag', metavar='PATH',
-                        help='record the run to this bag: a .mcap file or a rosbag2 bag '
-                             'directory, in an existing writable directory (default: '
-                             'bags/planter_<date-time>; never overwrites)')
+    parser.add_argument('--bag', metavar='PATH', help='record the run to this bag: a .mcap '
+                        'file or a rosbag2 bag directory, in an existing writable directory '
+                        '(default: bags/planter_<date-time>; never overwrites)')
     parser.add_argument('--speed-only', action='store_true',
                         help='turn phase lock off (feed-forward speed only), for comparison')
-    parser.add_argument('--no-turn-compensation', action='store_true',
-                        help="every row on the machine's speed, not its own on the curves, "
-                             'for comparison')
+    parser.add_argument('--no-turn-compensation', action='store_true', help="every row on "
+                        "the machine's speed, not its own on the curves, for comparison")
     parser.add_argument('--seed', type=spec_option(DemoOptions, 'seed', '--seed'), default=0,
-                        help='sensor noise and tray seed, 0..2^32-1 (default 0)')
+                        help='noise, tray and (--machine) wiring seed, 0..2^32-1 (default 0)')
     from planter_ros.sim.tray import add_tray_arguments
     add_tray_arguments(parser, DemoOptions, (0.0, 0.0), spec_option)
+    parser.add_argument('--machine', metavar='FILE', help='a commissioned machine file (its '
+                        'rows, drives checked, homed, phased; the first plant measured)')
     from planter_ros.sim.gnss import SimulatedGnss
     for name, word in (('origin_latitude', 'latitude'), ('origin_longitude', 'longitude')):
         spec = spec_of(SimulatedGnss, name)
@@ -44,7 +44,7 @@ def options(args):
                        phase_lock=not args.speed_only, empty_rate=args.empty_rate,
                        turn_compensation=not args.no_turn_compensation,
                        double_rate=args.double_rate, origin_latitude=args.origin_latitude,
-                       origin_longitude=args.origin_longitude)
+                       origin_longitude=args.origin_longitude, machine=args.machine)
 
 
 def run(args):

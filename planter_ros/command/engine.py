@@ -9,7 +9,7 @@ here), `diagnostics.Report`s and log lines through the `log(level, text)` callab
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import logging
 import threading
 import time
@@ -31,6 +31,7 @@ from planter_ros.drive.bus_load import BusLoad, bus_load, check_bus_load
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.drive_set import DriveSet
 from planter_ros.drive.errors import DriveError
+from planter_ros.drive.setup import DriveSetup
 from planter_ros.drive.states import CYCLIC_SYNC_POSITION, FAULT
 from planter_ros.rows import IMPLICIT, Row
 
@@ -53,6 +54,11 @@ class RowUnit:
     def __init__(self, row: Row, law: PhaseLock, drive: Cia402Drive | None,
                  hardware_id: str) -> None:
         self.row = row
+        # the joint's angle minus the drive's (rad): with a machine file's phase offset the
+        # joint angle is the design's (the tip lowest at its bottom angle), else the drive's
+        setup = drive.setup if drive is not None else None
+        self.phase_offset = setup.phase_offset if setup is not None else None
+        self.angle_shift = -self.phase_offset if self.phase_offset is not None else 0.0
         self.law = law
         self.drive = drive                  # None: disabled in the scene, never on the bus
         self.hardware_id = hardware_id
@@ -96,7 +102,9 @@ class CommandEngine:
 
     def __init__(self, drive_config: DriveConfig, loop_config: SyncLoopConfig,
                  rows: Sequence[Row], law_values: Sequence[Any], bus: can.BusABC | None = None,
-                 log: Log | None = None) -> None:
+                 log: Log | None = None, setups: dict[str, DriveSetup] | None = None) -> None:
+        """`setups`: row name -> what the machine file says of its drive (checked, applied
+        at enable; its phase offset places the joint angle), none without a machine file."""
         self.drive_config = cfg = drive_config
         self.loop = loop_config
         self.log = log or _print_log
@@ -106,7 +114,8 @@ class CommandEngine:
         self.row_loop = RowLoop(self.machine, cfg.heartbeat_period, cfg.drive_heartbeat_timeout)
         enabled = [row for row in self.rows if row.enabled]
         self.bus_load: BusLoad = checked_bus_load(cfg, loop_config, enabled)
-        self.drives = DriveSet(cfg, {row.name: row.drive_node_id for row in enabled}, bus=bus)
+        self.drives = DriveSet(cfg, {row.name: row.drive_node_id for row in enabled}, bus=bus,
+                               setups=setups)
         self.bus_id = f'{cfg.can_interface}:{cfg.can_channel}'
         self.units = [RowUnit(row, self.machine.laws[row.index], self.drives.drives.get(row.name),
                               f'{self.bus_id} node {row.drive_node_id}')
@@ -266,6 +275,7 @@ class CommandEngine:
     def _apply_design(self, design: Design, text: str, now: float, cam: Any,
                       why: str = '', since: float | None = None) -> bool:
         with self._lock:
+            self._place_bottom(bottom_angle(design))
             spacing, n = design.plant_spacing, design.plants_per_revolution
             joints = [unit.row.joint(design.mechanism) for unit in self.units]
             cams = None
@@ -290,6 +300,33 @@ class CommandEngine:
         threading.Thread(target=self._find_planting_angles, args=(design, key), daemon=True,
                          name='planting-angles').start()
         return True
+
+    def _place_bottom(self, bottom: float) -> None:
+        """Rows with a phase offset (a machine file): the joint angle = the drive's - the
+        phase offset + the design's bottom angle `bottom` (where its tip is lowest), so the law
+        and the monitor plant where the design plants. Every angle the row holds follows a
+        change (lock held; before the design anchors the grid)."""
+        for unit in self.units:
+            if unit.phase_offset is None:
+                continue
+            shift = bottom - unit.phase_offset
+            delta = shift - unit.angle_shift
+            if delta == 0.0:
+                continue
+            unit.angle_shift = shift
+            unit.law.shift_angle(delta)
+            if unit.target is not None:
+                unit.target += delta
+            if unit.status is not None:
+                unit.status = self._shifted(unit, unit.status)
+
+    @staticmethod
+    def _shifted(unit: RowUnit, status: DriveStatus) -> DriveStatus:
+        """The drive's status with the row's joint angle (see RowUnit.angle_shift)."""
+        if unit.angle_shift == 0.0 and unit.phase_offset is None:
+            return status
+        return replace(status, position=status.position + unit.angle_shift,
+                       commanded_position=status.commanded_position + unit.angle_shift)
 
     def _find_planting_angles(self, design: Design, key: tuple) -> None:
         planting = planting_angles(design)
@@ -351,7 +388,7 @@ class CommandEngine:
                     self._send_failed(now, exc, None)
             for unit in self.units:
                 if unit.running:
-                    unit.status = unit.drive.status()
+                    unit.status = self._shifted(unit, unit.drive.status())
             step = self.row_loop.step([unit.status if unit.running else None
                                        for unit in self.units],
                                       [unit.running for unit in self.units], now)
@@ -396,7 +433,7 @@ class CommandEngine:
         if unit.target is None:
             unit.drive.send_hold()
         else:
-            unit.drive.send_position(unit.target)
+            unit.drive.send_position(unit.target - unit.angle_shift)
 
     def feedback(self) -> list[Feedback]:
         """Every running row's last measured motion (for joint_states)."""
@@ -581,6 +618,17 @@ def checked_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: Sequence[Row]
                    loop.ground_speed_rate, cfg.feedback_period, cfg.drive_heartbeat_period,
                    cfg.heartbeat_period)
     return worst
+
+
+def bottom_angle(design: Design) -> float:
+    """The shaft angle (rad) at which the design's tip is lowest: the five-bar's π (θ = 0 at
+    the top), a tip path's lowest sample."""
+    import math
+    path = getattr(design, 'tip_path', None)
+    if path is None:
+        return math.pi
+    import numpy as np
+    return float(np.asarray(path.angle)[int(np.argmin(np.asarray(path.y)))])
 
 
 def planting_angles(design: Design) -> PlantingAngles | None:

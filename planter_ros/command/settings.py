@@ -9,6 +9,7 @@ from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.drive.config import DriveConfig
+from planter_ros.drive.setup import DriveSetup
 from planter_ros.rows import Row
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits
@@ -31,14 +32,16 @@ class CommandSettings:
     """The command process's settings: drive, loop, rows, law; `data()` / `from_data()`."""
 
     def __init__(self, drive: DriveConfig, loop: SyncLoopConfig, rows: list[Row], law: tuple,
-                 log_level: str = 'info') -> None:
+                 log_level: str = 'info', setups: dict[str, DriveSetup] | None = None) -> None:
         self.drive, self.loop, self.rows, self.law = drive, loop, list(rows), tuple(law)
         self.log_level = log_level
+        self.setups = dict(setups or {})     # row name -> its drive per the machine file
 
     def data(self) -> dict[str, Any]:
         return {'drive': asdict(self.drive), 'loop': asdict(self.loop),
                 'rows': [row.as_dict() for row in self.rows], 'law': law_to_data(self.law),
-                'log_level': self.log_level}
+                'log_level': self.log_level,
+                'setups': {name: setup.data() for name, setup in self.setups.items()}}
 
     @classmethod
     def from_data(cls, data: dict[str, Any]) -> 'CommandSettings':
@@ -46,4 +49,6 @@ class CommandSettings:
                     None if r['drive_node_id'] is None else int(r['drive_node_id']),
                     bool(r['enabled'])) for r in data['rows']]
         return cls(DriveConfig(**data['drive']), SyncLoopConfig(**data['loop']), rows,
-                   law_from_data(data['law']), data.get('log_level', 'info'))
+                   law_from_data(data['law']), data.get('log_level', 'info'),
+                   {name: DriveSetup.from_data(setup)
+                    for name, setup in data.get('setups', {}).items()})

@@ -33,8 +33,6 @@ def run(args: argparse.Namespace) -> int:
     import math
     import uuid
 
-    import numpy as np
-
     from planter_ros.scene.files import SceneError
     from planter_ros.scene.machine import CanBus, deployment_parameters, open_machine, \
         write_machine
@@ -66,19 +64,18 @@ def run(args: argparse.Namespace) -> int:
         if simulated:
             import can
 
-            from planter_ros.drive.simulated_drive import SimulatedDrive
+            from planter_ros.drive.simulated_drive import SimulatedDrive, simulated_mechanism
             channel = f'planter-commission-{uuid.uuid4().hex}'
             run_machine = dataclasses.replace(machine, can=CanBus(interface='virtual',
                                                                    channel='vcan0'))
-            rng = np.random.default_rng(args.seed)
             for name in rows:
                 row = machine.rows[name]
                 modes = tuple({'pv': 3, 'csp': 8}[m] for m in row.modes)
+                offset, reversed_ = simulated_mechanism(args.seed, row.node_id)
                 sims[name] = SimulatedDrive(
                     channel, node_id=row.node_id, counts_per_motor_rev=row.encoder_counts,
                     gear_ratio=row.gear_ratio, supported_modes=modes,
-                    mechanical_offset=float(rng.uniform(0.0, 2.0 * math.pi)),
-                    motor_reversed=bool(rng.random() < 0.5))
+                    mechanical_offset=offset, motor_reversed=reversed_)
                 sims[name].start()
             bus = can.Bus(interface='virtual', channel=channel)
             observer = SimulatedObserver(sims)

@@ -28,17 +28,18 @@ from typing import Callable
 
 from planter_ros.drive import objects as od
 from planter_ros.drive.errors import DriveError
+from planter_ros.drive.setup import (HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED, DriveSetup,
+                                     homing_timeout, missing_modes)
 
 __all__ = ['CommissionError', 'Observer', 'RowFindings', 'SimulatedObserver', 'checklist',
            'commission_machine', 'commission_row', 'updated_machine']
 
 TWO_PI = 2.0 * math.pi
-MODE_BITS = {'csp': 0x80, 'pv': 0x04}             # 0x6502
-HOMING_BIT = 0x20                                 # 0x6502 bit 5: homing mode
 JOG_SPEED = 0.3          # rad/s at the mechanism: the direction jog (about 3 r/min)
 JOG_TIME = 1.0           # s
-SEARCH_SPEED = 1.0       # rad/s: homing's search for the switch, and the search for it here
-EDGE_SPEED = 0.05        # rad/s: homing's search for zero and the passes over the switch
+# rad/s: homing's search for the switch (the master homes at every start with the same), and
+# the search for the switch here; homing's search for zero and the passes over the switch
+SEARCH_SPEED, EDGE_SPEED = HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED
 
 
 class CommissionError(Exception):
@@ -104,9 +105,8 @@ def commission_row(drive, name: str, row, observer: Observer) -> RowFindings:
         raise CommissionError(f'row {name}: node {row.node_id} is not a CiA 402 drive (device '
                               f'type {device_type})')
     modes = identity['supported_modes'] or 0
-    missing = [m for m in row.modes if not modes & MODE_BITS[m]]
-    if row.homing_method and not modes & HOMING_BIT:
-        missing.append('homing')
+    missing = missing_modes(modes, DriveSetup(modes=tuple(row.modes),
+                                              homing_method=row.homing_method))
     if missing:
         raise CommissionError(f'row {name}: node {row.node_id} supports modes 0x{modes:08X} '
                               f'(0x6502), without {", ".join(missing)} the machine file needs')
@@ -119,8 +119,7 @@ def commission_row(drive, name: str, row, observer: Observer) -> RowFindings:
             raise CommissionError(f'row {name}: turns backwards with either polarity (0x607E): '
                                   'check the drive and the mechanism')
     if row.homing_method:
-        drive.home(row.homing_method, SEARCH_SPEED, EDGE_SPEED,
-                   timeout=1.5 * TWO_PI / SEARCH_SPEED + 30.0)
+        drive.home(row.homing_method, SEARCH_SPEED, EDGE_SPEED, timeout=homing_timeout())
         found.homed = True
     edges = _switch_edges(drive)
     if edges is not None:
@@ -180,6 +179,12 @@ def updated_machine(machine, findings: list[RowFindings]):
     rows = dict(machine.rows)
     for f in findings:
         row = replace(rows[f.row], polarity=f.polarity)
+        # the drive found is the one every start checks for (0x1018), unless the file says
+        for key, found in (('vendor_id', f.identity.get('vendor_id')),
+                           ('product_code', f.identity.get('product_code')),
+                           ('revision', f.identity.get('revision'))):
+            if getattr(row, key) == -1 and found is not None:
+                row = replace(row, **{key: int(found)})
         if f.phase_offset is not None:
             row = replace(row, phase_offset=round(f.phase_offset, 6) % TWO_PI)
         rows[f.row] = row

@@ -320,6 +320,19 @@ class PhaseLock:
         self.stop_angle = stop_angle(theta, max(omega, self._cmd), self.config.max_acceleration,
                                      TWO_PI / self.plants_per_revolution, self.planting)
         self.parked = False
+    def shift_angle(self, delta: float) -> None:
+        """The angle's reference moved: the same mechanism position now reads `delta` rad
+        more (a machine file's phase offset placed on the design's angles). Every angle held
+        follows, so nothing jumps."""
+        if self._fb is not None:
+            angle, speed, stamp = self._fb
+            self._fb = (angle + delta, speed, stamp)
+        if self._anchor is not None:
+            self._anchor = (self._anchor[0] + delta, self._anchor[1])
+            self._cam_offset += delta if self._track is not None else 0.0
+        if self.stop_angle is not None:
+            self.stop_angle += delta
+
     def feedback(self, angle: float, speed: float, stamp: float) -> None:
         """Measured mechanism angle (rad, unwrapped) and speed (rad/s) at time `stamp`."""
         if math.isfinite(angle) and math.isfinite(speed):

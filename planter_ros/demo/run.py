@@ -44,13 +44,22 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     node_id = scene.parameters('sync_node').get('drive_node_id', 1)
     rows = scene.rows(default_node_id=node_id)
     antenna = scene.antenna()
+    machine = None
+    if options.machine:                   # its rows and drives over the scene's (demo.machine)
+        from planter_ros.geo import AntennaSettings
+        from planter_ros.scene.machine import deployment_parameters, open_machine
+
+        from .machine import machine_rows
+        machine = open_machine(options.machine)
+        deployment_parameters(options.machine, scene.path)
+        rows, antenna = machine_rows(scene, machine), AntennaSettings()
     if not any(row.enabled for row in rows):
         raise SceneError(f'scene {scene.path}: rows = every row has enabled false: allowed at '
                          'least one enabled row')
     for warning in scene.warnings:        # unusual but possible values (planter_ros.plausibility)
         print(f'planter: warning: {warning}', file=sys.stderr)
     keep_discovery_on_host()
-    return Demo(scene, design, rows, options, antenna=antenna, **kwargs)
+    return Demo(scene, design, rows, options, antenna=antenna, machine=machine, **kwargs)
 
 
 class Demo:
@@ -60,9 +69,12 @@ class Demo:
     (geo.AntennaSettings, the scene's)."""
 
     def __init__(self, scene, design, rows, options: DemoOptions, out: TextIO | None = None,
-                 install_signals: bool = True, log_level: str = 'info', antenna=None) -> None:
+                 install_signals: bool = True, log_level: str = 'info', antenna=None,
+                 machine=None) -> None:
         from planter_ros.geo import AntennaSettings
         self.scene, self.design, self.rows, self.options = scene, design, rows, options
+        self.machine = machine            # scene.machine.Machine of --machine, or None
+        self._replayed = None             # the replay of the bag, once done
         self.antenna = antenna or AntennaSettings()
         self.planting = [row for row in rows if row.enabled]
         self.out = out or sys.stdout
@@ -118,16 +130,25 @@ class Demo:
             sources = run.monitor.design_sources
             monitor_changes = (f'{sources.changes}x, the latest from '
                                f'{sources.last_change.text}')
+        first_plants = {}
+        if self.machine is not None and self._replayed is not None and report is not None:
+            from .machine import first_plant_errors, first_plant_lines
+            first_plants = first_plant_errors(self.rows, self._replayed,
+                                              report.get('bottom_times', {}), run.profile,
+                                              *run.field_start)
+            self._print('\n'.join(first_plant_lines(first_plants)))
         verdict = judge(rows, report, run.start_error, bag_error, monitor_changes,
                         acceptance, scheduled_changes=run.scheduled_changes)
+        if first_plants:
+            from .machine import first_plant_reasons
+            verdict.reasons += first_plant_reasons(first_plants)
         verdict.stopped_by, verdict.elapsed = run.stopped_by, run.elapsed
-        self.result = DemoResult(verdict, report, rows, run.domain)
+        self.result = DemoResult(verdict, report, rows, run.domain, first_plants)
         self._print('')
         self._print(verdict.line())
         return verdict.exit_code
 
-    @staticmethod
-    def replay_summary(bag) -> tuple[str, str, dict | None]:
+    def replay_summary(self, bag) -> tuple[str, str, dict | None]:
         """Re-read the finished bag offline, as `planter replay` would, and summarise it:
         (text, why it failed or '', the run judged by the crop's acceptance limits the bag
         recorded: replay's `acceptance`, None when the replay failed)."""
@@ -139,6 +160,7 @@ class Demo:
         except RecordingError as exc:
             return (f'\nreplay of {bag} failed: {exc}', f'replay of {bag} failed: {exc}',
                     None)
+        self._replayed = result
         lines = [f'\nrecorded {bag}; replay (`planter replay {bag}`), plants placed as the '
                  "machine's monitor places them, at the distance integrated from the recorded "
                  'ground speed (its noise included):']
@@ -174,6 +196,7 @@ class _Run:
         self.elapsed = 0.0
         self.design_node = None
         self._next_switch = 0           # the spacing schedule's next switch
+        self.field_start = (0.0, 0.0)   # (ROS time s, monotonic s) of the field run's t = 0
         self.scheduled_changes = 0      # design changes the schedule made (not foreign)
 
     @property
@@ -205,13 +228,17 @@ class _Run:
         self.profile = profile = field_profile(options.duration, design.nominal_ground_speed)
         ns = interfaces.NAMESPACE
         # the command path first: it takes longest to start (its own interpreter)
+        machine = ()
+        if demo.machine is not None:
+            from .machine import simulated_drives
+            machine = (('machine_file', str(demo.machine.path)),)
         self.sync = SyncProcess(SyncProcessSettings(
             self.domain, channel, tuple(row.drive_node_id for row in demo.planting), ns,
-            tuple(demo.scene.node_overrides('sync_node')) + (
+            tuple(demo.scene.node_overrides('sync_node')) + machine + (
                 ('can_interface', 'virtual'), ('can_channel', channel),
                 ('phase_lock', options.phase_lock),
                 ('turn_compensation', options.turn_compensation)),
-            demo.log_level))
+            demo.log_level, simulated_drives(demo.machine, options.seed) if machine else {}))
         self.context = Context()
         rclpy.init(args=['--ros-args', '--log-level', demo.log_level, *PRIVATE_GRAPH_ROS_ARGS],
                    context=self.context, domain_id=self.domain,
@@ -224,6 +251,8 @@ class _Run:
         self.observer = Observer(context=context, namespace=ns)
         self.nodes.append(self.observer)
         monitor = dict(demo.scene.node_overrides('monitor_node'))
+        if demo.machine is not None:
+            monitor.update(demo.machine.node_parameters()['monitor_node'])
         if options.bag:
             monitor['bag_path'] = options.bag
         self.monitor = MonitorNode(context=context, namespace=ns, parameter_overrides=[
@@ -289,6 +318,7 @@ class _Run:
                     and self.sync.status.get('spacing') is not None):
                 break
         self.source.restart()
+        self.field_start = (self.source.start.nanoseconds * 1e-9, time.monotonic())
         # the machine's GNSS receiver, on the same path and clock
         origin = {name: value for name, value in (
             ('origin_latitude', options.origin_latitude),
@@ -386,6 +416,7 @@ class DemoResult:
     report: dict | None           # the sync process's final report (None if none came)
     rows: list                    # verdict.RowResult per planting row
     domain: int                   # the private DDS domain it ran in
+    first_plants: dict | None = None    # --machine: demo.machine.first_plant_errors
 
 
 def _param(name: str, value: Any):

@@ -219,7 +219,9 @@ def child_main(conn, settings):
                 'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
                 'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
                 'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
-                                   for d in sims.drives}}
+                                   for d in sims.drives},
+                'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
+                                 if d.record_bottom}}
         library_log.close()
     if sync is not None:
         send('final', final_report(sync, drive_report))
@@ -237,6 +239,7 @@ def final_report(sync, drives):
     frames on their own clock)."""
     report = dict(sync.engine.final_report())
     report['watchdog_trips'] = drives.get('watchdog_trips', [])
+    report['bottom_times'] = drives.get('bottom_times', {})
     if 'rpdo_gaps' in drives:
         report['drive_gaps'] = drives['rpdo_gaps']
         report['drive_sync'] = drives.get('sync', {})

@@ -51,6 +51,9 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError
 from planter_ros.drive import objects as od
 from planter_ros.drive.config import BusConfig, DeviceConfig, DriveConfig
 from planter_ros.drive.eds import default_eds_path
+from planter_ros.drive.setup import (HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED, DriveSetup,
+                                     eds_mismatch, homing_timeout, identity_mismatch,
+                                     missing_modes, pdo_mismatch)
 from planter_ros.drive.errors import (BusError, DriveConfigError, DriveError,
                                       DriveRefusedError, DriveTimeoutError, NotConnectedError)
 from planter_ros.drive.states import (
@@ -187,8 +190,10 @@ class Cia402Drive:
     CanopenBus's to send)."""
 
     def __init__(self, config: DriveConfig, bus: can.BusABC | None = None,
-                 canbus: CanopenBus | None = None) -> None:
+                 canbus: CanopenBus | None = None, setup: DriveSetup | None = None) -> None:
         self.config = config
+        #: what the machine file says of this drive: checked and applied at every configure
+        self.setup = setup
         self._owns_canbus = canbus is None
         self.canbus = canbus if canbus is not None else CanopenBus(config, bus)
         self._network: canopen.Network | None = None
@@ -343,10 +348,12 @@ class Cia402Drive:
     def connect_and_enable(self) -> None:
         """Open the bus, configure the drive and enable it (BLOCKING; raises DriveError).
 
-        NMT pre-operational; SDO: identify (0x1000, 0x6502, 0x608F), PDO mapping, heartbeat
-        both ways, watchdog (0x1400:5 deadline, 0x6007 = quick stop), 0x60FF = 0, mode 3
-        confirmed via 0x6061; NMT operational; then 0x06 -> 0x07 -> 0x0F, each step waiting
-        at most step_timeout for the statusword. A drive found in FAULT is only reset if
+        NMT pre-operational; SDO: identify (0x1000, 0x6502, 0x608F), the machine file's checks
+        (`setup`: 0x1018, 0x6502, the drive's EDS), PDO mapping written and read back, heartbeat
+        both ways, watchdog (0x1400:5 deadline, 0x6007 = quick stop), 0x60FF = 0, the
+        machine file's polarity (0x607E), mode 3 confirmed via 0x6061; NMT operational; then
+        0x06 -> 0x07 -> 0x0F, each step waiting at most step_timeout for the statusword; then
+        homing with the machine file's method. A drive found in FAULT is only reset if
         request_fault_reset() was called first. After this returns, the control loop must call
         send_velocity() at least every command_timeout and send_heartbeat() every
         heartbeat_period, or the drive's watchdog quick-stops the motor.
@@ -358,15 +365,19 @@ class Cia402Drive:
         self._send('NMT pre-operational',
                    lambda: setattr(self._node.nmt, 'state', 'PRE-OPERATIONAL'))
         self._identify()
+        self._check_setup()
         self._configure_pdos()
+        self._verify_pdos()
         heartbeat_written = time.time()
         self._configure_watchdogs()
+        self._apply_polarity()
         if self.mode == CYCLIC_SYNC_POSITION:
             self._configure_csp()
         self._select_mode()
         self._wait_drive_heartbeat(since=heartbeat_written)
         self._go_operational()
         self._enable_state_machine()
+        self._home_at_start()
         self.enable_duration = time.monotonic() - t_start
         log.info('drive node %d enabled in %.1f ms (%s)', self.config.drive_node_id,
                  1000 * self.enable_duration, _MODE_NAMES[self.mode])
@@ -405,6 +416,50 @@ class Cia402Drive:
                                    f'rev but counts_per_motor_rev={cfg.counts_per_motor_rev}',
                              DriveRefusedError)
 
+    def _check_setup(self) -> None:
+        """Refuse a drive that is not the one the machine file describes: its identity
+        (0x1018 as the file states it), the modes the row needs (0x6502) and, with the drive's
+        own EDS/DCF given, that file's objects (every one the master uses, with its type)."""
+        setup = self.setup
+        if setup is None:
+            return
+        step = 'check against the machine file'
+        mismatch = identity_mismatch(setup, self.read_identity())
+        if not mismatch:
+            modes = self._read(step, od.SUPPORTED_MODES, optional=True)
+            missing = missing_modes(modes, setup)
+            if missing:
+                shown = 'nothing' if modes is None else f'0x{modes:08X}'
+                mismatch = (f'0x6502 supported drive modes: expected {", ".join(missing)}, '
+                            f'found {shown}')
+        if not mismatch and setup.eds:
+            mismatch = eds_mismatch(setup.eds, setup)
+        if mismatch:
+            raise self._fail(step, mismatch, DriveRefusedError)
+
+    def _verify_pdos(self) -> None:
+        """Read the PDO mapping back (SDO): a drive that took the writes but maps otherwise
+        (a read-only or fixed mapping) is refused, naming the entry."""
+        step = 'PDO mapping read back (0x1400/0x1600, 0x1800/0x1A00)'
+        for layout in (self._layout, *od.TPDOS):
+            mismatch = pdo_mismatch(layout, self.config.drive_node_id,
+                                    lambda index, sub: self._sdo_read(step, index, sub))
+            if mismatch:
+                raise self._fail(step, mismatch, DriveRefusedError)
+
+    def _apply_polarity(self) -> None:
+        """0x607E as the machine file's polarity (written at every start: a drive reset or
+        replaced drive forgets it)."""
+        if self.setup is not None:
+            self.set_polarity(self.setup.polarity == 'reversed')
+
+    def _home_at_start(self) -> None:
+        """Home with the machine file's method (mode 6, the commissioning's speeds), so the
+        phase offset found at commissioning means the same angle after a drive reset."""
+        if self.setup is not None and self.setup.homing_method:
+            self.home(self.setup.homing_method, HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED,
+                      timeout=homing_timeout())
+
     def _configure_watchdogs(self) -> None:
         """Heartbeat both ways, quick stop when our frames stop, and a zero target."""
         cfg = self.config
@@ -430,7 +485,10 @@ class Cia402Drive:
         self._write(step, od.FOLLOWING_ERROR_WINDOW,
                     max(1, round(cfg.following_error_window / self._rad_per_count)))
         self._write(step, od.FOLLOWING_ERROR_TIMEOUT, round(cfg.following_error_timeout * 1e3))
-        step = 'target position = actual position (0x607A from 0x6064)'
+        self._hold_here('target position = actual position (0x607A from 0x6064)')
+
+    def _hold_here(self, step: str) -> None:
+        """CSP: the position target (0x607A and our frames') = the actual position."""
         actual = self._read(step, od.POSITION_ACTUAL)
         self._write(step, od.TARGET_POSITION, actual)
         with self._lock:
@@ -883,12 +941,12 @@ class Cia402Drive:
         self._write(step, od.HOMING_SPEED_SWITCH, abs(self._counts_per_s(switch_speed)))
         self._write(step, od.HOMING_SPEED_ZERO, abs(self._counts_per_s(zero_speed)))
         self._write(step, od.HOME_OFFSET, 0)
-        self._transmit(CW_ENABLE_OPERATION, 0)
+        self._transmit(CW_ENABLE_OPERATION, None)
         self._change_mode(step, od.HOMING)
         deadline = time.monotonic() + timeout
         try:
             while True:
-                self._transmit(CW_ENABLE_OPERATION | 0x10, 0)
+                self._transmit(CW_ENABLE_OPERATION | 0x10, None)
                 self.send_heartbeat()
                 sw = self._read(step, od.STATUSWORD)
                 if sw & 0x2000:
@@ -904,7 +962,10 @@ class Cia402Drive:
                                            f'0x{sw:04X})', DriveTimeoutError)
                 time.sleep(0.01)
         finally:
-            self._transmit(CW_ENABLE_OPERATION, 0)
+            if self.mode == CYCLIC_SYNC_POSITION:
+                # the position target = where homing left it, before CSP takes it again
+                self._hold_here('back to CSP after homing (0x607A from 0x6064)')
+            self._transmit(CW_ENABLE_OPERATION, None)
             self._change_mode('back to the running mode after homing', self.mode)
         time.sleep(2.5 * self.config.feedback_period)     # the homed position in the TPDO
 

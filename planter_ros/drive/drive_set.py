@@ -22,6 +22,7 @@ import can
 from .cia402 import CanopenBus, Cia402Drive
 from .config import DriveConfig
 from .errors import DriveError
+from .setup import DriveSetup
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -35,12 +36,20 @@ class DriveSet:
     """Drives by name (a row's name) on one bus. `node_ids`: name -> CANopen node id."""
 
     def __init__(self, config: DriveConfig, node_ids: dict[str, int],
-                 bus: can.BusABC | None = None) -> None:
+                 bus: can.BusABC | None = None,
+                 setups: dict[str, DriveSetup] | None = None) -> None:
+        """`setups`: name -> what the machine file says of that drive (its gear ratio,
+        encoder counts and EDS replace the config's; checked and applied at enable)."""
         self.config = config
         self.canbus = CanopenBus(config, bus)
-        self.drives = {name: Cia402Drive(replace(config, drive_node_id=node_id),
-                                         canbus=self.canbus)
-                       for name, node_id in node_ids.items()}
+        setups = setups or {}
+        self.drives = {}
+        for name, node_id in node_ids.items():
+            setup = setups.get(name)
+            drive_config = replace(config, drive_node_id=node_id)
+            if setup is not None:
+                drive_config = setup.device(drive_config)
+            self.drives[name] = Cia402Drive(drive_config, canbus=self.canbus, setup=setup)
         self.enabled = {}             # name -> drive, the drives enable() brought up
         self.failed = {}              # name -> DriveError, the drives left out
 

@@ -27,7 +27,7 @@ __all__ = [
     'TPDO_MOTION', 'TPDOS', 'rpdo_for_mode', 'SYNC_COB', 'heartbeat_cob', 'emcy_cob',
     'markdown_table', 'VENDOR_ID', 'PRODUCT_CODE', 'REVISION_NUMBER', 'SERIAL_NUMBER',
     'HOME_OFFSET', 'POLARITY', 'HOMING_METHOD', 'HOMING_SPEED_SWITCH', 'HOMING_SPEED_ZERO',
-    'DIGITAL_INPUTS', 'POLARITY_REVERSED', 'DI_HOME_SWITCH', 'HOMING',
+    'DIGITAL_INPUTS', 'POLARITY_REVERSED', 'DI_HOME_SWITCH', 'HOMING', 'type_name',
 ]
 
 # CiA 301 data type codes
@@ -36,6 +36,11 @@ UNSIGNED8, UNSIGNED16, UNSIGNED32 = 0x0005, 0x0006, 0x0007
 _FORMAT = {INT8: 'b', INT16: 'h', INT32: 'i', UNSIGNED8: 'B', UNSIGNED16: 'H', UNSIGNED32: 'I'}
 _TYPE_NAME = {INT8: 'INTEGER8', INT16: 'INTEGER16', INT32: 'INTEGER32', UNSIGNED8: 'UNSIGNED8',
               UNSIGNED16: 'UNSIGNED16', UNSIGNED32: 'UNSIGNED32'}
+
+
+def type_name(code: int) -> str:
+    """CiA 301's name of data type `code` ('INTEGER32'), or its code in hex."""
+    return _TYPE_NAME.get(code, f'data type 0x{code:04X}')
 
 
 @dataclass(frozen=True)

@@ -97,7 +97,9 @@ def main(argv: list[str] | None = None) -> int:
               'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
               'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
               'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
-                                 for d in sims.drives}}
+                                 for d in sims.drives},
+              'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
+                               if d.record_bottom}}
     print(json.dumps(report), flush=True)
     return 0
 

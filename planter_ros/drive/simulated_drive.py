@@ -56,7 +56,8 @@ if TYPE_CHECKING:
     from canopen.objectdictionary import ODVariable
     from canopen.pdo.base import PdoMap
 
-__all__ = ['Gaps', 'SimulatedDrive', 'SimulatedBus', 'wire_time', 'receive']
+__all__ = ['Gaps', 'SimulatedDrive', 'SimulatedBus', 'simulated_mechanism', 'wire_time',
+           'receive']
 
 log = logging.getLogger(__name__)
 
@@ -166,8 +167,8 @@ class SimulatedDrive:
                  coast_time_constant: float = 0.5, network: canopen.Network | None = None,
                  gear_ratio: float = 1.0, motor_reversed: bool = False,
                  mechanical_offset: float = 0.0, home_switch_width: float = 0.2,
-                 identity: tuple[int, int, int, int] = (0x0000_0000, 0x0000_0402, 1, 0)
-                 ) -> None:
+                 identity: tuple[int, int, int, int] = (0x0000_0000, 0x0000_0402, 1, 0),
+                 record_bottom: bool = False) -> None:
         """Build the drive (no thread yet, call start()).
 
         bus_or_channel: a python-can bus this drive uses (left open on stop()), or a channel
@@ -183,6 +184,9 @@ class SimulatedDrive:
         angle of its bottom (tip lowest) from the encoder's zero, forward. home_switch_width:
         rad of mechanism angle the bottom proximity switch is active for, centred on the
         bottom. identity: 0x1018 vendor-ID, product code, revision, serial number.
+        record_bottom: keep the instants the mechanism truly passes its bottom forwards (the
+        tip lowest: a plant set; `bottom_times`, monotonic s), the truth a test measures the
+        machine's own account of its plants against.
         """
         if time_constant <= 0 or max_acceleration <= 0 or counts_per_motor_rev <= 0 or tick <= 0:
             raise ValueError('time_constant, max_acceleration, counts_per_motor_rev and tick '
@@ -205,6 +209,9 @@ class SimulatedDrive:
         self.mechanical_offset = float(mechanical_offset)
         self.home_switch_width = float(home_switch_width)
         self.identity = tuple(int(v) for v in identity)
+        self.record_bottom = bool(record_bottom)
+        #: monotonic s at which the mechanism passed its bottom forwards (record_bottom)
+        self.bottom_times: list[float] = []
 
         self._lock = threading.RLock()
         self._stop_event = threading.Event()
@@ -859,6 +866,8 @@ class SimulatedDrive:
         self._position += 0.5 * (v + self._velocity) * dt
         if self._homing is not None and state == OPERATION_ENABLED:
             self._homing_step(before)
+        if self.record_bottom:
+            self._note_bottom(before, dt, now)
         stopped = abs(self._velocity) < 0.5
         if stopped and state == FAULT_REACTION_ACTIVE:
             self._state = FAULT
@@ -866,6 +875,15 @@ class SimulatedDrive:
               and self._quick_stop_option in (1, 2, 3, 4)):
             self._state = SWITCH_ON_DISABLED
         return following_fault
+
+    def _note_bottom(self, before: float, dt: float, now: float) -> None:
+        """The mechanism's bottom passed forwards in the sub-step from `before` counts that
+        ended at `now`: its instant, interpolated (lock held)."""
+        a0 = self._mechanism_angle(before) / (2.0 * math.pi)
+        a1 = self._mechanism_angle(self._position) / (2.0 * math.pi)
+        if a1 > a0 and math.floor(a1) > math.floor(a0):
+            share = (a1 - math.floor(a1)) / (a1 - a0)
+            self.bottom_times.append(now - share * dt)
 
     # ---------------------------------------------------------------- homing (mode 6)
     def _start_homing(self) -> None:
@@ -976,15 +994,20 @@ class SimulatedBus:
     keyword arguments go to every SimulatedDrive."""
 
     def __init__(self, channel: str | can.BusABC, node_ids: Iterable[int], *,
-                 interface: str = 'virtual', tick: float = 0.002, **drive_kwargs: Any) -> None:
+                 interface: str = 'virtual', tick: float = 0.002,
+                 node_kwargs: dict | None = None, **drive_kwargs: Any) -> None:
         """`channel`: a channel name of `interface` (opened here), or an open python-can bus
-        (e.g. one end of a socket pair to a master in another process; shut down on stop)."""
+        (e.g. one end of a socket pair to a master in another process; shut down on stop).
+        `node_kwargs`: node id (int or its text) -> keyword arguments of that drive alone (its
+        gear, wiring, mechanical offset), over the common ones."""
         self.bus = (channel if isinstance(channel, can.BusABC)
                     else can.Bus(interface=interface, channel=channel))
         self.network = canopen.Network(self.bus)
         self.tick = float(tick)
+        own = {int(node): dict(kwargs) for node, kwargs in (node_kwargs or {}).items()}
         self.drives = [SimulatedDrive(self.bus, node_id=node_id, network=self.network,
-                                      tick=tick, **drive_kwargs) for node_id in node_ids]
+                                      tick=tick, **{**drive_kwargs, **own.get(node_id, {})})
+                       for node_id in node_ids]
         self._stop_event = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -1023,6 +1046,18 @@ class SimulatedBus:
 
         """(node id, reason, EMCY code) of every drive's watchdog reactions."""
         return [(d.node_id, why, code) for d in self.drives for why, code in d.watchdog_trips]
+
+
+def simulated_mechanism(seed: int, node_id: int, power_up: int = 0) -> tuple[float, bool]:
+    """(mechanical offset rad, motor reversed) of a simulated row: the wiring fixed by `seed`
+    and the node id (the machine's), the offset between the encoder's zero and the bottom by
+    the power-up too (an incremental encoder counts from wherever the motor was at power-up):
+    commissioning runs power-up 0, a later start another, and the homing must find the same
+    bottom."""
+    import numpy as np
+    wiring = np.random.default_rng([seed, node_id])
+    offset = np.random.default_rng([seed, node_id, power_up])
+    return float(offset.uniform(0.0, 2.0 * math.pi)), bool(wiring.random() < 0.5)
 
 
 def wire_time(timestamp: float | None) -> float:

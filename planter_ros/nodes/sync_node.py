@@ -15,6 +15,12 @@ The machine has one planting unit (a scene without `rows`) or several (planter_r
 with its own servo drive on the one CAN bus. A row's fault, EMCY or lost heartbeat commands 0
 to that row only and waits for that row's `reset_fault`; `section` switches a row off and on.
 A configuration whose CAN bus load exceeds 70 % is refused at start-up.
+
+With `machine_file` (doc/machine_file.md) the machine file's bus, rows, node ids, lever arms
+and drive train are the defaults of those parameters, and each row's drive is checked against
+it and set up from it at every start (drive.setup, in the command path's configure step). The
+law's run-time limits are refused, with the reason and the limit, when the design in force
+could not run within them (planter_ros.plausibility.check_law).
 """
 
 import logging
@@ -27,14 +33,15 @@ from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from planter_ros import diagnostics, interfaces, stop_signals
 from planter_ros.command.client import CommandClient
 from planter_ros.command.engine import CommandEngine
-from planter_ros.command.settings import CommandSettings
-from planter_ros.config import ConfigError
+from planter_ros.command.settings import LAW_CLASSES, CommandSettings
+from planter_ros.config import ConfigError, spec_of
 from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
@@ -45,7 +52,9 @@ from planter_ros.scene.files import SceneError
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.errors import DriveError
 from planter_ros.nodes import graph
-from planter_ros.nodes.parameters import ParameterGroup, declare_rows, refuse_undeclared
+from planter_ros.nodes.parameters import (ParameterGroup, _plain, declare, declare_rows,
+                                          refuse_undeclared)
+from planter_ros.scene.machine import MachineFileSetting, open_machine
 from planter_ros.rows import IMPLICIT
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits
@@ -55,13 +64,17 @@ class SyncNode(Node):
 
     def __init__(self, bus=None, arguments=None, **kwargs):
         super().__init__('sync_node', **kwargs)
+        self.machine = self._machine_file()
         self.drive_config = ParameterGroup(self, DriveConfig).value
         self.loop = ParameterGroup(self, SyncLoopConfig).value
         cfg = self.drive_config
         self.rows = declare_rows(self, cfg.drive_node_id)
         self.implicit = len(self.rows) == 1 and self.rows[0].name == IMPLICIT
+        setups = self._drive_setups()
+        self._design = None                      # the design in force (law plausibility)
         law = ParameterGroup(self, (PhaseLockConfig, GroundSpeedLimits, YawRateLimits,
-                                    TurnConfig), on_change=self._on_law_parameters)
+                                    TurnConfig), build=self._checked_law,
+                             on_change=self._on_law_parameters)
         refuse_undeclared(self, arguments)       # before the bus: a misnamed parameter stops it
         self.in_process = (bus is not None or not self.loop.command_process
                            or cfg.can_interface == 'virtual')
@@ -69,10 +82,10 @@ class SyncNode(Node):
         self._ready = False
         if self.in_process:
             self.engine = CommandEngine(cfg, self.loop, self.rows, law.value, bus=bus,
-                                        log=self._log)
+                                        log=self._log, setups=setups)
         else:
-            self.engine = CommandClient(CommandSettings(cfg, self.loop, self.rows, law.value),
-                                        log=self._log)
+            self.engine = CommandClient(CommandSettings(cfg, self.loop, self.rows, law.value,
+                                                        setups=setups), log=self._log)
         self.bus_load = self.engine.bus_load
         self.bus_id = f'{cfg.can_interface}:{cfg.can_channel}'
         self.hardware_id = f'{self.bus_id} node {self.rows[0].drive_node_id}'
@@ -103,6 +116,51 @@ class SyncNode(Node):
                           callback_group=group)
         self._last_fb = -1
         self._publish_sections(self._initial_sections())   # latched: known at once
+
+    def _machine_file(self):
+        """The `machine_file` parameter's Machine (None without one): its bus, rows, node ids,
+        lever arms and drive train become the defaults of those parameters (an explicit value
+        wins; a different one is warned about). SceneError (one line) for a bad file."""
+        path = declare(self, spec_of(MachineFileSetting, 'machine_file'))
+        if not path:
+            return None
+        machine = open_machine(path)
+        given = self._parameter_overrides          # rclpy's: what the node was given
+        for name, value in machine.node_parameters()['sync_node'].items():
+            if name == 'machine_file':
+                continue
+            if name not in given:
+                given[name] = Parameter(name, value=value)
+            elif _plain(given[name].value) != value:
+                self.get_logger().warning(
+                    f'{name} = {_plain(given[name].value)!r} given; the machine file {path} '
+                    f'says {value!r}: using {_plain(given[name].value)!r}')
+        return machine
+
+    def _drive_setups(self):
+        """{row: DriveSetup} of the machine file, checked, applied at every enable; SceneError
+        for a row the machine file does not have."""
+        if self.machine is None:
+            return {}
+        setups = self.machine.drive_setups()
+        for row in self.rows:
+            if row.name not in setups:
+                raise SceneError(f'row {row.label} is not a row of the machine file '
+                                 f'{self.machine.path}: allowed {", ".join(setups)}')
+        return {row.name: setups[row.name] for row in self.rows}
+
+    def _checked_law(self, values):
+        """The law's configuration from `values`; a limit the design in force would exceed at
+        its ground speed or a tractor's acceleration is refused with the reason and the limit
+        (planter_ros.plausibility, the scene loader's checks), unusual values warned about."""
+        from planter_ros.config import from_mapping
+        from planter_ros.plausibility import check_law
+        built = tuple(from_mapping(cls, values) for cls in LAW_CLASSES)
+        if self._design is not None:
+            limits = self.machine.row_limits() if self.machine is not None else ()
+            for warning in check_law(self._design, built[0], built[1], limits):
+                self.get_logger().warning(warning)
+        return built
 
     def _log(self, level, text):
         """A line of the engine (here or in the command process): held until the drives are
@@ -213,6 +271,7 @@ class SyncNode(Node):
             self.get_logger().error(f'design ignored, keeping the last one: {exc}')
             return
         self._design_text = msg.data
+        self._design = design
         if changed:
             what = (f'{design.mechanism}, d = {design.plant_spacing} m, '
                     f'{design.plants_per_revolution} plant(s) per revolution')

@@ -30,9 +30,11 @@ from typing import Any
 from planter_ros.config import ConfigError, Spec, from_mapping, setting, specs
 
 from .files import MAX_SCENE_BYTES, SceneError
+from .machine_setting import MachineFileSetting
 from .schema import closest
 
-__all__ = ['CanBus', 'IsobusBus', 'Machine', 'MachineFileError', 'MachineRow', 'SECTIONS',
+__all__ = ['CanBus', 'IsobusBus', 'Machine', 'MachineFileError', 'MachineFileSetting',
+           'MachineRow', 'SECTIONS',
            'deployment_parameters', 'machine_text', 'open_machine', 'parse_machine',
            'write_machine']
 
@@ -114,6 +116,16 @@ class MachineRow:
                                 '(0x6072 in N·m)', unit='N·m', range=(0.001, 1e4))
     modes: list = setting(['pv'], 'CiA 402 modes the drive supports (0x6502): csp (cyclic '
                           'synchronous position, 8), pv (profile velocity, 3)', item=str)
+    vendor_id: int = setting(-1, 'vendor-ID the drive must report (0x1018:1), checked before '
+                             'enabling; -1: not checked (commissioning writes what it found)',
+                             range=(-1, 0xFFFF_FFFF))
+    product_code: int = setting(-1, 'product code the drive must report (0x1018:2); -1: not '
+                                'checked', range=(-1, 0xFFFF_FFFF))
+    revision: int = setting(-1, 'revision number the drive must report (0x1018:3); -1: not '
+                            'checked', range=(-1, 0xFFFF_FFFF))
+    eds: str = setting('', "the drive maker's EDS or DCF file (relative to the machine file): "
+                       'every object the master uses must be in it with its type (checked '
+                       'before enabling) and the master uses it; empty: config/planter_drive.eds')
 
     def __post_init__(self) -> None:
         from planter_ros.config import check
@@ -174,7 +186,26 @@ class Machine:
         params = self.scene_parameters()
         out = {node: dict(node_parameters(node, params)) for node in NODES}
         out['ground_speed_node'] = {'isobus_channel': self.isobus.channel}
+        if self.path is not None:
+            out['sync_node']['machine_file'] = str(self.path)
         return out
+
+    def drive_setups(self) -> dict[str, Any]:
+        """{row: drive.setup.DriveSetup}: what the master checks and applies at every start
+        (identity, modes, EDS, polarity, homing, phase offset, gear ratio, encoder counts)."""
+        from planter_ros.drive.setup import DriveSetup
+        return {name: DriveSetup(
+                    modes=tuple(row.modes), polarity=row.polarity,
+                    homing_method=row.homing_method, phase_offset=row.phase_offset,
+                    vendor_id=row.vendor_id, product_code=row.product_code,
+                    revision=row.revision, eds=str(self.eds_path(row)) if row.eds else '',
+                    gear_ratio=row.gear_ratio, encoder_counts=row.encoder_counts)
+                for name, row in self.rows.items()}
+
+    def eds_path(self, row: MachineRow) -> Path:
+        """A row's EDS as a path (relative to the machine file's directory)."""
+        base = self.path.parent if self.path is not None else Path('.')
+        return base / row.eds
 
     def row_limits(self) -> list:
         """Each row's limits at the mechanism's shaft for planter_ros.plausibility."""
@@ -259,7 +290,12 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
                 "'s: allowed a node id no other row uses")
         owner[row.node_id] = row_name
         rows[str(row_name)] = row
-    return Machine(path, name, can, rows, isobus)
+    machine = Machine(path, name, can, rows, isobus)
+    for row_name, row in rows.items():
+        if row.eds and not machine.eds_path(row).is_file():
+            bad(f'rows.{row_name}.eds', f'= {row.eds!r} is not a file ('
+                f'{machine.eds_path(row)}): allowed the drive\'s EDS or DCF file')
+    return machine
 
 
 def machine_text(machine: Machine, comment: str = '') -> str:

@@ -62,13 +62,14 @@ def node_classes() -> dict[str, tuple[type, ...]]:
     from planter_ros.kinematics.scene_settings import SceneSettings, ThreeArmSettings
     from planter_ros.recording.recorder import RecorderConfig
     from planter_ros.rows import RowLayout
+    from planter_ros.scene.machine_setting import MachineFileSetting
     from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
     from planter_ros.sensing.plant_map import MapSettings
     from planter_ros.sensing.row_speed import YawRateLimits
     return {
         'design_node': (SceneSettings, ThreeArmSettings),
         'sync_node': (DriveConfig, SyncLoopConfig, RowLayout, PhaseLockConfig,
-                      GroundSpeedLimits, YawRateLimits, TurnConfig),
+                      GroundSpeedLimits, YawRateLimits, TurnConfig, MachineFileSetting),
         'monitor_node': (RecorderConfig, PredictionSettings, MapSettings, AntennaSettings,
                          AcceptanceLimits, RowLayout),
     }
