@@ -179,7 +179,7 @@ def test_a_restarted_drive_whose_boot_up_message_was_lost_is_found_by_asking_it(
     r.run(2.0)
     b, sim_b = r.engine.units[1], r.sims.drives[1]
     # its boot-up frame lost on the bus, and (as the EDS default) no heartbeat after a boot
-    r.bus.loss_ids = {0x702}
+    r.bus.drop(0x702)
     sim_b.power_cycle(0.3)
     assert r.run(10.0, until=lambda: b.recovery.restarts == 1 and b.halt is None)
     assert sim_b.state == OPERATION_ENABLED
@@ -195,11 +195,11 @@ def test_bus_off_and_send_errors_are_counted_reported_and_the_rows_resume(rig):
     # a short bus-off (below every watchdog): counted, reported, nothing stops
     r.bus.bus_off(0.1)
     r.run(0.05)
-    bus = next(rep for rep, _ in engine.reports(time.monotonic()) if rep.task == 'CAN bus')
+    bus = next(rep for rep, _ in engine.reports(time.monotonic()) if rep.task == 'bus')
     assert bus.level == 2 and 'bus-off' in bus.message          # ERROR on /diagnostics
     r.run(1.0)
     assert engine.send_errors > 0 and r.sims.watchdog_trips == []
-    assert all(unit.halt is None for unit in engine.units)
+    assert all(unit.halt is None for unit in engine.units), r.lines[2:]
     # random send errors (a full transmit queue) for a while: the run goes on
     r.bus.send_error_rate = 0.05
     r.run(1.0)

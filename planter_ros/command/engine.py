@@ -534,6 +534,16 @@ class CommandEngine:
         """The row's position for the next SYNC: advanced by its speed over the time since the
         last target (a late step is made up: the angle stays on the distance travelled)."""
         period = self.drive_config.sync_period
+        before = (unit.target, unit.target_time, unit.behind)
+        try:
+            self._next_target(unit, row, now, period)
+        except DriveError:
+            # not sent (a send error, bus-off): the drive still has the last target; the time
+            # since is owed and made up over the next SYNCs, never in one jump
+            unit.target, unit.target_time, unit.behind = before
+            raise
+
+    def _next_target(self, unit: RowUnit, row: RowStep, now: float, period: float) -> None:
         if row.halt is not None or unit.target is None:
             unit.target = unit.status.position if row.halt is None else None
             unit.behind = 0.0

@@ -118,14 +118,16 @@ class DriveStatus:                             # snapshot, built without blockin
 class _ReceiveErrors(can.Listener):
     """Keeps the Network's notifier thread alive through receive errors (bus-off, an
     interface gone down): python-can's notifier ends its thread on an error no listener
-    handles, and then no frame of any drive would arrive again. Counted; the thread waits a
-    little before it reads again (no busy loop while the bus is off)."""
+    handles, and then no frame of any drive would arrive again. Counted; the error is taken off
+    the notifier (canopen's `send_message` raises a notifier's error on every later send); the
+    thread waits a little before it reads again (no busy loop while the bus is off)."""
 
     PAUSE = 0.02        # s between reads while receiving fails
 
     def __init__(self) -> None:
         self.count = 0
         self.last: tuple[float, str] | None = None      # (monotonic s, text)
+        self.notifier: can.Notifier | None = None
 
     def on_message_received(self, msg: can.Message) -> None:
         pass
@@ -133,6 +135,8 @@ class _ReceiveErrors(can.Listener):
     def on_error(self, exc: Exception) -> None:
         self.count += 1
         self.last = (time.monotonic(), f'{type(exc).__name__}: {exc}')
+        if self.notifier is not None and self.notifier.exception is exc:
+            self.notifier.exception = None
         time.sleep(self.PAUSE)
 
 
@@ -170,6 +174,7 @@ class CanopenBus:
             network.NOTIFIER_CYCLE = 0.05                 # close() waits at most this long
             network.connect()
             network.notifier.add_listener(self.receive_errors)
+            self.receive_errors.notifier = network.notifier
             self.network = network
             return network
 
