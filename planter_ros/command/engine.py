@@ -545,7 +545,10 @@ class CommandEngine:
 
     def _next_target(self, unit: RowUnit, row: RowStep, now: float, period: float) -> None:
         if row.halt is not None or unit.target is None:
-            unit.target = unit.status.position if row.halt is None else None
+            # (re)start from where the drive is, once its position is fresh (after a restart
+            # the last one known may be from before it: the shaft coasted on since)
+            fresh = now - unit.status.stamp <= 3.0 * period
+            unit.target = unit.status.position if row.halt is None and fresh else None
             unit.behind = 0.0
         else:
             # time owed since the last target; at most two periods' worth per SYNC, so a late

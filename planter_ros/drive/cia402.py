@@ -416,14 +416,21 @@ class Cia402Drive:
         with self._lock:
             self._restarted = ''
 
-    def probe_restart(self) -> bool:
-        """BLOCKING (one SDO read): whether a drive whose heartbeat is lost restarted with its
-        boot-up message lost on the bus: its heartbeat producer 0x1017 no longer reads what
-        we wrote. Then `status().restarted` says so. Raises DriveError when it does not answer
-        (still off)."""
+    def probe_restart(self, timeout: float = 0.2) -> bool:
+        """BLOCKING (one SDO read, at most `timeout` s): whether a drive whose heartbeat is
+        lost restarted with its boot-up message lost on the bus: its heartbeat producer 0x1017
+        no longer reads what we wrote. Then `status().restarted` says so. Raises DriveError
+        when it does not answer (still off). Not while another SDO transfer to this drive
+        runs (the caller's to ensure: its SDO timeout is borrowed meanwhile)."""
         self._check_open()
-        period = self._read('is the drive restarted? (0x1017 heartbeat producer)',
-                            od.HEARTBEAT_PRODUCER)
+        sdo = self._node.sdo
+        kept = sdo.RESPONSE_TIMEOUT, sdo.MAX_RETRIES
+        sdo.RESPONSE_TIMEOUT, sdo.MAX_RETRIES = timeout, 1
+        try:
+            period = self._read('is the drive restarted? (0x1017 heartbeat producer)',
+                                od.HEARTBEAT_PRODUCER)
+        finally:
+            sdo.RESPONSE_TIMEOUT, sdo.MAX_RETRIES = kept
         if period == round(self.config.drive_heartbeat_period * 1000):
             return False
         with self._lock:
