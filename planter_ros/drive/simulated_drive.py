@@ -265,6 +265,7 @@ class SimulatedDrive:
         self.sync_missing = 0
         self.following_error_faults = 0
         self.last_following_fault = ''
+        self.targets_missing = 0          # CSP: SYNCs that found no new target
         self._motor_time: float | None = None
         # fault injection: power (off until a time), slow SDO answers, EMCY storms
         self._powered = True
@@ -294,6 +295,7 @@ class SimulatedDrive:
             self._csp_from = 0.0
             self._csp_to = 0.0
             self._csp_start = -math.inf
+            self._csp_extrapolated = 0        # segments in a row without a new target
             self._sync_period = 0.0           # s, 0x1006 (0: not told)
             self._fe_window = math.inf        # counts, 0x6065
             self._fe_timeout = 0.0            # s, 0x6066
@@ -551,6 +553,7 @@ class SimulatedDrive:
         """SYNC timing as this drive saw it (its own clock)."""
         return {'syncs': self.sync_count, 'late': self.sync_late, 'missing': self.sync_missing,
                 'period': self._sync_period, 'gaps': self.sync_gaps.summary(),
+                'targets_missing': self.targets_missing,
                 'following_error_faults': self.following_error_faults}
 
     @property
@@ -723,12 +726,8 @@ class SimulatedDrive:
                     self.sync_missing += max(int(round(gap / period)) - 1, 0)
             self._last_sync = now
             self._syncs_seen += 1
-            if (self._mode == CYCLIC_SYNC_POSITION and self._state == OPERATION_ENABLED
-                    and self._csp_pending is not None):
-                self._csp_from = self._csp_setpoint(now)
-                self._csp_to = self._unwrap(self._csp_pending)
-                self._csp_start = now
-                self._csp_pending = None
+            if self._mode == CYCLIC_SYNC_POSITION and self._state == OPERATION_ENABLED:
+                self._next_segment(now)
         if not self._nmt_operational:
             return
         try:
@@ -739,11 +738,41 @@ class SimulatedDrive:
         except (can.CanError, RuntimeError, OSError) as exc:
             log.debug('simulated drive: TPDO send failed: %s', exc)
 
+    #: a SYNC without a new target (lost on the bus, or late), or a SYNC lost: the set point
+    #: goes on at the last segment's speed for at most this many periods, then holds
+    EXTRAPOLATE_PERIODS = 1
+
+    def _next_segment(self, now: float) -> None:
+        """At a SYNC in CSP (lock held): interpolate from the set point to the target received
+        since the last SYNC; without one, go on at the last segment's speed (extrapolation,
+        at most EXTRAPOLATE_PERIODS in a row), then hold."""
+        if self._csp_pending is not None:
+            self._csp_from = self._csp_setpoint(now)
+            self._csp_to = self._unwrap(self._csp_pending)
+            self._csp_pending = None
+            self._csp_extrapolated = 0
+        else:
+            self.targets_missing += 1
+            step = self._csp_to - self._csp_from
+            self._csp_from = self._csp_setpoint(now)
+            self._csp_extrapolated += 1
+            if self._csp_extrapolated > self.EXTRAPOLATE_PERIODS or not math.isfinite(
+                    self._csp_start):
+                step = 0.0
+            self._csp_to = self._csp_from + step
+        self._csp_start = now
+
+    def _csp_reach(self) -> float:
+        """How many periods the current segment's speed lasts: one, plus the extrapolation
+        left when no SYNC comes (a lost SYNC)."""
+        return 1.0 + max(self.EXTRAPOLATE_PERIODS - self._csp_extrapolated, 0)
+
     def _csp_setpoint(self, now: float) -> float:
         """The interpolated position set point (counts) at `now`: linear over one SYNC period
-        from the previous target to the newest (lock held)."""
+        from the previous target to the newest, extrapolated at that speed while a SYNC is
+        missing (lock held)."""
         period = self._sync_period or 0.01
-        share = min(max((now - self._csp_start) / period, 0.0), 1.0)
+        share = min(max((now - self._csp_start) / period, 0.0), self._csp_reach())
         return self._csp_from + (self._csp_to - self._csp_from) * share
 
     def _on_consumed_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
@@ -955,7 +984,7 @@ class SimulatedDrive:
             # position loop on the interpolated set point, with its speed as feed-forward
             setpoint = self._csp_setpoint(now)
             period = self._sync_period or 0.01
-            moving = now - self._csp_start < period
+            moving = now - self._csp_start < period * self._csp_reach()
             feed = (self._csp_to - self._csp_from) / period if moving else 0.0
             wanted = feed + (setpoint - self._position) / self.time_constant
             self._following_error = setpoint - self._position
