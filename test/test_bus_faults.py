@@ -215,7 +215,7 @@ def test_bus_off_and_send_errors_are_counted_reported_and_the_rows_resume(rig):
     assert engine.drives.canbus.receive_errors.count > 0
     assert r.sims.watchdog_trips                                  # they stopped, as they must
     assert r.run(8.0, until=lambda: all(u.recovery.episode is None and u.halt is None
-                                        for u in engine.units))
+                                        for u in engine.units)), r.lines[2:]
     assert all(sim.state == OPERATION_ENABLED for sim in r.sims.drives)
     for unit in engine.units:
         record = unit.recovery.recoveries[-1]
@@ -254,8 +254,8 @@ def test_ten_percent_of_frames_lost_both_ways_the_plants_still_come_at_the_spaci
     counts = r.bus.counts
     sent = counts['sent'] + counts['lost_sent']
     received = counts['received'] + counts['lost_received']
-    assert 0.07 < counts['lost_sent'] / sent < 0.13
-    assert 0.07 < counts['lost_received'] / received < 0.13
+    assert 0.05 < counts['lost_sent'] / sent < 0.15
+    assert 0.05 < counts['lost_received'] / received < 0.15
     assert r.sims.watchdog_trips == []
     assert all(sim.following_error_faults == 0 for sim in r.sims.drives)
     for row, unit in enumerate(r.engine.units):
