@@ -327,3 +327,32 @@ def test_an_emcy_storm_is_counted_and_logged_without_flooding_and_a_real_fault_s
         assert r.engine.reset_fault(unit.row.name)[0]
     assert r.run(5.0, until=lambda: a.halt is None and b.halt is None)
     assert logging.WARNING in {level for level, line in r.lines if 'EMCY' in line}
+
+
+# --------------------------------------------------------------------------- drives' own process
+def test_faults_are_injected_into_the_drives_process_over_its_stdin():
+    from planter_ros.drive.sim_process import SimProcess
+    from planter_ros.drive.socket_bus import socket_pair
+    ours, theirs = socket_pair()
+    sims = SimProcess(ours.fileno(), [1, 2], supported_modes=list(BOTH))
+    ours.close()
+    theirs.settimeout(1.0)
+    try:
+        with pytest.raises(ValueError, match='allowed power_cycle, emcy_storm'):
+            sims.inject('unplug', 1)
+        sims.inject('emcy_storm', 1, 200.0, 0.1)
+        sims.inject('power_cycle', 2, 0.05)
+        boot = None
+        deadline = time.monotonic() + 5.0
+        while boot is None and time.monotonic() < deadline:
+            packet = theirs.recv(64)
+            # a frame: send time (8 bytes), COB-ID (4), DLC, flags, data
+            if (packet and int.from_bytes(packet[8:12], 'little') == 0x702
+                    and packet[12] == 1 and packet[14] == 0):
+                boot = packet                      # its boot-up message: 702h, data 00h
+        time.sleep(0.2)
+    finally:
+        report = sims.stop()
+        theirs.close()
+    assert boot is not None
+    assert report['faults']['1']['emcy_sent'] >= 15 and report['faults']['2']['power_cycles'] == 1
