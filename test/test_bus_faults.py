@@ -336,8 +336,12 @@ def test_faults_are_injected_into_the_drives_process_over_its_stdin():
     ours, theirs = socket_pair()
     sims = SimProcess(ours.fileno(), [1, 2], supported_modes=list(BOTH))
     ours.close()
-    theirs.settimeout(1.0)
     try:
+        theirs.settimeout(0.2)
+        with pytest.raises(TimeoutError):          # their boot-up messages at start: read
+            while True:
+                theirs.recv(64)
+        theirs.settimeout(1.0)
         with pytest.raises(ValueError, match='allowed power_cycle, emcy_storm'):
             sims.inject('unplug', 1)
         sims.inject('emcy_storm', 1, 200.0, 0.1)
