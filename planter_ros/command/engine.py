@@ -197,6 +197,10 @@ class CommandEngine:
             was_running = [unit for unit in self.units if unit.running]
             for unit in self.units:
                 unit.running = False
+            workers = [unit.recovery.worker for unit in self.units
+                       if unit.recovery.worker is not None]
+        for worker in workers:          # a drive being configured again: let it finish first
+            worker.join(timeout=10.0)
         try:
             self.drives.shutdown()
             if was_running:
@@ -426,8 +430,9 @@ class CommandEngine:
             if (not rec.reconfiguring and not rec.probing and now >= rec.next_reconfigure
                     and not self._shut_down):          # one SDO user of the drive at a time
                 rec.reconfiguring = True
-                threading.Thread(target=self._reconfigure, args=(unit,), daemon=True,
-                                 name=f'reconfigure-{unit.label}').start()
+                rec.worker = threading.Thread(target=self._reconfigure, args=(unit,),
+                                              daemon=True, name=f'reconfigure-{unit.label}')
+                rec.worker.start()
             return
         episode = rec.episode
         if episode is None:
@@ -436,8 +441,9 @@ class CommandEngine:
                 and now - episode.since >= recovery.PROBE_AFTER and now >= rec.next_probe):
             rec.probing = True
             rec.next_probe = now + recovery.PROBE_RETRY
-            threading.Thread(target=self._probe, args=(unit,), daemon=True,
-                             name=f'probe-{unit.label}').start()
+            rec.worker = threading.Thread(target=self._probe, args=(unit,), daemon=True,
+                                          name=f'probe-{unit.label}')
+            rec.worker.start()
         cfg = self.drive_config
         if (episode.bus and episode.resets < recovery.AUTO_RESETS and not status.resetting
                 and now >= rec.next_auto_reset

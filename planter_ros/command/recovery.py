@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 import math
+from typing import Any
 
 from planter_ros.control import sync_status
 from planter_ros.control.sync_status import Halt
@@ -78,6 +79,7 @@ class RowRecovery:
     next_reconfigure: float = 0.0
     reconfigure_error: str = ''
     probing: bool = False            # a worker asks the drive whether it restarted
+    worker: Any = None               # the thread doing either (joined at shutdown)
     next_probe: float = 0.0
     next_auto_reset: float = 0.0
     resumed: bool = False            # frames start again: their pause is no loop gap
