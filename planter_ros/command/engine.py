@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 import logging
+import math
 import threading
 import time
 from typing import TYPE_CHECKING, Any
@@ -34,6 +35,9 @@ from planter_ros.drive.errors import DriveError
 from planter_ros.drive.setup import DriveSetup
 from planter_ros.drive.states import CYCLIC_SYNC_POSITION, FAULT
 from planter_ros.rows import IMPLICIT, Row
+
+from . import recovery
+from .recovery import RowRecovery, communication_fault
 
 if TYPE_CHECKING:
     from planter_ros.drive.cia402 import Cia402Drive, DriveStatus
@@ -76,6 +80,7 @@ class RowUnit:
         self.target: float | None = None    # CSP: position target of the next SYNC (rad)
         self.target_time = 0.0              # when it was computed (monotonic s)
         self.behind = 0.0                   # s of motion still to be made up (late steps)
+        self.recovery = RowRecovery()       # halts, the plants they cost, restarts, EMCYs
 
     @property
     def csp(self) -> bool:
@@ -133,6 +138,8 @@ class CommandEngine:
         # profile velocity: from a sample's receive time (the shell's, same clock) to the last
         # row's frame sent for it
         self.sample_latency = PeriodStats()
+        self._bus_trouble_at = -math.inf    # the last CAN send or receive error (monotonic s)
+        self._bus_back_said = True
 
     # ---------------------------------------------------------------- the first row
     @property
@@ -199,6 +206,10 @@ class CommandEngine:
             was_running = [unit for unit in self.units if unit.running]
             for unit in self.units:
                 unit.running = False
+            workers = [unit.recovery.worker for unit in self.units
+                       if unit.recovery.worker is not None]
+        for worker in workers:          # a drive being configured again: let it finish first
+            worker.join(timeout=10.0)
         try:
             self.drives.shutdown()
             if was_running:
@@ -389,15 +400,24 @@ class CommandEngine:
             for unit in self.units:
                 if unit.running:
                     unit.status = self._shifted(unit, unit.drive.status())
+                    self._watch(unit, now)
             step = self.row_loop.step([unit.status if unit.running else None
                                        for unit in self.units],
                                       [unit.running for unit in self.units], now)
+            trouble = self._bus_trouble(now)
             for unit, row in zip(self.units, step.rows):
                 if not row.running:
                     continue
                 if row.changed:
                     self._report_halt(unit, row.halt, unit.status)
                 unit.halt = row.halt
+                self._track(unit, row, now, trouble)
+                if unit.recovery.reconfiguring:
+                    unit.command = 0.0
+                    continue                    # its enable steps send their own frames
+                if unit.recovery.resumed:       # frames again after a pause on purpose
+                    unit.recovery.resumed = False
+                    unit.period.restart()
                 try:
                     if unit.csp:
                         self._send_target(unit, row, now)
@@ -413,12 +433,165 @@ class CommandEngine:
                 except DriveError as exc:
                     self._send_failed(now, exc, None)
 
+    # ---------------------------------------------------------------- recovery
+    def _row_text(self, unit: RowUnit, text: str) -> str:
+        return text if self.implicit else f'row {unit.label}: {text}'
+
+    def _bus_trouble(self, now: float) -> bool:
+        """Whether the bus failed (send or receive errors) within the last BUS_WINDOW s; says
+        once in the log when it is back."""
+        stamps = [self._last_bus_error, self.drives.canbus.receive_errors.last]
+        stamps += [unit.last_send_error for unit in self.units]
+        latest = max((stamp[0] for stamp in stamps if stamp is not None), default=-math.inf)
+        if latest > self._bus_trouble_at:
+            self._bus_trouble_at = latest
+            self._bus_back_said = False
+        quiet = now - self._bus_trouble_at
+        if not self._bus_back_said and quiet >= recovery.BUS_QUIET:
+            self._bus_back_said = True
+            self.log(logging.WARNING, f'CAN bus {self.bus_id} back (no error for '
+                                      f'{recovery.BUS_QUIET:g} s): {self.send_errors} send and '
+                                      f'{self.drives.canbus.receive_errors.count} receive '
+                                      'error(s) since start')
+        return quiet <= recovery.BUS_WINDOW
+
+    def _watch(self, unit: RowUnit, now: float) -> None:
+        """Per running row, each step (lock held): EMCYs counted and logged without flooding;
+        a restarted drive configured again (worker thread); a lost heartbeat asked about; a
+        drive its watchdog stopped while the bus failed re-enabled once the bus is back."""
+        rec, status, drive = unit.recovery, unit.status, unit.drive
+        line = rec.emcy_line(now, drive.emcy_count, drive.last_emcy_code)
+        if line:
+            self.log(logging.WARNING, self._row_text(unit, line))
+        if status.restarted:
+            if (not rec.reconfiguring and not rec.probing and now >= rec.next_reconfigure
+                    and not self._shut_down):          # one SDO user of the drive at a time
+                rec.reconfiguring = True
+                rec.worker = threading.Thread(target=self._reconfigure, args=(unit,),
+                                              daemon=True, name=f'reconfigure-{unit.label}')
+                rec.worker.start()
+            return
+        episode = rec.episode
+        if episode is None:
+            return
+        if (status.fault_reason == 'drive heartbeat lost' and not rec.probing
+                and now - episode.since >= recovery.PROBE_AFTER and now >= rec.next_probe):
+            rec.probing = True
+            rec.next_probe = now + recovery.PROBE_RETRY
+            rec.worker = threading.Thread(target=self._probe, args=(unit,), daemon=True,
+                                          name=f'probe-{unit.label}')
+            rec.worker.start()
+        cfg = self.drive_config
+        if (episode.bus and episode.resets < recovery.AUTO_RESETS and not status.resetting
+                and now >= rec.next_auto_reset
+                and now - self._bus_trouble_at >= recovery.BUS_QUIET
+                and status.heartbeat_age < cfg.drive_heartbeat_timeout
+                and communication_fault(sync_status.halt_reason(
+                    status, cfg.drive_heartbeat_timeout), status.error_code,
+                    status.fault_reason)):
+            episode.resets += 1
+            rec.auto_resets += 1
+            rec.next_auto_reset = now + cfg.reset_timeout + 0.2
+            drive.request_fault_reset()
+            self.log(logging.WARNING, self._row_text(
+                unit, f'the CAN bus is back: re-enabling the drive its communication stopped '
+                      f'({status.fault_reason}, error 0x{status.error_code:04X}; attempt '
+                      f'{episode.resets} of {recovery.AUTO_RESETS})'))
+
+    def _reconfigure(self, unit: RowUnit) -> None:
+        """Worker thread: the drive restarted; configure and enable it again (its one
+        start-up path), then the row loop resumes it."""
+        rec, start = unit.recovery, time.monotonic()
+        why = unit.status.restarted if unit.status is not None else ''
+        try:
+            unit.drive.reconfigure()
+        except DriveError as exc:
+            with self._lock:
+                rec.reconfiguring = False
+                rec.next_reconfigure = time.monotonic() + recovery.RECONFIGURE_RETRY
+                first, rec.reconfigure_error = not rec.reconfigure_error, str(exc)
+            if first:
+                self.log(logging.WARNING, self._row_text(
+                    unit, f'configuring the restarted drive again failed ({exc}): trying '
+                          f'again every {recovery.RECONFIGURE_RETRY:g} s'))
+            return
+        with self._lock:
+            rec.reconfiguring = False
+            rec.reconfigure_error = ''
+            rec.restarts += 1
+            rec.resumed = True
+            unit.target = None                  # CSP: on from where the drive is
+        self.log(logging.WARNING, self._row_text(
+            unit, f'the drive restarted ({why}): configured again and enabled in '
+                  f'{time.monotonic() - start:.2f} s ({self.mode_text()})'))
+
+    def _probe(self, unit: RowUnit) -> None:
+        """Worker thread: the drive's heartbeat is lost; if it answers and its heartbeat
+        setting is gone, it restarted (its boot-up message was lost): `status().restarted`."""
+        try:
+            unit.drive.probe_restart()
+        except DriveError:
+            pass                                 # still silent: asked again later
+        finally:
+            with self._lock:
+                unit.recovery.probing = False
+
+    def _track(self, unit: RowUnit, row: RowStep, now: float, trouble: bool) -> None:
+        """The row's halt episodes and the plants they cost (lock held)."""
+        rec, law = unit.recovery, unit.law
+        if row.halt is not None:
+            if row.halt.kind != sync_status.NOT_ENABLED or rec.episode is not None:
+                rec.halted(now, row.halt, law.phase_slips, trouble)
+            return
+        if rec.episode is None:
+            return
+        pitch = 2.0 * math.pi / law.plants_per_revolution
+        in_step = (not law.section_on or law.stale(now) or law.spacing is None
+                   or (law.anchored and abs(law.last_error) < recovery.BACK_IN_STEP * pitch))
+        record = rec.running(now, in_step, law.phase_slips)
+        if record is None:
+            return
+        restarted = 'the drive restarted; ' if record['restarted'] else ''
+        state = 'back in step' if record['in_step'] else 'not back in step'
+        self.log(logging.WARNING if record['plants_missed'] else logging.INFO, self._row_text(
+            unit, f'{state} {record["back_in_step_s"]:.2f} s after: {record["cause"]} '
+                  f'({restarted}halted {record["halted_s"]:.2f} s): '
+                  f'{record["plants_missed"]} plant(s) missed'))
+
+    def _recovery_values(self, unit: RowUnit) -> tuple:
+        rec = unit.recovery
+        values = [('plants missed (halts)', rec.plants_missed),
+                  ('drive restarts', rec.restarts),
+                  ('automatic re-enables', rec.auto_resets),
+                  ('EMCY received', rec.emcy_count)]
+        if rec.recoveries:
+            last = rec.recoveries[-1]
+            values.append(('last recovery', f'{last["cause"]}: back in step after '
+                                            f'{last["back_in_step_s"]:.2f} s, '
+                                            f'{last["plants_missed"]} plant(s) missed'))
+        if rec.reconfigure_error:
+            values.append(('configuring again', rec.reconfigure_error))
+        return tuple(values)
+
     def _send_target(self, unit: RowUnit, row: RowStep, now: float) -> None:
         """The row's position for the next SYNC: advanced by its speed over the time since the
         last target (a late step is made up: the angle stays on the distance travelled)."""
         period = self.drive_config.sync_period
+        before = (unit.target, unit.target_time, unit.behind)
+        try:
+            self._next_target(unit, row, now, period)
+        except DriveError:
+            # not sent (a send error, bus-off): the drive still has the last target; the time
+            # since is owed and made up over the next SYNCs, never in one jump
+            unit.target, unit.target_time, unit.behind = before
+            raise
+
+    def _next_target(self, unit: RowUnit, row: RowStep, now: float, period: float) -> None:
         if row.halt is not None or unit.target is None:
-            unit.target = unit.status.position if row.halt is None else None
+            # (re)start from where the drive is, once its position is fresh (after a restart
+            # the last one known may be from before it: the shaft coasted on since)
+            fresh = now - unit.status.stamp <= 3.0 * period
+            unit.target = unit.status.position if row.halt is None and fresh else None
             unit.behind = 0.0
         else:
             # time owed since the last target; at most two periods' worth per SYNC, so a late
@@ -500,9 +673,10 @@ class CommandEngine:
                 ('row travelled', f'{law.travelled(now):.4f} m'))
 
     def _drive_report(self, unit: RowUnit, now: float) -> diagnostics.Report:
-        return sync_status.drive_report(unit.status, unit.running, self._shut_down, unit.halt,
-                                        unit.send_errors, unit.last_send_error, unit.command,
-                                        now)
+        report = sync_status.drive_report(unit.status, unit.running, self._shut_down,
+                                          unit.halt, unit.send_errors, unit.last_send_error,
+                                          unit.command, now)
+        return replace(report, values=report.values + self._recovery_values(unit))
 
     def reports(self, now: float,
                 shared: Sequence[diagnostics.Report] = ()) -> list[tuple[diagnostics.Report, str]]:
@@ -513,7 +687,12 @@ class CommandEngine:
             ramping = [state for state in states if state.startswith('ramping')]
             ground = sync_status.ground_report(self.machine.reference, now, self.machine,
                                                (ramping or states or [None])[0])
-            bus = sync_status.bus_report(self.bus_load, self._last_bus_error, now)
+            errors = [e for e in (self._last_bus_error,
+                                  self.drives.canbus.receive_errors.last) if e is not None]
+            bus = sync_status.bus_report(self.bus_load, max(errors, default=None), now)
+            bus = replace(bus, values=bus.values + (
+                ('send errors', self.send_errors),
+                ('receive errors', self.drives.canbus.receive_errors.count)))
             loop = sync_status.loop_report(
                 [('' if self.implicit else unit.label, unit.period) for unit in self.units
                  if unit.drive is not None], self.drive_config.command_timeout)
@@ -568,14 +747,19 @@ class CommandEngine:
                 if unit.drive is None:
                     continue
                 everything.merge(unit.period)
+                rec = unit.recovery
                 rows.append({'label': unit.label, 'faults': unit.faults,
                              'last_fault': unit.last_fault, 'left_out': unit.left_out,
-                             'loop': unit.period.summary()})
+                             'loop': unit.period.summary(),
+                             'plants_missed': rec.plants_missed, 'restarts': rec.restarts,
+                             'auto_resets': rec.auto_resets, 'emcy': rec.emcy_count,
+                             'recoveries': list(rec.recoveries)})
             return {
                 'accepted': law.accepted, 'rejected': dict(law.rejected),
                 'yaw_accepted': yaw.accepted, 'yaw_rejected': dict(yaw.rejected),
                 'phase_slips': sum(unit.law.phase_slips for unit in self.units),
                 'send_errors': self.send_errors,
+                'receive_errors': self.drives.canbus.receive_errors.count,
                 'phase_lock': law.config.phase_lock,
                 'turn_compensation': self.machine.turn.turn_compensation,
                 'rows': rows,

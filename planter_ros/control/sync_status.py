@@ -16,7 +16,7 @@ from planter_ros.diagnostics import (BUS, CONTROL_LOOP, DRIVE, ERROR, GROUND_SPE
                                      Report, worst)
 from planter_ros.drive.state_names import FAULT, OPERATION_ENABLED
 
-__all__ = ['SEND_ERROR_HOLD', 'FAULTED', 'HEARTBEAT_LOST', 'NOT_ENABLED', 'Halt',
+__all__ = ['SEND_ERROR_HOLD', 'RESTARTED', 'FAULTED', 'HEARTBEAT_LOST', 'NOT_ENABLED', 'Halt',
            'NEVER_ENABLED', 'has_feedback', 'halt_reason', 'drive_report', 'ground_report',
            'phase_report', 'row_report', 'idle_row_report', 'bus_report', 'LOOP_MARGIN',
            'loop_report']
@@ -24,6 +24,7 @@ __all__ = ['SEND_ERROR_HOLD', 'FAULTED', 'HEARTBEAT_LOST', 'NOT_ENABLED', 'Halt'
 SEND_ERROR_HOLD = 2.0      # s a CAN send error keeps the drive status at ERROR
 
 # kinds of halt, in the order they are checked
+RESTARTED = 'restarted'
 FAULTED, HEARTBEAT_LOST, NOT_ENABLED = 'fault', 'heartbeat lost', 'not enabled'
 
 
@@ -45,6 +46,9 @@ def has_feedback(status: Any) -> bool:
 
 def halt_reason(status: Any, heartbeat_timeout: float) -> Halt | None:
     """Halt (commanding 0) or None when the drive may be commanded."""
+    restarted = getattr(status, 'restarted', '')
+    if restarted:
+        return Halt(RESTARTED, f'drive restarted ({restarted}): configuring it again')
     if status.fault or status.state == FAULT:
         why = status.fault_reason or status.state
         return Halt(FAULTED, f'drive fault 0x{status.error_code:04X} ({why})')

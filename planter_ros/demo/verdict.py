@@ -85,8 +85,10 @@ def judge(rows, sync_report, start_error='', bag_error='', monitor_design_change
         if row['left_out']:
             reasons.append(f'{name} left out: {row["left_out"]}')
         elif row['faults']:
+            missed = row.get('plants_missed', 0)
             reasons.append(f'drive fault on {name} ({row["faults"]}x, last: '
-                           f'{row["last_fault"]})')
+                           f'{row["last_fault"]}'
+                           + (f'; {missed} plant(s) missed' if missed else '') + ')')
     if not start_error:
         for row in rows:
             name = f'row {row.label}' if row.label else 'the row'

@@ -75,6 +75,8 @@ __all__ = ['BusConfig', 'CanopenBus', 'Cia402Drive', 'DeviceConfig', 'DriveConfi
 log = logging.getLogger(__name__)
 
 _INT32 = (-2**31, 2**31 - 1)
+SDO_ATTEMPTS = 2            # each SDO request is sent at most this often (sdo_timeout each)
+_NMT_OPERATIONAL = 0x05
 _MODE_NAMES = {PROFILE_VELOCITY: 'profile velocity', CYCLIC_SYNC_POSITION: 'cyclic synchronous '
                'position'}
 
@@ -111,6 +113,34 @@ class DriveStatus:                             # snapshot, built without blockin
     commanded_velocity: float = 0.0            # mechanism rad/s in the last RPDO sent
     mode: int = 0                              # 3 profile velocity, 8 CSP (0 before enable)
     commanded_position: float = math.nan       # CSP: mechanism rad in the last RPDO sent
+    restarted: str = ''                        # why the drive must be configured again (it
+                                               # booted, or its heartbeat says it is not
+                                               # operational): '' when it need not
+
+
+class _ReceiveErrors(can.Listener):
+    """Keeps the Network's notifier thread alive through receive errors (bus-off, an
+    interface gone down): python-can's notifier ends its thread on an error no listener
+    handles, and then no frame of any drive would arrive again. Counted; the error is taken off
+    the notifier (canopen's `send_message` raises a notifier's error on every later send); the
+    thread waits a little before it reads again (no busy loop while the bus is off)."""
+
+    PAUSE = 0.02        # s between reads while receiving fails
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.last: tuple[float, str] | None = None      # (monotonic s, text)
+        self.notifier: can.Notifier | None = None
+
+    def on_message_received(self, msg: can.Message) -> None:
+        pass
+
+    def on_error(self, exc: Exception) -> None:
+        self.count += 1
+        self.last = (time.monotonic(), f'{type(exc).__name__}: {exc}')
+        if self.notifier is not None and self.notifier.exception is exc:
+            self.notifier.exception = None
+        time.sleep(self.PAUSE)
 
 
 class CanopenBus:
@@ -125,6 +155,8 @@ class CanopenBus:
         self._bus: can.BusABC | None = None
         self.network: canopen.Network | None = None
         self._lock = threading.Lock()
+        #: receive errors survived by the notifier thread (bus-off, interface down)
+        self.receive_errors = _ReceiveErrors()
 
     @property
     def where(self) -> str:
@@ -144,6 +176,8 @@ class CanopenBus:
             network = canopen.Network(self._bus)
             network.NOTIFIER_CYCLE = 0.05                 # close() waits at most this long
             network.connect()
+            network.notifier.add_listener(self.receive_errors)
+            self.receive_errors.notifier = network.notifier
             self.network = network
             return network
 
@@ -231,6 +265,11 @@ class Cia402Drive:
         self._commanded_position = math.nan
         #: measured at the last connect_and_enable (s)
         self.enable_duration = math.nan
+        # restarts (a power cycle) and EMCYs counted (callbacks)
+        self._restarted = ''
+        #: EMCY frames received (every one, warnings and error resets too) and the last code
+        self.emcy_count = 0
+        self.last_emcy_code = 0
 
     @property
     def node(self) -> BaseNode402 | None:
@@ -255,7 +294,8 @@ class Cia402Drive:
             var = self._node.sdo[index] if subindex is None else self._node.sdo[index][subindex]
             var.raw = value
         except SdoCommunicationError as exc:
-            raise self._fail(step, f'no SDO answer writing 0x{index:04X} ({exc})',
+            raise self._fail(step, f'no SDO answer writing 0x{index:04X}'
+                                   f'{self._sdo_wait_text()} ({exc})',
                              DriveTimeoutError) from None
         except (SdoAbortedError, KeyError) as exc:
             raise self._fail(step, f'drive refused 0x{index:04X}={value} ({exc})',
@@ -270,7 +310,8 @@ class Cia402Drive:
             var = self._node.sdo[index] if subindex is None else self._node.sdo[index][subindex]
             return var.raw
         except SdoCommunicationError as exc:
-            raise self._fail(step, f'no SDO answer reading 0x{index:04X} '
+            raise self._fail(step, f'no SDO answer reading 0x{index:04X}'
+                                   f'{self._sdo_wait_text()} '
                                    f'(is the drive on {self.config.can_interface}:'
                                    f'{self.config.can_channel} as node '
                                    f'{self.config.drive_node_id}? {exc})',
@@ -337,6 +378,77 @@ class Cia402Drive:
             if not self._latched_reason:
                 desc = entry.get_desc() or 'drive error'
                 self._latched_reason = f'EMCY 0x{entry.code:04X} ({desc})'
+
+    EMCY_KEPT = 100     # canopen's EMCY log and active list are trimmed to this many
+
+    def _count_emcy(self, entry: EmcyError) -> None:
+        """Count every EMCY; keep canopen's lists of them bounded (a drive in an EMCY storm
+        sends hundreds a second: its log would grow without end)."""
+        self.emcy_count += 1
+        self.last_emcy_code = entry.code
+        emcy = self._node.emcy if self._node is not None else None
+        if emcy is not None and len(emcy.log) > 2 * self.EMCY_KEPT:
+            with emcy.emcy_received:
+                del emcy.log[:-self.EMCY_KEPT]
+                del emcy.active[:-self.EMCY_KEPT]
+
+    def _on_nmt_state(self, state: int) -> None:
+        """The drive's heartbeat or boot-up message (NMT state; 00h = boot-up). A drive we
+        enabled that boots, or says it is not operational, has lost its configuration (a
+        power cycle, a reset): latched, and `status().restarted` says why until
+        `reconfigure()` has brought it back."""
+        if state == _NMT_OPERATIONAL:
+            return
+        with self._lock:
+            if not self._enabled or self._restarted:
+                return
+            self._restarted = ('boot-up message' if state == 0
+                               else f'its heartbeat says NMT state 0x{state:02X}')
+            self._latched_reason = f'drive restarted ({self._restarted})'
+
+    def reconfigure(self) -> None:
+        """BLOCKING: configure and enable again a drive that restarted (`status().restarted`)
+        through the one start-up path, `connect_and_enable` (PDO mapping, mode, SYNC,
+        heartbeats, watchdogs, the enable steps). Until it returns the drive is not enabled:
+        send it nothing meanwhile (its enable steps send their own frames). Raises DriveError
+        (then call again: the drive is still to be configured)."""
+        with self._lock:
+            self._enabled = False
+            self._connected = False
+            self._reset_requested = False
+            self._latched_reason = self._latched_reason or 'drive being configured again'
+        self.connect_and_enable()
+        with self._lock:
+            self._restarted = ''
+
+    def probe_restart(self, timeout: float = 0.2) -> bool:
+        """BLOCKING (one SDO read, at most `timeout` s): whether a drive whose heartbeat is
+        lost restarted with its boot-up message lost on the bus: its heartbeat producer 0x1017
+        no longer reads what we wrote. Then `status().restarted` says so. Raises DriveError
+        when it does not answer (still off). Not while another SDO transfer to this drive
+        runs (the caller's to ensure: its SDO timeout is borrowed meanwhile)."""
+        self._check_open()
+        sdo = self._node.sdo
+        kept = sdo.RESPONSE_TIMEOUT, sdo.MAX_RETRIES
+        sdo.RESPONSE_TIMEOUT, sdo.MAX_RETRIES = timeout, 1
+        try:
+            period = self._read('is the drive restarted? (0x1017 heartbeat producer)',
+                                od.HEARTBEAT_PRODUCER)
+        finally:
+            sdo.RESPONSE_TIMEOUT, sdo.MAX_RETRIES = kept
+        if period == round(self.config.drive_heartbeat_period * 1000):
+            return False
+        with self._lock:
+            if not self._enabled or self._restarted:
+                return bool(self._restarted)
+            self._restarted = f'its heartbeat producer 0x1017 reads {period} ms: it lost its ' \
+                              'configuration'
+            self._latched_reason = f'drive restarted ({self._restarted})'
+        return True
+
+    def _sdo_wait_text(self) -> str:
+        return (f' within {SDO_ATTEMPTS} x {self.config.sdo_timeout:g} s (sdo_timeout, asked '
+                f'{SDO_ATTEMPTS} times)')
 
     def _heartbeat_age(self) -> float:
         stamp = self._node.nmt.timestamp if self._node is not None else None
@@ -566,9 +678,12 @@ class Cia402Drive:
         except BusError as exc:
             raise BusError(f'drive node {cfg.drive_node_id}: {exc}') from None
         node = BaseNode402(cfg.drive_node_id, eds)
-        node.sdo.RESPONSE_TIMEOUT = cfg.step_timeout
+        node.sdo.RESPONSE_TIMEOUT = cfg.sdo_timeout
+        node.sdo.MAX_RETRIES = SDO_ATTEMPTS             # a request or answer lost: asked again
         network.add_node(node)
         node.emcy.add_callback(self._on_emcy)
+        node.nmt.add_heartbeat_callback(self._on_nmt_state)
+        node.emcy.add_callback(self._count_emcy)
         self._network, self._node = network, node
 
     _open = open
@@ -611,7 +726,8 @@ class Cia402Drive:
                     maps[number].com_record[1].raw = PDO_NOT_VALID | cob_id
                     maps[number].enabled = False
         except SdoCommunicationError as exc:
-            raise self._fail(step, f'no SDO answer ({exc})', DriveTimeoutError) from None
+            raise self._fail(step, f'no SDO answer{self._sdo_wait_text()} ({exc})',
+                             DriveTimeoutError) from None
         except SdoAbortedError as exc:
             raise self._fail(step, f'drive refused the mapping ({exc})',
                              DriveRefusedError) from None
@@ -635,6 +751,11 @@ class Cia402Drive:
         if self.mode != CYCLIC_SYNC_POSITION:
             return 0
         with self._lock:
+            if (not self._enabled and self._raw_position is not None
+                    and time.monotonic() - self._motion_stamp < 3 * self.config.sync_period):
+                # enabling, with fresh feedback: where the shaft is now (after a restart it
+                # may still coast; the target written when configuring is behind it)
+                return _wrap_i32(self._position_counts)
             if self._target_counts is not None:
                 return self._target_counts
             return _wrap_i32(self._position_counts)
@@ -826,7 +947,7 @@ class Cia402Drive:
                 enabled=(self._enabled and self._connected and not reason
                          and not self._reset_requested and state == OPERATION_ENABLED),
                 commanded_velocity=self._commanded, mode=self.mode,
-                commanded_position=self._commanded_position)
+                commanded_position=self._commanded_position, restarted=self._restarted)
 
     def request_fault_reset(self) -> None:
         """Ask for one fault reset: the next send_velocity frames carry the reset edge (0x80)

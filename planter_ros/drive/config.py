@@ -73,9 +73,12 @@ class DeviceConfig:
     command_timeout: float = setting(0.2, 'drive-side command watchdog (RPDO deadline): the '
                                      'drive quick-stops if our frames stop', unit='s',
                                      range=(0.02, 5.0), read_only=True)
-    step_timeout: float = setting(0.5, 'timeout of each enable/disable state-machine step and '
-                                  'of each SDO answer', unit='s', range=(0.05, 10.0),
-                                  read_only=True)
+    step_timeout: float = setting(0.5, 'timeout of each enable/disable state-machine step',
+                                  unit='s', range=(0.05, 10.0), read_only=True)
+    sdo_timeout: float = setting(1.0, 'time an SDO answer may take (a drive busy with its '
+                                 'configuration answers in up to ~0.8 s); asked twice, then '
+                                 'the start fails naming the node and the object', unit='s',
+                                 range=(0.05, 10.0), read_only=True)
     drive_heartbeat_period: float = setting(0.1, "the drive's heartbeat producer period "
                                             '(0x1017)', unit='s', range=(0.01, 1.0),
                                             read_only=True)

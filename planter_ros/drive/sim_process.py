@@ -7,8 +7,10 @@ In the master's process the simulated drives share its GIL: a master stalled by 
 would see. Here they run on their own clock, as devices on the cable do, and count what a real
 drive would: watchdog trips, gaps between command frames and between SYNCs.
 
-The parent talks to it over stdin/stdout (JSON lines): end-of-file on stdin (the parent asked,
-or died, even by SIGKILL) stops the drives and the process; the last stdout line is the report
+The parent talks to it over stdin/stdout (JSON lines): a line `["power_cycle", node id, off
+s]` or `["emcy_storm", node id, rate, s]` injects that fault into that drive (`SimProcess.inject`;
+doc/command.md, "Faults and their recovery"); end-of-file on stdin (the parent asked, or died,
+even by SIGKILL) stops the drives and the process; the last stdout line is the report
 (`{"watchdog_trips": [[node id, reason, EMCY code], ...], "rpdo_gaps": {...}, "sync": {...}}`:
 per drive the gaps between command frames and the SYNC timing on its own clock). `SimProcess`
 is the parent's handle.
@@ -44,6 +46,15 @@ class SimProcess:
             self.process.wait()
             raise RuntimeError(f'the simulated drives did not start: {line.strip()!r}')
         self.report: dict | None = None
+
+    FAULTS = ('power_cycle', 'emcy_storm')
+
+    def inject(self, fault: str, node_id: int, *args: float) -> None:
+        """Inject `fault` ('power_cycle' off_s, 'emcy_storm' rate s) into drive `node_id`."""
+        if fault not in self.FAULTS:
+            raise ValueError(f'fault {fault!r}: allowed {", ".join(self.FAULTS)}')
+        self.process.stdin.write(json.dumps([fault, int(node_id), *args]) + '\n')
+        self.process.stdin.flush()
 
     def stop(self, timeout: float = 10.0) -> dict:
         """Stop the drives; their report ({} if none came)."""
@@ -87,8 +98,16 @@ def main(argv: list[str] | None = None) -> int:
     print('ready', os.getpid(), refused, flush=True)
     done = threading.Event()
 
+    drives = {d.node_id: d for d in sims.drives}
+
     def watch_stdin() -> None:
-        sys.stdin.read()                 # end-of-file: asked to stop, or the parent died
+        for line in sys.stdin:           # fault injections, until end-of-file: asked to stop,
+            try:                         # or the parent died
+                fault, node_id, *args = json.loads(line)
+                if fault in SimProcess.FAULTS:
+                    getattr(drives[int(node_id)], fault)(*args)
+            except (ValueError, KeyError, TypeError) as exc:
+                print(f'ignored {line.strip()!r}: {exc}', file=sys.stderr, flush=True)
         done.set()
     threading.Thread(target=watch_stdin, daemon=True).start()
     done.wait()
@@ -99,7 +118,9 @@ def main(argv: list[str] | None = None) -> int:
               'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
                                  for d in sims.drives},
               'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
-                               if d.record_bottom}}
+                               if d.record_bottom},
+              'faults': {str(d.node_id): {'power_cycles': d.power_cycles,
+                                          'emcy_sent': d.emcy_sent} for d in sims.drives}}
     print(json.dumps(report), flush=True)
     return 0
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import logging
 import math
+import random
 import struct
 import threading
 import time
@@ -168,7 +169,9 @@ class SimulatedDrive:
                  gear_ratio: float = 1.0, motor_reversed: bool = False,
                  mechanical_offset: float = 0.0, home_switch_width: float = 0.2,
                  identity: tuple[int, int, int, int] = (0x0000_0000, 0x0000_0402, 1, 0),
-                 record_bottom: bool = False) -> None:
+                 record_bottom: bool = False,
+                 sdo_delay: tuple[float, float] | None = None, sdo_slow_share: float = 1.0,
+                 seed: int = 0) -> None:
         """Build the drive (no thread yet, call start()).
 
         bus_or_channel: a python-can bus this drive uses (left open on stop()), or a channel
@@ -187,6 +190,9 @@ class SimulatedDrive:
         record_bottom: keep the instants the mechanism truly passes its bottom forwards (the
         tip lowest: a plant set; `bottom_times`, monotonic s), the truth a test measures the
         machine's own account of its plants against.
+        sdo_delay: (shortest, longest) s a slow drive takes to answer each SDO request (one
+        at a time, in order, drawn from a random stream seeded with `seed`); None: at once.
+        sdo_slow_share: the share of SDO requests answered that late (the others at once).
         """
         if time_constant <= 0 or max_acceleration <= 0 or counts_per_motor_rev <= 0 or tick <= 0:
             raise ValueError('time_constant, max_acceleration, counts_per_motor_rev and tick '
@@ -212,6 +218,12 @@ class SimulatedDrive:
         self.record_bottom = bool(record_bottom)
         #: monotonic s at which the mechanism passed its bottom forwards (record_bottom)
         self.bottom_times: list[float] = []
+        if sdo_delay is not None and not 0.0 <= sdo_delay[0] <= sdo_delay[1]:
+            raise ValueError(f'sdo_delay = {sdo_delay!r}: allowed (shortest, longest) >= 0 s')
+        self.sdo_delay = None if sdo_delay is None else (float(sdo_delay[0]),
+                                                         float(sdo_delay[1]))
+        self.sdo_slow_share = float(sdo_slow_share)
+        self._random = random.Random(f'{seed}:{node_id}')
 
         self._lock = threading.RLock()
         self._stop_event = threading.Event()
@@ -226,7 +238,12 @@ class SimulatedDrive:
         self.node.add_write_callback(self._on_write)
         self.node.add_read_callback(self._on_read)
         self.network.add_node(self.node)
-        self.network.subscribe(0, self._on_nmt)   # after LocalNode's own NMT handler
+        # SDO requests and NMT commands through our own handlers (a drive powered off hears
+        # nothing; a slow one answers late), which call LocalNode's
+        self.network.unsubscribe(self.node.sdo.rx_cobid, self.node.sdo.on_request)
+        self.network.unsubscribe(0, self.node.nmt.on_command)
+        self.network.subscribe(self.node.sdo.rx_cobid, self._on_sdo_request)
+        self.network.subscribe(0, self._on_nmt_command)
         self.network.subscribe(objs.SYNC_COB, self._on_sync)
         for pdo_map in self.node.rpdo.map.values():
             pdo_map.add_callback(self._on_rpdo)
@@ -256,7 +273,19 @@ class SimulatedDrive:
         self.sync_missing = 0
         self.following_error_faults = 0
         self.last_following_fault = ''
+        self.targets_missing = 0          # CSP: SYNCs that found no new target
         self._motor_time: float | None = None
+        # fault injection: power (off until a time), slow SDO answers, EMCY storms
+        self._powered = True
+        self._power_on_at = 0.0
+        self.power_cycles = 0
+        self._sdo_queue: list[tuple[float, int, bytes, float]] = []   # (answer at, frame)
+        self._sdo_free_at = 0.0
+        self.sdo_requests = 0
+        self.sdo_slow = 0                 # requests answered late
+        self._storm: tuple[float, float, float, int] | None = None    # start, end, rate, code
+        self._storm_sent = 0
+        self.emcy_sent = 0
 
     # ---------------------------------------------------------------- life cycle
     def _reset_application(self) -> None:
@@ -274,6 +303,7 @@ class SimulatedDrive:
             self._csp_from = 0.0
             self._csp_to = 0.0
             self._csp_start = -math.inf
+            self._csp_extrapolated = 0        # segments in a row without a new target
             self._sync_period = 0.0           # s, 0x1006 (0: not told)
             self._fe_window = math.inf        # counts, 0x6065
             self._fe_timeout = 0.0            # s, 0x6066
@@ -364,6 +394,99 @@ class SimulatedDrive:
         with self._lock:
             self._hb_enabled = bool(on)
 
+    def power_cycle(self, off_time: float = 0.5) -> None:
+        """Power off now for `off_time` s, then boot again. Off, the drive sends and hears
+        nothing and its load coasts down; at power-on it sends its boot-up message (700h + id,
+        data 00h) and comes up pre-operational in SWITCH ON DISABLED with its object
+        dictionary at the EDS defaults: PDO mapping, mode, SYNC, heartbeat and watchdog
+        settings are gone until the master writes them again. What a drive keeps in
+        non-volatile memory stays: the position of its absolute multi-turn encoder (0x6064
+        goes on from where the shaft is), the polarity 0x607E and the home offset."""
+        with self._lock:
+            self._powered = False
+            self._power_on_at = time.monotonic() + float(off_time)
+            self._state = NOT_READY                   # power stage off: the load coasts
+            self._nmt_operational = False
+            self._storm = None
+            self._sdo_queue.clear()
+            self.power_cycles += 1
+        self.rpdo_gaps.restart()
+        self.sync_gaps.restart()
+        self.heartbeat_gaps.restart()
+
+    @property
+    def powered(self) -> bool:
+        return self._powered
+
+    def _power_on(self) -> None:
+        """Boot after a power cycle (lock not held): see `power_cycle`."""
+        with self._lock:
+            kept = (self._position, self._velocity, self._motor_time, self._polarity,
+                    self._home_shift)
+        self._reset_application()
+        with self._lock:
+            (self._position, self._velocity, self._motor_time, self._polarity,
+             self._home_shift) = kept
+            self._consumed_heartbeat = None
+            self._sent_statusword = None
+            self._tpdo_last_sent.clear()
+            self._last_hb_sent = -math.inf
+            self._powered = True
+        self._boot()
+
+    def emcy_storm(self, rate: float, seconds: float, code: int = 0x4210) -> None:
+        """From now on for `seconds`, `rate` EMCY frames per second with `code` (a warning:
+        the drive's state does not change), as a drive with a chattering sensor sends them."""
+        now = time.monotonic()
+        with self._lock:
+            self._storm = (now, now + float(seconds), float(rate), int(code))
+            self._storm_sent = 0
+
+    def _step_faults(self, now: float) -> None:
+        """The injected faults' share of a step: slow SDO answers due, an EMCY storm."""
+        with self._lock:
+            due = [item for item in self._sdo_queue if item[0] <= now]
+            self._sdo_queue = [item for item in self._sdo_queue if item[0] > now]
+            storm, burst = self._storm, 0
+            if storm is not None:
+                start, end, rate, code = storm
+                burst = int((min(now, end) - start) * rate) - self._storm_sent
+                self._storm_sent += max(burst, 0)
+                if now >= end:
+                    self._storm = None
+        for _, can_id, data, stamp in due:
+            self.node.sdo.on_request(can_id, data, stamp)
+        for _ in range(burst):
+            self._send_emcy(storm[3], register=0x01)
+
+    def _on_sdo_request(self, can_id: int, data: bytes, timestamp: float) -> None:
+        """An SDO request: answered at once, or by a slow drive after `sdo_delay` (one at a
+        time, in order), or never while powered off."""
+        if not self._powered:
+            return
+        self.sdo_requests += 1
+        with self._lock:
+            now = time.monotonic()
+            slow = (self.sdo_delay is not None
+                    and self._random.random() < self.sdo_slow_share)
+            if not slow and now >= self._sdo_free_at:
+                at = None
+            else:
+                at = max(now, self._sdo_free_at) + (self._random.uniform(*self.sdo_delay)
+                                                    if slow else 0.0)
+                self.sdo_slow += slow
+                self._sdo_free_at = at
+                self._sdo_queue.append((at, can_id, bytes(data), timestamp))
+        if at is None:
+            self.node.sdo.on_request(can_id, data, timestamp)
+
+    def _on_nmt_command(self, can_id: int, data: bytes, timestamp: float) -> None:
+        """An NMT command: LocalNode applies it to node.nmt, then we react (`_on_nmt`)."""
+        if not self._powered:
+            return
+        self.node.nmt.on_command(can_id, data, timestamp)
+        self._on_nmt(can_id, data, timestamp)
+
     def hold_state(self, state: str | None) -> None:
         """Refuse every transition out of `state` (e.g. STO active keeps SWITCHED ON)."""
         with self._lock:
@@ -438,6 +561,7 @@ class SimulatedDrive:
         """SYNC timing as this drive saw it (its own clock)."""
         return {'syncs': self.sync_count, 'late': self.sync_late, 'missing': self.sync_missing,
                 'period': self._sync_period, 'gaps': self.sync_gaps.summary(),
+                'targets_missing': self.targets_missing,
                 'following_error_faults': self.following_error_faults}
 
     @property
@@ -595,6 +719,8 @@ class SimulatedDrive:
         """SYNC: count its timing (its time on the bus, as a drive's hardware sees it); in CSP
         bring the motor up to that instant, take the target received since the last SYNC and
         interpolate to it over one period; send the synchronous TPDOs."""
+        if not self._powered:
+            return
         now = wire_time(timestamp)
         with self._lock:
             self._advance(now)
@@ -608,12 +734,8 @@ class SimulatedDrive:
                     self.sync_missing += max(int(round(gap / period)) - 1, 0)
             self._last_sync = now
             self._syncs_seen += 1
-            if (self._mode == CYCLIC_SYNC_POSITION and self._state == OPERATION_ENABLED
-                    and self._csp_pending is not None):
-                self._csp_from = self._csp_setpoint(now)
-                self._csp_to = self._unwrap(self._csp_pending)
-                self._csp_start = now
-                self._csp_pending = None
+            if self._mode == CYCLIC_SYNC_POSITION and self._state == OPERATION_ENABLED:
+                self._next_segment(now)
         if not self._nmt_operational:
             return
         try:
@@ -624,15 +746,45 @@ class SimulatedDrive:
         except (can.CanError, RuntimeError, OSError) as exc:
             log.debug('simulated drive: TPDO send failed: %s', exc)
 
+    #: a SYNC without a new target (lost on the bus, or late), or a SYNC lost: the set point
+    #: goes on at the last segment's speed for at most this many periods, then holds
+    EXTRAPOLATE_PERIODS = 1
+
+    def _next_segment(self, now: float) -> None:
+        """At a SYNC in CSP (lock held): interpolate from the set point to the target received
+        since the last SYNC; without one, go on at the last segment's speed (extrapolation,
+        at most EXTRAPOLATE_PERIODS in a row), then hold."""
+        if self._csp_pending is not None:
+            self._csp_from = self._csp_setpoint(now)
+            self._csp_to = self._unwrap(self._csp_pending)
+            self._csp_pending = None
+            self._csp_extrapolated = 0
+        else:
+            self.targets_missing += 1
+            step = self._csp_to - self._csp_from
+            self._csp_from = self._csp_setpoint(now)
+            self._csp_extrapolated += 1
+            if self._csp_extrapolated > self.EXTRAPOLATE_PERIODS or not math.isfinite(
+                    self._csp_start):
+                step = 0.0
+            self._csp_to = self._csp_from + step
+        self._csp_start = now
+
+    def _csp_reach(self) -> float:
+        """How many periods the current segment's speed lasts: one, plus the extrapolation
+        left when no SYNC comes (a lost SYNC)."""
+        return 1.0 + max(self.EXTRAPOLATE_PERIODS - self._csp_extrapolated, 0)
+
     def _csp_setpoint(self, now: float) -> float:
         """The interpolated position set point (counts) at `now`: linear over one SYNC period
-        from the previous target to the newest (lock held)."""
+        from the previous target to the newest, extrapolated at that speed while a SYNC is
+        missing (lock held)."""
         period = self._sync_period or 0.01
-        share = min(max((now - self._csp_start) / period, 0.0), 1.0)
+        share = min(max((now - self._csp_start) / period, 0.0), self._csp_reach())
         return self._csp_from + (self._csp_to - self._csp_from) * share
 
     def _on_consumed_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
-        if (can_id & 0x7F) == self._consumer_node:
+        if self._powered and (can_id & 0x7F) == self._consumer_node:
             self._consumed_heartbeat = wire_time(timestamp)
             self.heartbeat_gaps.event(self._consumed_heartbeat)
 
@@ -763,6 +915,9 @@ class SimulatedDrive:
         self._send_state_tpdos()
 
     def _send_emcy(self, code: int, register: int) -> None:
+        if not self._powered:
+            return
+        self.emcy_sent += 1
         try:
             self.network.send_message(objs.emcy_cob(self.node_id),
                                       EMCY_STRUCT.pack(code, register, b''))
@@ -780,6 +935,12 @@ class SimulatedDrive:
         """One step of the drive's own work (motor, watchdogs, TPDOs, heartbeat); False once
         stopped."""
         try:
+            if not self._powered:
+                self._step_motor(dt, now)          # the load coasts, nothing is sent
+                if now >= self._power_on_at:
+                    self._power_on()
+                return True
+            self._step_faults(now)
             self._step_motor(dt, now)
             self._check_watchdogs(now)
             self._send_state_tpdos()
@@ -831,7 +992,7 @@ class SimulatedDrive:
             # position loop on the interpolated set point, with its speed as feed-forward
             setpoint = self._csp_setpoint(now)
             period = self._sync_period or 0.01
-            moving = now - self._csp_start < period
+            moving = now - self._csp_start < period * self._csp_reach()
             feed = (self._csp_to - self._csp_from) / period if moving else 0.0
             wanted = feed + (setpoint - self._position) / self.time_constant
             self._following_error = setpoint - self._position
