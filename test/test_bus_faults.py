@@ -147,7 +147,7 @@ def test_a_power_cycled_drive_is_configured_again_resumes_and_the_plants_missed_
     assert sim_b.nmt_state == 'OPERATIONAL' and sim_b.state == OPERATION_ENABLED
     assert sim_b.mode_display == CYCLIC_SYNC_POSITION
     assert sim_b.sync_summary()['period'] == pytest.approx(0.01)     # 0x1006 written again
-    assert sim_b.heartbeat_period == pytest.approx(0.1)               # 0x1017 written again
+    assert sim_b.heartbeat_period == pytest.approx(0.05)              # 0x1017 written again
     record = b.recovery.recoveries[-1]
     assert record['restarted'] and record['in_step']
     assert r.logged('the drive restarted (boot-up message): configured again')
@@ -244,8 +244,8 @@ def test_a_drive_fault_of_its_own_is_not_reset_by_the_bus_recovery(rig):
 
 # --------------------------------------------------------------------------- 10 % frame loss
 def test_ten_percent_of_frames_lost_both_ways_the_plants_still_come_at_the_spacing(rig):
-    # the settings 10 % loss needs (doc/command.md): heartbeats every 50 ms both ways
-    r = rig(bus_kwargs={'seed': 7}, heartbeat_period=0.05, drive_heartbeat_period=0.05)
+    # at the default settings (heartbeats every 50 ms both ways: doc/command.md)
+    r = rig(bus_kwargs={'seed': 7})
     r.start()
     r.run(2.5)
     start = time.monotonic()

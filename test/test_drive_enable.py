@@ -24,7 +24,7 @@ def test_enable_reaches_operation_enabled_in_profile_velocity(sim, make_drive):
     assert od.sdo[0x1400][5].raw == 200            # RPDO deadline = command_timeout
     assert od.sdo[0x6007].raw == 3                 # quick stop on a communication error
     assert od.sdo[0x1016][1].raw == (127 << 16) | 300
-    assert sim.heartbeat_period == pytest.approx(0.1)
+    assert sim.heartbeat_period == pytest.approx(0.05)
     assert status.heartbeat_age < 0.35
 
 

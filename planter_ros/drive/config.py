@@ -37,8 +37,9 @@ class BusConfig:
                                read_only=True)
     master_node_id: int = setting(127, 'our CANopen node id (heartbeat COB-ID 0x700 + id)',
                                   range=(1, 127), read_only=True)
-    heartbeat_period: float = setting(0.1, 'our CANopen heartbeat period, sent from the '
-                                      'control loop', unit='s', range=(0.01, 1.0),
+    heartbeat_period: float = setting(0.05, 'our CANopen heartbeat period, sent from the '
+                                      'control loop (0.05 s: the drive trips only after 6 '
+                                      'in a row are lost)', unit='s', range=(0.01, 1.0),
                                       read_only=True)
     sync_period: float = setting(0.01, 'SYNC period the command process produces for drives '
                                  'in cyclic synchronous position (0x1006, 0x60C2): one '
@@ -79,8 +80,8 @@ class DeviceConfig:
                                  'configuration answers in up to ~0.8 s); asked twice, then '
                                  'the start fails naming the node and the object', unit='s',
                                  range=(0.05, 10.0), read_only=True)
-    drive_heartbeat_period: float = setting(0.1, "the drive's heartbeat producer period "
-                                            '(0x1017)', unit='s', range=(0.01, 1.0),
+    drive_heartbeat_period: float = setting(0.05, "the drive's heartbeat producer period "
+                                            '(0x1017; 0.05 s: lost after 7 in a row)', unit='s', range=(0.01, 1.0),
                                             read_only=True)
     feedback_period: float = setting(0.01, 'TPDO event timer of the drive feedback (statusword '
                                      'and motion)', unit='s', range=(0.001, 1.0), read_only=True)
