@@ -8,6 +8,7 @@ here), `diagnostics.Report`s and log lines through the `log(level, text)` callab
 """
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 import logging
@@ -24,7 +25,7 @@ from planter_ros.control.cam_law import plan_for_design
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
 from planter_ros.control.machine import Machine
 from planter_ros.control.phase_lock import PhaseLock, PlantingAngles
-from planter_ros.control.row_loop import RowLoop, RowStep
+from planter_ros.control.row_loop import RowLoop, RowStep, csp_setpoint
 from planter_ros.control.sync_status import Halt
 from planter_ros.design import Design
 from planter_ros.drive.bus_load import BusLoad, bus_load, check_bus_load
@@ -121,6 +122,7 @@ class CommandEngine:
         self._last_bus_error: tuple[float, str] | None = None
         self.stopping = False               # ramping to zero before a shutdown
         self.csp = False                    # some row runs CSP: SYNC every step, targets
+        self._syncs: deque[float] = deque(maxlen=4)     # when the last SYNCs were sent
         # profile velocity: from a sample's receive time (the shell's, same clock) to the last
         # row's frame sent for it
         self.sample_latency = PeriodStats()
@@ -346,12 +348,16 @@ class CommandEngine:
                 return
             if self.csp:
                 try:
+                    sent = time.monotonic()
                     self.drives.canbus.send_sync()
+                    self._syncs.append(sent)        # the instant SYNC-triggered TPDOs measure
                 except DriveError as exc:
                     self._send_failed(now, exc, None)
             for unit in self.units:
                 if unit.running:
                     unit.status = unit.drive.status()
+                    if unit.csp:
+                        unit.status = sync_status.at_sync(unit.status, self._syncs)
             step = self.row_loop.step([unit.status if unit.running else None
                                        for unit in self.units],
                                       [unit.running for unit in self.units], now)
@@ -380,6 +386,7 @@ class CommandEngine:
         """The row's position for the next SYNC: advanced by its speed over the time since the
         last target (a late step is made up: the angle stays on the distance travelled)."""
         period = self.drive_config.sync_period
+        ahead = 0.0
         if row.halt is not None or unit.target is None:
             unit.target = unit.status.position if row.halt is None else None
             unit.behind = 0.0
@@ -390,13 +397,14 @@ class CommandEngine:
             step = min(owed, 2.0 * period)
             unit.behind = min(owed - step, 0.5)
             unit.target += row.command * step
-            if not self.stopping:
-                unit.target = _on_cam(unit.law, unit.target, now + period, step)
+            on_cam = None if self.stopping else _on_cam(unit.law, unit.target, now + period, step)
+            if on_cam is not None:          # a cam row's target is its angle at the next SYNC
+                unit.target, ahead = on_cam, period
         unit.target_time = now
         if unit.target is None:
             unit.drive.send_hold()
         else:
-            unit.drive.send_position(unit.target)
+            unit.drive.send_position(csp_setpoint(unit.target, row.command, period, ahead))
 
     def feedback(self) -> list[Feedback]:
         """Every running row's last measured motion (for joint_states)."""
@@ -550,14 +558,15 @@ class CommandEngine:
             }
 
 
-def _on_cam(law: Any, target: float, at: float, step: float) -> float:
+def _on_cam(law: Any, target: float, at: float, step: float) -> float | None:
     """A cam row's CSP target: the integrated `target` pulled onto θ(s) of the row's distance
     at the SYNC it applies at, by at most 1.5 times the law's correction bound over `step` (so a
     cam row's targets are θ(s) itself while it tracks, and a row catching up after a halt
-    closes in gradually). Rows without a cam, or not tracking, keep the integrated target."""
+    closes in gradually). None for rows without a cam or not tracking: they keep the integrated
+    target."""
     want = law.cam_target(at)
     if want is None:
-        return target
+        return None
     pull = 1.5 * law.config.max_correction * step
     return target + min(max(want - target, -pull), pull)
 
