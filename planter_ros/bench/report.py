@@ -1,5 +1,7 @@
 """The bench table for people, the JSON for machines and the markdown page for the docs."""
 
+import shlex
+
 from .machine import machine_line
 
 # The quality targets: (quantity, target, row group that measures it, text its rows' Target
@@ -154,6 +156,13 @@ def format_table(machine, rows):
     lines += ['notes:']
     lines += row_notes(rows)
     return '\n'.join(lines)
+
+
+def command_line(quick, only, runs, markdown):
+    """The `planter bench` command that reproduces a run (for the page's header)."""
+    words = ['planter', 'bench'] + ['--quick'] * bool(quick)
+    words += (['--only', only] if only else []) + (['--runs', str(runs)] if runs else [])
+    return shlex.join(words + ['--markdown', str(markdown)])
 
 
 def as_json(machine, rows, quick):

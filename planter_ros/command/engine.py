@@ -123,9 +123,10 @@ class CommandEngine:
         self.stopping = False               # ramping to zero before a shutdown
         self.csp = False                    # some row runs CSP: SYNC every step, targets
         self._syncs: deque[float] = deque(maxlen=4)     # when the last SYNCs were sent
+        self.sync_intervals = PeriodStats()              # between SYNCs sent
         # profile velocity: from a sample's receive time (the shell's, same clock) to the last
-        # row's frame sent for it
-        self.sample_latency = PeriodStats()
+        # row's frame sent for it (10 µs bins up to 0.1 s)
+        self.sample_latency = PeriodStats(1e-5, 0.1)
 
     # ---------------------------------------------------------------- the first row
     @property
@@ -351,6 +352,7 @@ class CommandEngine:
                     sent = time.monotonic()
                     self.drives.canbus.send_sync()
                     self._syncs.append(sent)        # the instant SYNC-triggered TPDOs measure
+                    self.sync_intervals.event(sent)
                 except DriveError as exc:
                     self._send_failed(now, exc, None)
             for unit in self.units:
@@ -554,6 +556,9 @@ class CommandEngine:
                 'loop_histogram': everything.histogram(),
                 'command_timeout': self.drive_config.command_timeout,
                 'sample_to_frame': self.sample_latency.summary(),
+                'sample_to_frame_histogram': self.sample_latency.histogram(),
+                'sync': self.sync_intervals.summary(),
+                'sync_histogram': self.sync_intervals.histogram(),
                 'csp': self.csp,
             }
 
