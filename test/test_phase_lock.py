@@ -308,3 +308,21 @@ def test_distance_and_feed_forward_never_run_backwards_when_the_machine_stops():
             assert law.travelled(t + h) >= last
             assert law.feed_forward(t + h) >= 0.0
             last = law.travelled(t + h)
+
+
+def test_a_sample_soon_after_a_gap_does_not_rush_the_gaps_correction():
+    # 0.4 s without samples across a 0.2 -> 0.3 m/s change, then samples every 50 ms: the
+    # gap's trapezoid correction (10 mm) goes in over the gap's length, not the next 50 ms
+    law = tracking_law()
+    t, fastest = 0.0, 0.0
+    for k in range(20):
+        t = 0.05 * (k + 1)
+        law.ground_speed(0.2, t)
+    before = law.travelled(t)
+    for t_next in [t + 0.4] + [t + 0.4 + 0.05 * k for k in range(1, 20)]:
+        law.ground_speed(0.3, t_next)
+        for h in (0.0, 0.02, 0.04):
+            fastest = max(fastest, law.feed_forward(t_next + h) * D / (2 * math.pi))
+    assert fastest <= 0.3 + 0.5 * 0.1 + 1e-9            # 10 mm over 0.4 s: 25 mm/s more at most
+    assert law.travelled(t + 1.5) == pytest.approx(            # all of it, in the end
+        before + 0.5 * (0.2 + 0.3) * 0.4 + 0.3 * 1.1, abs=1e-9)

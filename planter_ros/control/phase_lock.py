@@ -155,7 +155,7 @@ class PhaseLock:
         self._t_sample = None               # time of the last accepted (or negative) sample
         self._s = 0.0                       # travelled distance at _t_sample (m)
         # the trapezoid's correction still to take (m): (pending, the part taken over the
-        # `span` s after _t_sample, span); row_speed
+        # `window` s after _t_sample, window); row_speed
         self._catch = (0.0, 0.0, 0.0)
         self._fb = None                     # (angle rad, speed rad/s, stamp s)
         self._anchor = None                 # (θ at anchor, s at anchor)
@@ -305,20 +305,24 @@ class PhaseLock:
         cannot take (a stop) waits for the next sample. No correction across a stale gap."""
         v = max(float(v), 0.0)
         s = self.travelled(now)
-        catch = span = 0.0
+        catch = window = 0.0
         if self._t_sample is not None:
             span = now - self._t_sample
             if 0.0 < span <= self.config.ground_speed_timeout:
                 catch = self._catch[0] - self._caught(span) + 0.5 * (v - self._v) * span
+                # over the interval just seen, or what was left of the last correction's
+                # window: a sample soon after a long gap does not squeeze the gap's correction
+                # into its own short interval
+                window = max(span, self._catch[2] - span)
         self._s, self._v, self._t_sample = s, v, now
-        self._catch = (catch, max(catch, -v * span), span) if catch else (0.0, 0.0, 0.0)
+        self._catch = (catch, max(catch, -v * window), window) if catch else (0.0, 0.0, 0.0)
 
     def _caught(self, held: float) -> float:
         """The part of the pending correction taken `held` s after the newest sample (m)."""
-        _, usable, span = self._catch
-        if not usable or span <= 0.0:
+        _, usable, window = self._catch
+        if not usable or window <= 0.0:
             return 0.0
-        return usable * min(held / span, 1.0)
+        return usable * min(held / window, 1.0)
 
     def switch(self, on: bool, now: float) -> None:
         """Section control: off = come to rest at `stop_angle` and plant nothing more; on = a
@@ -366,9 +370,9 @@ class PhaseLock:
     def _speed(self, now: float) -> float:
         """The speed the distance runs at now (m/s): the newest sample's plus the pending
         trapezoid correction's rate (row_speed)."""
-        _, usable, span = self._catch
-        if usable and span > 0.0 and now - self._t_sample < span:
-            return self._v + usable / span
+        _, usable, window = self._catch
+        if usable and window > 0.0 and now - self._t_sample < window:
+            return self._v + usable / window
         return self._v
 
     @property
