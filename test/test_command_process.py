@@ -1,6 +1,7 @@
 """The command process (planter_ros.command): no rclpy in it; fed over its channel it drives the
 simulated drives (in another process, over a CAN socket pair); orphaned (its shell SIGKILLed) it
 ramps to zero, disables the drives and exits; killed itself, its shell reports and restarts it."""
+import json
 import logging
 import os
 from pathlib import Path
@@ -175,3 +176,31 @@ def test_a_command_process_that_dies_is_reported_and_restarted(drives_and_fd):
         assert report.level == 2 and 'not restarted' in report.message
     finally:
         client.shutdown()
+
+
+def test_the_shell_asks_for_a_larger_cpu_share_for_every_thread_or_says_why_not():
+    # in a child process (this one keeps its priority): threads running before the request and
+    # those started after it all get the nice value, or the refusal names the limit to raise
+    script = textwrap.dedent('''
+        import json, os, threading, time
+        from planter_ros.command import realtime
+        stop = threading.Event()
+        before = threading.Thread(target=stop.wait); before.start()
+        refused = realtime.request_nice(-3)
+        after = threading.Thread(target=stop.wait); after.start()
+        time.sleep(0.1)
+        tids = [int(t) for t in os.listdir('/proc/self/task')]
+        nices = sorted({os.getpriority(os.PRIO_PROCESS, t) for t in tids})
+        print(json.dumps([refused, len(tids), nices, realtime.request_nice(0)]))
+        stop.set()
+    ''')
+    out = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                         timeout=60, cwd=REPO)
+    assert out.returncode == 0, out.stderr
+    refused, threads, nices, nothing = json.loads(out.stdout)
+    assert threads >= 3
+    if not refused:
+        assert nices == [-3]
+    else:
+        assert 'nice -3 refused' in refused and 'CAP_SYS_NICE' in refused
+    assert nothing == ''                        # 0 asks for nothing

@@ -261,3 +261,68 @@ def test_without_planting_angles_a_new_design_applies_at_once_without_a_phase_ju
     gaps = np.diff(positions)
     # the gap in progress stretches between d and the new d, then the new spacing
     assert np.allclose(gaps[-2:], 0.3, atol=0.006) and gaps[1:].min() > 0.195 and gaps.max() < 0.31
+
+
+def test_distance_has_no_lag_behind_the_samples_through_a_speed_change():
+    # the demo's speed change 0.2 -> 0.3 m/s over 1 s, sampled at 20 Hz: the distance the
+    # mechanism is locked to is the trapezoid of the samples (what replay places plants at),
+    # not the samples held (which fell 25 ms behind: 2.5 mm for every plant after the change)
+    law = tracking_law()
+    v = lambda t: 0.2 + 0.1 * min(max(t - 1.0, 0.0), 1.0)      # noqa: E731
+    exact = lambda t: 0.2 * t + 0.05 * min(max(t - 1.0, 0.0), 1.0) ** 2 \
+        + 0.1 * max(t - 2.0, 0.0)                                    # noqa: E731
+    worst = 0.0
+    for k in range(1, 81):
+        t = 0.05 * k
+        law.ground_speed(v(t), t)
+        for h in (0.0, 0.02, 0.049):             # between samples it runs on, continuous
+            worst = max(worst, abs(law.travelled(t + h) - exact(t + h)))
+    assert abs(law.travelled(4.0) - exact(4.0)) < 1e-9
+    assert worst < 0.3e-3
+    held = 0.05 * sum(v(0.05 * k) for k in range(0, 80))      # the samples held: behind
+    assert exact(4.0) - held == pytest.approx(0.5 * 0.1 * 0.05, rel=0.05)
+
+
+def test_distance_runs_on_the_trapezoid_of_noisy_samples_without_adding_up_their_noise():
+    rng = np.random.default_rng(3)
+    law = tracking_law()
+    t = np.arange(1, 601) * 0.05
+    v = 0.2 + rng.normal(0.0, 0.005, t.size)
+    trapezoid = np.cumsum(np.diff(np.concatenate(([0.0], t))) * 0.5
+                          * (v + np.concatenate(([0.2], v[:-1]))))
+    off = []
+    for ti, vi, s in zip(t, v, trapezoid):
+        law.ground_speed(vi, ti)
+        off.append(law.travelled(ti) - s)
+    assert max(abs(x) for x in off) < 1e-3          # 30 s of samples: bounded, no random walk
+    assert abs(off[-1]) < 0.5e-3
+
+
+def test_distance_and_feed_forward_never_run_backwards_when_the_machine_stops():
+    law = tracking_law(v=0.3)
+    t, last = 0.0, 0.0
+    for v in (0.3, 0.2, 0.1, 0.0, 0.0, 0.0):
+        t += 0.05
+        law.ground_speed(v, t)
+        for h in (0.0, 0.025):
+            assert law.travelled(t + h) >= last
+            assert law.feed_forward(t + h) >= 0.0
+            last = law.travelled(t + h)
+
+
+def test_a_sample_soon_after_a_gap_does_not_rush_the_gaps_correction():
+    # 0.4 s without samples across a 0.2 -> 0.3 m/s change, then samples every 50 ms: the
+    # gap's trapezoid correction (10 mm) goes in over the gap's length, not the next 50 ms
+    law = tracking_law()
+    t, fastest = 0.0, 0.0
+    for k in range(20):
+        t = 0.05 * (k + 1)
+        law.ground_speed(0.2, t)
+    before = law.travelled(t)
+    for t_next in [t + 0.4] + [t + 0.4 + 0.05 * k for k in range(1, 20)]:
+        law.ground_speed(0.3, t_next)
+        for h in (0.0, 0.02, 0.04):
+            fastest = max(fastest, law.feed_forward(t_next + h) * D / (2 * math.pi))
+    assert fastest <= 0.3 + 0.5 * 0.1 + 1e-9            # 10 mm over 0.4 s: 25 mm/s more at most
+    assert law.travelled(t + 1.5) == pytest.approx(            # all of it, in the end
+        before + 0.5 * (0.2 + 0.3) * 0.4 + 0.3 * 1.1, abs=1e-9)

@@ -302,8 +302,9 @@ def test_a_gap_in_the_inputs_reports_every_instant_inside_it_flagged_and_restart
     assert len(cut) == len(full) and not np.any(full.input_gap)       # none lost
     flagged = cut.input_gap == 1
     inside = np.zeros(len(full), dtype=bool)
-    for lo, hi in (j_gap, s_gap):
-        inside |= (full.time > lo) & (full.time < hi)
+    for kept in (run.joint_t[jk], run.speed_t[sk]):      # between the samples around a gap
+        k = int(np.argmax(np.diff(kept)))
+        inside |= (full.time > kept[k]) & (full.time < kept[k + 1])
     assert inside.sum() >= 2 and np.array_equal(flagged, inside)
     for field in ('hole_width', 'tilt', 'upright', 'spacing', 'speed_ratio'):
         assert np.all(np.isnan(getattr(cut, field)[flagged])), field

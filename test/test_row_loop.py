@@ -7,7 +7,7 @@ import pytest
 
 from planter_ros.control import sync_status
 from planter_ros.control.machine import Machine
-from planter_ros.control.row_loop import RowLoop
+from planter_ros.control.row_loop import CSP_LEAD, RowLoop, csp_setpoint
 from planter_ros.drive.state_names import FAULT, OPERATION_ENABLED
 
 D = 0.2
@@ -143,3 +143,29 @@ def test_stop_ramps_every_row_to_zero_at_its_acceleration_limit_whatever_the_gro
         assert row.command == pytest.approx(max(was - 10.0, 0.0))
     done = loop.step([Snap(stamp=9.5)] * 2, [True, True], 9.5)
     assert all(row.command == 0.0 for row in done.rows)
+
+
+def test_a_csp_drive_reaching_its_targets_two_syncs_later_does_not_trail_the_law_in_a_ramp():
+    # CiA 402 interpolation: a target sent after SYNC k is reached at SYNC k+2. With the lead
+    # the drive's set point is on the law's angle through a ramp (off by α·P²·2 only); sent
+    # bare it trails by 2·P·ω, more the faster the row turns
+    period, alpha = 0.01, 3.0                    # s, rad/s² (the demo's 0.1 m/s² at d = 0.2)
+    law_angle = lambda t: 0.5 * alpha * t * t    # noqa: E731
+    led, bare = [], []
+    for k in range(300):
+        t = k * period
+        reached = t + CSP_LEAD * period          # when the drive's set point gets there
+        led.append(csp_setpoint(law_angle(t), alpha * t, period) - law_angle(reached))
+        bare.append(law_angle(t) - law_angle(reached))
+    assert max(abs(e) for e in led) <= 2 * alpha * period ** 2 + 1e-12
+    assert min(bare) < -0.15                     # 2·P·ω at 9 rad/s: 0.18 rad (5.7 mm)
+    # a target already the angle one SYNC ahead (a cam row's) gets the rest of the lead
+    assert csp_setpoint(1.0, 5.0, period, ahead=period) == pytest.approx(1.0 + 5.0 * period)
+
+
+def test_csp_feedback_is_stamped_at_the_sync_that_measured_it():
+    syncs = [10.00, 10.01, 10.02]
+    arrived = Snap(position=1.0, stamp=10.0115)        # the TPDO of the SYNC at 10.01
+    assert sync_status.at_sync(arrived, syncs).stamp == 10.01
+    assert sync_status.at_sync(Snap(stamp=9.99), syncs).stamp == 9.99      # none before it
+    assert sync_status.at_sync(Snap(stamp=0.0), syncs).stamp == 0.0        # no feedback yet

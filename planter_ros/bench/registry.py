@@ -21,6 +21,8 @@ import sys
 import time
 import traceback
 
+from planter_ros.config import setting
+
 from .timing import measure
 
 # modules whose import registers cases, in table order
@@ -30,6 +32,7 @@ CASE_MODULES = (
     'planter_ros.bench.cases.sync',
     'planter_ros.bench.cases.control_loop',
     'planter_ros.bench.cases.command_path',
+    'planter_ros.bench.cases.command_targets',
     'planter_ros.bench.cases.replay',
     'planter_ros.bench.cases.analyze',
     'planter_ros.bench.cases.cdr',
@@ -116,6 +119,8 @@ class BenchContext:
     quick: bool = False
     verbose: bool = True
     seed: int = 20240601
+    runs: int | None = setting(None, 'how many runs a case of whole runs makes (default: its '
+                               "own, e.g. the issue's 10 demo runs)", kind=int, range=(1, 1000))
 
     def n(self, full, quick):
         """The size to use: `full` for a real run, `quick` for the CI smoke run."""

@@ -2,10 +2,10 @@
 optionally also written as a markdown page (doc/benchmarks.md is made this way)."""
 
 import json
-import shlex
 import time
 
-from planter_ros.cli.options import output_file
+from planter_ros.bench.registry import BenchContext
+from planter_ros.cli.options import output_file, spec_option
 
 
 def add_arguments(parser):
@@ -19,6 +19,9 @@ def add_arguments(parser):
                              'trade one for the other')
     parser.add_argument('--only', metavar='TEXT',
                         help='run only the cases whose name contains TEXT (e.g. "hole")')
+    parser.add_argument('--runs', metavar='N', type=spec_option(BenchContext, 'runs', '--runs'),
+                        help='how many runs the cases made of whole demo runs make '
+                             '(default: each case\'s own, 10)')
     parser.add_argument('--markdown', metavar='FILE.md', type=output_file('--markdown', ('.md',)),
                         help='also write the results as a markdown page to FILE (replaced '
                              'atomically): how it was made, the quality targets, one table '
@@ -28,11 +31,11 @@ def add_arguments(parser):
 def run(args):
     from planter_ros.cli.main import BadInput
     from planter_ros.bench.machine import machine_info
-    from planter_ros.bench.registry import BenchContext, run_cases
-    from planter_ros.bench.report import as_json, format_markdown, format_table
+    from planter_ros.bench.registry import run_cases
+    from planter_ros.bench.report import as_json, command_line, format_markdown, format_table
     from planter_ros.output_files import atomic_output, write_text_atomically
 
-    ctx = BenchContext(quick=args.quick)
+    ctx = BenchContext(quick=args.quick, runs=args.runs)
     machine = machine_info()
     started = time.monotonic()
     rows = run_cases(ctx, only=args.only)
@@ -45,7 +48,8 @@ def run(args):
             plot_tradeoff(machine, rows, tmp)
     if args.markdown:
         write_text_atomically(args.markdown, format_markdown(
-            machine, rows, command_line(args), quick=args.quick, seconds=seconds))
+            machine, rows, command_line(args.quick, args.only, args.runs, args.markdown),
+            quick=args.quick, seconds=seconds))
     if args.json:
         out = as_json(machine, rows, args.quick)
         if args.plot:
@@ -61,13 +65,3 @@ def run(args):
             print(f'markdown: {args.markdown}')
     return 1 if any(r.status == 'FAILED' for r in rows) else 0
 
-
-def command_line(args):
-    """The `planter bench` command that reproduces this run (for the page's header)."""
-    words = ['planter', 'bench']
-    if args.quick:
-        words.append('--quick')
-    if args.only:
-        words += ['--only', args.only]
-    words += ['--markdown', args.markdown]
-    return shlex.join(words)

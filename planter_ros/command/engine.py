@@ -8,6 +8,7 @@ here), `diagnostics.Report`s and log lines through the `log(level, text)` callab
 """
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 import logging
@@ -25,7 +26,7 @@ from planter_ros.control.cam_law import plan_for_design
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
 from planter_ros.control.machine import Machine
 from planter_ros.control.phase_lock import PhaseLock, PlantingAngles
-from planter_ros.control.row_loop import RowLoop, RowStep
+from planter_ros.control.row_loop import RowLoop, RowStep, csp_setpoint
 from planter_ros.control.sync_status import Halt
 from planter_ros.design import Design
 from planter_ros.drive.bus_load import BusLoad, bus_load, check_bus_load
@@ -135,9 +136,11 @@ class CommandEngine:
         self._last_bus_error: tuple[float, str] | None = None
         self.stopping = False               # ramping to zero before a shutdown
         self.csp = False                    # some row runs CSP: SYNC every step, targets
+        self._syncs: deque[float] = deque(maxlen=4)     # when the last SYNCs were sent
+        self.sync_intervals = PeriodStats()              # between SYNCs sent
         # profile velocity: from a sample's receive time (the shell's, same clock) to the last
-        # row's frame sent for it
-        self.sample_latency = PeriodStats()
+        # row's frame sent for it (10 µs bins up to 0.1 s)
+        self.sample_latency = PeriodStats(1e-5, 0.1)
         self._bus_trouble_at = -math.inf    # the last CAN send or receive error (monotonic s)
         self._bus_back_said = True
 
@@ -394,12 +397,18 @@ class CommandEngine:
                 return
             if self.csp:
                 try:
+                    sent = time.monotonic()
                     self.drives.canbus.send_sync()
+                    self._syncs.append(sent)        # the instant SYNC-triggered TPDOs measure
+                    self.sync_intervals.event(sent)
                 except DriveError as exc:
                     self._send_failed(now, exc, None)
             for unit in self.units:
                 if unit.running:
-                    unit.status = self._shifted(unit, unit.drive.status())
+                    status = unit.drive.status()
+                    if unit.csp:
+                        status = sync_status.at_sync(status, self._syncs)
+                    unit.status = self._shifted(unit, status)
                     self._watch(unit, now)
             step = self.row_loop.step([unit.status if unit.running else None
                                        for unit in self.units],
@@ -587,6 +596,7 @@ class CommandEngine:
             raise
 
     def _next_target(self, unit: RowUnit, row: RowStep, now: float, period: float) -> None:
+        ahead = 0.0
         if row.halt is not None or unit.target is None:
             # (re)start from where the drive is, once its position is fresh (after a restart
             # the last one known may be from before it: the shaft coasted on since)
@@ -600,13 +610,15 @@ class CommandEngine:
             step = min(owed, 2.0 * period)
             unit.behind = min(owed - step, 0.5)
             unit.target += row.command * step
-            if not self.stopping:
-                unit.target = _on_cam(unit.law, unit.target, now + period, step)
+            on_cam = None if self.stopping else _on_cam(unit.law, unit.target, now + period, step)
+            if on_cam is not None:          # a cam row's target is its angle at the next SYNC
+                unit.target, ahead = on_cam, period
         unit.target_time = now
         if unit.target is None:
             unit.drive.send_hold()
         else:
-            unit.drive.send_position(unit.target - unit.angle_shift)
+            unit.drive.send_position(csp_setpoint(unit.target, row.command, period, ahead)
+                                     - unit.angle_shift)
 
     def feedback(self) -> list[Feedback]:
         """Every running row's last measured motion (for joint_states)."""
@@ -767,18 +779,22 @@ class CommandEngine:
                 'loop_histogram': everything.histogram(),
                 'command_timeout': self.drive_config.command_timeout,
                 'sample_to_frame': self.sample_latency.summary(),
+                'sample_to_frame_histogram': self.sample_latency.histogram(),
+                'sync': self.sync_intervals.summary(),
+                'sync_histogram': self.sync_intervals.histogram(),
                 'csp': self.csp,
             }
 
 
-def _on_cam(law: Any, target: float, at: float, step: float) -> float:
+def _on_cam(law: Any, target: float, at: float, step: float) -> float | None:
     """A cam row's CSP target: the integrated `target` pulled onto θ(s) of the row's distance
     at the SYNC it applies at, by at most 1.5 times the law's correction bound over `step` (so a
     cam row's targets are θ(s) itself while it tracks, and a row catching up after a halt
-    closes in gradually). Rows without a cam, or not tracking, keep the integrated target."""
+    closes in gradually). None for rows without a cam or not tracking: they keep the integrated
+    target."""
     want = law.cam_target(at)
     if want is None:
-        return target
+        return None
     pull = 1.5 * law.config.max_correction * step
     return target + min(max(want - target, -pull), pull)
 

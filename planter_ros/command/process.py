@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import gc
 import logging
+import math
 import os
 import signal
 import socket
@@ -47,6 +48,7 @@ from planter_ros.drive.socket_bus import INTERFACE, SocketPairBus
 __all__ = ['ORPHAN_RAMP_LIMIT', 'main', 'run']
 
 ORPHAN_RAMP_LIMIT = 5.0       # s an orphaned process ramps at most before disabling anyway
+SWITCH_INTERVAL = 5e-4        # s a worker thread may hold the interpreter while the loop waits
 LIBRARY_LOGGERS = ('can', 'canopen', 'planter_ros.drive')
 
 
@@ -119,6 +121,10 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
         logging.getLogger(name).propagate = False
     refused = [why for why in (realtime.request_fifo(settings.loop.realtime_priority),
                                realtime.lock_memory(), death) if why]
+    # the loop waits for the interpreter whenever a worker thread holds it (the bus listener
+    # decoding a burst of TPDOs, the planting angles of a new design): ask such a thread to
+    # hand it over after 0.5 ms instead of Python's default 5 ms
+    sys.setswitchinterval(SWITCH_INTERVAL)
     if refused:
         log(logging.WARNING, 'command process runs without real-time guarantees: '
                              + '; '.join(refused))
@@ -168,6 +174,7 @@ def _loop(engine: CommandEngine, channel: Channel, settings: CommandSettings,
     next_tick = time.monotonic()
     next_diag = next_tick
     skipped = 0
+    sampled = -math.inf         # when a sample last sent every row's frames (profile velocity)
     while True:
         if terminated.received:
             return True
@@ -187,9 +194,14 @@ def _loop(engine: CommandEngine, channel: Channel, settings: CommandSettings,
         if speed is not None:
             v, w, stamp = speed
             engine.sample(v, w, stamp)
+            sampled = time.monotonic()
         now = time.monotonic()
         if now >= next_tick:
-            engine.step(now)
+            # in profile velocity a sample sends every row's frames itself: the periodic step
+            # (the drives' keep-alive, the law's ramps without samples) only when none did
+            # within a period, so it does not hold up the next sample's frames
+            if engine.csp or now - sampled >= period:
+                engine.step(now)
             next_tick = max(next_tick + period, now)     # behind: take up the pace from now
             try:
                 channel.send('fb', {'feedback': [[f.joint, f.position, f.velocity, f.stamp]

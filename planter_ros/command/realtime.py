@@ -11,7 +11,8 @@ import signal
 
 from planter_ros import processes
 
-__all__ = ['MCL_CURRENT', 'MCL_FUTURE', 'request_fifo', 'lock_memory', 'die_with_parent']
+__all__ = ['MCL_CURRENT', 'MCL_FUTURE', 'request_fifo', 'request_nice', 'lock_memory',
+           'die_with_parent']
 
 MCL_CURRENT, MCL_FUTURE = 1, 2
 
@@ -33,6 +34,30 @@ def request_fifo(priority: int) -> str:
     except (OSError, ValueError) as exc:
         return (f'SCHED_FIFO priority {priority} refused ({exc}); raise the rtprio limit '
                 '(limits.conf / systemd LimitRTPRIO) or run with CAP_SYS_NICE')
+    return ''
+
+
+def request_nice(nice: int) -> str:
+    """Every thread of this process, and those it starts later, at `nice` (-20..-1): a larger
+    share of a busy CPU than ordinary processes, without a real-time class (the sync node's
+    shell: the DDS threads and the callback that forward a ground-speed sample to the command
+    process); '' when granted. `nice` 0 asks for nothing (and says nothing)."""
+    if nice >= 0:
+        return ''
+    if not hasattr(os, 'setpriority'):
+        return 'setpriority is not available on this system'
+    try:
+        threads = [int(tid) for tid in os.listdir('/proc/self/task')]
+    except OSError:
+        threads = [0]                      # no /proc: this thread (and those it starts)
+    for tid in threads:
+        try:
+            os.setpriority(os.PRIO_PROCESS, tid, nice)
+        except ProcessLookupError:         # the thread has ended meanwhile
+            continue
+        except OSError as exc:
+            return (f'nice {nice} refused ({exc.strerror}); raise the nice limit (limits.conf '
+                    '/ systemd Nice=) or run with CAP_SYS_NICE')
     return ''
 
 

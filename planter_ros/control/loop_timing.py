@@ -48,6 +48,10 @@ class SyncLoopConfig:
     realtime_priority: int = setting(40, 'SCHED_FIFO priority the command process asks for '
                                      '(0 = ask for none); refused = said in the log and in '
                                      '/diagnostics, it runs on', range=(0, 99), read_only=True)
+    shell_nice: int = setting(-10, "nice value this node asks for when a command process runs "
+                              'the drives (its ground-speed path competes for the CPU with '
+                              'other processes; 0 = ask for none); refused = said in the log',
+                              range=(-20, 0), read_only=True)
     command_restarts: int = setting(3, 'times the node restarts a command process that died '
                                     "(the drives' own watchdogs stop the motors meanwhile); "
                                     'then it reports ERROR', range=(0, 100), read_only=True)

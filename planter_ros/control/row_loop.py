@@ -24,7 +24,21 @@ from . import sync_status
 from .machine import Machine
 from .sync_status import Halt
 
-__all__ = ['RowStep', 'LoopStep', 'RowLoop']
+__all__ = ['CSP_LEAD', 'RowStep', 'LoopStep', 'RowLoop', 'csp_setpoint']
+
+# SYNC periods from a CSP step to when the drive's set point reaches the target it sends: the
+# target goes out right after SYNC k, the drive takes it at SYNC k+1 and interpolates to it
+# over one period (60C2h), reaching it at SYNC k+2
+CSP_LEAD = 2
+
+
+def csp_setpoint(target: float, command: float, period: float, ahead: float = 0.0) -> float:
+    """The position target (rad) a CSP row sends after a SYNC: its angle `target`, which is
+    the row's angle `ahead` s from now (0: now), carried on at `command` (rad/s) to the
+    instant the drive's set point reaches it (CSP_LEAD periods on). Without the lead the set
+    point trails the law by two periods (20 ms at 10 ms SYNC), which the phase correction
+    only makes up at its own pace: 0.6-0.9 mm behind in every ramp of the demo's profile."""
+    return target + command * max(CSP_LEAD * period - ahead, 0.0)
 
 
 @dataclass(frozen=True)

@@ -185,6 +185,7 @@ def child_main(conn, settings):
         sync = SyncNode(context=context, namespace=settings.namespace, parameter_overrides=[
             Parameter(name, value=value) for name, value in parameters])
         send('built', {'bus_load': sync.bus_load.load, 'bitrate': sync.bus_load.bitrate})
+        sync.raise_shell_priority()
         sync.enable_drive()                        # blocking; the loop spins right after it
         # what start-up built (canopen's object dictionaries, rclpy, numpy, scipy) lives as
         # long as the process: out of the collector's reach, a full collection scans only

@@ -742,8 +742,10 @@ class Cia402Drive:
                 node.tpdo[layout.number].add_callback(self._on_status_tpdo)
         self._rpdo = rpdo
         mapped = tuple((var.index, var.offset, var.length) for var in rpdo)
-        self._rpdo_packed = (mapped == layout.bit_layout
-                             and rpdo.cob_id == layout.cob_id(cfg.drive_node_id))
+        # (the RPDO's layout: `layout` is the last TPDO's after the loop above, which left the
+        # packed hot path off on every drive)
+        self._rpdo_packed = (mapped == self._layout.bit_layout
+                             and rpdo.cob_id == self._layout.cob_id(cfg.drive_node_id))
 
     def _hold_counts(self) -> int:
         """The target that holds the drive: velocity 0, or in CSP the last target sent (the

@@ -81,8 +81,8 @@ class DeviceConfig:
                                  'the start fails naming the node and the object', unit='s',
                                  range=(0.05, 10.0), read_only=True)
     drive_heartbeat_period: float = setting(0.05, "the drive's heartbeat producer period "
-                                            '(0x1017; 0.05 s: lost after 7 in a row)', unit='s', range=(0.01, 1.0),
-                                            read_only=True)
+                                            '(0x1017; 0.05 s: lost after 7 in a row)', unit='s',
+                                            range=(0.01, 1.0), read_only=True)
     feedback_period: float = setting(0.01, 'TPDO event timer of the drive feedback (statusword '
                                      'and motion)', unit='s', range=(0.001, 1.0), read_only=True)
     reset_timeout: float = setting(1.0, 'a fault reset not finished by then is abandoned',

@@ -38,6 +38,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from planter_ros import diagnostics, interfaces, stop_signals
+from planter_ros.command import realtime
 from planter_ros.command.client import CommandClient
 from planter_ros.command.engine import CommandEngine
 from planter_ros.command.settings import LAW_CLASSES, CommandSettings
@@ -206,6 +207,15 @@ class SyncNode(Node):
             self.engine.final_report().get('send_errors', 0)
 
     # ---------------------------------------------------------------- life cycle
+    def raise_shell_priority(self):
+        """A process of its own (main, the demo's sync process) with a command process: every
+        thread of it at `shell_nice`, so CPU-bound neighbours do not hold a ground-speed sample
+        between its receipt and the channel (refused: said in the log once the drives run)."""
+        if not self.in_process:
+            refused = realtime.request_nice(self.loop.shell_nice)
+            if refused:
+                self._log(logging.WARNING, f'sync node shell runs at normal priority: {refused}')
+
     def enable_drive(self):
         """BLOCKING: start the command path and enable every row's drive at once (start-up
         only). A row whose drive does not answer is reported and left out; raises DriveError
@@ -388,6 +398,7 @@ def main(args=None):
     try:
         node = SyncNode(namespace=interfaces.NAMESPACE,
                         arguments=sys.argv if args is None else args)
+        node.raise_shell_priority()
         node.enable_drive()
         library_log.node = node
         if stop.received is None:            # not stopped while the drives were enabled

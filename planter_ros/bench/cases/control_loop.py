@@ -61,7 +61,7 @@ def loaded_runs(runs, duration, progress=lambda text: None):
                       'planter_ros.control.loop_timing'))
 def control_loop_under_load(ctx):
     from planter_ros.control.loop_timing import PeriodStats
-    runs, duration = ctx.n(10, 1), ctx.n(30.0, 8.0)
+    runs, duration = ctx.runs or ctx.n(10, 1), ctx.n(30.0, 8.0)
     ctx.progress(f'  {runs} demo run(s) of {duration:g} s, {HOGS} CPU hogs beside each ...')
     results = loaded_runs(runs, duration, ctx.progress)
     pooled = PeriodStats()
