@@ -167,14 +167,31 @@ def test_a_killed_demo_still_has_its_drives_shut_down_by_the_sync_process(tmp_pa
     assert 'drive shut down (target 0, disabled, pre-operational)' in rest, ''.join(lines) + rest
 
 
-def test_the_four_row_demo_plants_every_row_through_the_turns_and_replays_per_row(tmp_path):
-    from planter_ros.recording.replay import replay
+@pytest.fixture(scope='module')
+def four_row_demo(tmp_path_factory):
+    """One 16 s run of the 4-row demo (once more if the host starved it): its completed
+    `planter demo` and its bag, read by the two tests below."""
+    folder = tmp_path_factory.mktemp('four_rows')
     for attempt in range(2):
-        bag = tmp_path / f'four_rows_{attempt}.mcap'
+        bag = folder / f'four_rows_{attempt}.mcap'
         out = run_planter('demo', '--scene', REPO / 'config' / 'tomato_4row.yaml',
                           '--duration', '16', '--bag', bag, timeout=180)
         if not host_starved(out.stdout):
             break
+    return out, bag
+
+
+def test_the_4_row_layout_opens_the_4_row_demo_bag(four_row_demo):
+    from test_foxglove_layout import check_the_4_row_layout_opens
+    out, bag = four_row_demo
+    assert bag.exists(), out.stdout[-2000:] + out.stderr[-2000:]
+    check_the_4_row_layout_opens(bag)
+
+
+def test_the_four_row_demo_plants_every_row_through_the_turns_and_replays_per_row(
+        four_row_demo, tmp_path):
+    from planter_ros.recording.replay import replay
+    out, bag = four_row_demo
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     names = ['left_outer', 'left_inner', 'right_inner', 'right_outer']
     for name in names:
