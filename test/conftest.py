@@ -33,3 +33,12 @@ from ros_fixtures import ros  # noqa: E402, F401
 from drive_helpers import channel, enabled, make_drive, sim, spy  # noqa: E402, F401
 # the rice three-arm scene and its mechanism (module scope), for the three-arm test modules
 from three_arm_fixtures import mech, params  # noqa: E402, F401
+
+
+def pytest_collection_modifyitems(config, items):
+    """Modules holding a test marked `slow` run first (the order within a module, and among
+    the slow and among the other modules, kept): with two processes (pytest.ini) the long
+    modules are then spread over both from the start instead of one process ending alone on
+    a long module it took last."""
+    slow = {item.nodeid.split('::', 1)[0] for item in items if item.get_closest_marker('slow')}
+    items[:] = sorted(items, key=lambda item: item.nodeid.split('::', 1)[0] not in slow)
