@@ -381,9 +381,12 @@ def start_stray(domain, sensor='stray_sensor'):
 def test_two_demos_side_by_side_and_a_stray_graph_in_domain_0_change_nothing(tmp_path):
     stray = start_stray(0)
     try:
-        demos = [start_demo('--duration', '10', '--bag', tmp_path / f'run{i}.mcap',
-                            cwd=tmp_path) for i in range(2)]
-        outs = [proc.communicate(timeout=180)[0] for proc in demos]
+        for attempt in range(2):
+            demos = [start_demo('--duration', '10', '--bag', tmp_path / f'run{attempt}{i}.mcap',
+                                cwd=tmp_path) for i in range(2)]
+            outs = [proc.communicate(timeout=180)[0] for proc in demos]
+            if not any(host_starved(out) for out in outs):
+                break
     finally:
         stray.kill()
         stray.wait()
