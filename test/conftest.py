@@ -37,43 +37,54 @@ from drive_helpers import channel, enabled, make_drive, sim, spy  # noqa: E402, 
 from three_arm_fixtures import mech, params  # noqa: E402, F401
 
 
-# Tests whose pass depends on being scheduled in real time: live ROS graphs, simulated drives
+# Modules whose tests pass only when scheduled in real time: live ROS graphs, simulated drives
 # and their masters, `planter demo` runs, commissioning, signal and process-death timings, the
 # bench (its control-loop case loads the CPU on purpose). With two processes (pytest.ini) they
-# all run on one process, one after the other as in a serial run, and the other process, which
-# runs the rest meanwhile, lowers its CPU priority so it never starves them; it takes its normal
-# priority back once they are done (where the user may: root).
-REALTIME_MODULES = {'test_acceptance.py', 'test_bench.py', 'test_cam_demo.py',
-                    'test_command_process.py', 'test_commission.py', 'test_csp.py',
-                    'test_demo.py', 'test_die_with_parent.py', 'test_no_leftovers.py',
-                    'test_recorder_signals.py', 'test_stop_signals.py',
-                    'test_sync_node_start.py'}
-REALTIME_FIXTURES = {'ros', 'sim', 'enabled', 'channel', 'make_drive', 'spy', 'rig', 'machine'}
+# all run on one process, one after the other as in a serial run, while the other process runs
+# the rest at a lower CPU priority (so it never starves them), until they are done. A new module
+# with a live graph or a drive (the `ros`, `sim`, `channel`... fixtures) belongs here.
+REALTIME_MODULES = {
+    'test_acceptance.py', 'test_bench.py', 'test_bus_load.py', 'test_cam_demo.py',
+    'test_cam_law.py', 'test_command_process.py', 'test_commission.py', 'test_csp.py',
+    'test_demo.py', 'test_design_node.py', 'test_die_with_parent.py', 'test_drive_enable.py',
+    'test_drive_faults.py', 'test_drive_motion.py', 'test_drive_objects.py', 'test_drive_set.py',
+    'test_drive_shutdown.py', 'test_drive_vcan.py', 'test_ground_speed_sources.py',
+    'test_machine_node.py', 'test_monitor_node.py', 'test_no_leftovers.py',
+    'test_params_files.py', 'test_recorder_signals.py', 'test_sections.py', 'test_seedlings.py',
+    'test_stop_signals.py', 'test_sync_node.py', 'test_sync_node_start.py'}
 BACKGROUND_NICE = 10
 
 
-def _module(item):
-    return item.nodeid.split('::', 1)[0]
+def _module(nodeid):
+    return nodeid.split('::', 1)[0]
 
 
-def _realtime(item):
-    return (_module(item).rsplit('/', 1)[-1] in REALTIME_MODULES
-            or not REALTIME_FIXTURES.isdisjoint(getattr(item, 'fixturenames', ())))
+def _realtime(nodeid):
+    return _module(nodeid).rsplit('/', 1)[-1] in REALTIME_MODULES
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """Whole modules as units of work (their module fixtures made once), the real-time modules
+    together as one unit (xdist's own --dist loadgroup cannot group with this pytest)."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class RealtimeTogether(LoadScopeScheduling):
+        def _split_scope(self, nodeid):
+            return 'realtime' if _realtime(nodeid) else _module(nodeid)
+    return RealtimeTogether(config, log)
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """The real-time tests first, as one pytest-xdist group (one process runs them in order);
-    then each other module as a group of its own (its module fixtures made once), those with a
-    test marked `slow` first, so that both processes end together. Orders kept otherwise."""
-    slow = {_module(item) for item in items if item.get_closest_marker('slow')}
-    for item in items:
-        realtime = _realtime(item)
-        item.add_marker(pytest.mark.realtime if realtime else pytest.mark.background)
-        item.add_marker(pytest.mark.xdist_group('realtime' if realtime else _module(item)))
-    items[:] = sorted(items, key=lambda item: (not _realtime(item), _module(item) not in slow))
+    """The real-time modules first (one process takes them as one unit, the unit it is given
+    first); then the modules with a test marked `slow`, so that both processes end together.
+    Orders kept otherwise."""
+    slow = {_module(item.nodeid) for item in items if item.get_closest_marker('slow')}
+    items[:] = sorted(items, key=lambda item: (not _realtime(item.nodeid),
+                                               _module(item.nodeid) not in slow))
     config.stash[_LAST_REALTIME] = next((item.nodeid for item in reversed(items)
-                                         if _realtime(item)), None)
+                                         if _realtime(item.nodeid)), None)
 
 
 _LAST_REALTIME = pytest.StashKey[str]()
@@ -91,16 +102,15 @@ def pytest_runtest_setup(item):
     done = (item.config.stash.get(_LAST_REALTIME, None) is None
             or _realtime_done_file(item.config).exists())
     niced = os.getpriority(os.PRIO_PROCESS, 0) >= BACKGROUND_NICE
-    if item.get_closest_marker('background') and not done and not niced:
+    if not _realtime(item.nodeid) and not done and not niced:
         os.nice(BACKGROUND_NICE)
-    elif niced and (done or item.get_closest_marker('realtime')):
+    elif niced and (done or _realtime(item.nodeid)):
         try:
             os.setpriority(os.PRIO_PROCESS, 0, 0)
-        except PermissionError:
+        except PermissionError:            # not root: this process stays below the others
             pass
 
 
 def pytest_runtest_teardown(item, nextitem):
-    if item.nodeid.split('@', 1)[0] == (item.config.stash.get(_LAST_REALTIME, None) or '') \
-            .split('@', 1)[0]:
+    if item.nodeid == item.config.stash.get(_LAST_REALTIME, None):
         _realtime_done_file(item.config).touch()
