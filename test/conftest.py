@@ -49,9 +49,13 @@ REALTIME_MODULES = {
     'test_demo.py', 'test_design_node.py', 'test_die_with_parent.py', 'test_drive_enable.py',
     'test_drive_faults.py', 'test_drive_motion.py', 'test_drive_objects.py', 'test_drive_set.py',
     'test_drive_shutdown.py', 'test_drive_vcan.py', 'test_ground_speed_sources.py',
-    'test_machine_node.py', 'test_monitor_node.py', 'test_no_leftovers.py',
-    'test_params_files.py', 'test_recorder_signals.py', 'test_sections.py', 'test_seedlings.py',
-    'test_stop_signals.py', 'test_sync_node.py', 'test_sync_node_start.py'}
+    'test_machine_node.py', 'test_monitor_node.py', 'test_params_files.py',
+    'test_recorder_signals.py', 'test_sections.py', 'test_seedlings.py', 'test_stop_signals.py',
+    'test_sync_node.py', 'test_sync_node_start.py'}
+# and single real-time tests of modules that are not (their module's other tests run beside)
+REALTIME_TESTS = {
+    'test_no_leftovers.py::test_a_command_leaves_only_what_it_was_asked_to_write[demo]',
+    'test_no_leftovers.py::test_a_demo_without_bag_names_its_default_bag_in_its_first_line'}
 BACKGROUND_NICE = 10
 
 
@@ -60,7 +64,9 @@ def _module(nodeid):
 
 
 def _realtime(nodeid):
-    return _module(nodeid).rsplit('/', 1)[-1] in REALTIME_MODULES
+    module, _, test = nodeid.partition('::')
+    module = module.rsplit('/', 1)[-1]
+    return module in REALTIME_MODULES or f'{module}::{test}' in REALTIME_TESTS
 
 
 @pytest.hookimpl(optionalhook=True)
