@@ -38,13 +38,14 @@ from three_arm_fixtures import mech, params  # noqa: E402, F401
 
 
 # Modules whose tests pass only when scheduled in real time: live ROS graphs, simulated drives
-# and their masters, `planter demo` runs, commissioning, signal and process-death timings, the
-# bench (its control-loop case loads the CPU on purpose). With two processes (pytest.ini) they
+# and their masters, `planter demo` runs, commissioning, signal and process-death timings. (Not
+# the bench smoke run: it reports what it measured, whatever the host; run beside them, at the
+# lower priority, its CPU hogs cannot starve them.) With two processes (pytest.ini) they
 # all run on one process, one after the other as in a serial run, while the other process runs
 # the rest at a lower CPU priority (so it never starves them), until they are done. A new module
 # with a live graph or a drive (the `ros`, `sim`, `channel`... fixtures) belongs here.
 REALTIME_MODULES = {
-    'test_acceptance.py', 'test_bench.py', 'test_bus_load.py', 'test_cam_demo.py',
+    'test_acceptance.py', 'test_bus_load.py', 'test_cam_demo.py',
     'test_cam_law.py', 'test_command_process.py', 'test_commission.py', 'test_csp.py',
     'test_demo.py', 'test_design_node.py', 'test_die_with_parent.py', 'test_drive_enable.py',
     'test_drive_faults.py', 'test_drive_motion.py', 'test_drive_objects.py', 'test_drive_set.py',
