@@ -7,6 +7,8 @@ import os
 import sys
 from pathlib import Path
 
+import pytest
+
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 REPO = Path(__file__).resolve().parents[1]
@@ -33,3 +35,91 @@ from ros_fixtures import ros  # noqa: E402, F401
 from drive_helpers import channel, enabled, make_drive, sim, spy  # noqa: E402, F401
 # the rice three-arm scene and its mechanism (module scope), for the three-arm test modules
 from three_arm_fixtures import mech, params  # noqa: E402, F401
+
+
+# Modules whose tests pass only when scheduled in real time: live ROS graphs, simulated drives
+# and their masters, `planter demo` runs, commissioning, signal and process-death timings. (Not
+# the bench smoke run: it reports what it measured, whatever the host; run beside them, at the
+# lower priority, its CPU hogs cannot starve them.) With two processes (pytest.ini) they
+# all run on one process, one after the other as in a serial run, while the other process runs
+# the rest at a lower CPU priority (so it never starves them), until they are done. A new module
+# with a live graph or a drive (the `ros`, `sim`, `channel`... fixtures) belongs here.
+REALTIME_MODULES = {
+    'test_acceptance.py', 'test_bus_load.py', 'test_cam_demo.py',
+    'test_cam_law.py', 'test_command_process.py', 'test_commission.py', 'test_csp.py',
+    'test_demo.py', 'test_design_node.py', 'test_die_with_parent.py', 'test_drive_enable.py',
+    'test_drive_faults.py', 'test_drive_motion.py', 'test_drive_objects.py', 'test_drive_set.py',
+    'test_drive_shutdown.py', 'test_drive_vcan.py', 'test_ground_speed_sources.py',
+    'test_machine_node.py', 'test_monitor_node.py', 'test_params_files.py',
+    'test_recorder_signals.py', 'test_sections.py', 'test_seedlings.py', 'test_stop_signals.py',
+    'test_sync_node.py', 'test_sync_node_start.py',
+    # on main since this list was made (drives, demos): real-time once merged
+    'test_bus_faults.py', 'test_demo_tray.py', 'test_machine_start.py'}
+# and single real-time tests of modules that are not (their module's other tests run beside)
+REALTIME_TESTS = {
+    'test_no_leftovers.py::test_a_command_leaves_only_what_it_was_asked_to_write[demo]',
+    'test_no_leftovers.py::test_a_demo_without_bag_names_its_default_bag_in_its_first_line'}
+BACKGROUND_NICE = 10
+
+
+def _module(nodeid):
+    return nodeid.split('::', 1)[0]
+
+
+def _realtime(nodeid):
+    module, _, test = nodeid.partition('::')
+    module = module.rsplit('/', 1)[-1]
+    return module in REALTIME_MODULES or f'{module}::{test}' in REALTIME_TESTS
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """Whole modules as units of work (their module fixtures made once), the real-time modules
+    together as one unit (xdist's own --dist loadgroup cannot group with this pytest)."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class RealtimeTogether(LoadScopeScheduling):
+        def _split_scope(self, nodeid):
+            return 'realtime' if _realtime(nodeid) else _module(nodeid)
+    return RealtimeTogether(config, log)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """The real-time modules first (one process takes them as one unit, the unit it is given
+    first); then the modules with a test marked `slow`, so that both processes end together.
+    Orders kept otherwise."""
+    slow = {_module(item.nodeid) for item in items if item.get_closest_marker('slow')}
+    items[:] = sorted(items, key=lambda item: (not _realtime(item.nodeid),
+                                               _module(item.nodeid) not in slow))
+    config.stash[_LAST_REALTIME] = next((item.nodeid for item in reversed(items)
+                                         if _realtime(item.nodeid)), None)
+
+
+_LAST_REALTIME = pytest.StashKey[str]()
+
+
+def _realtime_done_file(config):
+    """A file every process of this session sees: there once the real-time tests are done."""
+    base = config._tmp_path_factory.getbasetemp()       # the session's (the worker's)
+    root = base.parent if base.name.startswith('popen-gw') else base
+    return root / 'realtime-tests-done'
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    done = (item.config.stash.get(_LAST_REALTIME, None) is None
+            or _realtime_done_file(item.config).exists())
+    niced = os.getpriority(os.PRIO_PROCESS, 0) >= BACKGROUND_NICE
+    if not _realtime(item.nodeid) and not done and not niced:
+        os.nice(BACKGROUND_NICE)
+    elif niced and (done or _realtime(item.nodeid)):
+        try:
+            os.setpriority(os.PRIO_PROCESS, 0, 0)
+        except PermissionError:            # not root: this process stays below the others
+            pass
+
+
+def pytest_runtest_teardown(item, nextitem):
+    if item.nodeid == item.config.stash.get(_LAST_REALTIME, None):
+        _realtime_done_file(item.config).touch()

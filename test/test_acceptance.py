@@ -105,6 +105,7 @@ def test_the_demo_verdict_lists_every_acceptance_failure():
         AcceptanceLimits(), [('', summary())])).passed
 
 
+@pytest.mark.slow
 def test_a_demo_under_strict_limits_fails_naming_the_index(tmp_path):
     strict = strict_scene(tmp_path, max_precision=0.0001)
     bag = tmp_path / 'run.mcap'

@@ -207,6 +207,7 @@ def test_a_real_dask_scheduler_and_worker_give_the_same_tables(season, local, da
     assert plants_of(local[0])[0] == plants_of(out)[0]
 
 
+@pytest.mark.slow
 def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
     out = tmp_path / 'tables'
     _, first = analyze(season, '--out', out, '--workers', 1)
@@ -291,6 +292,7 @@ def test_no_bags_and_no_scheduler_are_refused(tmp_path, capsys, monkeypatch):
     shutil.rmtree(tmp_path / 'empty')
 
 
+@pytest.mark.slow
 def test_tables_people_read_with_pandas_dask_and_duckdb(season, local, tmp_path):
     """Row names, UTC times, integer and boolean types, units; each table in its own folder;
     the reads doc/analysis.md shows; a season moved elsewhere still joins (nothing redone)."""

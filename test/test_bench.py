@@ -23,6 +23,7 @@ def quick_run(tmp_path_factory):
     return json.loads(out.stdout), plot, page
 
 
+@pytest.mark.slow
 def test_quick_bench_runs_and_reports_every_row_with_time_and_error(quick_run):
     report, plot, _ = quick_run
     assert report['quick'] is True
@@ -105,6 +106,7 @@ def test_bench_rejects_bad_options_in_one_line():
     assert out.returncode == 2 and 'png' in out.stderr
 
 
+@pytest.mark.slow
 def test_markdown_page_has_the_targets_and_a_table_per_row_group(quick_run):
     report, _, page = quick_run
     assert report['markdown'] == str(page)

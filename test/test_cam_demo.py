@@ -6,6 +6,8 @@ import dataclasses
 import json
 import math
 
+import pytest
+
 from planter_ros.control.cam_law import plan_row_cam
 from planter_ros.scene import open_scene
 
@@ -57,6 +59,7 @@ def cam_scene(tmp_path, schedule):
     return path
 
 
+@pytest.mark.slow
 def test_the_cam_demo_plants_every_spacing_at_its_d_with_the_planned_sweep(tmp_path):
     # the switches away from the field run's speed change (45 % of the run: 14.4-15.4 s)
     scene = cam_scene(tmp_path, [7.0, 0.25, 16.0, 0.35, 23.0, 0.5])

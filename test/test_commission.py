@@ -52,6 +52,7 @@ def rig():
         sim.stop()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('seed, method, reversed_', [(7, 19, True), (11, 34, False)])
 def test_commissioning_finds_a_random_offset_and_the_polarity(rig, tmp_path, seed, method,
                                                                reversed_):
@@ -110,6 +111,7 @@ def test_homing_with_a_method_the_drive_lacks_is_a_homing_error(rig):
         drive.shutdown()
 
 
+@pytest.mark.slow
 def test_the_command_line_commissions_and_rewrites_the_machine_file(tmp_path):
     path = tmp_path / 'machine.yaml'
     shutil.copy(MACHINE, path)

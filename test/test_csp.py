@@ -126,6 +126,7 @@ def run_engine(engine, seconds, v, w=0.0):
         time.sleep(max(next_tick - time.monotonic(), 0.0))
 
 
+@pytest.mark.slow
 def test_the_command_path_drives_csp_rows_phase_locked_and_ramps_a_stale_speed_to_rest(
         channel):
     sims = SimulatedBus(channel, [1, 2], supported_modes=BOTH)

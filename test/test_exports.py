@@ -443,6 +443,7 @@ def test_a_failed_write_leaves_the_old_files_and_no_temporaries(result, tmp_path
 
 # ------------------------------------------------------------------------------ a season
 
+@pytest.mark.slow
 def test_analyze_writes_the_seasons_shapefile_and_task_data_next_to_its_tables(bag, tmp_path):
     """Two machines' recordings in a season: the Shapefile holds every plant with its
     recording's name, where replay puts it; the task data one task per recording, one device

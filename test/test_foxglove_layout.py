@@ -2,13 +2,11 @@
 gives for their scenes today (no drift), every panel reads a topic the monitor records with
 the keys Foxglove's panels persist (no deprecated Plot `title`), the Map panel shows the GNSS
 antenna and the planted plants (NavSatFix), and each plot has one series per planting row.
-A 4-row demo's bag is checked against its layout: the Map's topics are NavSatFix channels of
-the bag, every plant is a fix, and every row's series finds that row's plants."""
+A 4-row demo's bag is checked against its layout (check_the_4_row_layout_opens, run on the
+4-row demo of test_demo.py): the Map's topics are NavSatFix channels of the bag, every plant is a
+fix, and every row's series finds that row's plants."""
 import json
-import os
 import re
-import subprocess
-import sys
 
 import pytest
 
@@ -94,16 +92,12 @@ def _is_number(text):
     return True
 
 
-def test_the_4_row_layout_opens_a_4_row_demo_bag(tmp_path):
+def check_the_4_row_layout_opens(bag):
+    """The 4-row layout against a 4-row demo's bag (test_demo.py runs that demo once for its
+    own checks and this one: test_the_4_row_layout_opens_the_4_row_demo_bag)."""
     from mcap.reader import make_reader
     from rclpy.serialization import deserialize_message
     from geometry_msgs.msg import Vector3Stamped
-    bag = tmp_path / 'run.mcap'
-    env = dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    out = subprocess.run([sys.executable, '-m', 'planter_ros.cli', 'demo', '--scene',
-                          REPO / 'config' / 'tomato_4row.yaml', '--duration', '10', '--bag',
-                          bag], capture_output=True, text=True, env=env, timeout=300)
-    assert bag.exists(), out.stdout[-2000:] + out.stderr[-2000:]
     config = json.loads((REPO / 'config' / 'foxglove_layout_4row.json').read_text())
     with open(bag, 'rb') as f:
         reader = make_reader(f)

@@ -67,6 +67,7 @@ def test_a_command_leaves_only_what_it_was_asked_to_write(tmp_path, name):
     assert everything_in(tmp) == set()
 
 
+@pytest.mark.slow
 def test_a_killed_analyze_leaves_no_lock_and_the_next_run_cleans_up(tmp_path):
     cwd, home, tmp, env = places(tmp_path)
     bags = cwd / 'bags'
@@ -104,6 +105,7 @@ def test_a_second_analyze_on_a_directory_being_written_is_refused(tmp_path):
         pass
 
 
+@pytest.mark.slow
 def test_a_demo_without_bag_names_its_default_bag_in_its_first_line(tmp_path):
     cwd, home, tmp, env = places(tmp_path)
     out = subprocess.run([sys.executable, '-m', 'planter_ros.cli', 'demo', '--duration', '8'],

@@ -10,6 +10,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from cli_helpers import REPO
 
 WATCHED = ('canopen', 'rclpy')
@@ -69,6 +71,7 @@ def test_replay_with_every_output_imports_neither_canopen_nor_rclpy(tmp_path):
     assert imports == []
 
 
+@pytest.mark.slow
 def test_analyze_and_its_workers_import_neither_canopen_nor_rclpy(tmp_path):
     out, imports = run_watched(tmp_path, 'analyze', REPO / 'bags', '--out', tmp_path / 'season',
                                '--workers', '2', '--json')

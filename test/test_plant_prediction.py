@@ -340,6 +340,7 @@ def test_a_gap_shorter_than_the_setting_is_interpolated_as_before():
 @given(gaps=st.lists(st.tuples(st.sampled_from(['speed', 'joint']), st.floats(0.5, 18.0),
                                st.floats(0.05, 2.0)), max_size=4),
        max_gap=st.floats(0.06, 1.0))
+@pytest.mark.slow
 def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
     run = _GAP_RUN
     model = planting_model_from_design(run.design)

@@ -59,6 +59,7 @@ def panels(fig):
     return out
 
 
+@pytest.mark.slow                 # the figures fixture: every command's --plot
 @pytest.mark.parametrize('name', sorted(COMMANDS))
 def test_every_panel_says_what_it_shows_with_units(figures, name):
     fig, _ = figures[name]

@@ -170,6 +170,7 @@ def test_simulate_bad_input(args, words, tmp_path, capsys):
     assert not (tmp_path / 'x').exists()
 
 
+@pytest.mark.slow
 def test_simulate_any_scene_twice_the_same_bytes_every_message_decoded_by_two_readers(tmp_path):
     """`--scene`: the rice three-arm (one row) and the four-row tomato machine; the same seed
     twice gives byte-identical bags; rosbags and mcap_ros2 decode every message (rosbags

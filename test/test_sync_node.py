@@ -261,8 +261,13 @@ def test_a_design_from_another_node_is_counted_and_named_and_the_loop_timed(rig)
     assert v['design publishers seen'] == '/stray_design, /test_io'
     assert r.sync.law.spacing == 0.3      # no planting angles known here: in force at once
     loop = r.diag('control loop')
-    assert loop.level == DiagnosticStatus.OK
     lv = values(loop)
     assert int(lv['command frames']) > 50
-    assert float(lv['command gap max'].split()[0]) < 200.0
-    assert lv['drive command deadline'] == '200 ms'
+    gap = float(lv['command gap max'].split()[0])
+    assert gap < 200.0 and lv['drive command deadline'] == '200 ms'
+    # the level is what the longest gap left of the deadline (OK with half of it left, as on
+    # an idle host; a host that starves this process for 100 ms makes it a WARN saying so)
+    if gap < 100.0:
+        assert loop.level == DiagnosticStatus.OK, loop.message
+    else:
+        assert loop.level == DiagnosticStatus.WARN and 'half the deadline' in loop.message

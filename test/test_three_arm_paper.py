@@ -41,6 +41,7 @@ def table(params):
     return reading_table(params, samples=1440)
 
 
+@pytest.mark.slow
 def test_no_reading_meets_table_1_at_both_picking_and_planting(table):
     assert len(table) == len(readings()) == 2 * 2 * 2 * 2 * len(INTERPOLANTS)
 

@@ -152,7 +152,7 @@ def stall_run(command_process, joins, progress=lambda text: None):
 @bench_case('graph-join stall', requires=('rclpy', 'can', 'planter_ros.command.process',
                                           'planter_ros.demo.sync_process'))
 def graph_join_stall(ctx):
-    joins = ctx.n(400, 40)
+    joins = ctx.n(400, 2 * JOINERS)          # --quick: the smoke run, two rounds of joiners
     results = {}
     for command_process in (False, True):
         name = 'after' if command_process else 'before'
