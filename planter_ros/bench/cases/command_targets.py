@@ -167,7 +167,9 @@ def command_latency(ctx):
         trips = len(report.get('watchdog_trips', []))
         yield Row(WHAT_LATENCY, 'quiet' if not hogs else f'{hogs} CPU hogs beside it', 1,
                   'sample', timing, error_of='no error defined: timings only',
-                  targets=[Target('p99 ≤ 1 ms', timing.p99 <= LATENCY_TARGET)],
+                  # the target is set beside the hogs (quiet, an idle core's wake-up shows:
+                  # printed for comparison, not judged)
+                  targets=[Target('p99 ≤ 1 ms', timing.p99 <= LATENCY_TARGET)] if hogs else [],
                   note=f'{count} samples: p50 {timing.median * 1e3:.2f} ms, p99 '
                        f'{timing.p99 * 1e3:.2f} ms, max {worst * 1e3:.2f} ms; {trips} watchdog '
                        f'trip(s); {_load(before, load_average())}',
