@@ -8,18 +8,15 @@ scene's `mechanism` is three_arm. The parameters are the scene's (kinematics.sce
 
 import sys
 
-import rclpy
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from planter_ros import interfaces, stop_signals
-from planter_ros.config import ConfigError, spec_of
+from planter_ros import interfaces
+from planter_ros.config import spec_of
 from planter_ros.kinematics.scene_settings import SceneSettings, scene_classes
-from planter_ros.dds_domain import keep_discovery_on_host
 from planter_ros.design import design_for_scene, to_json
 from planter_ros.nodes.parameters import ParameterGroup, declare, refuse_undeclared
+from planter_ros.nodes.run import run_node
 from planter_ros.plausibility import unusual
 
 
@@ -55,26 +52,8 @@ class DesignNode(Node):
 
 
 def main(args=None):
-    keep_discovery_on_host()
-    stop = stop_signals.install('design_node')   # SIGTERM stops like Ctrl-C
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = DesignNode(namespace=interfaces.NAMESPACE,
-                          arguments=sys.argv if args is None else args)
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        stop_signals.spin(executor, stop)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ConfigError, ParameterException) as exc:
-        print(f'design_node: error: {str(exc).splitlines()[0]}', file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node('design_node', lambda arguments: DesignNode(
+        namespace=interfaces.NAMESPACE, arguments=arguments), args)
 
 
 if __name__ == '__main__':

@@ -15,15 +15,11 @@ import sys
 import threading
 import time
 
-import rclpy
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-from planter_ros import diagnostics, interfaces, stop_signals
-from planter_ros.config import ConfigError
-from planter_ros.dds_domain import keep_discovery_on_host
+from planter_ros import diagnostics, interfaces
 from planter_ros.nodes.parameters import ParameterGroup, refuse_undeclared
+from planter_ros.nodes.run import run_node
 from planter_ros.sensing.ground_speed_sources import (
     CourseYawRate, GroundSpeedSourceConfig, IsobusSpeedDecoder, PulseSpeed, SourceSelector,
     gnss_speed, imu_yaw_rate)
@@ -161,26 +157,8 @@ class GroundSpeedNode(Node):
 
 
 def main(args=None):
-    keep_discovery_on_host()
-    stop = stop_signals.install(NAME)
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = GroundSpeedNode(namespace=interfaces.NAMESPACE,
-                               arguments=sys.argv if args is None else args)
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        stop_signals.spin(executor, stop)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ConfigError, ParameterException, OSError) as exc:
-        print(f'{NAME}: error: {str(exc).splitlines()[0]}', file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(NAME, lambda arguments: GroundSpeedNode(
+        namespace=interfaces.NAMESPACE, arguments=arguments), args, errors=(OSError,))
 
 
 if __name__ == '__main__':

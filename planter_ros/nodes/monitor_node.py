@@ -28,21 +28,16 @@ law); a design of another mechanism starts a new sequence.
 
 from collections import deque
 import math
-import sys
 
 import numpy as np
 
-import rclpy
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
-from planter_ros import diagnostics, interfaces, stop_signals
+from planter_ros import diagnostics, interfaces
 from planter_ros.config import ConfigError, as_dict
-from planter_ros.dds_domain import keep_discovery_on_host
 from planter_ros.design import from_json
 from planter_ros.scene.design_sources import DesignSources
 from planter_ros.geo import AntennaSettings
@@ -54,6 +49,7 @@ from planter_ros.prediction import (
 from planter_ros.nodes import graph
 from planter_ros.nodes.markers import marker_array, plant_fixes, plant_rows
 from planter_ros.nodes.parameters import ParameterGroup, declare_rows, refuse_undeclared
+from planter_ros.nodes.run import run_node
 from planter_ros.recording.errors import BagWriteError
 from planter_ros.recording.recorder import Recorder, RecorderConfig
 from planter_ros.recording.replay import map_record
@@ -508,25 +504,8 @@ def joint_index(msg, name):
 
 
 def main(args=None):
-    keep_discovery_on_host()
-    stop = stop_signals.install('monitor_node')   # SIGTERM stops like Ctrl-C: the bag finalised
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = MonitorNode(arguments=sys.argv if args is None else args)
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        stop_signals.spin(executor, stop)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ConfigError, ParameterException) as exc:
-        print(f'monitor_node: error: {str(exc).splitlines()[0]}', file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    # a stop signal finalises the bag (the node's destroy_node)
+    return run_node('monitor_node', lambda arguments: MonitorNode(arguments=arguments), args)
 
 
 __all__ = ['MonitorNode', 'joint_index', 'main', 'plants_message']

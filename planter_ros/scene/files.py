@@ -20,7 +20,7 @@ from planter_ros.config import ConfigError
 from planter_ros.safe_yaml import MAX_ALIAS_NODES, YamlError, load_yaml
 
 __all__ = ['MAX_ALIAS_NODES', 'MAX_SCENE_BYTES', 'Entry', 'ParameterFile', 'SceneError',
-           'read_parameter_file']
+           'read_parameter_file', 'read_small_yaml']
 
 MAX_SCENE_BYTES = 1 << 20          # 1 MiB; the shipped scenes are about 1 kB
 
@@ -51,23 +51,29 @@ class ParameterFile:
         return f'scene file {self.path}'
 
 
+def read_small_yaml(path: Path, what: str, error: type[Exception]) -> str:
+    """The text of the YAML file at `path` (`what` names it in messages: 'scene file'), read
+    only when it is a regular file of at most MAX_SCENE_BYTES; `error` (one line) if it is
+    missing, not a regular file, too big or unreadable."""
+    try:
+        if path.exists() and not path.is_file():
+            raise error(f'{what} {path} is not a regular file: allowed a YAML file')
+        size = path.stat().st_size
+        if size > MAX_SCENE_BYTES:
+            raise error(f'{what} {path} is {size} bytes: allowed at most {MAX_SCENE_BYTES} '
+                        'bytes')
+        return path.read_text()
+    except FileNotFoundError:
+        raise error(f'{what} {path} does not exist') from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(f'{what} {path} is not readable YAML: {str(exc).splitlines()[0]}') from None
+
+
 def read_parameter_file(path: str | Path) -> ParameterFile:
     """Read a ROS 2 parameter file (bounded size and aliases, every entry a ros__parameters
     mapping); SceneError (one line) if it is not one. Names are not checked here."""
     path = Path(path)
-    try:
-        if path.exists() and not path.is_file():
-            raise SceneError(f'scene file {path} is not a regular file: allowed a YAML file')
-        size = path.stat().st_size
-        if size > MAX_SCENE_BYTES:
-            raise SceneError(f'scene file {path} is {size} bytes: allowed at most '
-                             f'{MAX_SCENE_BYTES} bytes')
-        text = path.read_text()
-    except FileNotFoundError:
-        raise SceneError(f'scene file {path} does not exist') from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f'scene file {path} is not readable YAML: '
-                         f'{str(exc).splitlines()[0]}') from None
+    text = read_small_yaml(path, 'scene file', SceneError)
     try:
         data = load_yaml(text, f'scene file {path}')
     except YamlError as exc:

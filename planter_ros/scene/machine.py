@@ -29,7 +29,7 @@ from typing import Any
 
 from planter_ros.config import ConfigError, Spec, from_mapping, setting, specs
 
-from .files import MAX_SCENE_BYTES, SceneError
+from .files import SceneError, read_small_yaml
 from .machine_setting import MachineFileSetting
 from .schema import closest
 
@@ -238,19 +238,7 @@ class Machine:
 def open_machine(path: str | Path) -> Machine:
     """Read and check a machine file; MachineFileError (one line) for anything wrong."""
     path = Path(path)
-    try:
-        if path.exists() and not path.is_file():
-            raise MachineFileError(f'machine file {path} is not a regular file')
-        size = path.stat().st_size
-        if size > MAX_SCENE_BYTES:
-            raise MachineFileError(f'machine file {path} is {size} bytes: allowed at most '
-                                   f'{MAX_SCENE_BYTES} bytes')
-        text = path.read_text()
-    except FileNotFoundError:
-        raise MachineFileError(f'machine file {path} does not exist') from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise MachineFileError(f'machine file {path} is not readable: '
-                               f'{str(exc).splitlines()[0]}') from None
+    text = read_small_yaml(path, 'machine file', MachineFileError)
     return parse_machine(text, path)
 
 
