@@ -1,5 +1,6 @@
 """Did the host stop scheduling us? A watcher process, separate from the tests (no shared GIL,
-no shared DDS participant), sleeps 5 ms at a time at the tests' own priority and reports every
+no shared DDS participant), sleeps 5 ms at a time at the real-time tests' priority (nice -10,
+conftest.py; 0 when it may not raise it) and reports every
 sleep that overran by more than `REPORTED` s: the machine left a runnable process unscheduled
 that long (CPU contention, a VM's stolen time). A stall inside the test process itself (a lock,
 the GIL, a DDS send blocked) never shows here: it stays the test's finding.
@@ -25,10 +26,12 @@ try:                                            # die with the test process, als
 except (OSError, AttributeError):
     pass
 reported = float(sys.argv[2])
-try:                                            # the tests' own priority, however it was started
-    os.setpriority(os.PRIO_PROCESS, 0, 0)
-except OSError:
-    pass
+for nice in (int(sys.argv[3]), 0):              # the real-time tests' priority
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, nice)
+        break
+    except OSError:
+        pass
 while os.getppid() == parent:
     before = time.monotonic()
     time.sleep(0.005)
@@ -43,10 +46,10 @@ class HostStalls:
     """The watcher process and the stalls it reported: (start, end) in CLOCK_MONOTONIC s, the
     clock every process of the host shares."""
 
-    def __init__(self):
+    def __init__(self, nice):
         self.stalls = []
         self._proc = subprocess.Popen(
-            [sys.executable, '-c', WATCHER, str(os.getpid()), str(REPORTED)],
+            [sys.executable, '-c', WATCHER, str(os.getpid()), str(REPORTED), str(nice)],
             stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
         threading.Thread(target=self._read, daemon=True, name='host-stalls').start()
 
@@ -68,11 +71,11 @@ class HostStalls:
 _watcher = None
 
 
-def watcher():
-    """This process's watcher, started on first use."""
+def watcher(nice):
+    """This process's watcher (at CPU priority `nice`), started on first use."""
     global _watcher
     if _watcher is None:
-        _watcher = HostStalls()
+        _watcher = HostStalls(nice)
     return _watcher
 
 
