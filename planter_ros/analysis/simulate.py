@@ -25,12 +25,23 @@ def season_machine(scene, rows):
     if rows is not None:
         raise ConfigError(f'--rows = {rows} with --scene: allowed one of them (the scene\'s '
                           "rows are its machine's)")
-    return str(Path(scene).resolve()), len(scene_machine(scene).rows)
+    machine = scene_machine(scene)
+    if machine.law.speed_profile == 'cam':
+        from planter_ros.cam import CamError
+        from planter_ros.sim.season import machine_cam
+        try:
+            machine_cam(machine.design, machine.law)
+        except (ValueError, CamError) as exc:
+            raise ConfigError(f'scene {scene}: speed_profile = cam cannot run: {exc}: allowed '
+                              'a five-bar design the cam can plan, or speed_profile: '
+                              'constant') from None
+    return str(Path(scene).resolve()), len(machine.rows)
 
 
 def scene_machine(scene):
     """The sim.season.SceneMachine of a scene file (SceneError, DesignError: one line)."""
     from planter_ros.config import from_mapping
+    from planter_ros.control.phase_lock import PhaseLockConfig
     from planter_ros.prediction import PredictionSettings
     from planter_ros.scene import open_scene
     from planter_ros.sim.season import SceneMachine
@@ -40,7 +51,8 @@ def scene_machine(scene):
     nominal = float(opened.parameters('design_node').get('nominal_ground_speed', 0.2))
     return SceneMachine(design, tuple(opened.rows()),
                         from_mapping(PredictionSettings, monitor), opened.acceptance(),
-                        opened.antenna(), (0.75 * nominal, 1.5 * nominal))
+                        opened.antenna(), (0.75 * nominal, 1.5 * nominal),
+                        from_mapping(PhaseLockConfig, opened.parameters('sync_node')))
 
 
 def simulate_scene_bag(path, seed, index, duration, rows, scene=None, empty_rate=0.0,

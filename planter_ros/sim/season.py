@@ -211,10 +211,33 @@ class MachineRun:
     seedlings: tuple = ()
 
 
-def simulate_plan(plan, design=None):
-    """Run the machine of `plan` in closed loop (no ROS): a MachineRun."""
+@lru_cache(maxsize=4)
+def _cam(design_json, rule):
+    from planter_ros.control.cam_law import plan_row_cam
+    from planter_ros.design import from_json
+    return plan_row_cam(from_json(design_json), rule)
+
+
+def machine_cam(design, law):
+    """The cam profile every row of the sync law `law` (a PhaseLockConfig) follows with
+    `design` (control.cam_law.plan_row_cam, as the sync node plans it), or None: constant
+    speed. A design the cam cannot run is refused (ValueError, CamError: one line), where the
+    sync node would fall back to constant speed with a warning: a simulated run says so."""
+    if law is None or law.speed_profile != 'cam':
+        return None
+    return _cam(to_json(design), law.cam_rule)
+
+
+def simulate_plan(plan, design=None, law=None):
+    """Run the machine of `plan` in closed loop (no ROS): a MachineRun. `law`: the sync law's
+    PhaseLockConfig (a scene's; default the defaults); with `speed_profile: cam` every row
+    follows the cam planned for `design` (`machine_cam`) on a CSP drive."""
+    from planter_ros.control.phase_lock import PhaseLockConfig
+
     from .gnss import fix_positions
     design = design or season_design()
+    law = law or PhaseLockConfig()
+    cam = machine_cam(design, law)
     rng = np.random.default_rng([plan.seed, plan.index, 1])
     profile = plan.profile()
     readings = []
@@ -235,17 +258,21 @@ def simulate_plan(plan, design=None):
         readings.append((t, v_read, w_read))
         return v_read, w_read
 
-    nominal = DriveModel(time_constant=plan.drive_lag)
+    # the drive does what the law may ask of it (a cam scene's law: its out-of-soil arc)
+    acceleration = max(DriveModel.max_acceleration, law.max_acceleration)
+    nominal = DriveModel(time_constant=plan.drive_lag, max_acceleration=acceleration)
     changes = []
     if plan.stall is not None:
         s = plan.stall
-        changes = [(s.start, s.row, DriveModel(time_constant=plan.drive_lag, speed_scale=s.level)),
+        changes = [(s.start, s.row, DriveModel(time_constant=plan.drive_lag,
+                                               max_acceleration=acceleration,
+                                               speed_scale=s.level)),
                    (s.start + s.length, s.row, nominal)]
     runs = simulate_rows([row.lateral_offset for row in plan.rows], profile, plan.duration,
-                         design.plant_spacing, design.plants_per_revolution,
+                         design.plant_spacing, design.plants_per_revolution, config=law,
                          drive=nominal, dt=STEP, sample_period=SAMPLE_PERIOD,
                          feedback_period=FEEDBACK_PERIOD, sensor=sensor, drive_changes=changes,
-                         seed=plan.index)
+                         seed=plan.index, cams=None if cam is None else [cam] * len(plan.rows))
     every = int(round(FEEDBACK_PERIOD / STEP))
     t = runs[0].t[::every]
     quantum = 2.0 * math.pi / ENCODER_COUNTS
@@ -525,6 +552,7 @@ class SceneMachine:
     acceptance: object
     antenna: object
     cruise: tuple
+    law: object = None            # the sync law's PhaseLockConfig (speed_profile, gains)
 
 
 def simulate_bag(path, seed, index, duration, rows, machine=None, empty_rate=0.0,
@@ -544,7 +572,8 @@ def simulate_bag(path, seed, index, duration, rows, machine=None, empty_rate=0.0
     try:
         if machine is None:
             return write_monitor_bag(simulate_plan(plan), path)
-        return write_monitor_bag(simulate_plan(plan, machine.design), path, machine.design,
+        return write_monitor_bag(simulate_plan(plan, machine.design, machine.law), path,
+                                 machine.design,
                                  machine.settings, machine.acceptance, machine.antenna)
     except BaseException:
         if not existed:
