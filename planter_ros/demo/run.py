@@ -333,14 +333,20 @@ class _Run:
             f'{receiver.noise * 1e3:.0f} mm per axis; antenna x = {antenna[0]:+.2f} m, '
             f'y = {antenna[1]:+.2f} m on the machine')
         from planter_ros.sim.ros_field import SeedlingSensor
-        seedlings = SeedlingSensor(self.demo.design, self.demo.planting, options.empty_rate,
-                                   options.double_rate, seed=options.seed,
-                                   context=self.context, namespace=ns)
-        self.demo._print(f'seedling sensor: a cup sensor per row on a simulated tray, '
-                         f'{options.empty_rate:.0%} empty cells, {options.double_rate:.0%} '
-                         'doubles (topic seedlings)')
+        sensed = [row for row in self.demo.planting if row.seedling_sensor]
+        nodes = [self.source, gnss]
+        if sensed:
+            nodes.append(SeedlingSensor(self.demo.design, sensed, options.empty_rate,
+                                        options.double_rate, seed=options.seed,
+                                        context=self.context, namespace=ns))
+        self.demo._print(
+            f'seedling sensor: a cup sensor on {len(sensed)} of {len(self.demo.planting)} '
+            f'row(s) on a simulated tray, '
+            f'{options.empty_rate:.0%} empty cells, {options.double_rate:.0%} doubles (topic '
+            'seedlings)' if sensed else 'seedling sensor: none (the scene declares no row '
+            'with one): every planting instant unknown')
         self.observer.start = self.source.start
-        for node in (self.source, gnss, seedlings):
+        for node in nodes:
             self.nodes.append(node)
             self.executor.add_node(node)
 

@@ -12,10 +12,11 @@ records, chunks closed every second of log time. The monitor's own outputs (plan
 uprightness_rate) come from its model fed sample by sample in log-time order, as monitor_node
 feeds it (RowSpeedStream, one PlantPredictor per row, the map's PlantPlacer), so replaying the
 bag reproduces them.
-Every row has a seedling sensor fed by a simulated tray (`tray_readings`, sim.tray: a cell
-empty with `empty_rate`, two seedlings with `double_rate`): one `seedlings` reading per planting
-cycle, half a cycle before the planting angle; the monitor's model accounts every instant by it
-(prediction.seedlings).
+Every row with a seedling sensor (all rows, or those a scene declares with one: its
+`seedling_sensor`, `<row>.seedling_sensor`) is fed by a simulated tray (`tray_readings`, sim.tray:
+a cell empty with `empty_rate`, two seedlings with `double_rate`): one `seedlings` reading per
+planting cycle, half a cycle before the planting angle; the monitor's model accounts every
+instant by it (prediction.seedlings), a row without one as unknown.
 The bag has no /diagnostics, sections, spacing_quality or plant_markers messages (the channels are
 there): replay derives the indices and the map from the plants and fixes.
 """
@@ -292,7 +293,8 @@ def simulate_plan(plan, design=None, law=None):
 def tray_readings(plan, design, runs):
     """The seedling sensor readings of a run: for every planting instant of every row one
     reading, half a planting cycle before the planting angle (the cup passing the sensor), of
-    what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1."""
+    what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1.
+    A row the scene declares without a seedling sensor (Row.seedling_sensor) reads nothing."""
     from planter_ros.prediction import planting_model_from_design
 
     from .tray import Tray, sense_angle
@@ -302,6 +304,8 @@ def tray_readings(plan, design, runs):
                 np.random.default_rng([plan.seed, plan.index, 3]))
     out = []
     for r, run in enumerate(runs):
+        if plan.rows[r].seedling_sensor is False:
+            continue                    # the scene declares this row without a sensor
         theta = np.maximum.accumulate(run.angle)
         first = math.ceil((theta[0] - model.planting_phase) * n / (2 * math.pi) + 0.5)
         last = math.floor((theta[-1] - model.planting_phase) * n / (2 * math.pi) + 0.5)
@@ -335,7 +339,7 @@ class MonitorModel:
         self.placer = PlantPlacer(map_settings, antenna.antenna_position,
                                   {row.index: row.lateral_offset for row in rows})
         self.recent = deque(maxlen=settings.window)
-        self.seedlings = SeedlingAccount()
+        self.seedlings = SeedlingAccount({row.index: row.seedling_sensor for row in rows})
         self.spacing = model.spacing
 
     def speed(self, t, v, w):
