@@ -156,3 +156,46 @@ def test_a_cam_scene_the_cam_cannot_run_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert 'speed_profile = cam' in err and err.count('\n') == 1
     assert not (tmp_path / 'x').exists()
+
+
+@pytest.mark.slow
+def test_simulate_runs_the_scenes_spacing_schedule_on_the_cam(tmp_path):
+    """The cam demo's scene (one five-bar built for 0.15 m planting 0.15, 0.25, 0.35 and 0.5 m
+    in turn, `spacing_schedule`): each run changes the design at those times, the rows follow
+    each spacing's planned cam, and replay finds every spacing at its d with its plan's sweep;
+    the live monitor's plants in the bag are replay's."""
+    import dataclasses
+
+    from planter_ros.control.cam_law import plan_row_cam
+    from planter_ros.prediction import PLANT_FIELDS
+    from planter_ros.recording.replay import replay
+    from planter_ros.scene import open_scene
+    from test_cam_demo import SPACINGS, cam_scene as schedule_scene, segment_figures
+    scene = schedule_scene(tmp_path, [7.0, 0.25, 16.0, 0.35, 23.0, 0.5])
+    design = open_scene(scene).design()
+    plans = {d: plan_row_cam(dataclasses.replace(design, plant_spacing=d), 'design_speed')
+             for d in SPACINGS}
+    out = tmp_path / 'season'
+    r = run_planter('simulate', out, '--bags', 1, '--duration', 32, '--seed', 3, '--scene',
+                    scene, '--workers', 1, '--json', timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    events = json.loads(r.stdout)['runs'][0]['events']
+    assert events['spacing_changes'] == [{'start': t, 'spacing': d} for t, d in
+                                         ((7.0, 0.25), (16.0, 0.35), (23.0, 0.5))]
+    result = replay(out / 'run_3_00000.mcap', with_recorded=True)
+    live, replayed = result.recorded_plants, result.plants.table()
+    assert live.shape == replayed.shape
+    order = np.argsort(live[:, PLANT_FIELDS.index('index')], kind='stable')
+    assert np.allclose(live[order], replayed, atol=1e-12, equal_nan=True)
+    plants = [{k: (None if isinstance(v, float) and math.isnan(v) else v)
+               for k, v in zip(PLANT_FIELDS, row)} for row in replayed.tolist()]
+    segments = segment_figures([p for p in plants if p['input_gap'] == 0],
+                               cruise=0.5 * design.nominal_ground_speed)
+    assert [s['d'] for s in segments] == list(SPACINGS)
+    for s in segments:
+        d = s['d']
+        assert s['gaps'] >= 3, s
+        assert s['rms'] <= 0.01 * d, (d, s['rms'])
+        assert abs(s['sweep_mean'] - plans[d].tip_sweep) <= 0.5e-3, (d, s['sweep_mean'])
+        if s['boundary'] is not None:
+            assert abs(s['boundary']) <= 0.01 * d, (d, s['boundary'])

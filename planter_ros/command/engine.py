@@ -20,12 +20,11 @@ from typing import TYPE_CHECKING, Any
 import can
 
 from planter_ros import diagnostics, interfaces
-from planter_ros.config import ConfigError
 from planter_ros.control import sync_status
 from planter_ros.control.cam_law import plan_for_design
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
 from planter_ros.control.machine import Machine
-from planter_ros.control.phase_lock import PhaseLock, PlantingAngles
+from planter_ros.control.phase_lock import PhaseLock, planting_angles
 from planter_ros.control.row_loop import RowLoop, RowStep, cam_csp_target, csp_setpoint
 from planter_ros.control.sync_status import Halt
 from planter_ros.design import Design
@@ -817,14 +816,3 @@ def bottom_angle(design: Design) -> float:
         return math.pi
     import numpy as np
     return float(np.asarray(path.angle)[int(np.argmin(np.asarray(path.y)))])
-
-
-def planting_angles(design: Design) -> PlantingAngles | None:
-    """Where the design's mechanism plants on its shaft (for section stops), or None."""
-    from planter_ros.prediction import planting_model_from_design
-    try:
-        model = planting_model_from_design(design)
-    except (ValueError, TypeError, KeyError, ConfigError):
-        return None
-    return PlantingAngles(float(model.planting_phase), float(model.entry_angle),
-                          float(model.exit_angle))

@@ -39,7 +39,7 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     scene = open_scene(options.scene or default_scene_path())
     check_bag_path(options.bag)
     design = scene.design()               # a bad scene fails here, before anything starts
-    from .schedule import spacing_schedule
+    from planter_ros.scene.schedule import spacing_schedule
     spacing_schedule(scene.parameters('design_node'), scene.path)
     node_id = scene.parameters('sync_node').get('drive_node_id', 1)
     rows = scene.rows(default_node_id=node_id)
@@ -81,7 +81,7 @@ class Demo:
         self.install_signals = install_signals
         self.log_level = log_level
         self.result: DemoResult | None = None
-        from .schedule import spacing_schedule
+        from planter_ros.scene.schedule import spacing_schedule
         self.schedule = spacing_schedule(scene.parameters('design_node'), scene.path)
 
     def _print(self, text: str = '') -> None:

@@ -171,7 +171,7 @@ class RowRun:
 def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, config=None,
                   compensation=True, drive=DriveModel(), dt=0.001, sample_period=0.05,
                   feedback_period=0.01, noise=0.005, yaw_noise=0.005, seed=0, switches=(),
-                  planting=None, sensor=None, drive_changes=(), cams=None):
+                  planting=None, sensor=None, drive_changes=(), cams=None, designs=()):
     """Run a machine with rows at `offsets` (m) along `profile` (a FieldProfile: speed and yaw
     rate) for `duration` s; the sensor adds Gaussian `noise` (m/s) and `yaw_noise` (rad/s).
     Commands are computed on every sample and every feedback period, as the sync node does.
@@ -181,8 +181,9 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
     never arrives, instead of the Gaussian noise. `drive_changes`: (t, row index, DriveModel)
     events, that row's drive from t on (a stall and its end). `cams`: each row's cam profile
     (`speed_profile: cam`, control.cam_law.plan_row_cam; None: constant speed), or None: a cam
-    row runs a CSP drive as the command process drives it (`CspDrive`). Returns one RowRun per
-    row."""
+    row runs a CSP drive as the command process drives it (`CspDrive`). `designs`: (t, spacing,
+    cams) events, a design arriving at t (each row takes it at its next planting instant).
+    Returns one RowRun per row."""
     rng = np.random.default_rng(seed)
     machine = Machine(offsets, config or PhaseLockConfig(),
                       turn=TurnConfig(turn_compensation=compensation))
@@ -193,6 +194,7 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
     lagged = np.array([drive is None for drive in csp])
     switches = sorted(switches)
     changes = sorted(drive_changes, key=lambda c: (c[0], c[1]))
+    designs = sorted(designs, key=lambda c: c[0])
     rows = len(machine.laws)
     tau, amax, scale = (np.full(rows, float(getattr(drive, k))) for k in
                         ('time_constant', 'max_acceleration', 'speed_scale'))
@@ -209,6 +211,9 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
         while switches and t >= switches[0][0]:
             _, row, on = switches.pop(0)
             machine.laws[row].switch(on, t)
+        while designs and t >= designs[0][0]:
+            _, d, row_cams = designs.pop(0)
+            machine.set_design(d, plants_per_revolution, t, planting, row_cams, since=t)
         while changes and t >= changes[0][0]:
             _, row, model = changes.pop(0)
             tau[row], amax[row], scale[row] = (model.time_constant, model.max_acceleration,

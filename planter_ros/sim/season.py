@@ -22,7 +22,7 @@ there): replay derives the indices and the map from the plants and fixes.
 """
 
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 import math
 
@@ -111,6 +111,8 @@ class RunPlan:
     empty_rate: float = 0.0       # the tray: share of empty cells, of cells with two seedlings
     double_rate: float = 0.0
     seedling_sensor: bool = True  # each row's cup sensor reads every cycle (topic seedlings)
+    # a scene's spacing schedule: (t s from the run's start, Design) the design node publishes
+    designs: tuple = ()
 
     @property
     def start_time(self):
@@ -129,6 +131,8 @@ class RunPlan:
                            for c in self.curves],
                 'glitches': [{'kind': g.kind, 'start': g.start, 'length': g.length}
                              for g in self.glitches],
+                'spacing_changes': [{'start': t, 'spacing': d.plant_spacing}
+                                    for t, d in self.designs],
                 'stall': None if self.stall is None else {
                     'row': self.stall.row, 'start': self.stall.start,
                     'length': self.stall.length, 'level': self.stall.level}}
@@ -229,16 +233,21 @@ def machine_cam(design, law):
     return _cam(to_json(design), law.cam_rule)
 
 
+def _row_cams(design, law, rows):
+    cam = machine_cam(design, law)
+    return None if cam is None else [cam] * len(rows)
+
+
 def simulate_plan(plan, design=None, law=None):
     """Run the machine of `plan` in closed loop (no ROS): a MachineRun. `law`: the sync law's
     PhaseLockConfig (a scene's; default the defaults); with `speed_profile: cam` every row
-    follows the cam planned for `design` (`machine_cam`) on a CSP drive."""
-    from planter_ros.control.phase_lock import PhaseLockConfig
+    follows the cam planned for `design` (`machine_cam`) on a CSP drive, and for each design of
+    `plan.designs` from its time on (the law takes it at the row's next planting instant)."""
+    from planter_ros.control.phase_lock import PhaseLockConfig, planting_angles
 
     from .gnss import fix_positions
     design = design or season_design()
     law = law or PhaseLockConfig()
-    cam = machine_cam(design, law)
     rng = np.random.default_rng([plan.seed, plan.index, 1])
     profile = plan.profile()
     readings = []
@@ -273,7 +282,10 @@ def simulate_plan(plan, design=None, law=None):
                          design.plant_spacing, design.plants_per_revolution, config=law,
                          drive=nominal, dt=STEP, sample_period=SAMPLE_PERIOD,
                          feedback_period=FEEDBACK_PERIOD, sensor=sensor, drive_changes=changes,
-                         seed=plan.index, cams=None if cam is None else [cam] * len(plan.rows))
+                         seed=plan.index, planting=planting_angles(design),
+                         cams=_row_cams(design, law, plan.rows),
+                         designs=[(t, d.plant_spacing, _row_cams(d, law, plan.rows))
+                                  for t, d in plan.designs])
     every = int(round(FEEDBACK_PERIOD / STEP))
     t = runs[0].t[::every]
     quantum = 2.0 * math.pi / ENCODER_COUNTS
@@ -373,6 +385,14 @@ class MonitorModel:
             out += self._predicted(p.finish())
         return out + self._placed(self.placer.flush())
 
+    def design(self, t, design):
+        """A new design arrived at `t` (s): each row's from its next planting instant."""
+        from planter_ros.prediction import planting_model_from_design
+        model = planting_model_from_design(design)
+        for p in self.predictors:
+            p.change_model(model, t)
+        self.spacing = model.spacing
+
     def seedling(self, t, row, count):
         """A seedling sensor reading of planting row `row` (its index) at `t` (s)."""
         self.seedlings.add_reading(row, t, count)
@@ -461,6 +481,8 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
     seed_t = np.array([t for _, t, _ in run.seedlings], dtype=float)
     seedling_stamp = ns(seed_t)
     logs += (seedling_stamp + rng.integers(200_000, 1_000_000, seedling_stamp.size),)
+    # the spacing schedule's designs, received 1 ms after the design node published them
+    logs += (ns([t for t, _ in plan.designs]) + 1_000_000,)
     kinds = np.concatenate([np.full(a.size, k, dtype=np.int8) for k, a in enumerate(logs)])
     index = np.concatenate([np.arange(a.size) for a in logs])
     log = np.concatenate(logs)
@@ -523,6 +545,10 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
             else:
                 rec.write_message(names[interfaces.SPEED_COMMAND], Float64(data=commands[i][0]),
                                   now, now)
+        elif kind == 5:
+            changed = plan.designs[i][1]
+            rec.write_message(names[interfaces.DESIGN], String(data=to_json(changed)), now)
+            monitor.design(now * 1e-9, changed)
         elif kind == 4:
             r, _, count = run.seedlings[i]
             msg = JointState(name=[joints[r]], position=[float(count)])
@@ -557,6 +583,7 @@ class SceneMachine:
     antenna: object
     cruise: tuple
     law: object = None            # the sync law's PhaseLockConfig (speed_profile, gains)
+    schedule: tuple = ()          # (t s of the run, Design): the scene's spacing schedule
 
 
 def simulate_bag(path, seed, index, duration, rows, machine=None, empty_rate=0.0,
@@ -572,6 +599,8 @@ def simulate_bag(path, seed, index, duration, rows, machine=None, empty_rate=0.0
         plan = draw_plan(seed, index, duration, rows, **tray)
     else:
         plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise, **tray)
+        plan = replace(plan, designs=tuple((t, d) for t, d in machine.schedule
+                                           if t < plan.duration))
     existed = Path(path).exists()          # the recorder refuses it: never removed here
     try:
         if machine is None:
