@@ -191,7 +191,6 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
     csp = [CspDrive(feedback_period) if cam is not None else None
            for cam in (cams or [None] * len(machine.laws))]
     positioned = [r for r, drive in enumerate(csp) if drive is not None]
-    lagged = np.array([drive is None for drive in csp])
     switches = sorted(switches)
     changes = sorted(drive_changes, key=lambda c: (c[0], c[1]))
     designs = sorted(designs, key=lambda c: c[0])
@@ -220,9 +219,9 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
                                                model.speed_scale)
         sync = t >= next_feedback - 1e-12
         if sync:
+            for r in positioned:
+                csp[r].sync(t)
             for r, law in enumerate(machine.laws):
-                if csp[r] is not None:
-                    csp[r].sync(t)
                 law.feedback(theta[r], omega[r], t)
             fresh = True
             next_feedback += feedback_period
@@ -240,14 +239,13 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
         if fresh:
             for r, law in enumerate(machine.laws):
                 cmd[r] = law.command(t)
-                if sync and csp[r] is not None:
-                    csp[r].send(law, cmd[r], theta[r], t)
+            for r in positioned if sync else ():
+                csp[r].send(machine.laws[r], cmd[r], theta[r], t)
         angle[:, i], command[:, i], speed[:, i] = theta, cmd, omega
-        goal = scale * cmd
+        step = (scale * cmd - omega) * np.minimum(dt / tau, 1.0)
         for r in positioned:
-            goal[r] = scale[r] * csp[r].speed(theta[r], tau[r], t)
-        # a speed loop lags its command; a position loop asks for its speed at once
-        step = np.where(lagged, (goal - omega) * np.minimum(dt / tau, 1.0), goal - omega)
+            # a speed loop lags its command; a position loop asks for its speed at once
+            step[r] = scale[r] * csp[r].speed(theta[r], tau[r], t) - omega[r]
         lim = amax * dt
         omega = omega + np.clip(step, -lim, lim)
         theta = theta + omega * dt
