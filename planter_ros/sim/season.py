@@ -226,8 +226,8 @@ def _cam(design_json, rule):
 def machine_cam(design, law):
     """The cam profile every row of the sync law `law` (a PhaseLockConfig) follows with
     `design` (control.cam_law.plan_row_cam, as the sync node plans it), or None: constant
-    speed. A design the cam cannot run is refused (ValueError, CamError: one line), where the
-    sync node would fall back to constant speed with a warning: a simulated run says so."""
+    speed. A design the cam cannot run raises ValueError or CamError (one line): the sync node
+    would fall back to constant speed with a warning; `planter simulate` refuses the scene."""
     if law is None or law.speed_profile != 'cam':
         return None
     return _cam(to_json(design), law.cam_rule)
