@@ -19,7 +19,8 @@ def quick_run(tmp_path_factory):
     plot, page = tmp / 'tradeoff.png', tmp / 'benchmarks.md'
     out = run_planter('bench', '--quick', '--json', '--plot', plot, '--markdown', page,
                       timeout=300)
-    assert out.returncode == 0, out.stderr[-2000:]
+    failed = re.findall(r'"note": "(FAILED: [^"]*)"', out.stdout)
+    assert out.returncode == 0, '\n'.join(failed) or out.stderr[-2000:]
     return json.loads(out.stdout), plot, page
 
 

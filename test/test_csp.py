@@ -5,6 +5,7 @@ following error beyond the window, and counts late and missing SYNCs."""
 import math
 import time
 
+import numpy as np
 import pytest
 
 from drive_helpers import wait_until
@@ -112,18 +113,23 @@ def engine_on(channel, rows=ROWS, **drive):
 
 
 def run_engine(engine, seconds, v, w=0.0):
-    """The command process's loop in miniature: a sample every 20 ms, a step every SYNC."""
+    """The command process's loop in miniature: a sample every 20 ms, a step every SYNC.
+    Returns each row's phase errors after each step (rad)."""
     end = time.monotonic() + seconds
     next_sample = 0.0
     next_tick = time.monotonic()
+    errors = [[] for _ in engine.units]
     while time.monotonic() < end:
         now = time.monotonic()
         if v is not None and now >= next_sample:
             engine.sample(v, w, now)
             next_sample = now + 0.02
         engine.step(now)
+        for unit, row in zip(engine.units, errors):
+            row.append(unit.law.phase_error(now))
         next_tick = max(next_tick + engine.period, time.monotonic())
         time.sleep(max(next_tick - time.monotonic(), 0.0))
+    return errors
 
 
 @pytest.mark.slow
@@ -139,13 +145,15 @@ def test_the_command_path_drives_csp_rows_phase_locked_and_ramps_a_stale_speed_t
         engine.set_design(from_json(design), design, time.monotonic())
         run_engine(engine, 5.0, 0.3, w=0.1)
         before = [sim.motor_position for sim in sims.drives]
-        run_engine(engine, 2.0, 0.3, w=0.1)
+        errors = run_engine(engine, 2.0, 0.3, w=0.1)
         means = []
-        for unit, sim, start in zip(engine.units, sims.drives, before):
+        for unit, sim, start, error in zip(engine.units, sims.drives, before, errors):
             want = 2 * math.pi * unit.law.ground_speed_value / D      # 9.4 and 6.3 rad/s
             means.append((sim.motor_position - start) / 2.0)
             assert means[-1] == pytest.approx(want, rel=0.03), unit.label
-            assert abs(unit.law.phase_error(time.monotonic())) < 0.15
+            # locked over the 2 s (an instant's error follows the loop's jitter: 0.29 rad once
+            # on a loaded CI host)
+            assert np.median(np.abs(error)) < 0.15, unit.label
             assert abs(sim.following_error) < 0.2
         # y = 1 m inside the curve: slower over the 2 s (an instant's speed jitters with the
         # SYNC interpolation)

@@ -6,6 +6,7 @@ import pytest
 
 from drive_helpers import RPDO1, SDO_RX, drain, rpdo_frames
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig, DriveError
+from planter_ros.drive.fault_bus import FaultBus
 from planter_ros.drive.simulated_drive import SimulatedDrive
 
 
@@ -66,6 +67,21 @@ def test_each_enable_step_times_out_with_a_one_line_error_naming_it(sim, make_dr
     assert step in message and held in message and 'timed out' in message
     assert '\n' not in message
     assert sim.state == held
+
+
+def test_a_lost_nmt_start_is_repeated_until_the_drive_answers(sim, make_drive, channel):
+    """NMT commands are unconfirmed: the pre-operational and the first start command lost on
+    the bus, the drive still becomes operational and enabled within the step timeout."""
+    bus = FaultBus(can.Bus(interface='virtual', channel=channel))
+    bus.drop(0x000, 2, sent=True)
+    try:
+        drive = make_drive(bus=bus, step_timeout=0.5)
+        drive.connect_and_enable()
+        assert bus.counts['lost_sent'] == 2
+        assert sim.nmt_state == 'OPERATIONAL' and sim.state == 'OPERATION ENABLED'
+        drive.shutdown()
+    finally:
+        bus.shutdown()
 
 
 def test_no_drive_on_the_bus_names_the_first_step(make_drive):

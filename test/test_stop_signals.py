@@ -9,6 +9,8 @@ import time
 
 import pytest
 
+from planter_ros import stop_signals
+
 REPO = Path(__file__).resolve().parents[1]
 
 HUNG_CLEANUP = r'''
@@ -94,3 +96,43 @@ print('discovery range', os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE'), flush=
 sim.stop()
 raise SystemExit(code)
 '''
+
+
+class _Context:
+    def __init__(self):
+        self.valid = True
+
+    def ok(self):
+        return self.valid
+
+
+class _Executor:
+    """An executor whose wait is refused once its context was shut down under it (rclpy's
+    RCLError 'the given context is not valid'), the way a signal landing between spin()'s check
+    and the next wait leaves it."""
+
+    def __init__(self, shut_down_after):
+        self.context = _Context()
+        self.waits = 0
+        self.shut_down_after = shut_down_after
+
+    def spin_once(self, timeout_sec):
+        self.waits += 1
+        if self.waits > self.shut_down_after:
+            self.context.valid = False
+            raise RuntimeError('failed to initialize wait set: the given context is not valid')
+
+
+def test_a_context_shut_down_under_the_wait_ends_the_spin_without_an_error():
+    handler = stop_signals.StopSignals('test')
+    executor = _Executor(shut_down_after=3)
+    stop_signals.spin(executor, handler, period=0.0)
+    assert executor.waits == 4
+
+
+def test_a_wait_that_fails_on_a_live_context_is_still_an_error():
+    class Broken(_Executor):
+        def spin_once(self, timeout_sec):
+            raise RuntimeError('a callback failed')
+    with pytest.raises(RuntimeError, match='a callback failed'):
+        stop_signals.spin(Broken(shut_down_after=0), stop_signals.StopSignals('test'), 0.0)

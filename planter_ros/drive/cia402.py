@@ -77,6 +77,7 @@ log = logging.getLogger(__name__)
 _INT32 = (-2**31, 2**31 - 1)
 SDO_ATTEMPTS = 2            # each SDO request is sent at most this often (sdo_timeout each)
 _NMT_OPERATIONAL = 0x05
+NMT_REPEAT = 0.1          # s between two NMT start commands while the drive has not answered
 _MODE_NAMES = {PROFILE_VELOCITY: 'profile velocity', CYCLIC_SYNC_POSITION: 'cyclic synchronous '
                'position'}
 
@@ -633,13 +634,18 @@ class Cia402Drive:
             time.sleep(0.002)
 
     def _go_operational(self) -> None:
-        """NMT operational: PDOs flow; wait for the first statusword TPDO."""
+        """NMT operational: PDOs flow; wait for the first statusword TPDO. The NMT command is
+        unconfirmed (a lost frame is never re-sent by the bus): repeated every
+        NMT_REPEAT s until the drive answers (a drive already operational ignores it)."""
         with self._lock:
             self._sw_received = False
-        self._send('NMT operational', lambda: setattr(self._node.nmt, 'state', 'OPERATIONAL'))
         self._connected = True
         self._wait_state('NMT operational (first statusword TPDO)',
-                         lambda state: self._sw_received, 'no statusword TPDO')
+                         lambda state: self._sw_received, 'no statusword TPDO',
+                         resend=lambda: self._send(
+                             'NMT operational',
+                             lambda: setattr(self._node.nmt, 'state', 'OPERATIONAL')),
+                         resend_period=NMT_REPEAT)
 
     def _enable_state_machine(self) -> None:
         """From whatever state the drive is in to OPERATION ENABLED, one step at a time."""
@@ -782,7 +788,8 @@ class Cia402Drive:
         self._send(f'RPDO (controlword 0x{controlword:04X}, {target.address} {counts})', send)
 
     def _wait_state(self, step: str, done: Callable[[str], bool], what: str,
-                    resend: Callable[[], object] | None = None) -> None:
+                    resend: Callable[[], object] | None = None,
+                    resend_period: float = 0.02) -> None:
         deadline = time.monotonic() + self.config.step_timeout
         next_send = 0.0
         while True:
@@ -800,7 +807,7 @@ class Cia402Drive:
                 now = time.monotonic()
                 if now >= next_send:            # repeat the command: keeps the RPDO deadline fed
                     resend()
-                    next_send = now + 0.02
+                    next_send = now + resend_period
                 with self._feedback:
                     self._feedback.wait(min(max(deadline - time.monotonic(), 0.0), 0.005))
         seen = f'state stays {state} (statusword 0x{sw:04X})' if self._sw_received else what

@@ -12,7 +12,8 @@ the bus and see, on demand:
 * **send errors** (`send_error_rate`, 0..1): `send` raises `can.CanOperationError`, as
   SocketCAN's ENOBUFS (a full transmit queue) does.
 * **a given frame lost** (`drop(can_id, count)`): the next `count` frames received with that
-  COB-ID are lost (a boot-up message that never arrives).
+  COB-ID are lost (a boot-up message that never arrives); `drop(can_id, count, sent=True)`:
+  the next `count` sent (an NMT command no drive heard).
 * **bus-off** (`bus_off(seconds)`): for that long every send raises `CanOperationError`
   ('bus-off') and every receive raises it too (an interface gone down), then the bus is back
   (the controller's automatic restart, `restart-ms`). Nothing sent or received meanwhile.
@@ -48,7 +49,7 @@ class FaultBus(can.BusABC):
         self._streams: dict[tuple[str, int], random.Random] = {}
         self._lock = threading.Lock()
         self._bus_off_until = 0.0
-        self._drops: dict[int, int] = {}
+        self._drops: dict[tuple[bool, int], int] = {}
         self.counts = {'sent': 0, 'received': 0, 'lost_sent': 0, 'lost_received': 0,
                        'send_errors': 0, 'bus_off_sends': 0, 'bus_off_receives': 0}
         self.channel_info = f'faults on {getattr(bus, "channel_info", bus)}'
@@ -60,16 +61,17 @@ class FaultBus(can.BusABC):
         with self._lock:
             self._bus_off_until = time.monotonic() + float(seconds)
 
-    def drop(self, can_id: int, count: int = 1) -> None:
-        """Lose the next `count` received frames with COB-ID `can_id`."""
+    def drop(self, can_id: int, count: int = 1, sent: bool = False) -> None:
+        """Lose the next `count` received (or `sent`) frames with COB-ID `can_id`."""
         with self._lock:
-            self._drops[can_id] = self._drops.get(can_id, 0) + int(count)
+            key = (sent, can_id)
+            self._drops[key] = self._drops.get(key, 0) + int(count)
 
-    def _dropped(self, can_id: int) -> bool:
+    def _dropped(self, can_id: int, sent: bool = False) -> bool:
         with self._lock:
-            left = self._drops.get(can_id, 0)
+            left = self._drops.get((sent, can_id), 0)
             if left:
-                self._drops[can_id] = left - 1
+                self._drops[(sent, can_id)] = left - 1
             return bool(left)
 
     @property
@@ -94,7 +96,8 @@ class FaultBus(can.BusABC):
             self.counts['send_errors'] += 1
             raise can.CanOperationError('Failed to transmit: No buffer space available '
                                         '[Error Code 105]')
-        if self.loss and self._draw('send', msg.arbitration_id) < self.loss:
+        if (self._drops and self._dropped(msg.arbitration_id, sent=True)) or (
+                self.loss and self._draw('send', msg.arbitration_id) < self.loss):
             self.counts['lost_sent'] += 1
             return
         self.bus.send(msg, timeout)

@@ -122,6 +122,7 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
                 sent.append(t)
             time.sleep(1.0 / rate)
         time.sleep(0.2)
+        trips = sims.watchdog_trips
     finally:
         stop.set()
         if ex is not None:
@@ -134,7 +135,17 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
             listener.shutdown()
         if sims is not None:
             sims.stop()
-    return match_frames(sent, frames), len(sent)
+    return match_frames(sent, frames), len(sent), trips
+
+
+def tripped(trips):
+    """Why no command changed, when a drive's watchdog stopped it (the host starved the
+    process past the drive's deadlines): '' otherwise."""
+    if not trips:
+        return ''
+    node, reason, code = trips[0]
+    return (f': the drives quick-stopped ({len(trips)} watchdog trip(s), first node {node}: '
+            f'{reason}, EMCY {code:04X}h)')
 
 
 def match_frames(sent, frames):
@@ -171,9 +182,10 @@ def match_frames(sent, frames):
 def sync_latency(ctx):
     samples = ctx.n(1000, 50)
     ctx.progress(f'  {samples} samples at {RATE:g} Hz ...')
-    lat, sent = sync_latencies(samples, RATE, warmup=ctx.n(50, 10))
+    lat, sent, trips = sync_latencies(samples, RATE, warmup=ctx.n(50, 10))
     if not lat:
-        raise RuntimeError(f'no CAN frame matched any of {sent} ground-speed samples')
+        raise RuntimeError(f'no CAN frame matched any of {sent} ground-speed samples'
+                           + tripped(trips))
     t = from_samples(lat, tail=True)
     yield Row(WHAT, 'sync_node (single-threaded executor, own thread)', 1, 'message', t,
               error_of=ERROR_OF, targets=[Target('p99 ≤ 2 ms', t.p99 <= P99_TARGET)],
@@ -188,9 +200,10 @@ def sync_latency_rows(ctx):
     samples = ctx.n(1000, 50)
     for rows in ROW_COUNTS:
         ctx.progress(f'  {rows} row(s): {samples} samples at {RATE:g} Hz ...')
-        lat, sent = sync_latencies(samples, RATE, warmup=ctx.n(50, 10), rows=rows)
+        lat, sent, trips = sync_latencies(samples, RATE, warmup=ctx.n(50, 10), rows=rows)
         if not lat:
-            raise RuntimeError(f'{rows} rows: no sample matched a CAN frame on every row')
+            raise RuntimeError(f'{rows} rows: no sample matched a CAN frame on every row'
+                               + tripped(trips))
         t = from_samples(lat, tail=True)
         targets = [Target('8 rows: p99 ≤ 2 ms', t.p99 <= P99_TARGET)] if rows == 8 else []
         yield Row(WHAT_ROWS, f'{rows} row(s), simulated drives in the process', rows,
