@@ -30,8 +30,16 @@ class RowLayout:
     """Which rows the machine has (fixed at start-up)."""
 
     rows: list = setting([], 'names of the planting units (rows); each has a block of row '
-                         'settings <row>.lateral_offset, <row>.drive_node_id, <row>.enabled; '
-                         'empty = one implicit row', item=str, read_only=True)
+                         'settings <row>.lateral_offset, <row>.drive_node_id, <row>.enabled, '
+                         '<row>.seedling_sensor; empty = one implicit row', item=str,
+                         read_only=True)
+    seedling_sensor: bool = setting(True, 'the rows carry a seedling sensor (an optical cup or '
+                                    'drop-tube sensor counting the seedlings of each cycle, '
+                                    'topic seedlings): a scene without rows, its one row; with '
+                                    'rows, every row whose block does not set its own '
+                                    '<row>.seedling_sensor. false: every planting instant '
+                                    'is unknown (no seedling sensor), whatever is read',
+                                    read_only=True)
 
     def __post_init__(self):
         check(self)
@@ -60,6 +68,10 @@ class RowSettings:
                                          'reference point (behind: negative; a machine file '
                                          'sets it from the GNSS antenna)', unit='m',
                                          range=(-50.0, 50.0), read_only=True)
+    seedling_sensor: bool = setting(True, 'the row carries a seedling sensor (topic seedlings, '
+                                    'its joint\'s count each cycle); false: its planting '
+                                    'instants are unknown (no seedling sensor). Default: the '
+                                    "scene's seedling_sensor", read_only=True)
 
     def __post_init__(self):
         check(self)
@@ -76,6 +88,9 @@ class Row:
     drive_node_id: int | None
     enabled: bool = True
     longitudinal_offset: float = 0.0     # m, + ahead of the reference point
+    # the row carries a seedling sensor; None: not declared (a bag recorded before the
+    # setting: the sensor is inferred from its readings, prediction.seedlings)
+    seedling_sensor: bool | None = True
 
     @property
     def label(self):
@@ -89,20 +104,23 @@ class Row:
     def as_dict(self):
         return {'index': self.index, 'name': self.name, 'lateral_offset': self.lateral_offset,
                 'drive_node_id': self.drive_node_id, 'enabled': self.enabled,
-                'longitudinal_offset': self.longitudinal_offset}
+                'longitudinal_offset': self.longitudinal_offset,
+                'seedling_sensor': self.seedling_sensor}
 
 
-def implicit_row(drive_node_id=None):
-    return Row(0, IMPLICIT, 0.0, drive_node_id, True)
+def implicit_row(drive_node_id=None, seedling_sensor=True):
+    return Row(0, IMPLICIT, 0.0, drive_node_id, True, seedling_sensor=seedling_sensor)
 
 
-def rows_from_settings(names, settings, default_node_id=None):
-    """Rows from the row names and each name's RowSettings; one implicit row without names.
-    Raises ConfigError when two rows name the same drive."""
+def rows_from_settings(names, settings, default_node_id=None, seedling_sensor=True):
+    """Rows from the row names and each name's RowSettings; one implicit row without names
+    (`seedling_sensor`: its sensor, RowLayout.seedling_sensor). Raises ConfigError when two
+    rows name the same drive."""
     if not names:
-        return [implicit_row(default_node_id)]
+        return [implicit_row(default_node_id, seedling_sensor)]
     rows = [Row(i, name, settings[name].lateral_offset, settings[name].drive_node_id,
-                settings[name].enabled, settings[name].longitudinal_offset)
+                settings[name].enabled, settings[name].longitudinal_offset,
+                settings[name].seedling_sensor)
             for i, name in enumerate(names)]
     owner = {}
     for row in rows:
@@ -117,20 +135,22 @@ def rows_from_settings(names, settings, default_node_id=None):
 def rows_from_scene(params, default_node_id=None):
     """Rows of a flat scene parameter dict (`planter_ros.scene.load_scene`), as the nodes read
     them from their parameters. Raises ConfigError (one line)."""
-    layout = from_mapping(RowLayout, {k: params[k] for k in ('rows',) if k in params})
+    layout = from_mapping(RowLayout, {k: params[k] for k in ('rows', 'seedling_sensor')
+                                      if k in params})
     settings = {}
     for name in layout.rows:
         prefix = f'{name}.'
         values = {k[len(prefix):]: v for k, v in params.items() if k.startswith(prefix)}
+        values.setdefault('seedling_sensor', layout.seedling_sensor)
         settings[name] = from_mapping(RowSettings, values, prefix=prefix)
-    return rows_from_settings(layout.rows, settings, default_node_id)
+    return rows_from_settings(layout.rows, settings, default_node_id, layout.seedling_sensor)
 
 
 def scene_row_parameters(params):
     """The row parameters of a flat scene dict (`rows` and every `<row>.<field>`)."""
     names = params.get('rows') or []
     return {k: v for k, v in params.items()
-            if k == 'rows' or any(k.startswith(f'{n}.') for n in names)}
+            if k in ('rows', 'seedling_sensor') or any(k.startswith(f'{n}.') for n in names)}
 
 
 def rows_record(rows):
@@ -144,7 +164,8 @@ def rows_from_record(record):
         items = json.loads(record['rows'])
         return [Row(int(r['index']), str(r['name']), float(r['lateral_offset']),
                     None if r.get('drive_node_id') is None else int(r['drive_node_id']),
-                    bool(r.get('enabled', True)), float(r.get('longitudinal_offset', 0.0)))
+                    bool(r.get('enabled', True)), float(r.get('longitudinal_offset', 0.0)),
+                    None if r.get('seedling_sensor') is None else bool(r['seedling_sensor']))
                 for r in items]
     except (KeyError, TypeError, ValueError):
         return None

@@ -45,8 +45,8 @@ def test_the_demo_with_a_tray_records_planted_empty_and_double_instants(tmp_path
     out = run_planter('demo', '--duration', '12', '--empty-rate', '0.25', '--double-rate',
                       '0.15', '--seed', '3', '--bag', bag, timeout=240)
     assert out.returncode in (0, 1), out.stdout[-3000:] + out.stderr[-3000:]
-    assert 'seedling sensor: a cup sensor per row on a simulated tray, 25% empty cells, 15% ' \
-        'doubles' in out.stdout
+    assert 'seedling sensor: a cup sensor on 1 of 1 row(s) on a simulated tray, 25% empty ' \
+        'cells, 15% doubles' in out.stdout
     result = replay(bag, with_recorded=True)
     plants = result.plants
     assert len(plants) >= 6

@@ -25,22 +25,49 @@ def season_machine(scene, rows):
     if rows is not None:
         raise ConfigError(f'--rows = {rows} with --scene: allowed one of them (the scene\'s '
                           "rows are its machine's)")
-    return str(Path(scene).resolve()), len(scene_machine(scene).rows)
+    machine = scene_machine(scene)
+    if machine.law.speed_profile == 'cam':
+        from planter_ros.cam import CamError
+        from planter_ros.sim.season import machine_cam
+        try:
+            for design in (machine.design, *(d for _, d in machine.schedule)):
+                machine_cam(design, machine.law)
+        except (ValueError, CamError) as exc:
+            raise ConfigError(f'scene {scene}: speed_profile = cam cannot run: {exc}: allowed '
+                              'a five-bar design the cam can plan, or speed_profile: '
+                              'constant') from None
+    return str(Path(scene).resolve()), len(machine.rows)
 
 
 def scene_machine(scene):
     """The sim.season.SceneMachine of a scene file (SceneError, DesignError: one line)."""
-    from planter_ros.config import from_mapping
+    from planter_ros.config import ConfigError, from_mapping
+    from planter_ros.control.phase_lock import PhaseLockConfig
     from planter_ros.prediction import PredictionSettings
     from planter_ros.scene import open_scene
     from planter_ros.sim.season import SceneMachine
+    from planter_ros.design import design_for_scene
+    from planter_ros.scene import SceneError
+    from planter_ros.scene.schedule import spacing_schedule
     opened = open_scene(scene)
     design = opened.design()
     monitor = opened.parameters('monitor_node')
-    nominal = float(opened.parameters('design_node').get('nominal_ground_speed', 0.2))
+    params = opened.parameters('design_node')
+    nominal = float(params.get('nominal_ground_speed', 0.2))
+    schedule, current = [], design.plant_spacing
+    for t, spacing in spacing_schedule(params, opened.path):
+        if spacing != current:              # as the demo: the same spacing again changes nothing
+            try:
+                schedule.append((t, design_for_scene({**params, 'plant_spacing': spacing})))
+            except ConfigError as exc:
+                raise SceneError(f'scene {opened.path}: spacing_schedule {spacing} m at {t} s: '
+                                 f'{exc}') from None
+            current = spacing
     return SceneMachine(design, tuple(opened.rows()),
                         from_mapping(PredictionSettings, monitor), opened.acceptance(),
-                        opened.antenna(), (0.75 * nominal, 1.5 * nominal))
+                        opened.antenna(), (0.75 * nominal, 1.5 * nominal),
+                        from_mapping(PhaseLockConfig, opened.parameters('sync_node')),
+                        tuple(schedule))
 
 
 def simulate_scene_bag(path, seed, index, duration, rows, scene=None, empty_rate=0.0,

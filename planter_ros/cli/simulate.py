@@ -23,8 +23,8 @@ def add_arguments(parser):
                         type=spec_option(SeasonOptions, 'rows', '--rows'),
                         help='planting rows of the machine, 1..16 (default 4; 1 = a machine '
                              'without rows); not with --scene')
-    parser.add_argument('--scene', metavar='FILE', help="the scene's machine (design, rows, "
-                        'monitor settings, limits, antenna; default: a tomato five-bar)')
+    parser.add_argument('--scene', metavar='FILE', help="the scene's machine (design, rows, cam, "
+                        'schedule, monitor, limits, antenna; default: a tomato five-bar)')
     parser.add_argument('--seed', metavar='K', default=0,
                         type=spec_option(SeasonOptions, 'seed', '--seed'),
                         help='seed of the season, 0..2^32-1 (default 0): the same seed gives '

@@ -20,13 +20,12 @@ from typing import TYPE_CHECKING, Any
 import can
 
 from planter_ros import diagnostics, interfaces
-from planter_ros.config import ConfigError
 from planter_ros.control import sync_status
 from planter_ros.control.cam_law import plan_for_design
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
 from planter_ros.control.machine import Machine
-from planter_ros.control.phase_lock import PhaseLock, PlantingAngles
-from planter_ros.control.row_loop import RowLoop, RowStep, csp_setpoint
+from planter_ros.control.phase_lock import PhaseLock, planting_angles
+from planter_ros.control.row_loop import RowLoop, RowStep, cam_csp_target, csp_setpoint
 from planter_ros.control.sync_status import Halt
 from planter_ros.design import Design
 from planter_ros.drive.bus_load import BusLoad, bus_load, check_bus_load
@@ -610,7 +609,8 @@ class CommandEngine:
             step = min(owed, 2.0 * period)
             unit.behind = min(owed - step, 0.5)
             unit.target += row.command * step
-            on_cam = None if self.stopping else _on_cam(unit.law, unit.target, now + period, step)
+            on_cam = None if self.stopping else cam_csp_target(unit.law, unit.target,
+                                                               now + period, step)
             if on_cam is not None:          # a cam row's target is its angle at the next SYNC
                 unit.target, ahead = on_cam, period
         unit.target_time = now
@@ -786,19 +786,6 @@ class CommandEngine:
             }
 
 
-def _on_cam(law: Any, target: float, at: float, step: float) -> float | None:
-    """A cam row's CSP target: the integrated `target` pulled onto θ(s) of the row's distance
-    at the SYNC it applies at, by at most 1.5 times the law's correction bound over `step` (so a
-    cam row's targets are θ(s) itself while it tracks, and a row catching up after a halt
-    closes in gradually). None for rows without a cam or not tracking: they keep the integrated
-    target."""
-    want = law.cam_target(at)
-    if want is None:
-        return None
-    pull = 1.5 * law.config.max_correction * step
-    return target + min(max(want - target, -pull), pull)
-
-
 def machine_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: int, csp: bool) -> BusLoad:
     """The worst-case CAN bus load of `rows` drives in profile velocity or CSP."""
     return bus_load(rows, cfg.can_bitrate, loop.control_period, loop.ground_speed_rate,
@@ -829,14 +816,3 @@ def bottom_angle(design: Design) -> float:
         return math.pi
     import numpy as np
     return float(np.asarray(path.angle)[int(np.argmin(np.asarray(path.y)))])
-
-
-def planting_angles(design: Design) -> PlantingAngles | None:
-    """Where the design's mechanism plants on its shaft (for section stops), or None."""
-    from planter_ros.prediction import planting_model_from_design
-    try:
-        model = planting_model_from_design(design)
-    except (ValueError, TypeError, KeyError, ConfigError):
-        return None
-    return PlantingAngles(float(model.planting_phase), float(model.entry_angle),
-                          float(model.exit_angle))

@@ -112,6 +112,18 @@ class PlantingAngles:
     exit: float
 
 
+def planting_angles(design: Any) -> PlantingAngles | None:
+    """Where a design's mechanism plants on its shaft (its planting model's phase, soil entry
+    and exit: section stops and design changes), or None when it has no planting model."""
+    from planter_ros.prediction import planting_model_from_design
+    try:
+        model = planting_model_from_design(design)
+    except (ValueError, TypeError, KeyError, ConfigError):
+        return None
+    return PlantingAngles(float(model.planting_phase), float(model.entry_angle),
+                          float(model.exit_angle))
+
+
 def stop_angle(theta: float, omega: float, max_acceleration: float, pitch: float,
                angles: PlantingAngles | None = None, lag: float = STOP_LAG) -> float:
     """Where a row switched off at shaft angle `theta` (rad), turning at `omega` (rad/s), comes

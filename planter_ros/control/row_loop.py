@@ -24,7 +24,7 @@ from . import sync_status
 from .machine import Machine
 from .sync_status import Halt
 
-__all__ = ['CSP_LEAD', 'RowStep', 'LoopStep', 'RowLoop', 'csp_setpoint']
+__all__ = ['CSP_LEAD', 'RowStep', 'LoopStep', 'RowLoop', 'cam_csp_target', 'csp_setpoint']
 
 # SYNC periods from a CSP step to when the drive's set point reaches the target it sends: the
 # target goes out right after SYNC k, the drive takes it at SYNC k+1 and interpolates to it
@@ -39,6 +39,19 @@ def csp_setpoint(target: float, command: float, period: float, ahead: float = 0.
     point trails the law by two periods (20 ms at 10 ms SYNC), which the phase correction
     only makes up at its own pace: 0.6-0.9 mm behind in every ramp of the demo's profile."""
     return target + command * max(CSP_LEAD * period - ahead, 0.0)
+
+
+def cam_csp_target(law: Any, target: float, at: float, step: float) -> float | None:
+    """A cam row's CSP target: the integrated `target` pulled onto θ(s) of the row's distance
+    at the SYNC it applies at (`at`), by at most 1.5 times the law's correction bound over
+    `step` s (so a cam row's targets are θ(s) itself while it tracks, and a row catching up
+    after a halt closes in gradually). None for rows without a cam or not tracking: they keep
+    the integrated target. The command process and `planter simulate` both use it."""
+    want = law.cam_target(at)
+    if want is None:
+        return None
+    pull = 1.5 * law.config.max_correction * step
+    return target + min(max(want - target, -pull), pull)
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     scene = open_scene(options.scene or default_scene_path())
     check_bag_path(options.bag)
     design = scene.design()               # a bad scene fails here, before anything starts
-    from .schedule import spacing_schedule
+    from planter_ros.scene.schedule import spacing_schedule
     spacing_schedule(scene.parameters('design_node'), scene.path)
     node_id = scene.parameters('sync_node').get('drive_node_id', 1)
     rows = scene.rows(default_node_id=node_id)
@@ -81,7 +81,7 @@ class Demo:
         self.install_signals = install_signals
         self.log_level = log_level
         self.result: DemoResult | None = None
-        from .schedule import spacing_schedule
+        from planter_ros.scene.schedule import spacing_schedule
         self.schedule = spacing_schedule(scene.parameters('design_node'), scene.path)
 
     def _print(self, text: str = '') -> None:
@@ -333,14 +333,20 @@ class _Run:
             f'{receiver.noise * 1e3:.0f} mm per axis; antenna x = {antenna[0]:+.2f} m, '
             f'y = {antenna[1]:+.2f} m on the machine')
         from planter_ros.sim.ros_field import SeedlingSensor
-        seedlings = SeedlingSensor(self.demo.design, self.demo.planting, options.empty_rate,
-                                   options.double_rate, seed=options.seed,
-                                   context=self.context, namespace=ns)
-        self.demo._print(f'seedling sensor: a cup sensor per row on a simulated tray, '
-                         f'{options.empty_rate:.0%} empty cells, {options.double_rate:.0%} '
-                         'doubles (topic seedlings)')
+        sensed = [row for row in self.demo.planting if row.seedling_sensor]
+        nodes = [self.source, gnss]
+        if sensed:
+            nodes.append(SeedlingSensor(self.demo.design, sensed, options.empty_rate,
+                                        options.double_rate, seed=options.seed,
+                                        context=self.context, namespace=ns))
+        self.demo._print(
+            f'seedling sensor: a cup sensor on {len(sensed)} of {len(self.demo.planting)} '
+            f'row(s) on a simulated tray, '
+            f'{options.empty_rate:.0%} empty cells, {options.double_rate:.0%} doubles (topic '
+            'seedlings)' if sensed else 'seedling sensor: none (the scene declares no row '
+            'with one): every planting instant unknown')
         self.observer.start = self.source.start
-        for node in (self.source, gnss, seedlings):
+        for node in nodes:
             self.nodes.append(node)
             self.executor.add_node(node)
 

@@ -40,9 +40,10 @@ class SceneSettings:
                                     '(its l1, l2); 0: plant_spacing. With speed_profile: cam the '
                                     'sync node plants plant_spacing with this mechanism '
                                     '(doc/cam.md)', unit='m', range=(0.0, 2.0))
-    spacing_schedule: list = setting([], '`planter demo` only: [t1, d1, t2, d2, ...], the '
-                                     'demo sets plant_spacing to d_i at t_i s of its field run '
-                                     '(a spacing changed at run time); the nodes ignore it',
+    spacing_schedule: list = setting([], '`planter demo` and `planter simulate` only: [t1, '
+                                     'd1, t2, d2, ...], plant_spacing becomes d_i at t_i s of '
+                                     'the field run (a spacing changed at run time); the nodes '
+                                     'ignore it',
                                      range=(0.0, 1e5))
 
     def __post_init__(self) -> None:

@@ -114,7 +114,8 @@ class MonitorNode(Node):
         self._machine_quality = SpacingQuality()
         self._drawn = {}                    # row index -> plants drawn (marker ids)
         self._sections = SectionBreaks()    # the rows' section states -> breaks
-        self._seedlings = SeedlingAccount()  # the rows' seedling sensors -> each instant's
+        # the rows' seedling sensors (as the scene declares them) -> each instant's
+        self._seedlings = SeedlingAccount({row.index: row.seedling_sensor for row in self.rows})
 
         self.recorder = None
         self.record_error = ''

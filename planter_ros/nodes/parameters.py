@@ -138,9 +138,14 @@ def declare_rows(node, default_node_id=None):
     ConfigError (one line) for a bad name, a missing or out-of-range field, a node id twice."""
     from planter_ros.rows import RowLayout, RowSettings, rows_from_settings
     layout = ParameterGroup(node, RowLayout).value
+    sensor = next(spec for spec in config.specs(RowSettings) if spec.name == 'seedling_sensor')
+    for name in layout.rows:      # a row's sensor defaults to the scene's seedling_sensor
+        if not node.has_parameter(f'{name}.seedling_sensor'):
+            node.declare_parameter(f'{name}.seedling_sensor', layout.seedling_sensor,
+                                   descriptor(sensor))
     settings = {name: ParameterGroup(node, RowSettings, prefix=f'{name}.').value
                 for name in layout.rows}
-    return rows_from_settings(layout.rows, settings, default_node_id)
+    return rows_from_settings(layout.rows, settings, default_node_id, layout.seedling_sensor)
 
 
 def params_files(arguments: Sequence[str] | None) -> list[str]:

@@ -10,9 +10,16 @@ header.stamp = when it was read). Each instant takes the last reading of its row
 previous instant and not after it:
 
 * status `planted` (1 seedling), `empty` (0), `double` (2 or more): reason `sensed`;
-* status `unknown`: reason `no seedling sensor` (no reading of the row in the whole run),
-  `no sensor reading` (the sensor is there but said nothing this cycle), or `input gap` (no
-  reading, and the instant fell in a gap of the ground speed or joint samples).
+* status `unknown`: reason `no seedling sensor` (the row has none), `no sensor reading` (the
+  sensor is there but said nothing this cycle), or `input gap` (no reading, and the instant
+  fell in a gap of the ground speed or joint samples).
+
+Whether a row has a sensor is declared in the scene (`seedling_sensor`, `<row>.seedling_sensor`,
+rows.RowSettings; recorded in the bag's rows record): a row declared without one has every
+instant `unknown`, `no seedling sensor`, and a reading on its joint is not counted; a row
+declared with one has `no sensor reading` (or `input gap`) wherever no reading came, also before
+its first. Only a row whose declaration is not known (a bag recorded before the setting) is
+taken to have a sensor from its first reading on.
 
 An instant inside an input gap (prediction.model: its time and position interpolated, the
 model's hole, tilt and upright unknown, flagged `input_gap`) still takes its cycle's reading:
@@ -58,16 +65,19 @@ def reason_name(code: float) -> str | None:
 class SeedlingAccount:
     """Statuses and seedling spacings of a machine's plants (module doc). Feed the sensor's
     readings with `add_reading` (time order within a row) and the plants with `apply` in time
-    order per row. A row has a sensor from its first reading on: an instant before it is
-    `no seedling sensor`, as the live monitor sees it."""
+    order per row. `sensors`: {row index: whether the scene declares a seedling sensor on it
+    (None: not declared)}; a row not in it is undeclared. An undeclared row has a sensor from
+    its first reading on: an instant before it is `no seedling sensor`, as the live monitor
+    sees it."""
 
-    def __init__(self) -> None:
+    def __init__(self, sensors: dict[int, bool | None] | None = None) -> None:
         self._readings = {}                # row -> ([t], [count])
         self._last = {}                    # row -> (instant time, last seedling position)
+        self._sensors = {int(row): on for row, on in (sensors or {}).items() if on is not None}
 
     def add_reading(self, row: int, t: float, count: float) -> None:
         t, count = float(t), float(count)
-        if not math.isfinite(t):
+        if not math.isfinite(t) or self._sensors.get(int(row)) is False:
             return
         times, counts = self._readings.setdefault(int(row), ([], []))
         if times and t <= times[-1]:
@@ -77,6 +87,8 @@ class SeedlingAccount:
 
     def add_readings(self, row: int, times: ArrayLike, counts: ArrayLike) -> None:
         """Many readings of one row at once, as `add_reading` one by one would keep them."""
+        if self._sensors.get(int(row)) is False:
+            return                         # the row has no sensor: nothing it reads counts
         t = np.asarray(times, dtype=float)
         count = np.asarray(counts, dtype=float)
         finite = np.isfinite(t)
@@ -118,9 +130,11 @@ class SeedlingAccount:
             if k >= 0 and times[k] > prev_t and math.isfinite(counts[k]) and counts[k] >= 0:
                 count = counts[k]
                 reason[p] = float(SENSED)
+            elif self._sensors.get(row) is False:
+                pass                                 # no seedling sensor, declared
             elif gap:
                 reason[p] = float(INPUT_GAP)
-            elif k >= 0:
+            elif k >= 0 or self._sensors.get(row):
                 reason[p] = float(NO_READING)
             if count is not None:
                 seedlings[p] = count

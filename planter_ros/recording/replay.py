@@ -312,8 +312,10 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
 
 def _seedlings(rec: Recording, plants: Plants, planting: Sequence[Row],
                segments: Sequence) -> SeedlingAccount:
-    """A SeedlingAccount holding every reading of the bag's seedling sensor (by row)."""
-    account = SeedlingAccount()
+    """A SeedlingAccount holding every reading of the bag's seedling sensor (by row), each row
+    with a sensor or without as its rows record declares it (a bag before the setting: not
+    declared, inferred from the readings)."""
+    account = SeedlingAccount({row.index: row.seedling_sensor for row in planting})
     topic = rec.topics.get(interfaces.SEEDLINGS)
     if topic is None or not topic.raw:
         return account

@@ -105,6 +105,57 @@ def run_comparison(config, spacing, plants_per_revolution, cruise, duration=30.0
     return result
 
 
+class CspDrive:
+    """A row's drive in cyclic synchronous position, as the command process drives it (command
+    .engine) and the simulated drive follows it (drive.simulated_drive): at each SYNC the drive
+    takes the target sent after the last one and interpolates to it over one period; after the
+    SYNC the row's next target is its last one advanced by the law's command, pulled onto the
+    cam's θ(s) (control.row_loop.cam_csp_target) and sent CSP_LEAD periods ahead
+    (csp_setpoint). The motor's speed is the set point's plus the position error over the
+    drive's time constant (its position loop with velocity feed-forward)."""
+
+    def __init__(self, period):
+        self.period = float(period)
+        self.target = None                  # the row's angle at the last SYNC's target (rad)
+        self.target_time = 0.0
+        self.pending = None                 # the set point sent, taken at the next SYNC
+        self.start = -math.inf              # the segment the drive interpolates: its start,
+        self.first = self.last = 0.0        # from, to (rad)
+
+    def setpoint(self, t):
+        share = min(max((t - self.start) / self.period, 0.0), 1.0)
+        return self.first + (self.last - self.first) * share
+
+    def sync(self, t):
+        """A SYNC at `t`: the drive starts the segment to the target sent since the last."""
+        if self.pending is not None:
+            self.first, self.last = self.setpoint(t), self.pending
+            self.start = t
+            self.pending = None
+
+    def send(self, law, command, theta, t):
+        """After the SYNC at `t`: the row's target for the next one (the shaft at `theta`)."""
+        from planter_ros.control.row_loop import cam_csp_target, csp_setpoint
+        ahead = 0.0
+        if self.target is None:
+            self.target = theta
+            self.first = self.last = theta
+        else:
+            step = max(t - self.target_time, 0.0)
+            self.target += command * step
+            on_cam = cam_csp_target(law, self.target, t + self.period, step)
+            if on_cam is not None:
+                self.target, ahead = on_cam, self.period
+        self.target_time = t
+        self.pending = csp_setpoint(self.target, command, self.period, ahead)
+
+    def speed(self, theta, time_constant, t):
+        """The speed the drive's position loop asks for at `t` (rad/s)."""
+        moving = t - self.start < self.period
+        feed = (self.last - self.first) / self.period if moving else 0.0
+        return feed + (self.setpoint(t) - theta) / time_constant
+
+
 @dataclass
 class RowRun:
     """One row of a simulated machine (arrays on the simulation's time grid)."""
@@ -120,7 +171,7 @@ class RowRun:
 def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, config=None,
                   compensation=True, drive=DriveModel(), dt=0.001, sample_period=0.05,
                   feedback_period=0.01, noise=0.005, yaw_noise=0.005, seed=0, switches=(),
-                  planting=None, sensor=None, drive_changes=()):
+                  planting=None, sensor=None, drive_changes=(), cams=None, designs=()):
     """Run a machine with rows at `offsets` (m) along `profile` (a FieldProfile: speed and yaw
     rate) for `duration` s; the sensor adds Gaussian `noise` (m/s) and `yaw_noise` (rad/s).
     Commands are computed on every sample and every feedback period, as the sync node does.
@@ -128,13 +179,21 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
     PlantingAngles (where it plants, for the section stops). `sensor(t, v, ω_z)`, if given,
     turns the true speed and yaw rate into the reading (v, ω_z), or None for a sample that
     never arrives, instead of the Gaussian noise. `drive_changes`: (t, row index, DriveModel)
-    events, that row's drive from t on (a stall and its end). Returns one RowRun per row."""
+    events, that row's drive from t on (a stall and its end). `cams`: each row's cam profile
+    (`speed_profile: cam`, control.cam_law.plan_row_cam; None: constant speed), or None: a cam
+    row runs a CSP drive as the command process drives it (`CspDrive`). `designs`: (t, spacing,
+    cams) events, a design arriving at t (each row takes it at its next planting instant).
+    Returns one RowRun per row."""
     rng = np.random.default_rng(seed)
     machine = Machine(offsets, config or PhaseLockConfig(),
                       turn=TurnConfig(turn_compensation=compensation))
-    machine.set_design(spacing, plants_per_revolution, 0.0, planting)
+    machine.set_design(spacing, plants_per_revolution, 0.0, planting, cams)
+    csp = [CspDrive(feedback_period) if cam is not None else None
+           for cam in (cams or [None] * len(machine.laws))]
+    positioned = [r for r, drive in enumerate(csp) if drive is not None]
     switches = sorted(switches)
     changes = sorted(drive_changes, key=lambda c: (c[0], c[1]))
+    designs = sorted(designs, key=lambda c: c[0])
     rows = len(machine.laws)
     tau, amax, scale = (np.full(rows, float(getattr(drive, k))) for k in
                         ('time_constant', 'max_acceleration', 'speed_scale'))
@@ -151,11 +210,17 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
         while switches and t >= switches[0][0]:
             _, row, on = switches.pop(0)
             machine.laws[row].switch(on, t)
+        while designs and t >= designs[0][0]:
+            _, d, row_cams = designs.pop(0)
+            machine.set_design(d, plants_per_revolution, t, planting, row_cams, since=t)
         while changes and t >= changes[0][0]:
             _, row, model = changes.pop(0)
             tau[row], amax[row], scale[row] = (model.time_constant, model.max_acceleration,
                                                model.speed_scale)
-        if t >= next_feedback - 1e-12:
+        sync = t >= next_feedback - 1e-12
+        if sync:
+            for r in positioned:
+                csp[r].sync(t)
             for r, law in enumerate(machine.laws):
                 law.feedback(theta[r], omega[r], t)
             fresh = True
@@ -174,8 +239,13 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
         if fresh:
             for r, law in enumerate(machine.laws):
                 cmd[r] = law.command(t)
+            for r in positioned if sync else ():
+                csp[r].send(machine.laws[r], cmd[r], theta[r], t)
         angle[:, i], command[:, i], speed[:, i] = theta, cmd, omega
         step = (scale * cmd - omega) * np.minimum(dt / tau, 1.0)
+        for r in positioned:
+            # a speed loop lags its command; a position loop asks for its speed at once
+            step[r] = scale[r] * csp[r].speed(theta[r], tau[r], t) - omega[r]
         lim = amax * dt
         omega = omega + np.clip(step, -lim, lim)
         theta = theta + omega * dt

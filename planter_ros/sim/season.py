@@ -12,16 +12,17 @@ records, chunks closed every second of log time. The monitor's own outputs (plan
 uprightness_rate) come from its model fed sample by sample in log-time order, as monitor_node
 feeds it (RowSpeedStream, one PlantPredictor per row, the map's PlantPlacer), so replaying the
 bag reproduces them.
-Every row has a seedling sensor fed by a simulated tray (`tray_readings`, sim.tray: a cell
-empty with `empty_rate`, two seedlings with `double_rate`): one `seedlings` reading per planting
-cycle, half a cycle before the planting angle; the monitor's model accounts every instant by it
-(prediction.seedlings).
+Every row with a seedling sensor (all rows, or those a scene declares with one: its
+`seedling_sensor`, `<row>.seedling_sensor`) is fed by a simulated tray (`tray_readings`, sim.tray:
+a cell empty with `empty_rate`, two seedlings with `double_rate`): one `seedlings` reading per
+planting cycle, half a cycle before the planting angle; the monitor's model accounts every
+instant by it (prediction.seedlings), a row without one as unknown.
 The bag has no /diagnostics, sections, spacing_quality or plant_markers messages (the channels are
 there): replay derives the indices and the map from the plants and fixes.
 """
 
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 import math
 
@@ -110,6 +111,8 @@ class RunPlan:
     empty_rate: float = 0.0       # the tray: share of empty cells, of cells with two seedlings
     double_rate: float = 0.0
     seedling_sensor: bool = True  # each row's cup sensor reads every cycle (topic seedlings)
+    # a scene's spacing schedule: (t s from the run's start, Design) the design node publishes
+    designs: tuple = ()
 
     @property
     def start_time(self):
@@ -128,6 +131,8 @@ class RunPlan:
                            for c in self.curves],
                 'glitches': [{'kind': g.kind, 'start': g.start, 'length': g.length}
                              for g in self.glitches],
+                'spacing_changes': [{'start': t, 'spacing': d.plant_spacing}
+                                    for t, d in self.designs],
                 'stall': None if self.stall is None else {
                     'row': self.stall.row, 'start': self.stall.start,
                     'length': self.stall.length, 'level': self.stall.level}}
@@ -211,10 +216,38 @@ class MachineRun:
     seedlings: tuple = ()
 
 
-def simulate_plan(plan, design=None):
-    """Run the machine of `plan` in closed loop (no ROS): a MachineRun."""
+@lru_cache(maxsize=4)
+def _cam(design_json, rule):
+    from planter_ros.control.cam_law import plan_row_cam
+    from planter_ros.design import from_json
+    return plan_row_cam(from_json(design_json), rule)
+
+
+def machine_cam(design, law):
+    """The cam profile every row of the sync law `law` (a PhaseLockConfig) follows with
+    `design` (control.cam_law.plan_row_cam, as the sync node plans it), or None: constant
+    speed. A design the cam cannot run raises ValueError or CamError (one line): the sync node
+    would fall back to constant speed with a warning; `planter simulate` refuses the scene."""
+    if law is None or law.speed_profile != 'cam':
+        return None
+    return _cam(to_json(design), law.cam_rule)
+
+
+def _row_cams(design, law, rows):
+    cam = machine_cam(design, law)
+    return None if cam is None else [cam] * len(rows)
+
+
+def simulate_plan(plan, design=None, law=None):
+    """Run the machine of `plan` in closed loop (no ROS): a MachineRun. `law`: the sync law's
+    PhaseLockConfig (a scene's; default the defaults); with `speed_profile: cam` every row
+    follows the cam planned for `design` (`machine_cam`) on a CSP drive, and for each design of
+    `plan.designs` from its time on (the law takes it at the row's next planting instant)."""
+    from planter_ros.control.phase_lock import PhaseLockConfig, planting_angles
+
     from .gnss import fix_positions
     design = design or season_design()
+    law = law or PhaseLockConfig()
     rng = np.random.default_rng([plan.seed, plan.index, 1])
     profile = plan.profile()
     readings = []
@@ -235,17 +268,24 @@ def simulate_plan(plan, design=None):
         readings.append((t, v_read, w_read))
         return v_read, w_read
 
-    nominal = DriveModel(time_constant=plan.drive_lag)
+    # the drive does what the law may ask of it (a cam scene's law: its out-of-soil arc)
+    acceleration = max(DriveModel.max_acceleration, law.max_acceleration)
+    nominal = DriveModel(time_constant=plan.drive_lag, max_acceleration=acceleration)
     changes = []
     if plan.stall is not None:
         s = plan.stall
-        changes = [(s.start, s.row, DriveModel(time_constant=plan.drive_lag, speed_scale=s.level)),
+        changes = [(s.start, s.row, DriveModel(time_constant=plan.drive_lag,
+                                               max_acceleration=acceleration,
+                                               speed_scale=s.level)),
                    (s.start + s.length, s.row, nominal)]
     runs = simulate_rows([row.lateral_offset for row in plan.rows], profile, plan.duration,
-                         design.plant_spacing, design.plants_per_revolution,
+                         design.plant_spacing, design.plants_per_revolution, config=law,
                          drive=nominal, dt=STEP, sample_period=SAMPLE_PERIOD,
                          feedback_period=FEEDBACK_PERIOD, sensor=sensor, drive_changes=changes,
-                         seed=plan.index)
+                         seed=plan.index, planting=planting_angles(design),
+                         cams=_row_cams(design, law, plan.rows),
+                         designs=[(t, d.plant_spacing, _row_cams(d, law, plan.rows))
+                                  for t, d in plan.designs])
     every = int(round(FEEDBACK_PERIOD / STEP))
     t = runs[0].t[::every]
     quantum = 2.0 * math.pi / ENCODER_COUNTS
@@ -265,7 +305,8 @@ def simulate_plan(plan, design=None):
 def tray_readings(plan, design, runs):
     """The seedling sensor readings of a run: for every planting instant of every row one
     reading, half a planting cycle before the planting angle (the cup passing the sensor), of
-    what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1."""
+    what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1.
+    A row the scene declares without a seedling sensor (Row.seedling_sensor) reads nothing."""
     from planter_ros.prediction import planting_model_from_design
 
     from .tray import Tray, sense_angle
@@ -275,6 +316,8 @@ def tray_readings(plan, design, runs):
                 np.random.default_rng([plan.seed, plan.index, 3]))
     out = []
     for r, run in enumerate(runs):
+        if plan.rows[r].seedling_sensor is False:
+            continue                    # the scene declares this row without a sensor
         theta = np.maximum.accumulate(run.angle)
         first = math.ceil((theta[0] - model.planting_phase) * n / (2 * math.pi) + 0.5)
         last = math.floor((theta[-1] - model.planting_phase) * n / (2 * math.pi) + 0.5)
@@ -308,7 +351,7 @@ class MonitorModel:
         self.placer = PlantPlacer(map_settings, antenna.antenna_position,
                                   {row.index: row.lateral_offset for row in rows})
         self.recent = deque(maxlen=settings.window)
-        self.seedlings = SeedlingAccount()
+        self.seedlings = SeedlingAccount({row.index: row.seedling_sensor for row in rows})
         self.spacing = model.spacing
 
     def speed(self, t, v, w):
@@ -341,6 +384,14 @@ class MonitorModel:
         for p in self.predictors:
             out += self._predicted(p.finish())
         return out + self._placed(self.placer.flush())
+
+    def design(self, t, design):
+        """A new design arrived at `t` (s): each row's from its next planting instant."""
+        from planter_ros.prediction import planting_model_from_design
+        model = planting_model_from_design(design)
+        for p in self.predictors:
+            p.change_model(model, t)
+        self.spacing = model.spacing
 
     def seedling(self, t, row, count):
         """A seedling sensor reading of planting row `row` (its index) at `t` (s)."""
@@ -430,6 +481,8 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
     seed_t = np.array([t for _, t, _ in run.seedlings], dtype=float)
     seedling_stamp = ns(seed_t)
     logs += (seedling_stamp + rng.integers(200_000, 1_000_000, seedling_stamp.size),)
+    # the spacing schedule's designs, received 1 ms after the design node published them
+    logs += (ns([t for t, _ in plan.designs]) + 1_000_000,)
     kinds = np.concatenate([np.full(a.size, k, dtype=np.int8) for k, a in enumerate(logs)])
     index = np.concatenate([np.arange(a.size) for a in logs])
     log = np.concatenate(logs)
@@ -492,6 +545,10 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
             else:
                 rec.write_message(names[interfaces.SPEED_COMMAND], Float64(data=commands[i][0]),
                                   now, now)
+        elif kind == 5:
+            changed = plan.designs[i][1]
+            rec.write_message(names[interfaces.DESIGN], String(data=to_json(changed)), now)
+            monitor.design(now * 1e-9, changed)
         elif kind == 4:
             r, _, count = run.seedlings[i]
             msg = JointState(name=[joints[r]], position=[float(count)])
@@ -525,6 +582,8 @@ class SceneMachine:
     acceptance: object
     antenna: object
     cruise: tuple
+    law: object = None            # the sync law's PhaseLockConfig (speed_profile, gains)
+    schedule: tuple = ()          # (t s of the run, Design): the scene's spacing schedule
 
 
 def simulate_bag(path, seed, index, duration, rows, machine=None, empty_rate=0.0,
@@ -540,11 +599,14 @@ def simulate_bag(path, seed, index, duration, rows, machine=None, empty_rate=0.0
         plan = draw_plan(seed, index, duration, rows, **tray)
     else:
         plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise, **tray)
+        plan = replace(plan, designs=tuple((t, d) for t, d in machine.schedule
+                                           if t < plan.duration))
     existed = Path(path).exists()          # the recorder refuses it: never removed here
     try:
         if machine is None:
             return write_monitor_bag(simulate_plan(plan), path)
-        return write_monitor_bag(simulate_plan(plan, machine.design), path, machine.design,
+        return write_monitor_bag(simulate_plan(plan, machine.design, machine.law), path,
+                                 machine.design,
                                  machine.settings, machine.acceptance, machine.antenna)
     except BaseException:
         if not existed:

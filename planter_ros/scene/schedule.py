@@ -1,7 +1,8 @@
-"""The demo's spacing schedule: the scene's `spacing_schedule` [t1, d1, t2, d2, ...] read as
-(time s of the field run, plant spacing m) switches, which the demo applies by setting the
-design node's `plant_spacing` (a spacing changed at run time: the design node publishes the new
-design, the rows take it at their next planting instant)."""
+"""A scene's spacing schedule: its `spacing_schedule` [t1, d1, t2, d2, ...] read as (time s of
+the field run, plant spacing m) switches. `planter demo` applies them by setting the design
+node's `plant_spacing` (a spacing changed at run time: the design node publishes the new design,
+the rows take it at their next planting instant); `planter simulate` gives its runs the same
+designs at the same times of each run (sim.season)."""
 from __future__ import annotations
 
 from typing import Any
