@@ -57,7 +57,8 @@ REALTIME_MODULES = {
     'test_recorder_signals.py', 'test_sections.py', 'test_seedlings.py', 'test_stop_signals.py',
     'test_sync_node.py', 'test_sync_node_start.py',
     # on main since this list was made (drives, demos): real-time once merged
-    'test_bus_faults.py', 'test_demo_tray.py', 'test_machine_start.py'}
+    'test_bus_faults.py', 'test_demo_tray.py', 'test_machine_start.py',
+    'test_seedling_sensor_rows.py'}
 # and single real-time tests of modules that are not (their module's other tests run beside)
 REALTIME_TESTS = {
     'test_no_leftovers.py::test_a_command_leaves_only_what_it_was_asked_to_write[demo]',
