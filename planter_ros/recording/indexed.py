@@ -8,7 +8,8 @@ channels' records are touched: their offsets come from the message indexes, thei
 log times are read for all of them at once with numpy, and each message is a memoryview slice of
 its decompressed chunk (no copy). No other record is parsed (nor any topic's QoS YAML), so the
 cost follows the messages wanted, not the bag's size in records. Every chunk read has its CRC
-checked.
+checked (MCAP's CRC-32, the zlib one, computed by ISA-L through `isal`: about five times zlib's
+speed here, it was a quarter of the reading).
 
 The summary is parsed by recovery.read_summary (footer and summary CRC checked). Anything
 inconsistent - no intact summary, a chunk header, a CRC, an index pointing outside its chunk or
@@ -25,8 +26,8 @@ import mmap
 from pathlib import Path
 import struct
 from typing import TYPE_CHECKING
-import zlib
 
+from isal.isal_zlib import crc32
 import numpy as np
 from numpy.typing import NDArray
 
@@ -173,7 +174,7 @@ class IndexedFile:
             records = lz4.frame.decompress(raw)
         else:
             records = raw
-        if len(records) != size or (crc and zlib.crc32(records) != crc):
+        if len(records) != size or (crc and crc32(records) != crc):
             raise BagDamagedError(f'chunk at byte {pos}: CRC mismatch')
         return records
 

@@ -23,7 +23,8 @@ import mmap
 from pathlib import Path
 import struct
 from typing import TYPE_CHECKING
-import zlib
+
+from isal.isal_zlib import crc32
 
 from .errors import BagDamagedError, BagUnreadableError
 
@@ -213,7 +214,7 @@ def read_summary(data: Data) -> dict[str, dict | list] | None:
         return None
     if not isinstance(footer, Footer) or not _MAGIC_SIZE <= footer.summary_start < footer_at:
         return None
-    if footer.summary_crc and zlib.crc32(data[footer.summary_start:footer_at + 9 + 16]) \
+    if footer.summary_crc and crc32(data[footer.summary_start:footer_at + 9 + 16]) \
             != footer.summary_crc:
         return None
     out = {'schemas': {}, 'channels': {}, 'chunks': [], 'metadata': []}
