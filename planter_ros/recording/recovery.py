@@ -110,10 +110,6 @@ def record_at(data: Data, pos: int,
               end: int | None = None) -> tuple[int, McapRecord | None, int]:
     """(opcode, record or None for an unknown/ignored kind, end offset) of the record at pos;
     BagDamagedError if it is not a whole, valid record. Chunks are opened and CRC-checked."""
-    from mcap.data_stream import ReadDataStream
-    from mcap.records import (
-        Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, Metadata, MetadataIndex,
-        Schema, Statistics)
     end = len(data) if end is None else end
     if pos + 9 > end:
         raise BagDamagedError('record header cut off', at=pos)
@@ -124,10 +120,14 @@ def record_at(data: Data, pos: int,
     stop = pos + 9 + length
     if stop > end:
         raise BagDamagedError('record runs past the end of the file', at=pos)
-    kinds = {0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
-             0x08: ChunkIndex, 0x0B: Statistics, 0x0D: MetadataIndex, 0x0F: DataEnd}
     if opcode == 0x08:               # the summary holds one per chunk: read without a stream
         return opcode, _chunk_index(data, pos, stop), stop
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import (
+        Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, MetadataIndex, Schema,
+        Statistics)
+    kinds = {0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
+             0x0B: Statistics, 0x0D: MetadataIndex, 0x0F: DataEnd}
     stream = ReadDataStream(io.BytesIO(data[pos + 9:stop]))
     try:
         if opcode == 0x06:
