@@ -84,9 +84,9 @@ def _intervals(jt: np.ndarray, theta: np.ndarray, jw: np.ndarray,
                i: np.ndarray) -> tuple[np.ndarray, ...]:
     """The joint-sample intervals ending at indices `i`: t0, h, θ0, Δθ, the Hermite's end
     slopes in rad per unit interval, and whether the Hermite is used there."""
-    t0, h = jt[i - 1], jt[i] - jt[i - 1]
-    th0, dth = theta[i - 1], theta[i] - theta[i - 1]
-    w0, w1 = jw[i - 1], jw[i]
+    k = i - 1
+    t0, th0, w0 = jt[k], theta[k], jw[k]
+    h, dth, w1 = jt[i] - t0, theta[i] - th0, jw[i]
     m0, m1 = w0 * h, w1 * h
     with np.errstate(invalid='ignore', divide='ignore'):
         a, b = m0 / dth, m1 / dth
@@ -95,13 +95,18 @@ def _intervals(jt: np.ndarray, theta: np.ndarray, jw: np.ndarray,
     return t0, h, th0, dth, np.where(hermite, m0, 0.0), np.where(hermite, m1, 0.0), hermite
 
 
+def _rise(u: np.ndarray, dth: np.ndarray, m0: np.ndarray, m1: np.ndarray) -> np.ndarray:
+    """The unit-interval Hermite's rise from θ0 at u."""
+    u2, u3 = u * u, u * u * u
+    return (-2 * u3 + 3 * u2) * dth + (u3 - 2 * u2 + u) * m0 + (u3 - u2) * m1
+
+
 def _cubic(u: np.ndarray, dth: np.ndarray, m0: np.ndarray,
            m1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The unit-interval Hermite's rise from θ0 at u, and its slope d/du."""
-    u2, u3 = u * u, u * u * u
-    f = (-2 * u3 + 3 * u2) * dth + (u3 - 2 * u2 + u) * m0 + (u3 - u2) * m1
+    u2 = u * u
     df = (-6 * u2 + 6 * u) * dth + (3 * u2 - 4 * u + 1) * m0 + (3 * u2 - 2 * u) * m1
-    return f, df
+    return _rise(u, dth, m0, m1), df
 
 
 def _angle_at(t: np.ndarray, i: np.ndarray, jt: np.ndarray, theta: np.ndarray,
@@ -111,8 +116,7 @@ def _angle_at(t: np.ndarray, i: np.ndarray, jt: np.ndarray, theta: np.ndarray,
     measured), and the length of each interval (s)."""
     t0, h, th0, dth, m0, m1, hermite = _intervals(jt, theta, jw, i)
     u = (t - t0) / h
-    rise, _ = _cubic(u, dth, m0, m1)
-    return th0 + np.where(hermite, rise, u * dth), h
+    return th0 + np.where(hermite, _rise(u, dth, m0, m1), u * dth), h
 
 
 def _time_at_angle(angle: np.ndarray, i: np.ndarray, jt: np.ndarray, theta: np.ndarray,
@@ -184,21 +188,20 @@ def arc_figures(arcs: Sequence[tuple[Planting, np.ndarray, Motion]],
     ends = np.column_stack((theta_k - entry, theta_k, theta_k + exit_))
     i, inside = _locate([m.theta for m in motions], np.split(ends, cuts), 'left')
     t_ends, h = _time_at_angle(ends, i, jt, theta, jw)
-    end_gaps = np.where(inside, h, np.inf)
+    end_known = inside & (h <= max_input_gap)     # in a joint-sample interval short enough
     fraction = np.linspace(0.0, 1.0, ARC_SAMPLES)
     t = t_ends[:, :1] + (t_ends[:, 2:] - t_ends[:, :1]) * fraction
     t[:, -1] = t_ends[:, 2]
     i, inside = _locate(jts, np.split(t, cuts), 'right')
     angle, h = _angle_at(t, i, jt, theta, jw)
-    joint_gap = np.where(inside, h, np.inf)
+    joint_known = inside & (h <= max_input_gap)
     at = np.column_stack((t_ends[:, 1], t))
     j, inside = _locate(sts, np.split(at, cuts), 'right')
     s, h = _distance_at(at, j, st, sv, ss)
-    speed_gap = np.where(inside & np.isfinite(at), h, np.inf)
+    speed_known = inside & np.isfinite(at) & (h <= max_input_gap)
     ok = ((per_plant([m.theta[-1] for m in motions]) >= ends[:, 2])
-          & np.all(end_gaps <= max_input_gap, axis=1)
-          & np.all(joint_gap <= max_input_gap, axis=1)
-          & np.all(speed_gap <= max_input_gap, axis=1)
+          & np.all(end_known, axis=1) & np.all(joint_known, axis=1)
+          & np.all(speed_known, axis=1)
           & (t_ends[:, 2] - t_ends[:, 1] <= max_input_gap))
     covered[np.repeat(usable, sizes)] = ok
     if not np.any(ok):
