@@ -170,15 +170,16 @@ def _rows_of_a_machine(design, seed):
 
 @pytest.mark.parametrize('mechanism', ['five_bar', 'three_arm'])
 def test_every_row_in_one_pass_predicts_what_each_row_alone_does(mechanism):
-    """Replay predicts a machine's rows together (their measured arcs in one pass over the
-    rows' concatenated samples): every plant of every row is the one the row predicted alone
-    gives, to 1e-12, whatever the row went through, with designs changing mid-run (a stray
-    one overtaken at once) and with the arcs off."""
+    """Replay predicts a machine's rows together (their measured arcs followed and their
+    plants assembled in one pass over the rows' concatenated arrays): every plant of every row
+    is the one the row predicted alone gives (rows one after the other), to 1e-12, whatever
+    the row went through, with designs changing mid-run (a stray one overtaken at once) and
+    with the arcs off."""
     from pathlib import Path
 
     from planter_ros.design import design_for_scene
     from planter_ros.prediction import (
-        PredictionSettings, planting_model_from_design, predict_plants, predict_rows)
+        Plants, PredictionSettings, planting_model_from_design, predict_plants, predict_rows)
     from planter_ros.scene import load_scene
     from planter_ros.sim.runs import five_bar_design_message
     if mechanism == 'five_bar':
@@ -200,15 +201,15 @@ def test_every_row_in_one_pass_predicts_what_each_row_alone_does(mechanism):
                              PredictionSettings(max_input_gap=0.3)):
                 together = predict_rows(rows, model, settings, speed_filter=False,
                                         changes=changes)
-                assert len(together) == len(rows) and len(together[4]) == 0
-                for inputs, plants in zip(rows, together):
-                    alone = predict_plants(*inputs[:5], model, settings, row=inputs.row,
-                                           speed_filter=False, changes=changes,
-                                           breaks=inputs.breaks)
-                    assert plants.table().shape == alone.table().shape
-                    np.testing.assert_allclose(plants.table(), alone.table(), rtol=1e-12,
-                                               atol=0, equal_nan=True)
-                    compared += len(alone)
-                covered = np.isfinite(np.concatenate([p.tilt for p in together]))
+                alone = [predict_plants(*inputs[:5], model, settings, row=inputs.row,
+                                        speed_filter=False, changes=changes,
+                                        breaks=inputs.breaks) for inputs in rows]
+                assert len(alone[4]) == 0
+                # the rows one after the other, each as predicted alone
+                np.testing.assert_allclose(together.table(), Plants.concatenate(alone).table(),
+                                           rtol=1e-12, atol=0, equal_nan=True)
+                compared += len(together)
+                covered = np.isfinite(together.tilt)
                 assert covered.any() and not covered.all()
+                assert set(together.row.tolist()) == {0.0, 1.0, 2.0, 3.0}
     assert compared > 500

@@ -263,32 +263,40 @@ def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
     times across which the row's section was off: the first plant after one has no spacing,
     like after a gap in the inputs."""
     return predict_rows([RowInputs(speed_t, speed_v, joint_t, joint_pos, joint_vel, row,
-                                   breaks)], model, settings, speed_filter, changes)[0]
+                                   breaks)], model, settings, speed_filter, changes)
 
 
 def predict_rows(rows: Sequence[RowInputs], model: Planting,
                  settings: PredictionSettings = PredictionSettings(),
                  speed_filter: bool = True,
-                 changes: Sequence[tuple[float, Planting]] = ()) -> list[Plants]:
-    """The plants of each row of a machine (RowInputs each; `model`, `changes`,
-    `speed_filter` as in `predict_plants`, the same for every row), in `rows` order. Each row
-    is predicted from its own inputs alone; the measured arcs of all rows are followed in one
-    pass (prediction.motion)."""
+                 changes: Sequence[tuple[float, Planting]] = ()) -> Plants:
+    """The plants of every row of a machine (RowInputs each; `model`, `changes`,
+    `speed_filter` as in `predict_plants`, the same for every row): one Plants, the rows'
+    plants one after the other in `rows` order, each row's in time order. Each row is
+    predicted from its own inputs alone, as `predict_plants` of that row; the rows' measured
+    arcs are followed in one pass (prediction.motion) and their plants assembled in one."""
     models = [model] + [m for _, m in changes]
     change_times = [t for t, _ in changes]
-    instants = [_instants(inputs, models, change_times, settings, speed_filter)
-                for inputs in rows]
-    found = [k for k, one in enumerate(instants) if one is not None]
-    arcs = (_measured_arcs([instants[k][:3] for k in found], models, settings.max_input_gap)
-            if settings.measured_arc else [None] * len(found))
-    out = [Plants.from_table(np.zeros((0, len(PLANT_FIELDS)))) for _ in rows]
-    for k, arc in zip(found, arcs):
-        _, which, _, t_e, omega, v_e, s_e, in_gap, starts = instants[k]
-        out[k] = _assemble([models[w] for w in which], settings, t_e, omega, v_e, s_e,
-                           index0=0, prev_position=np.nan, recent=(),
-                           new_sequence=_after_gap(t_e, -np.inf, starts), row=rows[k].row,
-                           arcs=arc, in_gap=in_gap)
-    return out
+    found = [(inputs.row, one) for inputs in rows
+             if (one := _instants(inputs, models, change_times, settings, speed_filter))
+             is not None]
+    if not found:
+        return Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
+    parts = [one for _, one in found]
+    arcs = (_measured_arcs([one[:3] for one in parts], models, settings.max_input_gap)
+            if settings.measured_arc else None)
+
+    def joined(k: int) -> np.ndarray:
+        return np.concatenate([one[k] for one in parts])
+
+    return _assemble([models[w] for one in parts for w in one[1]], settings, joined(3),
+                     joined(4), joined(5), joined(6), index0=0, prev_position=np.nan,
+                     recent=(), new_sequence=np.concatenate(
+                         [_after_gap(one[3], -np.inf, one[8]) for one in parts]),
+                     row=[row for row, _ in found],
+                     arcs=None if arcs is None else tuple(np.concatenate(c)
+                                                         for c in zip(*arcs)),
+                     in_gap=joined(7), sizes=[one[3].size for one in parts])
 
 
 def _instants(inputs: RowInputs, models: Sequence[Planting], change_times: Sequence[float],
@@ -408,13 +416,21 @@ def _after_gap(t_e: FloatArray, t_before: float, gaps: FloatArray) -> NDArray[np
 def _assemble(models: Planting | Sequence[Planting], settings: PredictionSettings,
               t_e: FloatArray, omega: FloatArray, v_e: FloatArray, s_e: FloatArray,
               index0: int, prev_position: float, recent: Sequence[float],
-              new_sequence: NDArray[np.bool_], row: int = 0,
+              new_sequence: NDArray[np.bool_], row: int | Sequence[int] = 0,
               arcs: tuple[FloatArray, FloatArray] | None = None,
-              in_gap: NDArray[np.bool_] | None = None) -> Plants:
+              in_gap: NDArray[np.bool_] | None = None,
+              sizes: Sequence[int] | None = None) -> Plants:
     """Plants from their instants, speeds and positions; `models[p]` is the design in force
     for plant p (one model: for all of them); `arcs`: (sweep, tilt) of the measured arcs;
-    `in_gap`: the plants inside an input gap."""
+    `in_gap`: the plants inside an input gap. `sizes`: the plants are several rows' one after
+    the other, sizes[r] plants of row[r] each, every row numbered from `index0`, its first
+    spacing from `prev_position` and its rolling rate on its own plants (`recent`: the flags
+    before the first row's); None: all of row `row`."""
     n = t_e.size
+    if sizes is None:
+        sizes, row = [n], [row]
+    sizes = np.asarray(sizes, dtype=np.intp)
+    first = np.cumsum(sizes) - sizes                     # each row's first plant
     in_gap = np.zeros(n, dtype=bool) if in_gap is None else np.asarray(in_gap, dtype=bool)
     if not isinstance(models, (list, tuple)):
         models = [models] * n
@@ -429,27 +445,31 @@ def _assemble(models: Planting | Sequence[Planting], settings: PredictionSetting
         d[mine] = model.spacing
     for values in (ratio, sweep, hole, tilt, upright):
         values[in_gap] = np.nan            # interpolated across a gap: not known
-    spacing = np.diff(np.concatenate(([prev_position], s_e)))
+    spacing = s_e - np.concatenate(([prev_position], s_e[:-1]))
+    starts = first[sizes > 0]
+    spacing[starts] = s_e[starts] - prev_position
     spacing[new_sequence] = np.nan         # no spacing across a gap in the inputs
-    # rolling rate over the last `window` plants, continuing from `recent` flags; a plant
-    # whose uprightness is not known (NaN) counts in neither the upright nor the total
+    # rolling rate over the last `window` plants of the row, continuing from `recent` flags;
+    # a plant whose uprightness is not known (NaN) counts in neither the upright nor the total
     window = settings.window
     history = np.concatenate((np.asarray(recent, dtype=float), upright))
     known = np.isfinite(history)
     csum = np.concatenate(([0.0], np.cumsum(np.where(known, history, 0.0))))
     ccount = np.concatenate(([0], np.cumsum(known)))
     end = np.arange(len(recent), len(recent) + n) + 1
-    start = np.maximum(end - window, 0)
+    floor = np.repeat(np.where(first > 0, first + len(recent), 0), sizes)
+    start = np.maximum(end - window, floor)
     counted = ccount[end] - ccount[start]
     with np.errstate(invalid='ignore', divide='ignore'):
         rate = np.where(counted > 0, (csum[end] - csum[start]) / np.maximum(counted, 1),
                         np.nan) if n else np.zeros(0)
     from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
-    return Plants(index=np.arange(index0, index0 + n, dtype=float), time=t_e, position=s_e,
-                  spacing=spacing, spacing_error=spacing - d, speed_ratio=ratio,
-                  ground_speed=v_e, shaft_speed=omega, hole_width=hole, tilt=tilt,
-                  upright=upright, uprightness_rate=rate, row=np.full(n, float(row)),
-                  tip_sweep=sweep, latitude=np.full(n, np.nan), longitude=np.full(n, np.nan),
+    return Plants(index=(np.arange(n) - np.repeat(first, sizes) + index0).astype(float),
+                  time=t_e, position=s_e, spacing=spacing, spacing_error=spacing - d,
+                  speed_ratio=ratio, ground_speed=v_e, shaft_speed=omega, hole_width=hole,
+                  tilt=tilt, upright=upright, uprightness_rate=rate,
+                  row=np.repeat(np.asarray(row, dtype=float), sizes), tip_sweep=sweep,
+                  latitude=np.full(n, np.nan), longitude=np.full(n, np.nan),
                   input_gap=in_gap.astype(float), seedlings=np.full(n, np.nan),
                   status=np.full(n, float(UNKNOWN)),
                   reason=np.where(in_gap, float(INPUT_GAP), float(NO_SENSOR)))

@@ -257,10 +257,10 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
         # another mechanism starts a new sequence, numbered from 0 like the live monitor; the
         # rows predicted together (their arcs in one pass)
-        segment = Plants.concatenate(predict_rows(
+        segment = predict_rows(
             [RowInputs(rt, rv[r], jt, j_positions[r], j_velocities[r], row.index,
                        breaks.get(row.name, ())) for r, row in enumerate(planting)],
-            model, settings, speed_filter=False, changes=changes))
+            model, settings, speed_filter=False, changes=changes)
         order = np.argsort(segment.time, kind='stable')
         parts.append(Plants.from_table(segment.table()[order]))
     plants = Plants.concatenate(parts)
