@@ -227,11 +227,11 @@ def _tip_x(models: Sequence[Planting], group: np.ndarray, phi: np.ndarray) -> np
     for k, model in enumerate(models):
         distinct.setdefault(id(model), (model, []))[1].append(k)
     if len(distinct) == 1:
-        return np.asarray(models[0].tip_path(phi)[0], dtype=float)
+        return np.asarray(models[0].tip_x(phi), dtype=float)
     x = np.empty(phi.shape)
     for model, ks in distinct.values():
         rows = np.isin(group, ks)
-        x[rows] = model.tip_path(phi[rows])[0]
+        x[rows] = model.tip_x(phi[rows])
     return x
 
 
