@@ -262,7 +262,7 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
                        breaks.get(row.name, ())) for r, row in enumerate(planting)],
             model, settings, speed_filter=False, changes=changes)
         order = np.argsort(segment.time, kind='stable')
-        parts.append(Plants.from_table(segment.table()[order]))
+        parts.append(segment.take(order))
     plants = Plants.concatenate(parts)
     # each instant's seedlings from the rows' cup sensors (prediction.seedlings): its status,
     # and spacings between the seedlings in the ground
@@ -481,7 +481,7 @@ def _count_undecodable(warnings: list[str], name: str, stamps: NDArray[np.int64]
 
 
 def _of_row(plants: Plants, index: int) -> Plants:
-    return Plants.from_table(plants.table()[plants.row == index])
+    return plants.take(plants.row == index)
 
 
 def _recorded_plants(topic: TopicMessages) -> tuple[FloatArray, tuple[str, ...]]:
