@@ -122,6 +122,8 @@ def record_at(data: Data, pos: int,
         raise BagDamagedError('record runs past the end of the file', at=pos)
     if opcode == 0x08:               # the summary holds one per chunk: read without a stream
         return opcode, _chunk_index(data, pos, stop), stop
+    if opcode in (0x03, 0x04):       # and one per topic and type: the same
+        return opcode, (_schema if opcode == 0x03 else _channel)(data, pos, stop), stop
     from mcap.data_stream import ReadDataStream
     from mcap.records import (
         Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, MetadataIndex, Schema,
@@ -174,6 +176,59 @@ def _chunk_index(data: Data, pos: int, stop: int) -> ChunkIndex:
                       compression=compression, compressed_size=compressed,
                       message_end_time=end_time, message_index_length=index_length,
                       message_start_time=start_time, uncompressed_size=uncompressed)
+
+
+def _strings(data: Data, at: int, stop: int, count: int, pos: int) -> tuple[list[str], int]:
+    """`count` length-prefixed UTF-8 strings from `at` (none past `stop`), and where they end."""
+    out = []
+    for _ in range(count):
+        if at + 4 > stop:
+            raise BagDamagedError('string length runs past the record', at=pos)
+        (n,) = struct.unpack_from('<I', data, at)
+        if at + 4 + n > stop:
+            raise BagDamagedError('string runs past the record', at=pos)
+        try:
+            out.append(bytes(data[at + 4:at + 4 + n]).decode('utf-8'))
+        except UnicodeDecodeError as exc:
+            raise BagDamagedError(one_line(exc), at=pos) from None
+        at += 4 + n
+    return out, at
+
+
+def _schema(data: Data, pos: int, stop: int) -> McapRecord:
+    """The Schema record at `pos` (its end `stop`), read with struct: mcap's fields."""
+    from mcap.records import Schema
+    if pos + 11 > stop:
+        raise BagDamagedError('schema record cut off', at=pos)
+    (schema_id,) = struct.unpack_from('<H', data, pos + 9)
+    (name, encoding), at = _strings(data, pos + 11, stop, 2, pos)
+    if at + 4 > stop:
+        raise BagDamagedError('schema data length runs past the record', at=pos)
+    (n,) = struct.unpack_from('<I', data, at)
+    if at + 4 + n > stop:
+        raise BagDamagedError('schema data runs past the record', at=pos)
+    return Schema(id=schema_id, name=name, encoding=encoding, data=bytes(data[at + 4:at + 4 + n]))
+
+
+def _channel(data: Data, pos: int, stop: int) -> McapRecord:
+    """The Channel record at `pos` (its end `stop`), read with struct: mcap's fields."""
+    from mcap.records import Channel
+    if pos + 13 > stop:
+        raise BagDamagedError('channel record cut off', at=pos)
+    channel_id, schema_id = struct.unpack_from('<HH', data, pos + 9)
+    (topic, encoding), at = _strings(data, pos + 13, stop, 2, pos)
+    if at + 4 > stop:
+        raise BagDamagedError('channel metadata length runs past the record', at=pos)
+    (n,) = struct.unpack_from('<I', data, at)
+    at, end = at + 4, at + 4 + n
+    if end > stop:
+        raise BagDamagedError('channel metadata runs past the record', at=pos)
+    metadata = {}
+    while at < end:
+        (key, value), at = _strings(data, at, end, 2, pos)
+        metadata[key] = value
+    return Channel(id=channel_id, topic=topic, message_encoding=encoding, metadata=metadata,
+                   schema_id=schema_id)
 
 
 def check_chunk_header(data: Data, pos: int, length: int) -> None:
