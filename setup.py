@@ -31,6 +31,7 @@ setup(
         'canopen>=2.4',
         'mcap>=1.2',
         'zstandard>=0.22',
+        'isal>=1.6',                              # the chunks' CRC-32, fast
         'rosbags>=0.10',
         'matplotlib>=3.8',
         'pyproj>=3.6',                            # geodesy of the as-planted map

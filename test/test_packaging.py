@@ -48,8 +48,9 @@ ROSDEP = {'ros-jazzy-rclpy': {'rclpy'},
           'mpmath': {'python3-mpmath'}, 'pyproj': {'python3-pyproj'},
           'dask': {'python3-dask', 'python3-distributed'}, 'pyarrow': {'python3-pyarrow'},
           'pyshp': {'python3-pyshp'}, 'cantools': {'python3-cantools'},
-          # no Debian package (isoxml) or too old a one (xsdata 22.12): pip on a ROS machine
-          'isoxml': set(), 'xsdata': set(),
+          # no Debian package (isoxml, isal) or too old a one (xsdata 22.12): pip on a ROS
+          # machine
+          'isoxml': set(), 'xsdata': set(), 'isal': set(),
           'setuptools': set()}
 
 

@@ -137,3 +137,79 @@ def test_every_bag_goes_to_exactly_one_task_big_ones_first(count, workers):
     assert sizes == sorted(sizes, reverse=True)
     if count >= 200:
         assert len(tasks) < count / 3 and sizes[-1] == 1
+
+
+def _rows_of_a_machine(design, seed):
+    """Five rows as a machine records them, each its own run (samples at their own instants),
+    with what real rows have: a joint gap, lost shaft speeds (the arcs go linear), NaN
+    angles, a section break, a row whose feedback never came."""
+    from planter_ros.prediction import RowInputs
+    from planter_ros.sim.runs import simulate_run
+    rng = np.random.default_rng(seed)
+    rows = []
+    for r in range(5):
+        run = simulate_run(design, duration=12.0, seed=seed * 10 + r,
+                           stall_at=4.0 if r == 1 else None)
+        st, sv = run.speed_t, run.speed_v
+        jt, jp, jw = run.joint_t, run.joint_pos.copy(), run.joint_vel.copy()
+        t = jt - jt[0]
+        breaks = ()
+        if r == 0:                                  # 0.6 s without joint states
+            keep = (t < 5.0) | (t > 5.6)
+            jt, jp, jw = jt[keep], jp[keep], jw[keep]
+        elif r == 2:                                # speeds lost, a few angles NaN
+            jw[rng.random(jw.size) < 0.3] = np.nan
+            jp[rng.integers(0, jp.size, 5)] = np.nan
+        elif r == 3:                                # its section off for 1.5 s
+            breaks = [(jt[0] + 6.0, jt[0] + 7.5)]
+        elif r == 4:                                # no feedback at all
+            jt, jp, jw = jt[:1], jp[:1], jw[:1]
+        rows.append(RowInputs(st, sv, jt, jp, jw, row=r, breaks=breaks))
+    return rows
+
+
+@pytest.mark.parametrize('mechanism', ['five_bar', 'three_arm'])
+def test_every_row_in_one_pass_predicts_what_each_row_alone_does(mechanism):
+    """Replay predicts a machine's rows together (their measured arcs followed and their
+    plants assembled in one pass over the rows' concatenated arrays): every plant of every row
+    is the one the row predicted alone gives (rows one after the other), to 1e-12, whatever
+    the row went through, with designs changing mid-run (a stray one overtaken at once) and
+    with the arcs off."""
+    from pathlib import Path
+
+    from planter_ros.design import design_for_scene
+    from planter_ros.prediction import (
+        Plants, PredictionSettings, planting_model_from_design, predict_plants, predict_rows)
+    from planter_ros.scene import load_scene
+    from planter_ros.sim.runs import five_bar_design_message
+    if mechanism == 'five_bar':
+        design = five_bar_design_message()
+        later = [five_bar_design_message(spacing=0.3), five_bar_design_message(spacing=0.25)]
+    else:
+        scene = load_scene(Path(__file__).resolve().parents[1] / 'config' /
+                           'rice_three_arm.yaml')
+        design = design_for_scene(scene)
+        later = [design, design]
+    model = planting_model_from_design(design)
+    stray, new = (planting_model_from_design(d) for d in later)
+    compared = 0
+    for seed in range(3):
+        rows = _rows_of_a_machine(design, seed)
+        t0 = rows[0].joint_t[0]
+        for changes in ([], [(t0 + 3.0, stray), (t0 + 3.01, new)], [(t0 + 8.0, new)]):
+            for settings in (PredictionSettings(), PredictionSettings(measured_arc=False),
+                             PredictionSettings(max_input_gap=0.3)):
+                together = predict_rows(rows, model, settings, speed_filter=False,
+                                        changes=changes)
+                alone = [predict_plants(*inputs[:5], model, settings, row=inputs.row,
+                                        speed_filter=False, changes=changes,
+                                        breaks=inputs.breaks) for inputs in rows]
+                assert len(alone[4]) == 0
+                # the rows one after the other, each as predicted alone
+                np.testing.assert_allclose(together.table(), Plants.concatenate(alone).table(),
+                                           rtol=1e-12, atol=0, equal_nan=True)
+                compared += len(together)
+                covered = np.isfinite(together.tilt)
+                assert covered.any() and not covered.all()
+                assert set(together.row.tolist()) == {0.0, 1.0, 2.0, 3.0}
+    assert compared > 500

@@ -244,3 +244,82 @@ def test_a_small_simulated_season_accounts_for_every_injected_cell(tmp_path):
     assert total['multiples_of_doubles'] == total['counted']['double']
     text = '\n'.join(losses.lines(total, 3, misses, multiples))
     assert 'exact' in text and 'NOT exact' not in text
+
+
+def _one_at_a_time(readings, batches, sensors=None):
+    """The seedling rule (module doc) applied plant by plant in plain Python: (seedlings,
+    status, reason, spacing) of every plant of `batches` (Plants, in order); `sensors`: the
+    rows' declared sensors ({row: bool}, a row not in it undeclared)."""
+    sensors = sensors or {}
+    last, out = {}, []
+    for plants in batches:
+        for row, t, model_spacing, gap, position in zip(
+                plants.row.tolist(), plants.time.tolist(), plants.spacing.tolist(),
+                plants.input_gap.tolist(), plants.position.tolist()):
+            prev_t, last_pos = last.get(int(row), (-np.inf, np.nan))
+            if not np.isfinite(model_spacing) or gap == 1:
+                last_pos = np.nan
+            times, counts = readings.get(int(row), ([], []))
+            k = int(np.searchsorted(times, t, side='right')) - 1
+            count, reason = None, 1                                   # no seedling sensor
+            if k >= 0 and times[k] > prev_t and np.isfinite(counts[k]) and counts[k] >= 0:
+                count, reason = counts[k], 0                          # sensed
+            elif sensors.get(int(row)) is False:
+                pass                                                  # declared without one
+            elif gap == 1:
+                reason = 3                                            # input gap
+            elif k >= 0 or sensors.get(int(row)):
+                reason = 2                                            # no sensor reading
+            status = 3 if count is None else 1 if count < 0.5 else 2 if count >= 1.5 else 0
+            spacing = np.nan
+            if status != 1:
+                spacing, last_pos = position - last_pos, position
+            last[int(row)] = (t, last_pos)
+            out.append((np.nan if count is None else count, status, reason, spacing))
+    return np.array(out, dtype=float).reshape(-1, 4)
+
+
+def test_a_rows_instants_at_once_are_accounted_as_one_after_the_other():
+    """Rows interleaved, readings missing, repeated, NaN or negative, cups empty and double,
+    restarts of the model's sequence (NaN spacing) and input gaps, plants given all at once
+    (replay) or a few at a time (the live monitor): each plant's seedlings, status, reason and
+    spacing are those of the rule applied plant by plant, to the bit."""
+    rng = np.random.default_rng(11)
+    for trial in range(200):
+        n = int(rng.integers(1, 60))
+        plants = instants(n)
+        plants.row[:] = rng.integers(0, 3, n)
+        plants.time[:] = 100.0 + np.cumsum(rng.uniform(0.1, 1.0, n))
+        plants.position[:] = np.cumsum(rng.uniform(0.0, 0.4, n))
+        plants.spacing[rng.random(n) < 0.15] = np.nan
+        plants.input_gap[:] = (rng.random(n) < 0.15).astype(float)
+        # every fourth trial declares the rows' sensors: row 0 has one, row 1 has none
+        sensors = {0: True, 1: False} if trial % 4 == 3 else {}
+        account = SeedlingAccount(sensors)
+        readings = {}
+        for row in range(3 if trial % 5 else 2):              # row 2 without a sensor at times
+            m = int(rng.integers(0, 70))
+            t = 100.0 + rng.uniform(-5.0, 60.0, m)
+            same = rng.random(m) < 0.3                  # read at an instant's very time
+            t[same] = rng.choice(plants.time, int(same.sum()))
+            t = np.sort(t)
+            t[rng.random(m) < 0.05] = np.nan
+            counts = rng.choice([0.0, 1.0, 2.0, 3.0, np.nan, -1.0], m,
+                                p=[0.15, 0.6, 0.1, 0.05, 0.05, 0.05])
+            account.add_readings(row, t, counts)
+        readings = {row: (list(t), list(c))
+                    for row, (t, c) in account.readings().items()}
+        d = rng.uniform(0.1, 0.3, n)
+        if trial % 2:
+            got = account.apply(plants, d)
+            batches = [plants]
+        else:                                  # the live monitor's batches of a few plants
+            cuts = np.sort(rng.integers(0, n + 1, 4))
+            batches = [Plants.from_table(plants.table()[lo:hi])
+                       for lo, hi in zip(np.concatenate(([0], cuts)), np.concatenate((cuts, [n])))]
+            got = Plants.concatenate([account.apply(b, d[b.index.astype(int)])
+                                      for b in batches])
+        want = _one_at_a_time(readings, batches, sensors)
+        assert np.array_equal(np.column_stack((got.seedlings, got.status, got.reason,
+                                               got.spacing)), want, equal_nan=True)
+        assert np.array_equal(got.spacing_error, got.spacing - d, equal_nan=True)

@@ -28,6 +28,7 @@ dimensionless) go into each field's metadata (`unit`) and into the schema metada
 acceptance limits' units from their declarations. A column the table does not know has no unit.
 """
 
+from functools import lru_cache
 import json
 
 PLANTS = 'plants'
@@ -270,16 +271,18 @@ def plants_arrays_table(bag, plants, rows=()):
         elif key in CODE_FIELDS:
             codes = getattr(prediction, CODE_FIELDS[key])
             known = ~null & (whole >= 0) & (whole < len(codes))
-            array = pa.array([codes[c] if ok else None
-                              for c, ok in zip(whole.tolist(), known.tolist())],
-                             type=pa.string())
+            name_of = np.array([*codes, None], dtype=object)     # the last: not a code
+            array = pa.array(name_of[np.where(known, whole, len(codes))], type=pa.string())
         else:
             array = pa.array(np.where(null, np.nan, values), mask=null)
         arrays.append(array)
         columns.append(name)
         if key == 'row':
-            arrays.append(pa.array([names.get(None if bad else r, '') for r, bad in
-                                    zip(whole.tolist(), null.tolist())], type=pa.string()))
+            rows_seen, which = np.unique(whole, return_inverse=True)
+            name_of = np.array([names.get(r, '') for r in rows_seen.tolist()] + [''],
+                               dtype=object)                     # the last: no row
+            arrays.append(pa.array(name_of[np.where(null, rows_seen.size, which)],
+                                   type=pa.string()))
             columns.append('row_name')
     return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
 
@@ -349,9 +352,18 @@ def with_units(table, kind, root=None):
     """`table` with each known column's unit in its field metadata and the schema's (and the
     analysed root its `bag` keys are relative to, if given)."""
     import pyarrow as pa
+    schema = _schema_with_units(table.schema, kind, None if root is None else str(root))
+    return pa.Table.from_arrays(table.columns, schema=schema)
+
+
+@lru_cache(maxsize=32)
+def _schema_with_units(schema, kind, root):
+    """`with_units`'s schema (made once per columns, kind and root: every bag's plants table
+    has the same)."""
+    import pyarrow as pa
     units = {}
     fields = []
-    for f in table.schema:
+    for f in schema:
         unit = unit_of(f.name)
         if unit is not None:
             units[f.name] = unit
@@ -359,9 +371,9 @@ def with_units(table, kind, root=None):
         fields.append(f)
     info = {'table': kind, 'units': units}
     if root is not None:
-        info['root'] = str(root)
+        info['root'] = root
     meta = {METADATA_KEY: json.dumps(info).encode()}
-    return pa.Table.from_arrays(table.columns, schema=pa.schema(fields, metadata=meta))
+    return pa.schema(fields, metadata=meta)
 
 
 def units(schema):

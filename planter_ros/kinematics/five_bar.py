@@ -486,7 +486,12 @@ def chain_kinematics(alpha: Floats, omega1: float, l1: float, l2: float,
 
 def static_trajectory(l1: Floats, l2: Floats, theta: Floats) -> tuple[Floats, Floats]:
     """Nozzle tip C relative to A (m): x = (l2-l1) sin θ, y = (l1+l2) cos θ."""
-    return (l2 - l1) * np.sin(theta), (l1 + l2) * np.cos(theta)
+    return static_x(l1, l2, theta), (l1 + l2) * np.cos(theta)
+
+
+def static_x(l1: Floats, l2: Floats, theta: Floats) -> Floats:
+    """static_trajectory's x alone (m)."""
+    return (l2 - l1) * np.sin(theta)
 
 
 def soil_trajectory(l1: Floats, l2: Floats, theta: Floats,

@@ -31,7 +31,7 @@ from planter_ros.config import ConfigError
 
 from .arrays import FloatArray, Floats
 from .errors import DesignError
-from .five_bar import depth_angle, hole_geometry, static_trajectory
+from .five_bar import depth_angle, hole_geometry, static_trajectory, static_x
 
 __all__ = ['Planting', 'FiveBarPlanting', 'PathPlanting']
 
@@ -62,6 +62,10 @@ class Planting(ABC):
     def tip_path(self, phi: ArrayLike) -> tuple[Floats, Floats]:
         """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
         at shaft angles `phi` (rad) from the planting instant."""
+
+    @abstractmethod
+    def tip_x(self, phi: ArrayLike) -> Floats:
+        """`tip_path(phi)`'s x alone (m): what the measured arcs need."""
 
     def tilt(self, advance: ArrayLike) -> Floats:
         """The stem's tilt from vertical (rad, + = top leaning forward) for advance v/ω (m/rad,
@@ -103,8 +107,11 @@ class FiveBarPlanting(Planting):
     def tip_path(self, phi: ArrayLike) -> tuple[Floats, Floats]:
         """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
         at shaft angles `phi` (rad) from the planting instant."""
-        x, y = static_trajectory(self.l1, self.l2, math.pi + np.asarray(phi, dtype=float))
-        return x, y + (self.l1 + self.l2)
+        _, y = static_trajectory(self.l1, self.l2, math.pi + np.asarray(phi, dtype=float))
+        return self.tip_x(phi), y + (self.l1 + self.l2)
+
+    def tip_x(self, phi: ArrayLike) -> Floats:
+        return static_x(self.l1, self.l2, math.pi + np.asarray(phi, dtype=float))
 
 
 class PathPlanting(Planting):
@@ -194,8 +201,11 @@ class PathPlanting(Planting):
         """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
         at carrier angles `phi` (rad) from the planting instant."""
         angle = self.planting_phase + np.asarray(phi, dtype=float)
-        p = self.planting_phase
-        return self._x(angle) - float(self._x(p)), self._y(angle) - float(self._y(p))
+        return self.tip_x(phi), self._y(angle) - float(self._y(self.planting_phase))
+
+    def tip_x(self, phi: ArrayLike) -> Floats:
+        angle = self.planting_phase + np.asarray(phi, dtype=float)
+        return self._x(angle) - float(self._x(self.planting_phase))
 
 
 def _require_positive(name: str, value: object) -> None:

@@ -13,9 +13,9 @@ only (kinematics, sensing, config).
 
 from .acceptance import (AcceptanceLimits, acceptance_failures, format_acceptance,
                          judge_acceptance)
-from .model import (PlantPredictor, PredictionSettings, clean_samples, plant_values,
-                    planting_model_from_design, predict_plants, prediction_notes,
-                    travelled_distance)
+from .model import (PlantPredictor, PredictionSettings, RowInputs, clean_samples,
+                    plant_values, planting_model_from_design, predict_plants, predict_rows,
+                    prediction_notes, travelled_distance)
 from .plants import PLANT_FIELDS, Plants
 from .quality import (QUALITY_FIELDS, SpacingQuality, format_quality, spacing_quality,
                       spacing_quality_by_row)
@@ -26,7 +26,8 @@ from .seedlings import (REASONS, STATUSES, SeedlingAccount, design_spacing_of, r
 
 __all__ = ['AcceptanceLimits', 'acceptance_failures', 'format_acceptance', 'judge_acceptance',
            'PLANT_FIELDS', 'Plants', 'summarize', 'PredictionSettings', 'PlantPredictor',
-           'predict_plants', 'plant_values', 'planting_model_from_design', 'prediction_notes',
+           'predict_plants', 'predict_rows', 'RowInputs', 'plant_values',
+           'planting_model_from_design', 'prediction_notes',
            'clean_samples', 'travelled_distance', 'QUALITY_FIELDS', 'SpacingQuality',
            'spacing_quality', 'spacing_quality_by_row', 'format_quality', 'SectionBreaks',
            'section_breaks', 'REASONS', 'STATUSES', 'SeedlingAccount', 'design_spacing_of',

@@ -36,10 +36,12 @@ sequence). Several changes before that plant: the latest applies.
 
 A row's section switched off and on again is a break like an input gap (prediction.sections).
 
-`predict_plants` does a whole recording at once (vectorised, used by replay); `PlantPredictor`
-does the same sample by sample (the live monitor) with the same arithmetic, so both agree. The
-plants come as `Plants` (prediction.plants); `planting_model_from_design` builds a design's
-planting geometry. Pure numpy/scipy: no ROS here.
+`predict_plants` does a whole recording at once (vectorised), `predict_rows` the recordings of
+all a machine's rows at once (replay: each row from its own inputs alone, the rows' measured
+arcs in one pass over their concatenated samples); `PlantPredictor` does the same sample by
+sample (the live monitor) with the same arithmetic, so both agree. The plants come as `Plants`
+(prediction.plants); `planting_model_from_design` builds a design's planting
+geometry. Pure numpy/scipy: no ROS here.
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -61,12 +64,12 @@ from planter_ros.kinematics.planting import TWO_PI, FiveBarPlanting, PathPlantin
 from planter_ros.sensing.ground_speed_filter import (
     GroundSpeedFilter, GroundSpeedLimits, filter_ground_speed)
 
-from .motion import arc_figures
+from .motion import Motion, arc_figures
 from .plants import PLANT_FIELDS, Plants
 
 __all__ = ['planting_model_from_design', 'prediction_notes', 'PredictionSettings',
            'clean_samples', 'travelled_distance', 'plant_values', 'predict_plants',
-           'PlantPredictor']
+           'predict_rows', 'RowInputs', 'PlantPredictor']
 
 
 # ----------------------------------------------------------------------------- the design
@@ -230,39 +233,93 @@ def plant_values(model: Planting, settings: PredictionSettings, omega: ArrayLike
     return ratio, sweep, sweep + model.nozzle_width, tilt, upright
 
 
+class RowInputs(NamedTuple):
+    """One row's recorded inputs for `predict_rows`: ground speed samples (speed_t s, speed_v
+    m/s) and shaft samples (joint_t s, joint_pos rad unwrapped, joint_vel rad/s: NaN or empty =
+    not measured) on one clock, the row field of its plants, and the (start, end) times s
+    across which its section was off."""
+
+    speed_t: ArrayLike
+    speed_v: ArrayLike
+    joint_t: ArrayLike
+    joint_pos: ArrayLike
+    joint_vel: ArrayLike
+    row: int = 0
+    breaks: Sequence[tuple[float, float]] = ()
+
+
 def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
                    joint_pos: ArrayLike, joint_vel: ArrayLike, model: Planting,
                    settings: PredictionSettings = PredictionSettings(), row: int = 0,
                    speed_filter: bool = True,
                    changes: Sequence[tuple[float, Planting]] = (),
                    breaks: Sequence[tuple[float, float]] = ()) -> Plants:
-    """All plants of a recording at once (vectorised). Times in s (same clock for both inputs),
-    speeds m/s, shaft angle rad (unwrapped), shaft speed rad/s (NaN or empty = not measured).
-    `row` goes into every plant's row field; `speed_filter` False takes speeds that already
-    passed the plausibility rule (a row's speed from sensing.row_speed). `changes`: (time s,
-    model) of each later design, in time order, each in force from the next planting instant
-    after its time (module doc). `breaks`: (start, end) times across which the row's section
-    was off: the first plant after one has no spacing, like after a gap in the inputs."""
-    joint_vel = np.asarray(joint_vel, dtype=float)
-    if joint_vel.size != np.size(joint_t):
-        joint_vel = np.full(np.size(joint_t), np.nan)
-    st, sv = clean_samples(speed_t, speed_v)
+    """All plants of a recording at once (vectorised): `predict_rows` of one row. Times in s
+    (same clock for both inputs), speeds m/s, shaft angle rad (unwrapped), shaft speed rad/s
+    (NaN or empty = not measured). `row` goes into every plant's row field; `speed_filter`
+    False takes speeds that already passed the plausibility rule (a row's speed from
+    sensing.row_speed). `changes`: (time s, model) of each later design, in time order, each in
+    force from the next planting instant after its time (module doc). `breaks`: (start, end)
+    times across which the row's section was off: the first plant after one has no spacing,
+    like after a gap in the inputs."""
+    return predict_rows([RowInputs(speed_t, speed_v, joint_t, joint_pos, joint_vel, row,
+                                   breaks)], model, settings, speed_filter, changes)
+
+
+def predict_rows(rows: Sequence[RowInputs], model: Planting,
+                 settings: PredictionSettings = PredictionSettings(),
+                 speed_filter: bool = True,
+                 changes: Sequence[tuple[float, Planting]] = ()) -> Plants:
+    """The plants of every row of a machine (RowInputs each; `model`, `changes`,
+    `speed_filter` as in `predict_plants`, the same for every row): one Plants, the rows'
+    plants one after the other in `rows` order, each row's in time order. Each row is
+    predicted from its own inputs alone, as `predict_plants` of that row; the rows' measured
+    arcs are followed in one pass (prediction.motion) and their plants assembled in one."""
+    models = [model] + [m for _, m in changes]
+    change_times = [t for t, _ in changes]
+    found = [(inputs.row, one) for inputs in rows
+             if (one := _instants(inputs, models, change_times, settings, speed_filter))
+             is not None]
+    if not found:
+        return Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
+    parts = [one for _, one in found]
+    arcs = (_measured_arcs([one[:3] for one in parts], models, settings.max_input_gap)
+            if settings.measured_arc else None)
+
+    def joined(k: int) -> np.ndarray:
+        return np.concatenate([one[k] for one in parts])
+
+    return _assemble([models[w] for one in parts for w in one[1]], settings, joined(3),
+                     joined(4), joined(5), joined(6), index0=0, prev_position=np.nan,
+                     recent=(), new_sequence=np.concatenate(
+                         [_after_gap(one[3], -np.inf, one[8]) for one in parts]),
+                     row=[row for row, _ in found],
+                     arcs=None if arcs is None else tuple(np.concatenate(c)
+                                                         for c in zip(*arcs)),
+                     in_gap=joined(7), sizes=[one[3].size for one in parts])
+
+
+def _instants(inputs: RowInputs, models: Sequence[Planting], change_times: Sequence[float],
+              settings: PredictionSettings, speed_filter: bool) -> tuple | None:
+    """One row's planting instants located in its ground-speed samples: (Motion, index into
+    `models` of the design in force, planting angle, instant, shaft speed, ground speed,
+    travelled distance, inside an input gap, the gaps and section breaks (start, end)) of
+    each plant; None for a row without any."""
+    joint_vel = np.asarray(inputs.joint_vel, dtype=float)
+    if joint_vel.size != np.size(inputs.joint_t):
+        joint_vel = np.full(np.size(inputs.joint_t), np.nan)
+    st, sv = clean_samples(inputs.speed_t, inputs.speed_v)
     if speed_filter:
         st, sv = (np.asarray(a, dtype=float)
                   for a in filter_ground_speed(st, sv, settings.speed_limits))
-    jt, jp, jw = clean_samples(joint_t, joint_pos, joint_vel)
-    empty = Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
+    jt, jp, jw = clean_samples(inputs.joint_t, inputs.joint_pos, joint_vel)
     if st.size < 2 or jt.size < 2:
-        return empty
+        return None
     ss = travelled_distance(st, sv)
     theta = np.maximum.accumulate(jp)
-
-    models = [model] + [m for _, m in changes]
-    i, t_e, omega, which, theta_k = _crossings(models, [t for t, _ in changes], jt, theta,
-                                                jw)
+    i, t_e, omega, which, theta_k = _crossings(models, change_times, jt, theta, jw)
     if not t_e.size:
-        return empty
-
+        return None
     gap = settings.max_input_gap
     j = np.searchsorted(st, t_e, side='right')
     located = (j >= 1) & (j < st.size)
@@ -273,17 +330,32 @@ def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
     t_e, omega, j, which, theta_k = t_e[keep], omega[keep], j[keep], which[keep], theta_k[keep]
     in_gap = in_gap[keep]
     v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
-    arcs = (np.full(t_e.size, np.nan), np.full(t_e.size, np.nan))
-    for w in np.unique(which) if settings.measured_arc else ():
-        mine = which == w
-        sweep, tilt, _ = arc_figures(models[w], theta_k[mine], jt, theta, jw, st, sv, ss, gap)
-        arcs[0][mine], arcs[1][mine] = sweep, tilt
     starts = np.concatenate((_gaps(jt, gap), _gaps(st, gap),
-                             np.asarray(breaks, dtype=float).reshape(-1, 2)))
-    return _assemble([models[w] for w in which], settings, t_e, omega, v_e, s_e, index0=0,
-                     prev_position=np.nan, recent=(),
-                     new_sequence=_after_gap(t_e, -np.inf, starts), row=row, arcs=arcs,
-                     in_gap=in_gap)
+                             np.asarray(inputs.breaks, dtype=float).reshape(-1, 2)))
+    return Motion(jt, theta, jw, st, sv, ss), which, theta_k, t_e, omega, v_e, s_e, in_gap, \
+        starts
+
+
+def _measured_arcs(rows: Sequence[tuple[Motion, NDArray[np.intp], FloatArray]],
+                   models: Sequence[Planting], gap: float
+                   ) -> list[tuple[FloatArray, FloatArray]]:
+    """(sweep, tilt) of the measured arcs of each row's plants (NaN: not covered), every row
+    and design in one pass (motion.arc_figures). `rows`: (the row's Motion, index into `models`
+    of each plant's design, each plant's planting angle)."""
+    groups, places = [], []
+    for r, (motion, which, theta_k) in enumerate(rows):
+        for w in np.unique(which):
+            mine = which == w
+            groups.append((models[w], theta_k[mine], motion))
+            places.append((r, mine))
+    sweep, tilt, _ = arc_figures(groups, gap)
+    out = [(np.full(theta_k.size, np.nan), np.full(theta_k.size, np.nan))
+           for _, _, theta_k in rows]
+    at = 0
+    for (r, mine), (_, theta_k, _) in zip(places, groups):
+        out[r][0][mine], out[r][1][mine] = sweep[at:at + theta_k.size], tilt[at:at + theta_k.size]
+        at += theta_k.size
+    return out
 
 
 def _crossings(models: Sequence[Planting], change_times: Sequence[float], jt: FloatArray,
@@ -344,13 +416,21 @@ def _after_gap(t_e: FloatArray, t_before: float, gaps: FloatArray) -> NDArray[np
 def _assemble(models: Planting | Sequence[Planting], settings: PredictionSettings,
               t_e: FloatArray, omega: FloatArray, v_e: FloatArray, s_e: FloatArray,
               index0: int, prev_position: float, recent: Sequence[float],
-              new_sequence: NDArray[np.bool_], row: int = 0,
+              new_sequence: NDArray[np.bool_], row: int | Sequence[int] = 0,
               arcs: tuple[FloatArray, FloatArray] | None = None,
-              in_gap: NDArray[np.bool_] | None = None) -> Plants:
+              in_gap: NDArray[np.bool_] | None = None,
+              sizes: Sequence[int] | None = None) -> Plants:
     """Plants from their instants, speeds and positions; `models[p]` is the design in force
     for plant p (one model: for all of them); `arcs`: (sweep, tilt) of the measured arcs;
-    `in_gap`: the plants inside an input gap."""
+    `in_gap`: the plants inside an input gap. `sizes`: the plants are several rows' one after
+    the other, sizes[r] plants of row[r] each, every row numbered from `index0`, its first
+    spacing from `prev_position` and its rolling rate on its own plants (`recent`: the flags
+    before the first row's); None: all of row `row`."""
     n = t_e.size
+    if sizes is None:
+        sizes, row = [n], [row]
+    sizes = np.asarray(sizes, dtype=np.intp)
+    first = np.cumsum(sizes) - sizes                     # each row's first plant
     in_gap = np.zeros(n, dtype=bool) if in_gap is None else np.asarray(in_gap, dtype=bool)
     if not isinstance(models, (list, tuple)):
         models = [models] * n
@@ -365,27 +445,31 @@ def _assemble(models: Planting | Sequence[Planting], settings: PredictionSetting
         d[mine] = model.spacing
     for values in (ratio, sweep, hole, tilt, upright):
         values[in_gap] = np.nan            # interpolated across a gap: not known
-    spacing = np.diff(np.concatenate(([prev_position], s_e)))
+    spacing = s_e - np.concatenate(([prev_position], s_e[:-1]))
+    starts = first[sizes > 0]
+    spacing[starts] = s_e[starts] - prev_position
     spacing[new_sequence] = np.nan         # no spacing across a gap in the inputs
-    # rolling rate over the last `window` plants, continuing from `recent` flags; a plant
-    # whose uprightness is not known (NaN) counts in neither the upright nor the total
+    # rolling rate over the last `window` plants of the row, continuing from `recent` flags;
+    # a plant whose uprightness is not known (NaN) counts in neither the upright nor the total
     window = settings.window
     history = np.concatenate((np.asarray(recent, dtype=float), upright))
     known = np.isfinite(history)
     csum = np.concatenate(([0.0], np.cumsum(np.where(known, history, 0.0))))
     ccount = np.concatenate(([0], np.cumsum(known)))
     end = np.arange(len(recent), len(recent) + n) + 1
-    start = np.maximum(end - window, 0)
+    floor = np.repeat(np.where(first > 0, first + len(recent), 0), sizes)
+    start = np.maximum(end - window, floor)
     counted = ccount[end] - ccount[start]
     with np.errstate(invalid='ignore', divide='ignore'):
         rate = np.where(counted > 0, (csum[end] - csum[start]) / np.maximum(counted, 1),
                         np.nan) if n else np.zeros(0)
     from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
-    return Plants(index=np.arange(index0, index0 + n, dtype=float), time=t_e, position=s_e,
-                  spacing=spacing, spacing_error=spacing - d, speed_ratio=ratio,
-                  ground_speed=v_e, shaft_speed=omega, hole_width=hole, tilt=tilt,
-                  upright=upright, uprightness_rate=rate, row=np.full(n, float(row)),
-                  tip_sweep=sweep, latitude=np.full(n, np.nan), longitude=np.full(n, np.nan),
+    return Plants(index=(np.arange(n) - np.repeat(first, sizes) + index0).astype(float),
+                  time=t_e, position=s_e, spacing=spacing, spacing_error=spacing - d,
+                  speed_ratio=ratio, ground_speed=v_e, shaft_speed=omega, hole_width=hole,
+                  tilt=tilt, upright=upright, uprightness_rate=rate,
+                  row=np.repeat(np.asarray(row, dtype=float), sizes), tip_sweep=sweep,
+                  latitude=np.full(n, np.nan), longitude=np.full(n, np.nan),
                   input_gap=in_gap.astype(float), seedlings=np.full(n, np.nan),
                   status=np.full(n, float(UNKNOWN)),
                   reason=np.where(in_gap, float(INPUT_GAP), float(NO_SENSOR)))
@@ -561,12 +645,11 @@ class PlantPredictor:
         """(sweep, tilt) of the measured arcs of plants at `theta_k` (NaN: not covered)."""
         jt, theta, jw = (np.array(c, dtype=float) for c in zip(*self._joints))
         st, sv, ss = (np.array(c, dtype=float) for c in zip(*self._speed))
-        sweep, tilt = np.full(theta_k.size, np.nan), np.full(theta_k.size, np.nan)
-        for model in {id(m): m for m in models}.values():
-            mine = np.array([m is model for m in models], dtype=bool)
-            sweep[mine], tilt[mine], _ = arc_figures(model, theta_k[mine], jt, theta, jw, st,
-                                                     sv, ss, self.settings.max_input_gap)
-        return sweep, tilt
+        distinct = list({id(m): m for m in models}.values())
+        which = np.array([next(w for w, d in enumerate(distinct) if d is m) for m in models],
+                         dtype=np.intp)
+        return _measured_arcs([(Motion(jt, theta, jw, st, sv, ss), which, theta_k)], distinct,
+                              self.settings.max_input_gap)[0]
 
     def _nothing(self) -> Plants:
         return Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))

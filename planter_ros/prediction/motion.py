@@ -30,27 +30,63 @@ shaft reaches the soil exit no later than `max_input_gap` after the planting ins
 (the recording ends or starts inside the arc, a gap, a shaft stopped in the soil) the plant
 keeps the constant-ratio figures at its instant; `covered` says which. The live monitor
 (`PlantPredictor`) applies the same rule sample by sample, so both give the same plants.
-Pure numpy: no ROS.
+
+`arc_figures` follows the arcs of many groups of plants at once (the rows of a machine, the
+designs in force): a few small arrays per row would cost numpy's call overhead many times
+over, so the groups' samples are concatenated and every step but the search of each group's
+own samples runs once over all plants; a plant's figures depend on its own row's samples
+alone. Pure numpy: no ROS.
 """
+
+from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from planter_ros.kinematics.planting import Planting
 
-__all__ = ['ARC_SAMPLES', 'arc_figures', 'angle_at', 'time_at_angle', 'distance_at']
+__all__ = ['ARC_SAMPLES', 'Motion', 'arc_figures']
 
 ARC_SAMPLES = 33          # instants along the in-soil arc, equally spaced in time (129: 2.5x
 #                           the time for an interior extreme 5x closer, 0.09 -> 0.02 µm)
 _NEWTON_STEPS = 8
 
 
+class Motion(NamedTuple):
+    """A row's measured motion as the arcs read it: joint samples (jt s, running-maximum shaft
+    angle theta rad, speeds jw rad/s, NaN = not measured) and speed samples (st s, sv m/s, ss
+    their trapezoid distance m)."""
+
+    jt: np.ndarray
+    theta: np.ndarray
+    jw: np.ndarray
+    st: np.ndarray
+    sv: np.ndarray
+    ss: np.ndarray
+
+
+def _locate(samples: Sequence[np.ndarray], queries: Sequence[np.ndarray],
+            side: str) -> tuple[np.ndarray, np.ndarray]:
+    """Each group's queries (`queries[g]`) among its sorted samples (`samples[g]`): the sample
+    interval each falls in, as the index of the interval's end in the concatenation of
+    `samples` (clipped to the group's first and last interval), and whether the query lies
+    inside the samples; both concatenated in group order."""
+    index, inside, offset = [], [], 0
+    for x, q in zip(samples, queries):
+        i = np.searchsorted(x, q, side=side)
+        inside.append((i >= 1) & (i < x.size))
+        index.append(np.clip(i, 1, x.size - 1) + offset)
+        offset += x.size
+    return np.concatenate(index), np.concatenate(inside)
+
+
 def _intervals(jt: np.ndarray, theta: np.ndarray, jw: np.ndarray,
                i: np.ndarray) -> tuple[np.ndarray, ...]:
     """The joint-sample intervals ending at indices `i`: t0, h, θ0, Δθ, the Hermite's end
     slopes in rad per unit interval, and whether the Hermite is used there."""
-    t0, h = jt[i - 1], jt[i] - jt[i - 1]
-    th0, dth = theta[i - 1], theta[i] - theta[i - 1]
-    w0, w1 = jw[i - 1], jw[i]
+    k = i - 1
+    t0, th0, w0 = jt[k], theta[k], jw[k]
+    h, dth, w1 = jt[i] - t0, theta[i] - th0, jw[i]
     m0, m1 = w0 * h, w1 * h
     with np.errstate(invalid='ignore', divide='ignore'):
         a, b = m0 / dth, m1 / dth
@@ -59,38 +95,34 @@ def _intervals(jt: np.ndarray, theta: np.ndarray, jw: np.ndarray,
     return t0, h, th0, dth, np.where(hermite, m0, 0.0), np.where(hermite, m1, 0.0), hermite
 
 
+def _rise(u: np.ndarray, dth: np.ndarray, m0: np.ndarray, m1: np.ndarray) -> np.ndarray:
+    """The unit-interval Hermite's rise from θ0 at u."""
+    u2, u3 = u * u, u * u * u
+    return (-2 * u3 + 3 * u2) * dth + (u3 - 2 * u2 + u) * m0 + (u3 - u2) * m1
+
+
 def _cubic(u: np.ndarray, dth: np.ndarray, m0: np.ndarray,
            m1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The unit-interval Hermite's rise from θ0 at u, and its slope d/du."""
-    u2, u3 = u * u, u * u * u
-    f = (-2 * u3 + 3 * u2) * dth + (u3 - 2 * u2 + u) * m0 + (u3 - u2) * m1
+    u2 = u * u
     df = (-6 * u2 + 6 * u) * dth + (3 * u2 - 4 * u + 1) * m0 + (3 * u2 - 2 * u) * m1
-    return f, df
+    return _rise(u, dth, m0, m1), df
 
 
-def angle_at(t: np.ndarray, jt: np.ndarray, theta: np.ndarray,
-             jw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The measured shaft angle (rad) at instants `t` (s) from joint samples (jt s, non-
-    decreasing angle `theta` rad, speeds `jw` rad/s, NaN = not measured), and the length of
-    the joint-sample interval each fell in (s; inf outside the samples)."""
-    t = np.asarray(t, dtype=float)
-    i = np.searchsorted(jt, t, side='right')
-    inside = (i >= 1) & (i < jt.size)
-    i = np.clip(i, 1, jt.size - 1)
+def _angle_at(t: np.ndarray, i: np.ndarray, jt: np.ndarray, theta: np.ndarray,
+              jw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The measured shaft angle (rad) at instants `t` (s) in the joint-sample intervals ending
+    at `i` (of samples jt s, non-decreasing angle `theta` rad, speeds `jw` rad/s, NaN = not
+    measured), and the length of each interval (s)."""
     t0, h, th0, dth, m0, m1, hermite = _intervals(jt, theta, jw, i)
     u = (t - t0) / h
-    rise, _ = _cubic(u, dth, m0, m1)
-    return th0 + np.where(hermite, rise, u * dth), np.where(inside, h, np.inf)
+    return th0 + np.where(hermite, _rise(u, dth, m0, m1), u * dth), h
 
 
-def time_at_angle(angle: np.ndarray, jt: np.ndarray, theta: np.ndarray,
-                  jw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The instant (s) the measured shaft angle reached each `angle` (the inverse of
-    `angle_at`), and the length of the joint-sample interval it fell in (s; inf outside)."""
-    angle = np.asarray(angle, dtype=float)
-    i = np.searchsorted(theta, angle, side='left')
-    inside = (i >= 1) & (i < theta.size)
-    i = np.clip(i, 1, theta.size - 1)
+def _time_at_angle(angle: np.ndarray, i: np.ndarray, jt: np.ndarray, theta: np.ndarray,
+                   jw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The instant (s) the measured shaft angle reached each `angle` in the joint-sample
+    intervals ending at `i` (the inverse of `_angle_at`), and the length of each interval (s)."""
     t0, h, th0, dth, m0, m1, hermite = _intervals(jt, theta, jw, i)
     target = angle - th0
     with np.errstate(divide='ignore', invalid='ignore'):
@@ -103,66 +135,104 @@ def time_at_angle(angle: np.ndarray, jt: np.ndarray, theta: np.ndarray,
             with np.errstate(divide='ignore', invalid='ignore'):
                 v = np.clip(v - np.where(df > 0, (f - y) / df, 0.0), 0.0, 1.0)
         u[hermite] = v
-    return t0 + u * h, np.where(inside, h, np.inf)
+    return t0 + u * h, h
 
 
-def distance_at(t: np.ndarray, st: np.ndarray, sv: np.ndarray,
-                ss: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Travelled distance (m) at instants `t` from speed samples (st s, sv m/s, ss their
-    trapezoid distance), and the length of the speed-sample interval each fell in (s; inf
-    outside the samples)."""
-    t = np.asarray(t, dtype=float)
-    j = np.searchsorted(st, t, side='right')
-    inside = (j >= 1) & (j < st.size) & np.isfinite(t)
-    j = np.clip(j, 1, st.size - 1)
+def _distance_at(t: np.ndarray, j: np.ndarray, st: np.ndarray, sv: np.ndarray,
+                 ss: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Travelled distance (m) at instants `t` in the speed-sample intervals ending at `j` (of
+    samples st s, sv m/s, ss their trapezoid distance), and the length of each interval (s)."""
     t0, t1, v0, v1 = st[j - 1], st[j], sv[j - 1], sv[j]
     with np.errstate(invalid='ignore'):
         g = (t - t0) / (t1 - t0)
         v = v0 + g * (v1 - v0)
         s = ss[j - 1] + 0.5 * (v0 + v) * (t - t0)
-    return s, np.where(inside, t1 - t0, np.inf)
+    return s, t1 - t0
 
 
-def arc_figures(model: Planting, theta_k: np.ndarray, jt: np.ndarray, theta: np.ndarray,
-                jw: np.ndarray, st: np.ndarray, sv: np.ndarray, ss: np.ndarray,
+def arc_figures(arcs: Sequence[tuple[Planting, np.ndarray, Motion]],
                 max_input_gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Tip sweep (m), tilt (rad) and whether the measurement covers the arc, for plants at
-    shaft angles `theta_k` of one planting model, from the row's joint samples (jt s, running-
-    maximum angle `theta` rad, speeds jw rad/s) and speed samples (st s, sv m/s, ss m). Where
-    not covered the figures are NaN (the caller keeps its own)."""
-    theta_k = np.asarray(theta_k, dtype=float)
-    n = theta_k.size
-    sweep, tilt = np.full(n, np.nan), np.full(n, np.nan)
-    if n == 0 or theta.size < 2 or st.size < 2:
-        return sweep, tilt, np.zeros(n, dtype=bool)
-    # times relative to the first joint sample: epoch stamps (1.7e9 s) keep 0.24 µs only
-    ref = jt[0]
-    jt, st = jt - ref, st - ref
+    """Tip sweep (m), tilt (rad) and whether the measurement covers the arc, for the plants of
+    each (planting model, shaft angles θ_k of its plants, the row's Motion) in `arcs`: the rows
+    of a machine and the designs in force, all in one pass over their concatenated arrays (a
+    plant's figures depend on its own row's samples alone). The three arrays follow `arcs`:
+    its first entry's plants, then the next one's. Where not covered the figures are NaN (the
+    caller keeps its own)."""
+    sizes = np.array([np.size(theta_k) for _, theta_k, _ in arcs], dtype=np.intp)
+    n = int(sizes.sum())
+    sweep, tilt, covered = np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, dtype=bool)
+    usable = np.array([size > 0 and motion.theta.size >= 2 and motion.st.size >= 2
+                       for size, (_, _, motion) in zip(sizes, arcs)], dtype=bool)
+    if not np.any(usable):
+        return sweep, tilt, covered
+    groups = [arc for arc, ok in zip(arcs, usable) if ok]
+    count = sizes[usable]
+    cuts = np.cumsum(count)[:-1]
+    models = [model for model, _, _ in groups]
+    motions = [motion for _, _, motion in groups]
+
+    def per_plant(values: list[float]) -> np.ndarray:
+        return np.repeat(np.asarray(values, dtype=float), count)
+
+    theta_k = np.concatenate([np.asarray(t, dtype=float) for _, t, _ in groups])
+    # times relative to each row's first joint sample: epoch stamps (1.7e9 s) keep 0.24 µs only
+    jts = [m.jt - m.jt[0] for m in motions]
+    sts = [m.st - m.jt[0] for m in motions]
+    jt, st = np.concatenate(jts), np.concatenate(sts)
+    theta, jw = (np.concatenate(c) for c in ([m.theta for m in motions],
+                                             [m.jw for m in motions]))
+    sv, ss = (np.concatenate(c) for c in ([m.sv for m in motions], [m.ss for m in motions]))
+    entry, exit_ = per_plant([m.entry_angle for m in models]), per_plant([m.exit_angle
+                                                                          for m in models])
     # the soil entry, the planting instant and the soil exit
-    ends = np.column_stack((theta_k - model.entry_angle, theta_k, theta_k + model.exit_angle))
-    t_ends, end_gaps = time_at_angle(ends, jt, theta, jw)
+    ends = np.column_stack((theta_k - entry, theta_k, theta_k + exit_))
+    i, inside = _locate([m.theta for m in motions], np.split(ends, cuts), 'left')
+    t_ends, h = _time_at_angle(ends, i, jt, theta, jw)
+    end_known = inside & (h <= max_input_gap)     # in a joint-sample interval short enough
     fraction = np.linspace(0.0, 1.0, ARC_SAMPLES)
     t = t_ends[:, :1] + (t_ends[:, 2:] - t_ends[:, :1]) * fraction
     t[:, -1] = t_ends[:, 2]
-    angle, joint_gap = angle_at(t, jt, theta, jw)
-    s, speed_gap = distance_at(np.column_stack((t_ends[:, 1], t)), st, sv, ss)
-    covered = ((theta[-1] >= ends[:, 2])
-               & np.all(end_gaps <= max_input_gap, axis=1)
-               & np.all(joint_gap <= max_input_gap, axis=1)
-               & np.all(speed_gap <= max_input_gap, axis=1)
-               & (t_ends[:, 2] - t_ends[:, 1] <= max_input_gap))
-    if not np.any(covered):
+    i, inside = _locate(jts, np.split(t, cuts), 'right')
+    angle, h = _angle_at(t, i, jt, theta, jw)
+    joint_known = inside & (h <= max_input_gap)
+    at = np.column_stack((t_ends[:, 1], t))
+    j, inside = _locate(sts, np.split(at, cuts), 'right')
+    s, h = _distance_at(at, j, st, sv, ss)
+    speed_known = inside & np.isfinite(at) & (h <= max_input_gap)
+    ok = ((per_plant([m.theta[-1] for m in motions]) >= ends[:, 2])
+          & np.all(end_known, axis=1) & np.all(joint_known, axis=1)
+          & np.all(speed_known, axis=1)
+          & (t_ends[:, 2] - t_ends[:, 1] <= max_input_gap))
+    covered[np.repeat(usable, sizes)] = ok
+    if not np.any(ok):
         return sweep, tilt, covered
-    phi = angle[covered] - theta_k[covered, None]
-    phi[:, 0], phi[:, -1] = -model.entry_angle, model.exit_angle    # the ends exactly
-    x_path, _ = model.tip_path(phi)
-    s0, s_arc = s[covered, :1], s[covered, 1:]
-    x = np.asarray(x_path, dtype=float) + (s_arc - s0)
-    sweep[covered] = _extreme(x, np.argmax(x, axis=1), +1) - _extreme(x, np.argmin(x, axis=1),
-                                                                      -1)
-    slip = s_arc[:, -1] - s0[:, 0] - model.release_advance * model.exit_angle
-    tilt[covered] = np.arctan2(slip, model.depth)
+    phi = angle[ok] - theta_k[ok, None]
+    phi[:, 0], phi[:, -1] = -entry[ok], exit_[ok]                 # the ends exactly
+    x_path = _tip_x(models, np.repeat(np.arange(len(models)), count)[ok], phi)
+    s0, s_arc = s[ok, :1], s[ok, 1:]
+    x = x_path + (s_arc - s0)
+    sweep[covered] = (_extreme(x, np.argmax(x, axis=1), +1)
+                      - _extreme(x, np.argmin(x, axis=1), -1))
+    slip = (s_arc[:, -1] - s0[:, 0]
+            - per_plant([m.release_advance * m.exit_angle for m in models])[ok])
+    tilt[covered] = np.arctan2(slip, per_plant([m.depth for m in models])[ok])
     return sweep, tilt, covered
+
+
+def _tip_x(models: Sequence[Planting], group: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """The tip path's x (m) at shaft angles `phi` (rad, a row of them per plant) from the
+    planting instant, each row by the model of its group (`models[group[row]]`), each distinct
+    model called once."""
+    distinct = {}
+    for k, model in enumerate(models):
+        distinct.setdefault(id(model), (model, []))[1].append(k)
+    if len(distinct) == 1:
+        return np.asarray(models[0].tip_x(phi), dtype=float)
+    x = np.empty(phi.shape)
+    for model, ks in distinct.values():
+        rows = np.isin(group, ks)
+        x[rows] = model.tip_x(phi[rows])
+    return x
 
 
 def _extreme(x: np.ndarray, k: np.ndarray, sign: int) -> np.ndarray:
@@ -178,4 +248,3 @@ def _extreme(x: np.ndarray, k: np.ndarray, sign: int) -> np.ndarray:
         peak = b - (c - a) ** 2 / (8 * curvature)
     refined = interior & (sign * curvature < 0) & np.isfinite(peak)
     return np.where(refined, peak, value)
-

@@ -72,6 +72,10 @@ class Plants:
         return np.column_stack([np.asarray(getattr(self, f), dtype=float) for f in PLANT_FIELDS]) \
             if len(self) else np.zeros((0, len(PLANT_FIELDS)))
 
+    def take(self, which: ArrayLike) -> 'Plants':
+        """The plants `which` (a boolean mask or indices), every field."""
+        return Plants(**{f: getattr(self, f)[which] for f in PLANT_FIELDS})
+
     def rows(self) -> list[dict[str, float | None]]:
         """List of dicts, JSON-ready: non-finite values become None."""
         return [{f: _json_value(v) for f, v in zip(PLANT_FIELDS, row)} for row in self.table()]

@@ -37,7 +37,6 @@ model's NaN spacing says). `SeedlingAccount` applies this to plants as they come
 monitor) or all at once (replay) with the same arithmetic. Pure numpy.
 """
 
-from bisect import bisect_right
 import math
 
 import numpy as np
@@ -110,43 +109,52 @@ class SeedlingAccount:
 
     def apply(self, plants: Plants, design_spacing: ArrayLike) -> Plants:
         """`plants` (a Plants batch, time order within each row) with seedlings, status,
-        reason, spacing and spacing_error set; `design_spacing`: d of each plant (m, array)."""
+        reason, spacing and spacing_error set; `design_spacing`: d of each plant (m, array).
+        Each row's plants at once, with the arithmetic of one plant after the other."""
         n = len(plants)
         d = np.broadcast_to(np.asarray(design_spacing, dtype=float), (n,))
-        seedlings, status, reason = [math.nan] * n, [float(UNKNOWN)] * n, [float(NO_SENSOR)] * n
-        spacing = [math.nan] * n
-        # plain floats: one plant at a time (the live monitor's batches are a plant or two)
-        for p, (row, t, model_spacing, gap, position) in enumerate(zip(
-                plants.row.tolist(), plants.time.tolist(), plants.spacing.tolist(),
-                plants.input_gap.tolist(), plants.position.tolist())):
-            row = int(row)
+        seedlings, status = np.full(n, np.nan), np.full(n, float(UNKNOWN))
+        reason, spacing = np.full(n, float(NO_SENSOR)), np.full(n, np.nan)
+        rows = plants.row.astype(np.int64)
+        for row in np.unique(rows).tolist():
+            mine = np.flatnonzero(rows == row)
+            t, position = plants.time[mine], plants.position[mine]
+            gap = plants.input_gap[mine] == 1
             prev_t, last_pos = self._last.get(row, (-math.inf, math.nan))
-            gap = gap == 1
-            if not math.isfinite(model_spacing) or gap:
-                last_pos = math.nan                  # the model's sequence starts again
-            count = None
-            times, counts = self._readings.get(row, ([], []))
-            k = bisect_right(times, t) - 1
-            if k >= 0 and times[k] > prev_t and math.isfinite(counts[k]) and counts[k] >= 0:
-                count = counts[k]
-                reason[p] = float(SENSED)
-            elif self._sensors.get(row) is False:
-                pass                                 # no seedling sensor, declared
-            elif gap:
-                reason[p] = float(INPUT_GAP)
-            elif k >= 0 or self._sensors.get(row):
-                reason[p] = float(NO_READING)
-            if count is not None:
-                seedlings[p] = count
-                status[p] = float(EMPTY if count < 0.5 else DOUBLE if count >= 1.5 else PLANTED)
-            if status[p] == EMPTY:
-                spacing[p] = math.nan
-            else:
-                spacing[p] = position - last_pos
-                last_pos = position
-            self._last[row] = (t, last_pos)
-        seedlings, status, reason, spacing = (np.array(v, dtype=float) for v in (
-            seedlings, status, reason, spacing))
+            # the row's last reading at or before each instant, taken if after the previous
+            times, counts = (np.asarray(v, dtype=float) for v in self._readings.get(row, ([],
+                                                                                      [])))
+            k = np.searchsorted(times, t, side='right') - 1
+            read = k >= 0
+            at = np.maximum(k, 0)
+            count = counts[at] if times.size else np.full(t.size, np.nan)
+            with np.errstate(invalid='ignore'):
+                sensed = (read & (times[at] > np.concatenate(([prev_t], t[:-1])))
+                          if times.size else read)
+                sensed &= np.isfinite(count) & (count >= 0)
+                code = np.where(count < 0.5, EMPTY, np.where(count >= 1.5, DOUBLE, PLANTED))
+            declared = self._sensors.get(row)
+            if declared is False:                    # no seedling sensor, declared
+                reason[mine] = np.where(sensed, SENSED, NO_SENSOR)
+            else:                                    # a declared one misses its reading
+                reason[mine] = np.where(sensed, SENSED, np.where(
+                    gap, INPUT_GAP, np.where(read | bool(declared), NO_READING, NO_SENSOR)))
+            seedlings[mine] = np.where(sensed, count, np.nan)
+            status[mine] = np.where(sensed, code, UNKNOWN)
+            # the last seedling's position before each instant: none where the model's
+            # sequence starts again (there), an empty instant keeps the one before it
+            empty = sensed & (code == EMPTY)
+            restart = ~np.isfinite(plants.spacing[mine]) | gap
+            order = np.arange(t.size)
+            seedling = np.maximum.accumulate(np.where(empty, -1, order))    # last non-empty
+            cut = np.maximum.accumulate(np.where(restart, order, -2))       # last restart
+            after = np.where(seedling >= 0,              # ... and after each instant
+                             np.where(seedling >= cut, position[np.maximum(seedling, 0)],
+                                      np.nan),
+                             np.where(cut == -2, last_pos, np.nan))
+            before = np.where(restart, np.nan, np.concatenate(([last_pos], after[:-1])))
+            spacing[mine] = np.where(empty, np.nan, position - before)
+            self._last[row] = (float(t[-1]), float(after[-1]))
         values = {f: getattr(plants, f) for f in plants.__dataclass_fields__}
         values.update(seedlings=seedlings, status=status, reason=reason, spacing=spacing,
                       spacing_error=spacing - d)

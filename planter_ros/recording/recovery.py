@@ -23,7 +23,8 @@ import mmap
 from pathlib import Path
 import struct
 from typing import TYPE_CHECKING
-import zlib
+
+from isal.isal_zlib import crc32
 
 from .errors import BagDamagedError, BagUnreadableError
 
@@ -109,10 +110,6 @@ def record_at(data: Data, pos: int,
               end: int | None = None) -> tuple[int, McapRecord | None, int]:
     """(opcode, record or None for an unknown/ignored kind, end offset) of the record at pos;
     BagDamagedError if it is not a whole, valid record. Chunks are opened and CRC-checked."""
-    from mcap.data_stream import ReadDataStream
-    from mcap.records import (
-        Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, Metadata, MetadataIndex,
-        Schema, Statistics)
     end = len(data) if end is None else end
     if pos + 9 > end:
         raise BagDamagedError('record header cut off', at=pos)
@@ -123,10 +120,16 @@ def record_at(data: Data, pos: int,
     stop = pos + 9 + length
     if stop > end:
         raise BagDamagedError('record runs past the end of the file', at=pos)
-    kinds = {0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
-             0x08: ChunkIndex, 0x0B: Statistics, 0x0D: MetadataIndex, 0x0F: DataEnd}
     if opcode == 0x08:               # the summary holds one per chunk: read without a stream
         return opcode, _chunk_index(data, pos, stop), stop
+    if opcode in (0x03, 0x04):       # and one per topic and type: the same
+        return opcode, (_schema if opcode == 0x03 else _channel)(data, pos, stop), stop
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import (
+        Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, MetadataIndex, Schema,
+        Statistics)
+    kinds = {0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
+             0x0B: Statistics, 0x0D: MetadataIndex, 0x0F: DataEnd}
     stream = ReadDataStream(io.BytesIO(data[pos + 9:stop]))
     try:
         if opcode == 0x06:
@@ -175,6 +178,59 @@ def _chunk_index(data: Data, pos: int, stop: int) -> ChunkIndex:
                       message_start_time=start_time, uncompressed_size=uncompressed)
 
 
+def _strings(data: Data, at: int, stop: int, count: int, pos: int) -> tuple[list[str], int]:
+    """`count` length-prefixed UTF-8 strings from `at` (none past `stop`), and where they end."""
+    out = []
+    for _ in range(count):
+        if at + 4 > stop:
+            raise BagDamagedError('string length runs past the record', at=pos)
+        (n,) = struct.unpack_from('<I', data, at)
+        if at + 4 + n > stop:
+            raise BagDamagedError('string runs past the record', at=pos)
+        try:
+            out.append(bytes(data[at + 4:at + 4 + n]).decode('utf-8'))
+        except UnicodeDecodeError as exc:
+            raise BagDamagedError(one_line(exc), at=pos) from None
+        at += 4 + n
+    return out, at
+
+
+def _schema(data: Data, pos: int, stop: int) -> McapRecord:
+    """The Schema record at `pos` (its end `stop`), read with struct: mcap's fields."""
+    from mcap.records import Schema
+    if pos + 11 > stop:
+        raise BagDamagedError('schema record cut off', at=pos)
+    (schema_id,) = struct.unpack_from('<H', data, pos + 9)
+    (name, encoding), at = _strings(data, pos + 11, stop, 2, pos)
+    if at + 4 > stop:
+        raise BagDamagedError('schema data length runs past the record', at=pos)
+    (n,) = struct.unpack_from('<I', data, at)
+    if at + 4 + n > stop:
+        raise BagDamagedError('schema data runs past the record', at=pos)
+    return Schema(id=schema_id, name=name, encoding=encoding, data=bytes(data[at + 4:at + 4 + n]))
+
+
+def _channel(data: Data, pos: int, stop: int) -> McapRecord:
+    """The Channel record at `pos` (its end `stop`), read with struct: mcap's fields."""
+    from mcap.records import Channel
+    if pos + 13 > stop:
+        raise BagDamagedError('channel record cut off', at=pos)
+    channel_id, schema_id = struct.unpack_from('<HH', data, pos + 9)
+    (topic, encoding), at = _strings(data, pos + 13, stop, 2, pos)
+    if at + 4 > stop:
+        raise BagDamagedError('channel metadata length runs past the record', at=pos)
+    (n,) = struct.unpack_from('<I', data, at)
+    at, end = at + 4, at + 4 + n
+    if end > stop:
+        raise BagDamagedError('channel metadata runs past the record', at=pos)
+    metadata = {}
+    while at < end:
+        (key, value), at = _strings(data, at, end, 2, pos)
+        metadata[key] = value
+    return Channel(id=channel_id, topic=topic, message_encoding=encoding, metadata=metadata,
+                   schema_id=schema_id)
+
+
 def check_chunk_header(data: Data, pos: int, length: int) -> None:
     """Cheap consistency of a chunk header (before anything is decompressed)."""
     body = pos + 9
@@ -213,7 +269,7 @@ def read_summary(data: Data) -> dict[str, dict | list] | None:
         return None
     if not isinstance(footer, Footer) or not _MAGIC_SIZE <= footer.summary_start < footer_at:
         return None
-    if footer.summary_crc and zlib.crc32(data[footer.summary_start:footer_at + 9 + 16]) \
+    if footer.summary_crc and crc32(data[footer.summary_start:footer_at + 9 + 16]) \
             != footer.summary_crc:
         return None
     out = {'schemas': {}, 'channels': {}, 'chunks': [], 'metadata': []}

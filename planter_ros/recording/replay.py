@@ -10,10 +10,11 @@ The live monitor's rules are applied the same way: samples before the first desi
 predicted, a changed design is in force from the next planting instant after its message (the
 plant set next is the old design's last; planter_ros.prediction), a design of another
 mechanism starts a new sequence, stamps of 0 mean "use the receive (log) time". A machine
-with several rows (the bag's rows record, interfaces.ROWS_RECORD) is predicted row by row,
-each from its own joint and its own travelled distance (ground speed, yaw rate
-`twist.angular.z` and the row's lateral offset: sensing.row_speed), and summarised per row; a
-bag without the record has one row, the joint `sun_bar` / `carrier`.
+with several rows (the bag's rows record, interfaces.ROWS_RECORD) is predicted row by row
+(all rows in one call: prediction.predict_rows), each from its own joint and its own travelled
+distance (ground speed, yaw rate `twist.angular.z` and the row's lateral offset:
+sensing.row_speed), and summarised per row; a bag without the record has one row, the joint
+`sun_bar` / `carrier`.
 
 Like the monitor, replay places each plant on the earth from the recorded GNSS fixes
 (sensing.plant_map, with the antenna position and map settings of the bag's map record), ends a
@@ -40,8 +41,8 @@ from planter_ros.geo import AntennaSettings
 from planter_ros.kinematics.arrays import FloatArray
 from planter_ros.kinematics.planting import Planting
 from planter_ros.prediction import (
-    PLANT_FIELDS, AcceptanceLimits, Plants, PredictionSettings, SeedlingAccount,
-    design_spacing_of, judge_acceptance, planting_model_from_design, predict_plants,
+    PLANT_FIELDS, AcceptanceLimits, Plants, PredictionSettings, RowInputs, SeedlingAccount,
+    design_spacing_of, judge_acceptance, planting_model_from_design, predict_rows,
     prediction_notes, section_breaks, summarize)
 from planter_ros.rows import Row, implicit_row, rows_from_record
 from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, place_plants
@@ -250,20 +251,18 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         first_joint = j_log[j_idx[0]] if j_idx.size else np.iinfo(np.int64).max
         model = [m for t, _, _, m in group if t < first_joint or t == log][-1]
         changes = [(t * 1e-9, m) for t, _, _, m in group if t >= first_joint and t != log]
-        segment = []
         if planting:
             _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp,
                                j_positions[0])
         jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
-        for r, row in enumerate(planting):
-            j_pos, j_vel = j_positions[r], j_velocities[r]
-            # another mechanism starts a new sequence, numbered from 0 like the live monitor
-            segment.append(predict_plants(rt, rv[r], jt, j_pos, j_vel, model, settings,
-                                          row=row.index, speed_filter=False, changes=changes,
-                                          breaks=breaks.get(row.name, ())))
-        segment = Plants.concatenate(segment)
+        # another mechanism starts a new sequence, numbered from 0 like the live monitor; the
+        # rows predicted together (their arcs in one pass)
+        segment = predict_rows(
+            [RowInputs(rt, rv[r], jt, j_positions[r], j_velocities[r], row.index,
+                       breaks.get(row.name, ())) for r, row in enumerate(planting)],
+            model, settings, speed_filter=False, changes=changes)
         order = np.argsort(segment.time, kind='stable')
-        parts.append(Plants.from_table(segment.table()[order]))
+        parts.append(segment.take(order))
     plants = Plants.concatenate(parts)
     # each instant's seedlings from the rows' cup sensors (prediction.seedlings): its status,
     # and spacings between the seedlings in the ground
@@ -484,7 +483,7 @@ def _count_undecodable(warnings: list[str], name: str, stamps: NDArray[np.int64]
 
 
 def _of_row(plants: Plants, index: int) -> Plants:
-    return Plants.from_table(plants.table()[plants.row == index])
+    return plants.take(plants.row == index)
 
 
 def _recorded_plants(topic: TopicMessages) -> tuple[FloatArray, tuple[str, ...]]:

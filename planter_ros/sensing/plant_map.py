@@ -397,21 +397,23 @@ class FixTrack:
         k = np.searchsorted(times, t, side='right') - 1
         at = np.maximum(k, 0)
         recent = (k >= 0) & ~(t - times[at] > settings.max_fix_age)
-        # each fix's transform (cos and sin as `math` gives them); None: not yet a heading
-        own = np.array([tr is not None for tr in self.transforms])
-        values = np.array([(tr[0], math.cos(tr[0]), math.sin(tr[0]), tr[1], tr[2])
-                           if tr is not None else (np.nan,) * 5 for tr in self.transforms])
+        # each fix's transform; None: not yet a heading
+        transforms = self.transforms
+        own = np.array([tr is not None for tr in transforms])
         which = np.where(recent & own[at], at, -1)
         first = self.first_heading
         if first is not None:
-            phi = first[1][0]
-            values = np.vstack((values, (phi, math.cos(phi), math.sin(phi), *first[1][1:])))
+            transforms = [*transforms, first[1]]
             late = recent & ~own[at] & (first[0] - t <= settings.fix_window)
             which = np.where(late, len(self.transforms), which)
         placed = (which >= 0) & np.isfinite(pose[0])
         if not placed.any():
             return out
-        phi, c, s, tx, ty = values[which[placed]].T
+        # the transforms that place a plant, cos and sin as `math` gives them
+        used, where = np.unique(which[placed], return_inverse=True)
+        values = np.array([(tr[0], math.cos(tr[0]), math.sin(tr[0]), tr[1], tr[2])
+                           for tr in (transforms[k] for k in used.tolist())]).reshape(-1, 5)
+        phi, c, s, tx, ty = values[where.reshape(-1)].T
         x, y, heading = (np.asarray(p, dtype=float)[placed] for p in pose[:3])
         px, py = on_machine(x, y, heading, forward_offset[placed], lateral_offset[placed])
         out[:, placed] = (c * px - s * py + tx, s * px + c * py + ty, heading + phi)
