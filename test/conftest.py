@@ -174,7 +174,8 @@ def pytest_runtest_protocol(item, nextitem):
 def _failure_line(reports):
     report = next(report for report in reports if report.failed)
     crash = getattr(report.longrepr, 'reprcrash', None)
-    return f'{report.when}: {crash.message.splitlines()[0]}' if crash else report.when
+    first = crash.message.splitlines()[:1] if crash else []
+    return f'{report.when}: {first[0]}' if first else report.when
 
 
 def pytest_sessionfinish(session):
