@@ -105,3 +105,25 @@ def wait_until(condition, timeout: float = 3.0, period: float = 0.005) -> bool:
             return True
         time.sleep(period)
     return condition()
+
+
+def run_engine(engine, seconds: float, v: float | None, w: float = 0.0,
+               after_step=None) -> bool:
+    """The command process's loop in miniature: a ground-speed sample (v m/s, w rad/s) every
+    20 ms (none while `v` is None: the speed goes stale), a step every SYNC period;
+    `after_step(now)` after each step ends the loop early by returning True. Returns whether
+    it ended so."""
+    end = time.monotonic() + seconds
+    next_sample = 0.0
+    next_tick = time.monotonic()
+    while time.monotonic() < end:
+        now = time.monotonic()
+        if v is not None and now >= next_sample:
+            engine.sample(v, w, now)
+            next_sample = now + 0.02
+        engine.step(now)
+        if after_step is not None and after_step(now):
+            return True
+        next_tick = max(next_tick + engine.period, time.monotonic())
+        time.sleep(max(next_tick - time.monotonic(), 0.0))
+    return False

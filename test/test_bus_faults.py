@@ -15,6 +15,7 @@ import can
 import numpy as np
 import pytest
 
+from drive_helpers import run_engine
 from planter_ros.command.engine import CommandEngine
 from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine import TurnConfig
@@ -67,22 +68,12 @@ class Rig:
         SYNC), recording each row's travelled distance and true shaft angle; True once
         `until()` holds (then it stops), else after `seconds`."""
         engine = self.engine
-        end = time.monotonic() + seconds
-        next_sample = 0.0
-        next_tick = time.monotonic()
-        while time.monotonic() < end:
-            now = time.monotonic()
-            if now >= next_sample:
-                engine.sample(v, 0.0, now)
-                next_sample = now + 0.02
-            engine.step(now)
+
+        def record(now):
             self.trace.append((now, [(unit.law.travelled(now), sim.motor_position)
                                      for unit, sim in zip(engine.units, self.sims.drives)]))
-            if until is not None and until():
-                return True
-            next_tick = max(next_tick + engine.period, time.monotonic())
-            time.sleep(max(next_tick - time.monotonic(), 0.0))
-        return until is None
+            return until is not None and until()
+        return run_engine(engine, seconds, v, after_step=record) or until is None
 
     def plants(self, row, since=0.0):
         """(distance of each plant along the row, and the grid's plant count) since `since`

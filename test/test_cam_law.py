@@ -174,23 +174,15 @@ def config_for_engine():
 
 
 def run_cam(engine, seconds, record=None):
-    """The command process's loop in miniature: a sample every 20 ms, a step every SYNC;
-    `record` gets (integrated target, θ(s) at the next SYNC) of the row after each step."""
-    import time
-    end = time.monotonic() + seconds
-    next_sample = 0.0
-    next_tick = time.monotonic()
+    """drive_helpers.run_engine at V; `record` gets (integrated target, θ(s) at the next SYNC)
+    of the row after each step."""
+    from drive_helpers import run_engine
     unit = engine.units[0]
-    while time.monotonic() < end:
-        now = time.monotonic()
-        if now >= next_sample:
-            engine.sample(V, 0.0, now)
-            next_sample = now + 0.02
-        engine.step(now)
+
+    def step(now):
         if record is not None and unit.target is not None:
             record.append((unit.target, unit.law.target_angle(now + engine.period)))
-        next_tick = max(next_tick + engine.period, time.monotonic())
-        time.sleep(max(next_tick - time.monotonic(), 0.0))
+    run_engine(engine, seconds, V, after_step=step)
 
 
 def send_design(engine, design):

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 
+import drive_helpers
 from drive_helpers import wait_until
 from planter_ros.command.engine import CommandEngine
 from planter_ros.control.loop_timing import SyncLoopConfig
@@ -113,22 +114,13 @@ def engine_on(channel, rows=ROWS, **drive):
 
 
 def run_engine(engine, seconds, v, w=0.0):
-    """The command process's loop in miniature: a sample every 20 ms, a step every SYNC.
-    Returns each row's phase errors after each step (rad)."""
-    end = time.monotonic() + seconds
-    next_sample = 0.0
-    next_tick = time.monotonic()
+    """drive_helpers.run_engine; returns each row's phase errors after each step (rad)."""
     errors = [[] for _ in engine.units]
-    while time.monotonic() < end:
-        now = time.monotonic()
-        if v is not None and now >= next_sample:
-            engine.sample(v, w, now)
-            next_sample = now + 0.02
-        engine.step(now)
+
+    def record(now):
         for unit, row in zip(engine.units, errors):
             row.append(unit.law.phase_error(now))
-        next_tick = max(next_tick + engine.period, time.monotonic())
-        time.sleep(max(next_tick - time.monotonic(), 0.0))
+    drive_helpers.run_engine(engine, seconds, v, w, record)
     return errors
 
 

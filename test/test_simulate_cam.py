@@ -170,7 +170,8 @@ def test_simulate_runs_the_scenes_spacing_schedule_on_the_cam(tmp_path):
     from planter_ros.prediction import PLANT_FIELDS
     from planter_ros.recording.replay import replay
     from planter_ros.scene import open_scene
-    from test_cam_demo import SPACINGS, cam_scene as schedule_scene, segment_figures
+    from test_cam_demo import (SPACINGS, cam_scene as schedule_scene, check_segments,
+                               segment_figures)
     scene = schedule_scene(tmp_path, [7.0, 0.25, 16.0, 0.35, 23.0, 0.5])
     design = open_scene(scene).design()
     plans = {d: plan_row_cam(dataclasses.replace(design, plant_spacing=d), 'design_speed')
@@ -191,11 +192,4 @@ def test_simulate_runs_the_scenes_spacing_schedule_on_the_cam(tmp_path):
                for k, v in zip(PLANT_FIELDS, row)} for row in replayed.tolist()]
     segments = segment_figures([p for p in plants if p['input_gap'] == 0],
                                cruise=0.5 * design.nominal_ground_speed)
-    assert [s['d'] for s in segments] == list(SPACINGS)
-    for s in segments:
-        d = s['d']
-        assert s['gaps'] >= 3, s
-        assert s['rms'] <= 0.01 * d, (d, s['rms'])
-        assert abs(s['sweep_mean'] - plans[d].tip_sweep) <= 0.5e-3, (d, s['sweep_mean'])
-        if s['boundary'] is not None:
-            assert abs(s['boundary']) <= 0.01 * d, (d, s['boundary'])
+    check_segments(segments, plans, boundary=0.01)
