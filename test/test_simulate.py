@@ -100,17 +100,6 @@ def test_simulated_bag_has_the_live_monitors_layout(ros, tmp_path):
     assert 'rosbag2' in sim[2]
 
 
-def test_the_plants_message_is_the_monitors():
-    from rclpy.serialization import serialize_message
-
-    from planter_ros.prediction import Plants
-    from planter_ros.nodes.monitor_node import plants_message as monitor_message
-    from planter_ros.sim.season import plants_message
-    plants = Plants.from_table(np.arange(3 * len(PLANT_FIELDS), dtype=float).reshape(3, -1))
-    assert serialize_message(plants_message(plants)) == \
-        serialize_message(monitor_message(plants))
-
-
 def test_a_season_is_drawn_from_its_seed(tmp_path):
     plans = [draw_plan(4, k, 60.0, 4) for k in range(40)]
     assert draw_plan(4, 7, 60.0, 4) == plans[7] and draw_plan(5, 7, 60.0, 4) != plans[7]
