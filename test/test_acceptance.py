@@ -12,6 +12,8 @@ from planter_ros.scene import SceneError, open_scene
 
 from cli_helpers import REPO, run_planter
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 TOMATO = REPO / 'config' / 'tomato_five_bar.yaml'
 RICE = REPO / 'config' / 'rice_three_arm.yaml'
 SAMPLE = REPO / 'bags' / 'sample_tomato.mcap'

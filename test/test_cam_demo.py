@@ -14,6 +14,8 @@ from planter_ros.scene import open_scene
 from cli_helpers import REPO, run_planter
 from test_demo import host_starved
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 SPACINGS = (0.15, 0.25, 0.35, 0.5)
 
 

@@ -22,6 +22,8 @@ from planter_ros.prediction import PLANT_FIELDS
 
 from cli_helpers import REPO, run_planter
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 DEMO = [sys.executable, '-m', 'planter_ros.cli', 'demo']
 
 

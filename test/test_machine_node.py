@@ -21,6 +21,8 @@ from planter_ros.drive.simulated_drive import SimulatedBus
 from planter_ros.nodes.sync_node import SyncNode
 from ros_fixtures import unique_channel
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 D = 0.2
 # the drive's command deadline is 0.2 s: a loop that went unscheduled for half of it was starved
 # by the host (the demo tests' rule, test_demo.host_starved)

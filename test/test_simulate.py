@@ -64,6 +64,7 @@ def test_replay_reproduces_the_plants_a_simulated_bag_carries(rows, tmp_path):
     assert np.nanmax(np.abs(stalled[:, PLANT_FIELDS.index('tilt')])) > 0.3
 
 
+@pytest.mark.realtime
 def test_simulated_bag_has_the_live_monitors_layout(ros, tmp_path):
     """Channels (topic, type, QoS), metadata records and the settings record of the real
     monitor node's recording with the same rows."""
