@@ -30,9 +30,9 @@ try:                                            # die with the test process, als
 except (OSError, AttributeError):
     pass
 reported = float(sys.argv[2])
+last = time.monotonic()                         # a stop from here on is measured
 sys.stdout.write('watching\n')
 sys.stdout.flush()
-last = time.monotonic()
 while os.getppid() == parent:
     time.sleep(0.005)
     now = time.monotonic()
