@@ -19,7 +19,9 @@ forgotten.
 A real-time test that fails while the host itself left every process unscheduled for more than
 host_stalls.STARVED s runs once more (host_stalls.py). Nothing hides it: the first run's failure
 and the stall are in the terminal summary and, as properties of the test, in the JUnit file;
-and when more than one test of a session needed it, the session fails.
+and when more than one test of a session needed it, the session fails. No other re-run: a test
+marked `flaky` fails and `--reruns` is refused (pytest-rerunfailures comes with colcon).
+test_harness.py tests all of this on small test files.
 """
 import gc
 import json
@@ -168,10 +170,15 @@ def pytest_collection_modifyitems(config, items):
     realtime = [item.nodeid for item in items if _realtime(item)]
     config.stash[_LAST_REALTIME] = realtime[-1] if realtime else None
     for item in items:
-        if not _realtime(item):
+        if item.get_closest_marker('flaky'):
+            item.stash[_UNMARKED] = ('flaky: a re-run that hides its first failure (pytest-'
+                                     'rerunfailures, installed with colcon) is not allowed here')
+        elif not _realtime(item):
             reason = live_reason(item)
             if reason:
-                item.stash[_UNMARKED] = reason
+                item.stash[_UNMARKED] = f'must be marked realtime ({reason}): add ' \
+                    '`pytestmark = pytest.mark.realtime` to its module or ' \
+                    '`@pytest.mark.realtime` to the test (test/conftest.py)'
     if hasattr(config, 'workerinput'):        # an xdist worker: tell the scheduler
         path = _realtime_ids_file(config)
         part = path.with_name(f'{path.name}.{os.getpid()}')
@@ -186,11 +193,9 @@ def pytest_runtest_setup(item):
     run elsewhere (so a second test process never starves their 10 ms loops and 0.2 s
     watchdogs), else at the start's again. Never above the start's; without the right to
     change it (not root), what can be set is set."""
-    unmarked = item.stash.get(_UNMARKED, '')
-    if unmarked:
-        pytest.fail(f'{item.nodeid} must be marked realtime ({unmarked}): add '
-                    '`pytestmark = pytest.mark.realtime` to its module or '
-                    '`@pytest.mark.realtime` to the test (test/conftest.py)', pytrace=False)
+    refused = item.stash.get(_UNMARKED, '')
+    if refused:
+        pytest.fail(f'{item.nodeid} {refused}', pytrace=False)
     if _realtime(item):
         # as the product's real-time processes do after start-up (command/process.py,
         # demo/sync_process.py): what the session made so far out of the collector's reach,
@@ -267,6 +272,13 @@ def _failure_line(reports):
 
 
 _RERUNS = {}           # nodeid -> (why, the second run's outcome), in the reporting process
+
+
+def pytest_configure(config):
+    """pytest-rerunfailures comes with colcon: its silent re-runs are refused."""
+    if getattr(config.option, 'reruns', 0):
+        raise pytest.UsageError('--reruns re-runs a failed test and hides its first failure: '
+                                'this suite re-runs only what it shows (test/conftest.py)')
 
 
 def pytest_runtest_logreport(report):

@@ -10,7 +10,8 @@ its JUnit file:
   are in the terminal summary and in the JUnit file; two such re-runs fail the session; one that
   fails again fails;
 * a test that uses a live fixture or starts something live without the realtime marker fails,
-  naming the marker;
+  naming the marker; a test marked flaky fails, and --reruns is refused (pytest-rerunfailures
+  comes with colcon);
 * a session started 5 below this one's priority runs nothing, not even the stall watcher,
   above that; the
   real-time tests of several modules run on one process, before the others there.
@@ -53,6 +54,7 @@ def stall():
 def pytest_run(tmp_path, source, *args, env=None, nice=0, modules=None):
     """Run pytest on `source` (test_inner.py; `modules`: {file name: source} instead) in
     `tmp_path`: (the finished process, the JUnit file's root)."""
+    tmp_path.mkdir(exist_ok=True)
     for name, text in (modules or {'test_inner.py': source}).items():
         (tmp_path / name).write_text(text)
     (tmp_path / 'pytest.ini').write_text(INI)
@@ -171,6 +173,11 @@ def test_marked(channel):
     pass
 
 
+@pytest.mark.flaky(reruns=3)
+def test_retried():
+    pass
+
+
 def test_pure():
     pass
 """, '-n', '0')
@@ -181,7 +188,11 @@ def test_pure():
     assert 'must be marked realtime (it uses SimulatedBus)' in \
         found['test_through_a_fixture'][1][0]
     assert 'must be marked realtime (it runs `planter demo' in found['test_a_demo'][1][0]
+    assert 'flaky: a re-run that hides its first failure' in found['test_retried'][1][0]
     assert found['test_marked'][1] == [] and found['test_pure'][1] == []
+    out, junit = pytest_run(tmp_path / 'again', 'def test_pure():\n    pass\n', '-n', '0',
+                            '--reruns', '2')
+    assert out.returncode == 4 and '--reruns re-runs a failed test' in out.stderr
 
 
 PRIORITY = """
