@@ -19,6 +19,8 @@ from planter_ros.drive.errors import DriveRefusedError
 from planter_ros.drive.simulated_drive import SimulatedDrive
 from planter_ros.scene.machine import CanBus, open_machine, write_machine
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 MACHINE = REPO / 'config' / 'machines' / 'tomato_4row_tractor.yaml'
 ROW = 'left_outer'
 

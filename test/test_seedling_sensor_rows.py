@@ -13,6 +13,8 @@ from planter_ros.prediction.seedlings import (EMPTY, NO_READING, NO_SENSOR, PLAN
 from planter_ros.recording.replay import replay
 from test_seedlings import D, instants
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 ROW = PLANT_FIELDS.index('row')
 
 

@@ -9,9 +9,10 @@ model (sim.closed_loop.simulate_rows); what its sensors, drives and sync node re
 into the bag as the monitor would have received it: stamped when measured, logged a little
 later, every topic of interfaces.RECORDED with the monitor's QoS, its settings and rows
 records, chunks closed every second of log time. The monitor's own outputs (plants,
-uprightness_rate) come from its model fed sample by sample in log-time order, as monitor_node
-feeds it (RowSpeedStream, one PlantPredictor per row, the map's PlantPlacer), so replaying the
-bag reproduces them.
+uprightness_rate) come from the monitor's own pipeline (prediction.pipeline.MonitorPipeline,
+the one monitor_node runs) fed sample by sample in log-time order, and its messages are built
+where the node builds them (recording.monitor_topics), so the bag carries what the node would
+have published and replaying it reproduces them.
 Every row with a seedling sensor (all rows, or those a scene declares with one: its
 `seedling_sensor`, `<row>.seedling_sensor`) is fed by a simulated tray (`tray_readings`, sim.tray:
 a cell empty with `empty_rate`, two seedlings with `double_rate`): one `seedlings` reading per
@@ -21,7 +22,6 @@ The bag has no /diagnostics, sections, spacing_quality or plant_markers messages
 there): replay derives the indices and the map from the plants and fixes.
 """
 
-from collections import deque
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 import math
@@ -331,105 +331,6 @@ def tray_readings(plan, design, runs):
     return tuple(sorted(out, key=lambda x: (x[1], x[0])))
 
 
-class MonitorModel:
-    """The monitor's prediction as monitor_node runs it, without the node: one RowSpeedStream
-    for the machine (the yaw rate always: the map dead-reckons the heading), one PlantPredictor
-    per planting row, the as-planted map (sensing.plant_map.PlantPlacer: a plant is published
-    once the fixes that place it are in), the machine's rolling upright rate."""
-
-    def __init__(self, rows, design, settings, map_settings, antenna):
-        from planter_ros.prediction import (PlantPredictor, SeedlingAccount,
-                                            planting_model_from_design)
-        from planter_ros.sensing.plant_map import PlantPlacer
-        from planter_ros.sensing.row_speed import RowSpeedStream
-        model = planting_model_from_design(design)
-        planting = [row for row in rows if row.enabled]
-        self.predictors = [PlantPredictor(model, settings, row=row.index, speed_filter=False)
-                           for row in planting]
-        self.speeds = RowSpeedStream([row.lateral_offset for row in planting],
-                                     settings.speed_limits, yaw=True)
-        self.placer = PlantPlacer(map_settings, antenna.antenna_position,
-                                  {row.index: row.lateral_offset for row in rows})
-        self.recent = deque(maxlen=settings.window)
-        self.seedlings = SeedlingAccount({row.index: row.seedling_sensor for row in rows})
-        self.spacing = model.spacing
-
-    def speed(self, t, v, w):
-        """Plants batches placed after a ground-speed message (t s, v m/s, ω_z rad/s)."""
-        motion = self.speeds.motion(t, v, w)
-        if motion is None:
-            return []
-        t, v, yaw_rate = motion
-        out = self._placed(self.placer.add_motion(t, v, yaw_rate))
-        for p, s in zip(self.predictors, self.speeds.speeds(v, yaw_rate).tolist()):
-            out += self._predicted(p.add_speed(t, s))
-        return out
-
-    def joint(self, t, positions, velocities):
-        """Plants batches placed after a joint-state message (each planting row's joint)."""
-        out = []
-        for p, a, w in zip(self.predictors, positions, velocities):
-            out += self._predicted(p.add_joint(t, a, w))
-        return out
-
-    def fix(self, t, status, latitude, longitude, cov_east, cov_north, cov_type):
-        """Plants batches placed after a GNSS fix."""
-        return self._placed(self.placer.add_fix(t, status, latitude, longitude, cov_east,
-                                                cov_north, cov_type))
-
-    def flush(self):
-        """The plants whose arcs were still open, then the plants still held for fixes,
-        placed with the fixes there are (the monitor's end of recording)."""
-        out = []
-        for p in self.predictors:
-            out += self._predicted(p.finish())
-        return out + self._placed(self.placer.flush())
-
-    def design(self, t, design):
-        """A new design arrived at `t` (s): each row's from its next planting instant."""
-        from planter_ros.prediction import planting_model_from_design
-        model = planting_model_from_design(design)
-        for p in self.predictors:
-            p.change_model(model, t)
-        self.spacing = model.spacing
-
-    def seedling(self, t, row, count):
-        """A seedling sensor reading of planting row `row` (its index) at `t` (s)."""
-        self.seedlings.add_reading(row, t, count)
-
-    def _predicted(self, plants):
-        from planter_ros.prediction import design_spacing_of
-        if not len(plants):
-            return []
-        plants = self.seedlings.apply(plants, design_spacing_of(plants, self.spacing))
-        return self._placed(self.placer.add_plants(plants))
-
-    @staticmethod
-    def _placed(placed):
-        return [plants for plants, _ in placed]
-
-    def rate(self, plants):
-        """The machine's rolling upright rate after `plants` (what uprightness_rate carries:
-        the plants whose uprightness is known)."""
-        self.recent.extend(u for u in plants.upright.tolist() if math.isfinite(u))
-        return float(sum(self.recent) / len(self.recent)) if self.recent else math.nan
-
-
-def plants_message(plants):
-    """std_msgs/Float64MultiArray of a Plants batch in the layout monitor_node publishes on
-    `plants` (dim[0] 'plant' × dim[1] = the field names)."""
-    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-
-    from planter_ros.prediction import PLANT_FIELDS
-    table = plants.table()
-    n, f = table.shape
-    msg = Float64MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label='plant', size=n, stride=n * f),
-                      MultiArrayDimension(label=','.join(PLANT_FIELDS), size=f, stride=f)]
-    msg.data = table.ravel().tolist()
-    return msg
-
-
 def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, antenna=None,
                       **recorder_options):
     """Record `run` (a MachineRun) at `path` as monitor_node would have (see the module doc);
@@ -445,6 +346,8 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
     from planter_ros.config import as_dict
     from planter_ros.geo import AntennaSettings
     from planter_ros.prediction import AcceptanceLimits, PredictionSettings
+    from planter_ros.prediction.pipeline import MonitorPipeline
+    from planter_ros.recording.monitor_topics import plants_message
     from planter_ros.recording.recorder import Recorder
     from planter_ros.recording.replay import map_record
     from planter_ros.sensing.plant_map import MapSettings
@@ -500,21 +403,18 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
         k: repr(v) for k, v in as_dict(acceptance or AcceptanceLimits()).items()})
     map_settings, antenna = MapSettings(), antenna or AntennaSettings()
     rec.add_metadata(interfaces.MAP_RECORD, map_record(map_settings, antenna))
-    monitor = MonitorModel(rows, design, settings, map_settings, antenna)
+    # the monitor's own pipeline, fed what it would have received, in its receive order
+    monitor = MonitorPipeline(rows, settings, map_settings, antenna.antenna_position)
     start = int(log.min()) - 500_000_000 if log.size else epoch
     clock[0] = start * 1e-9
     rec.write_message(names[interfaces.DESIGN], String(data=to_json(design)), start)
-    plants_written = 0
+    monitor.set_design(start * 1e-9, design)
 
     def publish(batches, now):
-        nonlocal plants_written
-        for plants in batches:
-            if not len(plants):
-                continue
-            rec.write_message(names[interfaces.PLANTS], plants_message(plants), now, now)
+        for batch in batches:
+            rec.write_message(names[interfaces.PLANTS], plants_message(batch.plants), now, now)
             rec.write_message(names[interfaces.UPRIGHTNESS_RATE],
-                              Float64(data=monitor.rate(plants)), now, now)
-            plants_written += len(plants)
+                              Float64(data=batch.upright_rate), now, now)
 
     speed_v, speed_w = run.speed_v.tolist(), run.speed_w.tolist()
     positions, velocities = run.joint_pos.T.tolist(), run.joint_vel.T.tolist()
@@ -534,8 +434,8 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
             msg = JointState(name=joints, position=positions[i], velocity=velocities[i])
             msg.header.stamp = stamp(joint_stamp[i])
             rec.write_message(names[interfaces.JOINT_STATES], msg, now, int(joint_stamp[i]))
-            publish(monitor.joint(int(joint_stamp[i]) * 1e-9, positions[i], velocities[i]),
-                    now)
+            publish(monitor.joints(int(joint_stamp[i]) * 1e-9, joints, positions[i],
+                                   velocities[i]), now)
         elif kind == 2:
             if named:
                 msg = JointState(name=joints, velocity=commands[i])
@@ -548,24 +448,24 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
         elif kind == 5:
             changed = plan.designs[i][1]
             rec.write_message(names[interfaces.DESIGN], String(data=to_json(changed)), now)
-            monitor.design(now * 1e-9, changed)
+            monitor.set_design(now * 1e-9, changed)
         elif kind == 4:
             r, _, count = run.seedlings[i]
             msg = JointState(name=[joints[r]], position=[float(count)])
             msg.header.stamp = stamp(seedling_stamp[i])
             rec.write_message(names[interfaces.SEEDLINGS], msg, now, int(seedling_stamp[i]))
-            monitor.seedling(int(seedling_stamp[i]) * 1e-9, rows[r].index, count)
+            monitor.seedlings(int(seedling_stamp[i]) * 1e-9, msg.name, msg.position)
         else:
             msg = navsatfix(stamp(gnss_stamp[i]), lat[i], lon[i], alt[i], plan.gnss.noise)
             rec.write_message(names[interfaces.GNSS_FIX], msg, now, int(gnss_stamp[i]))
             cov = msg.position_covariance
             publish(monitor.fix(int(gnss_stamp[i]) * 1e-9, msg.status.status, lat[i], lon[i],
                                 cov[0], cov[4], msg.position_covariance_type), now)
-    publish(monitor.flush(), int(log.max()) if log.size else start)
+    publish(monitor.finish(), int(log.max()) if log.size else start)
     rec.close()
     counts = [c for _, _, c in run.seedlings]
     return {'bag': str(path), 'run': plan.index, 'duration': plan.duration,
-            'rows': len(rows), 'messages': rec.message_count, 'plants': plants_written,
+            'rows': len(rows), 'messages': rec.message_count, 'plants': monitor.plants,
             'events': {**plan.events(), 'empty_cells': counts.count(0),
                        'double_cells': counts.count(2)}}
 
