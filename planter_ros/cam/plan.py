@@ -25,9 +25,13 @@ from .piecewise import Piecewise
 
 __all__ = ['CamProfile', 'CamPlan', 'plan_cam', 'constant_profile', 'build_profile',
            'fallback_laws', 'rule_top_speed', 'rule_top_speeds', 'sampled_tip_sweep',
-           'BRUTE_FORCE_SAMPLES', 'BLEND_STEPS', 'SPEED_RANGE']
+           'BRUTE_FORCE_SAMPLES', 'BLEND_HEADROOM', 'BLEND_STEPS', 'SPEED_RANGE']
 
 BLEND_STEPS = 14                 # bisection steps of β: resolution 2⁻¹⁴
+# a blend is planned to this share of its binding limit, not to the limit itself: a change
+# into it at run time (another spacing or rule: a transition arc) then has room to stay
+# within the limits too
+BLEND_HEADROOM = 0.98
 SPEED_RANGE = (0.01, 3.0)        # ground speeds searched for a rule's top speed, m/s (scene's)
 SOIL_TOLERANCE = 1e-12           # rad: the in-soil fit's largest error against its law
 _MAX_SOIL_PIECES = 4096
@@ -267,9 +271,10 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
 
     When the rule's profile exceeds a limit, the laws of `fallback_laws` are tried in turn;
     the first that runs is blended with the one before it, β (the share of the one before)
-    maximised by bisection: the feasible profile closest to the rule. If not even constant speed
-    runs, that is returned, infeasible, with its figures. `top_speeds`: also find up to what
-    ground speed each rule holds at this spacing (a few more plans)."""
+    maximised by bisection with every limit's utilisation ≤ BLEND_HEADROOM: the feasible
+    profile closest to the rule that leaves a run-time change into it room. If not even
+    constant speed runs, that is returned, infeasible, with its figures. `top_speeds`: also
+    find up to what ground speed each rule holds at this spacing (a few more plans)."""
     if not isinstance(mech, CamMechanism):
         mech = CamMechanism.from_design(mech)
     drive = DriveLimits() if drive is None else drive
@@ -296,7 +301,7 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
                 mid = 0.5 * (lo + hi)
                 candidate = build(upper.blend(lower, mid), mid)
                 f = candidate.figures(speed)
-                if f.feasible:
+                if max(f.utilisation.values()) <= BLEND_HEADROOM:
                     lo, profile, figures, beta = mid, candidate, f, mid
                 else:
                     hi = mid
