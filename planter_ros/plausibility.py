@@ -15,6 +15,9 @@ refused (PlausibilityError, one line naming the value, the reason and the limit)
   (drive.bus_load, the sync node's own rule);
 * **spacing / depth**: a spacing or a depth the mechanism cannot reach (no five-bar exists:
   k·D ≥ d or l1 ≤ 0; a three-arm design the model refuses) — the design model's own refusal;
+* **the cam** (speed_profile: cam): its plan at the scene's top ground speed for the scene's
+  spacing and each spacing of its schedule, and each change between them, within the drive's
+  limits (control.cam_law, cam.track: the same planning the sync node's shell does);
 
 warned (the scene runs; the value is unusual, the warning names the typical range):
 
@@ -108,6 +111,8 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
         ground = from_mapping(GroundSpeedLimits, params)
         if design:
             _design(params, out)
+            if not out.refused and law.speed_profile == 'cam':
+                _cam(params, law, out)
         if motion:
             _motion(out, params, scene, law, ground, row_limits, tractor_acceleration)
         if machine:
@@ -205,6 +210,37 @@ def _design(params, out):
         design_for_scene({**params, 'nozzle_width': params.get('nozzle_width', 0.0)})
     except ConfigError as exc:
         out.refused.append(f'no mechanism reaches this spacing and depth: {exc}')
+
+
+def _cam(params, law, out):
+    """A cam scene (speed_profile: cam): its cam planned as the sync node's shell plans it
+    (control.cam_law, at the scene's top ground speed) for its plant_spacing and every
+    spacing of its spacing_schedule in turn, each change checked as the rows would make it:
+    a plan or change over the drive's limits, or a design the cam cannot run, refused."""
+    from planter_ros.cam import CamError
+    from planter_ros.control.cam_law import plan_for_design
+    from planter_ros.design import design_for_scene
+    flat = params.get('spacing_schedule') or []
+    spacings = [params.get('plant_spacing')] + list(flat[1::2])
+    previous, last = None, None
+    for spacing in spacings:
+        if spacing is None or spacing == last:
+            continue
+        last = spacing
+        where = '' if previous is None else f' (spacing_schedule, to {spacing:g} m)'
+        try:
+            design = design_for_scene({**params, 'plant_spacing': spacing,
+                                       'nozzle_width': params.get('nozzle_width', 0.0)})
+            profile, why = plan_for_design(design, law.cam_rule, previous)
+        except (ConfigError, CamError) as exc:
+            out.refused.append(f'speed_profile = cam cannot run{where}: {exc}')
+            return
+        if profile is None:
+            why = why.removesuffix(': constant speed')
+            out.refused.append(f'speed_profile = cam cannot run{where}: {why}; allowed a '
+                               'five-bar the cam can plan, or speed_profile: constant')
+            return
+        previous = profile
 
 
 def _speed(out, shaft, per_metre, d, v, limit, limit_name, where):

@@ -194,3 +194,40 @@ def test_the_peak_loads_are_the_continuous_maxima_of_the_pieces():
             # step of 1.25e-7 m where θ‴ reaches 1e5 rad/m³: 1e-5 of the peak)
             assert got >= brute[name] * (1 - 1e-12), (rule, name, got, brute[name])
             assert got <= brute[name] * (1 + 1e-4), (rule, name, got, brute[name])
+
+
+def cam_scene(tmp_path, **values):
+    """The tomato cam scene with some design values replaced (a file in tmp_path)."""
+    import yaml
+    data = yaml.safe_load(open(SCENE).read())
+    data['/**']['ros__parameters'].update(values)
+    path = tmp_path / 'scene.yaml'
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_a_cam_scene_whose_design_spacing_leaves_no_cam_is_refused_naming_it(tmp_path):
+    from planter_ros.scene import SceneError
+    # built for 2 m, the design-speed rule's soil arc (0.18 m) is longer than 0.15 m
+    with pytest.raises(SceneError) as caught:
+        open_scene(cam_scene(tmp_path, design_spacing=2.0))
+    text = str(caught.value)
+    assert 'speed_profile = cam cannot run' in text and 'design_spacing' in text
+    assert 'plant_spacing = 0.15' in text and '\n' not in text
+
+
+def test_a_cam_scene_over_the_drive_is_refused_before_it_runs(tmp_path):
+    from planter_ros.scene import SceneError
+    # its schedule's first spacing, 0.15 m, at 0.9 m/s: 120 % of the sun bar's speed limit
+    with pytest.raises(SceneError) as caught:
+        open_scene(cam_scene(tmp_path, top_ground_speed=0.9))
+    assert_names_a_limit(str(caught.value))
+    assert 'top_ground_speed = 0.9 m/s' in str(caught.value)
+
+
+def test_simulated_runs_keep_below_the_scenes_top_ground_speed():
+    from planter_ros.analysis.simulate import scene_machine
+    from planter_ros.sim.season import SPEED_CHANGE_MAX
+    machine = scene_machine(SCENE)
+    assert machine.cruise[1] * SPEED_CHANGE_MAX <= machine.design.top_ground_speed + 1e-12
+    assert machine.cruise[0] < machine.cruise[1]

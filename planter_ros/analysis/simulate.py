@@ -63,9 +63,14 @@ def scene_machine(scene):
                 raise SceneError(f'scene {opened.path}: spacing_schedule {spacing} m at {t} s: '
                                  f'{exc}') from None
             current = spacing
+    # cruise speeds around the nominal one, never above the scene's top ground speed once
+    # the run's speed change (up to SPEED_CHANGE_MAX) is on top: the cam is planned for it
+    from planter_ros.sim.season import SPEED_CHANGE_MAX
+    ceiling = design.top_ground_speed / SPEED_CHANGE_MAX
     return SceneMachine(design, tuple(opened.rows()),
                         from_mapping(PredictionSettings, monitor), opened.acceptance(),
-                        opened.antenna(), (0.75 * nominal, 1.5 * nominal),
+                        opened.antenna(), (min(0.75 * nominal, ceiling),
+                                           min(1.5 * nominal, ceiling)),
                         from_mapping(PhaseLockConfig, opened.parameters('sync_node')),
                         tuple(schedule))
 

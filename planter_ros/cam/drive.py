@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from planter_ros.config import check, setting
+from planter_ros.config import check, setting, spec_of
 
 from .errors import CamInputError
 
@@ -40,6 +40,10 @@ __all__ = ['DriveLimits', 'EffectiveLimits', 'LoadFigures', 'LoadSamples', 'LIMI
            'DRIVE_SOURCE', 'GRAVITY', 'sun_bar_motion']
 
 GRAVITY = 9.80665
+# the least acceleration and jerk limits a cam is planned against (below them the linear
+# programme's numbers span more than a double holds; no drive is that gentle)
+MIN_ACCELERATION = 0.1            # rad/s²
+MIN_JERK = 1.0                    # rad/s³
 RPM = 2.0 * math.pi / 60.0
 
 DRIVE_SOURCE = ('motor: Yaskawa Σ-7 SGM7J-08A, 750 W (Σ-7-Series Rotary Servomotor Product '
@@ -100,6 +104,17 @@ class DriveLimits:
 
     def __post_init__(self):
         check(self, _error)
+        if self.motor_rated_torque > self.motor_peak_torque:
+            raise CamInputError('motor_rated_torque', self.motor_rated_torque,
+                                f'<= motor_peak_torque = {self.motor_peak_torque:g} N m (a '
+                                "servo's continuous torque is below its peak)")
+        for name, least, unit in (('max_acceleration', MIN_ACCELERATION, 'rad/s^2'),
+                                  ('max_jerk', MIN_JERK, 'rad/s^3')):
+            value = getattr(self, name)
+            if 0.0 < value < least:
+                high = spec_of(DriveLimits, name).high
+                raise CamInputError(name, value, f'0 (derived) or {least:g}..{high:g} {unit} '
+                                    '(below it no out-of-soil arc can be planned)')
 
     def effective(self, mech):
         """The limits in force for mechanism `mech` (derived ones filled in)."""

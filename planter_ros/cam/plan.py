@@ -19,7 +19,7 @@ from planter_ros.kinematics.five_bar import TWO_PI
 
 from .arc import ARC_PIECES, plan_arc, straight_arc
 from .drive import DriveLimits, LoadFigures, LoadSamples
-from .errors import CamInputError
+from .errors import CamInputError, CamPlanningError
 from .mechanism import RULES, CamMechanism, constant_law, rule_law
 from .piecewise import Piecewise
 
@@ -283,15 +283,23 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
     laws = fallback_laws(mech, spacing, rule)
 
     def build(law, beta):
-        return build_profile(mech, spacing, law, speed, drive, rule, beta, pieces)
+        """The law's profile and its figures; (None, None) when its out-of-soil arc cannot be
+        planned at all (limits so far below the motion that the programme fails): that law
+        does not run."""
+        try:
+            candidate = build_profile(mech, spacing, law, speed, drive, rule, beta, pieces)
+        except CamPlanningError:
+            return None, None
+        return candidate, candidate.figures(speed)
 
-    profile = build(laws[0], 1.0)
-    rule_figures = figures = profile.figures(speed)
+    profile, rule_figures = build(laws[0], 1.0)
+    figures = rule_figures
     beta, blend_of, blended_with = 1.0, laws[0].name, ''
-    if not rule_figures.feasible:
+    if rule_figures is None or not rule_figures.feasible:
         for upper, lower in zip(laws, laws[1:]):
-            candidate = build(lower, 0.0)
-            f = candidate.figures(speed)
+            candidate, f = build(lower, 0.0)
+            if candidate is None:
+                continue
             profile, figures, beta, blend_of, blended_with = (candidate, f, 0.0, upper.name,
                                                               lower.name)
             if not f.feasible:
@@ -299,13 +307,14 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
             lo, hi = 0.0, 1.0
             for _ in range(BLEND_STEPS):
                 mid = 0.5 * (lo + hi)
-                candidate = build(upper.blend(lower, mid), mid)
-                f = candidate.figures(speed)
-                if max(f.utilisation.values()) <= BLEND_HEADROOM:
+                candidate, f = build(upper.blend(lower, mid), mid)
+                if f is not None and max(f.utilisation.values()) <= BLEND_HEADROOM:
                     lo, profile, figures, beta = mid, candidate, f, mid
                 else:
                     hi = mid
             break
+        if rule_figures is None:              # the rule's own figures: as constant speed's
+            rule_figures = figures
     tops = rule_top_speeds(mech, spacing, drive, speed, pieces) if top_speeds else {}
     return CamPlan(profile, rule, spacing, speed, beta, blend_of, blended_with, figures,
                    rule_figures, tops)
@@ -321,6 +330,8 @@ def rule_top_speeds(mech, spacing, drive=None, hint=0.3, pieces=ARC_PIECES):
             tops[name] = rule_top_speed(mech, spacing, name, drive, hint, pieces)
         except CamInputError as exc:             # zero slip undefined for this depth
             tops[name] = (0.0, f'undefined here: {exc}')
+        except CamPlanningError as exc:          # limits far below the motion
+            tops[name] = (0.0, f'not planned: {exc}')
     tops['constant'] = constant_profile(mech, spacing, drive).loads.top_speed()
     return tops
 

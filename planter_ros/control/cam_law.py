@@ -60,11 +60,20 @@ def plan_row_cam(design: Any, rule: str, top_speed: float | None = None,
     if getattr(design, 'mechanism', None) != 'five_bar':
         raise ValueError(f'speed_profile = cam needs a five-bar design, got '
                          f'{getattr(design, "mechanism", None)}')
+    from planter_ros.cam import CamInputError
     speed = top_speed or planning_speed(design)
     mech = CamMechanism(design.l1, design.l2, design.planting_depth)
-    plan = _plan(mech, float(design.plant_spacing), float(speed), drive or DriveLimits(), rule)
+    built = mech.design_spacing
+    try:
+        plan = _plan(mech, float(design.plant_spacing), float(speed), drive or DriveLimits(),
+                     rule)
+    except CamInputError as exc:
+        if exc.parameter != 'spacing':
+            raise
+        raise CamInputError('plant_spacing', design.plant_spacing, f'{exc.allowed} for a '
+                            f'five-bar built for {built:.4g} m (design_spacing): a smaller '
+                            'design_spacing, or a larger plant_spacing') from None
     if not plan.feasible:
-        built = mech.design_spacing
         raise CamLimitError.from_message(
             f'speed_profile = cam cannot plant plant_spacing = {design.plant_spacing:.4g} m '
             f'with a five-bar built for {built:.4g} m (design_spacing) at top_ground_speed = '

@@ -21,8 +21,11 @@ TOP_SPEED_FACTOR = 1.5
 
 def top_ground_speed(nominal: float, top: float | None = None) -> float:
     """The highest ground speed a scene plants at (m/s): its `top_ground_speed`, or
-    TOP_SPEED_FACTOR × its nominal ground speed when that is 0 or not given."""
-    return float(top) if top else TOP_SPEED_FACTOR * float(nominal)
+    TOP_SPEED_FACTOR × its nominal ground speed when that is 0 or not given (at most the
+    3 m/s a scene's speeds range to, at least the nominal speed)."""
+    if top:
+        return float(top)
+    return max(float(nominal), min(TOP_SPEED_FACTOR * float(nominal), 3.0))
 
 
 @dataclass(frozen=True, kw_only=True)
