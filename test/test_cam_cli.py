@@ -102,11 +102,11 @@ BAD = [
      'hole_ratio = 1.9'),
     # limits no drive has: a jerk or acceleration limit so small the arc's linear programme
     # cannot be solved (was a traceback), a rated torque above the peak torque (was accepted)
-    (['--spacing', '0.3', '--speed', '0.3', '--max-jerk', '1e-6'], '--max-jerk = 1e-06'),
+    (['--spacing', '0.3', '--speed', '0.3', '--max-jerk', '1e-6'], 'max_jerk = 1e-06'),
     (['--spacing', '0.3', '--speed', '0.3', '--max-acceleration', '1e-6'],
-     '--max-acceleration = 1e-06'),
+     'max_acceleration = 1e-06'),
     (['--spacing', '0.3', '--speed', '0.3', '--motor-rated-torque', '20'],
-     '--motor-rated-torque = 20 is out of range: allowed <= --motor-peak-torque = 8.36'),
+     'motor_rated_torque = 20 is out of range: allowed <= motor_peak_torque = 8.36'),
 ]
 
 

@@ -21,7 +21,12 @@ def season_machine(scene, rows):
     --scene and --rows (None: not given): ConfigError (one line) for both, or a bad scene."""
     from planter_ros.config import ConfigError
     if not scene:
-        return None, DEFAULT_ROWS if rows is None else rows
+        from planter_ros.plausibility import bus_rows
+        count = DEFAULT_ROWS if rows is None else rows
+        refused = bus_rows(count)              # the rows' drives on the sync node's bus
+        if refused:
+            raise ConfigError(f'--rows = {count}: {refused}')
+        return None, count
     if rows is not None:
         raise ConfigError(f'--rows = {rows} with --scene: allowed one of them (the scene\'s '
                           "rows are its machine's)")

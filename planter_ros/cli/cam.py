@@ -89,28 +89,14 @@ def add_arguments(parser):
                              'tilt against spacing, the feasibility map and the loads')
 
 
-def _drive(cls, args):
-    """The drive the options give; the limits checked together (a rated torque above the peak
-    one, ...) refused naming the options (BadInput)."""
-    from planter_ros.cli.main import BadInput
-    from planter_ros.config import ConfigError, specs
-    try:
-        return cls(**{k[len('drive_'):]: v for k, v in vars(args).items()
-                      if k.startswith('drive_') and v is not None})
-    except ConfigError as exc:
-        text = str(exc)
-        for spec in specs(cls):
-            text = text.replace(f'{spec.name} =', f'--{spec.name.replace("_", "-")} =')
-        raise BadInput(text) from None
-
-
 def run(args):
     from planter_ros.cam import CamMechanism, DriveLimits
     from planter_ros.cam.report import format_table, study
     from planter_ros.kinematics.five_bar import design_five_bar
     from planter_ros.output_files import atomic_output
 
-    drive = _drive(DriveLimits, args)
+    drive = DriveLimits(**{k[len('drive_'):]: v for k, v in vars(args).items()
+                           if k.startswith('drive_') and v is not None})   # checked together
     design = design_five_bar(args.depth, args.design_spacing, args.hole_ratio)
     mech = CamMechanism.from_design(design, args.nozzle_width)
     result = study(mech, drive, args.rule, args.spacing, args.speed, args.design_spacing,

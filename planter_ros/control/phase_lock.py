@@ -90,8 +90,9 @@ class PhaseLockConfig:
     phase_lock: bool = setting(True, 'true: phase-locked to travelled distance; false: '
                                'speed-only (feed-forward)')
     ground_speed_timeout: float = setting(0.5, 'no accepted ground-speed sample for this long '
-                                          '= stale: ramp to 0, then halt', unit='s',
-                                          range=(0.05, 10.0))
+                                          '= stale: ramp to 0, then halt (longer, the rows '
+                                          'plant blind: 2 s at 1.5 m/s is 3 m)', unit='s',
+                                          range=(0.05, 2.0))
     speed_profile: str = setting('constant', "the sun bar's motion within each plant: constant "
                                  '(2πv/(n·d)) or cam (θ(s) of the row\'s travelled distance, '
                                  'five-bar only, CSP drives only; doc/cam.md)',
