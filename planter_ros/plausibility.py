@@ -26,6 +26,7 @@ refused (PlausibilityError, one line naming the value, the reason and the limit)
 
 warned (the scene runs; the value is unusual, the warning names the typical range):
 
+* a value a design is made from that the scene leaves out (`DESIGN_KEYS`): its default named;
 * ground speed, depth and spacing outside what transplanters usually plant at (`TYPICAL`),
   more rows than a planter of this kind carries, rows on top of each other or closer than
   `ROW_GAP_MIN`, a machine wider than `MACHINE_WIDTH_MAX`, a CAN bit rate no CiA 301 table
@@ -125,6 +126,7 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
         law = from_mapping(PhaseLockConfig, params)
         ground = from_mapping(GroundSpeedLimits, params)
         if design:
+            out.warnings += _defaults(params, scene.mechanism)
             _design(params, out)
             if not out.refused and law.speed_profile == 'cam':
                 _cam(params, law, out)
@@ -136,6 +138,27 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
         out.refused.append(str(exc))
         return out
     out.warnings += unusual(scene)
+    return out
+
+
+# the values a design is made from that no default fits every crop: a scene that leaves one
+# out is told which default it got (no silent input)
+DESIGN_KEYS = ('mechanism', 'planting_depth', 'plant_spacing', 'nominal_ground_speed')
+FIVE_BAR_KEYS = ('hole_ratio',)
+
+
+def _defaults(params, mechanism):
+    from planter_ros.config import spec_of
+    from planter_ros.kinematics.scene_settings import SceneSettings
+    keys = DESIGN_KEYS + (FIVE_BAR_KEYS if mechanism == 'five_bar' else ())
+    out = []
+    for name in keys:
+        if name not in params:
+            spec = spec_of(SceneSettings, name)
+            unit = f' {spec.unit}' if spec.unit else ''
+            out.append(f'{name} is not set: the design uses the default {spec.default:g}'
+                       f'{unit}; set it for the crop and machine' if spec.kind is float else
+                       f'{name} is not set: the design uses the default {spec.default}')
     return out
 
 

@@ -30,6 +30,10 @@ def season_machine(scene, rows):
     if rows is not None:
         raise ConfigError(f'--rows = {rows} with --scene: allowed one of them (the scene\'s '
                           "rows are its machine's)")
+    import sys
+    from planter_ros.scene import open_scene
+    for warning in open_scene(scene).warnings:     # defaults taken, unusual values
+        print(f'planter: warning: {warning}', file=sys.stderr)
     machine = scene_machine(scene)
     if machine.law.speed_profile == 'cam':
         from planter_ros.cam import CamError

@@ -254,6 +254,7 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         if planting:
             _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp,
                                j_positions[0])
+            _unusable_joints(rec.warnings, planting, mechanism, j_stamp, j_positions)
         jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
         # another mechanism starts a new sequence, numbered from 0 like the live monitor; the
         # rows predicted together (their arcs in one pass)
@@ -480,6 +481,20 @@ def _count_undecodable(warnings: list[str], name: str, stamps: NDArray[np.int64]
     bad = int(np.count_nonzero((stamps == 0) & np.isnan(values)))
     if bad:
         warnings.append(f'{bad} {name} message(s) could not be decoded: skipped')
+
+
+def _unusable_joints(warnings: list[str], planting: Sequence[Row], mechanism: str,
+                     stamps: NDArray[np.int64], positions: FloatArray) -> None:
+    """A row whose recorded joint positions are all NaN (decoded, not one finite) predicts
+    no plant: say so, once per row, rather than report nothing planted in silence."""
+    decoded = stamps != 0
+    for row, values in zip(planting, positions):
+        count = int(np.count_nonzero(decoded))
+        if count and not np.any(np.isfinite(values[decoded])):
+            text = (f'{row.label}: all {count} recorded positions of joint '
+                    f'{row.joint(mechanism)} are NaN: no plant can be predicted from them')
+            if text not in warnings:
+                warnings.append(text)
 
 
 def _of_row(plants: Plants, index: int) -> Plants:
