@@ -301,6 +301,22 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
     return machine
 
 
+def rebased(machine: Machine, path: Path) -> Machine:
+    """`machine` as a file at `path` says it: each row's relative `eds` rewritten relative to
+    the new file's directory, so it names the same EDS file wherever the machine file goes."""
+    import dataclasses
+    import os
+    if machine.path is None or machine.path.parent.resolve() == path.parent.resolve():
+        return machine
+    rows = {}
+    for name, row in machine.rows.items():
+        if row.eds and not Path(row.eds).is_absolute():
+            target = (machine.path.parent / row.eds).resolve()
+            row = dataclasses.replace(row, eds=os.path.relpath(target, path.parent.resolve()))
+        rows[name] = row
+    return dataclasses.replace(machine, rows=rows)
+
+
 def machine_text(machine: Machine, comment: str = '') -> str:
     """The machine file's text for `machine` (every key written; `comment` as # lines on top);
     parse_machine reads it back to an equal Machine."""
@@ -319,6 +335,7 @@ def write_machine(machine: Machine, path: str | Path, comment: str = '') -> None
     one rename: a reader never sees half a file). MachineFileError (one line) on failure."""
     import os
     path = Path(path)
+    machine = rebased(machine, path)
     text = machine_text(machine, comment)
     if parse_machine(text, path) != Machine(path, machine.name, machine.can, machine.rows,
                                             machine.isobus):
