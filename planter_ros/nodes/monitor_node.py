@@ -334,6 +334,12 @@ class MonitorNode(Node):
         self.samples_taken += 1
         if self._mechanism is None:
             return
+        if not msg.name and len(self._planting) > 1:
+            # a reading without a row's name on a machine of several rows belongs to none of
+            # them for sure: not credited to every row (replay skips it the same way)
+            self.get_logger().warning('a seedling reading without a row name on a machine of '
+                                      f'{len(self._planting)} rows: skipped', once=True)
+            return
         for row in self._planting:
             i = joint_index(msg, row.joint(self._mechanism))
             if i is not None and len(msg.position) > i:

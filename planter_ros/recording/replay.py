@@ -324,10 +324,16 @@ def _seedlings(rec: Recording, plants: Plants, planting: Sequence[Row],
     logs = np.asarray(topic.log, dtype=np.int64)[order]
     mechanisms = {group[0][2].mechanism for _, group in segments}
     joints = [(row, row.joint(mechanism)) for row in planting for mechanism in mechanisms]
-    stamp, counts, _ = decode_joints(raws, [joint for _, joint in joints])
+    stamp, counts, _ = decode_joints(raws, [joint for _, joint in joints] + [None])
     t = np.where(stamp != 0, stamp, logs) * 1e-9
-    for (row, _), count in zip(joints, counts):
-        ok = np.isfinite(count)
+    # a reading without names is one row's only on a machine of one row; on several it is
+    # no row's for sure: not credited to each of them (the live monitor skips it too)
+    unnamed = np.isfinite(counts[-1]) if len(planting) > 1 else np.zeros(t.size, dtype=bool)
+    if unnamed.any():
+        rec.warnings.append(f'{int(unnamed.sum())} seedling reading(s) without a row name on '
+                            f'a machine of {len(planting)} rows: skipped')
+    for (row, _), count in zip(joints, counts[:-1]):
+        ok = np.isfinite(count) & ~unnamed
         account.add_readings(row.index, t[ok], count[ok])
     return account
 
