@@ -117,9 +117,13 @@ def names(cls):
     return [spec.name for spec in specs(cls)]
 
 
-def coerce(spec, value):
+def coerce(spec, value, text=True):
     """`value` from a file, a recording or a parameter as the field's type, or ConfigError
-    (text is parsed: a recording stores its settings as strings)."""
+    (text is parsed: a recording stores its settings as strings; `text` False: a file a
+    person writes, where `"0.3"` for a number is a mistake to name, not to read)."""
+    if isinstance(value, str) and spec.kind in (int, float, bool) and not text:
+        raise ConfigError(f'{spec.name} = {value!r} is text: allowed {spec.allowed()} '
+                          '(without quotes)')
     if isinstance(value, str) and spec.kind in (int, float):
         try:
             value = spec.kind(value)
@@ -206,8 +210,9 @@ def check(instance, error=ConfigError):
 
 def from_mapping(cls, values, error=ConfigError, strict=False, prefix=''):
     """Build `cls` from a mapping, coercing each known value; unknown keys are ignored unless
-    `strict` (then the first one is an error). `prefix` is put before each field name in the
-    messages (a row's fields are the parameters `<row>.<field>`)."""
+    `strict` (then the first one is an error, and so is text for a number: a file a person
+    wrote). `prefix` is put before each field name in the messages (a row's fields are the
+    parameters `<row>.<field>`)."""
     known = {spec.name: spec for spec in specs(cls)}
     for spec in known.values():
         if spec.required and values.get(spec.name) is None:
@@ -221,7 +226,7 @@ def from_mapping(cls, values, error=ConfigError, strict=False, prefix=''):
                             f'{" | ".join(known)}')
             continue
         try:
-            kwargs[key] = coerce(spec, value)
+            kwargs[key] = coerce(spec, value, text=not strict)
         except ConfigError as exc:
             raise error(prefix + str(exc)) from None
     return cls(**kwargs)

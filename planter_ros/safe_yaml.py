@@ -1,7 +1,9 @@
 """YAML read safely: `yaml.safe_load` with alias expansion bounded, so a hostile file (an "alias
 bomb") costs neither memory nor a giant error message, and a key given twice in one mapping
-refused (PyYAML would keep the last silently). Used for scene files and a bag's metadata.
-PyYAML is imported only when a text is read."""
+refused (PyYAML would keep the last silently). A plain number with an exponent (`1e9`,
+`1.0e5`, `-2E3`) is a number, as ROS reads a parameter file (PyYAML's YAML 1.1 rules make it
+text), so a quoted `"0.3"` is the only text that looks like a number. Used for scene files
+and a bag's metadata. PyYAML is imported only when a text is read."""
 
 from typing import Any
 
@@ -43,6 +45,8 @@ def _bounded_loader():
         return _LOADER
     import yaml
 
+    import re
+
     class BoundedLoader(yaml.SafeLoader):
         def compose_document(self):
             self._open_anchors, self._sizes, self._expanded = set(), {}, 0
@@ -79,6 +83,7 @@ def _bounded_loader():
                     seen.add(key.value)
             return super().construct_mapping(node, deep=deep)
 
+
         def _size(self, node):
             """Nodes `node` stands for once every alias inside it is expanded (memoised)."""
             known = self._sizes.get(id(node))
@@ -93,5 +98,10 @@ def _bounded_loader():
             self._sizes[id(node)] = size
             return size
 
+    # numbers with an exponent and no dot or no exponent sign (YAML 1.2, strtod as rcl reads)
+    BoundedLoader.add_implicit_resolver(
+        'tag:yaml.org,2002:float',
+        re.compile(r'^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$'),
+        list('-+0123456789.'))
     _LOADER = BoundedLoader
     return _LOADER

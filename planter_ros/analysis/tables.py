@@ -46,7 +46,7 @@ UNITS = {
     'file_mtime_ns': 'ns since the epoch', 'analysis_seconds': 's',
     'analysis_cpu_seconds': 's', 'lateral_offset': 'm',
     'analysed_at': 'UTC timestamp', 'plant_spacing': 'm', 'planting_depth': 'm',
-    'nominal_ground_speed': 'm/s', 'time_utc': 'UTC timestamp',
+    'nominal_ground_speed': 'm/s', 'top_ground_speed': 'm/s', 'time_utc': 'UTC timestamp',
     'nozzle_width': 'm', 'drive_node_id': '1', 'spacings': '1', 'fixes': '1',
     'multiple_index': '1', 'miss_index': '1', 'quality_of_feed_index': '1', 'precision': '1',
     'tilt_max': 'rad', 'total_read': '1',

@@ -142,6 +142,17 @@ def load_cases():
     return list(CASES)
 
 
+def _check_only(only, names):
+    from planter_ros.config import ConfigError
+    shown = repr(only) if len(only) <= 40 else repr(only[:37] + '...')
+    if not only.strip():
+        raise ConfigError(f'--only = {shown} is empty: allowed text a case name contains '
+                          f'(e.g. "hole"; leave --only out for every case)')
+    if not any(only.lower() in name.lower() for name in names):
+        raise ConfigError(f'--only = {shown} matches no bench case: allowed text one of '
+                          f'{len(names)} case names contains, e.g. "{names[0]}"')
+
+
 def _missing(modules):
     out = []
     for name in modules:
@@ -154,9 +165,14 @@ def _missing(modules):
 
 
 def run_cases(ctx, only=None):
-    """Run every registered case (or those whose name contains `only`); returns the rows."""
+    """Run every registered case (or those whose name contains `only`); returns the rows.
+    ConfigError (one line, before any case runs) for an `only` that is empty or blank, or
+    that no case's name contains."""
+    cases = load_cases()
+    if only is not None:
+        _check_only(only, [case.name for case in cases])
     rows = []
-    for case in load_cases():
+    for case in cases:
         if only and only.lower() not in case.name.lower():
             continue
         missing = _missing(case.requires)

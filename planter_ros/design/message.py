@@ -109,11 +109,14 @@ def _value(name, value):
             raise DesignMessageError(f'{name} = {_shown(value)} is out of range: allowed an '
                                      'integer >= 1')
         return value
-    if name == 'nozzle_width':
+    if name in ('nozzle_width', 'nominal_ground_speed', 'top_ground_speed'):
+        spec = spec_of(SceneSettings, name)
+        if name == 'top_ground_speed':          # resolved: never 0
+            spec = spec_of(SceneSettings, 'nominal_ground_speed')
         try:
-            return coerce(spec_of(SceneSettings, 'nozzle_width'), value)
+            return coerce(spec, value)
         except ConfigError as exc:
-            raise DesignMessageError(str(exc)) from None
+            raise DesignMessageError(str(exc).replace(spec.name, name, 1)) from None
     if name == 'tip_path':
         return _tip_path(value)
     if name == 'goals':

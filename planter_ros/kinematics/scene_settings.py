@@ -14,6 +14,20 @@ from .errors import DesignError
 from .mechanisms import MECHANISMS, PITCH_CURVE_INTERPOLANTS
 
 
+# the highest ground speed over the nominal one when a scene does not say (the demo's field
+# run speeds up from its cruise at the nominal speed to this)
+TOP_SPEED_FACTOR = 1.5
+
+
+def top_ground_speed(nominal: float, top: float | None = None) -> float:
+    """The highest ground speed a scene plants at (m/s): its `top_ground_speed`, or
+    TOP_SPEED_FACTOR × its nominal ground speed when that is 0 or not given (at most the
+    3 m/s a scene's speeds range to, at least the nominal speed)."""
+    if top:
+        return float(top)
+    return max(float(nominal), min(TOP_SPEED_FACTOR * float(nominal), 3.0))
+
+
 @dataclass(frozen=True, kw_only=True)
 class SceneSettings:
     """Every scene: the crop's agronomic needs and the mechanism (SI units)."""
@@ -32,6 +46,10 @@ class SceneSettings:
                                 '(l1 + l2)', range=(0.01, 100.0))
     nominal_ground_speed: float = setting(0.2, 'nominal ground speed v: the reported mechanism '
                                           'speed is 2πv/(n·d)', unit='m/s', range=(0.01, 3.0))
+    top_ground_speed: float = setting(0.0, 'the highest ground speed the machine plants at: '
+                                      'the cam is planned for it, the drive checked at it; 0: '
+                                      f'{TOP_SPEED_FACTOR:g} × nominal_ground_speed (the field '
+                                      "run's speed-up)", unit='m/s', range=(0.0, 3.0))
     nozzle_width: float = setting(kind=float, description="the nozzle's width along the row "
                                   '(a duckbill, a planting arm\'s clamp): the hole the soil sees '
                                   "is the tip's sweep plus this; no default, measure it",
@@ -48,6 +66,10 @@ class SceneSettings:
 
     def __post_init__(self) -> None:
         check(self, DesignError.from_message)
+        if self.top_ground_speed and self.top_ground_speed < self.nominal_ground_speed:
+            raise DesignError('top_ground_speed', self.top_ground_speed,
+                              f'0 or >= nominal_ground_speed = {self.nominal_ground_speed:g} '
+                              'm/s')
 
 
 @dataclass(frozen=True)

@@ -252,7 +252,9 @@ class MonitorNode(Node):
         """A seedling sensor reading: each planting row's count (by its joint name), for the
         row's next planting instant (prediction.seedlings), as replay reads it."""
         self.samples_taken += 1
-        self.pipeline.seedlings(t, msg.name, msg.position)
+        if not self.pipeline.seedlings(t, msg.name, msg.position):
+            self.get_logger().warning('a seedling reading without a row name on a machine of '
+                                      f'{len(self.pipeline.planting)} rows: skipped', once=True)
 
     # -- outputs -------------------------------------------------------------------------
     def _publish(self, placed, now):

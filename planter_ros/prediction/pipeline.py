@@ -188,15 +188,20 @@ class MonitorPipeline:
             if row.name in ended:
                 predictor.add_break(*ended[row.name])
 
-    def seedlings(self, t: float, names: Sequence[str], counts: Sequence[float]) -> None:
+    def seedlings(self, t: float, names: Sequence[str], counts: Sequence[float]) -> bool:
         """A seedling sensor reading stamped `t`: each planting row's count by its joint name,
-        for the row's next planting instant (prediction.seedlings)."""
+        for the row's next planting instant (prediction.seedlings). False when the reading is
+        skipped because it names no row on a machine of several rows: it belongs to none of
+        them for sure and is not credited to every row (replay skips it the same way)."""
         if self.mechanism is None:
-            return
+            return True
+        if not names and len(self.planting) > 1:
+            return False
         for row, name in zip(self.planting, self._joints):
             i = joint_index(names, counts, name)
             if i is not None:
                 self._seedlings.add_reading(row.index, t, counts[i])
+        return True
 
     def finish(self) -> list[Placed]:
         """The inputs ended: the plants whose arcs were still open, then every plant still held

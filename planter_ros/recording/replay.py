@@ -254,6 +254,7 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         if planting:
             _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp,
                                j_positions[0])
+            _unusable_joints(rec.warnings, planting, mechanism, j_stamp, j_positions)
         jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
         # another mechanism starts a new sequence, numbered from 0 like the live monitor; the
         # rows predicted together (their arcs in one pass)
@@ -323,10 +324,16 @@ def _seedlings(rec: Recording, plants: Plants, planting: Sequence[Row],
     logs = np.asarray(topic.log, dtype=np.int64)[order]
     mechanisms = {group[0][2].mechanism for _, group in segments}
     joints = [(row, row.joint(mechanism)) for row in planting for mechanism in mechanisms]
-    stamp, counts, _ = decode_joints(raws, [joint for _, joint in joints])
+    stamp, counts, _ = decode_joints(raws, [joint for _, joint in joints] + [None])
     t = np.where(stamp != 0, stamp, logs) * 1e-9
-    for (row, _), count in zip(joints, counts):
-        ok = np.isfinite(count)
+    # a reading without names is one row's only on a machine of one row; on several it is
+    # no row's for sure: not credited to each of them (the live monitor skips it too)
+    unnamed = np.isfinite(counts[-1]) if len(planting) > 1 else np.zeros(t.size, dtype=bool)
+    if unnamed.any():
+        rec.warnings.append(f'{int(unnamed.sum())} seedling reading(s) without a row name on '
+                            f'a machine of {len(planting)} rows: skipped')
+    for (row, _), count in zip(joints, counts[:-1]):
+        ok = np.isfinite(count) & ~unnamed
         account.add_readings(row.index, t[ok], count[ok])
     return account
 
@@ -480,6 +487,20 @@ def _count_undecodable(warnings: list[str], name: str, stamps: NDArray[np.int64]
     bad = int(np.count_nonzero((stamps == 0) & np.isnan(values)))
     if bad:
         warnings.append(f'{bad} {name} message(s) could not be decoded: skipped')
+
+
+def _unusable_joints(warnings: list[str], planting: Sequence[Row], mechanism: str,
+                     stamps: NDArray[np.int64], positions: FloatArray) -> None:
+    """A row whose recorded joint positions are all NaN (decoded, not one finite) predicts
+    no plant: say so, once per row, rather than report nothing planted in silence."""
+    decoded = stamps != 0
+    for row, values in zip(planting, positions):
+        count = int(np.count_nonzero(decoded))
+        if count and not np.any(np.isfinite(values[decoded])):
+            text = (f'{row.label}: all {count} recorded positions of joint '
+                    f'{row.joint(mechanism)} are NaN: no plant can be predicted from them')
+            if text not in warnings:
+                warnings.append(text)
 
 
 def _of_row(plants: Plants, index: int) -> Plants:

@@ -147,6 +147,10 @@ def machine_rows(count):
                  for i in range(count))
 
 
+# a run's speed change, as a factor of its cruise speed (drawn)
+SPEED_CHANGE_MIN, SPEED_CHANGE_MAX = 0.75, 1.35
+
+
 def draw_plan(seed, index, duration, rows, cruise=(0.15, 0.4), empty_rate=0.0,
               double_rate=0.0):
     """Run `index` of the season of `seed`: the same arguments give the same run. `rows`: a
@@ -180,7 +184,8 @@ def draw_plan(seed, index, duration, rows, cruise=(0.15, 0.4), empty_rate=0.0,
                          origin_longitude=5.0 + float(rng.uniform(-0.08, 0.08)),
                          origin_heading=float(rng.uniform(-math.pi, math.pi)))
     return RunPlan(index=int(index), seed=int(seed), duration=d, rows=machine,
-                   cruise=float(rng.uniform(*cruise)), change=float(rng.uniform(0.75, 1.35)),
+                   cruise=float(rng.uniform(*cruise)),
+                   change=float(rng.uniform(SPEED_CHANGE_MIN, SPEED_CHANGE_MAX)),
                    stops=tuple(sorted(stops, key=lambda s: s.start)), curves=tuple(curves),
                    glitches=tuple(sorted(glitches, key=lambda g: g.start)), stall=stall,
                    drive_lag=float(rng.uniform(0.03, 0.1)), gnss=gnss,
