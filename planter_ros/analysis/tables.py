@@ -59,6 +59,7 @@ UNITS = {
     'antenna_position': 'm', 'nominal_mechanism_speed': 'rad/s', 'centre_distance': 'm',
     'closure_residual': '1', 'goals_passed': '1', 'carrier_speed': 'rad/s',
     'requested_hole': 'm', 'psi': 'rad', 'depth': 'm', 'seedlings': '1', 'planted': '1',
+    'dyad_ratios': '1', 'longitudinal_offset': 'm',
     'empty': '1', 'double': '1', 'unknown': '1', 'input_gap': '1', 'instants': '1',
 }
 # the plants table's column of each JSON plant field (a unit in the name where one is needed)
@@ -362,18 +363,48 @@ def _schema_with_units(schema, kind, root):
     has the same)."""
     import pyarrow as pa
     units = {}
-    fields = []
-    for f in schema:
-        unit = unit_of(f.name)
-        if unit is not None:
-            units[f.name] = unit
-            f = f.with_metadata({b'unit': unit.encode()})
-        fields.append(f)
+    fields = [_field_with_units(f, f.name, units) for f in schema]
     info = {'table': kind, 'units': units}
     if root is not None:
         info['root'] = root
     meta = {METADATA_KEY: json.dumps(info).encode()}
     return pa.schema(fields, metadata=meta)
+
+
+# a figure whose unit is its limit's: a fraction, or m for the hole width (acceptance.failed)
+FIGURE_UNIT = '1 (m for max_hole_width)'
+NESTED_UNITS = {'acceptance.failed.value': FIGURE_UNIT, 'acceptance.failed.limit': FIGURE_UNIT}
+
+
+def _field_with_units(f, name, units):
+    """`f` with its unit in its metadata (and `units[name]`); a struct's or a list's fields
+    each with their own, named `name.field` (`rows.summary.spacing_error_mean`)."""
+    import pyarrow as pa
+    kind = f.type
+    if pa.types.is_struct(kind):
+        kind = pa.struct([_field_with_units(kind.field(i), f'{name}.{kind.field(i).name}', units)
+                          for i in range(kind.num_fields)])
+        return pa.field(f.name, kind, f.nullable, f.metadata)
+    if pa.types.is_list(kind) and (pa.types.is_struct(kind.value_type)
+                                   or pa.types.is_list(kind.value_type)):
+        item = _field_with_units(kind.value_field, name, units)
+        return pa.field(f.name, pa.list_(item), f.nullable, f.metadata)
+    if not (_numeric(kind) or pa.types.is_boolean(kind)):
+        return f
+    unit = NESTED_UNITS.get(name) or unit_of(name)
+    if unit is None:
+        return f
+    units[name] = unit
+    return f.with_metadata({**(f.metadata or {}), b'unit': unit.encode()})
+
+
+def _numeric(kind):
+    """A number, a time or a list of them (not a flag, not text)."""
+    import pyarrow as pa
+    if pa.types.is_list(kind):
+        return _numeric(kind.value_type)
+    return pa.types.is_integer(kind) or pa.types.is_floating(kind) or \
+        pa.types.is_timestamp(kind)
 
 
 def units(schema):

@@ -88,8 +88,9 @@ def fallback_design(args):
 
 
 def run(args):
+    """Replay the bag, then write each output asked for: one that fails is named on stderr
+    (exit 1) and never keeps the others from being written."""
     from planter_ros.cli.main import BadInput
-    from planter_ros.output_files import atomic_output
     from planter_ros.recording.errors import RecordingError
     from planter_ros.recording.replay import replay
     from planter_ros.recording.replay_text import format_table
@@ -103,28 +104,55 @@ def run(args):
         raise BadInput(str(exc)) from None
     for warning in result.warnings:
         print(f'planter: warning: {warning}', file=sys.stderr)
-    from planter_ros.export.outputs import replay_run, write_outputs
+    from planter_ros.export.outputs import replay_run
     exports = replay_run(result, args.shapefile, args.isoxml)
-    written = []
-    if args.plot:
-        from planter_ros.plots.replay import plot_replay
-        with atomic_output(args.plot) as tmp:
-            plot_replay(result, tmp)
-        written.append(f'plot written to {args.plot}')
-    if args.geojson or args.csv:
-        from planter_ros.output_files import write_text_atomically
-        from planter_ros.recording.export import csv_text, geojson_text
-        placed = int(sum(1 for v in result.plants.latitude if math.isfinite(v)))
-        for path, text, what in ((args.geojson, geojson_text, 'GeoJSON'),
-                                 (args.csv, csv_text, 'CSV')):
-            if path:
-                write_text_atomically(path, text(result))
-                written.append(f'{what} written to {path} ({len(result.plants)} plants, '
-                               f'{placed} with a map position)')
-    written += write_outputs(exports, args.shapefile, args.isoxml)
+    written, failed = [], []
+    for option, path, write in _outputs(args, result, exports):
+        try:
+            written.append(write())
+        except Exception as exc:          # one output's failure must not lose the others
+            failed.append(f'{option} {path} not written: {type(exc).__name__}: '
+                          f'{str(exc).strip().splitlines()[0] if str(exc).strip() else ""}')
     if args.json:
         print(json.dumps(result.as_json(), indent=1, allow_nan=False))
     else:
         print(format_table(result))
         print('\n'.join(written))
-    return 0
+    from planter_ros.cli.main import one_line
+    for line in failed:
+        print(f'planter: error: {one_line(line)}', file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _outputs(args, result, exports):
+    """(option, path, writer) of each output asked for, in the order they are written; a
+    writer returns the line for people."""
+    from planter_ros.output_files import atomic_output, write_text_atomically
+    placed = int(sum(1 for v in result.plants.latitude if math.isfinite(v)))
+    counts = f'({len(result.plants)} plants, {placed} with a map position)'
+
+    def plot():
+        from planter_ros.plots.replay import plot_replay
+        with atomic_output(args.plot) as tmp:
+            plot_replay(result, tmp)
+        return f'plot written to {args.plot}'
+
+    def text(path, make, what):
+        def write():
+            write_text_atomically(path, make(result))
+            return f'{what} written to {path} {counts}'
+        return write
+
+    def export(option):
+        def write():
+            from planter_ros.export.outputs import write_outputs
+            return write_outputs(exports, args.shapefile if option == 'shapefile' else None,
+                                 args.isoxml if option == 'isoxml' else None)[0]
+        return write
+
+    from planter_ros.recording.export import csv_text, geojson_text
+    makers = {'plot': plot, 'geojson': text(args.geojson, geojson_text, 'GeoJSON'),
+              'csv': text(args.csv, csv_text, 'CSV'), 'shapefile': export('shapefile'),
+              'isoxml': export('isoxml')}
+    return [(f'--{option}', getattr(args, option), write) for option, write in makers.items()
+            if getattr(args, option)]
