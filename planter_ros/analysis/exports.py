@@ -26,10 +26,10 @@ def season_runs(out):
     table's order; a bag's name is its key, its path from the analysed root."""
     import pyarrow.parquet as pq
 
-    from planter_ros.export.runs import run_of_plants
+    from planter_ros.export.runs import RowPlace, run_of_plants
     from planter_ros.prediction import PLANT_FIELDS, Plants
 
-    from .tables import plant_columns
+    from .tables import HEADING, plant_columns
     out = Path(out)
     bags = [row for row in read_bags(out / BAGS_FILE)
             if row.get('status') in ANALYSED and row.get('plants_file')]
@@ -38,6 +38,7 @@ def season_runs(out):
     table = pq.read_table(out / PLANTS_DIR)
     keys = table.column('bag').to_numpy(zero_copy_only=False)
     columns = np.column_stack(plant_columns(table, PLANT_FIELDS))
+    (heading,) = plant_columns(table, (HEADING,))
     names, inverse = np.unique(keys, return_inverse=True)
     where = {name: np.flatnonzero(inverse == i) for i, name in enumerate(names)}
     runs = []
@@ -45,9 +46,14 @@ def season_runs(out):
         rows = row.get('rows') or [{'index': 0, 'name': ''}]
         quality = {r['index']: (r.get('summary') or {}).get('spacing_quality') or {}
                    for r in rows}
-        plants = Plants.from_table(columns[where.get(row['bag'], np.zeros(0, dtype=int))])
-        runs.append(run_of_plants(row['bag'], plants, [(r['index'], r['name']) for r in rows],
-                                  row.get('summary.design_spacing'), quality))
+        mine = where.get(row['bag'], np.zeros(0, dtype=int))
+        places = {r['index']: RowPlace(r.get('lateral_offset') or 0.0,
+                                       r.get('longitudinal_offset') or 0.0,
+                                       r.get('enabled', True) is not False) for r in rows}
+        runs.append(run_of_plants(row['bag'], Plants.from_table(columns[mine]),
+                                  [(r['index'], r['name']) for r in rows],
+                                  row.get('summary.design_spacing'), quality, places,
+                                  heading[mine]))
     return runs
 
 

@@ -7,7 +7,9 @@ each in its own folder (`bags/`, `plants/`), so `**/*.parquet` never mixes them.
   machine without named rows) after `row`, `time_utc` a UTC timestamp (ns; the planting instant
   on the recording's clock, ROS time = s since 1970-01-01 UTC), `upright` bool, lengths `_m`,
   speeds `_m_s` and `_rad_s`, `tilt_rad`, `latitude_deg` / `longitude_deg`, `input_gap` bool,
-  `seedlings` int64, `status` and `reason` as text (prediction.seedlings). A field the model
+  `seedlings` int64, `status` and `reason` as text (prediction.seedlings), `heading_rad` (the
+  machine's heading at the instant, counter-clockwise from east, null without a map position:
+  where the ISOXML export places the machine). A field the model
   gains later is a new column under its JSON name. Null where the JSON has null (the first
   plant's spacing). `plant_dicts` turns a table back into the JSON's plant dicts.
 * `bags`: one row per bag: `bag` (relative, as in plants), `status` (ok | warnings | failed |
@@ -59,7 +61,7 @@ UNITS = {
     'antenna_position': 'm', 'nominal_mechanism_speed': 'rad/s', 'centre_distance': 'm',
     'closure_residual': '1', 'goals_passed': '1', 'carrier_speed': 'rad/s',
     'requested_hole': 'm', 'psi': 'rad', 'depth': 'm', 'seedlings': '1', 'planted': '1',
-    'dyad_ratios': '1', 'longitudinal_offset': 'm',
+    'dyad_ratios': '1', 'longitudinal_offset': 'm', 'heading': 'rad',
     'empty': '1', 'double': '1', 'unknown': '1', 'input_gap': '1', 'instants': '1',
 }
 # the plants table's column of each JSON plant field (a unit in the name where one is needed)
@@ -288,6 +290,22 @@ def plants_arrays_table(bag, plants, rows=()):
     return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
 
 
+HEADING = 'heading_rad'         # the machine's heading at each plant (not a JSON plant field)
+
+
+def with_heading(table, heading):
+    """A plants table with `heading_rad`: the machine's heading at each plant (rad,
+    counter-clockwise from east, REP 103; null where the plant has no map position), what the
+    ISOXML export places the machine with."""
+    import numpy as np
+    import pyarrow as pa
+    values = np.full(table.num_rows, np.nan) if heading is None else \
+        np.asarray(heading, dtype=float)
+    null = ~np.isfinite(values)
+    column = pa.array(np.where(null, np.nan, values), mask=null)
+    return with_units(table.append_column(HEADING, column), PLANTS)
+
+
 def _code_name(field, value):
     from planter_ros import prediction
     names = getattr(prediction, CODE_FIELDS[field])
@@ -302,13 +320,13 @@ def _name_code(field, value):
 
 def plant_dicts(table):
     """The JSON plant dicts (`planter replay --json`'s `plants`) of a plants table's rows,
-    without `bag` and `row_name`: the inverse of plants_table (times to 1 µs)."""
+    without `bag`, `row_name` and `heading_rad`: the inverse of plants_table (times to 1 µs)."""
     back = {column: field for field, column in PLANTS_COLUMNS.items()}
     out = []
     for row in table.to_pylist():
         plant = {}
         for name, value in row.items():
-            if name in ('bag', 'row_name'):
+            if name in ('bag', 'row_name', HEADING):
                 continue
             field = back.get(name, name)
             if field == 'time' and value is not None:

@@ -14,7 +14,7 @@ import time
 from planter_ros.recording.errors import RecordingError
 from planter_ros.recording.replay import replay
 
-from .tables import flatten, plants_arrays_table
+from .tables import flatten, plants_arrays_table, with_heading
 
 # planter_ros packages whose code cannot change a replay's result (not in the model version)
 NOT_MODEL = ('analysis', 'bench', 'cli', 'nodes', 'optimize', 'plots', 'sim')
@@ -85,8 +85,9 @@ def analyze_bag(path, key, identity, options, overrides, design, version):
         row.update(flatten(data))
         row['status'] = 'warnings' if data['warnings'] else 'ok'
         if len(result.plants):
-            table = plants_arrays_table(key, result.plants,
-                                        [(r.index, r.label) for r in result.rows])
+            table = with_heading(plants_arrays_table(key, result.plants,
+                                                     [(r.index, r.label) for r in result.rows]),
+                                 None if result.placement is None else result.placement.heading)
     row['analysis_seconds'] = time.perf_counter() - started
     # CPU time apart from wall time: on shared cores the difference is time spent waiting
     row['analysis_cpu_seconds'] = time.process_time() - cpu

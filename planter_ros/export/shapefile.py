@@ -54,6 +54,8 @@ ATTRIBUTES = (
               'the row along its travelled path (null for the first of a sequence and for an '
               'empty cup)'),
     Attribute('spacing_error', 'sp_err_m', 'N', 16, 6, 'm', 'spacing minus the design spacing'),
+    Attribute('design_spacing', 'design_m', 'N', 16, 6, 'm', 'the design spacing d in force at '
+              'the planting instant (a spacing change or a cam schedule changes it)'),
     Attribute('hole_width', 'hole_w_m', 'N', 16, 6, 'm', 'the hole along the row: tip sweep + '
               'nozzle width'),
     Attribute('tilt', 'tilt_rad', 'N', 12, 6, 'rad', 'stem from vertical, + leaning forward'),
@@ -68,7 +70,9 @@ ATTRIBUTES = (
               '(position interpolated; hole, tilt, upright unknown)'),
 )
 LATER = ('status', 'reason', 'input_gap')  # keys records gain with a seedling sensor
-GEOMETRY = ('longitude', 'latitude')      # record keys that are the point, not attributes
+# record keys that place the point, not attributes (the machine's heading is in the Parquet
+# plants table and places the ISOXML time log's machine)
+GEOMETRY = ('longitude', 'latitude', 'heading')
 SIDECARS = ('.shx', '.dbf', '.prj', '.cpg')
 STALE = ('.qix', '.sbn', '.sbx')           # spatial indexes other programs build from a .shp
 MAX_TEXT = 254                             # bytes in a DBF text cell
