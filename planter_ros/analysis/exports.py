@@ -23,7 +23,8 @@ __all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'format_exports', 'season_exports',
 
 def season_runs(out):
     """ExportRuns (export.runs) of every analysed bag in the tables under `out`, in the bags
-    table's order; a bag's name is its key, its path from the analysed root."""
+    table's order, each once (its plants by its content id); a run is named by the bag's name,
+    its path from the analysed root."""
     import pyarrow.parquet as pq
 
     from planter_ros.export.runs import RowPlace, run_of_plants
@@ -36,7 +37,7 @@ def season_runs(out):
     if not bags:
         return []
     table = pq.read_table(out / PLANTS_DIR)
-    keys = table.column('bag').to_numpy(zero_copy_only=False)
+    keys = table.column('bag_id').to_numpy(zero_copy_only=False)
     columns = np.column_stack(plant_columns(table, PLANT_FIELDS))
     (heading,) = plant_columns(table, (HEADING,))
     names, inverse = np.unique(keys, return_inverse=True)
@@ -46,7 +47,7 @@ def season_runs(out):
         rows = row.get('rows') or [{'index': 0, 'name': ''}]
         quality = {r['index']: (r.get('summary') or {}).get('spacing_quality') or {}
                    for r in rows}
-        mine = where.get(row['bag'], np.zeros(0, dtype=int))
+        mine = where.get(row['bag_id'], np.zeros(0, dtype=int))
         places = {r['index']: RowPlace(r.get('lateral_offset') or 0.0,
                                        r.get('longitudinal_offset') or 0.0,
                                        r.get('enabled', True) is not False) for r in rows}

@@ -1,8 +1,9 @@
 """The season's tables as Arrow (pyarrow), built from `planter replay --json`, for people:
 each in its own folder (`bags/`, `plants/`), so `**/*.parquet` never mixes them.
 
-* `plants`: one row per plant: `bag` (the bag's path relative to the analysed root, so a season
-  moved elsewhere still joins), then the JSON's plant fields under names that carry their unit
+* `plants`: one row per plant: `bag` (the bag's name: its path relative to the analysed root),
+  `bag_id` (its content fingerprint: the key the tables join by, analysis.season), then the
+  JSON's plant fields under names that carry their unit
   (PLANTS_COLUMNS): `index` and `row` int64, `row_name` (text: the row's name, `row` for a
   machine without named rows) after `row`, `time_utc` a UTC timestamp (ns; the planting instant
   on the recording's clock, ROS time = s since 1970-01-01 UTC), `upright` bool, lengths `_m`,
@@ -12,7 +13,7 @@ each in its own folder (`bags/`, `plants/`), so `**/*.parquet` never mixes them.
   where the ISOXML export places the machine). A field the model
   gains later is a new column under its JSON name. Null where the JSON has null (the first
   plant's spacing). `plant_dicts` turns a table back into the JSON's plant dicts.
-* `bags`: one row per bag: `bag` (relative, as in plants), `status` (ok | warnings | failed |
+* `bags`: one row per bag: `bag` and `bag_id` (as in plants), `status` (ok | warnings | failed |
   error), `reason` (one line, null unless failed or error), the re-run key (`file_size`,
   `file_mtime_ns`, `model_version`, `options`), `analysed_at` (UTC timestamp),
   `analysis_seconds`, `analysis_cpu_seconds`, `plants_file` (the part of the plants dataset
@@ -151,7 +152,7 @@ def unflatten(row):
 
 # columns of text whatever values a table happens to hold (a table where every `reason` is
 # null or every `warnings` list is empty keeps their types)
-TEXT = ('bag', 'path', 'status', 'reason', 'model_version', 'options', 'plants_file',
+TEXT = ('bag', 'bag_id', 'path', 'status', 'reason', 'model_version', 'options', 'plants_file',
         'row_name')
 TEXT_LISTS = ('warnings',)
 TIMESTAMPS = ('analysed_at',)            # s since the epoch in the row dicts
@@ -249,9 +250,10 @@ def plants_table(bag, plants, rows=()):
     return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
 
 
-def plants_arrays_table(bag, plants, rows=()):
+def plants_arrays_table(bag, plants, rows=(), bag_id=None):
     """`plants_table(bag, plants.rows(), rows)` straight from a prediction.Plants (its arrays,
-    no dict per plant): the same table, value for value (a non-finite value is null)."""
+    no dict per plant): the same table, value for value (a non-finite value is null); with
+    `bag_id` (the bag's content id, the key planter analyze joins the tables by) after `bag`."""
     import numpy as np
     import pyarrow as pa
 
@@ -259,6 +261,9 @@ def plants_arrays_table(bag, plants, rows=()):
     names = {int(i): str(n) for i, n in rows}
     n = len(plants)
     arrays, columns = [pa.array([bag] * n, type=pa.string())], ['bag']
+    if bag_id is not None:
+        arrays.append(pa.array([bag_id] * n, type=pa.string()))
+        columns.append('bag_id')
     for key in prediction.PLANT_FIELDS:
         values = np.asarray(getattr(plants, key), dtype=float)
         null = ~np.isfinite(values)
@@ -320,13 +325,14 @@ def _name_code(field, value):
 
 def plant_dicts(table):
     """The JSON plant dicts (`planter replay --json`'s `plants`) of a plants table's rows,
-    without `bag`, `row_name` and `heading_rad`: the inverse of plants_table (times to 1 µs)."""
+    without `bag`, `bag_id`, `row_name` and `heading_rad`: the inverse of plants_table (times
+    to 1 µs)."""
     back = {column: field for field, column in PLANTS_COLUMNS.items()}
     out = []
     for row in table.to_pylist():
         plant = {}
         for name, value in row.items():
-            if name in ('bag', 'row_name', HEADING):
+            if name in ('bag', 'bag_id', 'row_name', HEADING):
                 continue
             field = back.get(name, name)
             if field == 'time' and value is not None:

@@ -37,10 +37,13 @@ def run(args):
     out = seasons.check_out(args.out)
     design = fallback_design(args)
     overrides = settings_overrides(args)
+    ignored = []
     try:
-        bags = find_bags(args.paths, skip=[out])
+        bags = find_bags(args.paths, skip=[out], ignored=ignored)
     except BagSearchError as exc:
         raise BadInput(str(exc)) from None
+    for path, why in ignored:
+        print(f'planter: warning: {path} is {why}, not a bag: skipped', file=sys.stderr)
     if not bags:
         raise BadInput(f'PATH = {" ".join(args.paths)} holds no bag: allowed .mcap files and '
                        'directories holding .mcap files or rosbag2 bag directories')
@@ -48,9 +51,14 @@ def run(args):
     from planter_ros.analysis.exports import format_exports, season_exports
     from planter_ros.plots.season import season_report
     root = seasons.analysed_root(args.paths)
+    # an earlier version's output (check_out accepted it): its files are its own
+    adopt = out.is_dir() and any(out.iterdir()) and seasons.read_output_record(out) is None
     with seasons.Season(out, root) as season:
+        if adopt:
+            seasons.record_written(out, seasons.EXPORTS + (seasons.REPORT_FILE,))
         keys, skipped = season.plan(seasons.bag_keys(bags, root), version,
                                     seasons.options_key(overrides, design), args.force)
+        renamed = season.apply_renames()
         report = seasons.Report(out=str(out))
         if keys:
             where = args.scheduler or 'the local cluster'
@@ -63,9 +71,12 @@ def run(args):
                     report.workers = workers
             except EngineError as exc:
                 raise BadInput(str(exc)) from None
-        exports = season_exports(out, force=bool(keys))
+        exports = season_exports(out, force=bool(keys) or renamed)
+        seasons.record_written(out, seasons.EXPORTS)
         table, html = season_report(out)           # per field, day and row; report.html
-    report.found, report.skipped = len(bags), skipped
+        seasons.record_written(out, (seasons.REPORT_FILE,))
+    report.found, report.skipped = len(bags) - len(season.copies), skipped
+    report.copies = season.copies
     if args.json:
         print(json.dumps({**report.as_json(), 'exports': exports, 'report': str(html)},
                          indent=1, allow_nan=False))
