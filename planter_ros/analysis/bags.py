@@ -37,7 +37,7 @@ def is_bag_directory(directory):
         return False
 
 
-def _kind(path):
+def path_kind(path):
     """'file', 'dir', or why `path` is neither (a symbolic link to nothing, a FIFO, ...)."""
     try:
         mode = os.stat(path).st_mode          # follows links
@@ -63,8 +63,11 @@ def find_bags(paths, skip=(), ignored=None):
     ignored = [] if ignored is None else ignored
     found = set()
     for given in paths:
+        if str(given).strip() == '':
+            raise BagSearchError("PATH is empty: allowed .mcap files and directories holding "
+                                 "bags ('.' for the working directory)")
         path = Path(given)
-        kind = _kind(path)
+        kind = path_kind(path)
         if kind == 'missing' or kind == 'a symbolic link to nothing':
             raise BagSearchError(f'PATH = {given} does not exist'
                                  f'{" (a symbolic link to nothing)" if kind != "missing" else ""}'
@@ -103,7 +106,7 @@ def find_bags(paths, skip=(), ignored=None):
             for name in sorted(files):
                 if not name.lower().endswith('.mcap') or name.startswith('.'):
                     continue
-                kind = _kind(here / name)
+                kind = path_kind(here / name)
                 if kind == 'file':
                     found.add((here / name).resolve())
                 elif kind == 'dir':

@@ -82,6 +82,9 @@ def simulate_scene_bag(path, seed, index, duration, rows, scene=None, empty_rate
 def check_path(path, names):
     """Refuse (OutputError) a PATH the bags cannot be written to: not a directory, not
     writable, a parent missing, or one of the bags already there (never overwritten)."""
+    if path is None or str(path).strip() == '':
+        raise OutputError("PATH is empty: allowed a directory for the bags (made if missing; "
+                          "'.' for the working directory)")
     path = Path(path)
     if path.exists() or path.is_symlink():
         if not path.is_dir():

@@ -97,6 +97,7 @@ def run(args):
     from planter_ros.output_files import check_distinct
     check_distinct({f'--{o}': getattr(args, o)
                     for o in ('plot', 'geojson', 'csv', 'shapefile', 'isoxml')})
+    check_bag(args.bag)
     design = fallback_design(args)
     try:
         result = replay(args.bag, settings_overrides(args), fallback_design=design)
@@ -122,6 +123,21 @@ def run(args):
     for line in failed:
         print(f'planter: error: {one_line(line)}', file=sys.stderr)
     return 1 if failed else 0
+
+
+def check_bag(bag):
+    """BadInput for a BAG that is empty or neither a file nor a directory (a FIFO named .mcap
+    would be read forever): one line, before any reading."""
+    from pathlib import Path
+
+    from planter_ros.analysis.bags import path_kind
+    from planter_ros.cli.main import BadInput
+    if str(bag).strip() == '':
+        raise BadInput('BAG is empty: allowed a .mcap file or a rosbag2 bag directory')
+    kind = path_kind(Path(bag))
+    if kind not in ('file', 'dir', 'missing', 'a symbolic link to nothing'):
+        raise BadInput(f'BAG = {bag} is {kind}, not a bag: allowed a .mcap file or a rosbag2 '
+                       'bag directory')
 
 
 def _outputs(args, result, exports):

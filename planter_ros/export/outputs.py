@@ -40,6 +40,6 @@ def write_outputs(run: ExportRun | None, shapefile: str | None,
     if isoxml:
         from .isoxml import write_isoxml
         tasks, logged, _ = write_isoxml(isoxml, [run])
-        written.append(f'ISOXML written to {isoxml} ({tasks} task, {logged} plants in its time '
-                       'log)')
+        written.append(f'ISOXML written to {isoxml} ({tasks} task{"" if tasks == 1 else "s"}, '
+                       f'{logged} plants in its time log)')
     return written
