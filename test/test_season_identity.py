@@ -207,3 +207,25 @@ def test_a_bag_found_twice_in_one_run_is_counted_once(season, tmp_path):
     ((copy, same),) = [(c['path'], c['same_as']) for c in report['copies']]
     assert {copy, same} == {str(folder / 'b.mcap'), str(folder / 'b again.mcap')}
     assert pq.read_table(tmp_path / 'out' / 'bags').num_rows == 1
+
+
+def test_a_season_output_that_fails_does_not_keep_the_others(season, tmp_path, monkeypatch):
+    """The Shapefile fails (a disk full, say): the ISOXML is still written, the failure named
+    with its file (planter analyze prints it on stderr, exit 1)."""
+    from planter_ros.analysis import exports as season_exports
+    import planter_ros.export.shapefile as shapefile
+    out = tmp_path / 'tables'
+    analyze(season / 'day1', out=out)
+    (out / 'TASKDATA.zip').unlink()
+
+    def full(path, runs):
+        raise OSError(28, 'No space left on device')
+    monkeypatch.setattr(shapefile, 'write_shapefile', full)
+    result = season_exports.write_season_exports(out, force=True)
+    assert result['shapefile'] is None and result['isoxml'] == str(out / 'TASKDATA.zip')
+    assert result['failed'] == [{'file': str(out / 'as_planted.zip'),
+                                 'reason': 'OSError: [Errno 28] No space left on device'}]
+    assert (out / 'TASKDATA.zip').is_file() and result['tasks'] == 2
+    result['seconds'] = 0.0
+    assert season_exports.format_exports(result) == \
+        f'exports: {out / "TASKDATA.zip"} (ISOXML, 2 tasks) in 0.0 s'

@@ -73,20 +73,32 @@ def run(args):
                 raise BadInput(str(exc)) from None
         exports = season_exports(out, force=bool(keys) or renamed)
         seasons.record_written(out, seasons.EXPORTS)
-        table, html = season_report(out)           # per field, day and row; report.html
-        seasons.record_written(out, (seasons.REPORT_FILE,))
+        failed = [(item['file'], item['reason']) for item in (exports or {}).get('failed', [])]
+        table, html = '', out / seasons.REPORT_FILE
+        try:                                       # per field, day and row; report.html
+            table, html = season_report(out)
+            seasons.record_written(out, (seasons.REPORT_FILE,))
+        except Exception as exc:                   # the tables and exports are written
+            failed.append((str(html), f'{type(exc).__name__}: {str(exc).strip()[:200]}'))
     report.found, report.skipped = len(bags) - len(season.copies), skipped
     report.copies = season.copies
+    reported = None if any(path == str(html) for path, _ in failed) else str(html)
     if args.json:
-        print(json.dumps({**report.as_json(), 'exports': exports, 'report': str(html)},
+        print(json.dumps({**report.as_json(), 'exports': exports, 'report': reported},
                          indent=1, allow_nan=False))
     else:
-        print(f'{seasons.format_report(report)}\n{table}\nseason report: {html}')
+        print(seasons.format_report(report) + (f'\n{table}\nseason report: {html}'
+                                               if reported else ''))
         if exports:
             print(format_exports(exports))
-    for bag, reason in (exports or {}).get('skipped', []):
-        print(f'planter: warning: {bag} not in the ISOXML task data ({reason})', file=sys.stderr)
+    for item in (exports or {}).get('skipped', []):
+        print(f'planter: warning: {item["bag"]} not in the ISOXML task data ({item["reason"]})',
+              file=sys.stderr)
     for bag, reason in report.not_done:
         print(f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again',
               file=sys.stderr)
-    return 1 if report.not_done else 0
+    from planter_ros.cli.main import one_line
+    for path, reason in failed:
+        print(f'planter: error: {path} not written ({one_line(reason)}); the tables and the '
+              'other outputs are', file=sys.stderr)
+    return 1 if report.not_done or failed else 0
