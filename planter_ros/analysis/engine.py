@@ -100,9 +100,13 @@ def cluster(workers=None, scheduler=None):
             with dask.config.set({'temporary-directory': scratch, **{
                     f'distributed.nanny.pre-spawn-environ.{k}': v
                     for k, v in WORKER_MALLOC.items()}}):
+                # (the scheduler serves its HTTP routes, health and metrics, whatever the
+                # dashboard: on a free loopback port, not on 8787, which another cluster may
+                # hold: Dask then warns "Port 8787 is already in use" on stderr)
                 local = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
                                      processes=True, host='127.0.0.1', scheduler_port=0,
                                      dashboard_address=None, worker_dashboard_address=None,
+                                     scheduler_kwargs={'dashboard_address': '127.0.0.1:0'},
                                      silence_logs=logging.ERROR, plugins={DieWithParent()},
                                      local_directory=scratch)
         except Exception as exc:             # no free port, no processes, ...
