@@ -148,6 +148,7 @@ def test_a_server_that_answers_something_else(bag, tmp_path, quick_connect):
 
 # ---------------------------------------------------------------------------- odd files
 
+@pytest.mark.slow
 def test_a_fifo_named_mcap_is_refused_and_skipped(bag, tmp_path):
     fifo = tmp_path / 'stream.mcap'
     os.mkfifo(fifo)
@@ -186,6 +187,7 @@ def test_a_symbolic_link_to_nothing_given_is_one_line(tmp_path):
 
 # ------------------------------------------------------------------------ users' files
 
+@pytest.mark.slow
 def test_out_over_a_users_own_files_is_refused_and_they_are_kept(bag, tmp_path):
     mine = {'bags.parquet': b'PAR1 my own table PAR1', 'report.html': b'<html>my report</html>'}
     for name, content in mine.items():
@@ -273,6 +275,7 @@ def test_a_run_that_planted_nothing_does_not_pass(nothing_planted, name, tmp_pat
     assert all(p.exists() for p in files.values())
 
 
+@pytest.mark.slow
 def test_a_busy_port_8787_makes_no_noise(tmp_path):
     """The local cluster's scheduler serves its HTTP routes on a free loopback port: with
     Dask's default 8787 taken (another cluster, another tool), no 'Port 8787 is already in use'

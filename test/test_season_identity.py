@@ -99,6 +99,7 @@ def _records(header, data):
     return count
 
 
+@pytest.mark.slow
 def test_each_bag_and_plant_once_however_the_season_is_found(season, plants, tmp_path):
     out = tmp_path / 'tables'
     first = analyze(season / 'day1', out=out)                 # one day
@@ -147,6 +148,7 @@ def test_each_bag_and_plant_once_however_the_season_is_found(season, plants, tmp
         (season / 'a copy.mcap').unlink(missing_ok=True)
 
 
+@pytest.mark.slow
 def test_nulls_and_units_of_the_seasons_tables(season, plants, tmp_path):
     """DuckDB finds null exactly where replay has no value (unknown tilt and uprightness of an
     input gap's instant, a sequence's first spacing); every number of both tables, nested ones
@@ -194,6 +196,7 @@ def _numbers(schema, prefix=''):
     return out
 
 
+@pytest.mark.slow
 def test_a_bag_found_twice_in_one_run_is_counted_once(season, tmp_path):
     """A symbolic link to a bag and a copy of it in the same run: one bag (the link is the
     file itself; the copy is named as one)."""
@@ -209,6 +212,7 @@ def test_a_bag_found_twice_in_one_run_is_counted_once(season, tmp_path):
     assert pq.read_table(tmp_path / 'out' / 'bags').num_rows == 1
 
 
+@pytest.mark.slow
 def test_a_season_output_that_fails_does_not_keep_the_others(season, tmp_path, monkeypatch):
     """The Shapefile fails (a disk full, say): the ISOXML is still written, the failure named
     with its file (planter analyze prints it on stderr, exit 1)."""
