@@ -54,6 +54,18 @@ def path_kind(path):
     return what
 
 
+def check_bag(bag):
+    """BagSearchError for a single BAG (planter replay's) that is empty or neither a file nor
+    a directory (a FIFO named .mcap would be read forever): one line, before any reading. A
+    missing one is left to the reader, which names it."""
+    if str(bag).strip() == '':
+        raise BagSearchError('BAG is empty: allowed a .mcap file or a rosbag2 bag directory')
+    kind = path_kind(Path(bag))
+    if kind not in ('file', 'dir', 'missing', 'a symbolic link to nothing'):
+        raise BagSearchError(f'BAG = {bag} is {kind}, not a bag: allowed a .mcap file or a '
+                             'rosbag2 bag directory')
+
+
 def find_bags(paths, skip=(), ignored=None):
     """Every bag under `paths` (files and directories), as absolute paths, sorted, each once;
     directories in `skip` (absolute) are not searched; an entry named .mcap that is not a

@@ -302,8 +302,9 @@ class Season:
             raise OutputError(f'--out = {out} is being written by another planter analyze: '
                               'allowed an output directory no other run is writing') from None
         (self.out / LOCK_FILE).unlink(missing_ok=True)
-        if not (self.out / OUTPUT_RECORD).exists():      # the directory is this command's
-            record_written(self.out, ())
+        if not (self.out / OUTPUT_RECORD).exists():      # the directory is this command's:
+            # new, or an earlier version's output (check_out let it through): its files too
+            record_written(self.out, EXPORTS + (REPORT_FILE,))
         self.plants_dir = self.out / PLANTS_DIR
         self.plants_dir.mkdir(exist_ok=True)
         (self.out / BAGS_DIR).mkdir(exist_ok=True)
@@ -586,6 +587,17 @@ def _first_line(exc):
 
 
 SHOWN_FAILURES = 10      # failed bags listed for people (all are in the bags table)
+
+
+def notices(report: Report, exports, failed) -> list[str]:
+    """The run's lines for stderr: bags left out of the ISOXML, bags the engine lost, outputs
+    not written ([(path, its one-line reason)])."""
+    return ([f'planter: warning: {item["bag"]} not in the ISOXML task data ({item["reason"]})'
+             for item in (exports or {}).get('skipped', [])]
+            + [f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again'
+               for bag, reason in report.not_done]
+            + [f'planter: error: {path} not written ({reason}); the tables and the '
+               'other outputs are' for path, reason in failed])
 
 
 def format_report(report: Report) -> str:

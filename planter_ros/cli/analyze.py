@@ -48,14 +48,10 @@ def run(args):
         raise BadInput(f'PATH = {" ".join(args.paths)} holds no bag: allowed .mcap files and '
                        'directories holding .mcap files or rosbag2 bag directories')
     version = model_version()
-    from planter_ros.analysis.exports import format_exports, season_exports
-    from planter_ros.plots.season import season_report
+    from planter_ros.analysis.exports import format_exports
+    from planter_ros.plots.season import season_outputs
     root = seasons.analysed_root(args.paths)
-    # an earlier version's output (check_out accepted it): its files are its own
-    adopt = out.is_dir() and any(out.iterdir()) and seasons.read_output_record(out) is None
     with seasons.Season(out, root) as season:
-        if adopt:
-            seasons.record_written(out, seasons.EXPORTS + (seasons.REPORT_FILE,))
         keys, skipped = season.plan(seasons.bag_keys(bags, root), version,
                                     seasons.options_key(overrides, design), args.force)
         renamed = season.apply_renames()
@@ -71,34 +67,17 @@ def run(args):
                     report.workers = workers
             except EngineError as exc:
                 raise BadInput(str(exc)) from None
-        exports = season_exports(out, force=bool(keys) or renamed)
-        seasons.record_written(out, seasons.EXPORTS)
-        failed = [(item['file'], item['reason']) for item in (exports or {}).get('failed', [])]
-        table, html = '', out / seasons.REPORT_FILE
-        try:                                       # per field, day and row; report.html
-            table, html = season_report(out)
-            seasons.record_written(out, (seasons.REPORT_FILE,))
-        except Exception as exc:                   # the tables and exports are written
-            failed.append((str(html), f'{type(exc).__name__}: {str(exc).strip()[:200]}'))
+        exports, table, html, failed = season_outputs(out, force=bool(keys) or renamed)
     report.found, report.skipped = len(bags) - len(season.copies), skipped
     report.copies = season.copies
-    reported = None if any(path == str(html) for path, _ in failed) else str(html)
     if args.json:
-        print(json.dumps({**report.as_json(), 'exports': exports, 'report': reported},
-                         indent=1, allow_nan=False))
+        print(json.dumps({**report.as_json(), 'exports': exports,
+                          'report': html and str(html)}, indent=1, allow_nan=False))
     else:
-        print(seasons.format_report(report) + (f'\n{table}\nseason report: {html}'
-                                               if reported else ''))
+        print(seasons.format_report(report) + (f'\n{table}\nseason report: {html}' if html
+                                               else ''))
         if exports:
             print(format_exports(exports))
-    for item in (exports or {}).get('skipped', []):
-        print(f'planter: warning: {item["bag"]} not in the ISOXML task data ({item["reason"]})',
-              file=sys.stderr)
-    for bag, reason in report.not_done:
-        print(f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again',
-              file=sys.stderr)
-    from planter_ros.cli.main import one_line
-    for path, reason in failed:
-        print(f'planter: error: {path} not written ({one_line(reason)}); the tables and the '
-              'other outputs are', file=sys.stderr)
+    for line in seasons.notices(report, exports, failed):
+        print(line, file=sys.stderr)
     return 1 if report.not_done or failed else 0

@@ -10,7 +10,6 @@ as-planted map (recording.export), `--shapefile` and `--isoxml` the same for far
 """
 
 import json
-import math
 import sys
 
 from planter_ros.cli.options import output_file, output_path, spec_option
@@ -87,88 +86,40 @@ def fallback_design(args):
     return open_scene(args.scene).design()
 
 
+OUTPUTS = ('plot', 'geojson', 'csv', 'shapefile', 'isoxml')
+
+
 def run(args):
-    """Replay the bag, then write each output asked for: one that fails is named on stderr
-    (exit 1) and never keeps the others from being written."""
-    from planter_ros.cli.main import BadInput
+    """Replay the bag, then write each output asked for on its own (export.outputs.write_each:
+    one that fails is named on stderr, exit 1)."""
+    from planter_ros.analysis.bags import BagSearchError, check_bag
+    from planter_ros.cli.main import BadInput, one_line
+    from planter_ros.export import outputs
+    from planter_ros.output_files import check_distinct
+    from planter_ros.plots.replay import write_plot
+    from planter_ros.recording import export
     from planter_ros.recording.errors import RecordingError
     from planter_ros.recording.replay import replay
     from planter_ros.recording.replay_text import format_table
-    from planter_ros.output_files import check_distinct
-    check_distinct({f'--{o}': getattr(args, o)
-                    for o in ('plot', 'geojson', 'csv', 'shapefile', 'isoxml')})
-    check_bag(args.bag)
+    check_distinct({f'--{o}': getattr(args, o) for o in OUTPUTS})
     design = fallback_design(args)
     try:
+        check_bag(args.bag)
         result = replay(args.bag, settings_overrides(args), fallback_design=design)
-    except RecordingError as exc:
+    except (BagSearchError, RecordingError) as exc:
         raise BadInput(str(exc)) from None
     for warning in result.warnings:
         print(f'planter: warning: {warning}', file=sys.stderr)
-    from planter_ros.export.outputs import replay_run
-    exports = replay_run(result, args.shapefile, args.isoxml)
-    written, failed = [], []
-    for option, path, write in _outputs(args, result, exports):
-        try:
-            written.append(write())
-        except Exception as exc:          # one output's failure must not lose the others
-            failed.append(f'{option} {path} not written: {type(exc).__name__}: '
-                          f'{str(exc).strip().splitlines()[0] if str(exc).strip() else ""}')
-    if args.json:
-        print(json.dumps(result.as_json(), indent=1, allow_nan=False))
-    else:
-        print(format_table(result))
-        print('\n'.join(written))
-    from planter_ros.cli.main import one_line
+    plants = outputs.replay_run(result, args.shapefile, args.isoxml)
+    writers = {'plot': lambda p: write_plot(result, p),
+               'geojson': lambda p: export.write_geojson(result, p),
+               'csv': lambda p: export.write_csv(result, p),
+               'shapefile': lambda p: outputs.write_shapefile_output(plants, p),
+               'isoxml': lambda p: outputs.write_isoxml_output(plants, p)}
+    written, failed = outputs.write_each([(f'--{o}', getattr(args, o), writers[o])
+                                          for o in OUTPUTS if getattr(args, o)])
+    print(json.dumps(result.as_json(), indent=1, allow_nan=False) if args.json else
+          '\n'.join([format_table(result), *written]))
     for line in failed:
         print(f'planter: error: {one_line(line)}', file=sys.stderr)
     return 1 if failed else 0
-
-
-def check_bag(bag):
-    """BadInput for a BAG that is empty or neither a file nor a directory (a FIFO named .mcap
-    would be read forever): one line, before any reading."""
-    from pathlib import Path
-
-    from planter_ros.analysis.bags import path_kind
-    from planter_ros.cli.main import BadInput
-    if str(bag).strip() == '':
-        raise BadInput('BAG is empty: allowed a .mcap file or a rosbag2 bag directory')
-    kind = path_kind(Path(bag))
-    if kind not in ('file', 'dir', 'missing', 'a symbolic link to nothing'):
-        raise BadInput(f'BAG = {bag} is {kind}, not a bag: allowed a .mcap file or a rosbag2 '
-                       'bag directory')
-
-
-def _outputs(args, result, exports):
-    """(option, path, writer) of each output asked for, in the order they are written; a
-    writer returns the line for people."""
-    from planter_ros.output_files import atomic_output, write_text_atomically
-    placed = int(sum(1 for v in result.plants.latitude if math.isfinite(v)))
-    counts = f'({len(result.plants)} plants, {placed} with a map position)'
-
-    def plot():
-        from planter_ros.plots.replay import plot_replay
-        with atomic_output(args.plot) as tmp:
-            plot_replay(result, tmp)
-        return f'plot written to {args.plot}'
-
-    def text(path, make, what):
-        def write():
-            write_text_atomically(path, make(result))
-            return f'{what} written to {path} {counts}'
-        return write
-
-    def export(option):
-        def write():
-            from planter_ros.export.outputs import write_outputs
-            return write_outputs(exports, args.shapefile if option == 'shapefile' else None,
-                                 args.isoxml if option == 'isoxml' else None)[0]
-        return write
-
-    from planter_ros.recording.export import csv_text, geojson_text
-    makers = {'plot': plot, 'geojson': text(args.geojson, geojson_text, 'GeoJSON'),
-              'csv': text(args.csv, csv_text, 'CSV'), 'shapefile': export('shapefile'),
-              'isoxml': export('isoxml')}
-    return [(f'--{option}', getattr(args, option), write) for option, write in makers.items()
-            if getattr(args, option)]

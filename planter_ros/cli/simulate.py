@@ -38,13 +38,11 @@ def add_arguments(parser):
 
 def run(args):
     from planter_ros.analysis.engine import EngineError
-    from planter_ros.analysis.simulate import check_path, season_machine, simulate_season
+    from planter_ros.analysis.simulate import (check_path, check_tray, season_machine,
+                                               simulate_season)
     from planter_ros.cli.main import BadInput
     from planter_ros.sim.season import bag_name
-    if args.empty_rate + args.double_rate > 1.0:
-        raise BadInput(f'--empty-rate {args.empty_rate:g} + --double-rate {args.double_rate:g} '
-                       f'= {100 * (args.empty_rate + args.double_rate):g} % of the cells: '
-                       'allowed shares of the tray that add up to at most 1')
+    check_tray(args.empty_rate, args.double_rate)
     scene, rows = season_machine(args.scene, args.rows)     # a bad scene: one line, exit 2
     names = [bag_name(args.seed, k) for k in range(args.bags)]
     path = check_path(args.path, names)

@@ -112,6 +112,14 @@ def plot_replay(result, path):
     plt.close(fig)
 
 
+def write_plot(result, path):
+    """plot_replay into the PNG `path` (atomically): the line for people."""
+    from planter_ros.output_files import atomic_output
+    with atomic_output(path) as tmp:
+        plot_replay(result, tmp)
+    return f'plot written to {path}'
+
+
 def _map_panel(fig, ax, result, labels, named):
     """Plants on the map's local frame (east, north from the first usable fix), a marker per
     row, coloured by spacing error."""

@@ -25,6 +25,8 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     from .replay import ReplayResult
 
 COORDINATE_DECIMALS = 9
@@ -101,3 +103,22 @@ def csv_text(result: ReplayResult) -> str:
             cells.append('' if value is None else value)
         writer.writerow(cells)
     return out.getvalue()
+
+
+def _counts(result: ReplayResult) -> str:
+    placed = int(sum(1 for v in result.plants.latitude if math.isfinite(v)))
+    return f'({len(result.plants)} plants, {placed} with a map position)'
+
+
+def write_geojson(result: ReplayResult, path: str | Path) -> str:
+    """Write the GeoJSON of a ReplayResult at `path` (atomically): the line for people."""
+    from planter_ros.output_files import write_text_atomically
+    write_text_atomically(path, geojson_text(result))
+    return f'GeoJSON written to {path} {_counts(result)}'
+
+
+def write_csv(result: ReplayResult, path: str | Path) -> str:
+    """Write the CSV of a ReplayResult at `path` (atomically): the line for people."""
+    from planter_ros.output_files import write_text_atomically
+    write_text_atomically(path, csv_text(result))
+    return f'CSV written to {path} {_counts(result)}'
