@@ -242,7 +242,7 @@ def check_map_files(tmp_path, bag, result):
     with open(table, newline='') as f:
         lines = list(csv.DictReader(f))
     assert len(lines) == len(features)
-    assert float(lines[3]['latitude']) == pytest.approx(
+    assert float(lines[3]['latitude_deg']) == pytest.approx(
         features[3]['geometry']['coordinates'][1], abs=1e-9)
 
 

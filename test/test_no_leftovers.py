@@ -28,7 +28,7 @@ COMMANDS = {
     'analyze': (['analyze', SAMPLE, '--out', 'season', '--workers', '1'],
                 {'season', 'season/bags', 'season/bags/bags.parquet', 'season/report.html',
                  'season/plants', 'season/as_planted.zip',
-                 'season/TASKDATA.zip'}),
+                 'season/TASKDATA.zip', 'season/.planter-analyze.json'}),
     'simulate': (['simulate', 'sim', '--bags', '1', '--duration', '10', '--workers', '1'],
                  {'sim', 'sim/run_0_00000.mcap'}),
     'demo': (['demo', '--duration', '8', '--bag', 'run.mcap'], {'run.mcap'}),

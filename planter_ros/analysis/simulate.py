@@ -10,10 +10,19 @@ from .engine import check_workers, cluster, completed
 from .progress import Progress
 from .task import model_version, warm_up
 
-__all__ = ['check_path', 'scene_machine', 'season_machine', 'simulate_scene_bag',
+__all__ = ['check_path', 'check_tray', 'scene_machine', 'season_machine', 'simulate_scene_bag',
            'simulate_season']
 
 DEFAULT_ROWS = 4
+
+
+def check_tray(empty_rate, double_rate):
+    """ConfigError (one line) for tray shares that add up to more than the whole tray."""
+    from planter_ros.config import ConfigError
+    if empty_rate + double_rate > 1.0:
+        raise ConfigError(f'--empty-rate {empty_rate:g} + --double-rate {double_rate:g} = '
+                          f'{100 * (empty_rate + double_rate):g} % of the cells: allowed '
+                          'shares of the tray that add up to at most 1')
 
 
 def season_machine(scene, rows):
@@ -96,6 +105,9 @@ def simulate_scene_bag(path, seed, index, duration, rows, scene=None, empty_rate
 def check_path(path, names):
     """Refuse (OutputError) a PATH the bags cannot be written to: not a directory, not
     writable, a parent missing, or one of the bags already there (never overwritten)."""
+    if path is None or str(path).strip() == '':
+        raise OutputError("PATH is empty: allowed a directory for the bags (made if missing; "
+                          "'.' for the working directory)")
     path = Path(path)
     if path.exists() or path.is_symlink():
         if not path.is_dir():

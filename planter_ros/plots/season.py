@@ -35,6 +35,27 @@ def season_report(out):
     return format_season_table(groups), path
 
 
+def season_outputs(out, force):
+    """The season's exports (analysis.exports: written when `force` or one is missing) and its
+    report under `out`, each on its own and recorded as the command's (season.record_written):
+    (exports or None, the table for people, the report's path or None, [(path, reason)] of
+    each output not written)."""
+    from planter_ros.analysis import season as seasons
+    from planter_ros.analysis.exports import season_exports
+    exports = season_exports(out, force)
+    seasons.record_written(out, seasons.EXPORTS)
+    failed = [(item['file'], item['reason']) for item in (exports or {}).get('failed', [])]
+    try:
+        table, path = season_report(out)
+    except Exception as exc:                 # the tables and exports are written
+        text = str(exc).strip().splitlines()
+        failed.append((str(Path(out) / REPORT_FILE),
+                       f'{type(exc).__name__}{": " + text[0] if text else ""}'))
+        return exports, '', None, failed
+    seasons.record_written(out, (seasons.REPORT_FILE,))
+    return exports, table, path, failed
+
+
 @contextmanager
 def _matplotlib_home():
     """`planter analyze` writes nothing it was not asked to: matplotlib's font cache goes to

@@ -67,6 +67,7 @@ def _analyse(bags, out, workers):
     analysis of this process (the client and the scheduler) and of the worker processes, load
     average before it)."""
     from planter_ros.analysis import season as seasons
+    from planter_ros.analysis.bags import identity
     from planter_ros.analysis.engine import check_workers, cluster
     from planter_ros.analysis.tables import load_pyarrow
     from planter_ros.analysis.task import model_version, warm_up
@@ -79,8 +80,12 @@ def _analyse(bags, out, workers):
         load_pyarrow()                   # what run() loads before its clock starts
         load = os.getloadavg()[0]
         with seasons.Season(out, root) as season:
-            keys, _ = season.plan(seasons.bag_keys(bags, root), version,
-                                  seasons.options_key({}, None))
+            # the bench's season is copies of a few runs, and a bag is its content (a real
+            # season's copies are one bag: season.plan): each copy is analysed as a bag here
+            options = seasons.options_key({}, None)
+            keys = [seasons.BagKey(name, *identity(path), version, options, path,
+                                   f'bench-copy:{name}')
+                    for path, name in seasons.bag_keys(bags, root).items()]
             before = client.run(time.process_time)
             cpu = time.process_time()
             report = seasons.run(season, client, keys, {}, None)
