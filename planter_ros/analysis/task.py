@@ -6,20 +6,14 @@ the settings travel through the scheduler, and back only the bag's row and its p
 """
 
 from functools import lru_cache
-import hashlib
-import importlib.metadata
 from pathlib import Path
 import time
 
 from planter_ros.recording.errors import RecordingError
 from planter_ros.recording.replay import replay
 
+from .model_code import closure_version
 from .tables import flatten, plants_arrays_table, with_heading
-
-# planter_ros packages whose code cannot change a replay's result (not in the model version)
-NOT_MODEL = ('analysis', 'bench', 'cli', 'nodes', 'optimize', 'plots', 'sim')
-# libraries whose version can change a number of the result
-LIBRARIES = ('numpy', 'scipy', 'mcap', 'zstandard', 'pyproj')
 
 
 class WorkerMismatch(RuntimeError):
@@ -28,18 +22,10 @@ class WorkerMismatch(RuntimeError):
 
 @lru_cache(maxsize=1)
 def model_version():
-    """A short hash of the replay model: the source of every planter_ros module that can change
-    a replay's result (all but the packages in NOT_MODEL) and the versions of LIBRARIES."""
-    root = Path(__file__).resolve().parents[1]
-    digest = hashlib.sha256()
-    for path in sorted(root.rglob('*.py')):
-        relative = path.relative_to(root)
-        if relative.parts[0] in NOT_MODEL:
-            continue
-        digest.update(relative.as_posix().encode() + b'\0' + path.read_bytes() + b'\0')
-    for name in LIBRARIES:
-        digest.update(f'{name}=={importlib.metadata.version(name)}\0'.encode())
-    return digest.hexdigest()[:16]
+    """A short hash of the replay model: the code of every planter_ros module this task imports,
+    directly or through others (replay, the tables; not their docstrings or comments), and the
+    versions of the libraries they import (analysis.model_code)."""
+    return closure_version([__name__], Path(__file__).resolve().parents[2])
 
 
 def warm_up():
