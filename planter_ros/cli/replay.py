@@ -5,7 +5,7 @@ BAG is a .mcap file or a rosbag2 bag directory (split files `<name>_<n>.mcap`). 
 settings recorded in the bag are used unless given here. A bag that is not MCAP or lacks the
 needed topics is bad input (exit 2); of a damaged or cut-off bag every intact chunk is read,
 with a warning on stderr naming the log-time range lost. `--geojson` and `--csv` write the
-as-planted map (recording.export), `--shapefile` and `--isoxml` the same for farm software
+as-planted map (export.geojson_csv), `--shapefile` and `--isoxml` the same for farm software
 (planter_ros.export, doc/exports.md).
 """
 
@@ -94,10 +94,9 @@ def run(args):
     one that fails is named on stderr, exit 1)."""
     from planter_ros.analysis.bags import BagSearchError, check_bag
     from planter_ros.cli.main import BadInput, one_line
-    from planter_ros.export import outputs
+    from planter_ros.export import geojson_csv, outputs
     from planter_ros.output_files import check_distinct
     from planter_ros.plots.replay import write_plot
-    from planter_ros.recording import export
     from planter_ros.recording.errors import RecordingError
     from planter_ros.recording.replay import replay
     from planter_ros.recording.replay_text import format_table
@@ -112,8 +111,8 @@ def run(args):
         print(f'planter: warning: {warning}', file=sys.stderr)
     plants = outputs.replay_run(result, args.shapefile, args.isoxml)
     writers = {'plot': lambda p: write_plot(result, p),
-               'geojson': lambda p: export.write_geojson(result, p),
-               'csv': lambda p: export.write_csv(result, p),
+               'geojson': lambda p: geojson_csv.write_geojson(result, p),
+               'csv': lambda p: geojson_csv.write_csv(result, p),
                'shapefile': lambda p: outputs.write_shapefile_output(plants, p),
                'isoxml': lambda p: outputs.write_isoxml_output(plants, p)}
     written, failed = outputs.write_each([(f'--{o}', getattr(args, o), writers[o])

@@ -1,7 +1,7 @@
 """What the exports take: one recording's plants as records, the same for `planter replay` (a
 ReplayResult) and `planter analyze` (a bag's rows of the Parquet tables).
 
-A record is `recording.export.plant_records`' dict of a plant (row, row_name, index, time,
+A record is `geojson_csv.plant_records`' dict of a plant (row, row_name, index, time,
 longitude, latitude, spacing, spacing_error, hole_width, tilt, upright, status, reason,
 input_gap; None where undefined) plus `ground_speed` (m/s), `heading` (the machine's heading at
 the instant, rad counter-clockwise from east, REP 103; None without a map position) and
@@ -55,7 +55,7 @@ def run_of_plants(key, plants, rows, design_spacing=None, row_quality=None, plac
     """An ExportRun of a Plants table (planter_ros.prediction) and the machine's rows
     [(index, name)], their places {index: RowPlace} and the machine's heading at each plant
     (rad, counter-clockwise from east; None or NaN: unknown)."""
-    from planter_ros.recording.export import plant_records
+    from .geojson_csv import plant_records
     view = SimpleNamespace(plants=plants,
                            rows=[SimpleNamespace(index=int(i), name=str(n)) for i, n in rows])
     records = plant_records(view)

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from pathlib import Path
 
-    from .replay import ReplayResult
+    from planter_ros.recording.replay import ReplayResult
 
 COORDINATE_DECIMALS = 9
 PROPERTIES = ('row', 'row_name', 'index', 'time', 'spacing', 'spacing_error', 'hole_width',
