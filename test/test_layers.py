@@ -21,11 +21,11 @@ LAYERS = (
     ('design',),                                   # the typed design
     ('prediction',),                               # per-plant predictions from motion
     ('cam', 'control'),                            # cam planning; the sync law, the row loop
-    ('recording', 'export', 'optimize', 'sim', 'command',   # command: the command process
+    ('recording', 'optimize', 'sim', 'command',    # command: the command process
      'plausibility'),
     ('scene',),                                    # knows every node's configuration
     ('nodes', 'analysis', 'commission'),           # commission: drive + machine file
-    ('demo',),
+    ('demo', 'export'),                            # export: of a replay and of a season
     ('bench',),
     ('plots',),
     ('cli',),                                      # nothing imports the command line

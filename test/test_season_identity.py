@@ -216,7 +216,7 @@ def test_a_bag_found_twice_in_one_run_is_counted_once(season, tmp_path):
 def test_a_season_output_that_fails_does_not_keep_the_others(season, tmp_path, monkeypatch):
     """The Shapefile fails (a disk full, say): the ISOXML is still written, the failure named
     with its file (planter analyze prints it on stderr, exit 1)."""
-    from planter_ros.analysis import exports as season_exports
+    from planter_ros.export import season as season_exports
     import planter_ros.export.shapefile as shapefile
     out = tmp_path / 'tables'
     analyze(season / 'day1', out=out)

@@ -7,5 +7,5 @@ and decides what is left to do, `progress` reports on stderr.
 """
 
 # the submodules (imported by name, never here)
-__all__ = ['bags', 'engine', 'exports', 'model_code', 'progress', 'season', 'simulate', 'tables',
+__all__ = ['bags', 'engine', 'model_code', 'progress', 'season', 'simulate', 'tables',
            'task']

@@ -5,7 +5,7 @@ Layout of the output directory (each table in a folder of its own):
     bags/bags.parquet            one row per bag (analysis.tables), replaced atomically
     plants/part-<run>-<n>.parquet  the plants dataset: each write adds one part holding the
                                  plants of the bags completed since the previous write
-    as_planted.zip, TASKDATA.zip the season for farm software (analysis.exports)
+    as_planted.zip, TASKDATA.zip the season for farm software (export.season)
     report.html                  the season report (analysis.report)
     .planter-analyze.json        what this command wrote here (OUTPUT_RECORD), so that a later
                                  run never replaces a file it did not write
@@ -56,7 +56,7 @@ PLANTS_DIR = 'plants'
 LOCK_FILE = '.planter-analyze.lock'            # earlier versions' lock: removed when seen
 REPORT_FILE = 'report.html'
 LEGACY_BAGS_FILE = 'bags.parquet'     # where an older planter analyze put the bags table
-# the season's exports for farm software (written by analysis.exports)
+# the season's exports for farm software (written by export.season)
 SHAPEFILE = 'as_planted.zip'
 ISOXML = 'TASKDATA.zip'
 EXPORTS = (SHAPEFILE, ISOXML)

@@ -48,7 +48,7 @@ def run(args):
         raise BadInput(f'PATH = {" ".join(args.paths)} holds no bag: allowed .mcap files and '
                        'directories holding .mcap files or rosbag2 bag directories')
     version = model_version()
-    from planter_ros.analysis.exports import format_exports
+    from planter_ros.export.season import format_exports
     from planter_ros.plots.season import season_outputs
     root = seasons.analysed_root(args.paths)
     with seasons.Season(out, root) as season:

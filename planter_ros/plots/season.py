@@ -36,12 +36,12 @@ def season_report(out):
 
 
 def season_outputs(out, force):
-    """The season's exports (analysis.exports: written when `force` or one is missing) and its
+    """The season's exports (export.season: written when `force` or one is missing) and its
     report under `out`, each on its own and recorded as the command's (season.record_written):
     (exports or None, the table for people, the report's path or None, [(path, reason)] of
     each output not written)."""
     from planter_ros.analysis import season as seasons
-    from planter_ros.analysis.exports import season_exports
+    from planter_ros.export.season import season_exports
     exports = season_exports(out, force)
     seasons.record_written(out, seasons.EXPORTS)
     failed = [(item['file'], item['reason']) for item in (exports or {}).get('failed', [])]

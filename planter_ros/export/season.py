@@ -15,22 +15,23 @@ from pathlib import Path
 
 import numpy as np
 
-from .season import ANALYSED, BAGS_FILE, EXPORTS, ISOXML, PLANTS_DIR, SHAPEFILE, read_bags
+from planter_ros.analysis.season import (
+    ANALYSED, BAGS_FILE, EXPORTS, ISOXML, PLANTS_DIR, SHAPEFILE, read_bags)
 
 __all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'format_exports', 'season_exports', 'season_runs',
            'write_season_exports']
 
 
 def season_runs(out):
-    """ExportRuns (export.runs) of every analysed bag in the tables under `out`, in the bags
+    """ExportRuns (runs.py) of every analysed bag in the tables under `out`, in the bags
     table's order, each once (its plants by its content id); a run is named by the bag's name,
     its path from the analysed root."""
     import pyarrow.parquet as pq
 
-    from planter_ros.export.runs import RowPlace, run_of_plants
+    from planter_ros.analysis.tables import HEADING, plant_columns
     from planter_ros.prediction import PLANT_FIELDS, Plants
 
-    from .tables import HEADING, plant_columns
+    from .runs import RowPlace, run_of_plants
     out = Path(out)
     bags = [row for row in read_bags(out / BAGS_FILE)
             if row.get('status') in ANALYSED and row.get('plants_file')]
@@ -64,8 +65,8 @@ def write_season_exports(out, force=False):
     written): {'shapefile', 'isoxml': paths (None: not written), 'plants', 'placed', 'tasks',
     'skipped': [{bag, reason}] (bags the ISOXML cannot hold), 'failed': [{file, reason}]} or
     None when nothing was to be written."""
-    from planter_ros.export.isoxml import write_isoxml
-    from planter_ros.export.shapefile import write_shapefile
+    from .isoxml import write_isoxml
+    from .shapefile import write_shapefile
     out = Path(out)
     if not force and all((out / name).is_file() for name in EXPORTS):
         return None
@@ -92,7 +93,7 @@ def _one_line(exc):
 
 
 def season_exports(out, force):
-    """The season's Shapefile and ISOXML next to the tables (analysis.exports), with the time
+    """The season's Shapefile and ISOXML next to the tables (export.season), with the time
     it took: written when `force` (bags were analysed) or one is missing; None otherwise."""
     import time
     started = time.monotonic()
