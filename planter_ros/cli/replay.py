@@ -90,11 +90,11 @@ OUTPUTS = ('plot', 'geojson', 'csv', 'shapefile', 'isoxml')
 
 
 def run(args):
-    """Replay the bag, then write each output asked for on its own (export.outputs.write_each:
+    """Replay the bag, then write each output asked for on its own (export.replay.write_each:
     one that fails is named on stderr, exit 1)."""
     from planter_ros.analysis.bags import BagSearchError, check_bag
     from planter_ros.cli.main import BadInput, one_line
-    from planter_ros.export import geojson_csv, outputs
+    from planter_ros.export import geojson_csv, replay as exports
     from planter_ros.output_files import check_distinct
     from planter_ros.plots.replay import write_plot
     from planter_ros.recording.errors import RecordingError
@@ -109,13 +109,13 @@ def run(args):
         raise BadInput(str(exc)) from None
     for warning in result.warnings:
         print(f'planter: warning: {warning}', file=sys.stderr)
-    plants = outputs.replay_run(result, args.shapefile, args.isoxml)
+    plants = exports.replay_run(result, args.shapefile, args.isoxml)
     writers = {'plot': lambda p: write_plot(result, p),
                'geojson': lambda p: geojson_csv.write_geojson(result, p),
                'csv': lambda p: geojson_csv.write_csv(result, p),
-               'shapefile': lambda p: outputs.write_shapefile_output(plants, p),
-               'isoxml': lambda p: outputs.write_isoxml_output(plants, p)}
-    written, failed = outputs.write_each([(f'--{o}', getattr(args, o), writers[o])
+               'shapefile': lambda p: exports.write_shapefile_output(plants, p),
+               'isoxml': lambda p: exports.write_isoxml_output(plants, p)}
+    written, failed = exports.write_each([(f'--{o}', getattr(args, o), writers[o])
                                           for o in OUTPUTS if getattr(args, o)])
     print(json.dumps(result.as_json(), indent=1, allow_nan=False) if args.json else
           '\n'.join([format_table(result), *written]))

@@ -1,7 +1,7 @@
 """The as-planted map as files, every format in this one place: GeoJSON and CSV (`geojson_csv`,
 doc/planting_quality.md) and the formats farm software imports (doc/exports.md): an ESRI
 Shapefile (`shapefile`, point per plant, WGS 84) and ISO 11783-10 task data (`isoxml`, an
-as-planted task with its binary time log), from one replay (`planter replay`: `outputs`) or a
+as-planted task with its binary time log), from one replay (`planter replay`: `replay`) or a
 season of them (`planter analyze`: `season`, from its tables). `runs` is what the farm formats
 take: one recording's plants as records. Pure Python and numpy, no ROS.
 """
