@@ -116,7 +116,7 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
     ground speed; `machine` False: no bus, rows or bit-rate check (a design at the command
     line); `design` False: the caller builds the design itself."""
     from planter_ros.control.phase_lock import PhaseLockConfig
-    from planter_ros.kinematics.scene_settings import SceneSettings
+    from planter_ros.kinematics.design_inputs import SceneSettings
     from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 
     out = Verdict()
@@ -149,7 +149,7 @@ FIVE_BAR_KEYS = ('hole_ratio',)
 
 def _defaults(params, mechanism):
     from planter_ros.config import spec_of
-    from planter_ros.kinematics.scene_settings import SceneSettings
+    from planter_ros.kinematics.design_inputs import SceneSettings
     keys = DESIGN_KEYS + (FIVE_BAR_KEYS if mechanism == 'five_bar' else ())
     out = []
     for name in keys:
@@ -163,7 +163,7 @@ def _defaults(params, mechanism):
 
 
 def unusual(scene) -> list[str]:
-    """The warnings of a scene's (kinematics.scene_settings.SceneSettings) values outside what
+    """The warnings of a scene's (kinematics.design_inputs.SceneSettings) values outside what
     transplanters typically work at, each naming the typical range."""
     out = []
     for name, (low, high, unit) in TYPICAL.items():
@@ -176,7 +176,7 @@ def unusual(scene) -> list[str]:
 
 def _motion(out, params, scene, law, ground, row_limits, tractor_acceleration):
     from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
-    from planter_ros.kinematics.scene_settings import top_ground_speed
+    from planter_ros.kinematics.design_inputs import top_ground_speed
     n = PLANTS_PER_REVOLUTION[scene.mechanism]
     _motion_of(out, scene.mechanism, n, scene.plant_spacing, scene.nominal_ground_speed, law,
                ground, row_limits, tractor_acceleration, 'max_ground_speed' in params)

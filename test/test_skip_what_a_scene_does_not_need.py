@@ -18,7 +18,7 @@ FIVE_BAR_MODULES = {'planter_ros', 'planter_ros.config', 'planter_ros.kinematics
 # the command line adds its option checks: the scene's ranges and the output-path checks
 CLI_MODULES = FIVE_BAR_MODULES | {'planter_ros.cli', 'planter_ros.cli.main',
                                   'planter_ros.cli.design_five_bar', 'planter_ros.cli.options',
-                                  'planter_ros.kinematics.scene_settings',
+                                  'planter_ros.kinematics.design_inputs',
                                   'planter_ros.kinematics.mechanisms',
                                   'planter_ros.output_files', 'planter_ros.design',
                                   'planter_ros.design.text',

@@ -173,7 +173,7 @@ class CamProfile:
 def _check_spacing_speed(spacing, speed):
     """Spacing and speed in the scene's ranges (the same as the command line's)."""
     from planter_ros.config import ConfigError, coerce, spec_of
-    from planter_ros.kinematics.scene_settings import SceneSettings
+    from planter_ros.kinematics.design_inputs import SceneSettings
     for value, field, name in ((spacing, 'plant_spacing', 'spacing'),
                                (speed, 'nominal_ground_speed', 'speed')):
         spec = spec_of(SceneSettings, field)

@@ -9,7 +9,7 @@ import json
 
 from planter_ros.output_files import require_finite
 from planter_ros.cli.options import output_file, shown, spec_option
-from planter_ros.kinematics.scene_settings import SceneSettings
+from planter_ros.kinematics.design_inputs import SceneSettings
 
 MAX_SPACINGS = 20
 MAX_SPEEDS = 10

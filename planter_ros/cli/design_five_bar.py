@@ -1,6 +1,6 @@
 """`planter design five-bar`: agronomic needs (D, d, k) -> bar lengths: table, JSON or plot.
 
-The options are the scene's values (kinematics.scene_settings): same ranges as a scene file and
+The options are the scene's values (kinematics.design_inputs): same ranges as a scene file and
 the design node's parameters."""
 
 import json
@@ -8,7 +8,7 @@ import math
 
 from planter_ros.output_files import require_finite
 from planter_ros.cli.options import output_file, spec_option
-from planter_ros.kinematics.scene_settings import SceneSettings
+from planter_ros.kinematics.design_inputs import SceneSettings
 
 
 def add_arguments(parser):

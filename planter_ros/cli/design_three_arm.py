@@ -21,7 +21,7 @@ def load_params(path, option='--params'):
     (planter_ros.scene: every key and value); BadInput for anything else."""
     from planter_ros.cli.main import BadInput
     from planter_ros.config import ConfigError, from_mapping
-    from planter_ros.kinematics.scene_settings import SceneSettings, ThreeArmSettings
+    from planter_ros.kinematics.design_inputs import SceneSettings, ThreeArmSettings
     from planter_ros.scene import open_scene
     scene = open_scene(path)
     for warning in scene.warnings:                 # defaults taken, unusual values

@@ -14,7 +14,7 @@ import sys
 
 from planter_ros.cli.options import output_file, output_path, spec_option
 from planter_ros.prediction import PredictionSettings
-from planter_ros.kinematics.scene_settings import SceneSettings
+from planter_ros.kinematics.design_inputs import SceneSettings
 
 
 def add_arguments(parser):

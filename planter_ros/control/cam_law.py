@@ -31,9 +31,9 @@ _BISECTIONS = 80
 
 def planning_speed(design: Any) -> float:
     """The ground speed (m/s) a design's cam is planned for: its top ground speed (the
-    scene's `top_ground_speed`, or 1.5 × nominal: kinematics.scene_settings), or for a design
+    scene's `top_ground_speed`, or 1.5 × nominal: kinematics.design_inputs), or for a design
     that names none (an older recording) 1.5 × its nominal speed, or DEFAULT_TOP_SPEED."""
-    from planter_ros.kinematics.scene_settings import top_ground_speed
+    from planter_ros.kinematics.design_inputs import top_ground_speed
     top = getattr(design, 'top_ground_speed', None)
     if top:
         return float(top)

@@ -4,7 +4,7 @@ One dispatcher from `mechanism` to the mechanism's own model. The five-bar path 
 the five-bar core; the three-arm model (gear train, splines) is imported only for a three-arm
 scene. A design the machine cannot run (the passive dyad does not assemble) is refused like an
 infeasible one, so a node never publishes it. The values are checked against the scene's
-ranges (kinematics.scene_settings) before any model runs.
+ranges (kinematics.design_inputs) before any model runs.
 """
 
 import math
@@ -13,7 +13,7 @@ from typing import Any, Mapping
 from planter_ros.config import as_dict, from_mapping
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
-from planter_ros.kinematics.scene_settings import (SceneSettings, ThreeArmSettings,
+from planter_ros.kinematics.design_inputs import (SceneSettings, ThreeArmSettings,
                                                    top_ground_speed)
 
 from .message import from_dict
@@ -27,7 +27,7 @@ TIP_PATH_SAMPLES = 360     # one per degree of carrier angle, like the paper's o
 def design_for_scene(params: Mapping[str, Any]) -> Design:
     """The design (SI) of a flat scene parameter dict.
 
-    Values the scene leaves out take their defaults (scene_settings). Raises DesignError (one
+    Values the scene leaves out take their defaults (design_inputs). Raises DesignError (one
     line) for a value out of range or an infeasible design.
     """
     scene = from_mapping(SceneSettings, params, DesignError.from_message)

@@ -17,7 +17,7 @@ from typing import Any
 
 from planter_ros.config import ConfigError, coerce, spec_of
 from planter_ros.kinematics.errors import DesignError
-from planter_ros.kinematics.scene_settings import SceneSettings
+from planter_ros.kinematics.design_inputs import SceneSettings
 
 from .model import Design, FiveBar, GoalResult, ThreeArm, TipPath
 

@@ -2,5 +2,5 @@
 imports nothing heavy so a five-bar scene never loads the gear train or the optimiser."""
 
 # the submodules (imported by name, never here)
-__all__ = ['arrays', 'errors', 'five_bar', 'mechanisms', 'planting', 'scene_settings',
+__all__ = ['arrays', 'design_inputs', 'errors', 'five_bar', 'mechanisms', 'planting',
            'three_arm']

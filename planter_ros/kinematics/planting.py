@@ -221,7 +221,7 @@ def _nozzle_width(value: object) -> float:
     """The nozzle width checked against the scene's range (DesignError, one line)."""
     from planter_ros.config import coerce, spec_of
 
-    from .scene_settings import SceneSettings
+    from .design_inputs import SceneSettings
     try:
         return coerce(spec_of(SceneSettings, 'nozzle_width'), value)
     except ConfigError as exc:

@@ -3,7 +3,7 @@
 Every parameter update is validated by computing the design first: an infeasible one is refused
 with the core's one-line reason and the last good design stays published. A five-bar scene
 never imports the three-arm gear train; the three-arm parameters are declared only when the
-scene's `mechanism` is three_arm. The parameters are the scene's (kinematics.scene_settings).
+scene's `mechanism` is three_arm. The parameters are the scene's (kinematics.design_inputs).
 """
 
 import sys
@@ -13,7 +13,7 @@ from std_msgs.msg import String
 
 from planter_ros import interfaces
 from planter_ros.config import spec_of
-from planter_ros.kinematics.scene_settings import SceneSettings, scene_classes
+from planter_ros.kinematics.design_inputs import SceneSettings, scene_classes
 from planter_ros.design import design_for_scene, to_json
 from planter_ros.nodes.parameters import ParameterGroup, declare, refuse_undeclared
 from planter_ros.nodes.run import run_node

@@ -59,7 +59,7 @@ def node_classes() -> dict[str, tuple[type, ...]]:
     from planter_ros.drive.config import DriveConfig
     from planter_ros.geo import AntennaSettings
     from planter_ros.prediction import AcceptanceLimits, PredictionSettings
-    from planter_ros.kinematics.scene_settings import SceneSettings, ThreeArmSettings
+    from planter_ros.kinematics.design_inputs import SceneSettings, ThreeArmSettings
     from planter_ros.recording.recorder import RecorderConfig
     from planter_ros.rows import RowLayout
     from planter_ros.scene.machine_setting import MachineFileSetting
@@ -79,7 +79,7 @@ def node_specs(node: str, mechanism: str | None = None,
                rows: Iterable[str] = ()) -> dict[str, Spec]:
     """Every parameter `node` declares, by name: its classes' fields, the settings of each row
     in `rows` (`<row>.<field>`, nodes with rows), ROS's own. `mechanism` None: any scene's."""
-    from planter_ros.kinematics.scene_settings import ThreeArmSettings
+    from planter_ros.kinematics.design_inputs import ThreeArmSettings
     from planter_ros.rows import RowLayout, RowSettings
     out = dict(ROS_PARAMETERS)
     for cls in node_classes()[node]:
@@ -106,7 +106,7 @@ def node_parameters(node: str, params: dict[str, Any]) -> list[tuple[str, Any]]:
 
 def scene_mechanism(params: dict[str, Any]) -> str:
     """The mechanism a flat scene dict names (the design settings' default without one)."""
-    from planter_ros.kinematics.scene_settings import SceneSettings
+    from planter_ros.kinematics.design_inputs import SceneSettings
     mechanism = params.get('mechanism')
     if isinstance(mechanism, str):
         return mechanism
@@ -250,7 +250,7 @@ def _check_keys(pfile: ParameterFile, params: dict[str, Any], nodes: Iterable[st
 def _unknown(pfile: ParameterFile, name: str, nodes: list[str], mechanism: str | None,
              rows: list[str], own: bool) -> None:
     """Raise the one line for a key no node it reaches takes (the closest valid key)."""
-    from planter_ros.kinematics.scene_settings import ThreeArmSettings
+    from planter_ros.kinematics.design_inputs import ThreeArmSettings
     valid = []
     for node in nodes:
         valid += [n for n in node_specs(node, mechanism, rows) if n not in valid]

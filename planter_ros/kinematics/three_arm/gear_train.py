@@ -47,7 +47,7 @@ from planter_ros.config import specs
 
 from ..arrays import FloatArray, Floats
 from ..errors import DesignError
-from ..scene_settings import ThreeArmSettings
+from ..design_inputs import ThreeArmSettings
 from .pitch_curve import TWO_PI, PitchCurve, leggauss, solve_centre_distance, subdivide
 
 if TYPE_CHECKING:

@@ -55,7 +55,7 @@ from planter_ros.config import specs
 
 from ..arrays import FloatArray, Floats
 from ..errors import DesignError
-from ..scene_settings import SceneSettings, ThreeArmSettings
+from ..design_inputs import SceneSettings, ThreeArmSettings
 from .gear_train import ARMS, ThreeArmMechanism
 from .pitch_curve import TWO_PI, polar_curvature_radius
 
