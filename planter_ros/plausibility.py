@@ -116,12 +116,12 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
     ground speed; `machine` False: no bus, rows or bit-rate check (a design at the command
     line); `design` False: the caller builds the design itself."""
     from planter_ros.control.phase_lock import PhaseLockConfig
-    from planter_ros.kinematics.design_inputs import SceneSettings
+    from planter_ros.kinematics.design_inputs import DesignInputs
     from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 
     out = Verdict()
     try:
-        scene = from_mapping(SceneSettings, {**params, 'nozzle_width': params.get(
+        scene = from_mapping(DesignInputs, {**params, 'nozzle_width': params.get(
             'nozzle_width', 0.0)})
         law = from_mapping(PhaseLockConfig, params)
         ground = from_mapping(GroundSpeedLimits, params)
@@ -149,12 +149,12 @@ FIVE_BAR_KEYS = ('hole_ratio',)
 
 def _defaults(params, mechanism):
     from planter_ros.config import spec_of
-    from planter_ros.kinematics.design_inputs import SceneSettings
+    from planter_ros.kinematics.design_inputs import DesignInputs
     keys = DESIGN_KEYS + (FIVE_BAR_KEYS if mechanism == 'five_bar' else ())
     out = []
     for name in keys:
         if name not in params:
-            spec = spec_of(SceneSettings, name)
+            spec = spec_of(DesignInputs, name)
             unit = f' {spec.unit}' if spec.unit else ''
             out.append(f'{name} is not set: the design uses the default {spec.default:g}'
                        f'{unit}; set it for the crop and machine' if spec.kind is float else
@@ -163,7 +163,7 @@ def _defaults(params, mechanism):
 
 
 def unusual(scene) -> list[str]:
-    """The warnings of a scene's (kinematics.design_inputs.SceneSettings) values outside what
+    """The warnings of a scene's (kinematics.design_inputs.DesignInputs) values outside what
     transplanters typically work at, each naming the typical range."""
     out = []
     for name, (low, high, unit) in TYPICAL.items():

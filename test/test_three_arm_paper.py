@@ -84,8 +84,8 @@ def test_no_pitch_curve_reading_reaches_the_paper_s_module(params):
 
 def test_scene_interpolant_choices_are_the_pitch_curve_interpolants():
     from planter_ros.config import spec_of
-    from planter_ros.kinematics.design_inputs import ThreeArmSettings
-    assert spec_of(ThreeArmSettings, 'interpolant').choices == tuple(INTERPOLANTS)
+    from planter_ros.kinematics.design_inputs import ThreeArmInputs
+    assert spec_of(ThreeArmInputs, 'interpolant').choices == tuple(INTERPOLANTS)
 
 
 # --- the approximating readings themselves -----------------------------------------------------

@@ -173,10 +173,10 @@ class CamProfile:
 def _check_spacing_speed(spacing, speed):
     """Spacing and speed in the scene's ranges (the same as the command line's)."""
     from planter_ros.config import ConfigError, coerce, spec_of
-    from planter_ros.kinematics.design_inputs import SceneSettings
+    from planter_ros.kinematics.design_inputs import DesignInputs
     for value, field, name in ((spacing, 'plant_spacing', 'spacing'),
                                (speed, 'nominal_ground_speed', 'speed')):
-        spec = spec_of(SceneSettings, field)
+        spec = spec_of(DesignInputs, field)
         try:
             coerce(spec, float(value))
         except (ConfigError, TypeError, ValueError):

@@ -9,7 +9,7 @@ import json
 
 from planter_ros.output_files import require_finite
 from planter_ros.cli.options import output_file, shown, spec_option
-from planter_ros.kinematics.design_inputs import SceneSettings
+from planter_ros.kinematics.design_inputs import DesignInputs
 
 MAX_SPACINGS = 20
 MAX_SPEEDS = 10
@@ -45,26 +45,26 @@ def add_arguments(parser):
     from planter_ros.cam.drive import DriveLimits
     from planter_ros.config import specs
 
-    parser.add_argument('--depth', type=spec_option(SceneSettings, 'planting_depth', '--depth'),
+    parser.add_argument('--depth', type=spec_option(DesignInputs, 'planting_depth', '--depth'),
                         required=True, metavar='M', help='planting depth D (m), e.g. 0.045')
     parser.add_argument('--design-spacing', required=True, metavar='M',
-                        type=spec_option(SceneSettings, 'plant_spacing', '--design-spacing'),
+                        type=spec_option(DesignInputs, 'plant_spacing', '--design-spacing'),
                         help='the spacing the mechanism is designed for (m): its bars come from '
                              'the five-bar reverse design at D, this spacing and the hole ratio')
     parser.add_argument('--spacing', required=True, metavar='M[,M…]',
-                        type=list_option(SceneSettings, 'plant_spacing', '--spacing',
+                        type=list_option(DesignInputs, 'plant_spacing', '--spacing',
                                          MAX_SPACINGS),
                         help=f'the spacings to plant (m), up to {MAX_SPACINGS}, e.g. 0.15,0.3,0.5')
     parser.add_argument('--speed', required=True, metavar='M/S[,…]',
-                        type=list_option(SceneSettings, 'nominal_ground_speed', '--speed',
+                        type=list_option(DesignInputs, 'nominal_ground_speed', '--speed',
                                          MAX_SPEEDS),
                         help=f'top ground speeds (m/s), up to {MAX_SPEEDS}: the cam is planned '
                              'for each as the top speed')
-    parser.add_argument('--hole-ratio', type=spec_option(SceneSettings, 'hole_ratio',
+    parser.add_argument('--hole-ratio', type=spec_option(DesignInputs, 'hole_ratio',
                                                          '--hole-ratio'),
                         default=0.05, metavar='K',
                         help='the design hole over depth, k = t/D (default 0.05)')
-    parser.add_argument('--nozzle-width', type=spec_option(SceneSettings, 'nozzle_width',
+    parser.add_argument('--nozzle-width', type=spec_option(DesignInputs, 'nozzle_width',
                                                            '--nozzle-width'),
                         default=0.0, metavar='M',
                         help="the nozzle's width along the row (m), added to the tip's sweep "

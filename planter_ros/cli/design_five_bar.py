@@ -8,25 +8,25 @@ import math
 
 from planter_ros.output_files import require_finite
 from planter_ros.cli.options import output_file, spec_option
-from planter_ros.kinematics.design_inputs import SceneSettings
+from planter_ros.kinematics.design_inputs import DesignInputs
 
 
 def add_arguments(parser):
-    parser.add_argument('--depth', type=spec_option(SceneSettings, 'planting_depth', '--depth'),
+    parser.add_argument('--depth', type=spec_option(DesignInputs, 'planting_depth', '--depth'),
                         required=True, metavar='M', help='planting depth D (m), e.g. 0.045')
-    parser.add_argument('--spacing', type=spec_option(SceneSettings, 'plant_spacing',
+    parser.add_argument('--spacing', type=spec_option(DesignInputs, 'plant_spacing',
                                                       '--spacing'),
                         required=True, metavar='M', help='plant spacing d along the row (m), '
                         'e.g. 0.2')
-    parser.add_argument('--hole-ratio', type=spec_option(SceneSettings, 'hole_ratio',
+    parser.add_argument('--hole-ratio', type=spec_option(DesignInputs, 'hole_ratio',
                                                          '--hole-ratio'),
                         default=0.05, metavar='K',
                         help='hole entry-exit distance over depth, k = t/D (default 0.05)')
-    parser.add_argument('--method', type=spec_option(SceneSettings, 'design_method', '--method'),
+    parser.add_argument('--method', type=spec_option(DesignInputs, 'design_method', '--method'),
                         default='exact', metavar='exact|paper',
                         help="'exact' solves ψ - sin ψ = πkD/d; 'paper' uses the paper's "
                              'cube-root approximation (default exact)')
-    parser.add_argument('--speed', type=spec_option(SceneSettings, 'nominal_ground_speed',
+    parser.add_argument('--speed', type=spec_option(DesignInputs, 'nominal_ground_speed',
                                                     '--speed'),
                         metavar='M/S', help='ground speed v (m/s): adds the sun-bar speed '
                         'ω1 = 2πv/d')

@@ -21,7 +21,7 @@ def load_params(path, option='--params'):
     (planter_ros.scene: every key and value); BadInput for anything else."""
     from planter_ros.cli.main import BadInput
     from planter_ros.config import ConfigError, from_mapping
-    from planter_ros.kinematics.design_inputs import SceneSettings, ThreeArmSettings
+    from planter_ros.kinematics.design_inputs import DesignInputs, ThreeArmInputs
     from planter_ros.scene import open_scene
     scene = open_scene(path)
     for warning in scene.warnings:                 # defaults taken, unusual values
@@ -32,7 +32,7 @@ def load_params(path, option='--params'):
         raise BadInput(f'{option} {path}: mechanism = {mechanism} is out of range: allowed '
                        'three_arm')
     try:
-        for cls in (SceneSettings, ThreeArmSettings):
+        for cls in (DesignInputs, ThreeArmInputs):
             from_mapping(cls, params)
         scene.antenna()
     except ConfigError as exc:

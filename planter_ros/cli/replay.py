@@ -14,7 +14,7 @@ import sys
 
 from planter_ros.cli.options import output_file, output_path, spec_option
 from planter_ros.prediction import PredictionSettings
-from planter_ros.kinematics.design_inputs import SceneSettings
+from planter_ros.kinematics.design_inputs import DesignInputs
 
 
 def add_arguments(parser):
@@ -53,7 +53,7 @@ def add_settings_arguments(parser):
                         help='minimum stem angle to the ground for "upright" (rad; default: '
                              'the recorded setting, else 30 deg)')
     parser.add_argument('--nozzle-width', metavar='M',
-                        type=spec_option(SceneSettings, 'nozzle_width', '--nozzle-width'),
+                        type=spec_option(DesignInputs, 'nozzle_width', '--nozzle-width'),
                         help="nozzle width along the row added to the tip's sweep (m; default: "
                              "the design's, in a bag older than that the recorded setting)")
     parser.add_argument('--window', metavar='N',

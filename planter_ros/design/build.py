@@ -13,7 +13,7 @@ from typing import Any, Mapping
 from planter_ros.config import as_dict, from_mapping
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
-from planter_ros.kinematics.design_inputs import (SceneSettings, ThreeArmSettings,
+from planter_ros.kinematics.design_inputs import (DesignInputs, ThreeArmInputs,
                                                    top_ground_speed)
 
 from .message import from_dict
@@ -30,11 +30,11 @@ def design_for_scene(params: Mapping[str, Any]) -> Design:
     Values the scene leaves out take their defaults (design_inputs). Raises DesignError (one
     line) for a value out of range or an infeasible design.
     """
-    scene = from_mapping(SceneSettings, params, DesignError.from_message)
+    scene = from_mapping(DesignInputs, params, DesignError.from_message)
     if scene.mechanism == 'five_bar':
         out = _five_bar(scene)
     else:
-        arm = from_mapping(ThreeArmSettings, params, DesignError.from_message)
+        arm = from_mapping(ThreeArmInputs, params, DesignError.from_message)
         out = _three_arm({**as_dict(scene), **as_dict(arm)})
     n = PLANTS_PER_REVOLUTION[scene.mechanism]
     out.update(mechanism=scene.mechanism, plants_per_revolution=n,
@@ -47,7 +47,7 @@ def design_for_scene(params: Mapping[str, Any]) -> Design:
     return from_dict(out)
 
 
-def _five_bar(scene: SceneSettings) -> dict[str, Any]:
+def _five_bar(scene: DesignInputs) -> dict[str, Any]:
     from planter_ros.kinematics.five_bar import design_five_bar
     if len(scene.dyad_ratios) != 3:
         raise DesignError('dyad_ratios', scene.dyad_ratios, 'three ratios (l3, l4, l5)/(l1+l2)')

@@ -17,7 +17,7 @@ from typing import Any
 
 from planter_ros.config import ConfigError, coerce, spec_of
 from planter_ros.kinematics.errors import DesignError
-from planter_ros.kinematics.design_inputs import SceneSettings
+from planter_ros.kinematics.design_inputs import DesignInputs
 
 from .model import Design, FiveBar, GoalResult, ThreeArm, TipPath
 
@@ -110,9 +110,9 @@ def _value(name, value):
                                      'integer >= 1')
         return value
     if name in ('nozzle_width', 'nominal_ground_speed', 'top_ground_speed'):
-        spec = spec_of(SceneSettings, name)
+        spec = spec_of(DesignInputs, name)
         if name == 'top_ground_speed':          # resolved: never 0
-            spec = spec_of(SceneSettings, 'nominal_ground_speed')
+            spec = spec_of(DesignInputs, 'nominal_ground_speed')
         try:
             return coerce(spec, value)
         except ConfigError as exc:

@@ -1,8 +1,10 @@
-"""What a scene (a crop + a mechanism, `config/*.yaml`) sets, declared once for the design node,
-the command line, the demo and the core: default, unit, range and meaning of every value.
+"""The design inputs: what a mechanism is designed from (the crop's planting depth and spacing,
+the mechanism and its parameters), as a scene file (`config/*.yaml`), the command line or the
+demo gives them, declared once for the design node, the command line, the demo and the core:
+default, unit, range and meaning of every value.
 
 Range checks live here; feasibility (does a mechanism with these values exist and run?) is the
-models' job (`scene_design.design_for_scene`). Light module: no numpy, no models imported.
+models' job (`design.build.design_for_scene`). Light module: no numpy, no models imported.
 """
 
 from dataclasses import dataclass
@@ -29,8 +31,8 @@ def top_ground_speed(nominal: float, top: float | None = None) -> float:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SceneSettings:
-    """Every scene: the crop's agronomic needs and the mechanism (SI units)."""
+class DesignInputs:
+    """Every design's inputs: the crop's agronomic needs and the mechanism (SI units)."""
 
     crop: str = setting('tomato', 'crop name, for people and recordings')
     mechanism: str = setting('five_bar', 'planting mechanism: five_bar (1 plant per revolution) '
@@ -73,8 +75,8 @@ class SceneSettings:
 
 
 @dataclass(frozen=True)
-class ThreeArmSettings:
-    """A three-arm scene's mechanism (the paper's parameters, SI). The seven model values have
+class ThreeArmInputs:
+    """A three-arm mechanism's inputs (the paper's parameters, SI). The seven model values have
     no default: a scene that lacks one is refused, naming it."""
 
     control_radii: list = setting(kind=list, description='pitch-curve control radii r_i',
@@ -112,6 +114,6 @@ class ThreeArmSettings:
         check(self, DesignError.from_message)
 
 
-def scene_classes(mechanism: str) -> tuple[type, ...]:
-    """The settings classes a scene of `mechanism` is made of."""
-    return (SceneSettings, ThreeArmSettings) if mechanism == 'three_arm' else (SceneSettings,)
+def input_classes(mechanism: str) -> tuple[type, ...]:
+    """The classes of the design inputs of `mechanism` (a scene of it is made of them)."""
+    return (DesignInputs, ThreeArmInputs) if mechanism == 'three_arm' else (DesignInputs,)

@@ -221,8 +221,8 @@ def _nozzle_width(value: object) -> float:
     """The nozzle width checked against the scene's range (DesignError, one line)."""
     from planter_ros.config import coerce, spec_of
 
-    from .design_inputs import SceneSettings
+    from .design_inputs import DesignInputs
     try:
-        return coerce(spec_of(SceneSettings, 'nozzle_width'), value)
+        return coerce(spec_of(DesignInputs, 'nozzle_width'), value)
     except ConfigError as exc:
         raise DesignError.from_message(str(exc)) from None

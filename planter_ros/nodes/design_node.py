@@ -13,7 +13,7 @@ from std_msgs.msg import String
 
 from planter_ros import interfaces
 from planter_ros.config import spec_of
-from planter_ros.kinematics.design_inputs import SceneSettings, scene_classes
+from planter_ros.kinematics.design_inputs import DesignInputs, input_classes
 from planter_ros.design import design_for_scene, to_json
 from planter_ros.nodes.parameters import ParameterGroup, declare, refuse_undeclared
 from planter_ros.nodes.run import run_node
@@ -25,10 +25,10 @@ class DesignNode(Node):
 
     def __init__(self, arguments=None, **kwargs):
         super().__init__('design_node', **kwargs)
-        mechanism = declare(self, spec_of(SceneSettings, 'mechanism'))
+        mechanism = declare(self, spec_of(DesignInputs, 'mechanism'))
         self._publisher = interfaces.DESIGN.publisher(self)
         # a bad scene raises ConfigError here, at start-up
-        scene = ParameterGroup(self, scene_classes(mechanism), build=self._checked_design,
+        scene = ParameterGroup(self, input_classes(mechanism), build=self._checked_design,
                                on_change=self._publish)
         self.design = scene.value
         refuse_undeclared(self, arguments)       # a name the scene got wrong: refused

@@ -59,7 +59,7 @@ def node_classes() -> dict[str, tuple[type, ...]]:
     from planter_ros.drive.config import DriveConfig
     from planter_ros.geo import AntennaSettings
     from planter_ros.prediction import AcceptanceLimits, PredictionSettings
-    from planter_ros.kinematics.design_inputs import SceneSettings, ThreeArmSettings
+    from planter_ros.kinematics.design_inputs import DesignInputs, ThreeArmInputs
     from planter_ros.recording.recorder import RecorderConfig
     from planter_ros.rows import RowLayout
     from planter_ros.scene.machine_setting import MachineFileSetting
@@ -67,7 +67,7 @@ def node_classes() -> dict[str, tuple[type, ...]]:
     from planter_ros.sensing.plant_map import MapSettings
     from planter_ros.sensing.row_speed import YawRateLimits
     return {
-        'design_node': (SceneSettings, ThreeArmSettings),
+        'design_node': (DesignInputs, ThreeArmInputs),
         'sync_node': (DriveConfig, SyncLoopConfig, RowLayout, PhaseLockConfig,
                       GroundSpeedLimits, YawRateLimits, TurnConfig, MachineFileSetting),
         'monitor_node': (RecorderConfig, PredictionSettings, MapSettings, AntennaSettings,
@@ -79,11 +79,11 @@ def node_specs(node: str, mechanism: str | None = None,
                rows: Iterable[str] = ()) -> dict[str, Spec]:
     """Every parameter `node` declares, by name: its classes' fields, the settings of each row
     in `rows` (`<row>.<field>`, nodes with rows), ROS's own. `mechanism` None: any scene's."""
-    from planter_ros.kinematics.design_inputs import ThreeArmSettings
+    from planter_ros.kinematics.design_inputs import ThreeArmInputs
     from planter_ros.rows import RowLayout, RowSettings
     out = dict(ROS_PARAMETERS)
     for cls in node_classes()[node]:
-        if cls is ThreeArmSettings and mechanism not in (None, 'three_arm'):
+        if cls is ThreeArmInputs and mechanism not in (None, 'three_arm'):
             continue
         out.update({spec.name: spec for spec in specs(cls)})
     if RowLayout in node_classes()[node]:
@@ -106,11 +106,11 @@ def node_parameters(node: str, params: dict[str, Any]) -> list[tuple[str, Any]]:
 
 def scene_mechanism(params: dict[str, Any]) -> str:
     """The mechanism a flat scene dict names (the design settings' default without one)."""
-    from planter_ros.kinematics.design_inputs import SceneSettings
+    from planter_ros.kinematics.design_inputs import DesignInputs
     mechanism = params.get('mechanism')
     if isinstance(mechanism, str):
         return mechanism
-    return next(s.default for s in specs(SceneSettings) if s.name == 'mechanism')
+    return next(s.default for s in specs(DesignInputs) if s.name == 'mechanism')
 
 
 def scene_rows(params: dict[str, Any]) -> list[str]:
@@ -250,13 +250,13 @@ def _check_keys(pfile: ParameterFile, params: dict[str, Any], nodes: Iterable[st
 def _unknown(pfile: ParameterFile, name: str, nodes: list[str], mechanism: str | None,
              rows: list[str], own: bool) -> None:
     """Raise the one line for a key no node it reaches takes (the closest valid key)."""
-    from planter_ros.kinematics.design_inputs import ThreeArmSettings
+    from planter_ros.kinematics.design_inputs import ThreeArmInputs
     valid = []
     for node in nodes:
         valid += [n for n in node_specs(node, mechanism, rows) if n not in valid]
     owners = [node for node in NODES if name in node_specs(node, None, rows)]
     head = pfile.name
-    if name in (spec.name for spec in specs(ThreeArmSettings)) and mechanism != 'three_arm':
+    if name in (spec.name for spec in specs(ThreeArmInputs)) and mechanism != 'three_arm':
         raise SceneError(f'{head}: {name} is a three-arm setting but the scene\'s mechanism is '
                          f'{mechanism}: allowed in a scene with mechanism three_arm')
     row = name.split('.', 1)[0]

@@ -47,7 +47,7 @@ from planter_ros.config import specs
 
 from ..arrays import FloatArray, Floats
 from ..errors import DesignError
-from ..design_inputs import ThreeArmSettings
+from ..design_inputs import ThreeArmInputs
 from .pitch_curve import TWO_PI, PitchCurve, leggauss, solve_centre_distance, subdivide
 
 if TYPE_CHECKING:
@@ -274,7 +274,7 @@ def quintic_coefficients(x: FloatArray, y: FloatArray, dy: FloatArray,
 
 
 # the scene values the model is built from, in the constructor's order after the curve
-PARAMETER_NAMES = tuple(spec.name for spec in specs(ThreeArmSettings) if spec.required)
+PARAMETER_NAMES = tuple(spec.name for spec in specs(ThreeArmInputs) if spec.required)
 
 
 def _float(params: Mapping[str, object], key: str) -> float:

@@ -55,7 +55,7 @@ from planter_ros.config import specs
 
 from ..arrays import FloatArray, Floats
 from ..errors import DesignError
-from ..design_inputs import SceneSettings, ThreeArmSettings
+from ..design_inputs import DesignInputs, ThreeArmInputs
 from .gear_train import ARMS, ThreeArmMechanism
 from .pitch_curve import TWO_PI, polar_curvature_radius
 
@@ -88,7 +88,7 @@ BASIS = {'arm_clearance': 'assumption', 'picking_angle': 'paper', 'pushing_angle
 # scene parameters the goals need, with the scene's defaults for the ones a scene leaves out
 _POSITIVE = ('plant_spacing', 'planting_depth', 'seedling_height', 'arm_width')
 _PHASES = ('picking_phase', 'planting_phase')
-GOAL_SPECS = {spec.name: spec for cls in (SceneSettings, ThreeArmSettings) for spec in specs(cls)
+GOAL_SPECS = {spec.name: spec for cls in (DesignInputs, ThreeArmInputs) for spec in specs(cls)
               if spec.name in _POSITIVE + _PHASES}
 GOAL_DEFAULTS = {name: spec.default for name, spec in GOAL_SPECS.items()}
 
