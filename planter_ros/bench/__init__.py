@@ -2,8 +2,9 @@
 
 `timing` measures (median and spread of repeats), `reference` computes mpmath references at
 ≥ 30 digits, `registry` holds the bench cases (one small function per row group, in `cases/`),
-`report` formats the table and JSON. Nothing here imports rclpy at module level.
+`report` formats the table and JSON, `host` names the computer it ran on. Nothing here imports
+rclpy at module level.
 """
 
 # the submodules (imported by name, never here)
-__all__ = ['cases', 'machine', 'reference', 'registry', 'report', 'timing']
+__all__ = ['cases', 'host', 'reference', 'registry', 'report', 'timing']

@@ -2,7 +2,7 @@
 
 import shlex
 
-from .machine import machine_line
+from .host import machine_line
 
 # The quality targets: (quantity, target, row group that measures it, text its rows' Target
 # starts with). Group None: no bench row measures it (the command named reports it itself).

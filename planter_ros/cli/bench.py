@@ -30,7 +30,7 @@ def add_arguments(parser):
 
 def run(args):
     from planter_ros.cli.main import BadInput
-    from planter_ros.bench.machine import machine_info
+    from planter_ros.bench.host import machine_info
     from planter_ros.bench.registry import run_cases
     from planter_ros.bench.report import as_json, command_line, format_markdown, format_table
     from planter_ros.output_files import atomic_output, write_text_atomically

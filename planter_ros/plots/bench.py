@@ -1,6 +1,6 @@
 """Error against run time (log-log) for the bench methods that trade one for the other."""
 
-from planter_ros.bench.machine import machine_line
+from planter_ros.bench.host import machine_line
 
 ERROR_FLOOR = 1e-18   # an exact 0 error is drawn here (log axes), marked in the legend
 

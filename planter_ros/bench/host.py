@@ -1,4 +1,5 @@
-"""The machine a bench ran on: CPU model, cores, Python and library versions."""
+"""The host a bench ran on (the computer, not the planter): CPU model, cores, Python and library
+versions."""
 
 import datetime
 import os
