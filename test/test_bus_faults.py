@@ -18,7 +18,7 @@ import pytest
 from drive_helpers import run_engine
 from planter_ros.command.engine import CommandEngine
 from planter_ros.control.loop_timing import SyncLoopConfig
-from planter_ros.control.machine import TurnConfig
+from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.design import from_json, to_json
 from planter_ros.drive.cia402 import DriveConfig

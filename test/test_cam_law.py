@@ -157,7 +157,7 @@ def test_a_spacing_change_is_continuous_and_at_the_next_plant(profiles):
 def cam_engine(channel, **drive):
     from planter_ros.command.engine import CommandEngine
     from planter_ros.control.loop_timing import SyncLoopConfig
-    from planter_ros.control.machine import TurnConfig
+    from planter_ros.control.machine_law import TurnConfig
     from planter_ros.drive.cia402 import DriveConfig
     from planter_ros.rows import Row
     from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits

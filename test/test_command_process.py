@@ -18,7 +18,7 @@ from planter_ros.command.client import CommandClient
 from planter_ros.command.settings import CommandSettings
 from planter_ros.drive.socket_bus import INTERFACE, SocketPairBus, socket_pair
 from planter_ros.control.loop_timing import SyncLoopConfig
-from planter_ros.control.machine import TurnConfig
+from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.design import from_json, to_json
 from planter_ros.drive.config import DriveConfig

@@ -22,7 +22,7 @@ from planter_ros import diagnostics
 from planter_ros.command.engine import CommandEngine
 from planter_ros.commission import SimulatedObserver, commission_machine, updated_machine
 from planter_ros.control.loop_timing import SyncLoopConfig
-from planter_ros.control.machine import TurnConfig
+from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
 from planter_ros.drive.eds import default_eds_path

@@ -6,7 +6,7 @@ import math
 import pytest
 
 from planter_ros.control import sync_status
-from planter_ros.control.machine import Machine
+from planter_ros.control.machine_law import Machine
 from planter_ros.control.row_loop import CSP_LEAD, RowLoop, csp_setpoint
 from planter_ros.drive.state_names import FAULT, OPERATION_ENABLED
 

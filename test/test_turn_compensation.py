@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from planter_ros.control.machine import Machine, TurnConfig
+from planter_ros.control.machine_law import Machine, TurnConfig
 from planter_ros.control.phase_lock import PlantingAngles, stop_angle
 from planter_ros.prediction import planting_model_from_design
 from planter_ros.rows import Row

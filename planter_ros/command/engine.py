@@ -23,7 +23,7 @@ from planter_ros import diagnostics, interfaces
 from planter_ros.control import sync_status
 from planter_ros.control.cam_law import plan_for_design
 from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
-from planter_ros.control.machine import Machine
+from planter_ros.control.machine_law import Machine
 from planter_ros.control.phase_lock import PhaseLock, planting_angles
 from planter_ros.control.row_loop import RowLoop, RowStep, cam_csp_target, csp_setpoint
 from planter_ros.control.sync_status import Halt

@@ -6,7 +6,7 @@ from dataclasses import asdict
 from typing import Any
 
 from planter_ros.control.loop_timing import SyncLoopConfig
-from planter_ros.control.machine import TurnConfig
+from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.setup import DriveSetup

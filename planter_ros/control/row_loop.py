@@ -21,7 +21,7 @@ import math
 from typing import Any
 
 from . import sync_status
-from .machine import Machine
+from .machine_law import Machine
 from .sync_status import Halt
 
 __all__ = ['CSP_LEAD', 'RowStep', 'LoopStep', 'RowLoop', 'cam_csp_target', 'csp_setpoint']

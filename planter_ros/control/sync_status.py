@@ -99,7 +99,7 @@ def drive_report(status: Any, enabled: bool, shut_down: bool, halt: Halt | None,
 def ground_report(law: Any, now: float, machine: Any = None,
                   stale_state: str | None = None) -> Report:
     """The ground-speed input: fresh, rejecting samples, or stale. `law` runs at the machine's
-    reference point; `machine` (control.machine.Machine) adds the yaw rate; `stale_state` says
+    reference point; `machine` (control.machine_law.Machine) adds the yaw rate; `stale_state` says
     what the rows do meanwhile (default: `law.state`)."""
     rejected = sum(law.rejected.values())
     values = [('ground speed', f'{law.ground_speed_value:.4f} m/s'),

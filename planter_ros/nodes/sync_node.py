@@ -44,7 +44,7 @@ from planter_ros.command.engine import CommandEngine
 from planter_ros.command.settings import LAW_CLASSES, CommandSettings
 from planter_ros.config import ConfigError, spec_of
 from planter_ros.control.loop_timing import SyncLoopConfig
-from planter_ros.control.machine import TurnConfig
+from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.dds_domain import keep_discovery_on_host
 from planter_ros.design import from_json

@@ -54,7 +54,7 @@ def node_classes() -> dict[str, tuple[type, ...]]:
     rows). The design node's three-arm settings are declared only in a three-arm scene. Made
     on first use: the classes come from every layer below."""
     from planter_ros.control.loop_timing import SyncLoopConfig
-    from planter_ros.control.machine import TurnConfig
+    from planter_ros.control.machine_law import TurnConfig
     from planter_ros.control.phase_lock import PhaseLockConfig
     from planter_ros.drive.config import DriveConfig
     from planter_ros.geo import AntennaSettings

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from planter_ros.control.machine import Machine, TurnConfig
+from planter_ros.control.machine_law import Machine, TurnConfig
 from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
 
 from .field import demo_curves, field_profile

@@ -215,7 +215,7 @@ def sync_latency_rows(ctx):
                          'max_s': max(lat)})
 
 
-@bench_case('closed loop through curves', requires=('planter_ros.control.machine',))
+@bench_case('closed loop through curves', requires=('planter_ros.control.machine_law',))
 def closed_loop_curves(ctx):
     from planter_ros.sim.closed_loop import curve_comparison
     result = {}
