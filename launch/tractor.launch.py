@@ -5,7 +5,7 @@ tractor's ISOBUS with GNSS as the fallback (doc/deploy.md).
         scene:=/etc/planter/scene.yaml
 
 Every node reads the scene file; on top, each gets its share of the machine file (the CAN bus,
-the rows, their drives and lever arms: planter_ros.scene.machine.deployment_parameters, which
+the rows, their drives and lever arms: planter_ros.scene.machine_file.deployment_parameters, which
 checks both files and the scene's plausibility on this machine first and refuses to launch
 otherwise). ground_speed_node gets the ISOBUS channel from the machine file and its sources
 from `speed_sources`. Topics live in the /planter namespace.
@@ -28,7 +28,7 @@ ARGUMENT_PARAMETERS = {
 
 
 def _nodes(context):
-    from planter_ros.scene.machine import deployment_parameters
+    from planter_ros.scene.machine_file import deployment_parameters
     machine = LaunchConfiguration('machine').perform(context)
     scene = LaunchConfiguration('scene').perform(context)
     overrides = {'ground_speed_node': {

@@ -13,7 +13,7 @@ import pytest
 
 from cli_helpers import REPO
 from planter_ros.scene.doc_tables import node_parameter_specs
-from planter_ros.scene.machine import MachineFileError, deployment_parameters
+from planter_ros.scene.machine_file import MachineFileError, deployment_parameters
 from planter_ros.scene.schema import node_specs
 
 DEPLOY = (REPO / 'doc' / 'deploy.md').read_text()
@@ -116,7 +116,7 @@ def test_the_environment_file_is_key_value():
 
 def test_the_can_unit_brings_up_the_example_machine_at_its_bit_rates():
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    out = subprocess.run([sys.executable, '-m', 'planter_ros.scene.machine', '--ip-commands',
+    out = subprocess.run([sys.executable, '-m', 'planter_ros.scene.machine_file', '--ip-commands',
                           str(MACHINE)], capture_output=True, text=True, env=env, timeout=60)
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
@@ -124,7 +124,7 @@ def test_the_can_unit_brings_up_the_example_machine_at_its_bit_rates():
     assert 'ip link set can1 type can bitrate 250000 restart-ms 100' in lines
     assert lines.index('ip link set can0 up') > lines.index(
         'ip link set can0 type can bitrate 500000 restart-ms 100')
-    check = subprocess.run([sys.executable, '-m', 'planter_ros.scene.machine', '--check',
+    check = subprocess.run([sys.executable, '-m', 'planter_ros.scene.machine_file', '--check',
                             str(MACHINE), '--scene', str(SCENE)], capture_output=True,
                            text=True, env=env, timeout=60)
     assert check.returncode == 0 and check.stdout.endswith(': ok\n'), check.stderr

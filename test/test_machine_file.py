@@ -1,5 +1,5 @@
-"""The machine file (scene/machine.py): read strictly like a scene, and its lever arms place each
-plant on the map where the simulated machine set it."""
+"""The machine file (scene/machine_file.py): read strictly like a scene, and its lever arms place
+each plant on the map where the simulated machine set it."""
 import math
 
 import numpy as np
@@ -9,7 +9,7 @@ from cli_helpers import REPO
 from planter_ros.geo import LocalFrame, geodesic_distance
 from planter_ros.rows import rows_from_scene
 from planter_ros.scene import load_scene
-from planter_ros.scene.machine import MachineFileError, open_machine, parse_machine
+from planter_ros.scene.machine_file import MachineFileError, open_machine, parse_machine
 from planter_ros.sensing.plant_map import MapSettings, place_plants
 from planter_ros.sensing.row_speed import motion_samples
 from planter_ros.sim.field import FieldProfile, demo_curves
@@ -167,7 +167,7 @@ def test_the_machine_file_against_the_scene_is_refused_before_any_work(tmp_path,
     data['rows']['left_outer'].update(change)
     path = tmp_path / 'machine.yaml'
     path.write_text(yaml.safe_dump(data, sort_keys=False))
-    out = subprocess.run([sys.executable, '-m', 'planter_ros.scene.machine', str(path),
+    out = subprocess.run([sys.executable, '-m', 'planter_ros.scene.machine_file', str(path),
                           '--check', '--scene', str(REPO / 'config' / 'tomato_4row.yaml')],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 2 and out.stdout == '', out.stderr

@@ -30,7 +30,7 @@ from planter_ros.drive.errors import DriveRefusedError
 from planter_ros.drive.setup import DriveSetup
 from planter_ros.drive.simulated_drive import SimulatedDrive, simulated_mechanism
 from planter_ros.rows import Row
-from planter_ros.scene.machine import (CanBus, MachineFileError, open_machine, parse_machine,
+from planter_ros.scene.machine_file import (CanBus, MachineFileError, open_machine, parse_machine,
                                        write_machine)
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits

@@ -48,7 +48,7 @@ def test_a_number_written_as_text_is_refused_naming_it(tmp_path, line, message):
 
 
 def test_a_machine_file_number_written_as_text_is_refused():
-    from planter_ros.scene.machine import MachineFileError, parse_machine
+    from planter_ros.scene.machine_file import MachineFileError, parse_machine
     text = (REPO / 'config' / 'machines' / 'tomato_4row_tractor.yaml').read_text()
     with pytest.raises(MachineFileError) as caught:
         parse_machine(text.replace('gear_ratio: 20.0', 'gear_ratio: "20"', 1), 'm.yaml')

@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     import uuid
 
     from planter_ros.scene.files import SceneError
-    from planter_ros.scene.machine import CanBus, deployment_parameters, open_machine, \
+    from planter_ros.scene.machine_file import CanBus, deployment_parameters, open_machine, \
         write_machine
 
     from .procedure import (CommissionError, Observer, SimulatedObserver, checklist,

@@ -47,7 +47,7 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     machine = None
     if options.machine:                   # its rows and drives over the scene's (demo.machine)
         from planter_ros.geo import AntennaSettings
-        from planter_ros.scene.machine import deployment_parameters, open_machine
+        from planter_ros.scene.machine_file import deployment_parameters, open_machine
 
         from .machine import machine_rows
         machine = open_machine(options.machine)

@@ -55,7 +55,7 @@ from planter_ros.drive.errors import DriveError
 from planter_ros.nodes import graph
 from planter_ros.nodes.parameters import (ParameterGroup, _plain, declare, declare_rows,
                                           refuse_undeclared)
-from planter_ros.scene.machine import MachineFileSetting, open_machine
+from planter_ros.scene.machine_file import MachineFileSetting, open_machine
 from planter_ros.rows import IMPLICIT
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits

@@ -9,6 +9,9 @@ nodes, read strictly, resolved and written here.
   antenna and acceptance limits; `load_scene` for one node's flat parameters;
 * `writer`: writing a scene (the optimiser's result);
 * `design_sources`: who may set the design: the publisher of every design a node accepts.
+* `machine_file`: the machine file (one per tractor and planter: its bus, rows, drives and lever
+  arms; doc/machine_file.md), read as strictly; `machine_setting`: the sync node's parameter
+  naming it.
 """
 
 from .files import MAX_ALIAS_NODES, MAX_SCENE_BYTES, SceneError, read_parameter_file

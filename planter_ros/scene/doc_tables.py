@@ -1,6 +1,6 @@
 """The tables in doc/ that come from the code's one declaration: the topics (interfaces.TOPICS),
 each node's parameters (scene.schema.node_specs, from the configuration classes) and the machine
-file's keys (scene.machine). A page holds a generated table as the docs hold every generated
+file's keys (scene.machine_file). A page holds a generated table as the docs hold every generated
 block, between a marker naming the command that prints it and an end marker:
 
     <!-- generated: python -m planter_ros.scene.doc_tables topics -->
@@ -101,7 +101,7 @@ def parameters_table(node: str) -> str:
 
 
 def machine_table() -> str:
-    from planter_ros.scene.machine import field_table
+    from planter_ros.scene.machine_file import field_table
     lines = ['| key | allowed | default | what |', '|---|---|---|---|']
     lines.append('| `machine` | text | `\'\'` | the machine\'s name, for people and recordings |')
     for key, spec in field_table():

@@ -1,5 +1,5 @@
 """The sync node's `machine_file` parameter, declared once (scene.schema lists it among the
-sync node's, scene.machine reads the file)."""
+sync node's, scene.machine_file reads the file)."""
 
 from dataclasses import dataclass
 

@@ -413,14 +413,14 @@ def deployment_parameters(machine_path: str | Path, scene_path: str | Path,
 
 
 def main(argv: list[str] | None = None) -> int:
-    """`python -m planter_ros.scene.machine --ip-commands FILE`: the `ip` commands that bring the
-    machine's CAN interfaces up, one a line (planter-can.service pipes them to sh);
+    """`python -m planter_ros.scene.machine_file --ip-commands FILE`: the `ip` commands that bring
+    the machine's CAN interfaces up, one a line (planter-can.service pipes them to sh);
     `--check FILE [--scene SCENE]`: the machine file checked, with a scene also the scene's
     plausibility against the machine's limits. Exit 2 with one line for a bad file."""
     import argparse
     import shlex
     import sys
-    parser = argparse.ArgumentParser(prog='python -m planter_ros.scene.machine',
+    parser = argparse.ArgumentParser(prog='python -m planter_ros.scene.machine_file',
                                      description='check a machine file; print its ip commands')
     parser.add_argument('file')
     what = parser.add_mutually_exclusive_group(required=True)
