@@ -73,7 +73,7 @@ class Demo:
                  machine=None) -> None:
         from planter_ros.geo import AntennaSettings
         self.scene, self.design, self.rows, self.options = scene, design, rows, options
-        self.machine = machine            # scene.machine.Machine of --machine, or None
+        self.machine = machine            # scene.machine_file.Machine of --machine, or None
         self._replayed = None             # the replay of the bag, once done
         self.antenna = antenna or AntennaSettings()
         self.planting = [row for row in rows if row.enabled]
