@@ -11,9 +11,14 @@ from cli_helpers import REPO
 # package joins this list in the commit that brings it to 0; the goal is all of planter_ros.
 TYPE_CHECKED = (
     'planter_ros/kinematics',
+    'planter_ros/prediction',
+    'planter_ros/config.py',
+    'planter_ros/interfaces.py',
+    'planter_ros/rows.py',
 )
 # Files inside a listed package that have not joined yet (each is being rewritten elsewhere).
 NOT_YET_TYPE_CHECKED = (
+    'planter_ros/prediction/acceptance.py',
 )
 
 
