@@ -12,13 +12,16 @@ from cli_helpers import REPO
 TYPE_CHECKED = (
     'planter_ros/kinematics',
     'planter_ros/prediction',
+    'planter_ros/recording',
     'planter_ros/config.py',
     'planter_ros/interfaces.py',
     'planter_ros/rows.py',
+    'planter_ros/diagnostics.py',
 )
 # Files inside a listed package that have not joined yet (each is being rewritten elsewhere).
 NOT_YET_TYPE_CHECKED = (
     'planter_ros/prediction/acceptance.py',
+    'planter_ros/recording/export.py',
 )
 
 
