@@ -19,6 +19,7 @@ def cpu_model():
 def machine_info():
     import mpmath
     import numpy
+    usable: int | None
     try:
         usable = len(os.sched_getaffinity(0))
     except AttributeError:

@@ -1,8 +1,10 @@
 """The bench table for people, the JSON for machines and the markdown page for the docs."""
 
+from collections.abc import Iterable
 import shlex
 
 from .machine import machine_line
+from .registry import Row
 
 # The quality targets: (quantity, target, row group that measures it, text its rows' Target
 # starts with). Group None: no bench row measures it (the command named reports it itself).
@@ -246,8 +248,8 @@ def target_status(rows, group, text):
     return f'NOT MET ({missed} of {len(found)} rows)'
 
 
-def _groups(rows):
-    out = {}
+def _groups(rows: Iterable[Row]) -> dict[str, list[Row]]:
+    out: dict[str, list[Row]] = {}
     for r in rows:
         out.setdefault(r.what, []).append(r)
     return out

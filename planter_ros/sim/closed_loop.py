@@ -14,6 +14,7 @@ row's own true travelled distance (FieldProfile.row_distance).
 
 from dataclasses import dataclass
 import math
+from typing import TypedDict
 
 import numpy as np
 
@@ -190,7 +191,7 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
     machine.set_design(spacing, plants_per_revolution, 0.0, planting, cams)
     csp = [CspDrive(feedback_period) if cam is not None else None
            for cam in (cams or [None] * len(machine.laws))]
-    positioned = [r for r, drive in enumerate(csp) if drive is not None]
+    positioned = {r: drive for r, drive in enumerate(csp) if drive is not None}
     switches = sorted(switches)
     changes = sorted(drive_changes, key=lambda c: (c[0], c[1]))
     designs = sorted(designs, key=lambda c: c[0])
@@ -219,8 +220,8 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
                                                model.speed_scale)
         sync = t >= next_feedback - 1e-12
         if sync:
-            for r in positioned:
-                csp[r].sync(t)
+            for csp_drive in positioned.values():
+                csp_drive.sync(t)
             for r, law in enumerate(machine.laws):
                 law.feedback(theta[r], omega[r], t)
             fresh = True
@@ -239,13 +240,13 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
         if fresh:
             for r, law in enumerate(machine.laws):
                 cmd[r] = law.command(t)
-            for r in positioned if sync else ():
-                csp[r].send(machine.laws[r], cmd[r], theta[r], t)
+            for r, csp_drive in positioned.items() if sync else ():
+                csp_drive.send(machine.laws[r], cmd[r], theta[r], t)
         angle[:, i], command[:, i], speed[:, i] = theta, cmd, omega
         step = (scale * cmd - omega) * np.minimum(dt / tau, 1.0)
-        for r in positioned:
+        for r, csp_drive in positioned.items():
             # a speed loop lags its command; a position loop asks for its speed at once
-            step[r] = scale[r] * csp[r].speed(theta[r], tau[r], t) - omega[r]
+            step[r] = scale[r] * csp_drive.speed(theta[r], tau[r], t) - omega[r]
         lim = amax * dt
         omega = omega + np.clip(step, -lim, lim)
         theta = theta + omega * dt
@@ -280,9 +281,9 @@ def curve_figures(run, profile, spacing, plants_per_revolution=1):
             'uncompensated_bias': -run.lateral_offset * spacing / curve.radius,
             'median_speed_ratio': float(np.median(run.speed[steady][moving] / expected[moving]))
             if moving.any() else None})
-    every = np.concatenate(every) if every else np.zeros(0)
+    joined = np.concatenate(every) if every else np.zeros(0)
     return {'lateral_offset': run.lateral_offset, 'curves': curves,
-            'rms_spacing_error': float(np.sqrt(np.mean(every ** 2))) if every.size else None}
+            'rms_spacing_error': float(np.sqrt(np.mean(joined ** 2))) if joined.size else None}
 
 
 MACHINE_ROWS = (0.75, 0.25, -0.25, -0.75)       # the 4-row scene's lateral offsets (m)
@@ -301,7 +302,14 @@ def curve_comparison(offsets=MACHINE_ROWS, spacing=0.2, cruise=0.2, duration=30.
     return out
 
 
-SCENARIOS = {
+class _Scenario(TypedDict, total=False):
+    """run_comparison's drive arguments of a scenario."""
+
+    drive: DriveModel
+    drive_change: tuple[float, DriveModel]
+
+
+SCENARIOS: dict[str, _Scenario] = {
     'nominal drive (lag 0.05 s)': dict(drive=DriveModel()),
     'drive lag 0.05 -> 0.2 s at 12 s': dict(drive_change=(12.0, DriveModel(
         time_constant=0.2, max_acceleration=15.0))),

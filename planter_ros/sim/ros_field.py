@@ -108,7 +108,7 @@ class SeedlingSensor(Node):
         self._rows = {row.joint(design.mechanism): SensedCycles(
             model, Tray(empty_rate, double_rate, np.random.default_rng([seed, row.index, 3])))
             for row in rows}
-        self.read = {joint: [] for joint in self._rows}       # joint -> [count] published
+        self.read: dict[str, list[float]] = {joint: [] for joint in self._rows}  # published
         self._pub = interfaces.SEEDLINGS.publisher(self)
         interfaces.JOINT_STATES.subscribe(self, self._on_joint)
 

@@ -47,15 +47,15 @@ class Run:
         for stamp, kind, i in events:
             sec, nsec = divmod(stamp, 1_000_000_000)
             if kind == 0:
-                msg = TwistStamped()
-                msg.header.stamp = Time(sec=sec, nanosec=nsec)
-                msg.twist.linear.x = float(self.speed_v[i])
-                yield stamp, interfaces.GROUND_SPEED, msg
+                twist = TwistStamped()
+                twist.header.stamp = Time(sec=sec, nanosec=nsec)
+                twist.twist.linear.x = float(self.speed_v[i])
+                yield stamp, interfaces.GROUND_SPEED, twist
             else:
-                msg = JointState(name=[joint], position=[float(self.joint_pos[i])],
-                                 velocity=[float(self.joint_vel[i])])
-                msg.header.stamp = Time(sec=sec, nanosec=nsec)
-                yield stamp, interfaces.JOINT_STATES, msg
+                state = JointState(name=[joint], position=[float(self.joint_pos[i])],
+                                   velocity=[float(self.joint_vel[i])])
+                state.header.stamp = Time(sec=sec, nanosec=nsec)
+                yield stamp, interfaces.JOINT_STATES, state
                 yield stamp, interfaces.SPEED_COMMAND, Float64(data=float(self.command[i]))
 
 

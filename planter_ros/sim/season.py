@@ -377,15 +377,15 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
     joint_stamp = ns(run.joint_t)
     gnss_stamp = ns(run.gnss_t)
     command_stamp = joint_stamp + 200_000             # sent after the feedback it answers
-    logs = (speed_stamp + rng.integers(200_000, 3_000_000, speed_stamp.size),
+    logs = [speed_stamp + rng.integers(200_000, 3_000_000, speed_stamp.size),
             joint_stamp + rng.integers(500_000, 2_000_000, joint_stamp.size),
             command_stamp + rng.integers(200_000, 1_000_000, joint_stamp.size),
-            gnss_stamp + rng.integers(5_000_000, 30_000_000, gnss_stamp.size))
+            gnss_stamp + rng.integers(5_000_000, 30_000_000, gnss_stamp.size)]
     seed_t = np.array([t for _, t, _ in run.seedlings], dtype=float)
     seedling_stamp = ns(seed_t)
-    logs += (seedling_stamp + rng.integers(200_000, 1_000_000, seedling_stamp.size),)
+    logs.append(seedling_stamp + rng.integers(200_000, 1_000_000, seedling_stamp.size))
     # the spacing schedule's designs, received 1 ms after the design node published them
-    logs += (ns([t for t, _ in plan.designs]) + 1_000_000,)
+    logs.append(ns([t for t, _ in plan.designs]) + 1_000_000)
     kinds = np.concatenate([np.full(a.size, k, dtype=np.int8) for k, a in enumerate(logs)])
     index = np.concatenate([np.arange(a.size) for a in logs])
     log = np.concatenate(logs)
@@ -424,23 +424,23 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
         kind, i, now = int(kinds[k]), int(index[k]), int(log[k])
         clock[0] = now * 1e-9
         if kind == 0:
-            msg = TwistStamped()
-            msg.header.stamp = stamp(speed_stamp[i])
-            msg.twist.linear.x = speed_v[i]
-            msg.twist.angular.z = speed_w[i]
-            rec.write_message(names[interfaces.GROUND_SPEED], msg, now, int(speed_stamp[i]))
+            twist = TwistStamped()
+            twist.header.stamp = stamp(speed_stamp[i])
+            twist.twist.linear.x = speed_v[i]
+            twist.twist.angular.z = speed_w[i]
+            rec.write_message(names[interfaces.GROUND_SPEED], twist, now, int(speed_stamp[i]))
             publish(monitor.speed(int(speed_stamp[i]) * 1e-9, speed_v[i], speed_w[i]), now)
         elif kind == 1:
-            msg = JointState(name=joints, position=positions[i], velocity=velocities[i])
-            msg.header.stamp = stamp(joint_stamp[i])
-            rec.write_message(names[interfaces.JOINT_STATES], msg, now, int(joint_stamp[i]))
+            state = JointState(name=joints, position=positions[i], velocity=velocities[i])
+            state.header.stamp = stamp(joint_stamp[i])
+            rec.write_message(names[interfaces.JOINT_STATES], state, now, int(joint_stamp[i]))
             publish(monitor.joints(int(joint_stamp[i]) * 1e-9, joints, positions[i],
                                    velocities[i]), now)
         elif kind == 2:
             if named:
-                msg = JointState(name=joints, velocity=commands[i])
-                msg.header.stamp = stamp(command_stamp[i])
-                rec.write_message(names[interfaces.SPEED_COMMANDS], msg, now,
+                state = JointState(name=joints, velocity=commands[i])
+                state.header.stamp = stamp(command_stamp[i])
+                rec.write_message(names[interfaces.SPEED_COMMANDS], state, now,
                                   int(command_stamp[i]))
             else:
                 rec.write_message(names[interfaces.SPEED_COMMAND], Float64(data=commands[i][0]),
@@ -451,10 +451,10 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
             monitor.set_design(now * 1e-9, changed)
         elif kind == 4:
             r, _, count = run.seedlings[i]
-            msg = JointState(name=[joints[r]], position=[float(count)])
-            msg.header.stamp = stamp(seedling_stamp[i])
-            rec.write_message(names[interfaces.SEEDLINGS], msg, now, int(seedling_stamp[i]))
-            monitor.seedlings(int(seedling_stamp[i]) * 1e-9, msg.name, msg.position)
+            state = JointState(name=[joints[r]], position=[float(count)])
+            state.header.stamp = stamp(seedling_stamp[i])
+            rec.write_message(names[interfaces.SEEDLINGS], state, now, int(seedling_stamp[i]))
+            monitor.seedlings(int(seedling_stamp[i]) * 1e-9, state.name, state.position)
         else:
             msg = navsatfix(stamp(gnss_stamp[i]), lat[i], lon[i], alt[i], plan.gnss.noise)
             rec.write_message(names[interfaces.GNSS_FIX], msg, now, int(gnss_stamp[i]))

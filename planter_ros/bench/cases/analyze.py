@@ -109,7 +109,7 @@ def _replay_error(bag, out):
 
     from planter_ros.analysis.tables import plant_dicts
     from planter_ros.recording.replay import replay
-    expected = replay(str(bag)).as_json()['plants']
+    expected = replay(str(bag)).plants.rows()         # as replay --json gives them
     table = ds.dataset(out / 'plants').to_table(filter=ds.field('bag') == Path(bag).name)
     got = plant_dicts(table)
     if len(got) != len(expected):
@@ -122,8 +122,9 @@ def _replay_error(bag, out):
         for key in a:
             if (a[key] is None) != (b[key] is None):
                 raise RuntimeError(f'{bag}: {key} null in one and not the other')
-            if a[key] is not None:
-                worst = max(worst, abs(a[key] - b[key]) if math.isfinite(b[key]) else 0.0)
+            mine, theirs = a[key], b[key]
+            if mine is not None and theirs is not None:
+                worst = max(worst, abs(mine - theirs) if math.isfinite(theirs) else 0.0)
     return worst
 
 
@@ -136,8 +137,8 @@ def season_analysis(ctx):
     count, runs = ctx.n(200, 8), ctx.n(20, 4)
     duration = ctx.n(60.0, 10.0)
     repeats = ctx.n(3, 1)
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory() as name:
+        tmp = Path(name)
         made, season_dir = tmp / 'runs', tmp / 'season'
         made.mkdir()
         season_dir.mkdir()
@@ -278,8 +279,8 @@ def injected_losses(ctx):
     from planter_ros.analysis.tables import plant_columns
     from planter_ros.recording.replay import replay
     count, duration = ctx.n(200, 6), ctx.n(15.0, 12.0)
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory() as name:
+        tmp = Path(name)
         season_dir = tmp / 'season'
         season_dir.mkdir()
         ctx.progress(f'  simulating {count} runs of {duration:.0f} s with a tray of '

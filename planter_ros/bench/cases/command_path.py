@@ -89,8 +89,9 @@ def stall_run(command_process, joins, progress=lambda text: None):
     from planter_ros.sim.runs import five_bar_design_message
 
     domain = claim_private_domain()
-    rows = {'rows': ['r1', 'r2', 'r3', 'r4']}
-    for i, name in enumerate(rows['rows']):
+    names = ['r1', 'r2', 'r3', 'r4']
+    rows: dict[str, object] = {'rows': names}
+    for i, name in enumerate(names):
         rows[f'{name}.lateral_offset'] = 0.75 - 0.5 * i
         rows[f'{name}.drive_node_id'] = i + 1
     channel = f'planter-bench-stall-{uuid.uuid4().hex[:8]}'

@@ -194,7 +194,7 @@ def run_figures(result, bag):
         for row, summary in zip(replayed.rows, replayed.row_summaries):
             mean, sigma = summary['spacing_error_mean'], summary['spacing_error_std']
             if row.enabled:
-                rows[row.label] = (math.nan if mean is None else
+                rows[row.label] = (math.nan if mean is None or sigma is None else
                                    math.hypot(mean, sigma) / summary['design_spacing'])
     sync = (PeriodStats.from_histogram(report['sync_histogram'])
             if report.get('sync_histogram') else PeriodStats())

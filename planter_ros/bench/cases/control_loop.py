@@ -48,6 +48,8 @@ def loaded_runs(runs, duration, progress=lambda text: None):
                 for hog in hogs:
                     hog.kill()
                     hog.wait()
+            if demo.result is None:          # run() returns with its result made
+                raise RuntimeError('the demo run gave no result')
             verdict = demo.result.verdict
             loop = (demo.result.report or {}).get('loop', {})
             progress(f'  run {k + 1}/{runs}: {"PASS" if verdict.passed else "FAIL"}, '

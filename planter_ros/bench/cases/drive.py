@@ -51,7 +51,8 @@ def _drive_pair():
 
 def drive_session(samples, fresh):
     """Per-event seconds of every drive figure: {'first_enable': [...], 'sdo': [...], ...}."""
-    f = {k: [] for k in ('first_enable', 'enable', 'sdo', 'tpdo', 'rpdo', 'send', 'send_alone')}
+    f: dict[str, list[float]] = {k: [] for k in ('first_enable', 'enable', 'sdo', 'tpdo',
+                                                  'rpdo', 'send', 'send_alone')}
     for _ in range(fresh):
         with _drive_pair() as (_, drive):
             t0 = time.perf_counter()
@@ -74,7 +75,7 @@ def drive_session(samples, fresh):
         # TPDO latency: drive-side send stamp (virtual bus: time.time()) -> master callback
         node.tpdo[2].add_callback(lambda m: f['tpdo'].append(time.time() - m.timestamp))
         # command latency: send_velocity() call -> the simulated drive decoded the RPDO
-        sent = {'t': None}
+        sent: dict[str, float | None] = {'t': None}
 
         def decoded(_pdo_map):
             if sent['t'] is not None:

@@ -69,7 +69,8 @@ def five_bar_design(ctx):
                             repeats=5 if n >= 100_000 else None)
             out = design_five_bar(D, d, kk, method)
             m = min(n, n_ref)
-            hole_err, len_err = _design_errors(out.l1[:m], out.l2[:m], depth, spacing, k,
+            hole_err, len_err = _design_errors(np.asarray(out.l1)[:m], np.asarray(out.l2)[:m],
+                                               depth, spacing, k,
                                                refs[:m])
             yield _design_row(method, 'batched', n, t, hole_err, len_err, m)
 
@@ -99,7 +100,7 @@ def hole_by_sampling(l1, l2, depth, advance, samples):
     one step)."""
     from planter_ros.kinematics.five_bar import soil_trajectory
     theta = np.linspace(0.0, 2.0 * math.pi, samples)
-    x, y = soil_trajectory(l1, l2, theta, advance)
+    x, y = (np.asarray(v) for v in soil_trajectory(l1, l2, theta, advance))
     below = x[y <= depth]
     return float(below.max() - below.min()) if below.size > 1 else 0.0
 
@@ -160,9 +161,10 @@ def hole_width(ctx):
         adv = (batch.l2 - batch.l1) / rng.uniform(0.5, 2.0, n)
         t = ctx.measure(lambda: hole_geometry(batch.l1, batch.l2, D, adv),
                         repeats=5 if n >= 100_000 else None)
-        widths = hole_geometry(batch.l1, batch.l2, D, adv).width
+        widths = np.asarray(hole_geometry(batch.l1, batch.l2, D, adv).width)
         m = min(n, n_ref)
-        err = max(rel_error(widths[i], hole_reference(batch.l1[i], batch.l2[i], D[i],
+        bars = np.asarray(batch.l1), np.asarray(batch.l2)
+        err = max(rel_error(widths[i], hole_reference(bars[0][i], bars[1][i], D[i],
                                                       adv[i])[1]) for i in range(m))
         yield Row('hole width', 'closed form (hole_geometry), batched', n, 'hole', t,
                   error=err, error_of=WIDTH_ERROR_OF,
@@ -221,7 +223,7 @@ def trajectory(ctx):
     from ..reference import chain_reference, soil_point_reference
 
     design = design_five_bar(*TOMATO)
-    l1, l2, adv = design.l1, design.l2, design.advance
+    l1, l2, adv = float(design.l1), float(design.l2), design.advance    # one design: floats
     total = l1 + l2
     rng = np.random.default_rng(ctx.seed + 2)
     n_ref = ctx.n(200, 10)
@@ -230,7 +232,7 @@ def trajectory(ctx):
         theta = np.sort(rng.uniform(0.0, 6.0 * math.pi, n))
         t = ctx.measure(lambda: soil_trajectory(l1, l2, theta, adv),
                         repeats=5 if n >= 100_000 else None)
-        x, y = soil_trajectory(l1, l2, theta, adv)
+        x, y = (np.asarray(v) for v in soil_trajectory(l1, l2, theta, adv))
         idx = rng.choice(n, min(n, n_ref), replace=False)
         err = 0.0
         for i in idx:
@@ -250,8 +252,8 @@ def trajectory(ctx):
         rp, rv, ra = chain_reference(alpha[i], omega, l1, l2, -2.0, 0.5 * math.pi, 0.0)
         for got, ref, scale in ((pos, rp, total), (vel, rv, total * omega),
                                 (acc, ra, total * omega ** 2)):
-            err = max(err, float(abs(got[0][i] - ref[0]) / scale),
-                      float(abs(got[1][i] - ref[1]) / scale))
+            err = max(err, float(abs(np.asarray(got[0])[i] - ref[0]) / scale),
+                      float(abs(np.asarray(got[1])[i] - ref[1]) / scale))
     yield Row('trajectory evaluation', 'chain_kinematics (pos, vel, acc)', n, 'point', t,
               error=err, error_of='max error / (l1+l2)·ω^j (j = 0, 1, 2) vs mpmath',
               note='paper formula 3, ω1 = 2π rad/s')

@@ -57,8 +57,10 @@ def _damaged_row(ctx, run, tmp, whole):
     path, damaged = tmp / 'chunked.mcap', tmp / 'damaged.mcap'
     bag_messages = write_input_bag(run, path, chunk_size=64_000).message_count
     with open(path, 'rb') as f:
-        chunks = sorted(make_reader(f).get_summary().chunk_indexes,
-                        key=lambda c: c.chunk_start_offset)
+        summary = make_reader(f).get_summary()
+    if summary is None:                      # the bag was just written and closed
+        raise RuntimeError(f'{path} has no summary')
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
     data = bytearray(path.read_bytes())
     hit = chunks[len(chunks) // 2]
     middle = hit.chunk_start_offset + hit.chunk_length // 2

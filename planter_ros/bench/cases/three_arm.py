@@ -42,7 +42,7 @@ def three_arm_closure(ctx):
     with mpmath.workdps(30):
         a_ref = mpmath.findroot(lambda a: _mpmath_mean_ratio(curve, a) - 1,
                                 solve_centre_distance(curve).a)
-        methods = [('gauss', {}), ('paper', {})]
+        methods: list[tuple[str, dict[str, int]]] = [('gauss', {}), ('paper', {})]
         methods += [('trapezoid', {'samples': n}) for n in ctx.n((90, 360, 1024, 4096), (360,))]
         for method, kw in methods:
             t = ctx.measure(lambda: solve_centre_distance(curve, method, **kw))
@@ -79,7 +79,7 @@ def three_arm_cycle(ctx):
         end = np.array([mech.tip(2 * math.pi, arm) for arm in range(3)])
         per_arm = np.array([mech.tip(theta, arm) for arm in range(3)])
         err = max(float(np.max(np.abs(end - start))),
-                  float(np.max(np.abs(per_arm - tips)))) / mech.arm_length
+                  float(np.max(np.abs(per_arm - tips)))) / float(mech.arm_length)
         yield Row('three-arm cycle (3 arms)', f'{samples} angles per arm', 1, 'cycle', t,
                   error=err, error_of='max |tip(2π) − tip(0)| and |cycle − per-arm tip| over '
                   'the arm length S',
@@ -135,7 +135,7 @@ def three_arm_optimiser(ctx):
                          f'{workers} ...')
             _, goals, info = optimize(params, seed=OPTIMISER_SEED, max_time=120,
                                       workers=workers)
-            met = sum(g.passed for g in goals) == len(goals) and \
+            met = goals is not None and sum(g.passed for g in goals) == len(goals) and \
                 info['seconds'] <= OPTIMISER_TARGET
             # the target is the command's default, both cores
             targets = [Target('≤ 15 s', met)] if workers == 2 else []

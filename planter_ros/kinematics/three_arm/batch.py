@@ -286,8 +286,8 @@ class MechanismBatch(ThreeArmMechanism):
         self.pusher_offset = col['h'][:, None]
         self.gamma0 = col['gamma0'][:, None]
         self.delta = np.arcsin(self.pusher_offset / self.arm_length)
-        self.train = BatchGearTrain(curve)
-        self.a = self.train.a[:, None]
+        self.train = train = BatchGearTrain(curve)
+        self.a = train.a[:, None]
         self._c = math.pi - self.gamma0
         self._w0 = [self.train.theta(self.train.psi(-k * ARM_PHASE) + self._c)
                     for k in range(ARMS)]

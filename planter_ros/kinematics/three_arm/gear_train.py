@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -53,8 +53,6 @@ from .pitch_curve import (
 
 if TYPE_CHECKING:
     from scipy.interpolate import PPoly
-
-    from .batch import BatchGearTrain
 
 ARMS = 3
 ARM_PHASE = TWO_PI / ARMS
@@ -110,6 +108,44 @@ class GearTrain:
         return self.psi(u), self.a - self.curve(u)
 
 
+class PitchCurves(Protocol):
+    """What the goals read of the sun's pitch curve: one design's (PitchCurve) or a batch's
+    (batch.BatchCurve, arrays of the batch's shape)."""
+
+    @property
+    def pieces(self) -> FloatArray: ...
+    @property
+    def interpolant(self) -> str: ...
+    @property
+    def rho_min(self) -> Floats: ...
+    @property
+    def rho_max(self) -> Floats: ...
+    def __call__(self, theta: FloatArray, nu: int = 0, /) -> FloatArray: ...
+    def length(self) -> Floats: ...
+
+
+class ClosureFigures(Protocol):
+    """How well the pair closes (pitch_curve.Closure, or a batch's)."""
+
+    @property
+    def residual(self) -> Floats: ...
+    @property
+    def method(self) -> str: ...
+
+
+class MeshMaps(Protocol):
+    """A gear train as the mechanism uses it: GearTrain, or batch.BatchGearTrain."""
+
+    @property
+    def a(self) -> Floats: ...
+    @property
+    def curve(self) -> PitchCurves: ...
+    @property
+    def closure(self) -> ClosureFigures: ...
+    def psi(self, u: ArrayLike, nu: int = 0) -> FloatArray: ...
+    def theta(self, p: ArrayLike, nu: int = 0) -> FloatArray: ...
+
+
 class ThreeArmMechanism:
     """A built three-arm mechanism: gear train plus installation parameters (SI units).
 
@@ -130,7 +166,7 @@ class ThreeArmMechanism:
     gamma0: Floats
     delta: Floats
     a: Floats
-    train: GearTrain | BatchGearTrain
+    train: MeshMaps
     _c: Floats
     _w0: list[Floats]
 
