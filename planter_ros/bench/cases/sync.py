@@ -217,20 +217,25 @@ def sync_latency_rows(ctx):
 
 @bench_case('closed loop through curves', requires=('planter_ros.control.machine',))
 def closed_loop_curves(ctx):
-    from planter_ros.sim.closed_loop import curve_comparison
-    result = {}
+    from planter_ros.sim.closed_loop import RowCurveFigures, curve_comparison
+    result: dict[str, list[RowCurveFigures]] = {}
     t = ctx.measure(lambda: result.update(curve_comparison(dt=ctx.n(0.001, 0.002))),
                     repeats=1, min_time=0.0)
     d = 0.2
+
+    def known(value: float | None) -> float:
+        if value is None:
+            raise RuntimeError('a curve of the run has no plants: it has no figures')
+        return value
     for mode in ('compensated', 'uncompensated'):
         for row in result[mode]:
-            worst = max(c['rms_spacing_error'] for c in row['curves'])
-            ratios = [c['median_speed_ratio'] for c in row['curves']]
+            worst = max(known(c['rms_spacing_error']) for c in row['curves'])
+            ratios = [known(c['median_speed_ratio']) for c in row['curves']]
             detail = '; '.join(
-                f"R {c['radius']:+g} m: RMS {c['rms_spacing_error'] * 1e3:.2f} mm, mean "
-                f"{c['mean_spacing_error'] * 1e3:+.2f} mm (−y·d/R "
+                f"R {c['radius']:+g} m: RMS {known(c['rms_spacing_error']) * 1e3:.2f} mm, mean "
+                f"{known(c['mean_spacing_error']) * 1e3:+.2f} mm (−y·d/R "
                 f"{c['uncompensated_bias'] * 1e3:+.1f} mm), speed ratio "
-                f"{c['median_speed_ratio']:.3f}" for c in row['curves'])
+                f"{known(c['median_speed_ratio']):.3f}" for c in row['curves'])
             targets = []
             if mode == 'compensated':
                 targets = [Target('RMS ≤ 2 % of d', worst <= 0.02 * d),
