@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from typing import TypeVar
 import importlib
 import importlib.util
 import sys
@@ -27,6 +28,8 @@ import traceback
 from planter_ros.config import setting
 
 from .timing import Timing, measure
+
+_T = TypeVar('_T')
 
 # modules whose import registers cases, in table order
 CASE_MODULES = (
@@ -131,7 +134,7 @@ class BenchContext:
     runs: int | None = setting(None, 'how many runs a case of whole runs makes (default: its '
                                "own, e.g. the issue's 10 demo runs)", kind=int, range=(1, 1000))
 
-    def n(self, full: int, quick: int) -> int:
+    def n(self, full: _T, quick: _T) -> _T:
         """The size to use: `full` for a real run, `quick` for the CI smoke run."""
         return quick if self.quick else full
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 from functools import lru_cache
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -349,11 +349,23 @@ def tray_readings(plan: RunPlan, design: Design,
     return tuple(sorted(out, key=lambda x: (x[1], x[0])))
 
 
+class BagSummary(TypedDict):
+    """What write_monitor_bag wrote (SI): the plan's events with the tray's counts."""
+
+    bag: str
+    run: int
+    duration: float
+    rows: int
+    messages: int
+    plants: int
+    events: dict[str, Any]           # RunPlan.events() (JSON-ready) + empty_cells, double_cells
+
+
 def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None = None,
                       settings: PredictionSettings | None = None,
                       acceptance: AcceptanceLimits | None = None,
                       antenna: AntennaSettings | None = None,
-                      **recorder_options: Any) -> dict[str, object]:
+                      **recorder_options: Any) -> BagSummary:
     """Record `run` (a MachineRun) at `path` as monitor_node would have (see the module doc);
     `settings`, `acceptance` and `antenna` the monitor's (a scene's; default the defaults);
     `recorder_options` (split_size, split_duration) as the monitor's parameters. Every message
@@ -510,7 +522,7 @@ class SceneMachine:
 
 def simulate_bag(path: str | Path, seed: int, index: int, duration: float, rows: int,
                  machine: SceneMachine | None = None, empty_rate: float = 0.0,
-                 double_rate: float = 0.0) -> dict[str, object]:
+                 double_rate: float = 0.0) -> BagSummary:
     """Draw run `index` of the season of `seed`, simulate it and record it at `path` (a task
     of `planter simulate`): a machine of `rows` rows with the season's design, or `machine` (a
     SceneMachine: a scene's design, rows, monitor settings, limits and antenna), its tray with
