@@ -5,7 +5,13 @@ refused (PyYAML would keep the last silently). A plain number with an exponent (
 text), so a quoted `"0.3"` is the only text that looks like a number. Used for scene files
 and a bag's metadata. PyYAML is imported only when a text is read."""
 
-from typing import Any
+from __future__ import annotations
+
+from collections.abc import Hashable
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import yaml
 
 __all__ = ['MAX_ALIAS_NODES', 'YamlError', 'load_yaml']
 
@@ -35,10 +41,10 @@ class _Refused(ValueError):
     pass
 
 
-_LOADER = None
+_LOADER: type[yaml.SafeLoader] | None = None
 
 
-def _bounded_loader():
+def _bounded_loader() -> type[yaml.SafeLoader]:
     """yaml.SafeLoader counting the nodes every alias use expands to (made once, on first use)."""
     global _LOADER
     if _LOADER is not None:
@@ -48,11 +54,15 @@ def _bounded_loader():
     import re
 
     class BoundedLoader(yaml.SafeLoader):
-        def compose_document(self):
+        _open_anchors: set[str]
+        _sizes: dict[int, int]
+        _expanded: int
+
+        def compose_document(self) -> yaml.Node | None:
             self._open_anchors, self._sizes, self._expanded = set(), {}, 0
             return super().compose_document()
 
-        def compose_node(self, parent, index):
+        def compose_node(self, parent: yaml.Node | None, index: int) -> yaml.Node | None:
             event = self.peek_event()
             anchor = event.anchor
             if isinstance(event, yaml.AliasEvent):
@@ -73,8 +83,9 @@ def _bounded_loader():
             finally:
                 self._open_anchors.discard(anchor)
 
-        def construct_mapping(self, node, deep=False):
-            seen = set()
+        def construct_mapping(self, node: yaml.MappingNode,
+                              deep: bool = False) -> dict[Hashable, Any]:
+            seen: set[str] = set()
             for key, _ in node.value:
                 if isinstance(key, yaml.ScalarNode) and key.tag != 'tag:yaml.org,2002:merge':
                     if key.value in seen:
@@ -84,7 +95,7 @@ def _bounded_loader():
             return super().construct_mapping(node, deep=deep)
 
 
-        def _size(self, node):
+        def _size(self, node: yaml.Node) -> int:
             """Nodes `node` stands for once every alias inside it is expanded (memoised)."""
             known = self._sizes.get(id(node))
             if known is not None:

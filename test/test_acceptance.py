@@ -169,3 +169,13 @@ def test_a_demo_under_strict_limits_fails_naming_the_index(tmp_path):
     assert judged['limits']['max_precision'] == 0.0001
     assert 'max_precision' in {f['index'] for f in judged['failed']}
     assert Path(bag).is_file()
+
+
+def test_the_season_maps_mark_misses_and_multiples_by_the_indices_own_limits():
+    """The season report's maps ring a spacing as a miss or a multiple exactly where the ISO
+    7256-1 indices count it: a spacing of exactly 1.5 d or just above 0.5 d is a single
+    (binary fractions of d = 0.25 m: 0.375 / 0.25 and 0.125 / 0.25 are exact)."""
+    from planter_ros.plots.season import _miss_or_multiple
+    ratio = np.array([0.125, np.nextafter(0.125, 1.0), 0.375, np.nextafter(0.375, 1.0),
+                      np.nan]) / 0.25
+    assert _miss_or_multiple(ratio).tolist() == [True, False, False, True, False]

@@ -44,7 +44,7 @@ class DesignInputs:
                                 'k = t/D; feasible while k·D < d and l1 > 0', range=(1e-4, 2.0))
     design_method: str = setting('exact', "five-bar reverse design: exact, or paper (the "
                                  "paper's cube-root approximation)", choices=('exact', 'paper'))
-    dyad_ratios: list = setting([1.4, 1.5, 1.3], 'five-bar passive dyad l3, l4, l5 over '
+    dyad_ratios: list[float] = setting([1.4, 1.5, 1.3], 'five-bar passive dyad l3, l4, l5 over '
                                 '(l1 + l2)', range=(0.01, 100.0))
     nominal_ground_speed: float = setting(0.2, 'nominal ground speed v: the reported mechanism '
                                           'speed is 2πv/(n·d)', unit='m/s', range=(0.01, 3.0))
@@ -60,7 +60,7 @@ class DesignInputs:
                                     '(its l1, l2); 0: plant_spacing. With speed_profile: cam the '
                                     'sync node plants plant_spacing with this mechanism '
                                     '(doc/cam.md)', unit='m', range=(0.0, 2.0))
-    spacing_schedule: list = setting([], '`planter demo` and `planter simulate` only: [t1, '
+    spacing_schedule: list[float] = setting([], '`planter demo` and `planter simulate` only: [t1, '
                                      'd1, t2, d2, ...], plant_spacing becomes d_i at t_i s of '
                                      'the field run (a spacing changed at run time); the nodes '
                                      'ignore it',
@@ -79,11 +79,11 @@ class ThreeArmInputs:
     """A three-arm mechanism's inputs (the paper's parameters, SI). The seven model values have
     no default: a scene that lacks one is refused, naming it."""
 
-    control_radii: list = setting(kind=list, description='pitch-curve control radii r_i',
-                                  unit='m', range=(1e-4, 1.0))
-    control_angles: list = setting(kind=list, description='pitch-curve control angles θ_i, in '
-                                   "the carrier's sense of rotation", unit='rad',
-                                   range=(-2 * math.pi, 4 * math.pi))
+    control_radii: list[float] = setting(kind=list, description='pitch-curve control radii '
+                                         'r_i', unit='m', range=(1e-4, 1.0))
+    control_angles: list[float] = setting(kind=list, description='pitch-curve control angles '
+                                          "θ_i, in the carrier's sense of rotation", unit='rad',
+                                          range=(-2 * math.pi, 4 * math.pi))
     carrier_initial_angle: float = setting(kind=float, description='carrier initial angle Φ0',
                                            unit='rad', range=(-2 * math.pi, 2 * math.pi))
     arm_initial_angle: float = setting(kind=float, description='planting arm initial angle β0',

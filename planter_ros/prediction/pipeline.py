@@ -35,15 +35,32 @@ from planter_ros.rows import Row
 from planter_ros.sensing.plant_map import MapSettings, Placement, PlantPlacer
 from planter_ros.sensing.row_speed import RowSpeedStream
 
-from .model import Planting, PlantPredictor, PredictionSettings, planting_model_from_design
+from planter_ros.kinematics.planting import Planting
+
+from .model import PlantPredictor, PredictionSettings, planting_model_from_design
 from .plants import Plants
-from .quality import SpacingQuality
+from .quality import QualityIndices, SpacingQuality
 from .sections import SectionBreaks
 from .seedlings import SeedlingAccount, design_spacing_of, seedling_spacings
 
 __all__ = ['MACHINE', 'MonitorPipeline', 'Placed', 'joint_index']
 
 MACHINE = -1           # the `row` of the whole machine's indices (spacing_quality's first line)
+
+
+# ((row index, its spacing-quality indices), ...): the machine's (row MACHINE) first
+SpacingQualities = tuple[tuple[int, QualityIndices], ...]
+
+
+@dataclass
+class _Predicting:
+    """What a design starts for the planting rows (a new sequence): its planting model, each
+    row's joint name and predictor, and the rows' ground speeds."""
+
+    model: Planting
+    joints: list[str]
+    predictors: list[PlantPredictor]
+    speeds: RowSpeedStream
 
 
 @dataclass(frozen=True)
@@ -53,7 +70,7 @@ class Placed:
     plants: Plants
     placement: Placement
     upright_rate: float            # the machine's rolling upright rate after them (NaN: none)
-    quality: tuple                 # ((row, indices), ...): MonitorPipeline.spacing_quality()
+    quality: SpacingQualities      # MonitorPipeline.spacing_quality()
 
 
 def joint_index(names: Sequence[str], positions: Sequence[float], name: str) -> int | None:
@@ -84,12 +101,9 @@ class MonitorPipeline:
         self._seedlings = SeedlingAccount({row.index: row.seedling_sensor for row in self.rows})
         self._quality = {row.index: SpacingQuality() for row in self.planting}
         self._machine_quality = SpacingQuality()
-        self.model: Planting | None = None       # the design in force (its planting model)
-        self.mechanism: str | None = None
-        self._joints: list[str] = []              # each planting row's joint name
-        self._predictors: list[PlantPredictor] | None = None
-        self._speeds: RowSpeedStream | None = None
-        self._recent: deque = deque()
+        self.mechanism: str | None = None        # the mechanism of the design in force
+        self._on: _Predicting | None = None      # from the first design on
+        self._recent: deque[float] = deque()
         self.plants = 0                           # plants released so far
         self.row_plants = {row.index: 0 for row in self.planting}
         self.last: Plants | None = None           # the last batch released
@@ -101,18 +115,23 @@ class MonitorPipeline:
                            {row.index: row.lateral_offset for row in self.rows},
                            {row.index: row.longitudinal_offset for row in self.rows})
 
-    def _start_predictors(self) -> None:
+    def _start_predictors(self, model: Planting, joints: list[str]) -> _Predicting:
         """Fresh predictors (and row speeds) for every planting row: a new sequence."""
-        assert self.model is not None
-        self._predictors = [PlantPredictor(self.model, self.settings, row=row.index,
-                                           speed_filter=False) for row in self.planting]
-        self._speeds = RowSpeedStream([row.lateral_offset for row in self.planting],
-                                      self.settings.speed_limits, yaw=True)
+        predictors = [PlantPredictor(model, self.settings, row=row.index, speed_filter=False)
+                      for row in self.planting]
+        speeds = RowSpeedStream([row.lateral_offset for row in self.planting],
+                                self.settings.speed_limits, yaw=True)
         self._recent = deque(maxlen=self.settings.window)
+        return _Predicting(model, joints, predictors, speeds)
+
+    @property
+    def model(self) -> Planting | None:
+        """The design in force (its planting model); None before the first."""
+        return None if self._on is None else self._on.model
 
     @property
     def has_design(self) -> bool:
-        return self.model is not None
+        return self._on is not None
 
     def set_design(self, t: float, design: Design) -> bool:
         """A design arrived at `t` (s). The first one, or one of another mechanism, starts a new
@@ -121,21 +140,21 @@ class MonitorPipeline:
         changed) for a design the model cannot use."""
         model = planting_model_from_design(design)
         mechanism = design.mechanism
-        self.model = model
-        if self._predictors is None or mechanism != self.mechanism:
+        if self._on is None or mechanism != self.mechanism:
             self.mechanism = mechanism
-            self._joints = [row.joint(mechanism) for row in self.planting]
-            self._start_predictors()
+            self._on = self._start_predictors(model, [row.joint(mechanism)
+                                                      for row in self.planting])
             return True
-        for predictor in self._predictors:
+        self._on.model = model
+        for predictor in self._on.predictors:
             predictor.change_model(model, t)
         return False
 
     def set_settings(self, settings: PredictionSettings) -> None:
         """New prediction settings: a new sequence starts (once there is a design)."""
         self.settings = settings
-        if self.model is not None:
-            self._start_predictors()
+        if self._on is not None:
+            self._on = self._start_predictors(self._on.model, self._on.joints)
 
     def set_map(self, settings: MapSettings) -> list[Placed]:
         """A new map from here on: the plants held so far are released placed by the old one."""
@@ -146,30 +165,32 @@ class MonitorPipeline:
     # -- inputs --------------------------------------------------------------------------
     def speed(self, t: float, v: float, yaw_rate: float) -> list[Placed]:
         """A ground-speed sample stamped `t`: v (m/s), ω_z (rad/s)."""
-        if self._predictors is None or self._speeds is None:
+        on = self._on
+        if on is None:
             return []
-        motion = self._speeds.motion(t, v, yaw_rate)
+        motion = on.speeds.motion(t, v, yaw_rate)
         if motion is None:
             return []
         t, v, w = motion
         out = self._released(self._placer.add_motion(t, v, w))
-        for predictor, speed in zip(self._predictors, self._speeds.speeds(v, w).tolist()):
-            out += self._predicted(predictor.add_speed(t, speed))
+        for predictor, speed in zip(on.predictors, on.speeds.speeds(v, w).tolist()):
+            out += self._predicted(on, predictor.add_speed(t, speed))
         return out
 
     def joints(self, t: float, names: Sequence[str], positions: Sequence[float],
                velocities: Sequence[float] = ()) -> list[Placed]:
         """A joint-state sample stamped `t`: each planting row's joint found by name (rad,
         rad/s; a velocity missing is NaN)."""
-        if self._predictors is None:
+        on = self._on
+        if on is None:
             return []
-        out = []
-        for predictor, name in zip(self._predictors, self._joints):
+        out: list[Placed] = []
+        for predictor, name in zip(on.predictors, on.joints):
             i = joint_index(names, positions, name)
             if i is None:
                 continue
             velocity = velocities[i] if len(velocities) > i else math.nan
-            out += self._predicted(predictor.add_joint(t, positions[i], velocity))
+            out += self._predicted(on, predictor.add_joint(t, positions[i], velocity))
         return out
 
     def fix(self, t: float, status: int, latitude: float, longitude: float, cov_east: float,
@@ -182,9 +203,9 @@ class MonitorPipeline:
         """The rows' section states {row name: on} at `t`: a row switched off and on again
         starts a new sequence (its next plant has no spacing)."""
         ended = {row: (start, end) for row, start, end in self._sections.update(t, states)}
-        if not ended or self._predictors is None:
+        if not ended or self._on is None:
             return
-        for predictor, row in zip(self._predictors, self.planting):
+        for predictor, row in zip(self._on.predictors, self.planting):
             if row.name in ended:
                 predictor.add_break(*ended[row.name])
 
@@ -193,11 +214,11 @@ class MonitorPipeline:
         for the row's next planting instant (prediction.seedlings). False when the reading is
         skipped because it names no row on a machine of several rows: it belongs to none of
         them for sure and is not credited to every row (replay skips it the same way)."""
-        if self.mechanism is None:
+        if self._on is None:
             return True
         if not names and len(self.planting) > 1:
             return False
-        for row, name in zip(self.planting, self._joints):
+        for row, name in zip(self.planting, self._on.joints):
             i = joint_index(names, counts, name)
             if i is not None:
                 self._seedlings.add_reading(row.index, t, counts[i])
@@ -206,36 +227,40 @@ class MonitorPipeline:
     def finish(self) -> list[Placed]:
         """The inputs ended: the plants whose arcs were still open, then every plant still held
         for fixes, placed with the fixes there are."""
-        out = []
-        for predictor in self._predictors or ():
-            out += self._predicted(predictor.finish())
+        out: list[Placed] = []
+        if self._on is not None:
+            for predictor in self._on.predictors:
+                out += self._predicted(self._on, predictor.finish())
         return out + self._released(self._placer.flush())
 
     # -- outputs -------------------------------------------------------------------------
-    def spacing_quality(self) -> tuple:
+    def spacing_quality(self) -> SpacingQualities:
         """((MACHINE, the machine's indices), then (row index, indices) of every planting
         row): the machine first, so a viewer finds it at the same place whatever the rows."""
         return ((MACHINE, self._machine_quality.result()),) + tuple(
             (row.index, self._quality[row.index].result()) for row in self.planting)
 
-    def _predicted(self, plants: Plants) -> list[Placed]:
+    def _predicted(self, on: _Predicting, plants: Plants) -> list[Placed]:
         """Plants just predicted: their seedlings and status, then to the map."""
         if not len(plants):
             return []
-        assert self.model is not None
-        plants = self._seedlings.apply(plants, design_spacing_of(plants, self.model.spacing))
+        plants = self._seedlings.apply(plants, design_spacing_of(plants, on.model.spacing))
         return self._released(self._placer.add_plants(plants))
 
     def _released(self, placed: list[tuple[Plants, Placement]]) -> list[Placed]:
-        return [self._publish(plants, placement) for plants, placement in placed
-                if len(plants)]
+        batches = [(plants, placement) for plants, placement in placed if len(plants)]
+        if not batches:
+            return []
+        if self._on is None:     # plants come from a design's predictors: never before one
+            raise RuntimeError('the plant map released plants before any design')
+        return [self._publish(self._on.model, plants, placement)
+                for plants, placement in batches]
 
-    def _publish(self, plants: Plants, placement: Placement) -> Placed:
+    def _publish(self, model: Planting, plants: Plants, placement: Placement) -> Placed:
         """Account a released batch: the rolling upright rate, the spacing quality, counts."""
         self._recent.extend(u for u in plants.upright.tolist() if math.isfinite(u))
         rate = float(sum(self._recent) / len(self._recent)) if self._recent else math.nan
-        assert self.model is not None
-        design_spacing = design_spacing_of(plants, self.model.spacing)
+        design_spacing = design_spacing_of(plants, model.spacing)
         for row in set(plants.row.astype(int).tolist()):
             mine = plants.row == row
             x, x_d = seedling_spacings(Plants.from_table(plants.table()[mine]),

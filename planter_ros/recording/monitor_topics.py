@@ -43,7 +43,8 @@ def plants_message(plants: Plants) -> Float64MultiArray:
 def quality_message(qualities: Sequence[tuple[int, Mapping[str, float | int | None]]]
                     ) -> Float64MultiArray:
     """The `spacing_quality` message of [(row index, SpacingQuality.result())]."""
-    table = [[float(row)] + [math.nan if q[f] is None else float(q[f]) for f in QUALITY_FIELDS]
+    table = [[float(row)] + [math.nan if (v := q[f]) is None else float(v)
+                             for f in QUALITY_FIELDS]
              for row, q in qualities]
     return _table_message('row', QUALITY_LABEL, len(table), len(QUALITY_FIELDS) + 1,
                           [v for line in table for v in line])
