@@ -20,10 +20,38 @@ host reaches it, and the sync node with the simulated drives runs in a process o
 from dataclasses import dataclass
 import os
 import sys
+import threading
 import time
 from typing import Any, TextIO
 
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+
+from planter_ros import interfaces, stop_signals
+from planter_ros.dds_domain import (
+    PRIVATE_GRAPH_ROS_ARGS, NoFreeDomainError, claim_private_domain, keep_discovery_on_host)
+from planter_ros.geo import AntennaSettings
+from planter_ros.nodes.design_node import DesignNode
+from planter_ros.nodes.monitor_node import MonitorNode
+from planter_ros.recording.errors import RecordingError
+from planter_ros.recording.replay import replay
+from planter_ros.recording.replay_text import format_summary
+from planter_ros.scene import SceneError, default_scene_path, open_scene
+from planter_ros.scene.machine_file import deployment_parameters, open_machine
+from planter_ros.scene.schedule import spacing_schedule
+from planter_ros.sim.gnss import SimulatedGnss
+from planter_ros.sim.ros_field import GnssSource, GroundSpeedSource, Observer, SeedlingSensor
+
+from .field import field_profile, glitches
+from .machine import (
+    first_plant_errors, first_plant_lines, first_plant_reasons, machine_rows, simulated_drives)
 from .options import DemoOptions, check_bag_path
+from .report import progress_line, row_summary
+from .sync_process import SyncProcess, SyncProcessError, SyncProcessSettings
+from .verdict import judge
 
 __all__ = ['Demo', 'DemoResult', 'prepare']
 
@@ -33,23 +61,17 @@ PROGRESS_PERIOD = 2.0     # s between progress lines
 def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     """The Demo `options` ask for, every input and output checked before anything starts
     (SceneError, ConfigError, OutputError: the command line's exit 2); kwargs go to Demo."""
-    from planter_ros.dds_domain import keep_discovery_on_host
-    from planter_ros.scene import SceneError, default_scene_path, open_scene
 
     scene = open_scene(options.scene or default_scene_path())
     check_bag_path(options.bag)
     design = scene.design()               # a bad scene fails here, before anything starts
-    from planter_ros.scene.schedule import spacing_schedule
     spacing_schedule(scene.parameters('design_node'), scene.path)
     node_id = scene.parameters('sync_node').get('drive_node_id', 1)
     rows = scene.rows(default_node_id=node_id)
     antenna = scene.antenna()
     machine = None
     if options.machine:                   # its rows and drives over the scene's (demo.machine)
-        from planter_ros.geo import AntennaSettings
-        from planter_ros.scene.machine_file import deployment_parameters, open_machine
 
-        from .machine import machine_rows
         machine = open_machine(options.machine)
         deployment_parameters(options.machine, scene.path)
         rows, antenna = machine_rows(scene, machine), AntennaSettings()
@@ -71,7 +93,6 @@ class Demo:
     def __init__(self, scene, design, rows, options: DemoOptions, out: TextIO | None = None,
                  install_signals: bool = True, log_level: str = 'info', antenna=None,
                  machine=None) -> None:
-        from planter_ros.geo import AntennaSettings
         self.scene, self.design, self.rows, self.options = scene, design, rows, options
         self.machine = machine            # scene.machine_file.Machine of --machine, or None
         self._replayed = None             # the replay of the bag, once done
@@ -81,7 +102,6 @@ class Demo:
         self.install_signals = install_signals
         self.log_level = log_level
         self.result: DemoResult | None = None
-        from planter_ros.scene.schedule import spacing_schedule
         self.schedule = spacing_schedule(scene.parameters('design_node'), scene.path)
 
     def _print(self, text: str = '') -> None:
@@ -90,8 +110,6 @@ class Demo:
     # ---------------------------------------------------------------- the run
     def run(self) -> int:
         """The whole run; returns the exit code (0 PASS, 1 FAIL)."""
-        from planter_ros import stop_signals
-        from planter_ros.dds_domain import NoFreeDomainError, claim_private_domain
 
         stop = (stop_signals.install('planter demo') if self.install_signals
                 else stop_signals.StopSignals('planter demo'))
@@ -111,8 +129,6 @@ class Demo:
 
     def finish(self, run: '_Run') -> int:
         """Summaries, the replay of the bag, the verdict line; the exit code."""
-        from .report import row_summary
-        from .verdict import judge
         report = run.sync.report if run.sync is not None else None
         rows = []
         if run.observer is not None and run.observer.start is not None and report is not None:
@@ -132,7 +148,6 @@ class Demo:
                                f'{sources.last_change.text}')
         first_plants = {}
         if self.machine is not None and self._replayed is not None and report is not None:
-            from .machine import first_plant_errors, first_plant_lines
             first_plants = first_plant_errors(self.rows, self._replayed,
                                               report.get('bottom_times', {}), run.profile,
                                               *run.field_start)
@@ -140,7 +155,6 @@ class Demo:
         verdict = judge(rows, report, run.start_error, bag_error, monitor_changes,
                         acceptance, scheduled_changes=run.scheduled_changes)
         if first_plants:
-            from .machine import first_plant_reasons
             verdict.reasons += first_plant_reasons(first_plants)
         verdict.stopped_by, verdict.elapsed = run.stopped_by, run.elapsed
         self.result = DemoResult(verdict, report, rows, run.domain, first_plants)
@@ -152,9 +166,6 @@ class Demo:
         """Re-read the finished bag offline, as `planter replay` would, and summarise it:
         (text, why it failed or '', the run judged by the crop's acceptance limits the bag
         recorded: replay's `acceptance`, None when the replay failed)."""
-        from planter_ros.recording.errors import RecordingError
-        from planter_ros.recording.replay import replay
-        from planter_ros.recording.replay_text import format_summary
         try:
             result = replay(bag)
         except RecordingError as exc:
@@ -170,7 +181,6 @@ class Demo:
 
     def progress(self, t: float, profile, status: dict, observer) -> str:
         """The progress line at `t` s of the field run."""
-        from .report import progress_line
         plants = sum(len(observer.plant_positions(profile, self.design,
                                                   row.joint(self.design.mechanism),
                                                   row.lateral_offset))
@@ -207,22 +217,6 @@ class _Run:
         return self.stop_signal.received is not None
 
     def start_and_drive(self):
-        import threading
-
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.signals import SignalHandlerOptions
-
-        from planter_ros import interfaces
-        from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS
-        from planter_ros.nodes.design_node import DesignNode
-        from planter_ros.nodes.monitor_node import MonitorNode
-        from planter_ros.sim.ros_field import Observer
-
-        from .field import field_profile
-        from .sync_process import SyncProcess, SyncProcessError, SyncProcessSettings
-
         demo, options, design = self.demo, self.demo.options, self.demo.design
         channel = f'planter_demo_{os.getpid()}_{time.monotonic_ns() % 1_000_000}'
         self.profile = profile = field_profile(options.duration, design.nominal_ground_speed,
@@ -231,7 +225,6 @@ class _Run:
         # the command path first: it takes longest to start (its own interpreter)
         machine = ()
         if demo.machine is not None:
-            from .machine import simulated_drives
             machine = (('machine_file', str(demo.machine.path)),)
         self.sync = SyncProcess(SyncProcessSettings(
             self.domain, channel, tuple(row.drive_node_id for row in demo.planting), ns,
@@ -304,11 +297,7 @@ class _Run:
     def _start_field(self, profile):
         """The simulated sensors, once the graph has found itself (the sync node and the
         monitor subscribe the ground speed, the sync node has the design): t = 0 then."""
-        from planter_ros import interfaces
-        from planter_ros.sim.gnss import SimulatedGnss
-        from planter_ros.sim.ros_field import GnssSource, GroundSpeedSource
 
-        from .field import glitches
         options, ns = self.demo.options, interfaces.NAMESPACE
         self.source = GroundSpeedSource(profile, glitches=glitches(options.duration),
                                         seed=options.seed, context=self.context, namespace=ns)
@@ -333,7 +322,6 @@ class _Run:
             f'{receiver.origin_latitude:.7f}, {receiver.origin_longitude:.7f} (WGS 84), noise '
             f'{receiver.noise * 1e3:.0f} mm per axis; antenna x = {antenna[0]:+.2f} m, '
             f'y = {antenna[1]:+.2f} m on the machine')
-        from planter_ros.sim.ros_field import SeedlingSensor
         sensed = [row for row in self.demo.planting if row.seedling_sensor]
         nodes = [self.source, gnss]
         if sensed:
@@ -427,5 +415,4 @@ class DemoResult:
 
 
 def _param(name: str, value: Any):
-    from rclpy.parameter import Parameter
     return Parameter(name, value=value)
