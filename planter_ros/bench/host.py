@@ -6,6 +6,9 @@ import os
 import platform
 from typing import TypedDict
 
+import mpmath
+import numpy
+
 
 class MachineInfo(TypedDict):
     """The machine a bench ran on, for its page and JSON."""
@@ -32,8 +35,6 @@ def cpu_model() -> str:
 
 
 def machine_info() -> MachineInfo:
-    import mpmath
-    import numpy
     usable: int | None
     try:
         usable = len(os.sched_getaffinity(0))

@@ -24,6 +24,9 @@ import json
 import math
 from typing import TYPE_CHECKING
 
+from planter_ros.output_files import write_text_atomically
+from planter_ros.prediction import reason_name, status_name
+
 if TYPE_CHECKING:
     from pathlib import Path
 
@@ -53,7 +56,6 @@ def _flag(value: float) -> bool | None:
 
 def plant_records(result: ReplayResult) -> list[dict]:
     """One dict per plant of a ReplayResult: the CSV columns, None for undefined values."""
-    from planter_ros.prediction import reason_name, status_name
     p = result.plants
     names = {row.index: row.name for row in result.rows}
     out = []
@@ -112,13 +114,11 @@ def _counts(result: ReplayResult) -> str:
 
 def write_geojson(result: ReplayResult, path: str | Path) -> str:
     """Write the GeoJSON of a ReplayResult at `path` (atomically): the line for people."""
-    from planter_ros.output_files import write_text_atomically
     write_text_atomically(path, geojson_text(result))
     return f'GeoJSON written to {path} {_counts(result)}'
 
 
 def write_csv(result: ReplayResult, path: str | Path) -> str:
     """Write the CSV of a ReplayResult at `path` (atomically): the line for people."""
-    from planter_ros.output_files import write_text_atomically
     write_text_atomically(path, csv_text(result))
     return f'CSV written to {path} {_counts(result)}'

@@ -58,12 +58,21 @@ written as ISOXML writes the 7 bytes: byte 7 first.
 
 from dataclasses import dataclass
 from datetime import datetime, timezone
+from decimal import Decimal
 from functools import lru_cache
 import hashlib
+import importlib.metadata
 import math
 from pathlib import Path
 import re
 import struct
+import tempfile
+import zipfile
+
+import numpy as np
+
+from planter_ros.output_files import (
+    OutputError, atomic_directory, atomic_output, check_directory, check_output)
 
 from . import ExportError
 from .runs import utc_datetime
@@ -142,7 +151,7 @@ FILE_NAME = re.compile(r'(TASKDATA\.XML|TLG\d{5}\.(XML|BIN))', re.IGNORECASE)
 @lru_cache(maxsize=None)
 def _dd(ddi):
     """The data dictionary entity (name, unit, resolution) of a DDI, from the isoxml library."""
-    from isoxml.models.ddi_entities import DDEntity
+    from isoxml.models.ddi_entities import DDEntity  # lazy: 50 ms, only for ISOXML
     return DDEntity.from_id(ddi)
 
 
@@ -168,7 +177,6 @@ def check_path(path, option):
     does; a directory that exists and holds anything but files of an earlier export
     (TASKDATA.XML, TLGnnnnn.XML/.BIN), is not writable, or whose parent is missing or
     read-only. Returns a Path."""
-    from planter_ros.output_files import OutputError, check_directory, check_output
     if path is None or str(path) == '':
         raise OutputError(f'{option} is empty: allowed a directory or a file name ending in '
                           '.zip')
@@ -266,7 +274,6 @@ def _device(iso, layout, number):
             id=f'DET{layout.elements[row]}', object_id=k + 2, type=iso.DeviceElementType.Section,
             designator=(name or 'row')[:32], number=k + 1,
             parent_object_id=1, device_object_references=refs))
-    from decimal import Decimal
     presentations = [iso.DeviceValuePresentation(object_id=shown[key], offset=0,
                                                  scale=Decimal(str(scale)),
                                                  number_of_decimals=decimals,
@@ -283,7 +290,6 @@ def _device(iso, layout, number):
 
 
 def _version():
-    import importlib.metadata
     try:
         return importlib.metadata.version('planter_ros')
     except importlib.metadata.PackageNotFoundError:
@@ -317,8 +323,7 @@ def drp(records, places):
     reference point) at each record's instant: the plant moved back by its row's place on the
     machine, turned by the machine's heading (on the WGS 84 ellipsoid, pyproj); None where
     the plant has no map position, or no heading and a row off the reference point."""
-    import numpy as np
-    from pyproj import Geod
+    from pyproj import Geod  # lazy: 80 ms, loaded only by a run that writes ISOXML
     n = len(records)
     lat = np.array([np.nan if r.get('latitude') is None else r['latitude'] for r in records])
     lon = np.array([np.nan if r.get('longitude') is None else r['longitude'] for r in records])
@@ -375,7 +380,7 @@ def check_run(run):
 
 def time_log(run, layout):
     """(TIM header, binary data, totals {row: plants}) of the run's time log."""
-    import isoxml.models.base.v4 as iso
+    import isoxml.models.base.v4 as iso  # lazy: 50 ms, loaded only by a run that writes ISOXML
     values = []                       # (row, ddi) of each DLV, its index in the header
     for row, _ in layout.rows:
         values += [(row, ddi) for ddi in LOGGED]
@@ -415,7 +420,7 @@ def time_log(run, layout):
 
 def _task_time(iso, run, layout, counts):
     """The task's TIM: effective, first to last planting instant, each row's totals."""
-    from xsdata.models.datatype import XmlDateTime
+    from xsdata.models.datatype import XmlDateTime  # isoxml's own dependency, loaded with it
     times = [r['time'] for r in run.records]
     totals = []
     for row, _ in layout.rows:
@@ -438,7 +443,7 @@ def taskdata(runs):
     """The task data of `runs` (export.runs.ExportRun): (ISO11783_TaskData, {file name: bytes
     or header}, tasks, records logged, skipped [(key, reason)]). A run without plants is no
     task; a run check_run refuses is skipped with its reason."""
-    import isoxml.models.base.v4 as iso
+    import isoxml.models.base.v4 as iso  # lazy: 50 ms, loaded only by a run that writes ISOXML
     usable, skipped = [], []
     for run in runs:
         if not run.records:
@@ -475,7 +480,7 @@ def taskdata(runs):
 
 
 def _write_files(directory, root, files):
-    from isoxml.util.isoxml_io import isoxml_to_text
+    from isoxml.util.isoxml_io import isoxml_to_text  # lazy: 50 ms, only for ISOXML
     (directory / TASKDATA).write_text(isoxml_to_text(root), encoding='utf-8')
     for name, content in files.items():
         if isinstance(content, bytes):
@@ -487,12 +492,9 @@ def _write_files(directory, root, files):
 def write_isoxml(path, runs):
     """Write the task data of `runs` at `path` (a directory, or a .zip holding TASKDATA/),
     atomically. Returns (tasks, records logged, skipped [(key, reason)])."""
-    from planter_ros.output_files import atomic_directory, atomic_output
     root, files, tasks, logged, skipped = taskdata(runs)
     path = Path(path)
     if path.suffix.lower() == '.zip' and not path.is_dir():
-        import tempfile
-        import zipfile
         with tempfile.TemporaryDirectory(dir=path.parent, prefix=f'.{path.name}.') as work:
             _write_files(Path(work), root, files)
             with atomic_output(path) as tmp:

@@ -6,7 +6,9 @@ keeping the others from being written). Errors are ExportError (one line)."""
 from __future__ import annotations
 
 from . import ExportError
-from .runs import ExportRun
+from .isoxml import check_run, write_isoxml
+from .runs import ExportRun, run_of_replay
+from .shapefile import write_shapefile
 
 __all__ = ['replay_run', 'write_each', 'write_isoxml_output', 'write_shapefile_output']
 
@@ -16,8 +18,6 @@ def replay_run(result, shapefile: str | None, isoxml: str | None) -> ExportRun |
     first: ExportError for plants a format cannot hold."""
     if not (shapefile or isoxml):
         return None
-    from .isoxml import check_run
-    from .runs import run_of_replay
     run = run_of_replay(result)
     if isoxml:
         try:
@@ -29,14 +29,12 @@ def replay_run(result, shapefile: str | None, isoxml: str | None) -> ExportRun |
 
 def write_shapefile_output(run: ExportRun, path: str) -> str:
     """Write the Shapefile of a replay_run at `path`: the line for people."""
-    from .shapefile import write_shapefile
     plants, placed = write_shapefile(path, [run])
     return f'Shapefile written to {path} ({plants} plants, {placed} with a map position)'
 
 
 def write_isoxml_output(run: ExportRun, path: str) -> str:
     """Write the ISOXML task data of a replay_run at `path`: the line for people."""
-    from .isoxml import write_isoxml
     tasks, logged, _ = write_isoxml(path, [run])
     return (f'ISOXML written to {path} ({tasks} task{"" if tasks == 1 else "s"}, {logged} '
             'plants in its time log)')

@@ -14,7 +14,10 @@ from bisect import bisect_right
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 import math
+from pathlib import Path
 from types import SimpleNamespace
+
+from .geojson_csv import plant_records
 
 __all__ = ['ExportRun', 'RowPlace', 'design_spacings', 'run_of_plants', 'run_of_replay',
            'utc_text']
@@ -55,7 +58,6 @@ def run_of_plants(key, plants, rows, design_spacing=None, row_quality=None, plac
     """An ExportRun of a Plants table (planter_ros.prediction) and the machine's rows
     [(index, name)], their places {index: RowPlace} and the machine's heading at each plant
     (rad, counter-clockwise from east; None or NaN: unknown)."""
-    from .geojson_csv import plant_records
     view = SimpleNamespace(plants=plants,
                            rows=[SimpleNamespace(index=int(i), name=str(n)) for i, n in rows])
     records = plant_records(view)
@@ -101,7 +103,6 @@ def design_spacings(records, fallback=None):
 
 def run_of_replay(result, key=None):
     """The ExportRun of a ReplayResult (`key`: default the bag's file name)."""
-    from pathlib import Path
     quality = {row.index: summary.get('spacing_quality') or {}
                for row, summary in zip(result.rows, result.row_summaries)}
     places = {row.index: RowPlace(row.lateral_offset, row.longitudinal_offset, row.enabled)

@@ -12,11 +12,18 @@ one of them is missing, so they always hold what the tables hold.
 """
 
 from pathlib import Path
+import time
 
 import numpy as np
 
 from planter_ros.analysis.season import (
     ANALYSED, BAGS_FILE, EXPORTS, ISOXML, PLANTS_DIR, SHAPEFILE, read_bags)
+from planter_ros.analysis.tables import HEADING, plant_columns
+from planter_ros.prediction import PLANT_FIELDS, Plants
+
+from .isoxml import write_isoxml
+from .runs import RowPlace, run_of_plants
+from .shapefile import write_shapefile
 
 __all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'format_exports', 'season_exports', 'season_runs',
            'write_season_exports']
@@ -26,12 +33,9 @@ def season_runs(out):
     """ExportRuns (runs.py) of every analysed bag in the tables under `out`, in the bags
     table's order, each once (its plants by its content id); a run is named by the bag's name,
     its path from the analysed root."""
-    import pyarrow.parquet as pq
+    import pyarrow.parquet as pq  # lazy: 150 ms, loaded only when a season is exported
 
-    from planter_ros.analysis.tables import HEADING, plant_columns
-    from planter_ros.prediction import PLANT_FIELDS, Plants
 
-    from .runs import RowPlace, run_of_plants
     out = Path(out)
     bags = [row for row in read_bags(out / BAGS_FILE)
             if row.get('status') in ANALYSED and row.get('plants_file')]
@@ -65,8 +69,6 @@ def write_season_exports(out, force=False):
     written): {'shapefile', 'isoxml': paths (None: not written), 'plants', 'placed', 'tasks',
     'skipped': [{bag, reason}] (bags the ISOXML cannot hold), 'failed': [{file, reason}]} or
     None when nothing was to be written."""
-    from .isoxml import write_isoxml
-    from .shapefile import write_shapefile
     out = Path(out)
     if not force and all((out / name).is_file() for name in EXPORTS):
         return None
@@ -95,7 +97,6 @@ def _one_line(exc):
 def season_exports(out, force):
     """The season's Shapefile and ISOXML next to the tables (export.season), with the time
     it took: written when `force` (bags were analysed) or one is missing; None otherwise."""
-    import time
     started = time.monotonic()
     exports = write_season_exports(out, force)
     if exports is not None:

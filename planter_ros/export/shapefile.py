@@ -20,6 +20,10 @@ geometry"), like GeoJSON's null geometry.
 from dataclasses import dataclass
 import math
 from pathlib import Path
+import tempfile
+import zipfile
+
+from planter_ros.output_files import atomic_output, atomic_outputs, check_output
 
 from . import ExportError
 from .runs import utc_text
@@ -85,7 +89,6 @@ def check_path(path, option):
     """Refuse (OutputError) a Shapefile path that cannot be written: not .shp or .zip, or (for
     .shp) a sidecar of the set that exists and is not a writable regular file. Returns a
     Path."""
-    from planter_ros.output_files import check_output
     path = check_output(path, option, ('.shp', '.zip'))
     if path.suffix.lower() == '.shp':
         for suffix in SIDECARS:
@@ -191,14 +194,14 @@ def _null_logicals(dbf, columns, records):
 
 def prj_text():
     """WGS 84 (EPSG:4326) as the ESRI WKT a .prj holds."""
-    from pyproj import CRS
+    from pyproj import CRS  # lazy: 80 ms, loaded only by a run that writes a Shapefile
     from pyproj.enums import WktVersion
     return CRS.from_epsg(4326).to_wkt(WktVersion.WKT1_ESRI)
 
 
 def _write_set(shp, shx, dbf, prj, cpg, runs):
     """The set's five files at the given paths; returns (plants, placed)."""
-    import shapefile
+    import shapefile  # lazy (pyshp): 40 ms, loaded only by a run that writes a Shapefile
     records = [dict(record, bag=run.key, utc=utc_text(record.get('time')))
                for run in runs for record in run.records]
     columns = attributes_of(records)
@@ -235,11 +238,8 @@ def _write_set(shp, shx, dbf, prj, cpg, runs):
 def write_shapefile(path, runs):
     """Write the plants of `runs` (export.runs.ExportRun) as a Shapefile at `path` (.shp: the
     set next to it; .zip: the set in one archive), atomically. Returns (plants, placed)."""
-    from planter_ros.output_files import atomic_output, atomic_outputs
     path = Path(path)
     if path.suffix.lower() == '.zip':
-        import tempfile
-        import zipfile
         with tempfile.TemporaryDirectory(dir=path.parent, prefix=f'.{path.name}.') as work:
             names = [Path(work) / f'{path.stem}{s}' for s in ('.shp',) + SIDECARS]
             counts = _write_set(*names, runs)

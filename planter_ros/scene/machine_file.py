@@ -20,18 +20,31 @@ machine file has `antenna_position` [0, 0] and each row's offsets from the anten
 Pure: no ROS, no bus.
 """
 
+import argparse
 from collections.abc import Sequence
+import dataclasses
 from dataclasses import dataclass
 import math
+import os
 from pathlib import Path
 import re
+import shlex
+import sys
 from typing import Any
 
-from planter_ros.config import ConfigError, Spec, from_mapping, setting, specs
+import yaml
 
+from planter_ros.config import ConfigError, Spec, check, from_mapping, setting, specs
+from planter_ros.drive.setup import DriveSetup
+from planter_ros.plausibility import STANDARD_BITRATES, PlausibilityError, RowLimits
+from planter_ros.plausibility import check as check_plausibility
+from planter_ros.rows import RowLayout
+from planter_ros.safe_yaml import YamlError, load_yaml
+
+from . import open_scene
 from .files import SceneError, read_small_yaml
 from .machine_setting import MachineFileSetting
-from .schema import closest
+from .schema import NODES, closest, node_parameters
 
 __all__ = ['CanBus', 'IsobusBus', 'Machine', 'MachineFileError', 'MachineFileSetting',
            'MachineRow', 'SECTIONS',
@@ -60,8 +73,6 @@ class CanBus:
                            range=(10_000, 1_000_000))
 
     def __post_init__(self) -> None:
-        from planter_ros.config import check
-        from planter_ros.plausibility import STANDARD_BITRATES
         check(self)
         if not self.interface or not _INTERFACE_NAME.match(self.channel):
             raise ConfigError(f'channel = {self.channel!r} is out of range: allowed a network '
@@ -82,7 +93,6 @@ class IsobusBus:
                            range=(10_000, 1_000_000))
 
     def __post_init__(self) -> None:
-        from planter_ros.config import check
         check(self)
         if self.channel and not _INTERFACE_NAME.match(self.channel):
             raise ConfigError(f'channel = {self.channel!r} is out of range: allowed a network '
@@ -139,7 +149,6 @@ class MachineRow:
                        'before enabling) and the master uses it; empty: config/planter_drive.eds')
 
     def __post_init__(self) -> None:
-        from planter_ros.config import check
         check(self)
         bad = [m for m in self.modes if m not in MODES]
         if bad or not self.modes or len(set(self.modes)) != len(self.modes):
@@ -193,7 +202,6 @@ class Machine:
         """{node: the parameters the machine file sets for it}: the scene nodes' own share of
         `scene_parameters()` (a node is given only what it declares), ground_speed_node's
         ISOBUS channel."""
-        from .schema import NODES, node_parameters
         params = self.scene_parameters()
         out = {node: dict(node_parameters(node, params)) for node in NODES}
         out['ground_speed_node'] = {'isobus_channel': self.isobus.channel}
@@ -204,7 +212,6 @@ class Machine:
     def drive_setups(self) -> dict[str, Any]:
         """{row: drive.setup.DriveSetup}: what the master checks and applies at every start
         (identity, modes, EDS, polarity, homing, phase offset, gear ratio, encoder counts)."""
-        from planter_ros.drive.setup import DriveSetup
         return {name: DriveSetup(
                     modes=tuple(row.modes), polarity=row.polarity,
                     homing_method=row.homing_method, phase_offset=row.phase_offset,
@@ -220,7 +227,6 @@ class Machine:
 
     def row_limits(self) -> list:
         """Each row's limits at the mechanism's shaft for planter_ros.plausibility."""
-        from planter_ros.plausibility import RowLimits
         return [RowLimits(name, max_acceleration=row.max_acceleration,
                           motor_max_speed=row.max_motor_speed, gear_ratio=row.gear_ratio,
                           encoder_counts=row.encoder_counts)
@@ -256,7 +262,6 @@ def open_machine(path: str | Path) -> Machine:
 
 def parse_machine(text: str, path: Path | None = None) -> Machine:
     """A machine file's text checked (see the module doc)."""
-    from planter_ros.safe_yaml import YamlError, load_yaml
     where = f'machine file {path}' if path is not None else 'machine file'
     try:
         data = load_yaml(text, where)
@@ -277,7 +282,6 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
     rows_data = data.get('rows')
     if not isinstance(rows_data, dict) or not rows_data:
         bad('rows', 'is missing or empty: allowed one block per planting unit')
-    from planter_ros.rows import RowLayout
     try:
         RowLayout(rows=[str(r) for r in rows_data])
     except ConfigError as exc:
@@ -304,8 +308,6 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
 def rebased(machine: Machine, path: Path) -> Machine:
     """`machine` as a file at `path` says it: each row's relative `eds` rewritten relative to
     the new file's directory, so it names the same EDS file wherever the machine file goes."""
-    import dataclasses
-    import os
     if machine.path is None or machine.path.parent.resolve() == path.parent.resolve():
         return machine
     rows = {}
@@ -320,7 +322,6 @@ def rebased(machine: Machine, path: Path) -> Machine:
 def machine_text(machine: Machine, comment: str = '') -> str:
     """The machine file's text for `machine` (every key written; `comment` as # lines on top);
     parse_machine reads it back to an equal Machine."""
-    import yaml
     data: dict[str, Any] = {'machine': machine.name}
     for section, block in (('can', machine.can), ('isobus', machine.isobus)):
         data[section] = {spec.name: getattr(block, spec.name) for spec in specs(type(block))}
@@ -333,7 +334,6 @@ def machine_text(machine: Machine, comment: str = '') -> str:
 def write_machine(machine: Machine, path: str | Path, comment: str = '') -> None:
     """Write `machine` to `path` (checked by reading it back strictly first, then replaced in
     one rename: a reader never sees half a file). MachineFileError (one line) on failure."""
-    import os
     path = Path(path)
     machine = rebased(machine, path)
     text = machine_text(machine, comment)
@@ -391,8 +391,6 @@ def deployment_parameters(machine_path: str | Path, scene_path: str | Path,
     Checked first, as the nodes would (SceneError, one line): both files strict, the scene's
     rows (if it names any) the machine's, and the scene plausible on this machine with its
     drives' limits (planter_ros.plausibility)."""
-    from . import open_scene
-    from planter_ros.plausibility import PlausibilityError, check
     machine = open_machine(machine_path)
     scene = open_scene(scene_path)
     rows = scene.parameters('sync_node').get('rows') or []
@@ -406,7 +404,8 @@ def deployment_parameters(machine_path: str | Path, scene_path: str | Path,
     params = {**scene.parameters('design_node'), **scene.parameters('sync_node'),
               **out['sync_node']}
     try:
-        warnings = check(params, machine.row_limits(), where=f'{scene_path} on {machine_path}: ')
+        warnings = check_plausibility(params, machine.row_limits(),
+                                      where=f'{scene_path} on {machine_path}: ')
     except PlausibilityError as exc:
         raise MachineFileError(str(exc)) from None
     return out, warnings
@@ -417,9 +416,6 @@ def main(argv: list[str] | None = None) -> int:
     the machine's CAN interfaces up, one a line (planter-can.service pipes them to sh);
     `--check FILE [--scene SCENE]`: the machine file checked, with a scene also the scene's
     plausibility against the machine's limits. Exit 2 with one line for a bad file."""
-    import argparse
-    import shlex
-    import sys
     parser = argparse.ArgumentParser(prog='python -m planter_ros.scene.machine_file',
                                      description='check a machine file; print its ip commands')
     parser.add_argument('file')
@@ -447,5 +443,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    import sys
     sys.exit(main())
