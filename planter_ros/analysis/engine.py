@@ -10,6 +10,7 @@ which model version it runs) and refuses a cluster that cannot run ours. `comple
 function over argument tuples and yields the results as they complete, gathered in batches.
 """
 
+import asyncio
 from contextlib import contextmanager
 from dataclasses import dataclass
 import logging
@@ -49,7 +50,8 @@ class EngineSettings:
 def scheduler_address(text):
     """`text` if it is a scheduler address Dask can connect to (`tcp://host:port`, ...), else
     EngineError."""
-    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.addressing import (  # lazy: distributed 350 ms (as above)
+        parse_address, parse_host_port)
     try:
         scheme, location = parse_address(text, strict=True)
         parse_host_port(location)
@@ -72,7 +74,7 @@ def usable_cores():
 @contextmanager
 def cluster(workers=None, scheduler=None):
     """A distributed.Client (see the module doc); everything is closed on exit."""
-    from distributed import Client, LocalCluster
+    from distributed import Client, LocalCluster  # lazy: 350 ms, only when bags are analysed
     # the workers inherit the environment: any ROS they touched would stay on loopback
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     local = scratch = None
@@ -92,9 +94,9 @@ def cluster(workers=None, scheduler=None):
                               f'{WORKER_WAIT:.0f} s ({_first_line(exc)}): allowed a scheduler '
                               'with at least one worker') from None
     else:
-        import dask
+        import dask  # lazy: 100 ms, only for a local cluster
 
-        from .worker_plugin import DieWithParent
+        from .worker_plugin import DieWithParent  # a distributed plugin: lazy as distributed
         scratch = scratch_directory()
         try:
             with dask.config.set({'temporary-directory': scratch, **{
@@ -130,9 +132,7 @@ def probe_scheduler(address, timeout=None):
     `timeout` (default CONNECT_TIMEOUT): nothing listening, a port that accepts and never
     answers (distributed waits for the handshake without a limit), another protocol (an HTTP
     server). One bounded connection, closed again."""
-    import asyncio
-
-    from distributed.comm import connect
+    from distributed.comm import connect  # lazy: distributed 350 ms, only when bags are analysed
     timeout = CONNECT_TIMEOUT if timeout is None else timeout
 
     async def handshake():
@@ -206,7 +206,7 @@ def completed(client, fn, arguments, **kwargs):
     """Run fn(*args, **kwargs) for every tuple in `arguments` on the cluster; yield (position
     in `arguments`, result, None) or (position, None, exception) as tasks complete. Results
     are gathered in batches (one round trip for all that completed meanwhile) and released."""
-    from distributed import as_completed
+    from distributed import as_completed  # lazy: 350 ms, only when bags are analysed
     if not arguments:
         return
     futures = client.map(fn, *zip(*arguments), pure=False, **kwargs)

@@ -21,6 +21,9 @@ import posixpath
 
 import numpy as np
 
+from planter_ros.config import from_mapping
+from planter_ros.prediction import AcceptanceLimits, judge_acceptance, spacing_quality
+
 from .season import ANALYSED, BAGS_FILE, PLANTS_DIR
 
 __all__ = ['COLUMNS', 'format_season_table', 'read_season', 'season_groups']
@@ -37,7 +40,7 @@ COLUMNS = (('field', 'field', 12), ('day', 'day (UTC)', 10), ('row', 'row', 11),
 def read_season(out):
     """(plants, bags) of the tables under `out` as pandas DataFrames (only analysed bags; the
     plants with `field` and `day` columns). Empty frames when nothing was analysed."""
-    import pandas as pd
+    import pandas as pd  # lazy: 330 ms, only where the tables are read back
     out = Path(out)
     bags = pd.read_parquet(out / BAGS_FILE) if (out / BAGS_FILE).is_file() else pd.DataFrame()
     if bags.empty or not any((out / PLANTS_DIR).glob('*.parquet')):
@@ -52,21 +55,18 @@ def read_season(out):
 
 def _limits(bags, keys):
     """The acceptance limits the group's bags recorded (the latest bag's)."""
-    from planter_ros.prediction import AcceptanceLimits
     mine = bags[bags['bag'].isin(keys)]
     columns = [c for c in mine.columns if c.startswith('acceptance.limits.')]
     if mine.empty or not columns:
         return AcceptanceLimits()
     latest = mine.sort_values('analysed_at').iloc[-1]
     values = {c.split('.')[-1]: latest[c] for c in columns if latest[c] == latest[c]}
-    from planter_ros.config import from_mapping
     return from_mapping(AcceptanceLimits, values)
 
 
 def group_figures(group):
     """The summary of one group of plant rows (a DataFrame): what summarize gives a run, from
     the table's columns."""
-    from planter_ros.prediction import spacing_quality
     status = group['status'].to_numpy(dtype=object) if 'status' in group else \
         np.full(len(group), 'unknown', dtype=object)
     spacing = group['spacing_m'].to_numpy(dtype=float)
@@ -100,7 +100,6 @@ def group_figures(group):
 def season_groups(plants, bags):
     """One dict per (field, day, row), sorted: its figures (group_figures), the acceptance
     judgement and the flat values of COLUMNS."""
-    from planter_ros.prediction import judge_acceptance
     out = []
     if plants.empty:
         return out

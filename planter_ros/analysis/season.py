@@ -36,6 +36,7 @@ are written as they complete, every FLUSH_SECONDS at least (a larger table is re
 often), so an interrupted run keeps what it finished.
 """
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 import fcntl
 import hashlib
@@ -44,11 +45,17 @@ import os
 from pathlib import Path
 import time
 
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+
 from planter_ros.design import to_json
-from planter_ros.output_files import OutputError, atomic_output
+from planter_ros.output_files import OutputError, atomic_output, check_directory
 
 from . import tables
 from .bags import fingerprint, identity
+from .engine import completed, worker_count
+from .task import analyze_bags
 
 BAGS_DIR = 'bags'
 BAGS_FILE = f'{BAGS_DIR}/bags.parquet'
@@ -125,7 +132,6 @@ def fingerprints(paths, known):
     mtime): bag_id}, what the table recorded) when the bag is unchanged there, else its
     fingerprint (read in threads). A bag that cannot be read gets an id of its own path (its
     analysis will say why)."""
-    from concurrent.futures import ThreadPoolExecutor
     out, todo = {}, []
     for path in paths:
         size, mtime = identity(path)
@@ -196,7 +202,6 @@ def check_out(path, option='--out'):
     analyze: its OUTPUT_RECORD, or an earlier version's bags table; and a file there that the
     record does not know as written, such as a user's own report.html, is never replaced), a
     new one whose parent is missing or read-only. Returns a Path."""
-    from planter_ros.output_files import check_directory
     path = Path(path)
     if path.exists() or path.is_symlink():
         if not path.is_dir():
@@ -273,7 +278,6 @@ def record_written(out, names):
 
 def read_bags(file, option='--out'):
     """The rows of a bags table, or OutputError (a file this command cannot read)."""
-    import pyarrow.parquet as pq
     try:
         rows = pq.read_table(file).to_pylist()
     except Exception as exc:         # pyarrow's ArrowInvalid, OSError, ...
@@ -413,9 +417,6 @@ class Season:
         plants parts holding a renamed bag's rows (each part replaced whole), the rows of bags
         whose file now holds another recording. True if a bag was renamed or removed (the
         exports are written again)."""
-        import pyarrow as pa
-        import pyarrow.compute as pc
-        import pyarrow.parquet as pq
         if self.superseded:
             self.clear([])                   # their plants go with them
             self.write_bags()
@@ -442,8 +443,6 @@ class Season:
     def clear(self, keys):
         """Remove the rows of the bags `keys` name from both tables, and plants rows no bag
         claims; write what changed."""
-        import pyarrow.compute as pc
-        import pyarrow.parquet as pq
         dropped = [k.bag_id for k in keys if self.rows.pop(k.bag_id, None) is not None]
         claimed = {}
         for bag_id, row in self.rows.items():
@@ -469,7 +468,6 @@ class Season:
     def add(self, finished):
         """Write the results `finished` ([(bags row, plants table or None)]): one new plants
         part, then the bags table (so a row never names a part that is not there)."""
-        import pyarrow.parquet as pq
         parts = [table for _, table in finished if table is not None]
         name = None
         if parts:
@@ -483,7 +481,6 @@ class Season:
         self.write_bags()
 
     def write_bags(self):
-        import pyarrow.parquet as pq
         table = tables.table_of(sorted(self.rows.values(), key=lambda row: row['bag']),
                                 tables.BAGS, self.root)
         with atomic_output(self.out / BAGS_FILE) as tmp:
@@ -512,8 +509,6 @@ def run(season, client, keys, overrides, design, progress=None):
     counts of bags found and skipped, which the caller knows). The bags go in tasks of several
     (`batches`); a task the engine lost is tried again bag by bag, so only a bag no worker
     can run is lost."""
-    from .engine import completed, worker_count
-    from .task import analyze_bags
     tables.load_pyarrow()                    # once per process, before the clock starts
     report = Report(out=str(season.out))
     if design is not None:                   # one copy per worker, not one per task

@@ -1,10 +1,21 @@
 """`planter simulate`'s engine: a season of simulated bags written on Dask (a local cluster or
 an existing one), with progress; and the check of where they go."""
 
-import time
 from pathlib import Path
+import sys
+import time
 
+from planter_ros.cam import CamError
+from planter_ros.config import ConfigError, from_mapping
+from planter_ros.control.phase_lock import PhaseLockConfig
+from planter_ros.design import design_for_scene
 from planter_ros.output_files import OutputError, check_directory
+from planter_ros.plausibility import bus_rows
+from planter_ros.prediction import PredictionSettings
+from planter_ros.scene import SceneError, open_scene
+from planter_ros.scene.schedule import spacing_schedule
+from planter_ros.sim.season import (
+    SPEED_CHANGE_MAX, SceneMachine, bag_name, machine_cam, simulate_bag)
 
 from .engine import check_workers, cluster, completed
 from .progress import Progress
@@ -18,7 +29,6 @@ DEFAULT_ROWS = 4
 
 def check_tray(empty_rate, double_rate):
     """ConfigError (one line) for tray shares that add up to more than the whole tray."""
-    from planter_ros.config import ConfigError
     if empty_rate + double_rate > 1.0:
         raise ConfigError(f'--empty-rate {empty_rate:g} + --double-rate {double_rate:g} = '
                           f'{100 * (empty_rate + double_rate):g} % of the cells: allowed '
@@ -28,9 +38,7 @@ def check_tray(empty_rate, double_rate):
 def season_machine(scene, rows):
     """(the scene file as an absolute path or None, the machine's rows) of `planter simulate`'s
     --scene and --rows (None: not given): ConfigError (one line) for both, or a bad scene."""
-    from planter_ros.config import ConfigError
     if not scene:
-        from planter_ros.plausibility import bus_rows
         count = DEFAULT_ROWS if rows is None else rows
         refused = bus_rows(count)              # the rows' drives on the sync node's bus
         if refused:
@@ -39,14 +47,10 @@ def season_machine(scene, rows):
     if rows is not None:
         raise ConfigError(f'--rows = {rows} with --scene: allowed one of them (the scene\'s '
                           "rows are its machine's)")
-    import sys
-    from planter_ros.scene import open_scene
     for warning in open_scene(scene).warnings:     # defaults taken, unusual values
         print(f'planter: warning: {warning}', file=sys.stderr)
     machine = scene_machine(scene)
     if machine.law.speed_profile == 'cam':
-        from planter_ros.cam import CamError
-        from planter_ros.sim.season import machine_cam
         try:
             for design in (machine.design, *(d for _, d in machine.schedule)):
                 machine_cam(design, machine.law)
@@ -59,14 +63,6 @@ def season_machine(scene, rows):
 
 def scene_machine(scene):
     """The sim.season.SceneMachine of a scene file (SceneError, DesignError: one line)."""
-    from planter_ros.config import ConfigError, from_mapping
-    from planter_ros.control.phase_lock import PhaseLockConfig
-    from planter_ros.prediction import PredictionSettings
-    from planter_ros.scene import open_scene
-    from planter_ros.sim.season import SceneMachine
-    from planter_ros.design import design_for_scene
-    from planter_ros.scene import SceneError
-    from planter_ros.scene.schedule import spacing_schedule
     opened = open_scene(scene)
     design = opened.design()
     monitor = opened.parameters('monitor_node')
@@ -83,7 +79,6 @@ def scene_machine(scene):
             current = spacing
     # cruise speeds around the nominal one, never above the scene's top ground speed once
     # the run's speed change (up to SPEED_CHANGE_MAX) is on top: the cam is planned for it
-    from planter_ros.sim.season import SPEED_CHANGE_MAX
     ceiling = design.top_ground_speed / SPEED_CHANGE_MAX
     return SceneMachine(design, tuple(opened.rows()),
                         from_mapping(PredictionSettings, monitor), opened.acceptance(),
@@ -97,7 +92,6 @@ def simulate_scene_bag(path, seed, index, duration, rows, scene=None, empty_rate
                        double_rate=0.0):
     """sim.season.simulate_bag with the machine of the scene file `scene` (None: `rows`
     rows of the default machine): a task of `planter simulate` on a worker."""
-    from planter_ros.sim.season import simulate_bag
     return simulate_bag(path, seed, index, duration, rows,
                         scene_machine(scene) if scene else None, empty_rate, double_rate)
 
@@ -132,7 +126,6 @@ def simulate_season(path: Path, names: list[str], seed: int, duration: float, ro
     """Write the bags `names` under `path`: (report, the runs written, [(name, error)]), each
     of a `rows`-row machine or of the machine of the scene file `scene` (checked by the
     caller), its tray (empty rate, double rate). EngineError when the cluster cannot be had."""
-    from planter_ros.sim.season import bag_name
     version = model_version()
     where = scheduler or 'the local cluster'
     written, errors = [], []

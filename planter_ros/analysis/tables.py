@@ -34,6 +34,13 @@ acceptance limits' units from their declarations. A column the table does not kn
 from functools import lru_cache
 import json
 
+import numpy as np
+import pyarrow as pa
+
+from planter_ros import prediction
+from planter_ros.config import specs
+from planter_ros.prediction import AcceptanceLimits, PredictionSettings
+
 PLANTS = 'plants'
 BAGS = 'bags'
 METADATA_KEY = b'planter_ros'
@@ -102,8 +109,6 @@ def unit_of(column):
 
 
 def _setting_units():
-    from planter_ros.config import specs
-    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
     return {spec.name: spec.unit or '1' for cls in (PredictionSettings, AcceptanceLimits)
             for spec in specs(cls)}
 
@@ -111,7 +116,6 @@ def _setting_units():
 def load_pyarrow():
     """Import pyarrow and what it loads when it builds its first array (pandas: a second or
     more), so the first table of a run does not pay for it."""
-    import pyarrow as pa
     pa.array([0.0])
 
 
@@ -170,8 +174,6 @@ def _epoch_seconds(value):
 def utc_timestamps(seconds):
     """s since 1970-01-01 UTC (None: null; a datetime as it is) as a pyarrow timestamp array
     (ns, UTC)."""
-    import numpy as np
-    import pyarrow as pa
     values = np.array([_epoch_seconds(v) for v in seconds], dtype=float)
     ok = np.isfinite(values)
     ns = np.where(ok, np.round(np.where(ok, values, 0.0) * 1e9), 0).astype(np.int64)
@@ -180,7 +182,6 @@ def utc_timestamps(seconds):
 
 def column(values, name=''):
     """One column's Python values as a pyarrow array (types: see the module doc)."""
-    import pyarrow as pa
     if name in TEXT:
         return pa.array(values, type=pa.string())
     if name in TEXT_LISTS:
@@ -204,7 +205,6 @@ def column(values, name=''):
 
 def table_of(rows, kind, root=None):
     """An Arrow table of row dicts (columns in first-seen order), units in its metadata."""
-    import pyarrow as pa
     names = {}
     for row in rows:
         for name in row:
@@ -216,8 +216,6 @@ def table_of(rows, kind, root=None):
 def plants_table(bag, plants, rows=()):
     """The plants table of one bag (`bag`: its key) from the JSON plant dicts of `planter
     replay --json` and the machine's rows [(index, name)] (module doc)."""
-    import numpy as np
-    import pyarrow as pa
     names = {int(i): str(n) for i, n in rows}
     keys = []
     for plant in plants:
@@ -254,10 +252,7 @@ def plants_arrays_table(bag, plants, rows=(), bag_id=None):
     """`plants_table(bag, plants.rows(), rows)` straight from a prediction.Plants (its arrays,
     no dict per plant): the same table, value for value (a non-finite value is null); with
     `bag_id` (the bag's content id, the key planter analyze joins the tables by) after `bag`."""
-    import numpy as np
-    import pyarrow as pa
 
-    from planter_ros import prediction
     names = {int(i): str(n) for i, n in rows}
     n = len(plants)
     arrays, columns = [pa.array([bag] * n, type=pa.string())], ['bag']
@@ -302,8 +297,6 @@ def with_heading(table, heading):
     """A plants table with `heading_rad`: the machine's heading at each plant (rad,
     counter-clockwise from east, REP 103; null where the plant has no map position), what the
     ISOXML export places the machine with."""
-    import numpy as np
-    import pyarrow as pa
     values = np.full(table.num_rows, np.nan) if heading is None else \
         np.asarray(heading, dtype=float)
     null = ~np.isfinite(values)
@@ -312,13 +305,11 @@ def with_heading(table, heading):
 
 
 def _code_name(field, value):
-    from planter_ros import prediction
     names = getattr(prediction, CODE_FIELDS[field])
     return None if value is None or not 0 <= int(value) < len(names) else names[int(value)]
 
 
 def _name_code(field, value):
-    from planter_ros import prediction
     names = getattr(prediction, CODE_FIELDS[field])
     return None if value is None else float(names.index(value))
 
@@ -350,8 +341,6 @@ def plant_dicts(table):
 def plant_columns(table, fields):
     """The plants table's columns of the JSON plant `fields` as float arrays (NaN for null or a
     column the table lacks; times in s since the epoch): what the exports read."""
-    import numpy as np
-    import pyarrow as pa
     out = []
     for field in fields:
         name = PLANTS_COLUMNS.get(field, field)
@@ -376,7 +365,6 @@ def plant_columns(table, fields):
 def with_units(table, kind, root=None):
     """`table` with each known column's unit in its field metadata and the schema's (and the
     analysed root its `bag` keys are relative to, if given)."""
-    import pyarrow as pa
     schema = _schema_with_units(table.schema, kind, None if root is None else str(root))
     return pa.Table.from_arrays(table.columns, schema=schema)
 
@@ -385,7 +373,6 @@ def with_units(table, kind, root=None):
 def _schema_with_units(schema, kind, root):
     """`with_units`'s schema (made once per columns, kind and root: every bag's plants table
     has the same)."""
-    import pyarrow as pa
     units = {}
     fields = [_field_with_units(f, f.name, units) for f in schema]
     info = {'table': kind, 'units': units}
@@ -403,7 +390,6 @@ NESTED_UNITS = {'acceptance.failed.value': FIGURE_UNIT, 'acceptance.failed.limit
 def _field_with_units(f, name, units):
     """`f` with its unit in its metadata (and `units[name]`); a struct's or a list's fields
     each with their own, named `name.field` (`rows.summary.spacing_error_mean`)."""
-    import pyarrow as pa
     kind = f.type
     if pa.types.is_struct(kind):
         kind = pa.struct([_field_with_units(kind.field(i), f'{name}.{kind.field(i).name}', units)
@@ -424,7 +410,6 @@ def _field_with_units(f, name, units):
 
 def _numeric(kind):
     """A number, a time or a list of them (not a flag, not text)."""
-    import pyarrow as pa
     if pa.types.is_list(kind):
         return _numeric(kind.value_type)
     return pa.types.is_integer(kind) or pa.types.is_floating(kind) or \
@@ -439,6 +424,5 @@ def units(schema):
 
 def concat(tables, kind):
     """One table of several (the same columns, or some missing: filled with nulls)."""
-    import pyarrow as pa
     return with_units(pa.concat_tables([t.replace_schema_metadata(None) for t in tables],
                                        promote_options='default'), kind)

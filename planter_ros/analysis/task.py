@@ -13,7 +13,7 @@ from planter_ros.recording.errors import RecordingError
 from planter_ros.recording.replay import replay
 
 from .model_code import closure_version
-from .tables import flatten, plants_arrays_table, with_heading
+from .tables import flatten, load_pyarrow, plants_arrays_table, with_heading
 
 
 class WorkerMismatch(RuntimeError):
@@ -33,12 +33,11 @@ def warm_up():
     needed (the indexed reader, zstd, pyarrow and the pandas it loads with its first array: a
     second or more), so no bag pays for it, and
     returns the model version the worker runs."""
+    # the warm-up is these imports: loaded here, on the worker, before its first bag
     import mcap.records  # noqa: F401
     import zstandard  # noqa: F401
 
     from planter_ros.recording import indexed  # noqa: F401
-
-    from .tables import load_pyarrow
     load_pyarrow()
     return model_version()
 

@@ -27,9 +27,10 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from planter_ros.config import ConfigError
+from planter_ros.config import ConfigError, coerce, spec_of
 
 from .arrays import FloatArray, Floats
+from .design_inputs import DesignInputs
 from .errors import DesignError
 from .five_bar import depth_angle, hole_geometry, static_trajectory, static_x
 
@@ -129,7 +130,8 @@ class PathPlanting(Planting):
                  plants_per_revolution: int, depth: float, spacing: float,
                  planting_phase: float | None = None, samples: int = 2048,
                  nozzle_width: float = 0.0) -> None:
-        from scipy.interpolate import CubicSpline
+        from scipy.interpolate import CubicSpline  # lazy: scipy 440 ms, skipped until a
+        # planting arc is built (importing kinematics loads no scipy)
         from scipy.optimize import brentq, minimize_scalar
 
         _require_positive('planting_depth', depth)
@@ -222,9 +224,7 @@ def _require_positive(name: str, value: float) -> None:
 
 def _nozzle_width(value: object) -> float:
     """The nozzle width checked against the scene's range (DesignError, one line)."""
-    from planter_ros.config import coerce, spec_of
 
-    from .design_inputs import DesignInputs
     try:
         width: float = coerce(spec_of(DesignInputs, 'nozzle_width'), value)
         return width

@@ -17,7 +17,12 @@ import tempfile
 
 import numpy as np
 
+from planter_ros.analysis import season as seasons
+from planter_ros.analysis.report import (
+    COLUMNS, _cell, format_season_table, read_season, season_groups)
+from planter_ros.export.season import season_exports
 from planter_ros.geo import LocalFrame
+from planter_ros.output_files import write_text_atomically
 from planter_ros.prediction.quality import MISS_LIMIT, MULTIPLE_LIMIT
 
 __all__ = ['season_report', 'write_season_report']
@@ -29,7 +34,6 @@ MAX_MAPS = 8                    # recordings drawn as maps
 def season_report(out):
     """Read the tables under `out`, write report.html there (atomically): (the table for
     people, the report's path)."""
-    from planter_ros.analysis.report import format_season_table, read_season, season_groups
     plants, bags = read_season(out)
     groups = season_groups(plants, bags)
     path = Path(out) / REPORT_FILE
@@ -43,8 +47,6 @@ def season_outputs(out, force):
     report under `out`, each on its own and recorded as the command's (season.record_written):
     (exports or None, the table for people, the report's path or None, [(path, reason)] of
     each output not written)."""
-    from planter_ros.analysis import season as seasons
-    from planter_ros.export.season import season_exports
     exports = season_exports(out, force)
     seasons.record_written(out, seasons.EXPORTS)
     failed = [(item['file'], item['reason']) for item in (exports or {}).get('failed', [])]
@@ -79,7 +81,7 @@ def _matplotlib_home():
 
 
 def _png(fig):
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: 350 ms, only with --plot
     buffer = io.BytesIO()
     fig.savefig(buffer, format='png', dpi=90, bbox_inches='tight')
     plt.close(fig)
@@ -106,7 +108,7 @@ def _miss_or_multiple(ratio):
 def _maps(plants):
     """Two panels per recording (misses, multiples and gaps; tilt), the MAX_MAPS recordings
     with the most of them first: a recording is one place, a field's bags may be far apart."""
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: 350 ms, only with --plot
     placed = plants[np.isfinite(plants['latitude_deg'].to_numpy(dtype=float))]
     if placed.empty:
         return '<p>No plant has a map position (no usable GNSS fix in the bags).</p>'
@@ -156,7 +158,7 @@ def _maps(plants):
 
 
 def _histograms(plants):
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: 350 ms, only with --plot
     rows = sorted(plants['row_name'].unique())
     cols = min(len(rows), 4)
     lines = math.ceil(len(rows) / cols)
@@ -176,7 +178,7 @@ def _histograms(plants):
 
 
 def _trends(groups):
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: 350 ms, only with --plot
     fig, axes = plt.subplots(1, 3, figsize=(15, 4))
     keys = (('quality_of_feed_index', 'quality of feed [%]'),
             ('miss_index', 'miss index [%]'), ('uprightness_rate', 'upright [%]'))
@@ -194,7 +196,6 @@ def _trends(groups):
 
 
 def _table(groups):
-    from planter_ros.analysis.report import COLUMNS, _cell
     head = ''.join(f'<th>{html.escape(h)}</th>' for _, h, _ in COLUMNS) + '<th>failed</th>'
     rows = []
     for g in groups:
@@ -213,10 +214,9 @@ img{max-width:100%;margin:1em 0}"""
 
 def write_season_report(path, groups, plants, bags):
     """The HTML page (module doc) at `path`, written atomically."""
-    import matplotlib
+    import matplotlib  # lazy: only with --plot (pyplot 350 ms)
     matplotlib.use('Agg')
 
-    from planter_ros.output_files import write_text_atomically
     parts = ['<!DOCTYPE html><html><head><meta charset="utf-8">',
              '<title>planter_ros season report</title>', f'<style>{STYLE}</style></head><body>',
              '<h1>Season report</h1>']
