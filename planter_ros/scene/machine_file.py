@@ -20,7 +20,6 @@ machine file has `antenna_position` [0, 0] and each row's offsets from the anten
 Pure: no ROS, no bus.
 """
 
-import argparse
 from collections.abc import Sequence
 import dataclasses
 from dataclasses import dataclass
@@ -28,7 +27,6 @@ import math
 import os
 from pathlib import Path
 import re
-import shlex
 import sys
 from typing import Any
 
@@ -416,6 +414,9 @@ def main(argv: list[str] | None = None) -> int:
     the machine's CAN interfaces up, one a line (planter-can.service pipes them to sh);
     `--check FILE [--scene SCENE]`: the machine file checked, with a scene also the scene's
     plausibility against the machine's limits. Exit 2 with one line for a bad file."""
+    # lazy: only this command line uses them (the nodes that read a machine file load none)
+    import argparse
+    import shlex
     parser = argparse.ArgumentParser(prog='python -m planter_ros.scene.machine_file',
                                      description='check a machine file; print its ip commands')
     parser.add_argument('file')
