@@ -15,11 +15,17 @@ Pure: no ROS.
 """
 from __future__ import annotations
 
+from dataclasses import asdict
 from functools import lru_cache
 import math
 from typing import Any
 
-from planter_ros.cam import CamMechanism, CamProfile, CamTrack, DriveLimits, plan_cam
+from planter_ros.cam import (
+    CamError, CamInputError, CamLimitError, CamMechanism, CamProfile, CamTrack, DriveLimits,
+    SoilLaw, plan_cam)
+from planter_ros.cam.piecewise import Piecewise
+from planter_ros.cam.track import Transition, fingerprint, plan_transition, remember_transition
+from planter_ros.kinematics.design_inputs import top_ground_speed
 
 __all__ = ['plan_row_cam', 'plan_for_design', 'anchored_track', 'profile_to_data',
            'profile_from_data', 'planning_speed', 'warm_up', 'DEFAULT_TOP_SPEED']
@@ -33,7 +39,6 @@ def planning_speed(design: Any) -> float:
     """The ground speed (m/s) a design's cam is planned for: its top ground speed (the
     scene's `top_ground_speed`, or 1.5 × nominal: kinematics.design_inputs), or for a design
     that names none (an older recording) 1.5 × its nominal speed, or DEFAULT_TOP_SPEED."""
-    from planter_ros.kinematics.design_inputs import top_ground_speed
     top = getattr(design, 'top_ground_speed', None)
     if top:
         return float(top)
@@ -56,11 +61,9 @@ def plan_row_cam(design: Any, rule: str, top_speed: float | None = None,
     `drive` (default DriveLimits()): the rule's profile, or the feasible one closest to it
     (`plan_cam`). ValueError for a design the cam cannot run (not a five-bar); CamLimitError
     when not even constant speed keeps within the drive's limits at that speed."""
-    from planter_ros.cam import CamLimitError
     if getattr(design, 'mechanism', None) != 'five_bar':
         raise ValueError(f'speed_profile = cam needs a five-bar design, got '
                          f'{getattr(design, "mechanism", None)}')
-    from planter_ros.cam import CamInputError
     speed = top_speed or planning_speed(design)
     mech = CamMechanism(design.l1, design.l2, design.planting_depth)
     built = mech.design_spacing
@@ -103,9 +106,7 @@ def anchored_track(profile: CamProfile, theta: float, s: float) -> CamTrack:
 def profile_to_data(profile: CamProfile, previous: CamProfile | None = None) -> dict:
     """A planned profile as JSON-ready data (the shell plans, the command process runs it);
     with `previous`, the planned transition from it (if one was planned) travels along."""
-    from dataclasses import asdict
 
-    from planter_ros.cam.track import fingerprint, plan_transition
     period = profile.period
     data = {'mech': asdict(profile.mech), 'law': asdict(profile.law),
             'spacing': profile.spacing, 'speed': profile.speed, 'drive': asdict(profile.drive),
@@ -120,9 +121,6 @@ def profile_to_data(profile: CamProfile, previous: CamProfile | None = None) -> 
 def profile_from_data(data: dict) -> CamProfile:
     """The profile `profile_to_data` gave (ValueError/TypeError/KeyError if it is not one);
     a transition that came with it is kept for `CamTrack.change` (cam.track)."""
-    from planter_ros.cam import SoilLaw
-    from planter_ros.cam.piecewise import Piecewise
-    from planter_ros.cam.track import Transition, fingerprint, remember_transition
     profile = CamProfile(CamMechanism(**data['mech']), SoilLaw(**data['law']),
                          float(data['spacing']), Piecewise(data['breaks'], data['coeffs']),
                          float(data['speed']), DriveLimits(**data['drive']),
@@ -143,8 +141,6 @@ def plan_for_design(design: Any, rule: str,
     figure and the limit) when its plan, or the change from `previous` (the profile in force)
     to it, is over the drive's limits however it is spread: refused, the design not to be
     applied."""
-    from planter_ros.cam import CamError, CamInputError, CamLimitError
-    from planter_ros.cam.track import plan_transition
     try:
         profile = plan_row_cam(design, rule)
     except CamLimitError:

@@ -21,9 +21,8 @@ from planter_ros.analysis.season import (
 from planter_ros.analysis.tables import HEADING, plant_columns
 from planter_ros.prediction import PLANT_FIELDS, Plants
 
-from .isoxml import write_isoxml
+from . import isoxml, shapefile
 from .runs import RowPlace, run_of_plants
-from .shapefile import write_shapefile
 
 __all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'format_exports', 'season_exports', 'season_runs',
            'write_season_exports']
@@ -76,12 +75,12 @@ def write_season_exports(out, force=False):
     result = {'shapefile': None, 'isoxml': None, 'plants': 0, 'placed': 0, 'tasks': 0,
               'skipped': [], 'failed': []}
     try:
-        result['plants'], result['placed'] = write_shapefile(out / SHAPEFILE, runs)
+        result['plants'], result['placed'] = shapefile.write_shapefile(out / SHAPEFILE, runs)
         result['shapefile'] = str(out / SHAPEFILE)
     except Exception as exc:           # a disk full, a bug on odd data: the ISOXML still goes
         result['failed'].append({'file': str(out / SHAPEFILE), 'reason': _one_line(exc)})
     try:
-        result['tasks'], _, skipped = write_isoxml(out / ISOXML, runs)
+        result['tasks'], _, skipped = isoxml.write_isoxml(out / ISOXML, runs)
         result['isoxml'] = str(out / ISOXML)
         result['skipped'] = [{'bag': bag, 'reason': reason} for bag, reason in skipped]
     except Exception as exc:

@@ -22,14 +22,16 @@ import io
 import mmap
 from pathlib import Path
 import struct
-from typing import TYPE_CHECKING, TypedDict
+from typing import TypedDict
 
 from isal.isal_zlib import crc32
+from mcap.data_stream import ReadDataStream
+from mcap.records import (
+    Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, McapRecord, Message, Metadata,
+    MetadataIndex, Schema, Statistics)
+from mcap.stream_reader import breakup_chunk
 
 from .errors import BagDamagedError, BagUnreadableError
-
-if TYPE_CHECKING:                 # mcap is imported where a file is read
-    from mcap.records import Channel, Chunk, ChunkIndex, McapRecord, MetadataIndex
 
 Data = bytes | bytearray | memoryview | mmap.mmap        # a file's bytes (mapped), or a copy
 Searchable = bytes | bytearray | mmap.mmap               # ... that can be searched (find)
@@ -64,7 +66,6 @@ class Recovered:
     _schemas: dict[int, str] = field(default_factory=dict)
 
     def add(self, record: McapRecord) -> None:
-        from mcap.records import Channel, Message, Metadata, Schema
         if isinstance(record, Schema):
             self._schemas[record.id] = record.name
         elif isinstance(record, Channel):
@@ -142,10 +143,6 @@ def record_at(data: Data, pos: int,
         return opcode, _chunk_index(data, pos, stop), stop
     if opcode in (0x03, 0x04):       # and one per topic and type: the same
         return opcode, (_schema if opcode == 0x03 else _channel)(data, pos, stop), stop
-    from mcap.data_stream import ReadDataStream
-    from mcap.records import (
-        Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, MetadataIndex, Schema,
-        Statistics)
     kinds: dict[int, type[Header | Footer | Schema | Channel | Metadata | Statistics
                           | MetadataIndex | DataEnd]] = {
         0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
@@ -174,7 +171,6 @@ def record_at(data: Data, pos: int,
 def _chunk_index(data: Data, pos: int, stop: int) -> ChunkIndex:
     """The ChunkIndex record at `pos` (its end `stop`), read with struct: the fields mcap's
     reader gives, the same checks (nothing past the record, UTF-8)."""
-    from mcap.records import ChunkIndex
     at = pos + 9
     try:
         start_time, end_time, chunk_start, chunk_length, size = struct.unpack_from(
@@ -218,7 +214,6 @@ def _strings(data: Data, at: int, stop: int, count: int, pos: int) -> tuple[list
 
 def _schema(data: Data, pos: int, stop: int) -> McapRecord:
     """The Schema record at `pos` (its end `stop`), read with struct: mcap's fields."""
-    from mcap.records import Schema
     if pos + 11 > stop:
         raise BagDamagedError('schema record cut off', at=pos)
     (schema_id,) = struct.unpack_from('<H', data, pos + 9)
@@ -233,7 +228,6 @@ def _schema(data: Data, pos: int, stop: int) -> McapRecord:
 
 def _channel(data: Data, pos: int, stop: int) -> McapRecord:
     """The Channel record at `pos` (its end `stop`), read with struct: mcap's fields."""
-    from mcap.records import Channel
     if pos + 13 > stop:
         raise BagDamagedError('channel record cut off', at=pos)
     channel_id, schema_id = struct.unpack_from('<HH', data, pos + 9)
@@ -270,7 +264,6 @@ def check_chunk_header(data: Data, pos: int, length: int) -> None:
 
 def _chunk_records(chunk: Chunk) -> list[McapRecord]:
     """The chunk's records, its CRC checked (a chunk written without CRC must at least parse)."""
-    from mcap.stream_reader import breakup_chunk
     return breakup_chunk(chunk, validate_crc=True)
 
 
@@ -279,7 +272,6 @@ def _chunk_records(chunk: Chunk) -> list[McapRecord]:
 def read_summary(data: Data) -> Summary | None:
     """The summary section's schemas, channels, chunk and metadata indexes, if the footer and
     the summary CRC are intact; else None (then the file is scanned)."""
-    from mcap.records import Channel, ChunkIndex, Footer, MetadataIndex, Schema
     size = len(data)
     footer_at = size - _MAGIC_SIZE - 9 - _FOOTER_LENGTH
     if footer_at < _MAGIC_SIZE or bytes(data[size - _MAGIC_SIZE:]) != b'\x89MCAP0\r\n':
@@ -319,7 +311,6 @@ def read_summary(data: Data) -> Summary | None:
 
 
 def _read_indexed(data: Data, summary: Summary) -> Recovered:
-    from mcap.records import Metadata
     out = Recovered()
     out._schemas.update(summary['schemas'])
     for cid, channel in summary['channels'].items():
@@ -352,7 +343,6 @@ def _read_indexed(data: Data, summary: Summary) -> Recovered:
 
 def _scan(data: Searchable, file: str | Path) -> Recovered:
     """Records in file order; resynchronise on the next valid chunk after damage."""
-    from mcap.records import DataEnd, Footer
     out = Recovered()
     size = len(data)
     pos = _MAGIC_SIZE

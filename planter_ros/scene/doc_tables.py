@@ -17,7 +17,12 @@ from pathlib import Path
 import re
 import sys
 
-from planter_ros.config import Spec
+from planter_ros import interfaces
+from planter_ros.config import Spec, specs
+from planter_ros.rows import RowLayout, RowSettings
+from planter_ros.scene.machine_file import field_table
+from planter_ros.scene.schema import ROS_PARAMETERS, node_specs
+from planter_ros.sensing.ground_speed_sources import GroundSpeedSourceConfig
 
 __all__ = ['TABLES', 'render', 'update_page']
 
@@ -40,7 +45,6 @@ def _default(spec: Spec) -> str:
 
 
 def topics_table() -> str:
-    from planter_ros import interfaces
     lines = ['| topic | type | QoS | what |', '|---|---|---|---|']
     for topic in interfaces.TOPICS:
         qos = topic.qos
@@ -53,15 +57,11 @@ def node_parameter_specs(node: str) -> dict:
     """{name: Spec} of the parameters `node` declares (rows aside): the three scene nodes'
     from the scene's schema, ground_speed_node's from its sources' settings."""
     if node == 'ground_speed_node':
-        from planter_ros.config import specs
-        from planter_ros.sensing.ground_speed_sources import GroundSpeedSourceConfig
         return {spec.name: spec for spec in specs(GroundSpeedSourceConfig)}
-    from planter_ros.scene.schema import node_specs
     return node_specs(node)
 
 
 def services_table() -> str:
-    from planter_ros import interfaces
     lines = ['| service | type | what |', '|---|---|---|']
     for service in (interfaces.RESET_FAULT, interfaces.SECTION):
         lines.append(f'| `<row>/{service.name}` (`{service.name}` without rows) | '
@@ -71,8 +71,6 @@ def services_table() -> str:
 
 def rows_table() -> str:
     """The row parameters of a scene (`rows` and each row's block)."""
-    from planter_ros.config import specs
-    from planter_ros.rows import RowLayout, RowSettings
     lines = ['| parameter | allowed | default | read-only | what |', '|---|---|---|---|---|']
     for prefix, cls in (('', RowLayout), ('<row>.', RowSettings)):
         for spec in specs(cls):
@@ -83,7 +81,6 @@ def rows_table() -> str:
 
 
 def parameters_table(node: str) -> str:
-    from planter_ros.scene.schema import ROS_PARAMETERS
     lines = ['| parameter | allowed | default | read-only | what |', '|---|---|---|---|---|']
     for name, spec in node_parameter_specs(node).items():
         if name in ROS_PARAMETERS:
@@ -91,8 +88,6 @@ def parameters_table(node: str) -> str:
         lines.append(f'| `{name}` | {_cell(spec.allowed())} | {_cell(_default(spec))} | '
                      f'{"yes" if spec.read_only else "no"} | {_cell(spec.description)} |')
     if node in ('sync_node', 'monitor_node'):
-        from planter_ros.config import specs
-        from planter_ros.rows import RowSettings
         for spec in specs(RowSettings):
             lines.append(f'| `<row>.{spec.name}` | {_cell(spec.allowed())} | '
                          f'{_cell(_default(spec))} | {"yes" if spec.read_only else "no"} | '
@@ -101,7 +96,6 @@ def parameters_table(node: str) -> str:
 
 
 def machine_table() -> str:
-    from planter_ros.scene.machine_file import field_table
     lines = ['| key | allowed | default | what |', '|---|---|---|---|']
     lines.append('| `machine` | text | `\'\'` | the machine\'s name, for people and recordings |')
     for key, spec in field_table():

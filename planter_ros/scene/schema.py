@@ -30,6 +30,8 @@ from typing import Any, Iterable
 
 from planter_ros import interfaces
 from planter_ros.config import ConfigError, Spec, coerce, specs
+from planter_ros.kinematics.design_inputs import DesignInputs, ThreeArmInputs
+from planter_ros.rows import RowLayout, RowSettings
 
 from .files import ParameterFile, SceneError
 
@@ -53,15 +55,15 @@ def node_classes() -> dict[str, tuple[type, ...]]:
     """node -> the configuration classes whose fields it declares as parameters (besides its
     rows). The design node's three-arm settings are declared only in a three-arm scene. Made
     on first use: the classes come from every layer below."""
+    # lazy: a node that reads only its own parameters (sync_node) would otherwise load
+    # prediction/, recording/, geo and sensing's plant map (14 modules) it never uses
     from planter_ros.control.loop_timing import SyncLoopConfig
     from planter_ros.control.machine_law import TurnConfig
     from planter_ros.control.phase_lock import PhaseLockConfig
     from planter_ros.drive.config import DriveConfig
     from planter_ros.geo import AntennaSettings
     from planter_ros.prediction import AcceptanceLimits, PredictionSettings
-    from planter_ros.kinematics.design_inputs import DesignInputs, ThreeArmInputs
     from planter_ros.recording.recorder import RecorderConfig
-    from planter_ros.rows import RowLayout
     from planter_ros.scene.machine_setting import MachineFileSetting
     from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
     from planter_ros.sensing.plant_map import MapSettings
@@ -79,8 +81,6 @@ def node_specs(node: str, mechanism: str | None = None,
                rows: Iterable[str] = ()) -> dict[str, Spec]:
     """Every parameter `node` declares, by name: its classes' fields, the settings of each row
     in `rows` (`<row>.<field>`, nodes with rows), ROS's own. `mechanism` None: any scene's."""
-    from planter_ros.kinematics.design_inputs import ThreeArmInputs
-    from planter_ros.rows import RowLayout, RowSettings
     out = dict(ROS_PARAMETERS)
     for cls in node_classes()[node]:
         if cls is ThreeArmInputs and mechanism not in (None, 'three_arm'):
@@ -106,7 +106,6 @@ def node_parameters(node: str, params: dict[str, Any]) -> list[tuple[str, Any]]:
 
 def scene_mechanism(params: dict[str, Any]) -> str:
     """The mechanism a flat scene dict names (the design settings' default without one)."""
-    from planter_ros.kinematics.design_inputs import DesignInputs
     mechanism = params.get('mechanism')
     if isinstance(mechanism, str):
         return mechanism
@@ -250,7 +249,6 @@ def _check_keys(pfile: ParameterFile, params: dict[str, Any], nodes: Iterable[st
 def _unknown(pfile: ParameterFile, name: str, nodes: list[str], mechanism: str | None,
              rows: list[str], own: bool) -> None:
     """Raise the one line for a key no node it reaches takes (the closest valid key)."""
-    from planter_ros.kinematics.design_inputs import ThreeArmInputs
     valid = []
     for node in nodes:
         valid += [n for n in node_specs(node, mechanism, rows) if n not in valid]
