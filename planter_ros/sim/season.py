@@ -36,26 +36,23 @@ from numpy.typing import ArrayLike, NDArray
 
 from planter_ros import interfaces
 from planter_ros.config import as_dict, check, setting
-from planter_ros.control.cam_law import plan_row_cam
 from planter_ros.control.phase_lock import PhaseLockConfig, planting_angles
 from planter_ros.design import Design, from_json, to_json
 from planter_ros.geo import AntennaSettings
-from planter_ros.prediction import AcceptanceLimits, PredictionSettings, planting_model_from_design
-from planter_ros.prediction.pipeline import MonitorPipeline, Placed
-from planter_ros.recording.monitor_topics import plants_message
-from planter_ros.recording.recorder import Recorder
-from planter_ros.recording.replay import map_record
 from planter_ros.rows import Row, implicit_row, rows_record
-from planter_ros.sensing.plant_map import MapSettings
 
 from .closed_loop import DriveModel, RowRun, simulate_rows
 from .field import Curve, FieldProfile, Stop
 from .gnss import SimulatedGnss, fix_positions, navsatfix
 from .runs import SIM_EPOCH, five_bar_design_message
-from .tray import Tray, sense_angle
 
-if TYPE_CHECKING:                 # the ROS messages are imported where a bag is written
+# The module stays light: `planter simulate --help` reads SeasonOptions from it, so the cam
+# law, prediction/, recording/ (mcap) and the ROS messages are imported where a run needs them.
+if TYPE_CHECKING:
     from builtin_interfaces.msg import Time
+
+    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
+    from planter_ros.prediction.pipeline import Placed
 
 ROW_PITCH = 0.5            # m between neighbouring simulated rows
 SAMPLE_PERIOD = 0.05       # s, ground-speed sensor (20 Hz)
@@ -242,6 +239,7 @@ class MachineRun:
 
 @lru_cache(maxsize=4)
 def _cam(design_json: str, rule: str) -> Any:        # a control.cam_law row cam
+    from planter_ros.control.cam_law import plan_row_cam  # lazy: the module stays light
     return plan_row_cam(from_json(design_json), rule)
 
 
@@ -330,7 +328,9 @@ def tray_readings(plan: RunPlan, design: Design,
     reading, half a planting cycle before the planting angle (the cup passing the sensor), of
     what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1.
     A row the scene declares without a seedling sensor (Row.seedling_sensor) reads nothing."""
+    from planter_ros.prediction import planting_model_from_design  # lazy (see its imports)
 
+    from .tray import Tray, sense_angle
     model = planting_model_from_design(design)
     n = model.plants_per_revolution
     tray = Tray(plan.empty_rate, plan.double_rate,
@@ -374,12 +374,18 @@ def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None =
     `recorder_options` (split_size, split_duration) as the monitor's parameters. Every message
     is written by recording.cdr.encode_message: the same run gives the same bytes. Returns a
     summary dict (SI)."""
-    # lazy: the ROS message modules (120 ms) only where a bag is written
+    # lazy: the module stays light (see its imports)
     from builtin_interfaces.msg import Time
     from geometry_msgs.msg import TwistStamped
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64, String
 
+    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
+    from planter_ros.prediction.pipeline import MonitorPipeline
+    from planter_ros.recording.monitor_topics import plants_message
+    from planter_ros.recording.recorder import Recorder
+    from planter_ros.recording.replay import map_record
+    from planter_ros.sensing.plant_map import MapSettings
 
 
     design = design or season_design()
