@@ -44,9 +44,14 @@ model, no second design).
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 import math
+import sys
 from typing import Any
 
-from planter_ros.config import ConfigError, from_mapping
+# The design command loads this module but none of the drive, cam, control, design, sensing
+# or rows modules of the checks it does not run: those are imported inside their checks.
+from planter_ros.config import ConfigError, from_mapping, spec_of
+from planter_ros.kinematics.design_inputs import DesignInputs, top_ground_speed
+from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
 
 __all__ = ['PlausibilityError', 'RowLimits', 'TYPICAL', 'TRACTOR_ACCELERATION', 'Verdict',
            'bus_rows', 'check', 'check_law', 'judge', 'unusual']
@@ -115,8 +120,8 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
     False: the mechanism alone (no speed or acceleration check), for a design asked without a
     ground speed; `machine` False: no bus, rows or bit-rate check (a design at the command
     line); `design` False: the caller builds the design itself."""
+    # lazy: only the checks a scene asks for load their layers (see the imports)
     from planter_ros.control.phase_lock import PhaseLockConfig
-    from planter_ros.kinematics.design_inputs import DesignInputs
     from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 
     out = Verdict()
@@ -148,8 +153,6 @@ FIVE_BAR_KEYS = ('hole_ratio',)
 
 
 def _defaults(params, mechanism):
-    from planter_ros.config import spec_of
-    from planter_ros.kinematics.design_inputs import DesignInputs
     keys = DESIGN_KEYS + (FIVE_BAR_KEYS if mechanism == 'five_bar' else ())
     out = []
     for name in keys:
@@ -175,8 +178,6 @@ def unusual(scene) -> list[str]:
 
 
 def _motion(out, params, scene, law, ground, row_limits, tractor_acceleration):
-    from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
-    from planter_ros.kinematics.design_inputs import top_ground_speed
     n = PLANTS_PER_REVOLUTION[scene.mechanism]
     _motion_of(out, scene.mechanism, n, scene.plant_spacing, scene.nominal_ground_speed, law,
                ground, row_limits, tractor_acceleration, 'max_ground_speed' in params)
@@ -254,6 +255,7 @@ def _motion_of(out, mechanism, n, d, v, law, ground, row_limits, tractor_acceler
 
 def _machine(out, params):
     """The bus, the rows and the bit rate (ConfigError for a value out of its range)."""
+    # lazy: only the checks a scene asks for load their layers (see the imports)
     from planter_ros.control.loop_timing import SyncLoopConfig
     from planter_ros.drive.config import DriveConfig
     from planter_ros.rows import rows_from_scene
@@ -300,6 +302,7 @@ def bus_rows(count, params=None):
     """The refusal (one line) of `count` rows on the bus `params` set (defaults: the sync
     node's: 500 kbit/s, ...), or '' when they fit: a command that builds rows checks them as
     the sync node would."""
+    # lazy: only the checks a scene asks for load their layers (see the imports)
     from planter_ros.control.loop_timing import SyncLoopConfig
     from planter_ros.drive.bus_load import bus_load, check_bus_load
     from planter_ros.drive.config import DriveConfig
@@ -317,6 +320,7 @@ def bus_rows(count, params=None):
 
 
 def _design(params, out):
+    # lazy: only the checks a scene asks for load their layers (see the imports)
     from planter_ros.design import design_for_scene
     try:
         design = design_for_scene({**params, 'nozzle_width': params.get('nozzle_width', 0.0)})
@@ -345,6 +349,7 @@ def _cam(params, law, out):
     (control.cam_law, at the scene's top ground speed) for its plant_spacing and every
     spacing of its spacing_schedule in turn, each change checked as the rows would make it:
     a plan or change over the drive's limits, or a design the cam cannot run, refused."""
+    # lazy: only the checks a scene asks for load their layers (see the imports)
     from planter_ros.cam import CamError
     from planter_ros.control.cam_law import plan_for_design
     from planter_ros.design import design_for_scene
@@ -394,6 +399,7 @@ def _acceleration(out, shaft, per_metre, d, tractor, limit, limit_name, where):
 
 
 def _bus(out, rows, drive, loop):
+    # lazy: only the checks a scene asks for load their layers (see the imports)
     from planter_ros.drive.bus_load import bus_load, check_bus_load
     from planter_ros.drive.errors import DriveConfigError
     enabled = [row for row in rows if row.enabled]
@@ -423,7 +429,6 @@ def check_design_query(program: str, depth: float, spacing: float, hole_ratio: f
     hole ratio and ground speed (None: not given) checked, each warning printed on stderr as
     `program: warning: ...`; PlausibilityError for a refusal. Without a ground speed only the
     mechanism is checked."""
-    import sys
     given = {'planting_depth': depth, 'plant_spacing': spacing, 'hole_ratio': hole_ratio}
     if speed is not None:
         given['nominal_ground_speed'] = speed
