@@ -18,8 +18,11 @@ QoS, chosen on purpose:
   speed sample is worse than none (the law integrates distance from receive times and holds the
   last sample), a best-effort subscription also matches a reliable publisher, and a lost sample
   costs one 20-50 ms update. The sync node never waits on a retransmission.
-* joint_states, speed_command, /diagnostics: reliable, keep last 10 (the monitor computes plant
-  positions from joint states: losing one loses a plant crossing).
+* joint_states: reliable, keep last 100. The monitor computes plant positions from joint
+  states (losing one loses a plant crossing), and after a stall of the sync node's shell every
+  feedback sample queued meanwhile goes out at once, each with its own stamp (a second at
+  10 ms per sample fits the writer's history; doc/command.md).
+* speed_command, /diagnostics: reliable, keep last 10.
 * plants, uprightness_rate, spacing_quality, plant_markers: reliable, keep last 100 (a viewer
   that falls behind for a second still gets every plant).
 A recorder subscribes with the same reliability and durability but a deeper queue
@@ -78,6 +81,7 @@ LATCHED = Qos('reliable', 'transient_local', 1)
 SENSOR_DATA = Qos('best_effort', 'volatile', 5)
 STATE = Qos('reliable', 'volatile', 10)
 OUTPUT = Qos('reliable', 'volatile', 100)
+FEEDBACK = Qos('reliable', 'volatile', 100)
 
 
 @dataclass(frozen=True)
@@ -126,7 +130,7 @@ DESIGN = Topic(
     'plants_per_revolution (1 | 3), plant_spacing (m), planting_depth (m), then the '
     "mechanism's own fields")
 JOINT_STATES = Topic(
-    'joint_states', 'sensor_msgs/msg/JointState', STATE,
+    'joint_states', 'sensor_msgs/msg/JointState', FEEDBACK,
     'drive feedback, one joint per enabled row: name = row_joint(row, mechanism), position = '
     'mechanism shaft angle (rad, unwrapped, increasing forward), velocity (rad/s), stamped '
     'when the drive measured it')

@@ -16,9 +16,11 @@ thread that forked it ends).
 """
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Sequence
 import itertools
 import logging
+import math
 import os
 import subprocess
 import sys
@@ -43,6 +45,9 @@ __all__ = ['COMMAND_PROCESS', 'CommandProcessError', 'CommandClient']
 
 COMMAND_PROCESS = 'command process'      # its status name in /diagnostics
 REPLY_TIMEOUT = 2.0                      # s a section or reset request waits for its answer
+# feedback samples held for the shell: 5 s at a 10 ms SYNC period (a shell that has not
+# published for that long is reported by its own diagnostics long before)
+FEEDBACK_QUEUE = 500
 
 
 class CommandProcessError(DriveError):
@@ -72,6 +77,12 @@ class CommandClient:
         self.last_fb: dict[str, Any] = {}
         self.last_fb_time = -1.0
         self.fb_count = 0
+        # every feedback sample the command process sent, until the shell publishes it
+        # (take_feedback): a shell whose DDS stalls catches up afterwards, none is lost
+        self._fb_queue: deque[list] = deque()
+        self._fb_newest = -math.inf         # the newest stamp queued so far
+        self.feedback_dropped = 0           # samples dropped because the queue was full
+        self._fb_overflowing = False
         self.last_diag: list = []
         self.final: dict | None = None
         self.error: tuple[str, str] | None = None
@@ -210,6 +221,7 @@ class CommandClient:
             self.last_fb = payload
             self.last_fb_time = time.monotonic()
             self.fb_count += 1
+            self._queue_feedback(payload.get('feedback', []))
         elif kind == 'diag':
             self.last_diag = payload
         elif kind == 'reply':
@@ -320,6 +332,39 @@ class CommandClient:
     def feedback(self) -> list[Feedback]:
         return [Feedback(*item) for item in self.last_fb.get('feedback', [])]
 
+    def _queue_feedback(self, items: list) -> None:
+        """Queue one message's feedback when it holds a sample not queued before (the
+        command process repeats the last one when no new TPDO came). A full queue drops its
+        oldest sample, counted and said once per overflow."""
+        if not items:
+            return
+        newest = max(item[3] for item in items)
+        if newest <= self._fb_newest:
+            return
+        self._fb_newest = newest
+        if len(self._fb_queue) >= FEEDBACK_QUEUE:
+            self._fb_queue.popleft()
+            self.feedback_dropped += 1
+            if not self._fb_overflowing:
+                self._fb_overflowing = True
+                self.log(logging.ERROR, f'joint feedback lost: the shell published none for '
+                                        f'{FEEDBACK_QUEUE} samples; the oldest are dropped '
+                                        '(counted in diagnostics)')
+        else:
+            self._fb_overflowing = False
+        self._fb_queue.append(items)
+
+    def take_feedback(self) -> list[list[Feedback]]:
+        """Every feedback sample received since the last call, oldest first (one list of
+        rows each): what the shell publishes, one joint_states message per sample."""
+        out = []
+        while True:
+            try:
+                items = self._fb_queue.popleft()
+            except IndexError:
+                return out
+            out.append([Feedback(*item) for item in items])
+
     def commands(self) -> list[tuple[str, float]]:
         return [tuple(item) for item in self.last_fb.get('commands', [])]
 
@@ -345,6 +390,7 @@ class CommandClient:
         age = now - self.last_fb_time if self.last_fb_time >= 0 else None
         if age is not None:
             values.append(('last feedback age', f'{age:.3f} s'))
+        values.append(('feedback samples dropped', self.feedback_dropped))
         if self.dead:
             return diagnostics.Report(COMMAND_PROCESS, diagnostics.ERROR,
                                       f'{self.deaths[-1]}; not restarted', tuple(values))
@@ -357,6 +403,10 @@ class CommandClient:
         if age is None or age > 1.0:
             return diagnostics.Report(COMMAND_PROCESS, diagnostics.STALE,
                                       'no feedback from the command process', tuple(values))
+        if self.feedback_dropped:
+            return diagnostics.Report(COMMAND_PROCESS, diagnostics.WARN,
+                                      f'{self.feedback_dropped} feedback sample(s) dropped: '
+                                      'the shell did not publish them in time', tuple(values))
         if refused:
             return diagnostics.Report(COMMAND_PROCESS, diagnostics.WARN,
                                       'running without real-time guarantees', tuple(values))

@@ -639,6 +639,12 @@ class CommandEngine:
                     if unit.running and unit.joint is not None and unit.status is not None
                     and sync_status.has_feedback(unit.status)]
 
+    def take_feedback(self) -> list[list[Feedback]]:
+        """What the shell publishes: here, where the shell runs the loop itself, the newest
+        sample of each step (CommandClient.take_feedback: every sample its process sent)."""
+        feedback = self.feedback()
+        return [feedback] if feedback else []
+
     def commands(self) -> list[tuple[str, float]]:
         """(joint, command rad/s) of every running row with a design ('' joint: implicit)."""
         with self._lock:

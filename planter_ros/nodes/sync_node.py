@@ -60,6 +60,11 @@ from planter_ros.rows import IMPLICIT
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits
 
+# a feedback sample's stamp is carried back from the command process's clock at most this
+# far (s): the queue it waits in holds 5 s (command.client.FEEDBACK_QUEUE)
+STAMP_AGE_MAX = 10.0
+
+
 class SyncNode(Node):
     """Keeps each planting mechanism in step with its row's ground through a CiA 402 drive."""
 
@@ -253,8 +258,9 @@ class SyncNode(Node):
                 return                      # nothing new from the command process
             self._last_fb = self.engine.fb_count
             self._publish_commands()
-        feedback = self.engine.feedback()
-        if feedback:
+        # one joint_states per feedback sample, each with its own stamp: after a stall of
+        # this shell (its DDS, its GIL) the samples queued meanwhile go out in order
+        for feedback in self.engine.take_feedback():
             self._joint_pub.publish(self._joint_states(feedback))
 
     def _joint_states(self, feedback):
@@ -262,7 +268,7 @@ class SyncNode(Node):
         measured; the other rows' angles carried to that instant with their measured speed
         (their feedback is at most one feedback period older)."""
         newest = max(f.stamp for f in feedback)
-        age = min(max(time.monotonic() - newest, 0.0), 1.0)
+        age = min(max(time.monotonic() - newest, 0.0), STAMP_AGE_MAX)
         msg = JointState(name=[f.joint for f in feedback],
                          position=[f.position + f.velocity * (newest - f.stamp)
                                    for f in feedback],
