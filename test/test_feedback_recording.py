@@ -16,7 +16,7 @@ from planter_ros.command import client as client_module
 from planter_ros.command.client import CommandClient
 from planter_ros.command.settings import CommandSettings
 from planter_ros.control.loop_timing import SyncLoopConfig
-from planter_ros.control.machine import TurnConfig
+from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.drive.config import DriveConfig
 from planter_ros.rows import Row
