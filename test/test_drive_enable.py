@@ -6,8 +6,8 @@ import pytest
 
 from drive_helpers import RPDO1, SDO_RX, drain, rpdo_frames
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig, DriveError
-from planter_ros.drive.fault_bus import FaultBus
-from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.simdrive.fault_bus import FaultBus
+from planter_ros.simdrive.drive import SimulatedDrive
 
 
 def test_enable_reaches_operation_enabled_in_profile_velocity(sim, make_drive):
@@ -92,7 +92,8 @@ def test_no_drive_on_the_bus_names_the_first_step(make_drive):
 
 
 def test_mode_not_confirmed_by_0x6061_is_an_error(channel, make_drive):
-    sim = SimulatedDrive(channel, supported_modes=(1,))     # a drive that ignores mode 3
+    sim = SimulatedDrive(channel)              # it says it offers mode 3 (6502h bit 2) ...
+    sim.device.control.supported = ()          # ... but 6060h = 3 leaves 6061h where it was
     sim.start()
     try:
         drive = make_drive(step_timeout=0.1)
@@ -137,8 +138,8 @@ def test_a_drive_left_enabled_by_a_dead_master_is_re_enabled_from_the_bottom(
         first = make_drive(bus=dead_bus, command_timeout=5.0, master_heartbeat_timeout=5.0)
         first.connect_and_enable()
     finally:                                 # the old master's process dies: its bus is gone
-        if first._network is not None:
-            first._network.notifier.stop(0.1)
+        if first.canbus.network is not None:
+            first.canbus.network.notifier.stop(0.1)
         dead_bus.shutdown()
     assert sim.state == 'OPERATION ENABLED'
     drain(spy)

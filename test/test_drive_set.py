@@ -7,7 +7,7 @@ import can
 from drive_helpers import wait_until
 from planter_ros.drive.cia402 import DriveConfig
 from planter_ros.drive.drive_set import DriveSet
-from planter_ros.drive.simulated_drive import SimulatedBus
+from planter_ros.simdrive.bus import SimulatedBus
 
 
 def test_drives_enable_at_once_an_absent_one_is_left_out_and_the_others_are_fed(channel):

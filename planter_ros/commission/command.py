@@ -64,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
         if simulated:
             import can
 
-            from planter_ros.drive.simulated_drive import SimulatedDrive, simulated_mechanism
+            from planter_ros.simdrive.drive import SimulatedDrive
+            from planter_ros.simdrive.mechanism import simulated_mechanism
             channel = f'planter-commission-{uuid.uuid4().hex}'
             run_machine = dataclasses.replace(machine, can=CanBus(interface='virtual',
                                                                    channel='vcan0'))

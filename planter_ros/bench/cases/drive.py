@@ -35,7 +35,7 @@ def _quiet(*names):
 def _drive_pair():
     """A simulated drive and our master on a fresh virtual channel; both stopped on exit."""
     from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
-    from planter_ros.drive.simulated_drive import SimulatedDrive
+    from planter_ros.simdrive.drive import SimulatedDrive
 
     channel = f'planter-bench-drive-{uuid.uuid4().hex}'
     sim = SimulatedDrive(channel)

@@ -63,7 +63,7 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
     from std_msgs.msg import String
 
     from planter_ros import interfaces
-    from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.simdrive.bus import SimulatedBus
     from planter_ros.nodes.sync_node import SyncNode
     from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
     from planter_ros.design import to_json

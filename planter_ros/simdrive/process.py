@@ -1,6 +1,6 @@
 """Simulated drives in a process of their own, on one end of a CAN socket pair
-(`drive.socket_bus`): `python -m planter_ros.drive.sim_process --fd N --nodes 1,2 [--options
-JSON]`.
+(`drive.socket_bus`): `python -m planter_ros.simdrive.process --fd N --nodes 1,2 [--options
+JSON]` (the options: SimSpec fields, and `node_kwargs` per node id).
 
 In the master's process the simulated drives share its GIL: a master stalled by its process
 (a DDS publish holding the GIL, a collection) stalls them too, and they see no gap a real drive
@@ -36,7 +36,7 @@ class SimProcess:
     def __init__(self, fd: int, node_ids: list[int], priority: int = 0,
                  **options: Any) -> None:
         self.process = subprocess.Popen(
-            [sys.executable, '-m', 'planter_ros.drive.sim_process', '--fd', str(fd),
+            [sys.executable, '-m', 'planter_ros.simdrive.process', '--fd', str(fd),
              '--nodes', ','.join(str(n) for n in node_ids), '--options', json.dumps(options),
              '--priority', str(priority)],
             pass_fds=(fd,), stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -74,10 +74,11 @@ class SimProcess:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from planter_ros.drive.simulated_drive import SimulatedBus
     from planter_ros.drive.socket_bus import SocketPairBus
 
-    parser = argparse.ArgumentParser(prog='planter_ros.drive.sim_process')
+    from .bus import SimulatedBus
+
+    parser = argparse.ArgumentParser(prog='planter_ros.simdrive.process')
     parser.add_argument('--fd', type=int, required=True)
     parser.add_argument('--nodes', required=True)
     parser.add_argument('--options', default='{}')
