@@ -24,8 +24,10 @@ import math
 from typing import TYPE_CHECKING
 
 from . import objects as od
+from .config import interpolation_period
 from .dictionary import Entry, entry, mapping_capacity
 from .errors import DictionaryError
+from .setup import HOMING_ALLOWED, homing_method_ok, missing_modes, mode_bits
 from .states import ABORT_OPTION_QUICK_STOP, CSP_SUPPORTED, CYCLIC_SYNC_POSITION, \
     PROFILE_VELOCITY, PROFILE_VELOCITY_SUPPORTED
 
@@ -36,7 +38,7 @@ if TYPE_CHECKING:
     from .setup import DriveSetup
 
 __all__ = ['DrivePlan', 'PdoPlan', 'Write', 'choose_mode', 'interpolation_period', 'plan_for_file',
-           'plan_drive', 'MODE_NAMES', 'homing_writes', 'HOMING_METHODS', 'PDO_NUMBERS']
+           'plan_drive', 'MODE_NAMES', 'homing_writes', 'PDO_NUMBERS']
 
 MODE_NAMES = {PROFILE_VELOCITY: 'profile velocity', CYCLIC_SYNC_POSITION: 'cyclic synchronous '
               'position'}
@@ -44,9 +46,6 @@ PDO_NUMBERS = (1, 2, 3, 4)            # the predefined connection set's PDOs (CO
 PDO_NOT_VALID = 1 << 31
 SYNCHRONOUS, EVENT = 1, 255           # transmission types the master uses
 MAX_PDO_BITS = 64
-INTERPOLATION_INDICES = (-3, -4, -5, -6, -2)   # ms first: the unit drives know best
-# CiA 402 homing methods (6098h): 1..14, 17..30, 33..35, 37; negative: the maker's
-HOMING_METHODS = frozenset([*range(1, 15), *range(17, 31), 33, 34, 35, 37])
 
 
 @dataclass(frozen=True)
@@ -137,25 +136,13 @@ class DrivePlan:
 
 
 def _shown(write: Write) -> str:
-    value = write.value
-    return f'0x{value:X}' if value > 0xFFFF or write.obj.index in (0x1005, 0x1016, 0x607E) \
+    return _value(write.obj, write.value)
+
+
+def _value(obj: od.Obj, value: int) -> str:
+    """A value as people read it: COB-IDs, bit fields and big numbers in hex."""
+    return f'0x{value:X}' if value > 0xFFFF or obj.index in (0x1005, 0x1016, 0x607E) \
         else str(value)
-
-
-def interpolation_period(period: float, index: int | None = None) -> tuple[int, int] | None:
-    """(60C2h:1 value, 60C2h:2 index) with value × 10^index s exactly the SYNC period as 1006h
-    states it (whole µs), value 1..255; `index`: the drive's fixed index. None: none exists."""
-    micro = round(period * 1e6)
-    if micro <= 0 or abs(period * 1e6 - micro) > 1e-6 * max(1.0, micro):
-        return None
-    for i in ((index,) if index is not None else INTERPOLATION_INDICES):
-        if i + 6 >= 0:
-            scale = 10 ** (i + 6)
-            if micro % scale == 0 and 1 <= micro // scale <= 255:
-                return micro // scale, i
-        elif micro * 10 ** -(i + 6) <= 255:
-            return micro * 10 ** -(i + 6), i
-    return None
 
 
 def choose_mode(operation_mode: str, supported: int | None, setup: DriveSetup | None,
@@ -234,7 +221,7 @@ class _Planner:
         a read-only value does; None: equal to `value`). True when written."""
         found = self.entry(obj)
         if found is None:
-            self.skipped.append(f'{_name(obj)} = {value}: not in the EDS')
+            self.skipped.append(f'{_name(obj)} = {_value(obj, value)}: not in the EDS')
             if absent:
                 self.warnings.append(absent)
             return False
@@ -242,8 +229,9 @@ class _Planner:
             self.writes.append(Write(obj, value, step))
             return True
         ok = found.value == value if serves is None else serves
-        self.skipped.append(f'{_name(obj)} = {value}: {found.access}'
-                            + (f' at {found.value}' if found.value is not None else '')
+        self.skipped.append(f'{_name(obj)} = {_value(obj, value)}: {found.access}'
+                            + (f' at {_value(obj, found.value)}' if found.value is not None
+                               else '')
                             + ('' if ok else ' (it does not serve)'))
         if not ok and absent:
             self.warnings.append(absent)
@@ -560,9 +548,9 @@ def homing_writes(p: _Planner | ObjectDictionary, method: int, config: DriveConf
         p = _Planner(p, config, None, PROFILE_VELOCITY, f'drive node {config.drive_node_id}')
     before = len(p.writes)
     step = f'homing method {method} (0x6098, 0x6099, 0x607C, 0x6060 = 6)'
-    if method not in HOMING_METHODS and method >= 0:
+    if not homing_method_ok(method):
         raise p.refuse(f'homing method {method}', 'it is no CiA 402 homing method',
-                       'allowed 1..14, 17..30, 33, 34, 35, 37 or the maker\'s (negative)')
+                       f'allowed {HOMING_ALLOWED}')
     remedy = 'use homing_method 0 (none) or a drive that homes'
     p.needed(od.HOMING_METHOD, method, step, 'homing at start needs it', remedy)
     counts = config.counts_per_motor_rev * config.motor_gear_ratio / (2.0 * math.pi)
@@ -583,7 +571,6 @@ def plan_for_file(path: str, config: DriveConfig, setup: DriveSetup | None,
     `planter drive check` before it starts): the modes as the machine file lists them, unless
     the file's own 6502h default says the drive lacks one (refused, naming 0x6502)."""
     from .dictionary import read_dictionary
-    from .setup import missing_modes, mode_bits
     who = who or f'drive node {config.drive_node_id}'
     dictionary = read_dictionary(path, config.drive_node_id)
     stated = entry(dictionary, od.SUPPORTED_MODES.index)

@@ -16,9 +16,9 @@ from collections.abc import Callable
 
 from . import objects as od
 
-__all__ = ['DriveSetup', 'HOMING_BIT', 'HOMING_SEARCH_SPEED', 'HOMING_ZERO_SPEED', 'MODE_BITS',
-           'homing_timeout', 'identity_mismatch', 'missing_modes', 'mode_bits',
-           'pdo_mismatch']
+__all__ = ['DriveSetup', 'HOMING_ALLOWED', 'HOMING_BIT', 'HOMING_METHODS', 'HOMING_SEARCH_SPEED',
+           'HOMING_ZERO_SPEED', 'MODE_BITS', 'homing_method_ok', 'homing_timeout',
+           'identity_mismatch', 'missing_modes', 'mode_bits', 'pdo_mismatch']
 
 MODE_BITS = {'csp': 0x80, 'pv': 0x04}             # 0x6502 bit 7 CSP, bit 2 profile velocity
 HOMING_BIT = 0x20                                 # 0x6502 bit 5: homing mode
@@ -27,6 +27,16 @@ HOMING_ZERO_SPEED = 0.05     # rad/s: homing's search for zero (the edge, the in
 IDENTITY = (('vendor_id', od.VENDOR_ID), ('product_code', od.PRODUCT_CODE),
             ('revision', od.REVISION_NUMBER))
 NOT_CHECKED = -1             # an identity value the machine file does not state
+# CiA 402 homing methods (6098h): 1..14, 17..30, 33..35, 37 (15, 16, 31, 32, 36 and 38 up are
+# reserved); 0: no homing; negative: the drive maker's own
+HOMING_METHODS = frozenset([*range(1, 15), *range(17, 31), 33, 34, 35, 37])
+HOMING_ALLOWED = ('0 (none), 1..14, 17..30, 33, 34, 35, 37 (CiA 402) or negative (the drive '
+                  "maker's)")
+
+
+def homing_method_ok(method: int) -> bool:
+    """`method` is no homing, a CiA 402 method or a maker's (negative)."""
+    return method <= 0 or method in HOMING_METHODS
 
 
 def homing_timeout() -> float:
