@@ -22,6 +22,7 @@ class Homing:
         self.attained = False
         self.error = False
         self.shift = 0.0          # counts: reported position - polarity sign * motor counts
+        self.homed = 0            # homings attained since power-up
         self._offset, self._sign, self._slow = 0.0, 1.0, 0.0
 
     def reset(self) -> None:
@@ -76,3 +77,4 @@ class Homing:
         self.shift = offset - sign * counts
         self.phase = ('stop', 1, 0.0) if abs(velocity) >= 0.5 else None
         self.attained = True
+        self.homed += 1
