@@ -139,7 +139,7 @@ class SimulatedDevice:
             return self.polarity
         if index == objs.DIGITAL_INPUTS.index:
             return objs.DI_HOME_SWITCH if self.mechanism.switch_active(motor.position) else 0
-        if index == objs.VENDOR_ID.index and 1 <= subindex <= 4:
+        if index == objs.VENDOR_ID.index and 1 <= subindex <= 4 and self.spec.identity:
             return self.spec.identity[subindex - 1]
         if index == objs.ERROR_CODE.index:
             return self.control.error_code

@@ -24,7 +24,8 @@ class SimSpec:
     coast_time_constant: float = 0.5     # s, speed decay with the power stage off
     # device
     supported_modes: tuple[int, ...] | None = (PROFILE_VELOCITY,)   # None: the EDS's 6502h
-    identity: tuple[int, int, int, int] = (0x0000_0000, 0x0000_0402, 1, 0)   # 1018h:1..4
+    # 1018h:1..4 (None: the EDS's own)
+    identity: tuple[int, int, int, int] | None = (0x0000_0000, 0x0000_0402, 1, 0)
     eds_path: str | None = None          # the object dictionary (None: planter_drive.eds)
     # mechanism behind the gear
     gear_ratio: float = 1.0              # motor turns per mechanism turn
