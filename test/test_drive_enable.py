@@ -173,3 +173,29 @@ def test_unknown_interface_is_a_drive_error():
     with pytest.raises(DriveError, match=r'open bus: no-such-interface:x'):
         drive.connect_and_enable()
     drive.shutdown()
+
+
+def test_sync_flows_from_before_the_nmt_start_through_enabling_and_homing(channel, spy,
+                                                                          make_drive):
+    """A strict CiA 301 drive acts on a synchronous RPDO only at a SYNC and sends its
+    synchronous TPDO only after one: the master's start-up produces SYNC from before the NMT
+    start until the drive is enabled and homed (before, it sent none: the enable timed out)."""
+    sim = SimulatedDrive(channel, supported_modes=(3, 8))
+    sim.start()
+    try:
+        drive = make_drive(operation_mode='csp')
+        drive.connect_and_enable()
+        frames = drain(spy)
+        ids = [(m.arbitration_id, bytes(m.data)) for m in frames]
+        nmt_start = ids.index((0x000, bytes([0x01, 1])))
+        syncs = [i for i, (cob, _) in enumerate(ids) if cob == 0x080]
+        assert syncs and syncs[0] < nmt_start and syncs[-1] > nmt_start
+        assert drive.canbus.syncs_sent == len(syncs) >= 5
+        # gaps between start-up SYNCs: the period, never a silence the drive would notice
+        stamps = [frames[i].timestamp for i in syncs]
+        assert max(b - a for a, b in zip(stamps, stamps[1:])) < 0.05
+        drive.home(37, 1.0, 0.05, timeout=5.0)       # homing in CSP waits on SYNC too
+        assert any(m.arbitration_id == 0x080 for m in drain(spy))
+        assert drive.status().enabled and sim.mode_display == 8
+    finally:
+        sim.stop()

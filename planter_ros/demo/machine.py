@@ -38,6 +38,8 @@ def simulated_drives(machine: Any, seed: int) -> dict[str, Any]:
         kwargs = {'gear_ratio': row.gear_ratio, 'counts_per_motor_rev': row.encoder_counts,
                   'mechanical_offset': offset, 'motor_reversed': reversed_,
                   'record_bottom': True}
+        if row.eds:                  # the simulated drive serves the row's own dictionary
+            kwargs['eds_path'] = str(machine.eds_path(row))
         default = (0x0000_0000, 0x0000_0402, 1, 0)          # the simulated drive's own
         kwargs['identity'] = [default[i] if value == -1 else value for i, value in
                               enumerate((row.vendor_id, row.product_code, row.revision))] + [0]
