@@ -58,11 +58,14 @@ REALTIME_MODULES = {
     'test_sync_node.py', 'test_sync_node_start.py',
     # on main since this list was made (drives, demos): real-time once merged
     'test_bus_faults.py', 'test_demo_tray.py', 'test_machine_start.py',
-    'test_seedling_sensor_rows.py'}
+    'test_seedling_sensor_rows.py',
+    # issue 29 (marked `realtime` too, main's way): strict drives, profiles, drive check
+    'test_drive_check.py', 'test_drive_profiles.py', 'test_strict_drive.py'}
 # and single real-time tests of modules that are not (their module's other tests run beside)
 REALTIME_TESTS = {
     'test_no_leftovers.py::test_a_command_leaves_only_what_it_was_asked_to_write[demo]',
-    'test_no_leftovers.py::test_a_demo_without_bag_names_its_default_bag_in_its_first_line'}
+    'test_no_leftovers.py::test_a_demo_without_bag_names_its_default_bag_in_its_first_line',
+    'test_drive_plan.py::test_a_cam_scene_on_rows_without_csp_is_refused_before_the_demo_starts'}
 BACKGROUND_NICE = 10
 REALTIME_NICE = -10
 

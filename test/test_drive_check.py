@@ -6,11 +6,15 @@ from __future__ import annotations
 import re
 import shutil
 
+import pytest
+
 from cli_helpers import REPO, run_planter
 
 EDS = REPO / 'test' / 'eds'
 PROFILES = sorted(p.stem for p in EDS.glob('*.eds'))
 PV_ONLY = ('epos2_like', 'prl_like')      # no CSP over PDOs: their rows run profile velocity
+
+pytestmark = pytest.mark.realtime
 
 
 def machine(tmp_path, modes=None):

@@ -254,6 +254,7 @@ def test_a_machine_file_whose_drive_cannot_run_its_row_is_refused_before_the_sta
         assert 'Traceback' not in done.stderr
 
 
+@pytest.mark.realtime
 def test_a_cam_scene_on_rows_without_csp_is_refused_before_the_demo_starts(tmp_path):
     machine = (REPO / 'config' / 'machines' / 'tomato_4row_tractor.yaml').read_text()
     path = tmp_path / 'pv_only.yaml'

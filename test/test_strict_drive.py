@@ -34,6 +34,8 @@ from planter_ros.simdrive.node import StrictNode
 EDS = REPO / 'test' / 'eds'
 NODE = 5
 
+pytestmark = pytest.mark.realtime
+
 
 def abort_code(call, *args, **kwargs) -> int | None:
     try:

@@ -11,8 +11,9 @@ The parent talks to it over stdin/stdout (JSON lines): a line `["power_cycle", n
 s]` or `["emcy_storm", node id, rate, s]` injects that fault into that drive (`SimProcess.inject`;
 doc/command.md, "Faults and their recovery"); end-of-file on stdin (the parent asked, or died,
 even by SIGKILL) stops the drives and the process; the last stdout line is the report
-(`{"watchdog_trips": [[node id, reason, EMCY code], ...], "rpdo_gaps": {...}, "sync": {...}}`:
-per drive the gaps between command frames and the SYNC timing on its own clock). `SimProcess`
+(`{"watchdog_trips": [[node id, reason, EMCY code], ...], "rpdo_gaps": {...}, "sync": {...},
+"drives": {...}}`: per drive the gaps between command frames, the SYNC timing on its own clock,
+its state at the end). `SimProcess`
 is the parent's handle.
 """
 from __future__ import annotations
@@ -121,7 +122,10 @@ def main(argv: list[str] | None = None) -> int:
               'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
                                if d.record_bottom},
               'faults': {str(d.node_id): {'power_cycles': d.power_cycles,
-                                          'emcy_sent': d.emcy_sent} for d in sims.drives}}
+                                          'emcy_sent': d.emcy_sent} for d in sims.drives},
+              'drives': {str(d.node_id): {'state': d.state, 'mode': d.mode_display,
+                                          'nmt': d.nmt_state, 'homed': d.device.homing.homed}
+                         for d in sims.drives}}
     print(json.dumps(report), flush=True)
     return 0
 
