@@ -44,7 +44,7 @@ setup(
         'cantools>=39.4',                         # ISOBUS speed messages from a DBC
     ],
     extras_require={'test': ['pytest>=8', 'hypothesis>=6.100', 'colcon-common-extensions',
-                             'ruff>=0.6', 'pyogrio>=0.10']},
+                             'ruff>=0.6', 'pyogrio>=0.10', 'xmlschema>=3.0']},
     zip_safe=True,
     maintainer='planter_ros team',
     maintainer_email='planter@example.org',
