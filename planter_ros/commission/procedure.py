@@ -183,6 +183,11 @@ def _switch_edges(drive) -> tuple[float, float, float, float] | None:
     return edges            # type: ignore[return-value]
 
 
+def written_offset(phase_offset: float) -> float:
+    """The phase offset as the machine file gets it (and the checklist prints it): 1 urad."""
+    return round(phase_offset, 6) % TWO_PI
+
+
 def updated_machine(machine, findings: list[RowFindings]):
     """The machine file with each commissioned row's polarity and measured phase offset."""
     rows = dict(machine.rows)
@@ -195,7 +200,7 @@ def updated_machine(machine, findings: list[RowFindings]):
             if getattr(row, key) == -1 and found is not None:
                 row = replace(row, **{key: int(found)})
         if f.phase_offset is not None:
-            row = replace(row, phase_offset=round(f.phase_offset, 6) % TWO_PI)
+            row = replace(row, phase_offset=written_offset(f.phase_offset))
         rows[f.row] = row
     return replace(machine, rows=rows)
 
@@ -268,7 +273,7 @@ def checklist(findings: list[RowFindings], machine_path) -> str:
                          f'tip is lowest and write that angle as rows.{f.row}.phase_offset')
         else:
             lines.append(f'  [found] bottom switch: {math.degrees(f.switch_width):.2f} deg wide, '
-                         f'phase offset {f.phase_offset:.5f} rad '
+                         f'phase offset {written_offset(f.phase_offset):.5f} rad '
                          f'({math.degrees(f.phase_offset):.2f} deg)')
         lines += [f'  [drive] {warning}' for warning in f.warnings]
         lines.append('  [by eye] the unit turned forward (planting direction) in the last jog')
