@@ -70,7 +70,8 @@ LIVE_FIXTURES = frozenset({'ros', 'sim', 'channel', 'spy', 'make_drive', 'enable
 # (test_demo.start_demo, or run_planter('demo', ... '--duration' ...)), a node, a simulated
 # drive or its bus, an rclpy context of the test's own
 LIVE_NAMES = frozenset({'start_demo', 'SyncNode', 'MonitorNode', 'DesignNode',
-                        'create_node', 'Context', 'SimulatedBus', 'SimulatedDrive'})
+                        'create_node', 'Context', 'SimulatedBus', 'SimulatedDrive',
+                        'SimProcess'})
 REALTIME = 'realtime'
 BACKGROUND_NICE = 10       # the other tests' nice value, added to the session's while real-time
 START_NICE = os.getpriority(os.PRIO_PROCESS, 0)    # the priority this process started with

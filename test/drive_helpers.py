@@ -13,7 +13,7 @@ import can
 import pytest
 
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
-from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.simdrive.drive import SimulatedDrive
 
 NODE_ID = 1
 RPDO1 = 0x200 + NODE_ID

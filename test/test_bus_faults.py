@@ -23,8 +23,8 @@ from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.design import from_json, to_json
 from planter_ros.drive.cia402 import DriveConfig
 from planter_ros.drive.errors import DriveError
-from planter_ros.drive.fault_bus import FaultBus
-from planter_ros.drive.simulated_drive import SimulatedBus
+from planter_ros.simdrive.fault_bus import FaultBus
+from planter_ros.simdrive.bus import SimulatedBus
 from planter_ros.drive.states import (CYCLIC_SYNC_POSITION, FAULT, OPERATION_ENABLED,
                                       PROFILE_VELOCITY)
 from planter_ros.rows import Row
@@ -324,7 +324,7 @@ def test_an_emcy_storm_is_counted_and_logged_without_flooding_and_a_real_fault_s
 
 # --------------------------------------------------------------------------- drives' own process
 def test_faults_are_injected_into_the_drives_process_over_its_stdin():
-    from planter_ros.drive.sim_process import SimProcess
+    from planter_ros.simdrive.process import SimProcess
     from planter_ros.drive.socket_bus import socket_pair
     ours, theirs = socket_pair()
     sims = SimProcess(ours.fileno(), [1, 2], supported_modes=list(BOTH))

@@ -199,7 +199,7 @@ def test_csp_targets_follow_the_cam(channel, design):
     import time
 
     from drive_helpers import wait_until
-    from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.simdrive.bus import SimulatedBus
     from planter_ros.drive.states import CYCLIC_SYNC_POSITION, OPERATION_ENABLED, PROFILE_VELOCITY
     sims = SimulatedBus(channel, [1], supported_modes=(PROFILE_VELOCITY, CYCLIC_SYNC_POSITION))
     sims.start()
@@ -238,7 +238,7 @@ def test_a_drive_without_csp_falls_back_to_the_mean_speed_with_a_warning(channel
 
     from drive_helpers import wait_until
     from planter_ros.diagnostics import WARN
-    from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.simdrive.bus import SimulatedBus
     from planter_ros.drive.states import PROFILE_VELOCITY
     sims = SimulatedBus(channel, [1], supported_modes=(PROFILE_VELOCITY,))
     sims.start()

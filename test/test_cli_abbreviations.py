@@ -28,6 +28,8 @@ REQUIRED = {
     ('cam', 'five-bar'): ['--depth', '0.045', '--design-spacing', '0.2', '--spacing', '0.2',
                           '--speed', '0.3'],
     ('commission',): ['--machine', str(REPO / 'config' / 'machines' / 'tomato_4row_tractor.yaml')],
+    ('drive', 'check'): ['--machine',
+                         str(REPO / 'config' / 'machines' / 'tomato_4row_tractor.yaml')],
 }
 
 

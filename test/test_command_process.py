@@ -22,7 +22,7 @@ from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.design import from_json, to_json
 from planter_ros.drive.config import DriveConfig
-from planter_ros.drive.simulated_drive import SimulatedBus
+from planter_ros.simdrive.bus import SimulatedBus
 from planter_ros.drive.state_names import (OPERATION_ENABLED, READY_TO_SWITCH_ON,
                                            SWITCH_ON_DISABLED)
 from planter_ros.rows import Row

@@ -16,7 +16,7 @@ from planter_ros.commission import (CommissionError, SimulatedObserver, commissi
                                     updated_machine)
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
 from planter_ros.drive.errors import DriveRefusedError
-from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.simdrive.drive import SimulatedDrive
 from planter_ros.scene.machine_file import CanBus, open_machine, write_machine
 
 pytestmark = pytest.mark.realtime          # (test/conftest.py)

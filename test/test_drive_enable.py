@@ -6,8 +6,8 @@ import pytest
 
 from drive_helpers import RPDO1, SDO_RX, drain, rpdo_frames
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig, DriveError
-from planter_ros.drive.fault_bus import FaultBus
-from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.simdrive.fault_bus import FaultBus
+from planter_ros.simdrive.drive import SimulatedDrive
 
 pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
@@ -94,7 +94,8 @@ def test_no_drive_on_the_bus_names_the_first_step(make_drive):
 
 
 def test_mode_not_confirmed_by_0x6061_is_an_error(channel, make_drive):
-    sim = SimulatedDrive(channel, supported_modes=(1,))     # a drive that ignores mode 3
+    sim = SimulatedDrive(channel)              # it says it offers mode 3 (6502h bit 2) ...
+    sim.device.control.supported = ()          # ... but 6060h = 3 leaves 6061h where it was
     sim.start()
     try:
         drive = make_drive(step_timeout=0.1)
@@ -139,8 +140,8 @@ def test_a_drive_left_enabled_by_a_dead_master_is_re_enabled_from_the_bottom(
         first = make_drive(bus=dead_bus, command_timeout=5.0, master_heartbeat_timeout=5.0)
         first.connect_and_enable()
     finally:                                 # the old master's process dies: its bus is gone
-        if first._network is not None:
-            first._network.notifier.stop(0.1)
+        if first.canbus.network is not None:
+            first.canbus.network.notifier.stop(0.1)
         dead_bus.shutdown()
     assert sim.state == 'OPERATION ENABLED'
     drain(spy)
@@ -174,3 +175,29 @@ def test_unknown_interface_is_a_drive_error():
     with pytest.raises(DriveError, match=r'open bus: no-such-interface:x'):
         drive.connect_and_enable()
     drive.shutdown()
+
+
+def test_sync_flows_from_before_the_nmt_start_through_enabling_and_homing(channel, spy,
+                                                                          make_drive):
+    """A strict CiA 301 drive acts on a synchronous RPDO only at a SYNC and sends its
+    synchronous TPDO only after one: the master's start-up produces SYNC from before the NMT
+    start until the drive is enabled and homed (before, it sent none: the enable timed out)."""
+    sim = SimulatedDrive(channel, supported_modes=(3, 8))
+    sim.start()
+    try:
+        drive = make_drive(operation_mode='csp')
+        drive.connect_and_enable()
+        frames = drain(spy)
+        ids = [(m.arbitration_id, bytes(m.data)) for m in frames]
+        nmt_start = ids.index((0x000, bytes([0x01, 1])))
+        syncs = [i for i, (cob, _) in enumerate(ids) if cob == 0x080]
+        assert syncs and syncs[0] < nmt_start and syncs[-1] > nmt_start
+        assert drive.canbus.syncs_sent == len(syncs) >= 5
+        # gaps between start-up SYNCs: the period, never a silence the drive would notice
+        stamps = [frames[i].timestamp for i in syncs]
+        assert max(b - a for a, b in zip(stamps, stamps[1:])) < 0.05
+        drive.home(37, 1.0, 0.05, timeout=5.0)       # homing in CSP waits on SYNC too
+        assert any(m.arbitration_id == 0x080 for m in drain(spy))
+        assert drive.status().enabled and sim.mode_display == 8
+    finally:
+        sim.stop()

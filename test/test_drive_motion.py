@@ -40,7 +40,7 @@ def test_velocity_units_on_the_bus_are_encoder_increments_per_second(enabled, sp
 def test_position_is_unwrapped_across_the_32_bit_counter(enabled):
     drive, sim = enabled
     with sim._lock:
-        sim._position = 2**31 - 2000.0           # just below the int32 wrap of 0x6064
+        sim.device.motor.position = 2**31 - 2000.0   # just below the int32 wrap of 0x6064
     control_loop(drive, 5.0, timeout=0.4)        # ~ +0.4 s * 5 rad/s * 12.5 * 652 counts/rad
     status = drive.status()
     counts = status.position * 12.5 * 4096 / (2 * math.pi)

@@ -11,7 +11,7 @@ from cli_helpers import REPO
 from planter_ros.drive import bus_load, objects as od
 from planter_ros.drive.config import BusConfig, DeviceConfig, DriveConfig
 from planter_ros.drive.errors import DriveConfigError
-from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.simdrive.drive import SimulatedDrive
 
 pytestmark = pytest.mark.realtime          # (test/conftest.py)
 

@@ -8,7 +8,7 @@ import pytest
 from drive_helpers import wait_until
 from planter_ros.drive.cia402 import DriveConfig
 from planter_ros.drive.drive_set import DriveSet
-from planter_ros.drive.simulated_drive import SimulatedBus
+from planter_ros.simdrive.bus import SimulatedBus
 
 pytestmark = pytest.mark.realtime          # (test/conftest.py)
 

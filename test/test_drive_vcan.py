@@ -12,7 +12,7 @@ import pytest
 
 from drive_helpers import control_loop
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
-from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.simdrive.drive import SimulatedDrive
 
 VCAN = 'vcan0'
 NODE_ID = 42        # away from node 1, in case a real drive shares a test bench bus

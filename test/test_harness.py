@@ -155,7 +155,7 @@ def test_on_a_bus(channel):
 
 @pytest.fixture
 def machine():
-    from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.simdrive.bus import SimulatedBus
     return SimulatedBus
 
 

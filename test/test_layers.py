@@ -18,7 +18,7 @@ LAYERS = (
      'shipped', 'processes'),                      # base: pure declarations and helpers
     ('geo', 'rows', 'dds_domain'),
     ('kinematics', 'drive', 'sensing'),            # core models
-    ('design',),                                   # the typed design
+    ('design', 'simdrive'),                        # the typed design; simulated drives
     ('prediction',),                               # per-plant predictions from motion
     ('cam', 'control'),                            # cam planning; the sync law, the row loop
     ('recording', 'optimize', 'sim', 'command',    # command: the command process

@@ -17,7 +17,7 @@ from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
 from planter_ros import interfaces
-from planter_ros.drive.simulated_drive import SimulatedBus
+from planter_ros.simdrive.bus import SimulatedBus
 from planter_ros.nodes.sync_node import SyncNode
 from ros_fixtures import unique_channel
 
@@ -84,7 +84,7 @@ class Machine:
             out = {}
             for node, sim in self.sim.items():
                 with sim._lock:                  # position and the instant it is for, together
-                    out[node] = (sim.motor_position, sim._motor_time)
+                    out[node] = (sim.motor_position, sim.device.motor.time)
             return out
         start = motors()
         self.drive(v, yaw_rate, seconds)

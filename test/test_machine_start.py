@@ -26,9 +26,10 @@ from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
 from planter_ros.drive.eds import default_eds_path
-from planter_ros.drive.errors import DriveRefusedError
+from planter_ros.drive.errors import DictionaryError, DriveRefusedError
 from planter_ros.drive.setup import DriveSetup
-from planter_ros.drive.simulated_drive import SimulatedDrive, simulated_mechanism
+from planter_ros.simdrive.drive import SimulatedDrive
+from planter_ros.simdrive.mechanism import simulated_mechanism
 from planter_ros.rows import Row
 from planter_ros.scene.machine_file import (CanBus, MachineFileError, open_machine, parse_machine,
                                        write_machine)
@@ -74,8 +75,8 @@ def bench():
         sim.stop()
 
 
-def refused(drive):
-    with pytest.raises(DriveRefusedError) as info:
+def refused(drive, kind=DriveRefusedError):
+    with pytest.raises(kind) as info:
         drive.connect_and_enable()
     drive.shutdown()                     # off the bus: the next master takes it
     text = str(info.value)
@@ -111,14 +112,16 @@ def test_a_drive_eds_with_a_wrong_type_or_a_missing_object_is_refused(bench, tmp
     block = re.search(r'\[6064\][^\[]*', eds).group(0)
     wrong.write_text(eds.replace(block, re.sub(r'DataType=0x0*4', 'DataType=0x0007', block)))
     setup = DriveSetup(modes=('csp',), homing_method=19, eds=str(wrong))
-    assert refused(master(setup)) == (
-        f'drive node 1: check against the machine file: EDS {wrong}: object 6064h (position '
-        'actual value): expected INTEGER32, found UNSIGNED32')
+    # refused from the drive's EDS before anything moves: the start-up plan (drive.plan)
+    assert refused(master(setup), DictionaryError) == (
+        'drive node 1: 0x6064 position actual value is UNSIGNED32 in this drive\'s EDS: the '
+        'master reads and writes it as INTEGER32; correct the EDS (the drive maker\'s is right)')
     missing = tmp_path / 'no_homing.eds'
     block = re.search(r'\[6098\][^\[]*', eds).group(0)
     missing.write_text(eds.replace(block, ''))
-    text = refused(master(dataclasses.replace(setup, eds=str(missing))))
-    assert text.endswith('object 6098h (homing method): expected INTEGER8, found none')
+    text = refused(master(dataclasses.replace(setup, eds=str(missing))), DictionaryError)
+    assert text == ('drive node 1: 0x6098 homing method is not in this drive\'s EDS: homing at '
+                    'start needs it; use homing_method 0 (none) or a drive that homes')
     # a machine file naming an EDS that is not there is refused when it is read
     data = MACHINE.read_text().replace('modes: [csp, pv]\n', 'modes: [csp, pv]\n'
                                        '    eds: drives/nowhere.eds\n', 1)

@@ -88,7 +88,7 @@ def test_sigterm_stops_a_node_like_ctrl_c_with_exit_0(main, tmp_path):
 # sync_node's main on a virtual bus with a simulated drive in the same process
 SYNC_ON_A_SIMULATED_DRIVE = r'''
 import os, sys
-from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.simdrive.drive import SimulatedDrive
 from planter_ros.nodes.sync_node import main
 channel = f'sigterm{os.getpid()}'
 sim = SimulatedDrive(channel)

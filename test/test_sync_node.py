@@ -15,7 +15,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from planter_ros import interfaces
-from planter_ros.drive.simulated_drive import SimulatedDrive
+from planter_ros.simdrive.drive import SimulatedDrive
 from planter_ros.nodes.sync_node import SyncNode
 from ros_fixtures import unique_channel
 

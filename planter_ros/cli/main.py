@@ -25,7 +25,9 @@ COMMANDS = {
     ('cam', 'five-bar'): ('planter_ros.cli.cam', 'electronic cam: every spacing planted upright'),
     ('commission',): ('planter_ros.commission.command', 'home, polarity, phase: write the machine '
                       'file'),
+    ('drive', 'check'): ('planter_ros.commission.drive_check', 'bring up drives: plan, SYNC, jog'),
 }
+GROUPS = {'drive': 'check the CANopen drives of a machine file'}    # others: a mechanism's
 
 EXIT_BAD_INPUT = 2
 
@@ -78,9 +80,8 @@ def build_parser(argv=()):
             sub = top.add_parser(words[0], help=help_text)
         else:
             if words[0] not in groups:
-                grp = top.add_parser(words[0], help=f'{words[0]} a mechanism')
-                groups[words[0]] = grp.add_subparsers(dest='mechanism', required=True,
-                                                      parser_class=_Parser)
+                g = top.add_parser(words[0], help=GROUPS.get(words[0], f'{words[0]} a mechanism'))
+                groups[words[0]] = g.add_subparsers(dest='mechanism', required=True)  # _Parser's
             sub = groups[words[0]].add_parser(words[1], help=help_text)
         if words == selected:
             module = importlib.import_module(module_name)

@@ -135,6 +135,8 @@ class CommandEngine:
         self._last_bus_error: tuple[float, str] | None = None
         self.stopping = False               # ramping to zero before a shutdown
         self.csp = False                    # some row runs CSP: SYNC every step, targets
+        self.sync_loop = False              # the loop sends SYNC (CSP, or feedback on SYNC)
+        self._start_up_sync = None          # the bus's start-up SYNC, held until the loop's
         self._syncs: deque[float] = deque(maxlen=4)     # when the last SYNCs were sent
         self.sync_intervals = PeriodStats()              # between SYNCs sent
         # profile velocity: from a sample's receive time (the shell's, same clock) to the last
@@ -168,7 +170,15 @@ class CommandEngine:
     def enable(self) -> None:
         """BLOCKING: configure and enable every row's drive at once (start-up only). A row whose
         drive does not answer is reported and left out; raises DriveError when no row runs."""
-        failures = self.drives.enable(keep_alive=self.loop.control_period)
+        # SYNC from before the drives' NMT start until the loop's first step sends its own
+        # (drive.bus: a strict CiA 301 drive acts and reports on SYNC only)
+        self._start_up_sync = self.drives.canbus.start_up_sync()
+        self._start_up_sync.__enter__()
+        try:
+            failures = self.drives.enable(keep_alive=self.loop.control_period)
+        except BaseException:
+            self._release_start_up_sync()
+            raise
         with_drive = [unit for unit in self.units if unit.drive is not None]
         if self.implicit and failures:
             raise next(iter(failures.values()))
@@ -186,6 +196,9 @@ class CommandEngine:
                     unit.halt = None
                     self.row_loop.enabled(unit.row.index)
             self.csp = any(unit.csp for unit in self.units if unit.running)
+            # the loop produces SYNC while a running drive needs it (CSP, or feedback on SYNC)
+            self.sync_loop = any(unit.drive.plan is not None and unit.drive.plan.needs_sync
+                                 for unit in self.units if unit.running)
             self.bus_load = machine_bus_load(self.drive_config, self.loop,
                                              len(with_drive), self.csp)
         running = [unit.label for unit in self.units if unit.running]
@@ -212,6 +225,8 @@ class CommandEngine:
                        if unit.recovery.worker is not None]
         for worker in workers:          # a drive being configured again: let it finish first
             worker.join(timeout=10.0)
+        self.drives.canbus.loop_sync(False)     # the drives' shutdown waits on start-up SYNC
+        self._release_start_up_sync()
         try:
             self.drives.shutdown()
             if was_running:
@@ -221,6 +236,11 @@ class CommandEngine:
                          '(target 0, disabled, pre-operational)')
         except DriveError as exc:
             self.log(logging.ERROR, f'drive shutdown: {exc}')
+
+    def _release_start_up_sync(self) -> None:
+        hold, self._start_up_sync = self._start_up_sync, None
+        if hold is not None:
+            hold.__exit__(None, None, None)
 
     def stop_ramp(self, now: float) -> None:
         """From now on every row's command ramps to 0 at its acceleration limit, whatever the
@@ -404,7 +424,11 @@ class CommandEngine:
         with self._lock:
             if not any(unit.running for unit in self.units):
                 return
-            if self.csp:
+            if self._start_up_sync is not None:     # the loop takes the SYNC over
+                self.drives.canbus.loop_sync(self.sync_loop)
+                self._release_start_up_sync()
+            if self.sync_loop and (self.csp or now - self.drives.canbus.last_sync
+                                   >= 0.9 * self.loop.control_period):
                 try:
                     sent = time.monotonic()
                     self.drives.canbus.send_sync()

@@ -88,7 +88,8 @@ def run(args: argparse.Namespace) -> int:
         if simulated:
             import can
 
-            from planter_ros.drive.simulated_drive import SimulatedDrive, simulated_mechanism
+            from planter_ros.simdrive.drive import SimulatedDrive
+            from planter_ros.simdrive.mechanism import simulated_mechanism
             channel = f'planter-commission-{uuid.uuid4().hex}'
             run_machine = dataclasses.replace(machine, can=CanBus(interface='virtual',
                                                                    channel='vcan0'))
@@ -99,7 +100,8 @@ def run(args: argparse.Namespace) -> int:
                 sims[name] = SimulatedDrive(
                     channel, node_id=row.node_id, counts_per_motor_rev=row.encoder_counts,
                     gear_ratio=row.gear_ratio, supported_modes=modes,
-                    mechanical_offset=offset, motor_reversed=reversed_)
+                    mechanical_offset=offset, motor_reversed=reversed_,
+                    eds_path=str(machine.eds_path(row)) if row.eds else None)
                 sims[name].start()
             bus = can.Bus(interface='virtual', channel=channel)
             observer = SimulatedObserver(sims)

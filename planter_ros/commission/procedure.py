@@ -27,12 +27,13 @@ import math
 from typing import Callable
 
 from planter_ros.drive import objects as od
+from planter_ros.drive.dictionary import entry
 from planter_ros.drive.errors import DriveError
 from planter_ros.drive.setup import (HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED, DriveSetup,
                                      homing_timeout, missing_modes)
 
 __all__ = ['CommissionError', 'Observer', 'RowFindings', 'SimulatedObserver', 'checklist',
-           'commission_machine', 'commission_row', 'updated_machine']
+           'commission_machine', 'commission_row', 'run_warnings', 'updated_machine']
 
 TWO_PI = 2.0 * math.pi
 JOG_SPEED = 0.3          # rad/s at the mechanism: the direction jog (about 3 r/min)
@@ -91,6 +92,7 @@ class RowFindings:
     phase_offset: float | None = None     # rad, None: no switch found (set it by eye)
     switch_width: float | None = None     # rad of mechanism turn the switch is active
     edges: tuple[float, ...] = ()         # the four edge positions measured (rad)
+    warnings: tuple[str, ...] = ()        # the start-up plan's (drive.plan), for the run's mode
 
 
 def commission_row(drive, name: str, row, observer: Observer) -> RowFindings:
@@ -110,9 +112,16 @@ def commission_row(drive, name: str, row, observer: Observer) -> RowFindings:
     if missing:
         raise CommissionError(f'row {name}: node {row.node_id} supports modes 0x{modes:08X} '
                               f'(0x6502), without {", ".join(missing)} the machine file needs')
-    drive.set_polarity(False)
+    polarity = entry(drive.startup.dictionary, od.POLARITY.index)
+    settable = polarity is not None and polarity.writable
+    if settable:
+        drive.set_polarity(False)
     drive.connect_and_enable()
     if not _turns_forward(drive, name, observer):
+        if not settable:
+            raise CommissionError(f'row {name}: turns backwards, and the drive\'s EDS has no '
+                                  'writable 0x607E polarity: reverse the direction in the '
+                                  'drive\'s own configuration, then commission again')
         found.polarity = 'reversed'
         drive.set_polarity(True)
         if not _turns_forward(drive, name, observer):
@@ -174,6 +183,11 @@ def _switch_edges(drive) -> tuple[float, float, float, float] | None:
     return edges            # type: ignore[return-value]
 
 
+def written_offset(phase_offset: float) -> float:
+    """The phase offset as the machine file gets it (and the checklist prints it): 1 urad."""
+    return round(phase_offset, 6) % TWO_PI
+
+
 def updated_machine(machine, findings: list[RowFindings]):
     """The machine file with each commissioned row's polarity and measured phase offset."""
     rows = dict(machine.rows)
@@ -186,7 +200,7 @@ def updated_machine(machine, findings: list[RowFindings]):
             if getattr(row, key) == -1 and found is not None:
                 row = replace(row, **{key: int(found)})
         if f.phase_offset is not None:
-            row = replace(row, phase_offset=round(f.phase_offset, 6) % TWO_PI)
+            row = replace(row, phase_offset=written_offset(f.phase_offset))
         rows[f.row] = row
     return replace(machine, rows=rows)
 
@@ -208,9 +222,13 @@ def commission_machine(machine, rows: list[str], observer: Observer, bus=None,
                                  counts_per_motor_rev=row.encoder_counts,
                                  operation_mode='velocity', **(drive_config or {}))
             shared = shared or CanopenBus(config, bus)
-            drive = Cia402Drive(config, canbus=shared)
+            setup = machine.drive_setups()[name]
+            drive = Cia402Drive(setup.device(config), canbus=shared)
             try:
-                findings.append(commission_row(drive, name, row, observer))
+                found = commission_row(drive, name, row, observer)
+                # what the row's own start will be like (its mode, its EDS): the warnings
+                found.warnings = run_warnings(machine, name)
+                findings.append(found)
             except DriveError as exc:
                 raise CommissionError(f'row {name}: {exc}') from None
             finally:
@@ -219,6 +237,20 @@ def commission_machine(machine, rows: list[str], observer: Observer, bus=None,
         if shared is not None:
             shared.close()
     return findings
+
+
+def run_warnings(machine, name: str) -> tuple[str, ...]:
+    """The warnings of row `name`'s start-up plan (drive.plan), made from its EDS for the
+    mode it runs in (the machine file's check refused what the plan refuses)."""
+    from planter_ros.drive.config import DriveConfig
+    from planter_ros.drive.eds import default_eds_path
+    from planter_ros.drive.plan import plan_for_file
+    row = machine.rows[name]
+    setup = machine.drive_setups()[name]
+    config = setup.device(DriveConfig(can_bitrate=machine.can.bitrate,
+                                      drive_node_id=row.node_id))
+    eds = setup.eds or str(default_eds_path())
+    return plan_for_file(eds, config, setup).warnings
 
 
 def checklist(findings: list[RowFindings], machine_path) -> str:
@@ -241,8 +273,9 @@ def checklist(findings: list[RowFindings], machine_path) -> str:
                          f'tip is lowest and write that angle as rows.{f.row}.phase_offset')
         else:
             lines.append(f'  [found] bottom switch: {math.degrees(f.switch_width):.2f} deg wide, '
-                         f'phase offset {f.phase_offset:.5f} rad '
+                         f'phase offset {written_offset(f.phase_offset):.5f} rad '
                          f'({math.degrees(f.phase_offset):.2f} deg)')
+        lines += [f'  [drive] {warning}' for warning in f.warnings]
         lines.append('  [by eye] the unit turned forward (planting direction) in the last jog')
         lines.append('  [by eye] at the phase offset the tip is at the bottom of its path, and '
                      'the bottom switch sits there')

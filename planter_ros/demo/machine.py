@@ -4,7 +4,7 @@ The machine file's rows, node ids, lever arms and drive train replace the scene'
 the machine's reference point); the sync node gets the file (`machine_file`) and so checks each
 drive against it and applies its polarity, homing and phase offset at start. The simulated
 drives are the machine's: its gear ratio and encoder counts, the identity it states, wired as
-`drive.simulated_drive.simulated_mechanism` says for the seed (as `planter commission
+`simdrive.mechanism.simulated_mechanism` says for the seed (as `planter commission
 --simulated --seed N` found them) but powered up at another mechanical offset (a drive reset:
 the encoder counts from wherever the motor stood), and each keeps the instants its mechanism
 truly passes its bottom. After the run the first plant of each row as the bag has it (replay) is
@@ -31,13 +31,15 @@ def machine_rows(scene: Any, machine: Any) -> list:
 def simulated_drives(machine: Any, seed: int) -> dict[str, Any]:
     """SimulatedBus keyword arguments: each row's drive as the machine file and the seed say,
     recording its true bottom passes."""
-    from planter_ros.drive.simulated_drive import simulated_mechanism
+    from planter_ros.simdrive.mechanism import simulated_mechanism
     node_kwargs = {}
     for row in machine.rows.values():
         offset, reversed_ = simulated_mechanism(seed, row.node_id, POWER_UP)
         kwargs = {'gear_ratio': row.gear_ratio, 'counts_per_motor_rev': row.encoder_counts,
                   'mechanical_offset': offset, 'motor_reversed': reversed_,
                   'record_bottom': True}
+        if row.eds:                  # the simulated drive serves the row's own dictionary
+            kwargs['eds_path'] = str(machine.eds_path(row))
         default = (0x0000_0000, 0x0000_0402, 1, 0)          # the simulated drive's own
         kwargs['identity'] = [default[i] if value == -1 else value for i, value in
                               enumerate((row.vendor_id, row.product_code, row.revision))] + [0]

@@ -6,7 +6,7 @@ the sync node spins alone in a child process (a single-threaded executor, as `sy
 on the machine) and, as on the machine, hands the CAN bus to its command process (no DDS, no
 rclpy: planter_ros.command), so neither the demo's other work nor a DDS graph event can hold up
 a command frame. The simulated drives run in a process of their own too
-(drive.sim_process, over a CAN socket pair, doc/command.md), so they see on their own clock
+(simdrive.process, over a CAN socket pair, doc/command.md), so they see on their own clock
 every gap a real drive would see (`drive_gaps` in the report). The child talks to the rest of
 the demo over DDS in the demo's private domain (ground speed and the design in; joint_states,
 speed commands and /diagnostics out) and to the demo itself over a pipe: its start, a status
@@ -145,8 +145,8 @@ def child_main(conn, settings):
     from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS
     from planter_ros.drive.errors import DriveError
     from planter_ros.control.loop_timing import SyncLoopConfig
-    from planter_ros.drive.sim_process import SimProcess
-    from planter_ros.drive.simulated_drive import SimulatedBus
+    from planter_ros.simdrive.process import SimProcess
+    from planter_ros.simdrive.bus import SimulatedBus
     from planter_ros.drive.socket_bus import INTERFACE, socket_pair
     from planter_ros.nodes.sync_node import LibraryLog, SyncNode, start_error
 

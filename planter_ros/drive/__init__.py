@@ -1,7 +1,10 @@
-"""CAN drive, no ROS: the one CiA 402 master (`cia402`), its settings (`config`), the CANopen
-objects and PDO layouts (`objects`), its exception family (`errors`), the CiA 402 names and
-codes (`states`), a simulated drive (`simulated_drive`) for tests and the demo, and the
-drives' own process (`sim_process`) on a CAN bus over a socket pair (`socket_bus`)."""
+"""CAN drive, no ROS: the one CiA 402 master (`cia402`, made of `bus`, `feedback`,
+`supervision`, `rpdo`, `startup` and `sdo`), the start-up plan made from a drive's EDS (`plan`,
+`dictionary`), its settings (`config`), the CANopen objects and PDO layouts (`objects`), its
+exception family (`errors`), the CiA 402 names, codes and bits (`states`, `state_names`,
+`words`), a machine's drives on one bus (`drive_set`), the bus load (`bus_load`) and a CAN bus
+over a socket pair (`socket_bus`). The simulated drives live in `planter_ros.simdrive`."""
 
-__all__ = ['bus_load', 'cia402', 'config', 'drive_set', 'eds', 'errors', 'objects',
-           'sim_process', 'simulated_drive', 'socket_bus', 'state_names', 'states']
+__all__ = ['bus', 'bus_load', 'cia402', 'config', 'dictionary', 'drive_set', 'eds', 'errors',
+           'feedback', 'objects', 'plan', 'rpdo', 'sdo', 'setup', 'socket_bus', 'startup',
+           'state_names', 'states', 'supervision', 'words']

@@ -17,7 +17,25 @@ from planter_ros.config import check, setting
 
 from .errors import DriveConfigError
 
-__all__ = ['BusConfig', 'DeviceConfig', 'DriveConfig']
+__all__ = ['BusConfig', 'DeviceConfig', 'DriveConfig', 'interpolation_period']
+
+INTERPOLATION_INDICES = (-3, -4, -5, -6, -2)   # ms first: the unit drives know best
+
+
+def interpolation_period(period: float, index: int | None = None) -> tuple[int, int] | None:
+    """(60C2h:1 value, 60C2h:2 index) with value × 10^index s exactly the SYNC period as 1006h
+    states it (whole µs), value 1..255; `index`: the drive's fixed index. None: none exists."""
+    micro = round(period * 1e6)
+    if micro <= 0 or abs(period * 1e6 - micro) > 1e-6 * max(1.0, micro):
+        return None
+    for i in ((index,) if index is not None else INTERPOLATION_INDICES):
+        if i + 6 >= 0:
+            scale = 10 ** (i + 6)
+            if micro % scale == 0 and 1 <= micro // scale <= 255:
+                return micro // scale, i
+        elif micro * 10 ** -(i + 6) <= 255:
+            return micro * 10 ** -(i + 6), i
+    return None
 
 
 def _bad(name: str, value: object, allowed: str) -> DriveConfigError:
@@ -51,6 +69,10 @@ class BusConfig:
         for name in ('can_interface', 'can_channel'):
             if not getattr(self, name):
                 raise _bad(name, getattr(self, name), 'a non-empty name')
+        if interpolation_period(self.sync_period) is None:
+            raise _bad('sync_period', self.sync_period, 'a period that 1006h (whole µs) and '
+                       '60C2h (1..255 × 10^index s) both state exactly, e.g. 0.0025, 0.01 or '
+                       '0.0125 s')
 
 
 @dataclass(frozen=True)

@@ -27,3 +27,8 @@ class DriveTimeoutError(DriveError):
 class DriveRefusedError(DriveError):
     """The drive answered no: an SDO abort, or it is not the drive the configuration says
     (device type, operation modes, encoder resolution)."""
+
+
+class DictionaryError(DriveConfigError):
+    """The drive's EDS/DCF cannot be read, or lacks what the row's mode needs: one line naming
+    the object, what it is for and what to do (before anything moves)."""

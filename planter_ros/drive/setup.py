@@ -1,6 +1,7 @@
 """What a machine file says of one drive, checked and applied every time the master configures
-it (issue 22): the drive's identity (0x1018), the modes the row needs (0x6502), its EDS, the
-polarity (0x607E), homing (mode 6) and where the mechanism's tip is lowest (the phase offset).
+it: the drive's identity (0x1018), the modes the row needs (0x6502), its EDS (the start-up plan,
+drive.plan, is made from it), the polarity (0x607E), homing (mode 6) and where the mechanism's
+tip is lowest (the phase offset).
 
 `DriveSetup` is plain data (the command process gets it as JSON); the checks here are pure (the
 master reads the drive, these compare); `Cia402Drive` runs them in its configure path. The
@@ -10,15 +11,14 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 import math
-from pathlib import Path
 from typing import Any
 from collections.abc import Callable
 
 from . import objects as od
 
-__all__ = ['DriveSetup', 'HOMING_BIT', 'HOMING_SEARCH_SPEED', 'HOMING_ZERO_SPEED', 'MODE_BITS',
-           'eds_mismatch', 'homing_timeout', 'identity_mismatch', 'missing_modes',
-           'pdo_mismatch']
+__all__ = ['DriveSetup', 'HOMING_ALLOWED', 'HOMING_BIT', 'HOMING_METHODS', 'HOMING_SEARCH_SPEED',
+           'HOMING_ZERO_SPEED', 'MODE_BITS', 'homing_method_ok', 'homing_timeout',
+           'identity_mismatch', 'missing_modes', 'mode_bits', 'pdo_mismatch']
 
 MODE_BITS = {'csp': 0x80, 'pv': 0x04}             # 0x6502 bit 7 CSP, bit 2 profile velocity
 HOMING_BIT = 0x20                                 # 0x6502 bit 5: homing mode
@@ -27,6 +27,16 @@ HOMING_ZERO_SPEED = 0.05     # rad/s: homing's search for zero (the edge, the in
 IDENTITY = (('vendor_id', od.VENDOR_ID), ('product_code', od.PRODUCT_CODE),
             ('revision', od.REVISION_NUMBER))
 NOT_CHECKED = -1             # an identity value the machine file does not state
+# CiA 402 homing methods (6098h): 1..14, 17..30, 33..35, 37 (15, 16, 31, 32, 36 and 38 up are
+# reserved); 0: no homing; negative: the drive maker's own
+HOMING_METHODS = frozenset([*range(1, 15), *range(17, 31), 33, 34, 35, 37])
+HOMING_ALLOWED = ('0 (none), 1..14, 17..30, 33, 34, 35, 37 (CiA 402) or negative (the drive '
+                  "maker's)")
+
+
+def homing_method_ok(method: int) -> bool:
+    """`method` is no homing, a CiA 402 method or a maker's (negative)."""
+    return method <= 0 or method in HOMING_METHODS
 
 
 def homing_timeout() -> float:
@@ -70,6 +80,12 @@ class DriveSetup:
         return cls(**{**data, 'modes': tuple(data.get('modes', ()))})
 
 
+def mode_bits(setup: DriveSetup) -> int:
+    """The 0x6502 bits of the modes (and homing) `setup` lists."""
+    bits = sum(MODE_BITS[m] for m in set(setup.modes))
+    return bits | (HOMING_BIT if setup.homing_method else 0)
+
+
 def missing_modes(supported: int | None, setup: DriveSetup) -> list[str]:
     """The modes (and homing) `setup` needs that 0x6502 = `supported` lacks (None: not said:
     everything is missing)."""
@@ -92,56 +108,6 @@ def identity_mismatch(setup: DriveSetup, identity: dict[str, int | None]) -> str
             shown = 'nothing (no such object)' if found is None else f'0x{found:08X}'
             return (f'0x{obj.index:04X}:{obj.subindex} {obj.name}: expected 0x{want:08X}, found '
                     f'{shown}')
-    return ''
-
-
-def used_objects(setup: DriveSetup) -> list[od.Obj]:
-    """The objects the master reads or writes for a drive set up as `setup`."""
-    used = [od.DEVICE_TYPE, od.HEARTBEAT_CONSUMER, od.HEARTBEAT_PRODUCER, od.ABORT_CONNECTION,
-            od.CONTROLWORD, od.STATUSWORD, od.MODES_OF_OPERATION, od.MODES_DISPLAY,
-            od.POSITION_ACTUAL, od.VELOCITY_ACTUAL, od.POLARITY]
-    used += [obj for layout in od.TPDOS for obj in layout.entries]
-    if 'pv' in setup.modes or not setup.modes:
-        used.append(od.TARGET_VELOCITY)
-    if 'csp' in setup.modes:
-        used += [od.SYNC_COB_ID, od.COMM_CYCLE_PERIOD, od.INTERPOLATION_PERIOD_VALUE,
-                 od.INTERPOLATION_PERIOD_INDEX, od.FOLLOWING_ERROR_WINDOW,
-                 od.FOLLOWING_ERROR_TIMEOUT, od.TARGET_POSITION]
-    if setup.homing_method:
-        used += [od.HOMING_METHOD, od.HOMING_SPEED_SWITCH, od.HOMING_SPEED_ZERO, od.HOME_OFFSET]
-    used += [obj for name, obj in IDENTITY if getattr(setup, name) != NOT_CHECKED]
-    out: list[od.Obj] = []
-    for obj in used:
-        if obj not in out:
-            out.append(obj)
-    return out
-
-
-def eds_mismatch(path: str | Path, setup: DriveSetup) -> str:
-    """'' when the EDS/DCF at `path` (read with canopen's EDS import) has every object the
-    master uses for `setup` with its data type and the PDO parameter records of the layouts;
-    else the first that is missing or of another type, expected and found."""
-    import canopen
-    try:
-        dictionary = canopen.import_od(str(path))
-    except Exception as exc:               # canopen raises what configparser and int() raise
-        return f'EDS {path} cannot be read: {type(exc).__name__}: {str(exc).splitlines()[0]}'
-    for obj in used_objects(setup):
-        entry = dictionary.get_variable(obj.index, obj.subindex)
-        if entry is None:
-            return (f'EDS {path}: object {obj.address} ({obj.name}): expected {obj.type_name}, '
-                    'found none')
-        if entry.data_type != obj.dtype:
-            found = od.type_name(entry.data_type)
-            return (f'EDS {path}: object {obj.address} ({obj.name}): expected {obj.type_name}, '
-                    f'found {found}')
-    for layout in od.LAYOUTS:
-        base = 0x1400 if layout.kind == 'RPDO' else 0x1800
-        for index in (base + layout.number - 1, base + 0x200 + layout.number - 1):
-            if index not in dictionary:
-                return (f'EDS {path}: object {index:04X}h ({layout.kind}{layout.number} '
-                        f'{"mapping" if index & 0x200 else "communication"} parameter): '
-                        'expected a record, found none')
     return ''
 
 

@@ -19,12 +19,14 @@ CSP_SUPPORTED = OperationMode.SUPPORTED['CYCLIC SYNCHRONOUS POSITION']        # 
 MODE_SUPPORTED = {PROFILE_VELOCITY: PROFILE_VELOCITY_SUPPORTED,
                   CYCLIC_SYNC_POSITION: CSP_SUPPORTED}
 
-CW_DISABLE_VOLTAGE = State402.CW_DISABLE_VOLTAGE      # 0x00
-CW_QUICK_STOP = State402.CW_QUICK_STOP                # 0x02
-CW_SHUTDOWN = State402.CW_SHUTDOWN                    # 0x06
-CW_SWITCH_ON = State402.CW_SWITCH_ON                  # 0x07
-CW_ENABLE_OPERATION = State402.CW_OPERATION_ENABLED   # 0x0F
-CW_FAULT_RESET = 0x80                                 # bit 7, acts on its rising edge
+# the controlword commands and the statusword bits are named once, canopen-free, in
+# drive.words; canopen agrees on the commands
+from .words import (  # noqa: F401,E402 (re-exported for the master and the simulated drive)
+    CW_DISABLE_VOLTAGE, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_QUICK_STOP, CW_SHUTDOWN,
+    CW_SWITCH_ON)
+assert (CW_DISABLE_VOLTAGE, CW_QUICK_STOP, CW_SHUTDOWN, CW_SWITCH_ON, CW_ENABLE_OPERATION) == (
+    State402.CW_DISABLE_VOLTAGE, State402.CW_QUICK_STOP, State402.CW_SHUTDOWN,
+    State402.CW_SWITCH_ON, State402.CW_OPERATION_ENABLED), 'canopen recoded a controlword'
 
 ABORT_OPTION_QUICK_STOP = 3                           # 0x6007: abort connection -> quick stop
 

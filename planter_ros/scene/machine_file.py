@@ -46,7 +46,8 @@ from .schema import NODES, closest, node_parameters
 
 __all__ = ['CanBus', 'IsobusBus', 'Machine', 'MachineFileError', 'MachineFileSetting',
            'MachineRow', 'SECTIONS',
-           'deployment_parameters', 'machine_text', 'open_machine', 'parse_machine',
+           'check_drive_plans', 'deployment_parameters', 'machine_text', 'open_machine',
+           'parse_machine',
            'write_machine']
 
 RPM = 2.0 * math.pi / 60.0
@@ -118,9 +119,9 @@ class MachineRow:
     polarity: str = setting('normal', 'motor turning direction for a forward mechanism turn: '
                             'normal, or reversed (0x607E bits 6 and 7 set)', choices=POLARITIES)
     homing_method: int = setting(0, 'CiA 402 homing method (0x6098): 0 none (the position at '
-                                 'enable is zero), 1..35 the standard methods (e.g. 33/34 the '
-                                 'index pulse, 35 the current position), negative: the '
-                                 "drive maker's", range=(-128, 127))
+                                 'enable is zero), 1..14, 17..30, 33..35, 37 the standard '
+                                 'methods (e.g. 33/34 the index pulse, 35/37 the current '
+                                 "position), negative: the drive maker's", range=(-128, 127))
     phase_offset: float = setting(0.0, 'mechanism angle after homing at which the tip is at '
                                   'the bottom of its path (a planting instant)', unit='rad',
                                   range=(0.0, 2.0 * math.pi))
@@ -152,6 +153,10 @@ class MachineRow:
         if bad or not self.modes or len(set(self.modes)) != len(self.modes):
             raise ConfigError(f'modes = {self.modes} is out of range: allowed a list of '
                               f'{" and ".join(MODES)}, each once, at least one')
+        from planter_ros.drive.setup import HOMING_ALLOWED, homing_method_ok
+        if not homing_method_ok(self.homing_method):
+            raise ConfigError(f'homing_method = {self.homing_method} is out of range: allowed '
+                              f'{HOMING_ALLOWED}')
 
     @property
     def max_speed(self) -> float:
@@ -300,7 +305,40 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
         if row.eds and not machine.eds_path(row).is_file():
             bad(f'rows.{row_name}.eds', f'= {row.eds!r} is not a file ('
                 f'{machine.eds_path(row)}): allowed the drive\'s EDS or DCF file')
+    check_drive_plans(machine, {}, where)
     return machine
+
+
+def check_drive_plans(machine: Machine, params: dict[str, Any], where: str) -> list[str]:
+    """Each row's start-up plan made from its drive's EDS (drive.plan, the one the start
+    carries out), with the drive settings in `params` (a scene's): refused before anything
+    moves in one line naming the row, node, object, purpose and remedy (MachineFileError).
+    A row without its own EDS uses config/planter_drive.eds, which serves every mode. Returns
+    the plans' warnings, one line each, naming the row."""
+    from dataclasses import fields
+    from planter_ros.drive.config import DriveConfig
+    from planter_ros.drive.errors import DictionaryError
+    from planter_ros.drive.plan import plan_for_file
+    names = {f.name for f in fields(DriveConfig)}
+    settings = {key: value for key, value in params.items() if key in names}
+    warnings = []
+    for name, row in machine.rows.items():
+        if not row.eds:
+            continue
+        who = f'row {name}, drive node {row.node_id}'
+        try:
+            config = DriveConfig(**{**settings, 'can_bitrate': machine.can.bitrate,
+                                    'drive_node_id': row.node_id,
+                                    'motor_gear_ratio': row.gear_ratio,
+                                    'counts_per_motor_rev': row.encoder_counts})
+            plan = plan_for_file(str(machine.eds_path(row)), config,
+                                 machine.drive_setups()[name], who)
+        except (DictionaryError, ConfigError) as exc:
+            text = str(exc)
+            raise MachineFileError(f'{where}: {text if text.startswith(who) else f"{who}: {text}"}'
+                                   ) from None
+        warnings += [f'{who}: {text}' for text in plan.warnings]
+    return warnings
 
 
 def rebased(machine: Machine, path: Path) -> Machine:
@@ -401,11 +439,21 @@ def deployment_parameters(machine_path: str | Path, scene_path: str | Path,
         out.setdefault(node, {}).update(values)
     params = {**scene.parameters('design_node'), **scene.parameters('sync_node'),
               **out['sync_node']}
+    where = f'{scene_path} on {machine_path}'
     try:
-        warnings = check_plausibility(params, machine.row_limits(),
-                                      where=f'{scene_path} on {machine_path}: ')
+        warnings = check_plausibility(params, machine.row_limits(), where=f'{where}: ')
     except PlausibilityError as exc:
         raise MachineFileError(str(exc)) from None
+    if params.get('speed_profile') == 'cam':
+        for name, row in machine.rows.items():
+            if 'csp' not in row.modes or params.get('operation_mode') == 'velocity':
+                said = (f'rows.{name}.modes = [{", ".join(row.modes)}]' if 'csp' not in row.modes
+                        else 'operation_mode = velocity')
+                raise MachineFileError(f'{where}: {said}: speed_profile cam needs cyclic '
+                                       'synchronous position (the cam is a position per SYNC); '
+                                       'list csp if the drive offers it, or use speed_profile '
+                                       'constant')
+    warnings += check_drive_plans(machine, params, where)
     return out, warnings
 
 

@@ -130,7 +130,7 @@ def run_comparison(config: PhaseLockConfig, spacing: float, plants_per_revolutio
 
 class CspDrive:
     """A row's drive in cyclic synchronous position, as the command process drives it (command
-    .engine) and the simulated drive follows it (drive.simulated_drive): at each SYNC the drive
+    .engine) and the simulated drive follows it (simdrive): at each SYNC the drive
     takes the target sent after the last one and interpolates to it over one period; after the
     SYNC the row's next target is its last one advanced by the law's command, pulled onto the
     cam's θ(s) (control.row_loop.cam_csp_target) and sent CSP_LEAD periods ahead

@@ -19,7 +19,7 @@ from ..timing import from_samples
 
 if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
     from planter_ros.drive.cia402 import Cia402Drive
-    from planter_ros.drive.simulated_drive import SimulatedDrive
+    from planter_ros.simdrive.drive import SimulatedDrive
 
 WHAT = 'CAN drive (virtual bus, master and simulated drive in one process)'
 ERROR_OF = 'no error defined: timings only'
@@ -43,7 +43,7 @@ def _quiet(*names: str) -> Iterator[None]:
 def _drive_pair() -> Iterator[tuple[SimulatedDrive, Cia402Drive]]:
     """A simulated drive and our master on a fresh virtual channel; both stopped on exit."""
     from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
-    from planter_ros.drive.simulated_drive import SimulatedDrive
+    from planter_ros.simdrive.drive import SimulatedDrive
 
     channel = f'planter-bench-drive-{uuid.uuid4().hex}'
     sim = SimulatedDrive(channel)

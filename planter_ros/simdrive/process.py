@@ -1,6 +1,6 @@
 """Simulated drives in a process of their own, on one end of a CAN socket pair
-(`drive.socket_bus`): `python -m planter_ros.drive.sim_process --fd N --nodes 1,2 [--options
-JSON]`.
+(`drive.socket_bus`): `python -m planter_ros.simdrive.process --fd N --nodes 1,2 [--options
+JSON]` (the options: SimSpec fields, and `node_kwargs` per node id).
 
 In the master's process the simulated drives share its GIL: a master stalled by its process
 (a DDS publish holding the GIL, a collection) stalls them too, and they see no gap a real drive
@@ -11,8 +11,9 @@ The parent talks to it over stdin/stdout (JSON lines): a line `["power_cycle", n
 s]` or `["emcy_storm", node id, rate, s]` injects that fault into that drive (`SimProcess.inject`;
 doc/command.md, "Faults and their recovery"); end-of-file on stdin (the parent asked, or died,
 even by SIGKILL) stops the drives and the process; the last stdout line is the report
-(`{"watchdog_trips": [[node id, reason, EMCY code], ...], "rpdo_gaps": {...}, "sync": {...}}`:
-per drive the gaps between command frames and the SYNC timing on its own clock). `SimProcess`
+(`{"watchdog_trips": [[node id, reason, EMCY code], ...], "rpdo_gaps": {...}, "sync": {...},
+"drives": {...}}`: per drive the gaps between command frames, the SYNC timing on its own clock,
+its state at the end). `SimProcess`
 is the parent's handle.
 """
 from __future__ import annotations
@@ -36,7 +37,7 @@ class SimProcess:
     def __init__(self, fd: int, node_ids: list[int], priority: int = 0,
                  **options: Any) -> None:
         self.process = subprocess.Popen(
-            [sys.executable, '-m', 'planter_ros.drive.sim_process', '--fd', str(fd),
+            [sys.executable, '-m', 'planter_ros.simdrive.process', '--fd', str(fd),
              '--nodes', ','.join(str(n) for n in node_ids), '--options', json.dumps(options),
              '--priority', str(priority)],
             pass_fds=(fd,), stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -74,10 +75,11 @@ class SimProcess:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from planter_ros.drive.simulated_drive import SimulatedBus
     from planter_ros.drive.socket_bus import SocketPairBus
 
-    parser = argparse.ArgumentParser(prog='planter_ros.drive.sim_process')
+    from .bus import SimulatedBus
+
+    parser = argparse.ArgumentParser(prog='planter_ros.simdrive.process')
     parser.add_argument('--fd', type=int, required=True)
     parser.add_argument('--nodes', required=True)
     parser.add_argument('--options', default='{}')
@@ -120,7 +122,10 @@ def main(argv: list[str] | None = None) -> int:
               'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
                                if d.record_bottom},
               'faults': {str(d.node_id): {'power_cycles': d.power_cycles,
-                                          'emcy_sent': d.emcy_sent} for d in sims.drives}}
+                                          'emcy_sent': d.emcy_sent} for d in sims.drives},
+              'drives': {str(d.node_id): {'state': d.state, 'mode': d.mode_display,
+                                          'nmt': d.nmt_state, 'homed': d.device.homing.homed}
+                         for d in sims.drives}}
     print(json.dumps(report), flush=True)
     return 0
 
