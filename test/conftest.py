@@ -50,7 +50,8 @@ from three_arm_fixtures import mech, params  # noqa: E402, F401
 REALTIME_MODULES = {
     'test_acceptance.py', 'test_bus_load.py', 'test_cam_demo.py',
     'test_cam_law.py', 'test_command_process.py', 'test_commission.py', 'test_csp.py',
-    'test_demo.py', 'test_design_node.py', 'test_die_with_parent.py', 'test_drive_enable.py',
+    'test_demo.py', 'test_demo_stops.py', 'test_design_node.py', 'test_die_with_parent.py',
+    'test_drive_enable.py',
     'test_drive_faults.py', 'test_drive_motion.py', 'test_drive_objects.py', 'test_drive_set.py',
     'test_drive_shutdown.py', 'test_drive_vcan.py', 'test_ground_speed_sources.py',
     'test_machine_node.py', 'test_monitor_node.py', 'test_params_files.py',

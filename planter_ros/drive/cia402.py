@@ -1007,14 +1007,20 @@ class Cia402Drive:
                        complaint: str) -> None:
         deadline = time.monotonic() + self.config.step_timeout
         next_heartbeat = 0.0
+        failed = None
         while True:
-            self._transmit(controlword, None)
-            if self.mode == CYCLIC_SYNC_POSITION:
-                self.canbus.send_sync()          # CSP feedback comes with the SYNC
             now = time.monotonic()
-            if now >= next_heartbeat:
-                self.send_heartbeat()
-                next_heartbeat = now + self.config.heartbeat_period
+            try:
+                self._transmit(controlword, None)
+                if self.mode == CYCLIC_SYNC_POSITION:
+                    self.canbus.send_sync()      # CSP feedback comes with the SYNC
+                if now >= next_heartbeat:
+                    self.send_heartbeat()
+                    next_heartbeat = now + self.config.heartbeat_period
+            except DriveError as exc:
+                # a send that failed (a full transmit queue) is sent again until the deadline:
+                # one lost frame must not leave the drive enabled
+                failed = exc
             status = self.status()
             if done(status):
                 return
@@ -1023,8 +1029,9 @@ class Cia402Drive:
                             self.config.drive_node_id)
                 return
             if now > deadline:
-                log.warning('drive node %d: shutdown: %s (%s, %.3f rad/s)',
-                            self.config.drive_node_id, complaint, status.state, status.velocity)
+                log.warning('drive node %d: shutdown: %s (%s, %.3f rad/s)%s',
+                            self.config.drive_node_id, complaint, status.state, status.velocity,
+                            f'; last send error: {failed}' if failed is not None else '')
                 return
             with self._feedback:
                 self._feedback.wait(0.01)

@@ -26,7 +26,13 @@ import sys
 import threading
 from typing import Any
 
-__all__ = ['SimProcess', 'main']
+__all__ = ['SimProcess', 'end_states', 'main']
+
+
+def end_states(drives: list) -> dict[str, dict[str, Any]]:
+    """Each drive's CiA 402 state, motor speed (rad/s) and NMT state when it was stopped."""
+    return {str(d.node_id): {'state': d.state, 'motor_velocity': d.motor_velocity,
+                             'nmt': d.nmt_state} for d in drives}
 
 
 class SimProcess:
@@ -91,7 +97,11 @@ def main(argv: list[str] | None = None) -> int:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.priority))
         except (OSError, ValueError, AttributeError) as exc:
             refused = f'SCHED_FIFO {args.priority} refused: {exc}'
-    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides
+    # the parent decides: the drives stand for hardware, which no stop signal to the process
+    # group reaches (they end with their stdin, after the master shut them down)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, (signal.SIGINT, signal.SIGTERM))
     node_ids = [int(n) for n in args.nodes.split(',') if n]
     sims = SimulatedBus(SocketPairBus(args.fd), node_ids, **json.loads(args.options))
     sims.start()
@@ -120,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
               'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
                                if d.record_bottom},
               'faults': {str(d.node_id): {'power_cycles': d.power_cycles,
-                                          'emcy_sent': d.emcy_sent} for d in sims.drives}}
+                                          'emcy_sent': d.emcy_sent} for d in sims.drives},
+              'end': end_states(sims.drives)}
     print(json.dumps(report), flush=True)
     return 0
 

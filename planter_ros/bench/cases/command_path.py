@@ -143,7 +143,8 @@ def stall_run(command_process, joins, progress=lambda text: None):
             if proc.poll() is None:
                 proc.kill()
             proc.wait()
-        report = sync.stop() or {}
+        report = sync.stop()
+        report = report.flat() if report is not None else {}
         node.destroy_node()
         context.try_shutdown()
     return _drive_figures(report), done[0], time.perf_counter() - t0

@@ -146,7 +146,8 @@ def latency_run(seconds, rows=LATENCY_ROWS, hogs=0, timeout=120.0, parameters=()
                 next_pub += 1.0 / RATE
                 sync.poll(0.0)
     finally:
-        report = sync.stop() or {}
+        report = sync.stop()
+        report = report.flat() if report is not None else {}
         node.destroy_node()
         context.try_shutdown()
     if not report.get('sample_to_frame_histogram'):
