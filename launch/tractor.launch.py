@@ -8,7 +8,10 @@ Every node reads the scene file; on top, each gets its share of the machine file
 the rows, their drives and lever arms: planter_ros.scene.machine.deployment_parameters, which
 checks both files and the scene's plausibility on this machine first and refuses to launch
 otherwise). ground_speed_node gets the ISOBUS channel from the machine file and its sources
-from `speed_sources`. Topics live in the /planter namespace.
+from `speed_sources`; the sync node the service manager's note of how the last run ended
+(`last_stop_file`: after an automatic restart the rows wait at zero for an operator's
+enable_rows). Topics live in the /planter namespace. Stopped (SIGINT or SIGTERM), launch passes
+the signal to every node: each stops cleanly (rows ramped to 0, drives disabled, bag finalised).
 """
 
 from launch import LaunchDescription
@@ -24,6 +27,7 @@ NODES = ('ground_speed_node', 'design_node', 'sync_node', 'monitor_node')
 ARGUMENT_PARAMETERS = {
     'speed_sources': ('ground_speed_node', 'sources'),
     'yaw_rate_source': ('ground_speed_node', 'yaw_rate_source'),
+    'last_stop_file': ('sync_node', 'last_stop_file'),
 }
 
 
@@ -34,7 +38,8 @@ def _nodes(context):
     overrides = {'ground_speed_node': {
         'sources': [s.strip() for s in
                     LaunchConfiguration('speed_sources').perform(context).split(',')],
-        'yaw_rate_source': LaunchConfiguration('yaw_rate_source').perform(context)}}
+        'yaw_rate_source': LaunchConfiguration('yaw_rate_source').perform(context)},
+        'sync_node': {'last_stop_file': LaunchConfiguration('last_stop_file').perform(context)}}
     params, warnings = deployment_parameters(machine, scene, overrides)
     actions = [LogInfo(msg=f'planter: warning: {w}') for w in warnings]
     for name in NODES:
@@ -55,5 +60,10 @@ def generate_launch_description():
                                           'separated (doc/ground_speed.md)'),
         DeclareLaunchArgument('yaw_rate_source', default_value='gnss',
                               description='yaw rate from gnss, imu or none'),
+        DeclareLaunchArgument('last_stop_file', default_value='',
+                              description='how the last run ended, as the service manager '
+                                          'noted it (systemd/planter.service: '
+                                          '/run/planter/last-stop); after a run that did not '
+                                          'end with success the rows wait for enable_rows'),
         OpaqueFunction(function=_nodes),
     ])

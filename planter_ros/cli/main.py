@@ -90,14 +90,20 @@ def build_parser(argv=()):
 
 
 def main(argv=None):
+    from planter_ros import stop_signals
     from planter_ros.config import ConfigError
+    from planter_ros.dependencies import MissingExtra, check_command, error_line
     from planter_ros.output_files import OutputError
+    argv = sys.argv[1:] if argv is None else list(argv)
+    selected = _selected(argv)
+    if selected == ('demo',):     # a stop signal from the very start is a clean stop (demo.run)
+        stop_signals.install('planter demo')
     try:
-        argv = sys.argv[1:] if argv is None else list(argv)
         args = build_parser(argv).parse_args(argv)
+        check_command(selected, args)
         return int(args._run(args) or 0)
-    except (BadInput, ConfigError, OutputError) as exc:
-        print(f'planter: error: {one_line(str(exc))}', file=sys.stderr)
+    except (BadInput, ConfigError, OutputError, MissingExtra, ModuleNotFoundError) as exc:
+        print(f'planter: error: {one_line(error_line(selected, exc))}', file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print('planter: interrupted', file=sys.stderr)

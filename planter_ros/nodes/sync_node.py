@@ -320,6 +320,8 @@ class SyncNode(Node):
 
     # ---------------------------------------------------------------- callbacks
     def _on_ground_speed(self, msg):
+        if self._in_process_held:      # held: the rows start from where they are, once enabled
+            return
         self.engine.sample(msg.twist.linear.x, msg.twist.angular.z, time.monotonic())
         if self.in_process:
             self._publish_commands()
