@@ -141,7 +141,11 @@ def rosdep_env(tmp_path):
     env = dict(os.environ, ROSDEP_SOURCE_PATH=str(sources), ROS_HOME=str(tmp_path / 'home'),
                ROSDISTRO_INDEX_URL=f'file://{SNAPSHOT / "index-v4.yaml"}', ROS_DISTRO='jazzy',
                ROS_PYTHON_VERSION='3', PLANTER_ANALYSIS='1')
-    env.pop('PYTHONPATH', None)
+    # nothing of this process's ROS (rclpy's wheels set AMENT_PREFIX_PATH when imported):
+    # with --ignore-src rosdep would take those packages for sources and skip their keys
+    for name in ('PYTHONPATH', 'AMENT_PREFIX_PATH', 'ROS_PACKAGE_PATH', 'COLCON_PREFIX_PATH',
+                 'CMAKE_PREFIX_PATH'):
+        env.pop(name, None)
     return env
 
 

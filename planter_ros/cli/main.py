@@ -90,13 +90,13 @@ def build_parser(argv=()):
 
 
 def main(argv=None):
-    from planter_ros import stop_signals
     from planter_ros.config import ConfigError
     from planter_ros.dependencies import MissingExtra, check_command, error_line
     from planter_ros.output_files import OutputError
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = _selected(argv)
     if selected == ('demo',):     # a stop signal from the very start is a clean stop (demo.run)
+        from planter_ros import stop_signals
         stop_signals.install('planter demo')
     try:
         args = build_parser(argv).parse_args(argv)
