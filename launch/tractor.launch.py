@@ -10,8 +10,15 @@ checks both files and the scene's plausibility on this machine first and refuses
 otherwise). ground_speed_node gets the ISOBUS channel from the machine file and its sources
 from `speed_sources`; the sync node the service manager's note of how the last run ended
 (`last_stop_file`: after an automatic restart the rows wait at zero for an operator's
-enable_rows). Topics live in the /planter namespace. Stopped (SIGINT or SIGTERM), launch passes
-the signal to every node: each stops cleanly (rows ramped to 0, drives disabled, bag finalised).
+enable_rows). Topics live in the /planter namespace.
+
+Stopping: SIGINT to `ros2 launch --noninteractive` (systemd/planter.service) passes SIGINT to
+every node, and each stops cleanly (rows ramped to 0, drives disabled, bag finalised); in a
+terminal, Ctrl-C reaches every node itself and launch sends no SIGINT of its own. Launch's own
+escalation (SIGTERM, then SIGKILL, to a node still running) waits STOP_TIMEOUTS: its default
+of 5 s would cut a stop short (a second signal forces a node's exit), these stay inside the
+unit's TimeoutStopSec. (SIGTERM to `ros2 launch` alone makes it cancel its run without stopping
+the nodes: launch's behaviour, hence SIGINT.)
 """
 
 from launch import LaunchDescription
@@ -29,6 +36,8 @@ ARGUMENT_PARAMETERS = {
     'yaw_rate_source': ('ground_speed_node', 'yaw_rate_source'),
     'last_stop_file': ('sync_node', 'last_stop_file'),
 }
+# s launch waits after its SIGINT before SIGTERM, then before SIGKILL (each node)
+STOP_TIMEOUTS = {'sigterm_timeout': '20', 'sigkill_timeout': '5'}
 
 
 def _nodes(context):
@@ -45,7 +54,8 @@ def _nodes(context):
     for name in NODES:
         files = [] if name == 'ground_speed_node' else [scene]
         actions.append(Node(package=PACKAGE, executable=name, namespace=NAMESPACE,
-                            output='screen', parameters=files + [params[name]]))
+                            output='screen', parameters=files + [params[name]],
+                            **STOP_TIMEOUTS))
     return actions
 
 

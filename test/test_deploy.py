@@ -102,6 +102,7 @@ def test_the_units_name_executables_and_files_that_exist(name):
             seen += 1
         elif words[:2] == ['exec', 'ros2'] or words[:1] == ['ros2']:
             words = words[1:] if words[0] == 'exec' else words
+            words = [w for w in words if not w.startswith('-')]       # launch's options
             assert words[1:3] == ['launch', 'planter_ros']
             assert (REPO / 'launch' / words[3]).is_file(), words[3]
             seen += 1
@@ -244,6 +245,33 @@ def test_the_graph_unit_stops_the_main_process_first_and_runs_with_only_what_it_
     assert 'AF_CAN' in values(service, 'RestrictAddressFamilies')[0]
     can = unit('planter-can.service')['Service']
     assert values(can, 'CapabilityBoundingSet') == ['CAP_NET_ADMIN']
+
+
+def stop_timeouts(path):
+    """(STOP_TIMEOUTS of a launch file, whether every Node(...) of it passes **STOP_TIMEOUTS)."""
+    tree = ast.parse(path.read_text())
+    timeouts = next(ast.literal_eval(node.value) for node in tree.body
+                    if isinstance(node, ast.Assign) and
+                    getattr(node.targets[0], 'id', '') == 'STOP_TIMEOUTS')
+    nodes = [node for node in ast.walk(tree) if isinstance(node, ast.Call) and
+             getattr(node.func, 'id', '') == 'Node']
+    passed = [any(k.arg is None and getattr(k.value, 'id', '') == 'STOP_TIMEOUTS'
+                  for k in node.keywords) for node in nodes]
+    return timeouts, bool(nodes) and all(passed)
+
+
+@pytest.mark.parametrize('name', ['planter.launch.py', 'tractor.launch.py'])
+def test_launch_escalates_a_stop_only_after_the_graph_had_time_to_stop_and_before_systemd(name):
+    """launch's own escalation (SIGTERM after `sigterm_timeout`, SIGKILL `sigkill_timeout`
+    later; 5 s each by default) must not cut a clean stop short, and must come before the
+    unit's TimeoutStopSec; the unit's SIGINT must reach the nodes (`--noninteractive`: launch
+    then passes SIGINT on; interactive, it assumes the terminal sent it to every node)."""
+    timeouts, every_node = stop_timeouts(REPO / 'launch' / name)
+    assert every_node, f'a Node of {name} does not pass **STOP_TIMEOUTS'
+    sigterm, sigkill = float(timeouts['sigterm_timeout']), float(timeouts['sigkill_timeout'])
+    service = unit('planter.service')['Service']
+    assert 5.0 < sigterm and sigterm + sigkill < float(values(service, 'TimeoutStopSec')[0])
+    assert 'ros2 launch --noninteractive ' in values(service, 'ExecStart')[0]
 
 
 def test_after_an_automatic_restart_the_sync_node_holds_the_rows_and_not_after_a_clean_stop(
