@@ -13,8 +13,18 @@ the monitor's prediction and recording settings, the scene) declares each field 
 Ranges are inclusive and in the field's SI unit. Pure Python: no ROS import.
 """
 
+from collections.abc import Callable, Mapping
 from dataclasses import MISSING, dataclass, field, fields
 import math
+from typing import TYPE_CHECKING, Any, NoReturn, TypeVar, overload
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+_T = TypeVar('_T')
+_D = TypeVar('_D', bound='DataclassInstance')
+# what a caller raises for a bad value (ConfigError, DesignError.from_message, ...)
+ErrorFactory = Callable[[str], Exception]
 
 # list = a list of the Spec's `item`: float (a ROS double array) or str (a ROS string array)
 KINDS = (float, int, bool, str, list)
@@ -35,15 +45,15 @@ class Spec:
     unit: str = ''
     low: float | None = None
     high: float | None = None
-    choices: tuple = ()
+    choices: tuple[object, ...] = ()
     read_only: bool = False
     item: type = float         # element type of a list field: float or str
 
     @property
-    def required(self):
+    def required(self) -> bool:
         return self.default is MISSING
 
-    def allowed(self):
+    def allowed(self) -> str:
         """The allowed values in words, never empty ('0.01..5 s', 'exact | paper', ...)."""
         unit = f' {self.unit}' if self.unit else ''
         if self.choices:
@@ -62,13 +72,29 @@ class Spec:
             return f'{what} <= {_fmt(self.high)}{unit}'
         return f'finite {what}{unit}' if self.kind in (int, float, list) else what
 
-    def describe(self):
+    def describe(self) -> str:
         """Description for people and ROS descriptors: the text, the unit and the range."""
         return f'{self.description} [{self.allowed()}]'
 
 
-def setting(default=MISSING, description='', *, unit='', range=None, choices=(),
-            read_only=False, kind=None, item=float):
+@overload
+def setting(default: _T, description: str = '', *, unit: str = '',
+            range: tuple[float | None, float | None] | None = None,
+            choices: tuple[object, ...] = (), read_only: bool = False,
+            kind: type | None = None, item: type = float) -> _T: ...
+
+
+@overload
+def setting(*, description: str = '', unit: str = '',
+            range: tuple[float | None, float | None] | None = None,
+            choices: tuple[object, ...] = (), read_only: bool = False,
+            kind: type[_T], item: type = float) -> _T: ...
+
+
+def setting(default: object = MISSING, description: str = '', *, unit: str = '',
+            range: tuple[float | None, float | None] | None = None,
+            choices: tuple[object, ...] = (), read_only: bool = False,
+            kind: type | None = None, item: type = float) -> Any:
     """A dataclass field carrying its Spec (the one place a configuration value is defined).
 
     `range=(low, high)` is inclusive; either end may be None. `kind` defaults to the type of
@@ -92,9 +118,9 @@ def setting(default=MISSING, description='', *, unit='', range=None, choices=(),
     return field(default=default, metadata=meta)
 
 
-def specs(cls):
+def specs(cls: 'DataclassInstance | type[DataclassInstance]') -> list[Spec]:
     """The Spec of every configured field of a dataclass (class or instance), in order."""
-    out = []
+    out: list[Spec] = []
     for f in fields(cls):
         meta = f.metadata.get('spec')
         if meta is None:
@@ -106,20 +132,24 @@ def specs(cls):
     return out
 
 
-def spec_of(cls, name):
+def spec_of(cls: 'DataclassInstance | type[DataclassInstance]', name: str) -> Spec:
     for spec in specs(cls):
         if spec.name == name:
             return spec
     raise KeyError(name)
 
 
-def names(cls):
+def names(cls: 'DataclassInstance | type[DataclassInstance]') -> list[str]:
     return [spec.name for spec in specs(cls)]
 
 
-def coerce(spec, value):
+def coerce(spec: Spec, value: object, text: bool = True) -> Any:
     """`value` from a file, a recording or a parameter as the field's type, or ConfigError
-    (text is parsed: a recording stores its settings as strings)."""
+    (text is parsed: a recording stores its settings as strings; `text` False: a file a
+    person writes, where `"0.3"` for a number is a mistake to name, not to read)."""
+    if isinstance(value, str) and spec.kind in (int, float, bool) and not text:
+        raise ConfigError(f'{spec.name} = {value!r} is text: allowed {spec.allowed()} '
+                          '(without quotes)')
     if isinstance(value, str) and spec.kind in (int, float):
         try:
             value = spec.kind(value)
@@ -130,7 +160,7 @@ def coerce(spec, value):
     return _normalise(spec, value)
 
 
-def _normalise(spec, value):
+def _normalise(spec: Spec, value: Any) -> Any:
     """int -> float where a float belongs (YAML writes 1 for 1.0), then the checks."""
     if spec.kind is float and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
@@ -143,8 +173,8 @@ def _normalise(spec, value):
     return value
 
 
-def _check_value(spec, value):
-    def bad(shown=None):
+def _check_value(spec: Spec, value: Any) -> None:
+    def bad(shown: object = None) -> NoReturn:
         shown = value if shown is None else shown
         text = f'{shown:.6g}' if isinstance(shown, float) else f'{shown!r}' \
             if isinstance(shown, str) else f'{shown}'
@@ -180,7 +210,7 @@ def _check_value(spec, value):
         bad()
 
 
-def _check_number(spec, value, bad):
+def _check_number(spec: Spec, value: Any, bad: Callable[[object], NoReturn]) -> None:
     if isinstance(value, float) and not math.isfinite(value):   # (a huge int overflows isfinite)
         bad(value)
     if spec.low is not None and value < spec.low:
@@ -189,7 +219,7 @@ def _check_number(spec, value, bad):
         bad(value)
 
 
-def check(instance, error=ConfigError):
+def check(instance: 'DataclassInstance', error: ErrorFactory = ConfigError) -> None:
     """Validate every configured field of a dataclass instance; raise `error` (one line).
 
     Call it from `__post_init__`; a float field given an int stores the float."""
@@ -204,15 +234,17 @@ def check(instance, error=ConfigError):
         object.__setattr__(instance, spec.name, value)
 
 
-def from_mapping(cls, values, error=ConfigError, strict=False, prefix=''):
+def from_mapping(cls: type[_D], values: Mapping[str, object], error: ErrorFactory = ConfigError,
+                 strict: bool = False, prefix: str = '') -> _D:
     """Build `cls` from a mapping, coercing each known value; unknown keys are ignored unless
-    `strict` (then the first one is an error). `prefix` is put before each field name in the
-    messages (a row's fields are the parameters `<row>.<field>`)."""
+    `strict` (then the first one is an error, and so is text for a number: a file a person
+    wrote). `prefix` is put before each field name in the messages (a row's fields are the
+    parameters `<row>.<field>`)."""
     known = {spec.name: spec for spec in specs(cls)}
-    for spec in known.values():
-        if spec.required and values.get(spec.name) is None:
-            raise error(f'{prefix}{spec.name} is required: allowed {spec.allowed()}')
-    kwargs = {}
+    for required in known.values():
+        if required.required and values.get(required.name) is None:
+            raise error(f'{prefix}{required.name} is required: allowed {required.allowed()}')
+    kwargs: dict[str, object] = {}
     for key, value in values.items():
         spec = known.get(key)
         if spec is None:
@@ -221,17 +253,17 @@ def from_mapping(cls, values, error=ConfigError, strict=False, prefix=''):
                             f'{" | ".join(known)}')
             continue
         try:
-            kwargs[key] = coerce(spec, value)
+            kwargs[key] = coerce(spec, value, text=not strict)
         except ConfigError as exc:
             raise error(prefix + str(exc)) from None
     return cls(**kwargs)
 
 
-def as_dict(instance):
+def as_dict(instance: 'DataclassInstance') -> dict[str, Any]:
     return {spec.name: getattr(instance, spec.name) for spec in specs(instance)}
 
 
-def _fmt(x):
+def _fmt(x: float) -> str:
     if float(x).is_integer() and abs(x) < 1e15:
         return str(int(x))
     return f'{x:.6g}'

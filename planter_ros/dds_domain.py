@@ -14,31 +14,34 @@ chosen. A private graph writes no log files (`PRIVATE_GRAPH_ROS_ARGS`): its cons
 its log. Pure Python: no ROS import.
 """
 
+from collections.abc import MutableMapping
 import fcntl
 import os
 import socket
 import sys
 import tempfile
+from typing import TextIO
 
 # 1..101: the domain ids whose ports stay below Linux's ephemeral range (32768 and up)
 CANDIDATES = range(1, 102)
 PARTICIPANTS_PROBED = 5
 # rclpy.init arguments of a private graph: no log file in ~/.ros/log for each run
 PRIVATE_GRAPH_ROS_ARGS = ('--disable-external-lib-logs',)
-_held = {}            # domain -> bound socket or open lock file, kept for the life of the process
+# domain -> bound socket or open lock file, kept for the life of the process
+_held: dict[int, socket.socket | TextIO] = {}
 
 
 class NoFreeDomainError(RuntimeError):
     """Every candidate domain is in use on this host (one line)."""
 
 
-def unicast_ports(domain, participants=PARTICIPANTS_PROBED):
+def unicast_ports(domain: int, participants: int = PARTICIPANTS_PROBED) -> list[int]:
     """The metatraffic and user unicast ports of the first `participants` participants."""
     base = 7400 + 250 * domain
     return [base + 10 + 2 * i + k for i in range(participants) for k in (0, 1)]
 
 
-def ports_free(domain):
+def ports_free(domain: int) -> bool:
     """True when no participant of `domain` has bound its unicast ports on this host."""
     for port in unicast_ports(domain):
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
@@ -49,11 +52,11 @@ def ports_free(domain):
     return True
 
 
-def _lock_path(domain):
+def _lock_path(domain: int) -> str:
     return os.path.join(tempfile.gettempdir(), f'planter_ros-dds-domain-{domain}.lock')
 
 
-def _claim(domain):
+def _claim(domain: int) -> socket.socket | TextIO | None:
     """This process's claim on `domain` (held while the returned object is open), or None when
     another process holds it."""
     if sys.platform.startswith('linux'):
@@ -76,7 +79,7 @@ def _claim(domain):
     return handle
 
 
-def claim_private_domain():
+def claim_private_domain() -> int:
     """Claim a free DDS domain for this process and return its id (cached: one per process)."""
     if _held:
         return next(iter(_held))
@@ -94,7 +97,7 @@ def claim_private_domain():
                             'on this host')
 
 
-def keep_discovery_on_host(environ=os.environ):
+def keep_discovery_on_host(environ: MutableMapping[str, str] = os.environ) -> str:
     """ROS_AUTOMATIC_DISCOVERY_RANGE unset (or empty) -> LOCALHOST, before rclpy.init(): the
     nodes of one machine run on one host, and a graph reachable from the whole subnet is a
     choice the user makes (SUBNET, or SYSTEM_DEFAULT with ROS_STATIC_PEERS). Returns the range
@@ -104,7 +107,7 @@ def keep_discovery_on_host(environ=os.environ):
     return environ['ROS_AUTOMATIC_DISCOVERY_RANGE']
 
 
-def isolate_environment(environ=os.environ):
+def isolate_environment(environ: MutableMapping[str, str] = os.environ) -> int:
     """Point ROS_DOMAIN_ID at a private domain (and keep discovery on the host unless the
     environment already chose a range); returns the domain id."""
     domain = claim_private_domain()

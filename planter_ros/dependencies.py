@@ -58,10 +58,13 @@ DEV_TOOLS = [
     'hypothesis>=6.100',                      # property tests
     'mpmath>=1.3',                            # high-precision references (tests, planter bench)
     'ruff>=0.6',                              # lint (test_lint.py)
-    'mypy>=1.9',                              # the type checker
+    'mypy>=1.9',                              # the type checker (mypy.ini)
+    'types-PyYAML>=6.0',                      # PyYAML's stubs (typeshed), for mypy
+    'scipy-stubs>=1.14',                      # SciPy's stubs, for mypy
     'colcon-common-extensions>=0.3',          # the colcon build check
     'pyogrio>=0.10',                          # GDAL: an independent Shapefile reader (tests)
     'shapely>=2.0',                           # geometry checks of the exports (tests)
+    'xmlschema>=3.0',                         # validates ISOXML against the XSD (tests)
     'mcap-ros2-support>=0.5',                 # an independent decoder of every recorded message
     'psutil>=5.9',                            # process trees in the die-with-parent tests
     'rosdep>=0.25',                           # resolves package.xml against rosdistro (tests)
@@ -83,6 +86,8 @@ IMPORT_NAMES = {
     'mcap-ros2-support': ('mcap_ros2',),
     'colcon-common-extensions': ('colcon_core',),
     'rosdep': ('rosdep2',),
+    'types-PyYAML': ('yaml-stubs',),
+    'scipy-stubs': ('scipy-stubs',),
 }
 
 

@@ -98,7 +98,7 @@ def array(reports: Iterable[tuple[Report, str]], node_name: str, stamp: Any = No
     return msg
 
 
-def decode(raw: bytes) -> Any:
+def decode(raw: bytes | bytearray | memoryview) -> Any:
     """The diagnostic_msgs/DiagnosticArray of CDR bytes (as a bag holds them), without rclpy:
     an object with `header` and `status` (each with `level` as an int, `name`, `message`,
     `hardware_id`, `values` of `key`/`value`). Raises ValueError for bytes that are not one."""

@@ -37,10 +37,19 @@ travel there and be parsed back), std_msgs/*MultiArray has no stamp and no names
 string, sensor_msgs/Joy has no names, rcl_interfaces/ParameterEvent means a parameter changed.
 """
 
-from collections.abc import Mapping, Sequence
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 import importlib
 import math
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:                 # rclpy where a node uses the contract: the pure core needs none
+    from rclpy.node import Node
+    from rclpy.publisher import Publisher
+    from rclpy.qos import QoSProfile
+    from rclpy.subscription import Subscription
 
 NAMESPACE = 'planter'
 RECORDING_DEPTH = 100
@@ -54,10 +63,10 @@ class Qos:
     durability: str             # 'volatile' | 'transient_local'
     depth: int
 
-    def deeper(self, depth=RECORDING_DEPTH):
+    def deeper(self, depth: int = RECORDING_DEPTH) -> Qos:
         return replace(self, depth=depth)
 
-    def profile(self):
+    def profile(self) -> QoSProfile:
         from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile,
                                ReliabilityPolicy)
         return QoSProfile(depth=self.depth, history=HistoryPolicy.KEEP_LAST,
@@ -81,24 +90,27 @@ class Topic:
     qos: Qos
     doc: str
 
-    def msg_class(self):
+    def msg_class(self) -> type[Any]:
+        """The generated message class (its fields are not typed: rosidl writes no hints)."""
         package, kind, base = self.type_name.split('/')
-        return getattr(importlib.import_module(f'{package}.{kind}'), base)
+        cls: type[Any] = getattr(importlib.import_module(f'{package}.{kind}'), base)
+        return cls
 
-    def recording_qos(self):
+    def recording_qos(self) -> Qos:
         """What a recorder subscribes with: a latched topic's last sample, else a deep queue."""
         return self.qos if self.qos.durability == 'transient_local' else self.qos.deeper()
 
-    def publisher(self, node, qos=None):
+    def publisher(self, node: Node, qos: Qos | None = None) -> Publisher:
         """`node`'s publisher of this topic (the contract's QoS unless `qos` is given)."""
         return node.create_publisher(self.msg_class(), self.name, (qos or self.qos).profile())
 
-    def subscribe(self, node, callback, qos=None, **kwargs):
+    def subscribe(self, node: Node, callback: Callable[[Any], None], qos: Qos | None = None,
+                  **kwargs: Any) -> Subscription:
         """`node`'s subscription to this topic (kwargs: raw, callback_group, ...)."""
         return node.create_subscription(self.msg_class(), self.name, callback,
                                         (qos or self.qos).profile(), **kwargs)
 
-    def resolved(self, namespace=NAMESPACE):
+    def resolved(self, namespace: str = NAMESPACE) -> str:
         """The absolute name in `namespace` (as recorded in bags)."""
         return self.name if self.name.startswith('/') else f'/{namespace}/{self.name}'
 
@@ -218,11 +230,12 @@ class Service:
     type_name: str
     doc: str
 
-    def srv_class(self):
+    def srv_class(self) -> type[Any]:
         package, kind, base = self.type_name.split('/')
-        return getattr(importlib.import_module(f'{package}.{kind}'), base)
+        cls: type[Any] = getattr(importlib.import_module(f'{package}.{kind}'), base)
+        return cls
 
-    def for_row(self, row_name):
+    def for_row(self, row_name: str) -> str:
         """The service's name for one row (the plain name for a scene without rows)."""
         return f'{row_name}/{self.name}' if row_name else self.name
 
@@ -241,7 +254,7 @@ ENABLE_ROWS = Service('enable_rows', 'std_srvs/srv/Trigger',
 MECHANISM_JOINT = {'five_bar': 'sun_bar', 'three_arm': 'carrier'}
 
 
-def row_joint(row_name, mechanism):
+def row_joint(row_name: str, mechanism: str) -> str:
     """A row's joint name in joint_states: `<row>/sun_bar` (`<row>/carrier`), or the plain
     `sun_bar` (`carrier`) for the implicit row of a scene without rows."""
     joint = MECHANISM_JOINT[mechanism]

@@ -8,19 +8,24 @@ user's old file as it was (`atomic_outputs`: a set of files written whole before
 `atomic_directory`: a directory of files). Pure Python, no ROS.
 """
 
+from collections.abc import Collection, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 import math
 import os
 from pathlib import Path
 import stat
 import tempfile
+from typing import TypeVar
+
+_T = TypeVar('_T')
+PathLike = str | os.PathLike[str]
 
 
 class OutputError(ValueError):
     """An output path that cannot be written as asked (one line: the option, the path, why)."""
 
 
-def check_output(path, option, suffixes):
+def check_output(path: PathLike | None, option: str, suffixes: Collection[str]) -> Path:
     """Refuse (OutputError) an output file `path` given as `option` that cannot be written:
     its extension not one of `suffixes` (e.g. ('.png',)), a directory, an existing file that is
     not a writable regular file, a missing, non-directory or read-only parent. Returns a Path."""
@@ -44,7 +49,7 @@ def check_output(path, option, suffixes):
     return path
 
 
-def check_new_path(path, option, suffixes):
+def check_new_path(path: PathLike, option: str, suffixes: Collection[str]) -> Path:
     """Refuse (OutputError) a path that must not exist yet (a recording) or whose parent is
     missing or read-only; `suffixes` may contain '' (a directory name). Returns a Path."""
     path = Path(path)
@@ -58,7 +63,7 @@ def check_new_path(path, option, suffixes):
     return path
 
 
-def check_directory(directory, option, path=None):
+def check_directory(directory: Path, option: str, path: Path | None = None) -> None:
     """Refuse (OutputError) a directory that is missing, not a directory or not writable (tried
     by creating and removing a temporary file: permissions, read-only mounts, full quota)."""
     shown = f'{option} = {path}: directory {directory}' if path is not None else \
@@ -77,7 +82,7 @@ def check_directory(directory, option, path=None):
 
 
 @contextmanager
-def atomic_output(path):
+def atomic_output(path: PathLike) -> Iterator[Path]:
     """Yield a temporary path next to `path` (same extension, so writers that go by it work);
     on success it replaces `path` (keeping an existing file's mode), on an exception it is
     removed and `path` is untouched."""
@@ -101,37 +106,37 @@ def atomic_output(path):
 
 
 @contextmanager
-def atomic_outputs(paths):
+def atomic_outputs(paths: Iterable[PathLike]) -> Iterator[list[Path]]:
     """atomic_output for a set of files that belong together (a Shapefile's .shp, .shx, .dbf,
     ...): yields one temporary path per path (same directory and extension); only when all
     are written are they renamed onto the paths, in the order given (put the file readers
     open first last); on an exception every temporary is removed and no path is touched."""
-    paths = [Path(p) for p in paths]
-    temporaries = []
+    targets = [Path(p) for p in paths]
+    temporaries: list[Path] = []
     try:
-        for path in paths:
-            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}.',
-                                       suffix=f'.tmp{path.suffix}')
+        for path in targets:
+            fd, name = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}.',
+                                        suffix=f'.tmp{path.suffix}')
             os.close(fd)
-            temporaries.append(Path(tmp))
+            temporaries.append(Path(name))
         yield list(temporaries)
-        for path, tmp in zip(paths, temporaries):
-            with open(tmp, 'rb+') as f:
+        for path, temporary in zip(targets, temporaries):
+            with open(temporary, 'rb+') as f:
                 os.fsync(f.fileno())
-            os.chmod(tmp, _mode_for(path))
-        for path, tmp in zip(paths, temporaries):
-            os.replace(tmp, path)
+            os.chmod(temporary, _mode_for(path))
+        for path, temporary in zip(targets, temporaries):
+            os.replace(temporary, path)
     except BaseException:
-        for tmp in temporaries:
+        for temporary in temporaries:
             try:
-                os.unlink(tmp)
+                os.unlink(temporary)
             except OSError:
                 pass
         raise
 
 
 @contextmanager
-def atomic_directory(path):
+def atomic_directory(path: PathLike) -> Iterator[Path]:
     """Yield a new temporary directory next to `path`; on success it takes the place of `path`
     (an existing directory there is moved aside, then removed: a reader sees the old or the
     new one, never a half-written one); on an exception it is removed and `path` untouched."""
@@ -157,7 +162,7 @@ def atomic_directory(path):
         raise
 
 
-def _mode_for(path, directory=False):
+def _mode_for(path: Path, directory: bool = False) -> int:
     """The mode a replaced file or directory keeps, or what a new one would get."""
     try:
         return stat.S_IMODE(os.stat(path).st_mode)
@@ -167,21 +172,21 @@ def _mode_for(path, directory=False):
         return (0o777 if directory else 0o666) & ~umask
 
 
-def write_text_atomically(path, text):
+def write_text_atomically(path: PathLike, text: str) -> None:
     """Write `text` (UTF-8) to `path` through atomic_output."""
     with atomic_output(path) as tmp:
         tmp.write_text(text, encoding='utf-8')
 
 
-def _words(suffixes):
+def _words(suffixes: Collection[str]) -> str:
     words = [s if s else 'a directory name without extension' for s in suffixes]
     return words[0] if len(words) == 1 else ', '.join(words[:-1]) + ' or ' + words[-1]
 
 
-def require_finite(result, what):
+def require_finite(result: _T, what: str) -> _T:
     """Raise OutputError naming the first NaN or infinite number in a JSON-like result (a
     design no one can build must never be printed as one); return the result."""
-    def walk(value, key):
+    def walk(value: object, key: object) -> None:
         if isinstance(value, dict):
             for k, v in value.items():
                 walk(v, k)
@@ -195,10 +200,10 @@ def require_finite(result, what):
     return result
 
 
-def check_distinct(outputs):
+def check_distinct(outputs: Mapping[str, PathLike | None]) -> None:
     """OutputError when two output options ({option: path or None}) name the same file (the
     later would replace the earlier)."""
-    seen = {}
+    seen: dict[Path, str] = {}
     for option, path in outputs.items():
         if not path:
             continue

@@ -11,15 +11,26 @@ refused (PlausibilityError, one line naming the value, the reason and the limit)
 * **acceleration**: keeping the phase while the tractor speeds up at `TRACTOR_ACCELERATION`
   needs α = 2π·a/(n·d); over the law's `max_acceleration` (or a machine file's row limit) the
   rows fall behind at every start and speed change;
+* **the highest speed**: the same speed checks at the scene's `top_ground_speed` (0: 1.5 ×
+  the nominal speed, the demo's field run);
+* **the drive train**: a row's encoder through its gear ratio coarser than
+  `MIN_COUNTS_PER_TURN` counts per mechanism turn; a row's drive on the master's own node id;
 * **bus load**: the worst-case CAN load of the enabled rows over 70 % of the bit rate
-  (drive.bus_load, the sync node's own rule);
+  (drive.bus_load, the sync node's own rule; `bus_rows` for a command that builds rows);
+* **reach**: a three-arm planting deeper than its gearbox clears (the gearbox in the soil);
 * **spacing / depth**: a spacing or a depth the mechanism cannot reach (no five-bar exists:
   k·D ≥ d or l1 ≤ 0; a three-arm design the model refuses) — the design model's own refusal;
+* **the cam** (speed_profile: cam): its plan at the scene's top ground speed for the scene's
+  spacing and each spacing of its schedule, and each change between them, within the drive's
+  limits (control.cam_law, cam.track: the same planning the sync node's shell does);
 
 warned (the scene runs; the value is unusual, the warning names the typical range):
 
+* a value a design is made from that the scene leaves out (`DESIGN_KEYS`): its default named;
 * ground speed, depth and spacing outside what transplanters usually plant at (`TYPICAL`),
-  more rows than a planter of this kind carries, a CAN bit rate no CiA 301 table lists, an
+  more rows than a planter of this kind carries, rows on top of each other or closer than
+  `ROW_GAP_MIN`, a machine wider than `MACHINE_WIDTH_MAX`, a CAN bit rate no CiA 301 table
+  lists, an
   accepted top ground speed (`max_ground_speed`, when the scene sets it) at which the rows can
   no longer keep up.
 
@@ -38,7 +49,7 @@ from typing import Any
 from planter_ros.config import ConfigError, from_mapping
 
 __all__ = ['PlausibilityError', 'RowLimits', 'TYPICAL', 'TRACTOR_ACCELERATION', 'Verdict',
-           'check', 'check_law', 'judge', 'unusual']
+           'bus_rows', 'check', 'check_law', 'judge', 'unusual']
 
 RPM = 60.0 / (2.0 * math.pi)              # r/min per rad/s
 
@@ -49,6 +60,13 @@ TYPICAL = {
     'plant_spacing': (0.1, 1.0, 'm'),
 }
 TYPICAL_ROWS = 8                          # a planter of this kind carries 1..8 units
+# the narrowest row gap seedlings are planted at (rice: 0.2-0.3 m, vegetables 0.3 m and more)
+# and the widest transplanter (12 rows at 0.75 m is 9 m; none spans more than about 12 m)
+ROW_GAP_MIN = 0.15                        # m
+MACHINE_WIDTH_MAX = 12.0                  # m
+# the coarsest position a CSP drive and the monitor can work from: a count per 0.1 degree
+# of the mechanism (at 0.5 m spacing a count is then 0.14 mm of the row)
+MIN_COUNTS_PER_TURN = 3600
 # a tractor's start or speed change the rows must follow while keeping their phase (a start
 # from rest to 1 m/s in 2 s); an assumption of the check, not a measured figure
 TRACTOR_ACCELERATION = 0.5                # m/s²
@@ -70,6 +88,7 @@ class RowLimits:
     max_acceleration: float = 0.0         # rad/s² of the shaft
     motor_max_speed: float = 0.0          # rad/s of the motor
     gear_ratio: float = 1.0               # motor turns per shaft turn
+    encoder_counts: int = 0               # counts per motor turn (0: not given)
 
 
 @dataclass
@@ -107,7 +126,10 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
         law = from_mapping(PhaseLockConfig, params)
         ground = from_mapping(GroundSpeedLimits, params)
         if design:
+            out.warnings += _defaults(params, scene.mechanism)
             _design(params, out)
+            if not out.refused and law.speed_profile == 'cam':
+                _cam(params, law, out)
         if motion:
             _motion(out, params, scene, law, ground, row_limits, tractor_acceleration)
         if machine:
@@ -116,6 +138,27 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
         out.refused.append(str(exc))
         return out
     out.warnings += unusual(scene)
+    return out
+
+
+# the values a design is made from that no default fits every crop: a scene that leaves one
+# out is told which default it got (no silent input)
+DESIGN_KEYS = ('mechanism', 'planting_depth', 'plant_spacing', 'nominal_ground_speed')
+FIVE_BAR_KEYS = ('hole_ratio',)
+
+
+def _defaults(params, mechanism):
+    from planter_ros.config import spec_of
+    from planter_ros.kinematics.scene_settings import SceneSettings
+    keys = DESIGN_KEYS + (FIVE_BAR_KEYS if mechanism == 'five_bar' else ())
+    out = []
+    for name in keys:
+        if name not in params:
+            spec = spec_of(SceneSettings, name)
+            unit = f' {spec.unit}' if spec.unit else ''
+            out.append(f'{name} is not set: the design uses the default {spec.default:g}'
+                       f'{unit}; set it for the crop and machine' if spec.kind is float else
+                       f'{name} is not set: the design uses the default {spec.default}')
     return out
 
 
@@ -133,9 +176,36 @@ def unusual(scene) -> list[str]:
 
 def _motion(out, params, scene, law, ground, row_limits, tractor_acceleration):
     from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
-    _motion_of(out, scene.mechanism, PLANTS_PER_REVOLUTION[scene.mechanism],
-               scene.plant_spacing, scene.nominal_ground_speed, law, ground, row_limits,
-               tractor_acceleration, 'max_ground_speed' in params)
+    from planter_ros.kinematics.scene_settings import top_ground_speed
+    n = PLANTS_PER_REVOLUTION[scene.mechanism]
+    _motion_of(out, scene.mechanism, n, scene.plant_spacing, scene.nominal_ground_speed, law,
+               ground, row_limits, tractor_acceleration, 'max_ground_speed' in params)
+    top = top_ground_speed(scene.nominal_ground_speed, scene.top_ground_speed)
+    if not out.refused and top > scene.nominal_ground_speed:
+        # the highest speed the scene plants at, through the same limits
+        name = 'top_ground_speed' if scene.top_ground_speed else \
+            'top_ground_speed (0: 1.5 × nominal_ground_speed)'
+        _motion_of(out, scene.mechanism, n, scene.plant_spacing, top, law, ground,
+                   row_limits, tractor_acceleration, False, speed_name=name)
+    _resolution(out, scene, n, row_limits)
+
+
+def _resolution(out, scene, n, row_limits):
+    """Each row's encoder through its gear ratio against MIN_COUNTS_PER_TURN."""
+    for row in row_limits:
+        if not row.encoder_counts:
+            continue
+        counts = row.encoder_counts * row.gear_ratio
+        if counts < MIN_COUNTS_PER_TURN:
+            where = f'row {row.name or "(implicit)"} of the machine file'
+            shaft = 'sun bar' if scene.mechanism == 'five_bar' else 'carrier'
+            out.refused.append(
+                f'encoder_counts = {row.encoder_counts} per motor turn through gear_ratio = '
+                f'{row.gear_ratio:g} is {counts:g} counts per {shaft} turn '
+                f'({360.0 / counts:.3g} deg, {scene.plant_spacing / (n * counts) * 1000:.3g} '
+                f'mm of the row) on {where}: allowed >= {MIN_COUNTS_PER_TURN} counts per '
+                f'{shaft} turn (encoder_counts >= '
+                f'{math.ceil(MIN_COUNTS_PER_TURN / row.gear_ratio)})')
 
 
 def check_law(design, law, ground, row_limits: Sequence[RowLimits] = (),
@@ -155,22 +225,23 @@ def check_law(design, law, ground, row_limits: Sequence[RowLimits] = (),
 
 
 def _motion_of(out, mechanism, n, d, v, law, ground, row_limits, tractor_acceleration,
-               ground_limit_given):
+               ground_limit_given, speed_name='nominal_ground_speed'):
     shaft = 'sun bar' if mechanism == 'five_bar' else 'carrier'
     per_metre = 2.0 * math.pi / (n * d)   # shaft rad per metre travelled
     if v is None:                          # a design without a nominal speed: no speed check
         v = 0.0
-    _speed(out, shaft, per_metre, d, v, law.max_speed, 'max_speed', 'the sync law')
+    _speed(out, shaft, per_metre, d, v, law.max_speed, 'max_speed', 'the sync law',
+           speed_name)
     _acceleration(out, shaft, per_metre, d, tractor_acceleration, law.max_acceleration,
                   'max_acceleration', 'the sync law')
     for row in row_limits:
         where = f'row {row.name or "(implicit)"} of the machine file'
         if row.max_speed:
-            _speed(out, shaft, per_metre, d, v, row.max_speed, 'max_speed', where)
+            _speed(out, shaft, per_metre, d, v, row.max_speed, 'max_speed', where, speed_name)
         if row.motor_max_speed:
             _speed(out, f'motor ({row.gear_ratio:g} turns per {shaft} turn)',
                    per_metre * row.gear_ratio, d, v, row.motor_max_speed, 'motor_max_speed',
-                   where)
+                   where, speed_name)
         if row.max_acceleration:
             _acceleration(out, shaft, per_metre, d, tractor_acceleration, row.max_acceleration,
                           'max_acceleration', where)
@@ -189,7 +260,14 @@ def _machine(out, params):
     drive = from_mapping(DriveConfig, params)
     loop = from_mapping(SyncLoopConfig, params)
     rows = rows_from_scene(params, drive.drive_node_id)
+    for row in rows:
+        if row.drive_node_id == drive.master_node_id:
+            out.refused.append(
+                f'{row.name + "." if row.name else ""}drive_node_id = {row.drive_node_id} is '
+                f'the master\'s own node id (master_node_id = {drive.master_node_id}): allowed '
+                f'1..127 except {drive.master_node_id}')
     _bus(out, rows, drive, loop)
+    _layout(out, rows)
     if len(rows) > TYPICAL_ROWS:
         out.warnings.append(f'rows: {len(rows)} planting units is unusual: a transplanter of '
                             f'this kind typically carries 1..{TYPICAL_ROWS}')
@@ -199,22 +277,110 @@ def _machine(out, params):
             + ', '.join(f'{b // 1000}k' for b in STANDARD_BITRATES) + ' bit/s')
 
 
+def _layout(out, rows):
+    """Rows on top of each other or closer than seedlings are planted, a machine wider than
+    any transplanter: warned (a row's offset may be measured wrong, not impossible)."""
+    placed = sorted((row.lateral_offset, row.name) for row in rows if row.name)
+    for (y0, a), (y1, b) in zip(placed, placed[1:]):
+        if y1 - y0 < 1e-9:
+            out.warnings.append(f'rows {a} and {b} have the same lateral_offset = {_g(y0)} m: '
+                                'they plant into one row; typically rows are at least '
+                                f'{_g(ROW_GAP_MIN)} m apart')
+        elif y1 - y0 < ROW_GAP_MIN:
+            out.warnings.append(f'rows {a} and {b} are {_g(y1 - y0)} m apart (lateral_offset '
+                                f'{_g(y0)} and {_g(y1)} m): unusual, seedling rows are '
+                                f'typically at least {_g(ROW_GAP_MIN)} m apart')
+    if len(placed) > 1 and placed[-1][0] - placed[0][0] > MACHINE_WIDTH_MAX:
+        out.warnings.append(f'the rows span {_g(placed[-1][0] - placed[0][0])} m '
+                            f'({placed[0][1]} to {placed[-1][1]}): unusual, transplanters are '
+                            f'typically at most {_g(MACHINE_WIDTH_MAX)} m wide')
+
+
+def bus_rows(count, params=None):
+    """The refusal (one line) of `count` rows on the bus `params` set (defaults: the sync
+    node's: 500 kbit/s, ...), or '' when they fit: a command that builds rows checks them as
+    the sync node would."""
+    from planter_ros.control.loop_timing import SyncLoopConfig
+    from planter_ros.drive.bus_load import bus_load, check_bus_load
+    from planter_ros.drive.config import DriveConfig
+    from planter_ros.drive.errors import DriveConfigError
+    params = params or {}
+    drive = from_mapping(DriveConfig, params)
+    loop = from_mapping(SyncLoopConfig, params)
+    periods = (loop.control_period, loop.ground_speed_rate, drive.feedback_period,
+               drive.drive_heartbeat_period, drive.heartbeat_period)
+    try:
+        check_bus_load(bus_load(count, drive.can_bitrate, *periods), [], *periods)
+    except DriveConfigError as exc:
+        return str(exc)
+    return ''
+
+
 def _design(params, out):
     from planter_ros.design import design_for_scene
     try:
-        design_for_scene({**params, 'nozzle_width': params.get('nozzle_width', 0.0)})
+        design = design_for_scene({**params, 'nozzle_width': params.get('nozzle_width', 0.0)})
     except ConfigError as exc:
         out.refused.append(f'no mechanism reaches this spacing and depth: {exc}')
+        return
+    _reach(out, design, params.get('arm_length'))
 
 
-def _speed(out, shaft, per_metre, d, v, limit, limit_name, where):
+def _reach(out, design, arm):
+    """A three-arm's depth beyond its reach: the gearbox would turn in the soil."""
+    goals = {goal.name: goal for goal in getattr(design, 'goals', None) or ()}
+    clearance = goals.get('gearbox_clearance')
+    if clearance is None or clearance.value >= 0.0:
+        return
+    depth = design.planting_depth
+    out.refused.append(
+        f'planting_depth = {_g(depth)} m is beyond the three-arm\'s reach: its gearbox would '
+        f'turn {_g(-clearance.value)} m deep in the soil'
+        + (f' (arm_length = {_g(arm)} m)' if arm else '')
+        + f'; allowed planting_depth <= {_g(depth + clearance.value)} m')
+
+
+def _cam(params, law, out):
+    """A cam scene (speed_profile: cam): its cam planned as the sync node's shell plans it
+    (control.cam_law, at the scene's top ground speed) for its plant_spacing and every
+    spacing of its spacing_schedule in turn, each change checked as the rows would make it:
+    a plan or change over the drive's limits, or a design the cam cannot run, refused."""
+    from planter_ros.cam import CamError
+    from planter_ros.control.cam_law import plan_for_design
+    from planter_ros.design import design_for_scene
+    flat = params.get('spacing_schedule') or []
+    spacings = [params.get('plant_spacing')] + list(flat[1::2])
+    previous, last = None, None
+    for spacing in spacings:
+        if spacing is None or spacing == last:
+            continue
+        last = spacing
+        where = '' if previous is None else f' (spacing_schedule, to {spacing:g} m)'
+        try:
+            design = design_for_scene({**params, 'plant_spacing': spacing,
+                                       'nozzle_width': params.get('nozzle_width', 0.0)})
+            profile, why = plan_for_design(design, law.cam_rule, previous)
+        except (ConfigError, CamError) as exc:
+            out.refused.append(f'speed_profile = cam cannot run{where}: {exc}')
+            return
+        if profile is None:
+            why = why.removesuffix(': constant speed')
+            out.refused.append(f'speed_profile = cam cannot run{where}: {why}; allowed a '
+                               'five-bar the cam can plan, or speed_profile: constant')
+            return
+        previous = profile
+
+
+def _speed(out, shaft, per_metre, d, v, limit, limit_name, where,
+           speed_name='nominal_ground_speed'):
     omega = per_metre * v
     if omega > limit:
+        short = speed_name.split(' ')[0]
         out.refused.append(
-            f'nominal_ground_speed = {_g(v)} m/s needs the {shaft} at {_g(omega)} rad/s '
+            f'{speed_name} = {_g(v)} m/s needs the {shaft} at {_g(omega)} rad/s '
             f'({omega * RPM:.0f} r/min) for plant_spacing = {_g(d)} m: over {limit_name} = '
             f'{_g(limit)} rad/s ({limit * RPM:.0f} r/min) of {where}; allowed '
-            f'nominal_ground_speed <= {_g(limit / per_metre)} m/s at this spacing')
+            f'{short} <= {_g(limit / per_metre)} m/s at this spacing')
 
 
 def _acceleration(out, shaft, per_metre, d, tractor, limit, limit_name, where):

@@ -14,6 +14,7 @@ positive yaw rate turns the machine counter-clockwise (left), so a row at y trav
 v − ω_z·y. Pure Python, no ROS.
 """
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import json
 import re
@@ -29,7 +30,7 @@ _NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
 class RowLayout:
     """Which rows the machine has (fixed at start-up)."""
 
-    rows: list = setting([], 'names of the planting units (rows); each has a block of row '
+    rows: list[str] = setting([], 'names of the planting units (rows); each has a block of row '
                          'settings <row>.lateral_offset, <row>.drive_node_id, <row>.enabled, '
                          '<row>.seedling_sensor; empty = one implicit row', item=str,
                          read_only=True)
@@ -41,9 +42,9 @@ class RowLayout:
                                     'is unknown (no seedling sensor), whatever is read',
                                     read_only=True)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self)
-        seen = set()
+        seen: set[str] = set()
         for name in self.rows:
             if not _NAME.match(name):
                 raise ConfigError(f'rows = {name!r} is not a row name: allowed letters, digits '
@@ -73,7 +74,7 @@ class RowSettings:
                                     'instants are unknown (no seedling sensor). Default: the '
                                     "scene's seedling_sensor", read_only=True)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self)
 
 
@@ -93,26 +94,28 @@ class Row:
     seedling_sensor: bool | None = True
 
     @property
-    def label(self):
+    def label(self) -> str:
         """The row's name for people ('row' for the implicit row)."""
         return self.name or 'row'
 
-    def joint(self, mechanism):
+    def joint(self, mechanism: str) -> str:
         """The row's mechanism joint in joint_states (`<row>/sun_bar`, or `sun_bar`)."""
         return interfaces.row_joint(self.name, mechanism)
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, object]:
         return {'index': self.index, 'name': self.name, 'lateral_offset': self.lateral_offset,
                 'drive_node_id': self.drive_node_id, 'enabled': self.enabled,
                 'longitudinal_offset': self.longitudinal_offset,
                 'seedling_sensor': self.seedling_sensor}
 
 
-def implicit_row(drive_node_id=None, seedling_sensor=True):
+def implicit_row(drive_node_id: int | None = None, seedling_sensor: bool | None = True) -> Row:
     return Row(0, IMPLICIT, 0.0, drive_node_id, True, seedling_sensor=seedling_sensor)
 
 
-def rows_from_settings(names, settings, default_node_id=None, seedling_sensor=True):
+def rows_from_settings(names: Sequence[str], settings: Mapping[str, RowSettings],
+                       default_node_id: int | None = None,
+                       seedling_sensor: bool | None = True) -> list[Row]:
     """Rows from the row names and each name's RowSettings; one implicit row without names
     (`seedling_sensor`: its sensor, RowLayout.seedling_sensor). Raises ConfigError when two
     rows name the same drive."""
@@ -122,7 +125,7 @@ def rows_from_settings(names, settings, default_node_id=None, seedling_sensor=Tr
                 settings[name].enabled, settings[name].longitudinal_offset,
                 settings[name].seedling_sensor)
             for i, name in enumerate(names)]
-    owner = {}
+    owner: dict[int | None, str] = {}
     for row in rows:
         if row.drive_node_id in owner:
             raise ConfigError(f'{row.name}.drive_node_id = {row.drive_node_id} is also row '
@@ -132,12 +135,13 @@ def rows_from_settings(names, settings, default_node_id=None, seedling_sensor=Tr
     return rows
 
 
-def rows_from_scene(params, default_node_id=None):
+def rows_from_scene(params: Mapping[str, object], default_node_id: int | None = None
+                    ) -> list[Row]:
     """Rows of a flat scene parameter dict (`planter_ros.scene.load_scene`), as the nodes read
     them from their parameters. Raises ConfigError (one line)."""
     layout = from_mapping(RowLayout, {k: params[k] for k in ('rows', 'seedling_sensor')
                                       if k in params})
-    settings = {}
+    settings: dict[str, RowSettings] = {}
     for name in layout.rows:
         prefix = f'{name}.'
         values = {k[len(prefix):]: v for k, v in params.items() if k.startswith(prefix)}
@@ -146,19 +150,21 @@ def rows_from_scene(params, default_node_id=None):
     return rows_from_settings(layout.rows, settings, default_node_id, layout.seedling_sensor)
 
 
-def scene_row_parameters(params):
+def scene_row_parameters(params: Mapping[str, object]) -> dict[str, object]:
     """The row parameters of a flat scene dict (`rows` and every `<row>.<field>`)."""
     names = params.get('rows') or []
+    if not isinstance(names, (list, tuple)):
+        names = []
     return {k: v for k, v in params.items()
             if k in ('rows', 'seedling_sensor') or any(k.startswith(f'{n}.') for n in names)}
 
 
-def rows_record(rows):
+def rows_record(rows: Sequence[Row]) -> dict[str, str]:
     """The bag metadata record (`interfaces.ROWS_RECORD`) naming each row index."""
     return {'rows': json.dumps([row.as_dict() for row in rows])}
 
 
-def rows_from_record(record):
+def rows_from_record(record: Mapping[str, str]) -> list[Row] | None:
     """Rows from a bag's rows record; None when the record is absent or unreadable."""
     try:
         items = json.loads(record['rows'])

@@ -1,9 +1,17 @@
 """YAML read safely: `yaml.safe_load` with alias expansion bounded, so a hostile file (an "alias
 bomb") costs neither memory nor a giant error message, and a key given twice in one mapping
-refused (PyYAML would keep the last silently). Used for scene files and a bag's metadata.
-PyYAML is imported only when a text is read."""
+refused (PyYAML would keep the last silently). A plain number with an exponent (`1e9`,
+`1.0e5`, `-2E3`) is a number, as ROS reads a parameter file (PyYAML's YAML 1.1 rules make it
+text), so a quoted `"0.3"` is the only text that looks like a number. Used for scene files
+and a bag's metadata. PyYAML is imported only when a text is read."""
 
-from typing import Any
+from __future__ import annotations
+
+from collections.abc import Hashable
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import yaml
 
 __all__ = ['MAX_ALIAS_NODES', 'YamlError', 'load_yaml']
 
@@ -33,22 +41,28 @@ class _Refused(ValueError):
     pass
 
 
-_LOADER = None
+_LOADER: type[yaml.SafeLoader] | None = None
 
 
-def _bounded_loader():
+def _bounded_loader() -> type[yaml.SafeLoader]:
     """yaml.SafeLoader counting the nodes every alias use expands to (made once, on first use)."""
     global _LOADER
     if _LOADER is not None:
         return _LOADER
     import yaml
 
+    import re
+
     class BoundedLoader(yaml.SafeLoader):
-        def compose_document(self):
+        _open_anchors: set[str]
+        _sizes: dict[int, int]
+        _expanded: int
+
+        def compose_document(self) -> yaml.Node | None:
             self._open_anchors, self._sizes, self._expanded = set(), {}, 0
             return super().compose_document()
 
-        def compose_node(self, parent, index):
+        def compose_node(self, parent: yaml.Node | None, index: int) -> yaml.Node | None:
             event = self.peek_event()
             anchor = event.anchor
             if isinstance(event, yaml.AliasEvent):
@@ -69,8 +83,9 @@ def _bounded_loader():
             finally:
                 self._open_anchors.discard(anchor)
 
-        def construct_mapping(self, node, deep=False):
-            seen = set()
+        def construct_mapping(self, node: yaml.MappingNode,
+                              deep: bool = False) -> dict[Hashable, Any]:
+            seen: set[str] = set()
             for key, _ in node.value:
                 if isinstance(key, yaml.ScalarNode) and key.tag != 'tag:yaml.org,2002:merge':
                     if key.value in seen:
@@ -79,7 +94,8 @@ def _bounded_loader():
                     seen.add(key.value)
             return super().construct_mapping(node, deep=deep)
 
-        def _size(self, node):
+
+        def _size(self, node: yaml.Node) -> int:
             """Nodes `node` stands for once every alias inside it is expanded (memoised)."""
             known = self._sizes.get(id(node))
             if known is not None:
@@ -93,5 +109,10 @@ def _bounded_loader():
             self._sizes[id(node)] = size
             return size
 
+    # numbers with an exponent and no dot or no exponent sign (YAML 1.2, strtod as rcl reads)
+    BoundedLoader.add_implicit_resolver(
+        'tag:yaml.org,2002:float',
+        re.compile(r'^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$'),
+        list('-+0123456789.'))
     _LOADER = BoundedLoader
     return _LOADER

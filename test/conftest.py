@@ -2,10 +2,33 @@
 
 DDS discovery must stay on loopback in this workplace (and in CI), and each test session gets a
 DDS domain of its own: both are set here, before any test module can call rclpy.init().
+
+Real-time tests: a test that passes only when scheduled in real time (a live ROS graph or node,
+a simulated drive and its master, a `planter demo` run, commissioning, signal and process-death
+timings) carries the marker `realtime`: `pytestmark = pytest.mark.realtime` at the top of its
+module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.mark.realtime)`
+on one case. That is the only list. With two processes (pytest.ini) every test so marked runs on
+one process, one after the other as in a serial run, first; the other process runs the rest
+meanwhile at a lower CPU priority (`BACKGROUND_NICE` above the priority the session started
+with), so it never starves them. No process of the suite ever runs above the priority the
+session was started with. A test that uses a live fixture (`LIVE_FIXTURES`: `ros`, `sim`,
+`channel`, `make_drive`, ...) or starts something live (`LIVE_NAMES`: a demo run, a node, a
+simulated bus, rclpy) without the marker fails, naming the marker: a new module cannot be
+forgotten.
+
+A real-time test that fails while the host itself left every process unscheduled for more than
+host_stalls.STARVED s runs once more (host_stalls.py). Nothing hides it: the first run's failure
+and the stall are in the terminal summary and, as properties of the test, in the JUnit file;
+and when more than one test of a session needed it, the session fails. No other re-run: a test
+marked `flaky` fails and `--reruns` is refused (pytest-rerunfailures comes with colcon).
+test_harness.py tests all of this on small test files.
 """
+import gc
+import json
 import os
 import sys
 import time
+import types
 from pathlib import Path
 
 import pytest
@@ -40,106 +63,167 @@ from drive_helpers import channel, enabled, make_drive, sim, spy  # noqa: E402, 
 from three_arm_fixtures import mech, params  # noqa: E402, F401
 
 
-# Modules whose tests pass only when scheduled in real time: live ROS graphs, simulated drives
-# and their masters, `planter demo` runs, commissioning, signal and process-death timings. (Not
-# the bench smoke run: it reports what it measured, whatever the host; run beside them, at the
-# lower priority, its CPU hogs cannot starve them.) With two processes (pytest.ini) they
-# all run on one process, one after the other as in a serial run, while the other process runs
-# the rest at a lower CPU priority (so it never starves them), until they are done. A new module
-# with a live graph or a drive (the `ros`, `sim`, `channel`... fixtures) belongs here.
-REALTIME_MODULES = {
-    'test_acceptance.py', 'test_bus_load.py', 'test_cam_demo.py',
-    'test_cam_law.py', 'test_command_process.py', 'test_commission.py', 'test_csp.py',
-    'test_demo.py', 'test_demo_stops.py', 'test_design_node.py', 'test_die_with_parent.py',
-    'test_drive_enable.py',
-    'test_drive_faults.py', 'test_drive_motion.py', 'test_drive_objects.py', 'test_drive_set.py',
-    'test_drive_shutdown.py', 'test_drive_vcan.py', 'test_ground_speed_sources.py',
-    'test_machine_node.py', 'test_monitor_node.py', 'test_params_files.py',
-    'test_recorder_signals.py', 'test_sections.py', 'test_seedlings.py', 'test_stop_signals.py',
-    'test_sync_node.py', 'test_sync_node_start.py',
-    # on main since this list was made (drives, demos): real-time once merged
-    'test_bus_faults.py', 'test_demo_tray.py', 'test_machine_start.py',
-    'test_seedling_sensor_rows.py'}
-# and single real-time tests of modules that are not (their module's other tests run beside)
-REALTIME_TESTS = {
-    'test_no_leftovers.py::test_a_command_leaves_only_what_it_was_asked_to_write[demo]',
-    'test_no_leftovers.py::test_a_demo_without_bag_names_its_default_bag_in_its_first_line'}
-BACKGROUND_NICE = 10
-REALTIME_NICE = -10
+# fixtures that bring up something live: a test that uses one (directly or through another
+# fixture) must be marked realtime
+LIVE_FIXTURES = frozenset({'ros', 'sim', 'channel', 'spy', 'make_drive', 'enabled'})
+# names whose use in a test (or in a fixture it uses) starts something live: a demo run
+# (test_demo.start_demo, or run_planter('demo', ... '--duration' ...)), a node, a simulated
+# drive or its bus, an rclpy context of the test's own
+LIVE_NAMES = frozenset({'start_demo', 'SyncNode', 'MonitorNode', 'DesignNode',
+                        'create_node', 'Context', 'SimulatedBus', 'SimulatedDrive'})
+REALTIME = 'realtime'
+BACKGROUND_NICE = 10       # the other tests' nice value, added to the session's while real-time
+START_NICE = os.getpriority(os.PRIO_PROCESS, 0)    # the priority this process started with
+
+_LAST_REALTIME = pytest.StashKey[str]()
+_UNMARKED = pytest.StashKey[str]()
+
+
+def _realtime(item):
+    return item.get_closest_marker(REALTIME) is not None
 
 
 def _module(nodeid):
     return nodeid.split('::', 1)[0]
 
 
-def _realtime(nodeid):
-    module, _, test = nodeid.partition('::')
-    module = module.rsplit('/', 1)[-1]
-    return module in REALTIME_MODULES or f'{module}::{test}' in REALTIME_TESTS
+def _names(code):
+    """(The names, the string constants) a code object and those nested in it use; a dotted
+    module name imported counts by its first part as well."""
+    names = set(code.co_names) | {name.split('.', 1)[0] for name in code.co_names}
+    strings = {c for c in code.co_consts if isinstance(c, str)}
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            more = _names(const)
+            names |= more[0]
+            strings |= more[1]
+    return names, strings
+
+
+def live_reason(item):
+    """Why `item` needs the realtime marker ('' if nothing says so)."""
+    fixtures = sorted(LIVE_FIXTURES.intersection(item.fixturenames))
+    if fixtures:
+        return f'it uses the live fixture {fixtures[0]!r}'
+    functions = [getattr(item, 'function', None)] + [
+        definition.func for definitions in item._fixtureinfo.name2fixturedefs.values()
+        for definition in definitions]
+    names, strings = set(), set()
+    for function in functions:
+        code = getattr(function, '__code__', None)
+        if code is not None:
+            more = _names(code)
+            names |= more[0]
+            strings |= more[1]
+    found = sorted(LIVE_NAMES & names)
+    if found:
+        return f'it uses {found[0]}'
+    if {'demo', '--duration'} <= strings and (names & {'run_planter', 'DEMO'}
+                                              or 'planter_ros.cli' in strings):
+        return "it runs `planter demo --duration ...`"
+    return ''
+
+
+def _ids_file(config):
+    """A file every process of this session sees (the session's base temporary directory)."""
+    base = config._tmp_path_factory.getbasetemp()       # the session's (the worker's)
+    root = base.parent if base.name.startswith('popen-gw') else base
+    return root
+
+
+def _realtime_ids_file(config):
+    return _ids_file(config) / 'realtime-tests.json'
+
+
+def _realtime_done_file(config):
+    """There once the real-time tests are done."""
+    return _ids_file(config) / 'realtime-tests-done'
 
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
-    """Whole modules as units of work (their module fixtures made once), the real-time modules
-    together as one unit (xdist's own --dist loadgroup cannot group with this pytest)."""
+    """Whole modules as units of work (their module fixtures made once), the tests marked
+    realtime together as one unit (xdist's own --dist loadgroup cannot group with this
+    pytest). The controller collects nothing itself: the workers write the realtime tests'
+    ids at collection (pytest_collection_modifyitems), before it schedules."""
     from xdist.scheduler import LoadScopeScheduling
 
     class RealtimeTogether(LoadScopeScheduling):
+        _ids = None
+
         def _split_scope(self, nodeid):
-            return 'realtime' if _realtime(nodeid) else _module(nodeid)
+            if self._ids is None:
+                self._ids = frozenset(json.loads(_realtime_ids_file(config).read_text()))
+            return REALTIME if nodeid in self._ids else _module(nodeid)
     return RealtimeTogether(config, log)
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """The real-time modules first (one process takes them as one unit, the unit it is given
+    """The real-time tests first (one process takes them as one unit, the unit it is given
     first); then the modules with a test marked `slow`, so that both processes end together.
-    Orders kept otherwise."""
+    Orders kept otherwise. A test that needs the realtime marker and lacks it is noted (it
+    fails at its set-up)."""
     slow = {_module(item.nodeid) for item in items if item.get_closest_marker('slow')}
-    items[:] = sorted(items, key=lambda item: (not _realtime(item.nodeid),
+    items[:] = sorted(items, key=lambda item: (not _realtime(item),
                                                _module(item.nodeid) not in slow))
-    config.stash[_LAST_REALTIME] = next((item.nodeid for item in reversed(items)
-                                         if _realtime(item.nodeid)), None)
-
-
-_LAST_REALTIME = pytest.StashKey[str]()
-
-
-def _realtime_done_file(config):
-    """A file every process of this session sees: there once the real-time tests are done."""
-    base = config._tmp_path_factory.getbasetemp()       # the session's (the worker's)
-    root = base.parent if base.name.startswith('popen-gw') else base
-    return root / 'realtime-tests-done'
+    realtime = [item.nodeid for item in items if _realtime(item)]
+    config.stash[_LAST_REALTIME] = realtime[-1] if realtime else None
+    for item in items:
+        if item.get_closest_marker('flaky'):
+            item.stash[_UNMARKED] = ('flaky: a re-run that hides its first failure (pytest-'
+                                     'rerunfailures, installed with colcon) is not allowed here')
+        elif not _realtime(item):
+            reason = live_reason(item)
+            if reason:
+                item.stash[_UNMARKED] = f'must be marked realtime ({reason}): add ' \
+                    '`pytestmark = pytest.mark.realtime` to its module or ' \
+                    '`@pytest.mark.realtime` to the test (test/conftest.py)'
+    if hasattr(config, 'workerinput'):        # an xdist worker: tell the scheduler
+        path = _realtime_ids_file(config)
+        part = path.with_name(f'{path.name}.{os.getpid()}')
+        part.write_text(json.dumps(realtime))
+        os.replace(part, path)
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
-    """The CPU priority of this process for the test: the real-time tests at REALTIME_NICE (the
-    priority the sync shell asks for on a machine, doc/command.md), so that other work on the
-    host (a second test process, a build) does not starve their 10 ms loops and 0.2 s
-    watchdogs; the other tests at BACKGROUND_NICE while real-time tests still run elsewhere,
-    else 0. Without the right to raise a priority (not root), what can be set is set."""
+    """The CPU priority of this process for the test: the real-time tests at the priority the
+    session started with, the other tests BACKGROUND_NICE lower while real-time tests still
+    run elsewhere (so a second test process never starves their 10 ms loops and 0.2 s
+    watchdogs), else at the start's again. Never above the start's; without the right to
+    change it (not root), what can be set is set."""
+    refused = item.stash.get(_UNMARKED, '')
+    if refused:
+        pytest.fail(f'{item.nodeid} {refused}', pytrace=False)
+    if _realtime(item):
+        # as the product's real-time processes do after start-up (command/process.py,
+        # demo/sync_process.py): what the session made so far out of the collector's reach,
+        # so a collection during the test (its loops, its simulated drives) is short. Without
+        # it, the ~300 000 objects of a session's real-time process cost 150-240 ms per full
+        # collection, a stop of every thread the loops under test never see in the product.
+        gc.freeze()
     done = (item.config.stash.get(_LAST_REALTIME, None) is None
             or _realtime_done_file(item.config).exists())
-    if _realtime(item.nodeid):
-        wanted = REALTIME_NICE
+    if _realtime(item) or done:
+        _set_nice(START_NICE)
     else:
-        wanted = 0 if done else BACKGROUND_NICE
-    _set_nice(wanted)
+        _set_nice(min(START_NICE + BACKGROUND_NICE, 19))
 
 
 def _set_nice(wanted):
-    if os.getpriority(os.PRIO_PROCESS, 0) == wanted:
-        return
-    for value in (wanted, 0):
+    """This process at nice `wanted`, never below (before) the session's start."""
+    wanted = max(wanted, START_NICE)
+    if os.getpriority(os.PRIO_PROCESS, 0) != wanted:
         try:
-            os.setpriority(os.PRIO_PROCESS, 0, value)
-            return
+            os.setpriority(os.PRIO_PROCESS, 0, wanted)
         except PermissionError:
-            continue
+            pass                      # lowered before, not allowed back up: stays lower
 
 
 def pytest_runtest_teardown(item, nextitem):
+    if _realtime(item):
+        gc.unfreeze()                    # collectable again, between the tests
     if item.nodeid == item.config.stash.get(_LAST_REALTIME, None):
         _realtime_done_file(item.config).touch()
 
@@ -147,13 +231,14 @@ def pytest_runtest_teardown(item, nextitem):
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_protocol(item, nextitem):
     """A real-time test that failed while the host itself stopped scheduling processes for more
-    than host_stalls.STARVED s (its watcher process saw it) runs once more; the re-run is named
-    in the warnings summary. A stall inside the test process (a lock, the GIL, DDS) is no reason:
-    the failure stands."""
-    if not _realtime(item.nodeid):
+    than host_stalls.STARVED s (its watcher process saw it) runs once more. Its reports then
+    carry the first run's failure and the stall: `host_stall_rerun` (terminal summary) and the
+    JUnit properties `host_stall_rerun` and `first_failure`. A stall inside the test process (a
+    lock, the GIL, DDS) is no reason: the failure stands."""
+    if not _realtime(item):
         return None
     from _pytest.runner import runtestprotocol
-    watcher = host_stalls.watcher(REALTIME_NICE)
+    watcher = host_stalls.watcher()
     item.ihook.pytest_runtest_logstart(nodeid=item.nodeid, location=item.location)
     start = time.monotonic()
     reports = runtestprotocol(item, nextitem=nextitem, log=False)
@@ -161,11 +246,18 @@ def pytest_runtest_protocol(item, nextitem):
         host_stalls.wait_for_reports()
         stall = watcher.longest(start, time.monotonic())
         if stall > host_stalls.STARVED:
-            item.warn(pytest.PytestWarning(
-                f'the host left every process unscheduled for {stall * 1000:.0f} ms during this '
-                f'test, which then failed ({_failure_line(reports)}): run once more'))
+            first = next(report for report in reports if report.failed)
+            reason = (f'the host left every process unscheduled for {stall * 1000:.0f} ms '
+                      f'during its first run, which failed ({_failure_line(reports)}): '
+                      'run once more')
             item._initrequest()
             reports = runtestprotocol(item, nextitem=nextitem, log=False)
+            for report in reports:
+                report.host_stall_rerun = reason
+                report.user_properties += [('host_stall_rerun', reason),
+                                           ('first_failure', first.longreprtext)]
+                report.sections.append(('first run (failed during a host stall)',
+                                        first.longreprtext))
     for report in reports:
         item.ihook.pytest_runtest_logreport(report=report)
     item.ihook.pytest_runtest_logfinish(nodeid=item.nodeid, location=item.location)
@@ -179,5 +271,38 @@ def _failure_line(reports):
     return f'{report.when}: {first[0]}' if first else report.when
 
 
-def pytest_sessionfinish(session):
+_RERUNS = {}           # nodeid -> (why, the second run's outcome), in the reporting process
+
+
+def pytest_configure(config):
+    """pytest-rerunfailures comes with colcon: its silent re-runs are refused."""
+    if getattr(config.option, 'reruns', 0):
+        raise pytest.UsageError('--reruns re-runs a failed test and hides its first failure: '
+                                'this suite re-runs only what it shows (test/conftest.py)')
+
+
+def pytest_runtest_logreport(report):
+    """(In the process that reports: the controller under xdist.) Note each re-run test."""
+    reason = getattr(report, 'host_stall_rerun', None)
+    if reason and report.when == 'call':
+        _RERUNS[report.nodeid] = (reason, report.outcome)
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    reruns = _RERUNS
+    if not reruns:
+        return
+    terminalreporter.section('real-time tests run twice after a host stall', sep='=',
+                             red=True, bold=True)
+    for nodeid, (reason, outcome) in reruns.items():
+        terminalreporter.line(f'{nodeid}: {reason}; the second run {outcome}')
+    if len(reruns) > 1:
+        terminalreporter.line(f'{len(reruns)} tests needed a second run (at most one may): '
+                              'the session fails', red=True, bold=True)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionfinish(session, exitstatus):
     host_stalls.close()
+    if len(_RERUNS) > 1 and session.exitstatus == pytest.ExitCode.OK:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

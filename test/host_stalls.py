@@ -1,21 +1,25 @@
 """Did the host stop scheduling us? A watcher process, separate from the tests (no shared GIL,
-no shared DDS participant), sleeps 5 ms at a time at the real-time tests' priority (nice -10,
-conftest.py; 0 when it may not raise it) and reports every
-sleep that overran by more than `REPORTED` s: the machine left a runnable process unscheduled
-that long (CPU contention, a VM's stolen time). A stall inside the test process itself (a lock,
-the GIL, a DDS send blocked) never shows here: it stays the test's finding.
+no shared DDS participant), sleeps 5 ms at a time at the priority of the test process that
+started it (it never asks for more) and reports every time it ran more than `REPORTED` s after
+it last ran, less the 5 ms: the machine left a runnable process unscheduled that long (CPU
+contention, a VM's stolen time). A stall inside the test process itself (a lock, the GIL, a
+DDS send blocked) never shows here: it stays the test's finding.
 
-The real-time tests run once more when they failed while the watcher saw the host stall for
-more than `STARVED` s during them (conftest.py); CI's log names each such re-run.
+A real-time test runs once more when it failed while the watcher saw the host stall for more
+than `STARVED` s during it (conftest.py: the first failure and the stall are then shown in the
+terminal summary and the JUnit file, and a session that needed more than one such re-run
+fails). `PLANTER_TEST_STARVED` (s) sets another threshold: the harness's own tests
+(test_harness.py) use it, and `pause_watcher` to stall the watcher on purpose.
 """
 import os
+import signal
 import subprocess
 import sys
 import threading
 import time
 
 # half the drives' 0.2 s command deadline: a test loop unscheduled that long misses commands
-STARVED = 0.1
+STARVED = float(os.environ.get('PLANTER_TEST_STARVED', '0.1'))
 REPORTED = 0.03
 
 WATCHER = r'''
@@ -26,19 +30,16 @@ try:                                            # die with the test process, als
 except (OSError, AttributeError):
     pass
 reported = float(sys.argv[2])
-for nice in (int(sys.argv[3]), 0):              # the real-time tests' priority
-    try:
-        os.setpriority(os.PRIO_PROCESS, 0, nice)
-        break
-    except OSError:
-        pass
+last = time.monotonic()                         # a stop from here on is measured
+sys.stdout.write('watching\n')
+sys.stdout.flush()
 while os.getppid() == parent:
-    before = time.monotonic()
     time.sleep(0.005)
-    after = time.monotonic()
-    if after - before - 0.005 > reported:
-        sys.stdout.write(f'{before!r} {after!r}\n')
+    now = time.monotonic()
+    if now - last - 0.005 > reported:
+        sys.stdout.write(f'{last!r} {now!r}\n')
         sys.stdout.flush()
+    last = now
 '''
 
 
@@ -46,12 +47,17 @@ class HostStalls:
     """The watcher process and the stalls it reported: (start, end) in CLOCK_MONOTONIC s, the
     clock every process of the host shares."""
 
-    def __init__(self, nice):
+    def __init__(self):
         self.stalls = []
         self._proc = subprocess.Popen(
-            [sys.executable, '-c', WATCHER, str(os.getpid()), str(REPORTED), str(nice)],
+            [sys.executable, '-c', WATCHER, str(os.getpid()), str(REPORTED)],
             stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
+        self._proc.stdout.readline()           # watching from here on
         threading.Thread(target=self._read, daemon=True, name='host-stalls').start()
+
+    @property
+    def pid(self):
+        return self._proc.pid
 
     def _read(self):
         for line in self._proc.stdout:
@@ -71,11 +77,11 @@ class HostStalls:
 _watcher = None
 
 
-def watcher(nice):
-    """This process's watcher (at CPU priority `nice`), started on first use."""
+def watcher():
+    """This process's watcher, started on first use."""
     global _watcher
     if _watcher is None:
-        _watcher = HostStalls(nice)
+        _watcher = HostStalls()
     return _watcher
 
 
@@ -87,3 +93,14 @@ def close():
 def wait_for_reports(seconds=0.05):
     """Give the watcher time to report a stall that just ended."""
     time.sleep(seconds)
+
+
+def pause_watcher(seconds):
+    """Stop the watcher for `seconds` (SIGSTOP, then SIGCONT): it reports a stall that long,
+    as when the host leaves it unscheduled (the harness's own tests inject a host stall so)."""
+    pid = watcher().pid
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        time.sleep(seconds)
+    finally:
+        os.kill(pid, signal.SIGCONT)

@@ -3,6 +3,7 @@ judged by them in replay, analyze and the demo, each failure naming the row and 
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from planter_ros.cli.main import main
@@ -64,6 +65,53 @@ def test_each_index_fails_alone_and_is_named_with_its_row():
     assert result['passed'] and [n['index'] for n in result['not_judged']] == ['max_precision']
 
 
+# Exact boundaries: a design spacing and spacings that are binary fractions, so every ratio x/d
+# and every index below is exact, and each figure can sit exactly on its limit.
+D_EXACT = 0.25
+# 8 spacings: one multiple at exactly 0.5 d, one miss, six singles whose CV is exactly 0.25
+# (x/d = 1 + (3, -3, 1, -1, 0, 0)/8: mean 1, squared deviations 5/16, / (6 - 1) = 1/16)
+SPACINGS = (0.125, 0.4375, 0.34375, 0.15625, 0.28125, 0.21875, 0.25, 0.25)
+AT = {'min_quality_of_feed': 0.75, 'max_multiple_index': 0.125, 'max_miss_index': 0.125,
+      'max_precision': 0.25, 'min_uprightness_rate': 0.75, 'max_hole_width': 0.0625}
+
+
+def exact_plants():
+    """Nine plants of one row (the first without a spacing), six of the eight with a known
+    uprightness upright, every hole 62.5 mm wide: each figure exactly one of AT."""
+    from planter_ros.prediction import PLANT_FIELDS, Plants
+    table = np.full((9, len(PLANT_FIELDS)), np.nan)
+    column = {name: i for i, name in enumerate(PLANT_FIELDS)}
+    table[:, column['index']] = np.arange(9)
+    table[:, column['row']] = 0.0
+    table[:, column['status']] = 3.0                     # unknown: no seedling sensor
+    table[1:, column['spacing']] = SPACINGS
+    table[1:, column['spacing_error']] = np.array(SPACINGS) - D_EXACT
+    table[1:, column['upright']] = (1, 1, 0, 1, 1, 0, 1, 1)
+    table[1:, column['hole_width']] = 0.0625
+    return Plants.from_table(table)
+
+
+def test_every_figure_exactly_at_its_limit_passes_and_one_step_past_fails_alone():
+    """ISO 7256-1 counts x <= 0.5 d as a multiple and x > 1.5 d as a miss; a maximum holds
+    while the figure is not above it, a minimum while it is not below it. Every figure here
+    is computed from the plants (prediction.summarize) and lands exactly on its limit; then
+    each limit in turn moves by the smallest step a float has, to the figure's wrong side."""
+    from planter_ros.prediction import summarize
+    summary = summarize(exact_plants(), D_EXACT)
+    quality = summary['spacing_quality']
+    assert (quality['quality_of_feed_index'], quality['multiple_index'], quality['miss_index'],
+            quality['precision'], summary['uprightness_rate'], summary['hole_width_mean']) == (
+        0.75, 0.125, 0.125, 0.25, 0.75, 0.0625)
+    at = judge_acceptance(AcceptanceLimits(**AT), [('left', summary)])
+    assert at['passed'] and at['failed'] == [] and at['not_judged'] == []
+    for name, limit in AT.items():
+        past = np.nextafter(limit, 2.0 if name.startswith('min_') else -1.0)
+        judged = judge_acceptance(AcceptanceLimits(**{**AT, name: float(past)}),
+                                  [('left', summary)])
+        assert [f['index'] for f in judged['failed']] == [name], name
+        assert judged['failed'][0]['value'] == limit
+
+
 def test_a_bad_limit_in_a_scene_is_refused_naming_it(tmp_path):
     with pytest.raises(SceneError, match='max_miss_index'):
         open_scene(strict_scene(tmp_path, max_miss_index=1.5))
@@ -107,6 +155,7 @@ def test_the_demo_verdict_lists_every_acceptance_failure():
 
 
 @pytest.mark.slow
+@pytest.mark.realtime
 def test_a_demo_under_strict_limits_fails_naming_the_index(tmp_path):
     strict = strict_scene(tmp_path, max_precision=0.0001)
     bag = tmp_path / 'run.mcap'
@@ -121,3 +170,13 @@ def test_a_demo_under_strict_limits_fails_naming_the_index(tmp_path):
     assert judged['limits']['max_precision'] == 0.0001
     assert 'max_precision' in {f['index'] for f in judged['failed']}
     assert Path(bag).is_file()
+
+
+def test_the_season_maps_mark_misses_and_multiples_by_the_indices_own_limits():
+    """The season report's maps ring a spacing as a miss or a multiple exactly where the ISO
+    7256-1 indices count it: a spacing of exactly 1.5 d or just above 0.5 d is a single
+    (binary fractions of d = 0.25 m: 0.375 / 0.25 and 0.125 / 0.25 are exact)."""
+    from planter_ros.plots.season import _miss_or_multiple
+    ratio = np.array([0.125, np.nextafter(0.125, 1.0), 0.375, np.nextafter(0.375, 1.0),
+                      np.nan]) / 0.25
+    assert _miss_or_multiple(ratio).tolist() == [True, False, False, True, False]

@@ -24,7 +24,7 @@ from planter_ros.cli.main import main
 from planter_ros.sim.season import draw_plan, simulate_bag, simulate_plan, write_monitor_bag
 
 # columns of the bags table that are the analysis's own, not replay's JSON
-OWN = ('status', 'reason', 'file_size', 'file_mtime_ns', 'model_version', 'options',
+OWN = ('bag_id', 'status', 'reason', 'file_size', 'file_mtime_ns', 'model_version', 'options',
        'analysed_at', 'analysis_seconds', 'analysis_cpu_seconds', 'plants_file')
 # what differs between two runs of the same analysis
 WHEN = ('analysed_at', 'analysis_seconds', 'analysis_cpu_seconds', 'plants_file')
@@ -93,10 +93,10 @@ def test_every_bag_is_found_once_and_the_tables_are_not(season, local):
     expected = {season / 'day1' / 'a.mcap', season / 'day1' / 'b.mcap',
                 season / 'day2' / 'machine' / 'c.mcap', season / 'day2' / 'split',
                 season / 'day2' / 'cut.mcap', season / 'day2' / 'garbage.mcap'}
-    # keyed by the path from the analysed root (a moved season still joins)
+    # named by the path from the analysed root, keyed by content (a moved season still joins)
     assert set(rows_of(out)) == {p.relative_to(season).as_posix() for p in expected}
-    assert all(row['path'] == str(season / bag) for bag, row in rows_of(out).items()
-               if row['status'] != 'failed')
+    assert all(row['path'] == str(season / bag) for bag, row in rows_of(out).items())
+    assert all(row['bag_id'].startswith('sha256:') for row in rows_of(out).values())
     assert report['bags_found'] == 6 and report['workers'] == 2
     assert report['analysed'] == 5 and report['failed'] == 1 and report['with_warnings'] == 1
     assert r.returncode == 0
@@ -209,6 +209,7 @@ def test_a_real_dask_scheduler_and_worker_give_the_same_tables(season, local, da
 
 @pytest.mark.slow
 def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
+    season = _copy(season, tmp_path / 'season')        # its bags are changed here
     out = tmp_path / 'tables'
     _, first = analyze(season, '--out', out, '--workers', 1)
     assert first['analysed'] + first['failed'] == 6 and first['skipped'] == 0
@@ -220,14 +221,25 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
     assert again['workers'] == 0                       # no cluster started for nothing
     assert (out / 'bags' / 'bags.parquet').read_bytes() == before
 
+    # touched, the same content: the same bag (its new time recorded, nothing redone)
     changed = season / 'day1' / 'b.mcap'
     stat = changed.stat()
     os.utime(changed, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000_000))
+    _, touched = analyze(season, '--out', out, '--workers', 1)
+    assert touched['skipped'] == 6 and touched['analysed'] == 0
+    assert rows_of(out)['day1/b.mcap']['file_mtime_ns'] == stat.st_mtime_ns + 1_000_000_000
+    # rewritten with another recording: analysed again, in place of the old one
+    simulate_bag(tmp_path / 'other.mcap', 5, 7, 16.0, 1)
+    shutil.copyfile(tmp_path / 'other.mcap', changed)
     _, third = analyze(season, '--out', out, '--workers', 1)
     assert third['skipped'] == 5 and third['analysed'] == 1
     rows = rows_of(out)
-    assert rows['day1/b.mcap']['file_mtime_ns'] == stat.st_mtime_ns + 1_000_000_000
-    assert plants_of(out)[0] == plants                 # the same plants, none twice
+    assert len(rows) == 6 and rows['day1/b.mcap']['path'] == str(changed)
+    now, _ = plants_of(out)
+    assert {bag: p for bag, p in now.items() if bag != 'day1/b.mcap'} == {
+        bag: p for bag, p in plants.items() if bag != 'day1/b.mcap'}
+    assert now['day1/b.mcap'] != plants['day1/b.mcap']      # the new recording's, once
+    plants = now
 
     _, forced = analyze(season, '--out', out, '--workers', 1, '--force')
     assert forced['skipped'] == 0 and forced['analysed'] + forced['failed'] == 6
@@ -240,6 +252,12 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
     assert window['analysed'] + window['failed'] == 6        # other settings: done again
     assert all(row['settings.window'] == 5 for row in rows_of(out).values()
                if row['status'] != 'failed')
+
+
+def _copy(season, to):
+    """A copy of the season (times kept), without the tables of other tests."""
+    shutil.copytree(season, to, ignore=shutil.ignore_patterns('tables'))
+    return to
 
 
 def test_out_into_a_bad_place_is_refused_before_any_work(season, tmp_path, capsys):

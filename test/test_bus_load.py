@@ -6,6 +6,8 @@ from rclpy.parameter import Parameter
 from planter_ros.drive.bus_load import LIMIT, bus_load, check_bus_load, frame_bits
 from planter_ros.drive.errors import DriveConfigError
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 DEFAULTS = dict(control_period=0.02, ground_speed_rate=50.0, feedback_period=0.01,
                 drive_heartbeat_period=0.1, heartbeat_period=0.1)
 

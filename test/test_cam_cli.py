@@ -100,6 +100,13 @@ BAD = [
     (['--spacing', '0.2', '--speed', '0.3', '--hole-ratio', '2.5'], '--hole-ratio = 2.5'),
     (['--spacing', '0.2', '--speed', '0.3', '--design-spacing', '0.06', '--hole-ratio', '1.9'],
      'hole_ratio = 1.9'),
+    # limits no drive has: a jerk or acceleration limit so small the arc's linear programme
+    # cannot be solved (was a traceback), a rated torque above the peak torque (was accepted)
+    (['--spacing', '0.3', '--speed', '0.3', '--max-jerk', '1e-6'], 'max_jerk = 1e-06'),
+    (['--spacing', '0.3', '--speed', '0.3', '--max-acceleration', '1e-6'],
+     'max_acceleration = 1e-06'),
+    (['--spacing', '0.3', '--speed', '0.3', '--motor-rated-torque', '20'],
+     'motor_rated_torque = 20 is out of range: allowed <= motor_peak_torque = 8.36'),
 ]
 
 
@@ -123,3 +130,13 @@ def test_required_options_are_named():
     code, out, err, caught = run(['cam', 'five-bar', '--depth', '0.045'])
     assert_one_line_refusal(['cam'], code, out, err, caught)
     assert '--design-spacing' in err
+
+
+@pytest.mark.parametrize('extra', [['--max-jerk', '1'], ['--max-acceleration', '0.1'],
+                                   ['--gear-ratio', '1000'], ['--rotor-inertia', '10']])
+def test_the_least_and_largest_limits_allowed_give_a_report_not_a_traceback(extra):
+    code, out, err, caught = run(BASE + ['--spacing', '0.3', '--speed', '0.3', '--json']
+                                 + extra)
+    assert code == 0 and err == '' and caught == [], (extra, err)
+    case = json.loads(out)['cases'][0]['cam']
+    assert case['loads']['feasible'] == case['feasible']

@@ -10,6 +10,8 @@ from planter_ros.control.cam_law import anchored_track, plan_row_cam
 from planter_ros.control.phase_lock import ControlConfigError, PhaseLock, PhaseLockConfig
 from planter_ros.design.build import design_for_scene
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 V = 0.3
 
 

@@ -20,7 +20,7 @@ def test_colcon_build_installs_the_package_and_its_executables(tmp_path):
     # a clean copy of the package, as a ROS workspace would have it
     shutil.copytree(REPO, src / 'planter_ros', ignore=shutil.ignore_patterns(
         '.venv', '.git', 'build', 'install', 'log', '__pycache__', '*.egg-info', 'bags',
-        '.hypothesis', '.pytest_cache'))
+        '.hypothesis', '.pytest_cache', '.mypy_cache'))
     env = dict(os.environ, PATH=os.path.dirname(sys.executable) + os.pathsep + os.environ['PATH'])
     out = subprocess.run(
         [colcon, 'build', '--base-paths', str(src), '--build-base', str(tmp_path / 'build'),

@@ -30,6 +30,8 @@ from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits
 from planter_ros.sim.runs import five_bar_design_message
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 REPO = Path(__file__).resolve().parents[1]
 ROWS = [Row(0, 'left', 0.5, 1), Row(1, 'right', -0.5, 2)]
 DESIGN = to_json(five_bar_design_message(spacing=0.2))

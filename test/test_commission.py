@@ -19,6 +19,8 @@ from planter_ros.drive.errors import DriveRefusedError
 from planter_ros.drive.simulated_drive import SimulatedDrive
 from planter_ros.scene.machine import CanBus, open_machine, write_machine
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 MACHINE = REPO / 'config' / 'machines' / 'tomato_4row_tractor.yaml'
 ROW = 'left_outer'
 
@@ -129,3 +131,53 @@ def test_the_command_line_commissions_and_rewrites_the_machine_file(tmp_path):
     refused = run_planter('commission', '--machine', str(path), '--simulated', '--row', 'nope')
     assert refused.returncode == 2 and refused.stderr.count('\n') == 1
     assert 'allowed left_outer' in refused.stderr
+
+
+@pytest.mark.parametrize('extra, message', [
+    (['--output', ''], '--output is empty: allowed a file name ending in .yaml or .yml'),
+    (['--output', 'missing/dir/m.yaml'], 'missing'),
+    (['--output', '.'], '--output = . is a directory'),
+    (['--output', 'm.txt'], 'unsupported extension'),
+    (['--seed', '-1'], "--seed = '-1' is out of range: allowed integer 0..4294967295"),
+    (['--seed', str(2 ** 32)], "--seed = '4294967296' is out of range"),
+    (['--seed', 'x'], "--seed = 'x' is out of range"),
+])
+def test_a_bad_output_or_seed_is_refused_before_anything_moves(tmp_path, extra, message):
+    """One line, exit 2, in well under the 15 s the first row's motion takes, and the input
+    machine file untouched (`--output ''` used to rewrite it)."""
+    import time
+    path = tmp_path / 'machine.yaml'
+    shutil.copy(MACHINE, path)
+    before = path.read_bytes()
+    start = time.monotonic()
+    out = run_planter('commission', '--machine', path, '--simulated', '--row', 'left_inner',
+                      *extra, cwd=tmp_path, timeout=120)
+    assert out.returncode == 2 and out.stdout == '', out.stderr
+    assert out.stderr.count('\n') == 1 and message in out.stderr, out.stderr
+    assert time.monotonic() - start < 10.0
+    assert path.read_bytes() == before
+
+
+def test_a_relative_eds_names_the_same_file_from_another_directory(tmp_path):
+    """A machine file whose rows name their EDS relative to it, written elsewhere (commission
+    --output in another directory): the paths are rewritten to name the same file, and the
+    written file reads back (it used to be refused, after the motion)."""
+    here = tmp_path / 'tractor'
+    here.mkdir()
+    shutil.copy(REPO / 'config' / 'planter_drive.eds', here / 'drive.eds')
+    text = MACHINE.read_text()
+    path = here / 'machine.yaml'
+    path.write_text(text)
+    machine = open_machine(path)
+    rows = {name: dataclasses.replace(row, eds='drive.eds') for name, row in machine.rows.items()}
+    machine = dataclasses.replace(machine, rows=rows)
+    elsewhere = tmp_path / 'out' / 'deeper'
+    elsewhere.mkdir(parents=True)
+    write_machine(machine, elsewhere / 'machine.yaml')
+    written = open_machine(elsewhere / 'machine.yaml')
+    for row in written.rows.values():
+        assert row.eds == '../../tractor/drive.eds'
+        assert written.eds_path(row).resolve() == (here / 'drive.eds').resolve()
+    # in its own directory nothing changes
+    write_machine(machine, here / 'again.yaml')
+    assert open_machine(here / 'again.yaml').rows[ROW].eds == 'drive.eds'

@@ -25,6 +25,8 @@ from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits
 from planter_ros.sim.runs import five_bar_design_message
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 BOTH = (PROFILE_VELOCITY, CYCLIC_SYNC_POSITION)
 D = 0.2
 

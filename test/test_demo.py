@@ -1,14 +1,16 @@
-"""`planter demo` as a user runs it: bad input is one line; a killed demo's drives are still
-shut down (every way of stopping it by a signal: test_demo_stops.py); the verdict line and its
-exit code; two demos side by side and a stray node in the default domain change nothing; a
-design published into the demo's
-graph is logged, fails the verdict and is scored as the design in force; the four-row demo's
-map, markers and spacing quality. (The second signal's forced exit itself:
-test_stop_signals.py.)"""
+"""`planter demo` as a user runs it: bad input is one line; SIGTERM to the demo alone (what
+`timeout` sends) stops it like Ctrl-C with a summary, a finalised bag and exit 0 (every other way
+of stopping it by a signal: test_demo_stops.py); a killed demo's drives are still shut down; the
+verdict line and its exit code; two demos side by side and a stray node in the default domain
+change nothing; a design published into the demo's graph is logged, fails the verdict and is
+scored as the design in force; the four-row demo's map, markers and spacing quality. (The second
+signal's forced exit itself: test_stop_signals.py.)"""
+import json
 import math
 import os
 from pathlib import Path
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -19,6 +21,8 @@ import pytest
 from planter_ros.prediction import PLANT_FIELDS
 
 from cli_helpers import REPO, run_planter
+
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
 DEMO = [sys.executable, '-m', 'planter_ros.cli', 'demo']
 
@@ -41,15 +45,6 @@ def read_until(proc, prefix, lines, timeout=90):
             return line
         assert time.monotonic() < deadline, ''.join(lines)
     raise AssertionError(f'no line {prefix!r}:\n' + ''.join(lines))
-
-
-def host_starved(out):
-    """Did the host leave the demo's command path unscheduled for more than half the drive's
-    0.2 s deadline (its own control-loop line says so)? On a shared CI machine that is the host,
-    not the product: the real-time tests below then run once more, and fail if it happens
-    again."""
-    gaps = re.findall(r'command gap mean [\d.]+ ms, p99\.9 [\d.]+ ms, max ([\d.]+) ms', out)
-    return any(float(gap) > 100.0 for gap in gaps)
 
 
 def read_until_run_time(proc, seconds, lines):
@@ -117,6 +112,33 @@ def test_an_existing_bag_is_never_overwritten(tmp_path):
     assert bag.read_bytes() == b'precious'
 
 
+def test_sigterm_stops_the_demo_cleanly_with_summaries_a_finalised_bag_and_exit_0(tmp_path):
+    cwd = tmp_path
+    proc = start_demo('--duration', '60', cwd=cwd)
+    lines = []
+    read_until_run_time(proc, 4.0, lines)     # plants are being placed
+    proc.send_signal(signal.SIGTERM)
+    rest, _ = proc.communicate(timeout=60)
+    out = ''.join(lines) + rest
+    assert proc.returncode == 0, out
+    assert 'interrupted by SIGTERM: stopping' in out
+    assert 'drive shut down (target 0, disabled, pre-operational)' in out
+    assert 'Traceback' not in out
+    placed = next(line for line in out.splitlines() if 'plants placed' in line)
+    assert int(placed.split()[-1]) >= 1
+    assert re.search(r'control loop +command gap mean [\d.]+ ms, p99\.9 [\d.]+ ms, max', out)
+    assert out.rstrip().splitlines()[-1].startswith('verdict: PASS (stopped by SIGTERM after ')
+    # the default bag lands under ./bags, finalised; the demo and `planter replay` of it read
+    # it without a warning
+    bags = list((cwd / 'bags').glob('planter_*'))
+    assert len(bags) == 1
+    assert f'recorded bags/{bags[0].name}' in out and 'warning' not in out
+    replayed = run_planter('replay', bags[0], '--json', cwd=cwd)
+    assert replayed.returncode == 0 and replayed.stderr == ''
+    result = json.loads(replayed.stdout)
+    assert result['warnings'] == [] and result['summary']['plants'] >= 1
+
+
 def test_a_killed_demo_still_has_its_drives_shut_down_by_the_sync_process(tmp_path):
     """A forced exit (a second signal, SIGKILL, a crash) skips the demo's own clean-up: the
     sync process sees its pipe break and shuts its drives down itself."""
@@ -136,15 +158,11 @@ def test_a_killed_demo_still_has_its_drives_shut_down_by_the_sync_process(tmp_pa
 
 @pytest.fixture(scope='module')
 def four_row_demo(tmp_path_factory):
-    """One 16 s run of the 4-row demo (once more if the host starved it): its completed
-    `planter demo` and its bag, read by the two tests below."""
-    folder = tmp_path_factory.mktemp('four_rows')
-    for attempt in range(2):
-        bag = folder / f'four_rows_{attempt}.mcap'
-        out = run_planter('demo', '--scene', REPO / 'config' / 'tomato_4row.yaml',
-                          '--duration', '16', '--bag', bag, timeout=180)
-        if not host_starved(out.stdout):
-            break
+    """One 16 s run of the 4-row demo: its completed `planter demo` and its bag, read by the
+    two tests below."""
+    bag = tmp_path_factory.mktemp('four_rows') / 'four_rows.mcap'
+    out = run_planter('demo', '--scene', REPO / 'config' / 'tomato_4row.yaml',
+                      '--duration', '16', '--bag', bag, timeout=180)
     return out, bag
 
 
@@ -224,7 +242,7 @@ def check_map_files(tmp_path, bag, result):
     with open(table, newline='') as f:
         lines = list(csv.DictReader(f))
     assert len(lines) == len(features)
-    assert float(lines[3]['latitude']) == pytest.approx(
+    assert float(lines[3]['latitude_deg']) == pytest.approx(
         features[3]['geometry']['coordinates'][1], abs=1e-9)
 
 
@@ -257,7 +275,9 @@ def check_markers(bag, result):
             root, top = m.points
             assert root.z == pytest.approx(-depth)
             lean = math.atan2(math.hypot(top.x - root.x, top.y - root.y), top.z - root.z)
-            assert lean == pytest.approx(abs(p.tilt[i]), abs=1e-9)
+            # a plant in an input gap has no tilt (NaN): its stem is drawn upright
+            tilt = abs(p.tilt[i]) if math.isfinite(p.tilt[i]) else 0.0
+            assert lean == pytest.approx(tilt, abs=1e-9)
             assert (m.color.r > 0.8 and m.color.g < 0.2) == (p.upright[i] == 0)
             roots.append((root.x, root.y))
         roots = np.array(roots)
@@ -348,12 +368,9 @@ def start_stray(domain, sensor='stray_sensor'):
 def test_two_demos_side_by_side_and_a_stray_graph_in_domain_0_change_nothing(tmp_path):
     stray = start_stray(0)
     try:
-        for attempt in range(2):
-            demos = [start_demo('--duration', '10', '--bag', tmp_path / f'run{attempt}{i}.mcap',
-                                cwd=tmp_path) for i in range(2)]
-            outs = [proc.communicate(timeout=180)[0] for proc in demos]
-            if not any(host_starved(out) for out in outs):
-                break
+        demos = [start_demo('--duration', '10', '--bag', tmp_path / f'run{i}.mcap',
+                            cwd=tmp_path) for i in range(2)]
+        outs = [proc.communicate(timeout=180)[0] for proc in demos]
     finally:
         stray.kill()
         stray.wait()
@@ -376,22 +393,19 @@ def test_two_demos_side_by_side_and_a_stray_graph_in_domain_0_change_nothing(tmp
 def test_a_design_published_into_the_demos_graph_is_logged_scored_in_force_and_fails(
         tmp_path):
     from planter_ros.recording.replay import replay
-    for attempt in range(2):
-        bag = tmp_path / f'intruded_{attempt}.mcap'
-        proc = start_demo('--duration', '14', '--bag', bag, cwd=tmp_path)
-        lines = []
-        header = read_until(proc, 'planter demo:', lines)
-        domain = int(re.search(r'DDS domain (\d+) \(private\)', header).group(1))
-        read_until_run_time(proc, 4.0, lines)
-        intruder = start_stray(domain, sensor='')  # a second design node, the pepper scene
-        try:
-            rest, _ = proc.communicate(timeout=120)
-        finally:
-            intruder.kill()
-            intruder.wait()
-        out = ''.join(lines) + rest
-        if not host_starved(out):
-            break
+    bag = tmp_path / 'intruded.mcap'
+    proc = start_demo('--duration', '14', '--bag', bag, cwd=tmp_path)
+    lines = []
+    header = read_until(proc, 'planter demo:', lines)
+    domain = int(re.search(r'DDS domain (\d+) \(private\)', header).group(1))
+    read_until_run_time(proc, 4.0, lines)
+    intruder = start_stray(domain, sensor='')  # a second design node, the pepper scene
+    try:
+        rest, _ = proc.communicate(timeout=120)
+    finally:
+        intruder.kill()
+        intruder.wait()
+    out = ''.join(lines) + rest
     assert proc.returncode == 1, out
     verdict = out.rstrip().splitlines()[-1]
     assert verdict.startswith('verdict: FAIL: ')

@@ -24,6 +24,8 @@ DURATION = 8          # s of field run (the shortest the demo takes)
 STOPS = 10            # stops of the process group at random moments
 SEED = int(os.environ.get('PLANTER_STOP_SEED', '33'))
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 
 def start_demo(cwd, *args):
     env = dict(os.environ, PYTHONPATH=str(REPO), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')

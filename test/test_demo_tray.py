@@ -4,12 +4,15 @@ instants."""
 import math
 
 import numpy as np
+import pytest
 
 from planter_ros.prediction import PLANT_FIELDS, planting_model_from_design
 from planter_ros.sim.season import season_design
 from planter_ros.sim.tray import SensedCycles, Tray, sense_angle
 
 from cli_helpers import REPO, run_planter
+
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
 
 def test_the_cup_sensor_reads_every_cycle_once_half_a_cycle_before_planting():

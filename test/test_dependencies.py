@@ -45,6 +45,8 @@ ROSDEP_KEY = {
     'pytest': 'python3-pytest', 'pytest-xdist': 'python3-pytest-xdist',
     'hypothesis': 'python3-hypothesis', 'mpmath': 'python3-mpmath-pip',
     'ruff': 'python3-ruff-pip', 'mypy': 'python3-mypy',
+    'types-PyYAML': 'python3-types-pyyaml', 'scipy-stubs': 'python3-scipy-stubs-pip',
+    'xmlschema': 'python3-xmlschema',
     'colcon-common-extensions': 'python3-colcon-common-extensions',
     'pyogrio': 'python3-pyogrio-pip', 'shapely': 'python3-shapely',
     'mcap-ros2-support': 'mcap-ros2-support', 'psutil': 'python3-psutil',
@@ -243,16 +245,34 @@ def _version(text):
     return tuple(int(part) for part in re.findall(r'\d+', text)[:3])
 
 
+# modules typeshed keeps among the standard library's stubs (`_typeshed`, `typing_extensions`):
+# every type checker carries them (mypy, the dev extra); allowed only under `if TYPE_CHECKING:`,
+# never imported at run time
+TYPESHED = {'_typeshed', 'typing_extensions'}
+
+
+def _typing_only(tree):
+    """The import statements of `tree` under `if TYPE_CHECKING:` (never run)."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and 'TYPE_CHECKING' in ast.unparse(node.test):
+            out |= {id(n) for stmt in node.body for n in ast.walk(stmt)
+                    if isinstance(n, (ast.Import, ast.ImportFrom))}
+    return out
+
+
 def imported_modules():
     """{top-level module: [files]} of every import (at the top or in a function) in the
     package, its launch files, its tests and setup.py; the standard library and our own
-    modules left out."""
+    modules left out (TYPESHED's too, where only the type checker reads them)."""
     local = {'planter_ros'} | {p.stem for p in (REPO / 'test').glob('*.py')}
     found = {}
     files = [*(REPO / 'planter_ros').rglob('*.py'), *(REPO / 'launch').glob('*.py'),
              *(REPO / 'test').glob('*.py'), REPO / 'setup.py']
     for path in files:
-        for node in ast.walk(ast.parse(path.read_text())):
+        tree = ast.parse(path.read_text())
+        typing_only = _typing_only(tree)
+        for node in ast.walk(tree):
             if isinstance(node, ast.Import):
                 names = [alias.name for alias in node.names]
             elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
@@ -261,6 +281,8 @@ def imported_modules():
                 continue
             for name in names:
                 top = name.split('.')[0]
+                if top in TYPESHED and id(node) in typing_only:
+                    continue
                 if top not in sys.stdlib_module_names and top not in local:
                     found.setdefault(top, []).append(str(path.relative_to(REPO)))
     return found
@@ -295,6 +317,12 @@ def test_each_declared_distribution_provides_the_modules_it_is_named_for():
     install): a module is provided by the distribution, or by one it requires (the ROS
     meta-packages)."""
     provided = importlib.metadata.packages_distributions()
+    # stub-only distributions (scipy-stubs) ship .pyi files, which packages_distributions()
+    # does not infer top-level names from
+    for dist in importlib.metadata.distributions():
+        for path in dist.files or ():
+            if path.suffix == '.pyi' and len(path.parts) > 1:
+                provided.setdefault(path.parts[0], []).append(dist.metadata['Name'])
     for requirement in {r for rs in dependencies.ROLES.values() for r in rs}:
         name = dependencies.distribution(requirement)
         closure = _requirement_closure(name)

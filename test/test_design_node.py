@@ -10,6 +10,8 @@ from planter_ros.design import from_json
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.nodes.design_node import DesignNode
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 # every scene gives its nozzle's width (no default): the tomato scene's
 NOZZLE = [Parameter('nozzle_width', value=0.04)]
 

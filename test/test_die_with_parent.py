@@ -17,7 +17,8 @@ from cli_helpers import REPO
 
 from planter_ros.processes import supported
 
-pytestmark = pytest.mark.skipif(not supported(), reason='needs Linux prctl(PR_SET_PDEATHSIG)')
+pytestmark = [pytest.mark.realtime,          # (test/conftest.py)
+              pytest.mark.skipif(not supported(), reason='needs Linux prctl(PR_SET_PDEATHSIG)')]
 
 GRACE = 5.0          # s the helpers may take to go
 

@@ -9,6 +9,8 @@ from planter_ros.drive.cia402 import Cia402Drive, DriveConfig, DriveError
 from planter_ros.drive.fault_bus import FaultBus
 from planter_ros.drive.simulated_drive import SimulatedDrive
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 
 def test_enable_reaches_operation_enabled_in_profile_velocity(sim, make_drive):
     drive = make_drive()

@@ -7,6 +7,8 @@ from can.interfaces.virtual import VirtualBus
 from drive_helpers import control_loop, drain, rpdo_frames, wait_until
 from planter_ros.drive.cia402 import DriveError
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 
 def _reach_speed(drive, speed=2.0):
     assert control_loop(drive, speed, until=lambda: abs(drive.status().velocity - speed) < 0.02)

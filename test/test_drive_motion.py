@@ -6,6 +6,8 @@ import pytest
 from drive_helpers import control_loop, drain, rpdo_frames
 from planter_ros.drive.cia402 import DriveError
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 
 @pytest.mark.parametrize('speed', [2.0, -0.7])
 def test_measured_speed_converges_to_the_command_through_the_gear(enabled, speed):

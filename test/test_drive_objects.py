@@ -13,6 +13,8 @@ from planter_ros.drive.config import BusConfig, DeviceConfig, DriveConfig
 from planter_ros.drive.errors import DriveConfigError
 from planter_ros.drive.simulated_drive import SimulatedDrive
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 
 def doc_tables():
     text = (REPO / 'doc' / 'drive.md').read_text()

@@ -3,11 +3,14 @@ absent drive left out while the others are kept fed, faults per drive, shutdown 
 import time
 
 import can
+import pytest
 
 from drive_helpers import wait_until
 from planter_ros.drive.cia402 import DriveConfig
 from planter_ros.drive.drive_set import DriveSet
 from planter_ros.drive.simulated_drive import SimulatedBus
+
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
 
 def test_drives_enable_at_once_an_absent_one_is_left_out_and_the_others_are_fed(channel):

@@ -4,6 +4,8 @@ import pytest
 from drive_helpers import NODE_ID, control_loop, drain, rpdo_frames
 from planter_ros.drive.cia402 import DriveError
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 
 def test_shutdown_sequence_on_the_bus(enabled, spy):
     drive, sim = enabled

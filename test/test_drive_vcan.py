@@ -30,7 +30,8 @@ def _vcan_missing() -> str:
     return ''
 
 
-pytestmark = pytest.mark.skipif(bool(_vcan_missing()), reason=_vcan_missing() or 'vcan present')
+pytestmark = [pytest.mark.realtime,          # (test/conftest.py)
+              pytest.mark.skipif(bool(_vcan_missing()), reason=_vcan_missing() or 'vcan present')]
 
 
 @pytest.fixture

@@ -262,12 +262,14 @@ def test_the_isoxml_task_is_every_plant_read_back_by_the_isoxml_library(bag, res
     assert sorted(e.designator for e in rows.values()) == sorted(r.name for r in result.rows)
     row_of = {e.id: next(r.index for r in result.rows if r.name == e.designator)
               for e in rows.values()}
-    # every DPD a row element references exists on the device, and every logged DDI has one
-    dpd = {d.object_id: d for d in device.process_data}
+    # every DPD or DPT a row element references exists on the device, and every logged DDI
+    # and the row's offsets and width have one
+    objects = {d.object_id: d for d in device.process_data + device.properties}
     for element in rows.values():
-        ddis = {dpd[r.device_object_id].ddi.hex().upper()
+        ddis = {objects[r.device_object_id].ddi.hex().upper()
                 for r in element.device_object_references}
-        assert {'008D', '0010', '0011', '01A5', '018D', '0052'} <= ddis
+        assert {'008D', '0010', '0011', '01A5', '018D', '0052', '0086', '0087', '0088',
+                '0043', '0046'} <= ddis
     # the time log, decoded from the bytes
     (log,) = task.time_logs
     assert log.filename == 'TLG00001' and log.filelength == len(files['TLG00001'])
@@ -280,12 +282,17 @@ def test_the_isoxml_task_is_every_plant_read_back_by_the_isoxml_library(bag, res
     epoch = datetime(1980, 1, 1, tzinfo=timezone.utc).timestamp()
     worst = 0.0
     last_count = {}
-    for (ms, days, ptn, values), i in zip(records, order):
+    from planter_ros.export.isoxml import drp
+    run = run_of_replay(result)
+    machine = drp([run.records[i] for i in order], run.places)
+    for (ms, days, ptn, values), i, (lat, lon) in zip(records, order, machine):
         assert (days * 86400 + ms / 1000.0) + epoch == pytest.approx(p.time[i], abs=5e-4)
+        # the device reference point at the instant (test_isoxml_standard.py: the plant is at
+        # its row's offsets from it), to the binary's 1e-7 degrees
         north, east = ptn['A'] * 1e-7, ptn['B'] * 1e-7
-        assert abs(north - p.latitude[i]) <= 0.5e-7 + 1e-12
-        assert abs(east - p.longitude[i]) <= 0.5e-7 + 1e-12
-        worst = max(worst, geodesic_m(east, north, p.longitude[i], p.latitude[i]))
+        assert abs(north - lat) <= 0.5e-7 + 1e-12
+        assert abs(east - lon) <= 0.5e-7 + 1e-12
+        worst = max(worst, geodesic_m(east, north, lon, lat))
         assert ptn['D'] == 6                                   # estimated (dead reckoning)
         by_ddi = {}
         for index, value in values.items():
@@ -293,8 +300,8 @@ def test_the_isoxml_task_is_every_plant_read_back_by_the_isoxml_library(bag, res
             assert row_of[element] == p.row[i]                 # the plant's own row
             by_ddi[ddi] = value
         assert by_ddi['008D'] == 1
-        assert by_ddi['0010'] == round(result.summary['design_spacing'] * 1000)
-        for ddi, value in (('0011', p.spacing[i]), ('01A5', p.spacing_error[i]),
+        assert by_ddi['0010'] == round(result.summary['design_spacing'] * 1000)   # one design
+        for ddi, value in (('0011', p.spacing[i]), ('01A5', abs(p.spacing_error[i])),
                            ('018D', p.ground_speed[i])):
             if math.isfinite(value):
                 assert abs(by_ddi[ddi] - value * 1000) <= 0.5, ddi

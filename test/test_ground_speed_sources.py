@@ -17,6 +17,8 @@ from planter_ros.sensing.ground_speed_sources import (
     SpeedSample, gnss_speed, imu_yaw_rate)
 from ros_fixtures import unique_channel
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 
 def frame_id(pgn, source_address=0x80, priority=3):
     return (priority << 26) | (pgn << 8) | source_address

@@ -69,6 +69,16 @@ def test_the_shipped_example_fits_the_four_row_scene():
                                                          'range: allowed number 0..6.28319 rad'),
     (machine_text({'1left': ROW}), 'rows has a bad name'),
     (machine_text({}), 'rows is missing or empty'),
+    # issue 32: a bit rate no CANopen drive runs at, an ISOBUS on the drives' own bus, a motor
+    # speed no servo reaches (60 000 r/min)
+    (machine_text(can={'bitrate': 123456}), 'can.bitrate = 123456 is out of range: allowed a '
+                                            'CiA 301 bit rate'),
+    (machine_text(extra='isobus: {channel: can0}\n'),
+     "isobus.channel = 'can0' is the drives' bus (can.channel)"),
+    (machine_text(extra='isobus: {channel: can1, bitrate: 500000}\n'),
+     'isobus.bitrate = 500000 is out of range: allowed 250000 bit/s'),
+    (machine_text({'left': {**ROW, 'max_motor_speed': 6283}}),
+     'rows.left.max_motor_speed = 6283 is out of range: allowed number 0.1..1100 rad/s'),
     ('- a list\n', 'is not a mapping'),
     ('rows: {left: 3}\n', 'rows.left is not a mapping'),
 ])
@@ -136,3 +146,29 @@ def test_the_lever_arms_place_each_plant_within_5_mm(curves):
     ignored = place(None)
     off = geodesic_distance(ignored.longitude, ignored.latitude, true_lon, true_lat)
     assert np.min(off) > 2.4
+
+
+@pytest.mark.parametrize('change, message', [
+    # gear ratio 1000: the motor would turn 60 000 r/min at the scene's speed
+    ({'gear_ratio': 1000, 'max_motor_speed': 1047}, 'needs the motor (1000 turns per sun bar '
+                                                    'turn) at'),
+    ({'node_id': 127}, "left_outer.drive_node_id = 127 is the master's own node id"),
+    ({'encoder_counts': 1}, 'encoder_counts = 1 per motor turn through gear_ratio = 20 is 20 '
+                            'counts per sun bar turn'),
+])
+def test_the_machine_file_against_the_scene_is_refused_before_any_work(tmp_path, change,
+                                                                        message):
+    """`--check FILE --scene SCENE` (and the demo, a launch, commissioning: the same
+    deployment_parameters): each refused in one line naming the value and the limit."""
+    import subprocess
+    import sys
+    import yaml
+    data = yaml.safe_load(EXAMPLE.read_text())
+    data['rows']['left_outer'].update(change)
+    path = tmp_path / 'machine.yaml'
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    out = subprocess.run([sys.executable, '-m', 'planter_ros.scene.machine', str(path),
+                          '--check', '--scene', str(REPO / 'config' / 'tomato_4row.yaml')],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and out.stdout == '', out.stderr
+    assert out.stderr.count('\n') == 1 and message in out.stderr, out.stderr

@@ -35,6 +35,8 @@ from planter_ros.scene.machine import (CanBus, MachineFileError, open_machine, p
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 MACHINE = REPO / 'config' / 'machines' / 'tomato_4row_tractor.yaml'
 ROW = 'left_outer'
 GEAR, COUNTS = 20.0, 131072

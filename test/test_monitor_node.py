@@ -7,6 +7,8 @@ from rclpy.parameter import Parameter
 
 from planter_ros.nodes.monitor_node import MonitorNode
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 
 @pytest.fixture
 def node():

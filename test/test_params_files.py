@@ -18,6 +18,8 @@ from planter_ros.scene.schema import node_specs
 from cli_helpers import REPO
 from ros_fixtures import unique_channel
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 TOMATO = (REPO / 'config' / 'tomato_five_bar.yaml').read_text()
 FOUR_ROWS = REPO / 'config' / 'tomato_4row.yaml'
 RICE = REPO / 'config' / 'rice_three_arm.yaml'

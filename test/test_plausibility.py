@@ -83,6 +83,33 @@ CASES = [
     ('row 30 m to the side', {**rows(2), 'r1.lateral_offset': 30.0}, (), R, '-20..20 m'),
     ('row named 1a', {'rows': ['1a']}, (), R, 'starting with a letter'),
     ('drive node id 0', {'drive_node_id': 0}, (), R, 'allowed integer 1..127'),
+    # issue 32: where the machine file meets the scene
+    ('top speed over the law', {'nominal_ground_speed': 0.45}, (), R,
+     'top_ground_speed (0: 1.5 × nominal_ground_speed) = 0.675 m/s needs the sun bar at 21.2'),
+    ('top speed given', {'top_ground_speed': 0.7}, (), R,
+     'top_ground_speed = 0.7 m/s needs the sun bar at 22 rad/s'),
+    ('top speed under nominal', {'top_ground_speed': 0.1}, (), R,
+     'allowed 0 or >= nominal_ground_speed = 0.2 m/s'),
+    ('gear ratio 1000', {}, (RowLimits('left', motor_max_speed=1047.0, gear_ratio=1000.0),), R,
+     'needs the motor (1000 turns per sun bar turn) at 6.28e+03 rad/s (60000 r/min)'),
+    ('encoder 1 count per turn', {}, (RowLimits('left', gear_ratio=20.0, encoder_counts=1),),
+     R, 'encoder_counts = 1 per motor turn through gear_ratio = 20 is 20 counts per sun bar '
+        'turn (18 deg, 10 mm of the row)'),
+    ('a drive on the master\'s id', {**rows(2), 'r1.drive_node_id': 127}, (), R,
+     "r1.drive_node_id = 127 is the master's own node id (master_node_id = 127)"),
+    ('implicit row on the master\'s id', {'drive_node_id': 127}, (), R,
+     'allowed 1..127 except drive_node_id=127'),
+    ('rice 300 mm deep', {**RICE, 'planting_depth': 0.3}, (), R,
+     "planting_depth = 0.3 m is beyond the three-arm's reach: its gearbox would turn 0.223 m "
+     'deep in the soil (arm_length = 0.145 m); allowed planting_depth <= 0.077 m'),
+    ('two rows on one line', {**rows(2), 'r1.lateral_offset': 0.0}, (), W,
+     'rows r0 and r1 have the same lateral_offset = 0 m'),
+    ('two rows 20 mm apart', {**rows(2), 'r1.lateral_offset': 0.02}, (), W,
+     'rows r0 and r1 are 0.02 m apart'),
+    ('a 30 m wide machine', {**rows(2), 'r0.lateral_offset': -15.0, 'r1.lateral_offset': 15.0},
+     (), W, 'the rows span 30 m (r0 to r1): unusual, transplanters are typically at most 12 m'),
+    ('ground speed timeout 10 s', {'ground_speed_timeout': 10.0}, (), R,
+     'ground_speed_timeout = 10 is out of range: allowed number 0.05..2 s'),
 ]
 
 
@@ -157,3 +184,13 @@ def test_demo_refuses_an_implausible_scene_before_it_starts(tmp_path):
     out = run_planter('demo', '--scene', scene_file(tmp_path, {'nominal_ground_speed': 2.0}))
     assert out.returncode == 2 and out.stderr.count('\n') == 1
     assert 'max_speed = 20 rad/s' in out.stderr and 'Traceback' not in out.stderr
+
+
+def test_simulate_checks_the_bus_load_of_the_rows_it_builds(tmp_path):
+    """16 rows on one 500 kbit/s bus need 115 % of it (the sync node refuses above 70 %):
+    refused before any work, nothing written."""
+    out = run_planter('simulate', tmp_path / 'season', '--bags', 1, '--rows', 16)
+    assert out.returncode == 2 and out.stdout == '' and out.stderr.count('\n') == 1
+    assert '--rows = 16: CAN bus load 114.8 % is out of range: allowed <= 70 %' in out.stderr
+    assert 'at most 9 rows fit' in out.stderr
+    assert not (tmp_path / 'season').exists()

@@ -16,6 +16,8 @@ from planter_ros import interfaces
 from planter_ros.recording.bag_reader import MAGIC, read_recording
 from planter_ros.recording.cdr import decode_ground_speed
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 REPO = Path(__file__).resolve().parents[1]
 RATE = 500.0          # messages per second written by the child
 

@@ -18,6 +18,8 @@ from planter_ros.sim.closed_loop import simulate_rows
 from planter_ros.sim.field import field_profile
 from planter_ros.sim.runs import five_bar_design_message
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 D = 0.2
 ROWS = [Row(0, 'left', 0.5, 1), Row(1, 'right', -0.5, 2)]
 OFF = 3.1                  # s the left row's section is off

@@ -13,6 +13,8 @@ from planter_ros.prediction.seedlings import (EMPTY, NO_READING, NO_SENSOR, PLAN
 from planter_ros.recording.replay import replay
 from test_seedlings import D, instants
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 ROW = PLANT_FIELDS.index('row')
 
 
@@ -154,3 +156,33 @@ def test_the_demo_gives_a_row_without_a_sensor_no_tray(tmp_path):
     live = result.recorded_plants
     assert np.all(live[:, PLANT_FIELDS.index('reason')] == NO_SENSOR)
     assert result.summary['instants']['unknown'] == len(result.plants)
+
+
+@pytest.mark.parametrize('rows', [1, 4])
+def test_an_unnamed_reading_is_one_rows_only_on_a_machine_of_one_row(rows):
+    """A seedling reading whose JointState names no joint is the only row's on a one-row
+    machine; on a machine of four rows it is none of them for sure: skipped with a warning,
+    not credited to all four (a fifth of the cups it would have filled)."""
+    from types import SimpleNamespace
+
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+
+    from planter_ros import interfaces
+    from planter_ros.recording.replay import _seedlings
+    from planter_ros.sim.season import machine_rows
+    planting = machine_rows(rows)
+    joint = planting[0].joint('five_bar')
+    msgs = [JointState(name=[joint], position=[1.0]), JointState(position=[2.0])]
+    topic = SimpleNamespace(raw=[serialize_message(m) for m in msgs],
+                            log=[1_000_000_000, 2_000_000_000])
+    rec = SimpleNamespace(topics={interfaces.SEEDLINGS: topic}, warnings=[])
+    segments = [(None, [(0, 0, SimpleNamespace(mechanism='five_bar'))])]
+    readings = _seedlings(rec, None, planting, segments).readings()
+    counts = {row: list(c) for row, (_, c) in readings.items()}
+    if rows == 1:
+        assert counts == {planting[0].index: [1.0, 2.0]} and rec.warnings == []
+    else:
+        assert counts == {planting[0].index: [1.0]}
+        assert rec.warnings == ['1 seedling reading(s) without a row name on a machine of 4 '
+                                'rows: skipped']

@@ -1,6 +1,7 @@
 """Every planting instant accounted for: the seedling sensor's empty cups and doubles and the
 instants inside input gaps are counted exactly, in the plants, the indices and the tables."""
 import numpy as np
+import pytest
 
 from planter_ros.prediction import (
     PLANT_FIELDS, Plants, SeedlingAccount, seedling_spacings, spacing_quality, status_counts,
@@ -8,6 +9,8 @@ from planter_ros.prediction import (
 from planter_ros.recording.replay import replay
 from planter_ros.sim.field import Curve
 from planter_ros.sim.season import Glitch, RunPlan, machine_rows, simulate_plan, write_monitor_bag
+
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
 D = 0.2
 

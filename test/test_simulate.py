@@ -64,6 +64,7 @@ def test_replay_reproduces_the_plants_a_simulated_bag_carries(rows, tmp_path):
     assert np.nanmax(np.abs(stalled[:, PLANT_FIELDS.index('tilt')])) > 0.3
 
 
+@pytest.mark.realtime
 def test_simulated_bag_has_the_live_monitors_layout(ros, tmp_path):
     """Channels (topic, type, QoS), metadata records and the settings record of the real
     monitor node's recording with the same rows."""
@@ -98,17 +99,6 @@ def test_simulated_bag_has_the_live_monitors_layout(ros, tmp_path):
     for name in (interfaces.PREDICTION_SETTINGS_RECORD, interfaces.ROWS_RECORD):
         assert sim[2][name] == live[2][name]
     assert 'rosbag2' in sim[2]
-
-
-def test_the_plants_message_is_the_monitors():
-    from rclpy.serialization import serialize_message
-
-    from planter_ros.prediction import Plants
-    from planter_ros.nodes.monitor_node import plants_message as monitor_message
-    from planter_ros.sim.season import plants_message
-    plants = Plants.from_table(np.arange(3 * len(PLANT_FIELDS), dtype=float).reshape(3, -1))
-    assert serialize_message(plants_message(plants)) == \
-        serialize_message(monitor_message(plants))
 
 
 def test_a_season_is_drawn_from_its_seed(tmp_path):

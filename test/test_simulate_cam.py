@@ -172,7 +172,7 @@ def test_simulate_runs_the_scenes_spacing_schedule_on_the_cam(tmp_path):
     from planter_ros.scene import open_scene
     from test_cam_demo import (SPACINGS, cam_scene as schedule_scene, check_segments,
                                segment_figures)
-    scene = schedule_scene(tmp_path, [7.0, 0.25, 16.0, 0.35, 23.0, 0.5])
+    scene = schedule_scene(tmp_path, [6.0, 0.25, 14.0, 0.35, 20.0, 0.5])
     design = open_scene(scene).design()
     plans = {d: plan_row_cam(dataclasses.replace(design, plant_spacing=d), 'design_speed')
              for d in SPACINGS}
@@ -182,7 +182,7 @@ def test_simulate_runs_the_scenes_spacing_schedule_on_the_cam(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     events = json.loads(r.stdout)['runs'][0]['events']
     assert events['spacing_changes'] == [{'start': t, 'spacing': d} for t, d in
-                                         ((7.0, 0.25), (16.0, 0.35), (23.0, 0.5))]
+                                         ((6.0, 0.25), (14.0, 0.35), (20.0, 0.5))]
     result = replay(out / 'run_3_00000.mcap', with_recorded=True)
     live, replayed = result.recorded_plants, result.plants.table()
     assert live.shape == replayed.shape

@@ -47,6 +47,46 @@ def test_misses_only():
     assert q['precision'] == pytest.approx(cv([0.2, 0.3, 0.18]), rel=1e-12)
 
 
+# Exact boundaries (ISO 7256-1; Kachman and Smith 1995): a multiple is x <= 0.5 d, a miss
+# x > 1.5 d. With d = 0.25 m and spacings that are binary fractions every x/d is exact, so the
+# comparison meets 0.5 and 1.5 exactly (0.1 / 0.2 is not 0.5 in floating point, 0.3 / 0.2 is
+# 1.4999...: such a test cannot tell <= from <).
+Q = 0.25
+
+
+@pytest.mark.parametrize('batch', [1, 3])
+def test_exactly_half_the_design_spacing_is_a_multiple_and_the_next_float_a_single(batch):
+    half = 0.125
+    assert half / Q == 0.5
+    x = [half, np.nextafter(half, 1.0), 0.25]
+    running = SpacingQuality()
+    for i in range(0, len(x), batch):
+        running.add(x[i:i + batch], Q)
+    q = running.result()
+    assert (q['multiple_index'], q['miss_index'], q['spacings']) == (1 / 3, 0.0, 3)
+    assert q['quality_of_feed_index'] == 2 / 3
+
+
+@pytest.mark.parametrize('batch', [1, 3])
+def test_exactly_one_and_a_half_design_spacings_is_a_single_and_the_next_float_a_miss(batch):
+    one_and_a_half = 0.375
+    assert one_and_a_half / Q == 1.5
+    x = [one_and_a_half, np.nextafter(one_and_a_half, 1.0), 0.125 + 0.0625]
+    running = SpacingQuality()
+    for i in range(0, len(x), batch):
+        running.add(x[i:i + batch], Q)
+    q = running.result()
+    assert (q['multiple_index'], q['miss_index'], q['spacings']) == (0.0, 1 / 3, 3)
+    # the singles are 1.5 d and 0.75 d: mean 1.125 d, sample deviation 0.75 / sqrt(2) d
+    assert q['precision'] == pytest.approx(cv([1.5, 0.75]), rel=1e-15)
+
+
+def test_two_singles_are_enough_for_a_precision_and_one_is_not():
+    assert spacing_quality([0.1875, 0.3125], Q)['precision'] == pytest.approx(
+        cv([0.75, 1.25]), rel=1e-15)
+    assert spacing_quality([0.1875, 0.5], Q)['precision'] is None
+
+
 def test_multiples_and_misses_and_nan_spacings_left_out():
     x = [math.nan, 0.2, 0.05, 0.61, 0.2, math.nan, 0.21, 0.09, 0.19, 0.45]
     q = spacing_quality(x, D)

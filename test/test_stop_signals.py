@@ -11,6 +11,8 @@ import pytest
 
 from planter_ros import stop_signals
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 REPO = Path(__file__).resolve().parents[1]
 
 HUNG_CLEANUP = r'''

@@ -19,6 +19,8 @@ from planter_ros.drive.simulated_drive import SimulatedDrive
 from planter_ros.nodes.sync_node import SyncNode
 from ros_fixtures import unique_channel
 
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
+
 D = 0.2
 TOMATO = {'mechanism': 'five_bar', 'plants_per_revolution': 1, 'plant_spacing': D,
           'planting_depth': 0.045, 'l1': 0.0194, 'l2': 0.0512}

@@ -8,8 +8,12 @@ import subprocess
 import sys
 import uuid
 
+import pytest
+
 from planter_ros.config import spec_of
 from planter_ros.drive.config import DriveConfig
+
+pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
 REPO = Path(__file__).resolve().parents[1]
 SYNC_NODE = 'from planter_ros.nodes.sync_node import main; raise SystemExit(main())'

@@ -21,6 +21,7 @@ from planter_ros.config import check, setting
 
 CONNECT_TIMEOUT = 10.0      # s to reach an existing scheduler
 WORKER_WAIT = 30.0          # s an existing scheduler may take to have a worker
+HANDSHAKE_GRACE = 2.0       # s beyond CONNECT_TIMEOUT for a connected scheduler's handshake
 # glibc's allocator in the local workers: Dask starts them with MALLOC_TRIM_THRESHOLD_ = 64 KiB
 # (memory handed back to the system at once), which also fixes the mmap threshold at 128 KiB,
 # so every array or buffer a bag needs above that (the decompressed chunks, the joints' bytes,
@@ -76,6 +77,7 @@ def cluster(workers=None, scheduler=None):
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     local = scratch = None
     if scheduler:
+        probe_scheduler(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
@@ -98,9 +100,13 @@ def cluster(workers=None, scheduler=None):
             with dask.config.set({'temporary-directory': scratch, **{
                     f'distributed.nanny.pre-spawn-environ.{k}': v
                     for k, v in WORKER_MALLOC.items()}}):
+                # (the scheduler serves its HTTP routes, health and metrics, whatever the
+                # dashboard: on a free loopback port, not on 8787, which another cluster may
+                # hold: Dask then warns "Port 8787 is already in use" on stderr)
                 local = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
                                      processes=True, host='127.0.0.1', scheduler_port=0,
                                      dashboard_address=None, worker_dashboard_address=None,
+                                     scheduler_kwargs={'dashboard_address': '127.0.0.1:0'},
                                      silence_logs=logging.ERROR, plugins={DieWithParent()},
                                      local_directory=scratch)
         except Exception as exc:             # no free port, no processes, ...
@@ -117,6 +123,37 @@ def cluster(workers=None, scheduler=None):
             local.close()
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)
+
+
+def probe_scheduler(address, timeout=None):
+    """Refuse (EngineError) an address where no Dask scheduler answers Dask's handshake within
+    `timeout` (default CONNECT_TIMEOUT): nothing listening, a port that accepts and never
+    answers (distributed waits for the handshake without a limit), another protocol (an HTTP
+    server). One bounded connection, closed again."""
+    import asyncio
+
+    from distributed.comm import connect
+    timeout = CONNECT_TIMEOUT if timeout is None else timeout
+
+    async def handshake():
+        comm = await connect(address, timeout=timeout)
+        await comm.close()
+    try:                             # (connect's own limit first: nothing listening)
+        asyncio.run(asyncio.wait_for(handshake(), timeout + HANDSHAKE_GRACE))
+    except (asyncio.TimeoutError, TimeoutError):
+        raise EngineError(f'--scheduler = {address}: no Dask scheduler answered within '
+                          f'{timeout + HANDSHAKE_GRACE:.0f} s (something there accepts the '
+                          'connection and says nothing): allowed the address of a running '
+                          'Dask scheduler, e.g. tcp://host:8786') from None
+    except OSError as exc:           # refused, reset, closed (CommClosedError), timed out
+        raise EngineError(f'--scheduler = {address}: cannot connect ({_first_line(exc)}): '
+                          'allowed the address of a running Dask scheduler, e.g. '
+                          'tcp://host:8786') from None
+    except Exception as exc:         # its answer is not Dask's protocol (an HTTP server)
+        raise EngineError(f'--scheduler = {address}: what answers there is not a Dask '
+                          f'scheduler (its reply does not decode: {type(exc).__name__}): '
+                          'allowed the address of a running Dask scheduler, e.g. '
+                          'tcp://host:8786') from None
 
 
 SCRATCH_PREFIX = 'planter-dask-'

@@ -23,21 +23,23 @@ __all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'format_exports', 'season_exports',
 
 def season_runs(out):
     """ExportRuns (export.runs) of every analysed bag in the tables under `out`, in the bags
-    table's order; a bag's name is its key, its path from the analysed root."""
+    table's order, each once (its plants by its content id); a run is named by the bag's name,
+    its path from the analysed root."""
     import pyarrow.parquet as pq
 
-    from planter_ros.export.runs import run_of_plants
+    from planter_ros.export.runs import RowPlace, run_of_plants
     from planter_ros.prediction import PLANT_FIELDS, Plants
 
-    from .tables import plant_columns
+    from .tables import HEADING, plant_columns
     out = Path(out)
     bags = [row for row in read_bags(out / BAGS_FILE)
             if row.get('status') in ANALYSED and row.get('plants_file')]
     if not bags:
         return []
     table = pq.read_table(out / PLANTS_DIR)
-    keys = table.column('bag').to_numpy(zero_copy_only=False)
+    keys = table.column('bag_id').to_numpy(zero_copy_only=False)
     columns = np.column_stack(plant_columns(table, PLANT_FIELDS))
+    (heading,) = plant_columns(table, (HEADING,))
     names, inverse = np.unique(keys, return_inverse=True)
     where = {name: np.flatnonzero(inverse == i) for i, name in enumerate(names)}
     runs = []
@@ -45,27 +47,48 @@ def season_runs(out):
         rows = row.get('rows') or [{'index': 0, 'name': ''}]
         quality = {r['index']: (r.get('summary') or {}).get('spacing_quality') or {}
                    for r in rows}
-        plants = Plants.from_table(columns[where.get(row['bag'], np.zeros(0, dtype=int))])
-        runs.append(run_of_plants(row['bag'], plants, [(r['index'], r['name']) for r in rows],
-                                  row.get('summary.design_spacing'), quality))
+        mine = where.get(row['bag_id'], np.zeros(0, dtype=int))
+        places = {r['index']: RowPlace(r.get('lateral_offset') or 0.0,
+                                       r.get('longitudinal_offset') or 0.0,
+                                       r.get('enabled', True) is not False) for r in rows}
+        runs.append(run_of_plants(row['bag'], Plants.from_table(columns[mine]),
+                                  [(r['index'], r['name']) for r in rows],
+                                  row.get('summary.design_spacing'), quality, places,
+                                  heading[mine]))
     return runs
 
 
 def write_season_exports(out, force=False):
     """Write as_planted.zip and TASKDATA.zip under `out` from its tables (unless both exist
-    and not `force`): {'shapefile', 'isoxml': paths, 'plants', 'placed', 'tasks', 'skipped':
-    [(bag, reason)]} or None when nothing was written."""
+    and not `force`), each on its own (one that fails never keeps the other from being
+    written): {'shapefile', 'isoxml': paths (None: not written), 'plants', 'placed', 'tasks',
+    'skipped': [{bag, reason}] (bags the ISOXML cannot hold), 'failed': [{file, reason}]} or
+    None when nothing was to be written."""
     from planter_ros.export.isoxml import write_isoxml
     from planter_ros.export.shapefile import write_shapefile
     out = Path(out)
     if not force and all((out / name).is_file() for name in EXPORTS):
         return None
     runs = season_runs(out)
-    plants, placed = write_shapefile(out / SHAPEFILE, runs)
-    tasks, _, skipped = write_isoxml(out / ISOXML, runs)
-    return {'shapefile': str(out / SHAPEFILE), 'isoxml': str(out / ISOXML), 'plants': plants,
-            'placed': placed, 'tasks': tasks,
-            'skipped': [{'bag': bag, 'reason': reason} for bag, reason in skipped]}
+    result = {'shapefile': None, 'isoxml': None, 'plants': 0, 'placed': 0, 'tasks': 0,
+              'skipped': [], 'failed': []}
+    try:
+        result['plants'], result['placed'] = write_shapefile(out / SHAPEFILE, runs)
+        result['shapefile'] = str(out / SHAPEFILE)
+    except Exception as exc:           # a disk full, a bug on odd data: the ISOXML still goes
+        result['failed'].append({'file': str(out / SHAPEFILE), 'reason': _one_line(exc)})
+    try:
+        result['tasks'], _, skipped = write_isoxml(out / ISOXML, runs)
+        result['isoxml'] = str(out / ISOXML)
+        result['skipped'] = [{'bag': bag, 'reason': reason} for bag, reason in skipped]
+    except Exception as exc:
+        result['failed'].append({'file': str(out / ISOXML), 'reason': _one_line(exc)})
+    return result
+
+
+def _one_line(exc):
+    text = str(exc).strip().splitlines()
+    return f'{type(exc).__name__}: {text[0]}' if text else type(exc).__name__
 
 
 def season_exports(out, force):
@@ -80,7 +103,11 @@ def season_exports(out, force):
 
 
 def format_exports(exports):
-    """The exports' line for people."""
-    return (f'exports: {exports["shapefile"]} (Shapefile, {exports["plants"]} plants, '
-            f'{exports["placed"]} with a map position), {exports["isoxml"]} (ISOXML, '
-            f'{exports["tasks"]} tasks) in {exports["seconds"]:.1f} s')
+    """The exports' line for people (what was written; the failures go to stderr)."""
+    written = []
+    if exports['shapefile']:
+        written.append(f'{exports["shapefile"]} (Shapefile, {exports["plants"]} plants, '
+                       f'{exports["placed"]} with a map position)')
+    if exports['isoxml']:
+        written.append(f'{exports["isoxml"]} (ISOXML, {exports["tasks"]} tasks)')
+    return f'exports: {", ".join(written) or "none written"} in {exports["seconds"]:.1f} s'

@@ -86,6 +86,10 @@ def group_figures(group):
     quality = spacing_quality(x, x_d)
     counts = {name: int(np.count_nonzero(status == name))
               for name in ('planted', 'empty', 'double', 'unknown')}
+    # seedlings in the ground, as prediction.status_counts counts them (an unknown instant: 1)
+    usual = np.array([{'empty': 0.0, 'double': 2.0}.get(s, 1.0) for s in status])
+    counted = np.where(np.isfinite(seedlings) & (status != 'unknown'), seedlings, usual)
+    counts['seedlings'] = int(counted.sum())
     return {'plants': len(group), 'instants': counts,
             'uprightness_rate': float(np.mean(upright[known].astype(bool))) if known.any()
             else None,

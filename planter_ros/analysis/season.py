@@ -7,23 +7,33 @@ Layout of the output directory (each table in a folder of its own):
                                  plants of the bags completed since the previous write
     as_planted.zip, TASKDATA.zip the season for farm software (analysis.exports)
     report.html                  the season report (analysis.report)
+    .planter-analyze.json        what this command wrote here (OUTPUT_RECORD), so that a later
+                                 run never replaces a file it did not write
 
-Bags are keyed by their path relative to the analysed root (`bag_keys`: the directory given,
-or the common directory of the paths given), so a season moved elsewhere still joins and is
-not analysed again.
+**A bag is its content.** Both tables are keyed by `bag_id`, the bag's content fingerprint
+(bags.fingerprint: SHA-256 of its bytes), so the same recording is one bag however it was
+found: analysed from another root, in a moved or renamed folder, through a symbolic link, or a
+copy of it found beside it (counted once, named in the report). A fingerprint is taken once:
+a bag found again at the path, size and modification time its row records keeps its id
+without being read. `bag` is the bag's name for people (the Shapefile's `bag`, the ISOXML
+task, the report's fields): its path relative to the analysed root (the directory given, or
+the common directory of the paths given), made unique among the table's bags by as many of its
+parent folders as it takes; a later run that finds it again renames it to its path from that
+run's root, unless that run looked only into a folder below (a shorter name, less context: the
+name is kept). A rename rewrites the bag's rows of the plants parts.
 
 A run holds a lock on the directory itself (flock on its descriptor) while it writes, so a
 second run on it is refused; the kernel drops it however the run ends, and no lock file is left
 behind (the `.planter-analyze.lock` of earlier versions is removed).
 
-The bags table is the truth: a bag's plants are the rows of its
-`plants_file` whose `bag` is it. A bag is analysed again unless the table holds it with the
-same key (BagKey: key, size, modification time, model version, options = the settings given and
-the fallback scene's design) or `force`. Before the work starts, the rows of every bag to be
-analysed again are removed from both tables, and so are rows no bag of the table claims (an
-interrupted write), so the tables never hold a bag twice. Results are written as they complete,
-every FLUSH_SECONDS at least (a larger table is rewritten less often), so an interrupted run
-keeps what it finished.
+The bags table is the truth: a bag's plants are the rows of its `plants_file` whose `bag_id`
+is it. A bag is analysed again unless the table holds it (its `bag_id`) with the same model
+version and options (the settings given and the fallback scene's design), or `force`. Before
+the work starts, the rows of every bag to be analysed again are removed from both tables, and
+so are rows no bag of the table claims (an interrupted write), so the tables never hold a bag
+twice. Tables of earlier versions, keyed by the path alone, are analysed again whole. Results
+are written as they complete, every FLUSH_SECONDS at least (a larger table is rewritten less
+often), so an interrupted run keeps what it finished.
 """
 
 from dataclasses import dataclass, field
@@ -38,7 +48,7 @@ from planter_ros.design import to_json
 from planter_ros.output_files import OutputError, atomic_output
 
 from . import tables
-from .bags import identity
+from .bags import fingerprint, identity
 
 BAGS_DIR = 'bags'
 BAGS_FILE = f'{BAGS_DIR}/bags.parquet'
@@ -50,7 +60,8 @@ LEGACY_BAGS_FILE = 'bags.parquet'     # where an older planter analyze put the b
 SHAPEFILE = 'as_planted.zip'
 ISOXML = 'TASKDATA.zip'
 EXPORTS = (SHAPEFILE, ISOXML)
-OWNED = (BAGS_DIR, PLANTS_DIR, LOCK_FILE, REPORT_FILE, LEGACY_BAGS_FILE) + EXPORTS
+OUTPUT_RECORD = '.planter-analyze.json'   # the files this command wrote here (check_out)
+OWNED = (BAGS_DIR, PLANTS_DIR, LOCK_FILE, REPORT_FILE, LEGACY_BAGS_FILE, OUTPUT_RECORD) + EXPORTS
 FLUSH_SECONDS = 5.0          # s between two writes of the tables, at least
 FLUSH_BAGS = 2000            # bags completed that force a write
 # status of a bag row: replayed (with or without warnings), refused by replay, a model error
@@ -60,8 +71,8 @@ STATUSES = ('ok', 'warnings', 'failed', 'error')
 
 @dataclass(frozen=True)
 class BagKey:
-    """What a bag's analysis depends on: a re-run skips a bag whose key is unchanged. `bag`:
-    the path relative to the analysed root (the tables' key); `path`: where it is read."""
+    """What a bag's analysis depends on: a re-run skips a bag whose key is unchanged. `bag_id`:
+    its content (the tables' key); `bag`: its name for people; `path`: where it is read."""
 
     bag: str
     file_size: int
@@ -69,16 +80,16 @@ class BagKey:
     model_version: str
     options: str
     path: str = ''
+    bag_id: str = ''
 
     def matches(self, row):
-        return (row.get('file_size') == self.file_size
-                and row.get('file_mtime_ns') == self.file_mtime_ns
+        return (row.get('bag_id') == self.bag_id
                 and row.get('model_version') == self.model_version
                 and row.get('options') == self.options)
 
 
 def analysed_root(paths):
-    """The directory the bags' keys are relative to: the directory given, a file's own
+    """The directory the bags' names are relative to: the directory given, a file's own
     directory, the common directory of several."""
     roots = []
     for given in paths:
@@ -88,9 +99,50 @@ def analysed_root(paths):
 
 
 def bag_keys(bags, root):
-    """{bag path: its key}: the path relative to `root`, '/'-separated."""
+    """{bag path: its name}: the path relative to `root`, '/'-separated."""
     root = Path(root)
     return {str(bag): Path(os.path.relpath(bag, root)).as_posix() for bag in bags}
+
+
+def unique_name(name, path, taken):
+    """`name`, or the shortest longer tail of the bag's `path` that no other bag has in
+    `taken` ({name: bag_id}); the path itself with its id when even that is taken."""
+    if name not in taken:
+        return name
+    parts = Path(path).parts
+    for k in range(len(Path(name).parts) + 1, len(parts) + 1):
+        longer = Path(*parts[-k:]).as_posix()
+        if longer not in taken:
+            return longer
+    return f'{Path(path).as_posix()} #{len(taken)}'
+
+
+FINGERPRINT_THREADS = 4          # bags read at once for their fingerprints (hashlib frees the GIL)
+
+
+def fingerprints(paths, known):
+    """{path: (bag_id, size, mtime ns)} of bags at `paths`: the id of `known` ({(path, size,
+    mtime): bag_id}, what the table recorded) when the bag is unchanged there, else its
+    fingerprint (read in threads). A bag that cannot be read gets an id of its own path (its
+    analysis will say why)."""
+    from concurrent.futures import ThreadPoolExecutor
+    out, todo = {}, []
+    for path in paths:
+        size, mtime = identity(path)
+        bag_id = known.get((str(path), size, mtime))
+        out[path] = (bag_id, size, mtime)
+        if bag_id is None:
+            todo.append(path)
+
+    def read(path):
+        try:
+            return fingerprint(path)
+        except OSError as exc:
+            return f'unreadable:{Path(path).as_posix()}:{exc.errno}'
+    with ThreadPoolExecutor(max_workers=FINGERPRINT_THREADS) as pool:
+        for path, bag_id in zip(todo, pool.map(read, todo)):
+            out[path] = (bag_id, *out[path][1:])
+    return out
 
 
 def options_key(overrides, design):
@@ -118,6 +170,7 @@ class Report:
     workers: int = 0
     not_done: list = field(default_factory=list)    # (bag, reason): the engine lost them
     failures: list = field(default_factory=list)    # (bag, status, reason)
+    copies: list = field(default_factory=list)      # (path, path of the same bag found first)
 
     def as_json(self):
         done = self.analysed + self.failed
@@ -130,6 +183,7 @@ class Report:
                 'times_real_time': self.data_seconds / self.seconds if self.seconds > 0
                 else None,
                 'failures': [{'bag': b, 'status': s, 'reason': r} for b, s, r in self.failures],
+                'copies': [{'path': p, 'same_as': q} for p, q in self.copies],
                 'lost': [{'bag': b, 'reason': r} for b, r in self.not_done],
                 'tables': {'bags': str(Path(self.out) / BAGS_DIR),
                            'plants': str(Path(self.out) / PLANTS_DIR)}}
@@ -137,8 +191,11 @@ class Report:
 
 def check_out(path, option='--out'):
     """Refuse (OutputError) an output directory the tables cannot go to: a path that is not a
-    directory, a directory that is not writable or that holds other files and no tables of an
-    earlier run, a new one whose parent is missing or read-only. Returns a Path."""
+    directory, a directory that is not writable, one that holds files this command did not
+    write (a directory that is neither new nor empty must be the output of an earlier planter
+    analyze: its OUTPUT_RECORD, or an earlier version's bags table; and a file there that the
+    record does not know as written, such as a user's own report.html, is never replaced), a
+    new one whose parent is missing or read-only. Returns a Path."""
     from planter_ros.output_files import check_directory
     path = Path(path)
     if path.exists() or path.is_symlink():
@@ -146,15 +203,72 @@ def check_out(path, option='--out'):
             raise OutputError(f'{option} = {path} exists and is not a directory: allowed a new '
                               'or an empty directory, or the output of an earlier planter analyze')
         names = {entry.name for entry in os.scandir(path)}
-        if names and not names & set(OWNED):
-            raise OutputError(f'{option} = {path} holds other files: allowed a new or an empty '
-                              'directory, or the output of an earlier planter analyze')
+        if names:
+            record = read_output_record(path, option)
+            legacy = record is None and (path / BAGS_FILE).is_file()
+            if record is None and not legacy:
+                raise OutputError(f'{option} = {path} holds other files ({sorted(names)[0]}): '
+                                  'allowed a new or an empty directory, or the output of an '
+                                  'earlier planter analyze')
+            if (path / BAGS_FILE).exists():
+                read_bags(path / BAGS_FILE, option)
+            # (an earlier version's output, which kept no record: its files are its own)
+            foreign = [] if legacy else [
+                name for name in (REPORT_FILE, LEGACY_BAGS_FILE) + EXPORTS
+                if (path / name).exists() and not _ours(path, name, record)]
+            if foreign:
+                raise OutputError(f'{option} = {path} holds {foreign[0]}, which planter analyze '
+                                  'did not write (or was changed since): allowed an output '
+                                  'directory whose files are its own (move that file away)')
         check_directory(path, option)
-        if (path / BAGS_FILE).exists():
-            read_bags(path / BAGS_FILE, option)
     else:
         check_directory(path.parent if str(path.parent) else Path('.'), option, path)
     return path
+
+
+def read_output_record(out, option='--out'):
+    """The OUTPUT_RECORD of an output directory ({'written': {name: sha256}}), None if it has
+    none; OutputError if it is there but not one."""
+    file = Path(out) / OUTPUT_RECORD
+    if not file.exists():
+        return None
+    try:
+        record = json.loads(file.read_text(encoding='utf-8'))
+        if not isinstance(record.get('written'), dict):
+            raise ValueError('no written files')
+        return record
+    except (OSError, ValueError, AttributeError) as exc:
+        raise OutputError(f'{option}: {file} is not planter analyze\'s record of its files '
+                          f'({type(exc).__name__}): allowed the output of planter analyze') \
+            from None
+
+
+def _file_digest(file):
+    digest = hashlib.sha256()
+    with open(file, 'rb') as f:
+        while block := f.read(1 << 20):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _ours(out, name, record):
+    """The file `name` under `out` is as this command wrote it (the record's digest)."""
+    file = Path(out) / name
+    return file.is_file() and record['written'].get(name) == _file_digest(file)
+
+
+def record_written(out, names):
+    """Add the files `names` under `out` (written by this run, or an earlier version's that
+    kept no record) to its OUTPUT_RECORD, with their digests."""
+    out = Path(out)
+    record = read_output_record(out) or {'what': 'files planter analyze wrote here (sha256); '
+                                                 'a file not listed, or changed since, is '
+                                                 'never replaced', 'written': {}}
+    for name in names:
+        if (out / name).is_file():
+            record['written'][name] = _file_digest(out / name)
+    with atomic_output(out / OUTPUT_RECORD) as tmp:
+        tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + '\n', encoding='utf-8')
 
 
 def read_bags(file, option='--out'):
@@ -188,6 +302,9 @@ class Season:
             raise OutputError(f'--out = {out} is being written by another planter analyze: '
                               'allowed an output directory no other run is writing') from None
         (self.out / LOCK_FILE).unlink(missing_ok=True)
+        if not (self.out / OUTPUT_RECORD).exists():      # the directory is this command's:
+            # new, or an earlier version's output (check_out let it through): its files too
+            record_written(self.out, EXPORTS + (REPORT_FILE,))
         self.plants_dir = self.out / PLANTS_DIR
         self.plants_dir.mkdir(exist_ok=True)
         (self.out / BAGS_DIR).mkdir(exist_ok=True)
@@ -197,7 +314,17 @@ class Season:
             for part in self.plants_dir.glob('part-*.parquet'):
                 part.unlink()
         file = self.out / BAGS_FILE
-        self.rows = {row['bag']: row for row in read_bags(file)} if file.exists() else {}
+        rows = read_bags(file) if file.exists() else []
+        if any(not row.get('bag_id') for row in rows):   # keyed by the path alone: redone
+            rows = []
+            file.unlink()
+            for part in self.plants_dir.glob('part-*.parquet'):
+                part.unlink()
+        self.rows = {row['bag_id']: row for row in rows}
+        self.copies = []                     # (path, path of the same bag found first)
+        self.renamed = {}                    # bag_id -> its new name (plan)
+        self.moved = False                   # a bag skipped was found elsewhere (plan)
+        self.superseded = []                 # names of bags whose file was rewritten (plan)
         self._run = time.strftime('%Y%m%dT%H%M%S') + f'-{os.getpid()}'
         self._parts = 0
         for stale in self.plants_dir.glob('.*.tmp.parquet'):   # a killed run's temporary file
@@ -212,6 +339,7 @@ class Season:
         self._lock = None
         if self.created and not self.rows:
             try:
+                (self.out / OUTPUT_RECORD).unlink(missing_ok=True)
                 self.plants_dir.rmdir()
                 (self.out / BAGS_DIR).rmdir()
                 self.out.rmdir()
@@ -225,33 +353,105 @@ class Season:
         self.close()
 
     def plan(self, bags, version, options, force=False):
-        """(keys of the bags to analyse, number skipped): a bag is skipped when its row has
-        the same key and its plants part is there. `bags`: {path: key} (bag_keys)."""
+        """(keys of the bags to analyse, number skipped). `bags`: {path: its name from the
+        analysed root} (bag_keys). Each bag is its content: paths with the same content are
+        one bag (the first; the others in `self.copies`); a bag the table holds with the same
+        model version and options, its plants part there, is skipped; the names of the bags
+        found are brought up to date (module doc; `self.renamed`, `apply_renames`)."""
+        known = {(row.get('path'), row.get('file_size'), row.get('file_mtime_ns')): bag_id
+                 for bag_id, row in self.rows.items()}
+        ids = fingerprints(sorted(bags), known)
+        found = {}
+        for path in sorted(bags):
+            found.setdefault(ids[path][0], []).append(path)
+        first = {}
+        for bag_id, paths in found.items():
+            # the path the table knows the bag at, else the one its name names (a moved
+            # folder), else the first: the others are copies
+            row = self.rows.get(bag_id) or {}
+            name = row.get('bag', '')
+            path = next((p for p in paths if str(p) == row.get('path')), None) or next(
+                (p for p in paths if name and (bags[p] == name or name.endswith('/' + bags[p])
+                                               or bags[p].endswith('/' + name))), paths[0])
+            first[bag_id] = path
+            self.copies += [(str(p), str(path)) for p in paths if p != path]
+        # a bag of the table whose file now holds another recording (rewritten in place, a
+        # repaired copy) and that is not found elsewhere: the new content takes its place
+        at = {str(path): bag_id for path in bags for bag_id in (ids[path][0],)}
+        for bag_id, row in list(self.rows.items()):
+            if bag_id not in found and at.get(row.get('path'), bag_id) != bag_id:
+                del self.rows[bag_id]
+                self.superseded.append(row['bag'])
+        taken = {row['bag']: bag_id for bag_id, row in self.rows.items() if bag_id not in first}
         todo, skipped = [], 0
-        for bag, name in bags.items():
-            size, mtime = identity(bag)
-            key = BagKey(name, size, mtime, version, options, str(bag))
-            row = self.rows.get(key.bag)
+        for bag_id, path in first.items():
+            _, size, mtime = ids[path]
+            row = self.rows.get(bag_id)
+            name = bags[path]
+            if row is not None and row['bag'] != name and \
+                    row['bag'].endswith('/' + name):   # seen from a folder below: keep
+                name = row['bag']
+            name = unique_name(name, path, taken)
+            taken[name] = bag_id
+            key = BagKey(name, size, mtime, version, options, str(path), bag_id)
             part = row and row.get('plants_file')
             if (not force and row is not None and key.matches(row)
                     and (not part or (self.plants_dir / part).is_file())):
                 skipped += 1
+                if row['bag'] != name:
+                    self.renamed[bag_id] = name
+                found = dict(bag=name, file_size=size, file_mtime_ns=mtime, path=str(path))
+                if any(row.get(k) != v for k, v in found.items()):
+                    row.update(found)
+                    self.moved = True
             else:
                 todo.append(key)
         return todo, skipped
+
+    def apply_renames(self):
+        """Write what `plan` found changed: the bags table (names, where each bag is), and the
+        plants parts holding a renamed bag's rows (each part replaced whole), the rows of bags
+        whose file now holds another recording. True if a bag was renamed or removed (the
+        exports are written again)."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+        import pyarrow.parquet as pq
+        if self.superseded:
+            self.clear([])                   # their plants go with them
+            self.write_bags()
+        if not self.renamed:
+            if self.moved:
+                self.write_bags()
+            return bool(self.superseded)
+        parts = {self.rows[bag_id].get('plants_file') for bag_id in self.renamed} - {None}
+        ids = pa.array(sorted(self.renamed), type=pa.string())
+        names = pa.array([self.renamed[i] for i in sorted(self.renamed)], type=pa.string())
+        for part in sorted(parts):
+            file = self.plants_dir / part
+            if not file.is_file():
+                continue
+            table = pq.read_table(file)
+            where = pc.index_in(table['bag_id'], value_set=ids)
+            renamed = pc.if_else(pc.is_null(where), table['bag'], pc.take(names, where))
+            table = table.set_column(table.schema.get_field_index('bag'), 'bag', renamed)
+            with atomic_output(file) as tmp:
+                pq.write_table(tables.with_units(table, tables.PLANTS), tmp)
+        self.write_bags()
+        return True
 
     def clear(self, keys):
         """Remove the rows of the bags `keys` name from both tables, and plants rows no bag
         claims; write what changed."""
         import pyarrow.compute as pc
         import pyarrow.parquet as pq
-        dropped = [k.bag for k in keys if self.rows.pop(k.bag, None) is not None]
+        dropped = [k.bag_id for k in keys if self.rows.pop(k.bag_id, None) is not None]
         claimed = {}
-        for bag, row in self.rows.items():
+        for bag_id, row in self.rows.items():
             if row.get('plants_file'):
-                claimed.setdefault(row['plants_file'], set()).add(bag)
+                claimed.setdefault(row['plants_file'], set()).add(bag_id)
         for part in sorted(self.plants_dir.glob('part-*.parquet')):
-            held = set(pq.read_table(part, columns=['bag']).column('bag').unique().to_pylist())
+            held = set(pq.read_table(part, columns=['bag_id']).column('bag_id').unique()
+                       .to_pylist())
             keep = held & claimed.get(part.name, set())
             if keep == held:
                 continue
@@ -259,7 +459,8 @@ class Season:
                 part.unlink()
                 continue
             table = pq.read_table(part)
-            table = table.filter(pc.is_in(table['bag'], value_set=tables.column(sorted(keep))))
+            table = table.filter(pc.is_in(table['bag_id'],
+                                          value_set=tables.column(sorted(keep))))
             with atomic_output(part) as tmp:
                 pq.write_table(table, tmp)
         if dropped:
@@ -278,13 +479,13 @@ class Season:
                 pq.write_table(tables.concat(parts, tables.PLANTS), tmp)
         for row, table in finished:
             row['plants_file'] = name if table is not None else None
-            self.rows[row['bag']] = row
+            self.rows[row['bag_id']] = row
         self.write_bags()
 
     def write_bags(self):
         import pyarrow.parquet as pq
-        table = tables.table_of([self.rows[bag] for bag in sorted(self.rows)], tables.BAGS,
-                                self.root)
+        table = tables.table_of(sorted(self.rows.values(), key=lambda row: row['bag']),
+                                tables.BAGS, self.root)
         with atomic_output(self.out / BAGS_FILE) as tmp:
             pq.write_table(table, tmp)
 
@@ -317,7 +518,7 @@ def run(season, client, keys, overrides, design, progress=None):
     report = Report(out=str(season.out))
     if design is not None:                   # one copy per worker, not one per task
         design = client.scatter(design, broadcast=True)
-    arguments = [(k.path or k.bag, k.bag, (k.file_size, k.file_mtime_ns), k.options)
+    arguments = [(k.path or k.bag, k.bag, (k.file_size, k.file_mtime_ns, k.bag_id), k.options)
                  for k in keys]
     options = {'overrides': overrides, 'design': design,
                'version': keys[0].model_version if keys else None}
@@ -388,12 +589,28 @@ def _first_line(exc):
 SHOWN_FAILURES = 10      # failed bags listed for people (all are in the bags table)
 
 
+def notices(report: Report, exports, failed) -> list[str]:
+    """The run's lines for stderr: bags left out of the ISOXML, bags the engine lost, outputs
+    not written ([(path, its one-line reason)])."""
+    return ([f'planter: warning: {item["bag"]} not in the ISOXML task data ({item["reason"]})'
+             for item in (exports or {}).get('skipped', [])]
+            + [f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again'
+               for bag, reason in report.not_done]
+            + [f'planter: error: {path} not written ({reason}); the tables and the '
+               'other outputs are' for path, reason in failed])
+
+
 def format_report(report: Report) -> str:
     """The run's report for people."""
     data = report.as_json()
     lines = [f'{report.found} bags found: {report.analysed} analysed ({report.warnings} with '
              f'warnings), {report.failed} failed, {report.skipped} skipped (analysed before), '
              f'{len(report.not_done)} lost; {report.plants} plants']
+    if report.copies:
+        path, same = report.copies[0]
+        more = f' and {len(report.copies) - 1} more' if len(report.copies) > 1 else ''
+        lines.append(f'{len(report.copies)} file(s) are copies of bags found (counted once): '
+                     f'{path} = {same}{more}')
     if report.seconds > 0:
         lines.append(f'{report.seconds:.1f} s on {report.workers} worker(s): '
                      f'{data["bags_per_second"]:.3g} bags/s, '

@@ -10,10 +10,19 @@ from .engine import check_workers, cluster, completed
 from .progress import Progress
 from .task import model_version, warm_up
 
-__all__ = ['check_path', 'scene_machine', 'season_machine', 'simulate_scene_bag',
+__all__ = ['check_path', 'check_tray', 'scene_machine', 'season_machine', 'simulate_scene_bag',
            'simulate_season']
 
 DEFAULT_ROWS = 4
+
+
+def check_tray(empty_rate, double_rate):
+    """ConfigError (one line) for tray shares that add up to more than the whole tray."""
+    from planter_ros.config import ConfigError
+    if empty_rate + double_rate > 1.0:
+        raise ConfigError(f'--empty-rate {empty_rate:g} + --double-rate {double_rate:g} = '
+                          f'{100 * (empty_rate + double_rate):g} % of the cells: allowed '
+                          'shares of the tray that add up to at most 1')
 
 
 def season_machine(scene, rows):
@@ -21,10 +30,19 @@ def season_machine(scene, rows):
     --scene and --rows (None: not given): ConfigError (one line) for both, or a bad scene."""
     from planter_ros.config import ConfigError
     if not scene:
-        return None, DEFAULT_ROWS if rows is None else rows
+        from planter_ros.plausibility import bus_rows
+        count = DEFAULT_ROWS if rows is None else rows
+        refused = bus_rows(count)              # the rows' drives on the sync node's bus
+        if refused:
+            raise ConfigError(f'--rows = {count}: {refused}')
+        return None, count
     if rows is not None:
         raise ConfigError(f'--rows = {rows} with --scene: allowed one of them (the scene\'s '
                           "rows are its machine's)")
+    import sys
+    from planter_ros.scene import open_scene
+    for warning in open_scene(scene).warnings:     # defaults taken, unusual values
+        print(f'planter: warning: {warning}', file=sys.stderr)
     machine = scene_machine(scene)
     if machine.law.speed_profile == 'cam':
         from planter_ros.cam import CamError
@@ -63,9 +81,14 @@ def scene_machine(scene):
                 raise SceneError(f'scene {opened.path}: spacing_schedule {spacing} m at {t} s: '
                                  f'{exc}') from None
             current = spacing
+    # cruise speeds around the nominal one, never above the scene's top ground speed once
+    # the run's speed change (up to SPEED_CHANGE_MAX) is on top: the cam is planned for it
+    from planter_ros.sim.season import SPEED_CHANGE_MAX
+    ceiling = design.top_ground_speed / SPEED_CHANGE_MAX
     return SceneMachine(design, tuple(opened.rows()),
                         from_mapping(PredictionSettings, monitor), opened.acceptance(),
-                        opened.antenna(), (0.75 * nominal, 1.5 * nominal),
+                        opened.antenna(), (min(0.75 * nominal, ceiling),
+                                           min(1.5 * nominal, ceiling)),
                         from_mapping(PhaseLockConfig, opened.parameters('sync_node')),
                         tuple(schedule))
 
@@ -82,6 +105,9 @@ def simulate_scene_bag(path, seed, index, duration, rows, scene=None, empty_rate
 def check_path(path, names):
     """Refuse (OutputError) a PATH the bags cannot be written to: not a directory, not
     writable, a parent missing, or one of the bags already there (never overwritten)."""
+    if path is None or str(path).strip() == '':
+        raise OutputError("PATH is empty: allowed a directory for the bags (made if missing; "
+                          "'.' for the working directory)")
     path = Path(path)
     if path.exists() or path.is_symlink():
         if not path.is_dir():

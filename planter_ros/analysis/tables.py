@@ -1,16 +1,19 @@
 """The season's tables as Arrow (pyarrow), built from `planter replay --json`, for people:
 each in its own folder (`bags/`, `plants/`), so `**/*.parquet` never mixes them.
 
-* `plants`: one row per plant: `bag` (the bag's path relative to the analysed root, so a season
-  moved elsewhere still joins), then the JSON's plant fields under names that carry their unit
+* `plants`: one row per plant: `bag` (the bag's name: its path relative to the analysed root),
+  `bag_id` (its content fingerprint: the key the tables join by, analysis.season), then the
+  JSON's plant fields under names that carry their unit
   (PLANTS_COLUMNS): `index` and `row` int64, `row_name` (text: the row's name, `row` for a
   machine without named rows) after `row`, `time_utc` a UTC timestamp (ns; the planting instant
   on the recording's clock, ROS time = s since 1970-01-01 UTC), `upright` bool, lengths `_m`,
   speeds `_m_s` and `_rad_s`, `tilt_rad`, `latitude_deg` / `longitude_deg`, `input_gap` bool,
-  `seedlings` int64, `status` and `reason` as text (prediction.seedlings). A field the model
+  `seedlings` int64, `status` and `reason` as text (prediction.seedlings), `heading_rad` (the
+  machine's heading at the instant, counter-clockwise from east, null without a map position:
+  where the ISOXML export places the machine). A field the model
   gains later is a new column under its JSON name. Null where the JSON has null (the first
   plant's spacing). `plant_dicts` turns a table back into the JSON's plant dicts.
-* `bags`: one row per bag: `bag` (relative, as in plants), `status` (ok | warnings | failed |
+* `bags`: one row per bag: `bag` and `bag_id` (as in plants), `status` (ok | warnings | failed |
   error), `reason` (one line, null unless failed or error), the re-run key (`file_size`,
   `file_mtime_ns`, `model_version`, `options`), `analysed_at` (UTC timestamp),
   `analysis_seconds`, `analysis_cpu_seconds`, `plants_file` (the part of the plants dataset
@@ -46,7 +49,7 @@ UNITS = {
     'file_mtime_ns': 'ns since the epoch', 'analysis_seconds': 's',
     'analysis_cpu_seconds': 's', 'lateral_offset': 'm',
     'analysed_at': 'UTC timestamp', 'plant_spacing': 'm', 'planting_depth': 'm',
-    'nominal_ground_speed': 'm/s', 'time_utc': 'UTC timestamp',
+    'nominal_ground_speed': 'm/s', 'top_ground_speed': 'm/s', 'time_utc': 'UTC timestamp',
     'nozzle_width': 'm', 'drive_node_id': '1', 'spacings': '1', 'fixes': '1',
     'multiple_index': '1', 'miss_index': '1', 'quality_of_feed_index': '1', 'precision': '1',
     'tilt_max': 'rad', 'total_read': '1',
@@ -59,6 +62,7 @@ UNITS = {
     'antenna_position': 'm', 'nominal_mechanism_speed': 'rad/s', 'centre_distance': 'm',
     'closure_residual': '1', 'goals_passed': '1', 'carrier_speed': 'rad/s',
     'requested_hole': 'm', 'psi': 'rad', 'depth': 'm', 'seedlings': '1', 'planted': '1',
+    'dyad_ratios': '1', 'longitudinal_offset': 'm', 'heading': 'rad',
     'empty': '1', 'double': '1', 'unknown': '1', 'input_gap': '1', 'instants': '1',
 }
 # the plants table's column of each JSON plant field (a unit in the name where one is needed)
@@ -148,7 +152,7 @@ def unflatten(row):
 
 # columns of text whatever values a table happens to hold (a table where every `reason` is
 # null or every `warnings` list is empty keeps their types)
-TEXT = ('bag', 'path', 'status', 'reason', 'model_version', 'options', 'plants_file',
+TEXT = ('bag', 'bag_id', 'path', 'status', 'reason', 'model_version', 'options', 'plants_file',
         'row_name')
 TEXT_LISTS = ('warnings',)
 TIMESTAMPS = ('analysed_at',)            # s since the epoch in the row dicts
@@ -246,9 +250,10 @@ def plants_table(bag, plants, rows=()):
     return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
 
 
-def plants_arrays_table(bag, plants, rows=()):
+def plants_arrays_table(bag, plants, rows=(), bag_id=None):
     """`plants_table(bag, plants.rows(), rows)` straight from a prediction.Plants (its arrays,
-    no dict per plant): the same table, value for value (a non-finite value is null)."""
+    no dict per plant): the same table, value for value (a non-finite value is null); with
+    `bag_id` (the bag's content id, the key planter analyze joins the tables by) after `bag`."""
     import numpy as np
     import pyarrow as pa
 
@@ -256,6 +261,9 @@ def plants_arrays_table(bag, plants, rows=()):
     names = {int(i): str(n) for i, n in rows}
     n = len(plants)
     arrays, columns = [pa.array([bag] * n, type=pa.string())], ['bag']
+    if bag_id is not None:
+        arrays.append(pa.array([bag_id] * n, type=pa.string()))
+        columns.append('bag_id')
     for key in prediction.PLANT_FIELDS:
         values = np.asarray(getattr(plants, key), dtype=float)
         null = ~np.isfinite(values)
@@ -287,6 +295,22 @@ def plants_arrays_table(bag, plants, rows=()):
     return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
 
 
+HEADING = 'heading_rad'         # the machine's heading at each plant (not a JSON plant field)
+
+
+def with_heading(table, heading):
+    """A plants table with `heading_rad`: the machine's heading at each plant (rad,
+    counter-clockwise from east, REP 103; null where the plant has no map position), what the
+    ISOXML export places the machine with."""
+    import numpy as np
+    import pyarrow as pa
+    values = np.full(table.num_rows, np.nan) if heading is None else \
+        np.asarray(heading, dtype=float)
+    null = ~np.isfinite(values)
+    column = pa.array(np.where(null, np.nan, values), mask=null)
+    return with_units(table.append_column(HEADING, column), PLANTS)
+
+
 def _code_name(field, value):
     from planter_ros import prediction
     names = getattr(prediction, CODE_FIELDS[field])
@@ -301,13 +325,14 @@ def _name_code(field, value):
 
 def plant_dicts(table):
     """The JSON plant dicts (`planter replay --json`'s `plants`) of a plants table's rows,
-    without `bag` and `row_name`: the inverse of plants_table (times to 1 µs)."""
+    without `bag`, `bag_id`, `row_name` and `heading_rad`: the inverse of plants_table (times
+    to 1 µs)."""
     back = {column: field for field, column in PLANTS_COLUMNS.items()}
     out = []
     for row in table.to_pylist():
         plant = {}
         for name, value in row.items():
-            if name in ('bag', 'row_name'):
+            if name in ('bag', 'bag_id', 'row_name', HEADING):
                 continue
             field = back.get(name, name)
             if field == 'time' and value is not None:
@@ -362,18 +387,48 @@ def _schema_with_units(schema, kind, root):
     has the same)."""
     import pyarrow as pa
     units = {}
-    fields = []
-    for f in schema:
-        unit = unit_of(f.name)
-        if unit is not None:
-            units[f.name] = unit
-            f = f.with_metadata({b'unit': unit.encode()})
-        fields.append(f)
+    fields = [_field_with_units(f, f.name, units) for f in schema]
     info = {'table': kind, 'units': units}
     if root is not None:
         info['root'] = root
     meta = {METADATA_KEY: json.dumps(info).encode()}
     return pa.schema(fields, metadata=meta)
+
+
+# a figure whose unit is its limit's: a fraction, or m for the hole width (acceptance.failed)
+FIGURE_UNIT = '1 (m for max_hole_width)'
+NESTED_UNITS = {'acceptance.failed.value': FIGURE_UNIT, 'acceptance.failed.limit': FIGURE_UNIT}
+
+
+def _field_with_units(f, name, units):
+    """`f` with its unit in its metadata (and `units[name]`); a struct's or a list's fields
+    each with their own, named `name.field` (`rows.summary.spacing_error_mean`)."""
+    import pyarrow as pa
+    kind = f.type
+    if pa.types.is_struct(kind):
+        kind = pa.struct([_field_with_units(kind.field(i), f'{name}.{kind.field(i).name}', units)
+                          for i in range(kind.num_fields)])
+        return pa.field(f.name, kind, f.nullable, f.metadata)
+    if pa.types.is_list(kind) and (pa.types.is_struct(kind.value_type)
+                                   or pa.types.is_list(kind.value_type)):
+        item = _field_with_units(kind.value_field, name, units)
+        return pa.field(f.name, pa.list_(item), f.nullable, f.metadata)
+    if not (_numeric(kind) or pa.types.is_boolean(kind)):
+        return f
+    unit = NESTED_UNITS.get(name) or unit_of(name)
+    if unit is None:
+        return f
+    units[name] = unit
+    return f.with_metadata({**(f.metadata or {}), b'unit': unit.encode()})
+
+
+def _numeric(kind):
+    """A number, a time or a list of them (not a flag, not text)."""
+    import pyarrow as pa
+    if pa.types.is_list(kind):
+        return _numeric(kind.value_type)
+    return pa.types.is_integer(kind) or pa.types.is_floating(kind) or \
+        pa.types.is_timestamp(kind)
 
 
 def units(schema):

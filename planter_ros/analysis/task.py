@@ -14,7 +14,7 @@ import time
 from planter_ros.recording.errors import RecordingError
 from planter_ros.recording.replay import replay
 
-from .tables import flatten, plants_arrays_table
+from .tables import flatten, plants_arrays_table, with_heading
 
 # planter_ros packages whose code cannot change a replay's result (not in the model version)
 NOT_MODEL = ('analysis', 'bench', 'cli', 'nodes', 'optimize', 'plots', 'sim')
@@ -60,18 +60,20 @@ def warm_up():
 def analyze_bag(path, key, identity, options, overrides, design, version):
     """Replay the bag at `path` as `planter replay` would with the setting `overrides` (and the
     fallback `design`, or None): (its `bags` row, its `plants` table or None), both naming it
-    `key` (its path relative to the analysed root). A bag replay cannot read is a row with
-    status 'failed' and its one-line reason; any other exception of the model on this bag is
-    status 'error'. `identity`, `options` and `version` are the re-run key the client decided
-    on (season.BagKey)."""
+    `key` (its name: its path relative to the analysed root) and keyed by its content id. A bag
+    replay cannot read is a row with status 'failed' and its one-line reason; any other
+    exception of the model on this bag is status 'error'. `identity` (size, modification time
+    ns, content id: season.BagKey; without the id, the path stands for it), `options` and
+    `version` are the re-run key the client decided on."""
     started, cpu = time.perf_counter(), time.process_time()
     if model_version() != version:
         raise WorkerMismatch(f'worker runs planter_ros model version {model_version()}, the '
                              f'analysis asked for {version}')
-    row = {'bag': key, 'status': None, 'reason': None, 'file_size': identity[0],
-           'file_mtime_ns': identity[1], 'model_version': version, 'options': options,
-           'analysed_at': time.time(), 'analysis_seconds': None,
-           'analysis_cpu_seconds': None, 'plants_file': None}
+    bag_id = identity[2] if len(identity) > 2 else f'path:{path}'
+    row = {'bag': key, 'bag_id': bag_id, 'status': None, 'reason': None,
+           'file_size': identity[0], 'file_mtime_ns': identity[1], 'model_version': version,
+           'options': options, 'analysed_at': time.time(), 'analysis_seconds': None,
+           'analysis_cpu_seconds': None, 'plants_file': None, 'path': str(path)}
     table = None
     try:
         result = replay(str(path), overrides, fallback_design=design)
@@ -85,8 +87,10 @@ def analyze_bag(path, key, identity, options, overrides, design, version):
         row.update(flatten(data))
         row['status'] = 'warnings' if data['warnings'] else 'ok'
         if len(result.plants):
-            table = plants_arrays_table(key, result.plants,
-                                        [(r.index, r.label) for r in result.rows])
+            table = with_heading(plants_arrays_table(key, result.plants,
+                                                     [(r.index, r.label) for r in result.rows],
+                                                     bag_id),
+                                 None if result.placement is None else result.placement.heading)
     row['analysis_seconds'] = time.perf_counter() - started
     # CPU time apart from wall time: on shared cores the difference is time spent waiting
     row['analysis_cpu_seconds'] = time.process_time() - cpu

@@ -3,9 +3,23 @@
 import datetime
 import os
 import platform
+from typing import TypedDict
 
 
-def cpu_model():
+class MachineInfo(TypedDict):
+    """The machine a bench ran on, for its page and JSON."""
+
+    date: str
+    cpu: str
+    cores: int | None
+    usable_cores: int | None
+    os: str
+    python: str
+    numpy: str
+    mpmath: str
+
+
+def cpu_model() -> str:
     try:
         with open('/proc/cpuinfo', encoding='utf-8') as f:
             for line in f:
@@ -16,9 +30,10 @@ def cpu_model():
     return platform.processor() or platform.machine()
 
 
-def machine_info():
+def machine_info() -> MachineInfo:
     import mpmath
     import numpy
+    usable: int | None
     try:
         usable = len(os.sched_getaffinity(0))
     except AttributeError:
@@ -35,7 +50,7 @@ def machine_info():
     }
 
 
-def machine_line(info):
+def machine_line(info: MachineInfo) -> str:
     return (f"{info['date']} · {info['cpu']}, {info['cores']} cores "
             f"({info['usable_cores']} usable) · {info['os']} · Python {info['python']} · "
             f"numpy {info['numpy']} · mpmath {info['mpmath']}")

@@ -1,8 +1,10 @@
 """The bench table for people, the JSON for machines and the markdown page for the docs."""
 
+from collections.abc import Iterable, Sequence
 import shlex
 
-from .machine import machine_line
+from .machine import MachineInfo, machine_line
+from .registry import Row
 
 # The quality targets: (quantity, target, row group that measures it, text its rows' Target
 # starts with). Group None: no bench row measures it (the command named reports it itself).
@@ -64,29 +66,31 @@ QUALITY_TARGETS = (
 )
 
 
-def fmt_time(s):
+def fmt_time(s: float | None) -> str:
     if s is None:
         return '—'
-    for unit, scale in (('s', 1.0), ('ms', 1e-3), ('µs', 1e-6), ('ns', 1e-9)):
-        if s >= scale or unit == 'ns':
+    for unit, scale in (('s', 1.0), ('ms', 1e-3), ('µs', 1e-6)):
+        if s >= scale:
             return f'{s / scale:.3g} {unit}'
+    return f'{s / 1e-9:.3g} ns'
 
 
-def fmt_rate(r, unit):
+def fmt_rate(r: float | None, unit: str) -> str:
     if r is None:
         return '—'
-    for prefix, scale in (('G', 1e9), ('M', 1e6), ('k', 1e3), ('', 1.0)):
-        if r >= scale or prefix == '':
-            return f'{r / scale:.3g} {prefix + " " if prefix else ""}{unit}s/s'
+    for prefix, scale in (('G', 1e9), ('M', 1e6), ('k', 1e3)):
+        if r >= scale:
+            return f'{r / scale:.3g} {prefix} {unit}s/s'
+    return f'{r:.3g} {unit}s/s'
 
 
-def fmt_error(e):
+def fmt_error(e: float | None) -> str:
     if e is None:
         return '—'
     return '0' if e == 0 else f'{e:.1e}'
 
 
-def fmt_size(n):
+def fmt_size(n: int | None) -> str:
     if not n:
         return ''
     return f'{n:.0e}'.replace('e+0', 'e') if n >= 10_000 else str(n)
@@ -97,7 +101,7 @@ HEADER = ('method', 'n', 'time/call', 'p10–p90', 'p99', 'per item', 'throughpu
 LEFT = (0, len(HEADER) - 1)      # columns aligned left: method, target
 
 
-def row_cells(r):
+def row_cells(r: Row) -> tuple[str, ...]:
     """The HEADER columns of one row as text; a row that did not run carries its note only."""
     if r.status != 'ok':
         return (r.note,) + ('',) * (len(HEADER) - 1)
@@ -110,19 +114,19 @@ def row_cells(r):
             rate, fmt_error(r.error), '; '.join(str(x) for x in r.targets))
 
 
-def table_lines(rows):
+def table_lines(rows: Sequence[Row]) -> list[str]:
     cells = [(r.what, row_cells(r)) for r in rows]
     # rows without a size (FAILED, not available) print their note only: not in the widths
     widths = [max([len(HEADER[i]), *(len(c[1][i]) for c in cells if c[1][1] or i == 0)])
               for i in range(len(HEADER))]
     widths[0] = max([len(HEADER[0]), *(len(c[1][0]) for c in cells if c[1][1])])
 
-    def line(values):
+    def line(values: Sequence[str]) -> str:
         return '  ' + '  '.join(v.ljust(w) if i in LEFT else v.rjust(w)
                                 for i, (v, w) in enumerate(zip(values, widths))).rstrip()
 
     out = [line(HEADER)]
-    group = None
+    group: str | None = None
     for what, values in cells:
         if what != group:
             out.append(what)
@@ -134,16 +138,16 @@ def table_lines(rows):
     return out
 
 
-def error_notes(rows):
-    seen = []
+def error_notes(rows: Iterable[Row]) -> list[str]:
+    seen: list[tuple[str, str]] = []
     for r in rows:
         if r.error_of and (r.what, r.error_of) not in seen:
             seen.append((r.what, r.error_of))
     return [f'  error, {what}: {text}' for what, text in seen]
 
 
-def row_notes(rows):
-    out = []
+def row_notes(rows: Iterable[Row]) -> list[str]:
+    out: list[str] = []
     for r in rows:
         line = f'  {r.what} / {r.method}: {r.note}'
         if r.status == 'ok' and r.note and line not in out:
@@ -157,7 +161,7 @@ ERROR_LEGEND = ('error: relative, against mpmath at 40 digits computed by this r
                 'line below says otherwise; — where no error is defined.')
 
 
-def format_table(machine, rows):
+def format_table(machine: MachineInfo, rows: Sequence[Row]) -> str:
     lines = [f'planter bench · {machine_line(machine)}', '']
     lines += table_lines(rows)
     lines += ['', TIME_LEGEND, ERROR_LEGEND]
@@ -167,14 +171,14 @@ def format_table(machine, rows):
     return '\n'.join(lines)
 
 
-def command_line(quick, only, runs, markdown):
+def command_line(quick: bool, only: str | None, runs: int | None, markdown: str) -> str:
     """The `planter bench` command that reproduces a run (for the page's header)."""
     words = ['planter', 'bench'] + ['--quick'] * bool(quick)
     words += (['--only', only] if only else []) + (['--runs', str(runs)] if runs else [])
     return shlex.join(words + ['--markdown', str(markdown)])
 
 
-def as_json(machine, rows, quick):
+def as_json(machine: MachineInfo, rows: Iterable[Row], quick: bool) -> dict[str, object]:
     return {'machine': machine, 'quick': quick, 'rows': [r.as_dict() for r in rows]}
 
 
@@ -224,15 +228,15 @@ METHOD_NOTES = (
 )
 
 
-def _md_cell(text):
+def _md_cell(text: object) -> str:
     return str(text).replace('|', '\\|').replace('\n', ' ')
 
 
-def _md_row(values):
+def _md_row(values: Iterable[object]) -> str:
     return '| ' + ' | '.join(_md_cell(v) for v in values) + ' |'
 
 
-def target_status(rows, group, text):
+def target_status(rows: Iterable[Row], group: str | None, text: str) -> str:
     """'met', 'NOT MET (k of n rows)' or 'no row in this run' for one quality target."""
     if group is None:
         return 'not a bench row'
@@ -246,14 +250,15 @@ def target_status(rows, group, text):
     return f'NOT MET ({missed} of {len(found)} rows)'
 
 
-def _groups(rows):
-    out = {}
+def _groups(rows: Iterable[Row]) -> dict[str, list[Row]]:
+    out: dict[str, list[Row]] = {}
     for r in rows:
         out.setdefault(r.what, []).append(r)
     return out
 
 
-def format_markdown(machine, rows, command, quick=False, seconds=None):
+def format_markdown(machine: MachineInfo, rows: Sequence[Row], command: str,
+                    quick: bool = False, seconds: float | None = None) -> str:
     """The bench as a markdown page: how it was made, the quality targets and whether this run
     met them, one table per row group with its error definition and notes."""
     took = f' · {seconds:.3g} s of bench work' if seconds is not None else ''
@@ -280,7 +285,7 @@ def format_markdown(machine, rows, command, quick=False, seconds=None):
         lines += [f'### {what}', '', _md_row(HEADER), '|' + '|'.join(align) + '|']
         lines += [_md_row(row_cells(r)) for r in members]
         lines.append('')
-        definitions = []
+        definitions: list[str] = []
         for r in members:
             if r.error_of and r.error_of not in definitions:
                 definitions.append(r.error_of)
@@ -288,7 +293,7 @@ def format_markdown(machine, rows, command, quick=False, seconds=None):
             lines.append(f'Error: {definitions[0]}')
         elif definitions:
             lines += ['Error:', ''] + [f'- {text}' for text in definitions]
-        notes = []
+        notes: list[tuple[str, str]] = []
         for r in members:
             if r.status == 'ok' and r.note and (r.method, r.note) not in notes:
                 notes.append((r.method, r.note))

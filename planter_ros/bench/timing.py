@@ -6,6 +6,9 @@ Each repeat runs the callable `loops` times (calibrated so one repeat lasts at l
 garbage collector is off while timing, as in `timeit`.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 import gc
 import time
@@ -20,22 +23,29 @@ class Timing:
     p90: float
     repeats: int
     loops: int
-    p99: float = None           # tail of a latency (many single events), else None
+    p99: float | None = None    # tail of a latency (many single events), else None
 
-    def per(self, n):
+    @property
+    def tail(self) -> float:
+        """p99 of a latency timing (`from_samples(..., tail=True)`)."""
+        if self.p99 is None:
+            raise ValueError('this timing has no tail: time it with from_samples(tail=True)')
+        return self.p99
+
+    def per(self, n: int) -> Timing:
         """The same timing divided over n calls made inside each timed call."""
         return Timing(self.median / n, self.p10 / n, self.p90 / n, self.repeats, self.loops * n,
                       None if self.p99 is None else self.p99 / n)
 
-    def as_dict(self):
-        out = {'median_s': self.median, 'p10_s': self.p10, 'p90_s': self.p90,
+    def as_dict(self) -> dict[str, float]:
+        out: dict[str, float] = {'median_s': self.median, 'p10_s': self.p10, 'p90_s': self.p90,
                'repeats': self.repeats, 'loops': self.loops}
         if self.p99 is not None:
             out['p99_s'] = self.p99
         return out
 
 
-def percentile(sorted_values, q):
+def percentile(sorted_values: Sequence[float], q: float) -> float:
     """Linear-interpolation percentile (q in [0, 100]) of an ascending list."""
     n = len(sorted_values)
     if n == 1:
@@ -46,14 +56,15 @@ def percentile(sorted_values, q):
     return sorted_values[lo] + (sorted_values[hi] - sorted_values[lo]) * (pos - lo)
 
 
-def _run(fn, loops):
+def _run(fn: Callable[[], object], loops: int) -> float:
     t0 = time.perf_counter()
     for _ in range(loops):
         fn()
     return time.perf_counter() - t0
 
 
-def measure(fn, repeats=7, min_time=0.05, max_loops=1 << 20):
+def measure(fn: Callable[[], object], repeats: int = 7, min_time: float = 0.05,
+            max_loops: int = 1 << 20) -> Timing:
     """Time fn(): per-call seconds as median and p10/p90 over `repeats` repeats."""
     enabled = gc.isenabled()
     gc.disable()
@@ -74,7 +85,7 @@ def measure(fn, repeats=7, min_time=0.05, max_loops=1 << 20):
                   repeats, loops)
 
 
-def from_samples(samples, tail=False):
+def from_samples(samples: Sequence[float], tail: bool = False) -> Timing:
     """Timing of already measured per-event seconds (e.g. one subprocess each); `tail` adds
     the 99th percentile (latencies: many events, the tail is the figure that matters)."""
     s = sorted(samples)

@@ -1,25 +1,31 @@
 """The out-of-soil arc: θ(s) between two given states (θ, θ′, θ″) over a given distance, C2 at
 both ends, with the smallest peak load.
 
-The arc's θ″ is piecewise linear on `pieces` equal steps (so θ is a C2 piecewise cubic and θ‴
-is constant per step). Its knot values are the unknowns of a linear programme (scipy HiGHS):
+The arc's θ″ is piecewise linear on `pieces` steps (so θ is a C2 piecewise cubic and θ‴ is
+constant per step), equal but where an end's θ″ must be turned round within the jerk limit
+(finer there: `_grid`). Its knot values are the unknowns of a linear programme (scipy HiGHS):
 
-    minimise   t + w·(peak jerk + peak torque + peak acceleration utilisations)
+    minimise   t + w·(peak speed + jerk + torque + acceleration utilisations)
                  + a small multiple of the mean jerk utilisation (the total variation of θ″,
                  which picks the smoothest of the profiles with the same peaks)
     subject to θ″ at both ends as given; θ′ and θ at the far end as given (two equalities);
-               v·θ′ ≤ t·ω_max at every knot; θ′ ≥ 0 everywhere (its Bernstein coefficients
-               on each step ≥ 0: no reversing);
+               θ′ ≥ 0 everywhere (θ′'s Bernstein coefficients on each step ≥ 0: no
+               reversing); v·θ′ ≤ p_s·ω_max everywhere (θ′'s Bernstein coefficients on each
+               step: the speed held between the knots too);
                v²·|θ″| ≤ p_α·α_max at every knot (α_max: the acceleration limit, or without
                one the torque-limited acceleration, then only a scale: p_α ≤ t is dropped);
                v³·|Δθ″/h| ≤ p_j·j_max on every step;
                |T_m| ≤ p_T·T_peak at every knot, T_m = k_α(θ)·v²θ″ + k_ω(θ)·v²θ′² + g(θ)
                linearised about the previous solution (θ′² ≈ 2pθ′ − p², k(θ) at its θ),
-               repeated a few times;  p_α, p_j, p_T ≤ t;
+               repeated a few times;  p_s, p_α, p_j, p_T ≤ t;
 
 so t is the largest utilisation of any limit at the top speed v, made as small as possible, and
-where the ends already force t (the in-soil speed, say) each limit's own peak still is. The
-end equalities are then closed to round-off by a 2×2 correction of two interior knots.
+where the ends already force t (the in-soil speed, say) each limit's own peak still is. A
+constraint the end states alone fix (a knot at an end, the first part of the first step) is
+left out: it is what it is, and must not lift t over the rest of the arc. Speed, acceleration
+and jerk are held exactly (hull, knots, steps); the torque, linearised and held at the knots,
+keeps `MARGIN` inside its limit. The end equalities are then closed to round-off by a 2×2
+correction of two interior knots.
 """
 
 import math
@@ -33,35 +39,79 @@ __all__ = ['plan_arc', 'ARC_PIECES']
 
 ARC_PIECES = 64
 LINEARISATIONS = 4
-MARGIN = 0.998               # the programme keeps this far inside the limits (knots only)
+MARGIN = 0.998               # the torque kept this far inside its limit (linearised, knots
+#                              only); speed, acceleration and jerk are exact (hull, knots, steps)
 PEAK_WEIGHT = 0.05           # weight of each limit's own peak against the largest one
 SMOOTHING = 1e-3             # weight of the mean jerk utilisation (total variation of θ″)
+SPEED_SUBSTEPS = 1           # parts of a step the speed's convex hull is taken on
+END_STEPS = 8                # fine steps where an end's θ″ must be turned round (`_grid`)
 
 
-def _integrals(n, h):
+def _grid(length, n, start, end, jerk_per_m3):
+    """The knots' steps (n of them, summing to `length`): equal, except where an end state
+    has a large θ″: the jerk limit then needs the distance λ = |θ″|/j (j the jerk limit in
+    rad/m³ at the planning speed) to turn it round, and a coarse first step lets the speed
+    overshoot meanwhile (a soil exit near the speed limit: 0.2 % over it). There `END_STEPS`
+    steps cover 2λ (at most a quarter of the arc), the rest are equal."""
+    uniform = length / n
+    fine = []
+    for state in (start, end):
+        ramp = abs(state[2]) / jerk_per_m3
+        fine.append(min(2.0 * ramp, 0.25 * length) if ramp > uniform / END_STEPS else 0.0)
+    counts = [END_STEPS if f else 0 for f in fine]
+    middle = n - sum(counts)
+    return np.array([fine[0] / END_STEPS] * counts[0]
+                    + [(length - fine[0] - fine[1]) / middle] * middle
+                    + [fine[1] / END_STEPS] * counts[1])
+
+
+def _integrals(h):
     """Matrices B, C with θ′_j = θ′_0 + B[j]·x and θ_j = θ_0 + θ′_0·s_j + C[j]·x for knot
-    values x of θ″ (piecewise linear)."""
+    values x of θ″ (piecewise linear), steps h (array)."""
+    n = h.size
     b = np.zeros((n + 1, n + 1))
     c = np.zeros((n + 1, n + 1))
     for j in range(1, n + 1):
-        c[j] = c[j - 1] + h * b[j - 1]
-        c[j, j - 1] += h * h / 3.0
-        c[j, j] += h * h / 6.0
+        hj = h[j - 1]
+        c[j] = c[j - 1] + hj * b[j - 1]
+        c[j, j - 1] += hj * hj / 3.0
+        c[j, j] += hj * hj / 6.0
         b[j] = b[j - 1]
-        b[j, j - 1] += 0.5 * h
-        b[j, j] += 0.5 * h
+        b[j, j - 1] += 0.5 * hj
+        b[j, j] += 0.5 * hj
     return b, c
 
 
+def _speed_hull(bm, h, parts):
+    """Rows R with R·x + θ′_0 = every Bernstein coefficient of θ′ on `parts` equal parts of
+    every step (the parts' start values and middle coefficients; the ends are knots): θ′
+    on step i is θ′_i + x_i τ + (x_(i+1) − x_i) τ²/(2h_i)."""
+    n = bm.shape[0] - 1
+    eye = np.eye(n + 1)
+    out = []
+    delta = (h / parts)[:, None]
+    hh = h[:, None]
+    for q in range(parts):
+        tau = q * delta
+        value = bm[:-1] + tau * eye[:-1] + tau * tau / (2.0 * hh) * (eye[1:] - eye[:-1])
+        slope = eye[:-1] + tau / hh * (eye[1:] - eye[:-1])
+        if q:
+            out.append(value)
+        out.append(value + 0.5 * delta * slope)
+    return np.vstack(out)
+
+
 def _integrate(x, h, theta0, d0):
-    """θ and θ′ at the knots from the knot values of θ″ (the cubic pieces' own recurrence)."""
+    """θ and θ′ at the knots from the knot values of θ″ (the cubic pieces' own recurrence),
+    steps h (array)."""
     n = x.size - 1
     th = np.empty(n + 1)
     d1 = np.empty(n + 1)
     th[0], d1[0] = theta0, d0
     for j in range(n):
-        th[j + 1] = th[j] + d1[j] * h + h * h * (x[j] / 3.0 + x[j + 1] / 6.0)
-        d1[j + 1] = d1[j] + 0.5 * h * (x[j] + x[j + 1])
+        hj = h[j]
+        th[j + 1] = th[j] + d1[j] * hj + hj * hj * (x[j] / 3.0 + x[j + 1] / 6.0)
+        d1[j + 1] = d1[j] + 0.5 * hj * (x[j] + x[j + 1])
     return th, d1
 
 
@@ -103,25 +153,26 @@ def plan_arc(length, start, end, speed, limits, torque_terms, pieces=ARC_PIECES)
     from scipy.sparse import csr_matrix, vstack
 
     n = int(pieces)
-    h = length / n
-    knots = h * np.arange(n + 1)
-    bm, cm = _integrals(n, h)
     v = float(speed)
-    # unknowns: x (θ″ at the knots), t (the largest utilisation), the peaks of jerk, torque
-    # and (where limited) acceleration, e (each step's |jerk| / j_max, for the smoothing)
-    it, ij, itq, ia = n + 1, n + 2, n + 3, n + 4
-    ie = n + 5
+    h = _grid(length, n, start, end, limits.jerk / max(v, 1e-3) ** 3)
+    knots = np.concatenate(([0.0], np.cumsum(h)))
+    knots[-1] = length
+    bm, cm = _integrals(h)
+    # unknowns: x (θ″ at the knots), t (the largest utilisation), the peaks of jerk, torque,
+    # speed and (where limited) acceleration, e (each step's |jerk| / j_max, for the
+    # smoothing)
+    it, ij, itq, ia, isp = n + 1, n + 2, n + 3, n + 4, n + 5
+    ie = n + 6
     nv = ie + n
     cost = np.zeros(nv)
     cost[it] = 1.0
-    cost[[ij, itq]] = PEAK_WEIGHT
-    cost[ia] = PEAK_WEIGHT
+    cost[[ij, itq, ia, isp]] = PEAK_WEIGHT
     cost[ie:] = SMOOTHING / n
     eq = np.zeros((2, nv))
     eq[0, :n + 1] = bm[n]
     eq[1, :n + 1] = cm[n]
     eq_rhs = [end[1] - start[1], end[0] - start[0] - start[1] * length]
-    bounds = [(None, None)] * (n + 1) + [(0.0, None)] * (4 + n)
+    bounds = [(None, None)] * (n + 1) + [(0.0, None)] * (5 + n)
     bounds[0] = (start[2], start[2])
     bounds[n] = (end[2], end[2])
 
@@ -135,33 +186,44 @@ def plan_arc(length, start, end, speed, limits, torque_terms, pieces=ARC_PIECES)
             full[:, ie:] = col_e
         return full
 
+    def free(block_x):
+        """The rows of a block that move with the free knots (1..n−1): a row fixed by the
+        end states alone is what it is, and must not force the utilisation up."""
+        return np.any(block_x[:, 1:n] != 0.0, axis=1)
+
     fixed_rows, fixed_rhs = [], []
     # each peak below t (the acceleration's only where it is a limit: without one it is
     # measured against the torque-limited acceleration, a scale for the objective)
-    for col in (ij, itq, ia) if limits.acceleration else (ij, itq):
+    for col in (ij, itq, isp, ia) if limits.acceleration else (ij, itq, isp):
         r = np.zeros((1, nv))
         r[0, col], r[0, it] = 1.0, -1.0
         fixed_rows.append(r)
         fixed_rhs.append(np.zeros(1))
-    # speed: v (θ′0 + B x) ≤ t ω_max ; no reversing: −(θ′0 + B x) ≤ 0
-    fixed_rows.append(rows(v * bm, it, -MARGIN * limits.speed))
-    fixed_rhs.append(np.full(n + 1, -v * start[1]))
+    # no reversing: −(θ′0 + B x) ≤ 0 at the knots, and between them: on a step θ′ is a
+    # quadratic whose Bernstein coefficients are θ′_i, θ′_i + h x_i / 2 and θ′_(i+1); all ≥ 0
+    # keeps θ′ ≥ 0 over the whole step
     fixed_rows.append(rows(-bm))
     fixed_rhs.append(np.full(n + 1, start[1]))
-    # ... and between them: on a step θ′ is a quadratic whose Bernstein coefficients are
-    # θ′_i, θ′_i + h x_i / 2 and θ′_(i+1); all ≥ 0 keeps θ′ ≥ 0 over the whole step
-    middle = bm[:-1] + 0.5 * h * np.eye(n + 1)[:-1]
+    middle = bm[:-1] + 0.5 * h[:, None] * np.eye(n + 1)[:-1]
     fixed_rows.append(rows(-middle))
     fixed_rhs.append(np.full(n, start[1]))
-    eye = np.eye(n + 1)
+    # speed: v (θ′0 + B x) ≤ p_s ω_max at the knots and over the whole step, not only at the
+    # knots: the quadratic's Bernstein coefficients on each of SPEED_SUBSTEPS parts of a step
+    # (the part's ends and its middle coefficient) ≤ p_s ω_max (its convex hull; cautious
+    # where θ″ is large, which the fine steps of `_grid` keep small)
+    speed_rows = np.vstack([bm, _speed_hull(bm, h, SPEED_SUBSTEPS)])
+    speed_rows = speed_rows[free(speed_rows)]
+    fixed_rows.append(rows(v * speed_rows, isp, -limits.speed))
+    fixed_rhs.append(np.full(speed_rows.shape[0], -v * start[1]))
+    eye = np.eye(n + 1)[1:n]
     for sign in (1.0, -1.0):
         fixed_rows.append(rows(sign * v * v * eye, ia,
-                               -MARGIN * (limits.acceleration or limits.torque_acceleration)))
-        fixed_rhs.append(np.zeros(n + 1))
-    diff = (np.eye(n + 1, k=1) - np.eye(n + 1))[:n] / h      # Δθ″/h per step
+                               -(limits.acceleration or limits.torque_acceleration)))
+        fixed_rhs.append(np.zeros(n - 1))
+    diff = (np.eye(n + 1, k=1) - np.eye(n + 1))[:n] / h[:, None]    # Δθ″/h per step
     scale = v ** 3 / limits.jerk
     for sign in (1.0, -1.0):
-        fixed_rows.append(rows(sign * scale * diff, ij, -MARGIN))
+        fixed_rows.append(rows(sign * scale * diff, ij, -1.0))
         fixed_rhs.append(np.zeros(n))
         fixed_rows.append(rows(sign * scale * diff, col_e=-np.eye(n)))
         fixed_rhs.append(np.zeros(n))
@@ -175,6 +237,7 @@ def plan_arc(length, start, end, speed, limits, torque_terms, pieces=ARC_PIECES)
         # T = v² k_α x + v² k_ω (2 p θ′ − p²) + g, θ′ = θ′0 + B x
         lin = v * v * (np.diag(k_alpha) + (2.0 * k_omega * d1_k)[:, None] * bm)
         const = v * v * k_omega * (2.0 * d1_k * start[1] - d1_k ** 2) + g
+        lin, const = lin[1:n], const[1:n]         # the interior knots (the ends are given)
         torque_rows = [rows(lin, itq, -MARGIN * limits.torque),
                        rows(-lin, itq, -MARGIN * limits.torque)]
         a_ub = vstack([a_fixed, csr_matrix(np.vstack(torque_rows))])

@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from planter_ros.config import check, setting
+from planter_ros.config import check, setting, spec_of
 
 from .errors import CamInputError
 
@@ -40,6 +40,10 @@ __all__ = ['DriveLimits', 'EffectiveLimits', 'LoadFigures', 'LoadSamples', 'LIMI
            'DRIVE_SOURCE', 'GRAVITY', 'sun_bar_motion']
 
 GRAVITY = 9.80665
+# the least acceleration and jerk limits a cam is planned against (below them the linear
+# programme's numbers span more than a double holds; no drive is that gentle)
+MIN_ACCELERATION = 0.1            # rad/s²
+MIN_JERK = 1.0                    # rad/s³
 RPM = 2.0 * math.pi / 60.0
 
 DRIVE_SOURCE = ('motor: Yaskawa Σ-7 SGM7J-08A, 750 W (Σ-7-Series Rotary Servomotor Product '
@@ -93,9 +97,24 @@ class DriveLimits:
     jerk_ramp_time: float = setting(0.04, 'shortest time for the acceleration to rise from 0 to '
                                     'its limit (sets the default jerk limit)', unit='s',
                                     range=(0.001, 10.0))
+    thermal_window: float = setting(10.0, 'time over which the RMS torque is held to the rated '
+                                    'torque around a run-time change (a thermal limit: a '
+                                    "servo's thermal time constant is minutes; assumed)",
+                                    unit='s', range=(0.1, 3600.0))
 
     def __post_init__(self):
         check(self, _error)
+        if self.motor_rated_torque > self.motor_peak_torque:
+            raise CamInputError('motor_rated_torque', self.motor_rated_torque,
+                                f'<= motor_peak_torque = {self.motor_peak_torque:g} N m (a '
+                                "servo's continuous torque is below its peak)")
+        for name, least, unit in (('max_acceleration', MIN_ACCELERATION, 'rad/s^2'),
+                                  ('max_jerk', MIN_JERK, 'rad/s^3')):
+            value = getattr(self, name)
+            if 0.0 < value < least:
+                high = spec_of(DriveLimits, name).high
+                raise CamInputError(name, value, f'0 (derived) or {least:g}..{high:g} {unit} '
+                                    '(below it no out-of-soil arc can be planned)')
 
     def effective(self, mech):
         """The limits in force for mechanism `mech` (derived ones filled in)."""
@@ -178,6 +197,26 @@ class LoadFigures:
     def exceeded(self):
         return [k for k in LIMIT_NAMES if self.utilisation.get(k, 0.0) > 1.0 + 1e-9]
 
+    def limit_text(self, name=None):
+        """One limit's figure against the limit in words, e.g. 'sun-bar speed 37.7 rad/s over
+        its limit 31.4 rad/s (120 %)' (default: the binding limit)."""
+        name = name or self.binding
+        words, peak, unit = {
+            'speed': ('sun-bar speed', self.peak_speed, 'rad/s'),
+            'acceleration': ('sun-bar acceleration', self.peak_acceleration, 'rad/s²'),
+            'jerk': ('sun-bar jerk', self.peak_jerk, 'rad/s³'),
+            'torque': ('peak motor torque', self.peak_torque, 'N·m'),
+            'rms torque': ('RMS motor torque over a plant', self.rms_torque, 'N·m')}[name]
+        used = self.utilisation[name]
+        limit = peak / used if used > 0 else math.inf
+        side = 'over' if used > 1.0 + 1e-9 else 'within'
+        return (f'{words} {peak:.4g} {unit} {side} its limit {limit:.4g} {unit} '
+                f'({used * 100:.1f} %) at {self.ground_speed:.3g} m/s')
+
+    def over_text(self):
+        """Every exceeded limit's `limit_text`, joined ('' when within every limit)."""
+        return '; '.join(self.limit_text(name) for name in self.exceeded)
+
     def as_dict(self):
         return {'ground_speed': self.ground_speed, 'peak_sun_bar_speed': self.peak_speed,
                 'peak_sun_bar_acceleration': self.peak_acceleration,
@@ -188,31 +227,58 @@ class LoadFigures:
                 'binding': self.binding}
 
 
-SAMPLES_PER_PIECE = 33
+SAMPLES_PER_PIECE = 33            # odd: Simpson's rule for the RMS, a bracket for each peak
+REFINE_STEPS = 30                 # golden-section steps per peak: the bracket shrinks 0.618^30
+#                                   (1e-6 of it: the value, flat at its maximum, to ~1e-12)
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+PEAK_MARGIN = 0.05                # pieces refined: sampled peak within 5 % of the largest
+
+
+_FACTORS = [np.array([1., 1., 1., 1., 1., 1.]), np.array([1., 2., 3., 4., 5.]),
+            np.array([2., 6., 12., 20.]), np.array([6., 24., 60.])]
+
+
+def _derivative(coeffs, x, order):
+    """The `order`-th derivative of degree-5 pieces `coeffs` (rows) at local abscissae x."""
+    c = coeffs[:, order:] * _FACTORS[order]
+    out = c[:, -1].copy()
+    for j in range(c.shape[1] - 2, -1, -1):
+        out = out * x + c[:, j]
+    return out
+
+
+def _derivatives(coeffs, x):
+    """θ, θ′, θ″, θ‴ of degree-5 pieces `coeffs` (rows) at local abscissae x (same length)."""
+    return tuple(_derivative(coeffs, x, order) for order in range(4))
 
 
 class LoadSamples:
-    """θ and its derivatives sampled densely over one period of a cam (both ends of every
-    piece, so a jump in θ‴ is seen from both sides); the loads at any steady speed follow."""
+    """θ and its derivatives sampled densely over a stretch of cam (both ends of every piece,
+    so a jump in θ‴ is seen from both sides); the loads at any steady speed follow.
 
-    def __init__(self, period, spacing, mech, drive):
-        t = np.linspace(0.0, 1.0, SAMPLES_PER_PIECE)
+    The peaks are the continuous maxima of each piece, not the samples': around the best
+    sample of every piece a golden-section search (`REFINE_STEPS`, vectorised over the
+    pieces) finds the maximum of |ω|, |α|, |jerk| and |T| to round-off. The RMS torque is over
+    one plant: the whole stretch (`spacing` long, a periodic profile's period) or, with
+    `windows` ((start, end) pairs of r), the largest over those plants (a transition)."""
+
+    def __init__(self, period, spacing, mech, drive, windows=None):
+        n = SAMPLES_PER_PIECE
+        t = np.linspace(0.0, 1.0, n)
         b = period.breaks
-        r = (b[:-1, None] + (b[1:] - b[:-1])[:, None] * t[None, :])
-        piece = np.repeat(np.arange(b.size - 1), SAMPLES_PER_PIECE)
-        r = r.ravel()
-        x = r - b[piece]
-        c = period.coeffs[piece]
-        powers = np.vander(x, 6, increasing=True)
-        self.theta = np.einsum('ij,ij->i', c, powers)
-        self.d1 = np.einsum('ij,ij->i', c[:, 1:] * np.arange(1, 6), powers[:, :5])
-        self.d2 = np.einsum('ij,ij->i', c[:, 2:] * np.array([2., 6., 12., 20.]), powers[:, :4])
-        self.d3 = np.einsum('ij,ij->i', c[:, 3:] * np.array([6., 24., 60.]), powers[:, :3])
-        # trapezoid weights along s within each piece (for the RMS over one plant)
-        w = np.full((b.size - 1, SAMPLES_PER_PIECE), 1.0)
-        w[:, 0] = w[:, -1] = 0.5
-        self.weights = (w * ((b[1:] - b[:-1]) / (SAMPLES_PER_PIECE - 1))[:, None]).ravel()
+        h = b[1:] - b[:-1]
+        pieces = b.size - 1
+        x = (h[:, None] * t[None, :]).ravel()
+        piece = np.repeat(np.arange(pieces), n)
+        self.r = b[piece] + x
+        self.theta, self.d1, self.d2, self.d3 = _derivatives(period.coeffs[piece], x)
+        # Simpson's weights along r within each piece (exact for cubics): the RMS over a plant
+        simpson = np.ones(n)
+        simpson[1:-1:2], simpson[2:-1:2] = 4.0, 2.0
+        self.weights = (simpson[None, :] * (h / (3.0 * (n - 1)))[:, None]).ravel()
+        self.coeffs, self.h, self.pieces = period.coeffs, h, pieces
         self.spacing = spacing
+        self.windows = None if windows is None else [(float(a), float(e)) for a, e in windows]
         self.mech = mech
         self.drive = drive
         self.limits = drive.effective(mech)
@@ -221,16 +287,68 @@ class LoadSamples:
     def torque(self, v):
         return v * v * (self.k_alpha * self.d2 + self.k_omega * self.d1 ** 2) + self.gravity
 
+    def _rms(self, torque):
+        """The RMS of the torque samples over one plant (the largest of the windows)."""
+        square = torque * torque
+        if self.windows is None:
+            return math.sqrt(float(np.dot(self.weights, square)) / self.spacing)
+        # running integral of T² at the samples (trapezoids), read at the windows' ends
+        steps = 0.5 * (square[1:] + square[:-1]) * np.diff(self.r)
+        running = np.concatenate(([0.0], np.cumsum(steps)))
+        ends = np.interp([e for w in self.windows for e in w], self.r, running)
+        return max(math.sqrt(max(e - a, 0.0) / (w1 - w0))
+                   for (a, e), (w0, w1) in zip(zip(ends[::2], ends[1::2]), self.windows))
+
+    def _peak(self, sampled, value):
+        """The continuous maximum of |value(piece, x)| over every piece, from the samples'
+        |values| `sampled`: each piece's best sample bracketed by its neighbours, then a
+        golden-section search in the bracket (all pieces at once)."""
+        n = SAMPLES_PER_PIECE
+        grid = np.abs(sampled).reshape(self.pieces, n)
+        piece_max = np.max(grid, axis=1)
+        top = float(np.max(piece_max))
+        # only the pieces whose samples come near the largest can hold the maximum: between
+        # two of 33 samples a smooth piece rises far less than this margin
+        index = np.flatnonzero(piece_max >= (1.0 - PEAK_MARGIN) * top)
+        best = np.argmax(grid[index], axis=1)
+        step = self.h[index] / (n - 1)
+        lo = np.maximum(best - 1, 0) * step
+        hi = np.minimum(best + 1, n - 1) * step
+        x1 = hi - _GOLDEN * (hi - lo)
+        x2 = lo + _GOLDEN * (hi - lo)
+        f1, f2 = np.abs(value(index, x1)), np.abs(value(index, x2))
+        for _ in range(REFINE_STEPS):
+            right = f1 < f2                 # the maximum lies in [x1, hi]
+            lo = np.where(right, x1, lo)
+            hi = np.where(right, hi, x2)
+            x1, x2 = np.where(right, x2, hi - _GOLDEN * (hi - lo)), \
+                np.where(right, lo + _GOLDEN * (hi - lo), x1)
+            f_new = np.abs(value(index, np.where(right, x2, x1)))
+            f1, f2 = np.where(right, f2, f_new), np.where(right, f_new, f1)
+        return float(max(top, np.max(f1), np.max(f2)))
+
     def figures(self, v):
         lim = self.limits
-        omega, alpha, jerk = v * self.d1, v * v * self.d2, v ** 3 * self.d3
+        omega, alpha = v * self.d1, v * v * self.d2
         torque = self.torque(v)
-        rms = math.sqrt(float(np.dot(self.weights, torque * torque)) / self.spacing)
-        sun_torque = self.drive.sun_bar_torque(self.mech, self.theta, omega, alpha)
-        peak = {'speed': float(np.max(np.abs(omega))),
-                'acceleration': float(np.max(np.abs(alpha))),
-                'jerk': float(np.max(np.abs(jerk))),
-                'torque': float(np.max(np.abs(torque))), 'rms torque': rms}
+        rms = self._rms(torque)
+        drive, mech = self.drive, self.mech
+
+        def motor_torque(index, x):
+            th, d1, d2 = (_derivative(c[index], x, k) for k in range(3))
+            k_alpha, k_omega, gravity = drive.torque_terms(mech, th)
+            return v * v * (k_alpha * d2 + k_omega * d1 ** 2) + gravity
+
+        def sun_torque(index, x):
+            th, d1, d2 = (_derivative(c[index], x, k) for k in range(3))
+            return drive.sun_bar_torque(mech, th, v * d1, v * v * d2)
+
+        c = self.coeffs
+        peak = {'speed': v * self._peak(self.d1, lambda i, x: _derivative(c[i], x, 1)),
+                'acceleration': v * v * self._peak(self.d2, lambda i, x: _derivative(c[i], x, 2)),
+                'jerk': v ** 3 * self._peak(self.d3, lambda i, x: _derivative(c[i], x, 3)),
+                'torque': self._peak(torque, motor_torque), 'rms torque': rms}
+        sun_peak = self._peak(drive.sun_bar_torque(mech, self.theta, omega, alpha), sun_torque)
         util = {'speed': peak['speed'] / lim.speed}
         if lim.acceleration:
             util['acceleration'] = peak['acceleration'] / lim.acceleration
@@ -238,7 +356,7 @@ class LoadSamples:
         util['torque'] = peak['torque'] / lim.torque
         util['rms torque'] = rms / lim.rms_torque
         return LoadFigures(v, peak['speed'], peak['acceleration'], peak['jerk'], peak['torque'],
-                           rms, float(np.max(np.abs(sun_torque))), util)
+                           rms, sun_peak, util)
 
     def top_speed(self):
         """The largest steady ground speed at which this (fixed) motion meets every limit,

@@ -1,8 +1,8 @@
-"""The cam's errors: one base class and the two cases a caller acts on differently."""
+"""The cam's errors: one base class and the cases a caller acts on differently."""
 
 from planter_ros.kinematics.errors import DesignError
 
-__all__ = ['CamError', 'CamInputError', 'CamPlanningError']
+__all__ = ['CamError', 'CamInputError', 'CamLimitError', 'CamPlanningError']
 
 
 class CamError(Exception):
@@ -16,3 +16,9 @@ class CamInputError(CamError, DesignError):
 
 class CamPlanningError(CamError):
     """The solver failed on an input that should have a plan (a bug to report, not bad input)."""
+
+
+class CamLimitError(CamInputError):
+    """A plan or a run-time transition over the drive's limits that nothing within reach (a
+    blend towards constant speed, a transition spread over more plants) brings within them:
+    refused before it reaches the drive. The message names the figure and the limit."""

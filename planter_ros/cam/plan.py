@@ -19,15 +19,19 @@ from planter_ros.kinematics.five_bar import TWO_PI
 
 from .arc import ARC_PIECES, plan_arc, straight_arc
 from .drive import DriveLimits, LoadFigures, LoadSamples
-from .errors import CamInputError
+from .errors import CamInputError, CamPlanningError
 from .mechanism import RULES, CamMechanism, constant_law, rule_law
 from .piecewise import Piecewise
 
 __all__ = ['CamProfile', 'CamPlan', 'plan_cam', 'constant_profile', 'build_profile',
            'fallback_laws', 'rule_top_speed', 'rule_top_speeds', 'sampled_tip_sweep',
-           'BRUTE_FORCE_SAMPLES', 'BLEND_STEPS', 'SPEED_RANGE']
+           'BRUTE_FORCE_SAMPLES', 'BLEND_HEADROOM', 'BLEND_STEPS', 'SPEED_RANGE']
 
 BLEND_STEPS = 14                 # bisection steps of β: resolution 2⁻¹⁴
+# a blend is planned to this share of its binding limit, not to the limit itself: a change
+# into it at run time (another spacing or rule: a transition arc) then has room to stay
+# within the limits too
+BLEND_HEADROOM = 0.98
 SPEED_RANGE = (0.01, 3.0)        # ground speeds searched for a rule's top speed, m/s (scene's)
 SOIL_TOLERANCE = 1e-12           # rad: the in-soil fit's largest error against its law
 _MAX_SOIL_PIECES = 4096
@@ -267,9 +271,10 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
 
     When the rule's profile exceeds a limit, the laws of `fallback_laws` are tried in turn;
     the first that runs is blended with the one before it, β (the share of the one before)
-    maximised by bisection: the feasible profile closest to the rule. If not even constant speed
-    runs, that is returned, infeasible, with its figures. `top_speeds`: also find up to what
-    ground speed each rule holds at this spacing (a few more plans)."""
+    maximised by bisection with every limit's utilisation ≤ BLEND_HEADROOM: the feasible
+    profile closest to the rule that leaves a run-time change into it room. If not even
+    constant speed runs, that is returned, infeasible, with its figures. `top_speeds`: also
+    find up to what ground speed each rule holds at this spacing (a few more plans)."""
     if not isinstance(mech, CamMechanism):
         mech = CamMechanism.from_design(mech)
     drive = DriveLimits() if drive is None else drive
@@ -278,15 +283,23 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
     laws = fallback_laws(mech, spacing, rule)
 
     def build(law, beta):
-        return build_profile(mech, spacing, law, speed, drive, rule, beta, pieces)
+        """The law's profile and its figures; (None, None) when its out-of-soil arc cannot be
+        planned at all (limits so far below the motion that the programme fails): that law
+        does not run."""
+        try:
+            candidate = build_profile(mech, spacing, law, speed, drive, rule, beta, pieces)
+        except CamPlanningError:
+            return None, None
+        return candidate, candidate.figures(speed)
 
-    profile = build(laws[0], 1.0)
-    rule_figures = figures = profile.figures(speed)
+    profile, rule_figures = build(laws[0], 1.0)
+    figures = rule_figures
     beta, blend_of, blended_with = 1.0, laws[0].name, ''
-    if not rule_figures.feasible:
+    if rule_figures is None or not rule_figures.feasible:
         for upper, lower in zip(laws, laws[1:]):
-            candidate = build(lower, 0.0)
-            f = candidate.figures(speed)
+            candidate, f = build(lower, 0.0)
+            if candidate is None:
+                continue
             profile, figures, beta, blend_of, blended_with = (candidate, f, 0.0, upper.name,
                                                               lower.name)
             if not f.feasible:
@@ -294,13 +307,14 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
             lo, hi = 0.0, 1.0
             for _ in range(BLEND_STEPS):
                 mid = 0.5 * (lo + hi)
-                candidate = build(upper.blend(lower, mid), mid)
-                f = candidate.figures(speed)
-                if f.feasible:
+                candidate, f = build(upper.blend(lower, mid), mid)
+                if f is not None and max(f.utilisation.values()) <= BLEND_HEADROOM:
                     lo, profile, figures, beta = mid, candidate, f, mid
                 else:
                     hi = mid
             break
+        if rule_figures is None:              # the rule's own figures: as constant speed's
+            rule_figures = figures
     tops = rule_top_speeds(mech, spacing, drive, speed, pieces) if top_speeds else {}
     return CamPlan(profile, rule, spacing, speed, beta, blend_of, blended_with, figures,
                    rule_figures, tops)
@@ -316,6 +330,8 @@ def rule_top_speeds(mech, spacing, drive=None, hint=0.3, pieces=ARC_PIECES):
             tops[name] = rule_top_speed(mech, spacing, name, drive, hint, pieces)
         except CamInputError as exc:             # zero slip undefined for this depth
             tops[name] = (0.0, f'undefined here: {exc}')
+        except CamPlanningError as exc:          # limits far below the motion
+            tops[name] = (0.0, f'not planned: {exc}')
     tops['constant'] = constant_profile(mech, spacing, drive).loads.top_speed()
     return tops
 

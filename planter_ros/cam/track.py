@@ -15,20 +15,238 @@ If both profiles have the same in-soil law (the same rule at another spacing: th
 zero-slip and the design-speed rules do not depend on the spacing) the new profile's own
 out-of-soil arc is that transition, and nothing is planned at run time.
 
+Every planned transition is checked against the drive's limits at the new profile's planning
+(top) speed (`plan_transition`): its peaks, and the RMS torque over the drive's thermal
+window (the rated torque is a thermal limit: the transition's heat and, for the rest of the
+window, the hotter steady profile's). One over
+a limit is spread over more plants: plants 1..k−1 after s_k get gaps stepping from the old
+spacing to the new and in-soil laws stepping from the old law to the new (blends), each joined
+to the next by its own arc, and the new profile runs from plant k; k grows up to
+`MAX_TRANSITION_PLANTS`. A change nothing
+brings within the limits is refused (`CamLimitError`, naming the figure and the limit) and the
+track is left as it was. A transition depends only on the two profiles (it is planned relative
+to s_k), so it is planned once and cached under the two profiles' fingerprints: a caller can
+plan it off the control thread (`plan_transition`) or hand in one planned elsewhere
+(`remember_transition`).
+
 `evaluate(s)` is the per-cycle call: a bisect over the few segments, then the profile's own
 evaluation. Pure Python floats; no ROS.
 """
 
 from bisect import bisect_left, bisect_right
+from collections import OrderedDict
+from dataclasses import dataclass
+import hashlib
 import math
+import threading
 
 from planter_ros.kinematics.five_bar import TWO_PI
 
 from .arc import ARC_PIECES, plan_arc
-from .drive import sun_bar_motion
-from .errors import CamInputError
+from .drive import LoadFigures, LoadSamples, sun_bar_motion
+from .errors import CamInputError, CamLimitError
+from .piecewise import Piecewise
 
-__all__ = ['CamTrack']
+__all__ = ['CamTrack', 'MAX_TRANSITION_PLANTS', 'Transition', 'fingerprint', 'plan_transition',
+           'remember_transition']
+
+MAX_TRANSITION_PLANTS = 6        # a transition is spread over at most this many plants
+_CACHE_SIZE = 32
+
+
+def fingerprint(profile):
+    """A profile's identity by content (its mechanism, law, spacing, speed, drive and
+    coefficients): the same in the process that planned it and in one that rebuilt it from
+    `control.cam_law.profile_to_data` (floats survive JSON exactly)."""
+    known = getattr(profile, '_fingerprint', None)
+    if known is not None:
+        return known
+    digest = hashlib.sha256()
+    digest.update(repr((profile.mech, profile.law.zero_slip, profile.law.advance,
+                        profile.spacing, profile.speed, profile.drive)).encode())
+    digest.update(profile.period.breaks.tobytes())
+    digest.update(profile.period.coeffs.tobytes())
+    profile._fingerprint = digest.hexdigest()[:32]
+    return profile._fingerprint
+
+
+@dataclass(frozen=True)
+class Transition:
+    """A change from profile `old` to profile `new`, relative to the old spacing's last plant
+    (r = s − s_k = 0, θ − 2π·turn = π). `gaps`: the distances from each plant of the change to
+    the next, k of them (the last is the new spacing d′): plant m at r = gaps[0] + … +
+    gaps[m−1] with θ = π + 2πm, the new profile's own plants from plant k on; `piecewise`
+    θ(r) from the old soil exit to plant k's soil entry (None when both profiles have the same
+    in-soil law: no arc, k = 1); `figures` its loads at `speed` (None without an arc)."""
+
+    old: str                         # fingerprints
+    new: str
+    gaps: tuple
+    piecewise: Piecewise | None
+    figures: LoadFigures | None
+    speed: float
+
+    @property
+    def plants(self):
+        return len(self.gaps)
+
+    def as_data(self):
+        """JSON-ready data (`from_data` reads it back exactly)."""
+        pw = self.piecewise
+        return {'old': self.old, 'new': self.new, 'gaps': list(self.gaps), 'speed': self.speed,
+                'breaks': None if pw is None else pw.breaks.tolist(),
+                'coeffs': None if pw is None else pw.coeffs.tolist()}
+
+    @classmethod
+    def from_data(cls, data):
+        pw = None if data['breaks'] is None else Piecewise(data['breaks'], data['coeffs'])
+        gaps = tuple(float(g) for g in data['gaps'])
+        if not gaps or not all(math.isfinite(g) and g > 0 for g in gaps):
+            raise ValueError(f'transition gaps {data["gaps"]!r}: allowed positive distances')
+        return cls(str(data['old']), str(data['new']), gaps, pw, None, float(data['speed']))
+
+
+_cache = OrderedDict()
+_cache_lock = threading.Lock()
+
+
+def remember_transition(transition):
+    """Keep a transition planned elsewhere (a shell planning for its command process) so a
+    `CamTrack.change` between the same two profiles uses it instead of planning."""
+    with _cache_lock:
+        _cache[(transition.old, transition.new)] = transition
+        _cache.move_to_end((transition.old, transition.new))
+        while len(_cache) > _CACHE_SIZE:
+            _cache.popitem(last=False)
+
+
+def _known(old, new):
+    with _cache_lock:
+        return _cache.get((fingerprint(old), fingerprint(new)))
+
+
+def _placed(parts):
+    """One Piecewise of consecutive parts (piecewise, r of its first break, θ added): each
+    part's local polynomials kept, its breaks moved; where two parts meet the first break of
+    the later one is taken as the earlier one's end."""
+    breaks, coeffs = [], []
+    for pw, r0, dtheta in parts:
+        b = pw.breaks - pw.breaks[0] + r0
+        c = pw.coeffs.copy()
+        c[:, 0] += dtheta
+        breaks.append(b[:-1])
+        coeffs.append(c)
+        end = b[-1]
+    import numpy as np
+    return Piecewise(np.concatenate(breaks + [[end]]), np.concatenate(coeffs))
+
+
+def _spread(old, new, plants):
+    """The transition over `plants` = k plants (module doc): (gaps, the piecewise from the old
+    exit to plant k's entry, the stretch judged and its RMS window). Plant m (1 ≤ m < k) sits
+    a gap stepped from the old spacing towards the new after the one before and has an
+    in-soil law stepped from the old law towards the new (blends)."""
+    from .plan import soil_arc
+    mech, d, d_old = new.mech, new.spacing, old.spacing
+    gaps = tuple(d_old + (d - d_old) * m / plants for m in range(1, plants + 1))
+    at = [0.0]
+    for gap in gaps:
+        at.append(at[-1] + gap)
+    laws = [old.law] + [old.law.blend(new.law, 1.0 - m / plants) for m in range(1, plants)] \
+        + [new.law]
+    halves = [law.half_length(old.mech if m == 0 else mech) for m, law in enumerate(laws)]
+    exit_r = halves[0]
+    state = old.evaluate(exit_r)
+    limits = new.drive.effective(mech)
+
+    def torque_terms(th):
+        return new.drive.torque_terms(mech, th)
+
+    parts, r = [], exit_r
+    for m in range(1, plants + 1):
+        entry_r = at[m] - halves[m]
+        length = entry_r - r
+        if not length > 1e-6 * gaps[m - 1]:
+            raise CamInputError('spacing', gaps[m - 1], f'> {halves[m - 1]:.6g} m + '
+                                f'{halves[m]:.6g} m (the soil arcs either side of the change)')
+        end = laws[m].edge_state(mech, -1) if m < plants else new.edge_state(-1)
+        end = (end[0] + TWO_PI * m, end[1], end[2])
+        arc, _ = plan_arc(length, state, end, max(new.speed, 1e-3), limits, torque_terms,
+                          ARC_PIECES)
+        parts.append((arc, r, 0.0))
+        if m < plants:
+            soil = soil_arc(mech, laws[m])
+            parts.append((soil, entry_r, TWO_PI * m))
+            r = at[m] + halves[m]
+            th, d1, d2 = soil.at(soil.end)
+            state = (th + TWO_PI * m, d1, d2)
+        else:
+            r = entry_r
+    piecewise = _placed(parts)
+    # the stretch judged: the old plant's soil arc, the transition, one period of the new
+    old_soil = soil_arc(old.mech, old.law)
+    stretch = _placed([(old_soil, -halves[0], 0.0), (piecewise, exit_r, 0.0),
+                       (new.period, r, TWO_PI * plants)])
+    windows = [(-halves[0], at[-1] + d - halves[-1])]
+    return gaps, piecewise, stretch, windows
+
+
+def _thermal(figures, stretch_length, old, new, speed):
+    """The transition's figures with the RMS torque over the drive's thermal window (the
+    rated torque is a thermal limit): the heat of the stretch (the old last plant's soil entry
+    to the end of the new profile's first own plant) plus, for the rest of the window, the
+    hotter of the two steady profiles'."""
+    import dataclasses
+    window = max(speed * new.drive.thermal_window, stretch_length)
+    steady = max(old.figures(speed).rms_torque, new.figures(speed).rms_torque)
+    heat = figures.rms_torque ** 2 * stretch_length + steady ** 2 * (window - stretch_length)
+    rms = math.sqrt(heat / window)
+    limit = new.drive.effective(new.mech).rms_torque
+    return dataclasses.replace(figures, rms_torque=rms,
+                               utilisation={**figures.utilisation, 'rms torque': rms / limit})
+
+
+def plan_transition(old, new):
+    """The transition from profile `old` to profile `new` (a `Transition`), checked against
+    the drive's limits at the new profile's planning speed and spread over as few plants as
+    keep it within them (module doc); cached. CamLimitError when even
+    `MAX_TRANSITION_PLANTS` plants do not (the figure and the limit named), CamInputError when
+    the soil arcs either side leave no room for an arc."""
+    known = _known(old, new)
+    if known is not None:
+        return known
+    if old.law.same_as(new.law) and old.mech == new.mech:
+        out = Transition(fingerprint(old), fingerprint(new), (new.spacing,), None, None,
+                         new.speed)
+        remember_transition(out)
+        return out
+    speed = max(new.speed, 1e-3)
+    first = figures = no_room = None
+    for plants in range(1, MAX_TRANSITION_PLANTS + 1):
+        try:
+            gaps, piecewise, stretch, windows = _spread(old, new, plants)
+        except CamInputError as exc:        # no room for an arc: more plants may give it
+            no_room = no_room or exc
+            continue
+        figures = _thermal(LoadSamples(stretch, new.spacing, new.mech, new.drive,
+                                       windows).figures(speed),
+                           windows[0][1] - windows[0][0], old, new, speed)
+        first = first or figures
+        if figures.feasible:
+            out = Transition(fingerprint(old), fingerprint(new), gaps, piecewise, figures,
+                             new.speed)
+            remember_transition(out)
+            return out
+    if figures is None:
+        raise no_room
+    raise CamLimitError.from_message(
+        f'the change from {_named(old)} to {_named(new)} cannot be made within the drive\'s '
+        f'limits: {first.over_text()} in one plant, {figures.over_text()} spread over '
+        f'{MAX_TRANSITION_PLANTS} plants')
+
+
+def _named(profile):
+    return f'{profile.law.name or "a law"} at {profile.spacing:.4g} m'
 
 
 class _Periodic:
@@ -50,24 +268,27 @@ class _Periodic:
 
 
 class _Arc:
-    """A transition arc starting at s0."""
+    """A transition θ(r) placed on the row: r = s − s0, θ raised by `offset`."""
 
-    __slots__ = ('piecewise', 's0')
+    __slots__ = ('piecewise', 's0', 'offset')
 
-    def __init__(self, piecewise, s0):
-        self.piecewise, self.s0 = piecewise, float(s0)
+    def __init__(self, piecewise, s0, offset=0.0):
+        self.piecewise, self.s0, self.offset = piecewise, float(s0), float(offset)
 
     def evaluate(self, s):
-        return self.piecewise.at(s - self.s0)
+        th, d1, d2 = self.piecewise.at(s - self.s0)
+        return th + self.offset, d1, d2
 
     def values(self, s, order):
-        return self.piecewise.values(s - self.s0, order)
+        out = self.piecewise.values(s - self.s0, order)
+        return out + self.offset if order == 0 else out
 
 
 class _Plants:
     """The planting instants of one profile on the row: origin + j·d for first ≤ · ≤ last."""
 
     __slots__ = ('periodic', 'first', 'last')
+    transitional = False
 
     def __init__(self, periodic, first, last=math.inf):
         self.periodic, self.first, self.last = periodic, first, last
@@ -86,6 +307,24 @@ class _Plants:
                 j += 1
         at = p.origin + j * d
         return (at, p.turn + j) if at <= self.last else None
+
+
+class _Listed:
+    """A transition's own plants (after its first, before the new profile's): at the given
+    distances, θ = π + 2π·turn each; a change waits for them (`transitional`)."""
+
+    __slots__ = ('periodic', 'at', 'turns', 'last')
+    transitional = True
+
+    def __init__(self, periodic, at, turns):
+        self.periodic, self.at, self.turns = periodic, list(at), list(turns)
+        self.last = math.inf
+
+    def after(self, s):
+        for at, turn in zip(self.at, self.turns):
+            if at > s and at <= self.last:
+                return at, turn
+        return None
 
 
 class CamTrack:
@@ -153,37 +392,46 @@ class CamTrack:
             out.append((at, self.evaluate(at)[0]))
             s = at
 
-    def change(self, profile, s_now):
-        """Switch to `profile` at the next planting instant after `s_now` (module doc).
-        Returns s_k, the old spacing's last plant; the new spacing's first is at s_k + d′."""
+    def _change_point(self, s_now):
+        """(s_k, θ turn, index into the plants) of the plant a change asked at s_now follows:
+        the next planting instant, not one of a transition still under way."""
         best = None
         for index, plants in enumerate(self._plants):
+            if plants.transitional:
+                continue
             hit = plants.after(s_now)
             if hit is not None and (best is None or hit[0] < best[0]):
                 best = (hit[0], hit[1], index)
-        s_k, turn, index = best
+        return best
+
+    def transition(self, profile, s_now):
+        """The `Transition` a change to `profile` asked at s_now would take (planned, or found
+        planned), changing nothing; CamLimitError / CamInputError as `change` would raise."""
+        index = self._change_point(s_now)[2]
+        return plan_transition(self._plants[index].periodic.profile, profile)
+
+    def change(self, profile, s_now):
+        """Switch to `profile` at the next planting instant after `s_now` (module doc).
+        Returns s_k, the old spacing's last plant; the new spacing's first is at s_k + d′
+        (later when the change is spread over more plants). CamLimitError (the track
+        unchanged) when no transition within the drive's limits exists. A change asked while
+        an earlier one's transition is under way takes effect once that is done."""
+        s_k, turn, index = self._change_point(s_now)
         old = self._plants[index].periodic
+        transition = plan_transition(old.profile, profile)
         exit_s = s_k + old.profile.law.half_length(old.profile.mech)
-        origin = s_k + profile.spacing
-        entry_s = origin - profile.entry
-        new = _Periodic(profile, origin, turn + 1)
+        at = [s_k]
+        for gap in transition.gaps:
+            at.append(at[-1] + gap)
+        k = transition.plants
+        new = _Periodic(profile, at[k], turn + k)
         segments = []
-        if old.profile.law.same_as(profile.law) and old.profile.mech == profile.mech:
+        if transition.piecewise is None:
             segments.append((exit_s, new))
         else:
-            length = entry_s - exit_s
-            if not length > 1e-6 * profile.spacing:
-                raise CamInputError('spacing', profile.spacing, f'> {exit_s - s_k:.6g} m + '
-                                    f'{profile.entry:.6g} m (the soil arcs either side of the '
-                                    'change)')
-            start = old.evaluate(exit_s)
-            end_th, end_d1, end_d2 = profile.edge_state(-1)
-            end = (end_th + TWO_PI * (turn + 1), end_d1, end_d2)
-            limits = profile.drive.effective(profile.mech)
-            arc, _ = plan_arc(length, start, end, max(profile.speed, 1e-3), limits,
-                              lambda th: profile.drive.torque_terms(profile.mech, th),
-                              ARC_PIECES)
-            segments += [(exit_s, _Arc(arc, exit_s)), (entry_s, new)]
+            arc = transition.piecewise
+            segments += [(s_k + arc.start, _Arc(arc, s_k, TWO_PI * turn)),
+                         (s_k + arc.end, new)]
         # everything from the old exit on is replaced (an earlier change not yet in force too)
         keep = bisect_left(self._starts, exit_s)
         if self._segments[keep - 1] is not old:
@@ -194,5 +442,7 @@ class CamTrack:
             self._segments.append(segment)
         self._plants = [p for p in self._plants[:index + 1]]
         self._plants[index].last = s_k
-        self._plants.append(_Plants(new, origin))
+        if k > 1:
+            self._plants.append(_Listed(new, at[1:k], [turn + m for m in range(1, k)]))
+        self._plants.append(_Plants(new, at[k]))
         return s_k

@@ -37,20 +37,24 @@ def run(args):
     out = seasons.check_out(args.out)
     design = fallback_design(args)
     overrides = settings_overrides(args)
+    ignored = []
     try:
-        bags = find_bags(args.paths, skip=[out])
+        bags = find_bags(args.paths, skip=[out], ignored=ignored)
     except BagSearchError as exc:
         raise BadInput(str(exc)) from None
+    for path, why in ignored:
+        print(f'planter: warning: {path} is {why}, not a bag: skipped', file=sys.stderr)
     if not bags:
         raise BadInput(f'PATH = {" ".join(args.paths)} holds no bag: allowed .mcap files and '
                        'directories holding .mcap files or rosbag2 bag directories')
     version = model_version()
-    from planter_ros.analysis.exports import format_exports, season_exports
-    from planter_ros.plots.season import season_report
+    from planter_ros.analysis.exports import format_exports
+    from planter_ros.plots.season import season_outputs
     root = seasons.analysed_root(args.paths)
     with seasons.Season(out, root) as season:
         keys, skipped = season.plan(seasons.bag_keys(bags, root), version,
                                     seasons.options_key(overrides, design), args.force)
+        renamed = season.apply_renames()
         report = seasons.Report(out=str(out))
         if keys:
             where = args.scheduler or 'the local cluster'
@@ -63,19 +67,17 @@ def run(args):
                     report.workers = workers
             except EngineError as exc:
                 raise BadInput(str(exc)) from None
-        exports = season_exports(out, force=bool(keys))
-        table, html = season_report(out)           # per field, day and row; report.html
-    report.found, report.skipped = len(bags), skipped
+        exports, table, html, failed = season_outputs(out, force=bool(keys) or renamed)
+    report.found, report.skipped = len(bags) - len(season.copies), skipped
+    report.copies = season.copies
     if args.json:
-        print(json.dumps({**report.as_json(), 'exports': exports, 'report': str(html)},
-                         indent=1, allow_nan=False))
+        print(json.dumps({**report.as_json(), 'exports': exports,
+                          'report': html and str(html)}, indent=1, allow_nan=False))
     else:
-        print(f'{seasons.format_report(report)}\n{table}\nseason report: {html}')
+        print(seasons.format_report(report) + (f'\n{table}\nseason report: {html}' if html
+                                               else ''))
         if exports:
             print(format_exports(exports))
-    for bag, reason in (exports or {}).get('skipped', []):
-        print(f'planter: warning: {bag} not in the ISOXML task data ({reason})', file=sys.stderr)
-    for bag, reason in report.not_done:
-        print(f'planter: warning: {bag} not analysed ({reason}): a re-run tries it again',
-              file=sys.stderr)
-    return 1 if report.not_done else 0
+    for line in seasons.notices(report, exports, failed):
+        print(line, file=sys.stderr)
+    return 1 if report.not_done or failed else 0

@@ -95,10 +95,10 @@ def run(args):
     from planter_ros.kinematics.five_bar import design_five_bar
     from planter_ros.output_files import atomic_output
 
+    drive = DriveLimits(**{k[len('drive_'):]: v for k, v in vars(args).items()
+                           if k.startswith('drive_') and v is not None})   # checked together
     design = design_five_bar(args.depth, args.design_spacing, args.hole_ratio)
     mech = CamMechanism.from_design(design, args.nozzle_width)
-    drive = DriveLimits(**{k[len('drive_'):]: v for k, v in vars(args).items()
-                           if k.startswith('drive_') and v is not None})
     result = study(mech, drive, args.rule, args.spacing, args.speed, args.design_spacing,
                    args.hole_ratio)
     require_finite(result, 'cam')

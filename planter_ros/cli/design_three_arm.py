@@ -1,6 +1,7 @@
 """`planter design three-arm --params FILE`: the eight goals of a three-arm scene."""
 
 import json
+import sys
 
 from planter_ros.output_files import require_finite
 from planter_ros.cli.options import output_file
@@ -23,6 +24,8 @@ def load_params(path, option='--params'):
     from planter_ros.kinematics.scene_settings import SceneSettings, ThreeArmSettings
     from planter_ros.scene import open_scene
     scene = open_scene(path)
+    for warning in scene.warnings:                 # defaults taken, unusual values
+        print(f'planter: warning: {warning}', file=sys.stderr)
     params = scene.parameters('design_node')
     mechanism = params.get('mechanism')
     if mechanism != 'three_arm':

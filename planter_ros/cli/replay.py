@@ -10,7 +10,6 @@ as-planted map (recording.export), `--shapefile` and `--isoxml` the same for far
 """
 
 import json
-import math
 import sys
 
 from planter_ros.cli.options import output_file, output_path, spec_option
@@ -87,44 +86,40 @@ def fallback_design(args):
     return open_scene(args.scene).design()
 
 
+OUTPUTS = ('plot', 'geojson', 'csv', 'shapefile', 'isoxml')
+
+
 def run(args):
-    from planter_ros.cli.main import BadInput
-    from planter_ros.output_files import atomic_output
+    """Replay the bag, then write each output asked for on its own (export.outputs.write_each:
+    one that fails is named on stderr, exit 1)."""
+    from planter_ros.analysis.bags import BagSearchError, check_bag
+    from planter_ros.cli.main import BadInput, one_line
+    from planter_ros.export import outputs
+    from planter_ros.output_files import check_distinct
+    from planter_ros.plots.replay import write_plot
+    from planter_ros.recording import export
     from planter_ros.recording.errors import RecordingError
     from planter_ros.recording.replay import replay
     from planter_ros.recording.replay_text import format_table
-    from planter_ros.output_files import check_distinct
-    check_distinct({f'--{o}': getattr(args, o)
-                    for o in ('plot', 'geojson', 'csv', 'shapefile', 'isoxml')})
+    check_distinct({f'--{o}': getattr(args, o) for o in OUTPUTS})
     design = fallback_design(args)
     try:
+        check_bag(args.bag)
         result = replay(args.bag, settings_overrides(args), fallback_design=design)
-    except RecordingError as exc:
+    except (BagSearchError, RecordingError) as exc:
         raise BadInput(str(exc)) from None
     for warning in result.warnings:
         print(f'planter: warning: {warning}', file=sys.stderr)
-    from planter_ros.export.outputs import replay_run, write_outputs
-    exports = replay_run(result, args.shapefile, args.isoxml)
-    written = []
-    if args.plot:
-        from planter_ros.plots.replay import plot_replay
-        with atomic_output(args.plot) as tmp:
-            plot_replay(result, tmp)
-        written.append(f'plot written to {args.plot}')
-    if args.geojson or args.csv:
-        from planter_ros.output_files import write_text_atomically
-        from planter_ros.recording.export import csv_text, geojson_text
-        placed = int(sum(1 for v in result.plants.latitude if math.isfinite(v)))
-        for path, text, what in ((args.geojson, geojson_text, 'GeoJSON'),
-                                 (args.csv, csv_text, 'CSV')):
-            if path:
-                write_text_atomically(path, text(result))
-                written.append(f'{what} written to {path} ({len(result.plants)} plants, '
-                               f'{placed} with a map position)')
-    written += write_outputs(exports, args.shapefile, args.isoxml)
-    if args.json:
-        print(json.dumps(result.as_json(), indent=1, allow_nan=False))
-    else:
-        print(format_table(result))
-        print('\n'.join(written))
-    return 0
+    plants = outputs.replay_run(result, args.shapefile, args.isoxml)
+    writers = {'plot': lambda p: write_plot(result, p),
+               'geojson': lambda p: export.write_geojson(result, p),
+               'csv': lambda p: export.write_csv(result, p),
+               'shapefile': lambda p: outputs.write_shapefile_output(plants, p),
+               'isoxml': lambda p: outputs.write_isoxml_output(plants, p)}
+    written, failed = outputs.write_each([(f'--{o}', getattr(args, o), writers[o])
+                                          for o in OUTPUTS if getattr(args, o)])
+    print(json.dumps(result.as_json(), indent=1, allow_nan=False) if args.json else
+          '\n'.join([format_table(result), *written]))
+    for line in failed:
+        print(f'planter: error: {one_line(line)}', file=sys.stderr)
+    return 1 if failed else 0

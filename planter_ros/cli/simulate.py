@@ -38,9 +38,11 @@ def add_arguments(parser):
 
 def run(args):
     from planter_ros.analysis.engine import EngineError
-    from planter_ros.analysis.simulate import check_path, season_machine, simulate_season
+    from planter_ros.analysis.simulate import (check_path, check_tray, season_machine,
+                                               simulate_season)
     from planter_ros.cli.main import BadInput
     from planter_ros.sim.season import bag_name
+    check_tray(args.empty_rate, args.double_rate)
     scene, rows = season_machine(args.scene, args.rows)     # a bad scene: one line, exit 2
     names = [bag_name(args.seed, k) for k in range(args.bags)]
     path = check_path(args.path, names)

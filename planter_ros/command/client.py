@@ -101,6 +101,7 @@ class CommandClient:
         # the last design as sent ([kind, payload]); with a cam, once planned
         self._design_message: tuple[str, Any] | None = None
         self._cam = settings.law[0].speed_profile == 'cam'
+        self._profile = None                # the cam profile sent last
         if self._cam:           # the first plan imports and sets up the LP solver (~0.4 s)
             threading.Thread(target=warm_up, daemon=True, name='cam-warm-up').start()
         self._sections: dict[str, bool] = {row.name: True for row in settings.rows
@@ -338,11 +339,20 @@ class CommandClient:
         return True
 
     def _plan_cam(self, design: Design, text: str, arrived: float) -> None:
-        profile, why = plan_for_design(design, self.settings.law[0].cam_rule)
+        """Plan the cam and the change from the one sent last (planter_ros.control.cam_law);
+        one over the drive's limits is refused here, before it reaches the command process."""
+        from planter_ros.cam import CamError
+        previous = self._profile
+        try:
+            profile, why = plan_for_design(design, self.settings.law[0].cam_rule, previous)
+            data = None if profile is None else profile_to_data(profile, previous)
+        except CamError as exc:
+            self.log(logging.ERROR, f'design refused, the rows keep theirs: {exc}')
+            return
         if text != self._design:            # a newer design came meanwhile
             return
-        message = ('design_cam', [text, None if profile is None else profile_to_data(profile),
-                                  why, arrived])
+        self._profile = profile
+        message = ('design_cam', [text, data, why, arrived])
         self._design_message = message
         self._send(*message)
 

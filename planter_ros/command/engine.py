@@ -277,13 +277,23 @@ class CommandEngine:
         return self._apply_design(design, text, now, None)
 
     def _plan_cam(self, design: Design, text: str, now: float) -> None:
-        """Plan the design's cam (worker thread), then apply the design with it."""
-        profile, why = plan_for_design(design, self.law.config.cam_rule)
-        with self._lock:
-            if self._planning != text:       # a newer design arrived meanwhile
-                return
-            self._planning = None
-            self._apply_design(design, text, time.monotonic(), profile, why, since=now)
+        """Plan the design's cam and the change to it (worker thread), then apply the design
+        with it; a plan or change over the drive's limits is refused (logged, not applied)."""
+        from planter_ros.cam import CamError
+        previous = next((unit.law.cam for unit in self.units if unit.law.cam is not None),
+                        None)
+        try:
+            profile, why = plan_for_design(design, self.law.config.cam_rule, previous)
+            with self._lock:
+                if self._planning != text:       # a newer design arrived meanwhile
+                    return
+                self._planning = None
+                self._apply_design(design, text, time.monotonic(), profile, why, since=now)
+        except CamError as exc:
+            with self._lock:
+                if self._planning == text:
+                    self._planning = None
+            self.log(logging.ERROR, f'design refused, the rows keep theirs: {exc}')
 
     def _apply_design(self, design: Design, text: str, now: float, cam: Any,
                       why: str = '', since: float | None = None) -> bool:

@@ -22,10 +22,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='against simulated drives on a virtual bus (random mechanical '
                         'offset and polarity from --seed), as does a machine file whose '
                         'can.interface is virtual')
-    parser.add_argument('--seed', type=int, default=0,
-                        help='--simulated: seed of the mechanisms\' offsets and wiring')
-    parser.add_argument('--output', metavar='FILE',
-                        help='write the machine file here instead of over --machine')
+    parser.add_argument('--seed', type=_seed, default=0, metavar='N',
+                        help='--simulated: seed of the mechanisms\' offsets and wiring, '
+                        '0..2^32-1')
+    parser.add_argument('--output', metavar='FILE.yaml',
+                        help='write the machine file here instead of over --machine (checked '
+                        'before any motion: an existing directory, a .yaml or .yml name)')
+
+
+SEED_MAX = 2 ** 32 - 1
+
+
+def _seed(text: str) -> int:
+    """argparse `type=` of --seed: 0..2^32-1, one line naming the value otherwise."""
+    try:
+        value = int(text, 10)
+    except ValueError:
+        value = None
+    if value is None or not 0 <= value <= SEED_MAX:
+        shown = text if len(text) <= 40 else text[:37] + '...'
+        raise argparse.ArgumentTypeError(f'--seed = {shown!r} is out of range: allowed '
+                                         f'integer 0..{SEED_MAX}')
+    return value
 
 
 def run(args: argparse.Namespace) -> int:
@@ -44,12 +62,18 @@ def run(args: argparse.Namespace) -> int:
         print(f'planter: error: commission: {message}', file=sys.stderr)
         return 2
 
+    from planter_ros.output_files import OutputError, check_output
     try:
         machine = open_machine(args.machine)
         if args.scene:
             for warning in deployment_parameters(args.machine, args.scene)[1]:
                 print(f'warning: {warning}', file=sys.stderr)
-    except SceneError as exc:
+        # where the result goes, checked before anything moves: '' is no file (it never
+        # means the input), a directory or a missing one is refused now, not after homing
+        output = args.machine if args.output is None else args.output
+        check_output(output, '--output' if args.output is not None else '--machine',
+                     ('.yaml', '.yml'))
+    except (SceneError, OutputError) as exc:
         return fail(str(exc))
     rows = args.row or list(machine.rows)
     unknown = [r for r in rows if r not in machine.rows]
@@ -80,7 +104,6 @@ def run(args: argparse.Namespace) -> int:
             bus = can.Bus(interface='virtual', channel=channel)
             observer = SimulatedObserver(sims)
         findings = commission_machine(run_machine, rows, observer, bus=bus)
-        output = args.output or args.machine
         write_machine(updated_machine(machine, findings), output,
                       comment=f'machine file written by planter commission (rows: '
                               f'{", ".join(rows)})')

@@ -2,36 +2,84 @@
 from a five-bar design and place it on the row where the row's grid is anchored.
 
 `plan_row_cam` plans the profile with `planter_ros.cam.plan_cam` at the scene's top ground
-speed and the default `DriveLimits` (a few ms to tens of ms: callers run it off the control
-thread). `anchored_track` puts that profile on the row as a `CamTrack` whose θ at the anchor
-distance is the measured angle there (no jump when a grid starts); its plants are where θ = π
-(mod 2π), the five-bar's planting angle. Pure: no ROS.
+speed (the design's `top_ground_speed`) and the default `DriveLimits` (a few ms to tens of ms:
+callers run it off the control thread); a plan over the drive's limits even at constant
+speed is refused (`CamLimitError`, the figure and the limit named), never handed on.
+`plan_for_design` also plans and checks the change from the profile in force
+(`cam.track.plan_transition`), so a change the drive cannot make is refused before it
+reaches the command process, and the planned transition travels with the profile
+(`profile_to_data`) so the command process need not plan it. `anchored_track` puts a profile
+on the row as a `CamTrack` whose θ at the anchor distance is the measured angle there (no
+jump when a grid starts); its plants are where θ = π (mod 2π), the five-bar's planting angle.
+Pure: no ROS.
 """
 from __future__ import annotations
 
+from functools import lru_cache
 import math
 from typing import Any
 
 from planter_ros.cam import CamMechanism, CamProfile, CamTrack, DriveLimits, plan_cam
 
 __all__ = ['plan_row_cam', 'plan_for_design', 'anchored_track', 'profile_to_data',
-           'profile_from_data', 'warm_up', 'DEFAULT_TOP_SPEED']
+           'profile_from_data', 'planning_speed', 'warm_up', 'DEFAULT_TOP_SPEED']
 
-# top ground speed a cam is planned for when the design names none (m/s)
+# top ground speed a cam is planned for when the design names no speed at all (m/s)
 DEFAULT_TOP_SPEED = 0.3
 _BISECTIONS = 80
 
 
-def plan_row_cam(design: Any, rule: str, top_speed: float | None = None) -> CamProfile:
+def planning_speed(design: Any) -> float:
+    """The ground speed (m/s) a design's cam is planned for: its top ground speed (the
+    scene's `top_ground_speed`, or 1.5 × nominal: kinematics.scene_settings), or for a design
+    that names none (an older recording) 1.5 × its nominal speed, or DEFAULT_TOP_SPEED."""
+    from planter_ros.kinematics.scene_settings import top_ground_speed
+    top = getattr(design, 'top_ground_speed', None)
+    if top:
+        return float(top)
+    nominal = getattr(design, 'nominal_ground_speed', None)
+    return top_ground_speed(nominal) if nominal else DEFAULT_TOP_SPEED
+
+
+@lru_cache(maxsize=64)
+def _plan(mech: CamMechanism, spacing: float, speed: float, drive: DriveLimits,
+          rule: str) -> Any:
+    """plan_cam, kept: a scene's spacings are planned again and again (its schedule, each
+    rule change back, the scene's check and the shell's own plan)."""
+    return plan_cam(mech, spacing, speed, drive, rule, top_speeds=False)
+
+
+def plan_row_cam(design: Any, rule: str, top_speed: float | None = None,
+                 drive: DriveLimits | None = None) -> CamProfile:
     """θ(s) for a five-bar `design` (l1, l2, planting depth, plant spacing) under `rule`
-    (design_speed | zero_slip) at `top_speed` (m/s; default the design's nominal ground speed):
-    the rule's profile, or the feasible one closest to it (`plan_cam`)."""
+    (design_speed | zero_slip) at `top_speed` (m/s; default `planning_speed(design)`) within
+    `drive` (default DriveLimits()): the rule's profile, or the feasible one closest to it
+    (`plan_cam`). ValueError for a design the cam cannot run (not a five-bar); CamLimitError
+    when not even constant speed keeps within the drive's limits at that speed."""
+    from planter_ros.cam import CamLimitError
     if getattr(design, 'mechanism', None) != 'five_bar':
         raise ValueError(f'speed_profile = cam needs a five-bar design, got '
                          f'{getattr(design, "mechanism", None)}')
-    speed = top_speed or getattr(design, 'nominal_ground_speed', None) or DEFAULT_TOP_SPEED
+    from planter_ros.cam import CamInputError
+    speed = top_speed or planning_speed(design)
     mech = CamMechanism(design.l1, design.l2, design.planting_depth)
-    plan = plan_cam(mech, design.plant_spacing, speed, DriveLimits(), rule, top_speeds=False)
+    built = mech.design_spacing
+    try:
+        plan = _plan(mech, float(design.plant_spacing), float(speed), drive or DriveLimits(),
+                     rule)
+    except CamInputError as exc:
+        if exc.parameter != 'spacing':
+            raise
+        raise CamInputError('plant_spacing', design.plant_spacing, f'{exc.allowed} for a '
+                            f'five-bar built for {built:.4g} m (design_spacing): a smaller '
+                            'design_spacing, or a larger plant_spacing') from None
+    if not plan.feasible:
+        raise CamLimitError.from_message(
+            f'speed_profile = cam cannot plant plant_spacing = {design.plant_spacing:.4g} m '
+            f'with a five-bar built for {built:.4g} m (design_spacing) at top_ground_speed = '
+            f'{speed:.3g} m/s: {plan.figures.over_text()} even at constant speed, the cam\'s '
+            'last fallback: allowed a lower top_ground_speed, a larger plant_spacing or a '
+            'drive with more reserve')
     return plan.profile
 
 
@@ -52,33 +100,67 @@ def anchored_track(profile: CamProfile, theta: float, s: float) -> CamTrack:
     return CamTrack(profile, origin=s - lo)
 
 
-def profile_to_data(profile: CamProfile) -> dict:
-    """A planned profile as JSON-ready data (the shell plans, the command process runs it)."""
+def profile_to_data(profile: CamProfile, previous: CamProfile | None = None) -> dict:
+    """A planned profile as JSON-ready data (the shell plans, the command process runs it);
+    with `previous`, the planned transition from it (if one was planned) travels along."""
     from dataclasses import asdict
+
+    from planter_ros.cam.track import fingerprint, plan_transition
     period = profile.period
-    return {'mech': asdict(profile.mech), 'law': asdict(profile.law),
+    data = {'mech': asdict(profile.mech), 'law': asdict(profile.law),
             'spacing': profile.spacing, 'speed': profile.speed, 'drive': asdict(profile.drive),
             'rule': profile.rule, 'blend': profile.blend,
-            'breaks': period.breaks.tolist(), 'coeffs': period.coeffs.tolist()}
+            'breaks': period.breaks.tolist(), 'coeffs': period.coeffs.tolist(),
+            'fingerprint': fingerprint(profile)}
+    if previous is not None:
+        data['transition'] = plan_transition(previous, profile).as_data()
+    return data
 
 
 def profile_from_data(data: dict) -> CamProfile:
-    """The profile `profile_to_data` gave (ValueError/TypeError/KeyError if it is not one)."""
+    """The profile `profile_to_data` gave (ValueError/TypeError/KeyError if it is not one);
+    a transition that came with it is kept for `CamTrack.change` (cam.track)."""
     from planter_ros.cam import SoilLaw
     from planter_ros.cam.piecewise import Piecewise
-    return CamProfile(CamMechanism(**data['mech']), SoilLaw(**data['law']),
-                      float(data['spacing']), Piecewise(data['breaks'], data['coeffs']),
-                      float(data['speed']), DriveLimits(**data['drive']), str(data['rule']),
-                      float(data['blend']))
+    from planter_ros.cam.track import Transition, fingerprint, remember_transition
+    profile = CamProfile(CamMechanism(**data['mech']), SoilLaw(**data['law']),
+                         float(data['spacing']), Piecewise(data['breaks'], data['coeffs']),
+                         float(data['speed']), DriveLimits(**data['drive']),
+                         str(data['rule']), float(data['blend']))
+    if data.get('fingerprint') not in (None, fingerprint(profile)):
+        raise ValueError('cam profile: its data do not match its fingerprint')
+    if data.get('transition') is not None:
+        transition = Transition.from_data(data['transition'])
+        if transition.new == fingerprint(profile):
+            remember_transition(transition)
+    return profile
 
 
-def plan_for_design(design: Any, rule: str) -> tuple[CamProfile | None, str]:
-    """(profile, '') for a design the cam can run, else (None, why: constant speed)."""
-    from planter_ros.cam import CamError
+def plan_for_design(design: Any, rule: str,
+                    previous: CamProfile | None = None) -> tuple[CamProfile | None, str]:
+    """(profile, '') for a design the cam can run, (None, why: constant speed) for one it
+    cannot (not a five-bar, zero slip undefined at this depth). CamLimitError (one line, the
+    figure and the limit) when its plan, or the change from `previous` (the profile in force)
+    to it, is over the drive's limits however it is spread: refused, the design not to be
+    applied."""
+    from planter_ros.cam import CamError, CamInputError, CamLimitError
+    from planter_ros.cam.track import plan_transition
     try:
-        return plan_row_cam(design, rule), ''
+        profile = plan_row_cam(design, rule)
+    except CamLimitError:
+        raise
     except (ValueError, CamError) as exc:
         return None, f'no cam for this design ({exc}): constant speed'
+    if previous is not None:
+        try:
+            plan_transition(previous, profile)
+        except CamLimitError:
+            raise
+        except CamInputError as exc:
+            raise CamLimitError.from_message(f'the change to plant_spacing = '
+                                             f'{profile.spacing:.4g} m cannot be made: {exc}') \
+                from None
+    return profile, ''
 
 
 def warm_up() -> None:

@@ -63,8 +63,12 @@ class Machine:
                    since: float | None = None) -> None:
         """A design for every row: each row running on its grid takes it at its own next
         planting instant (PhaseLock.set_design). `cams`: each row's cam profile (None:
-        constant speed), or None for constant speed on every row."""
+        constant speed), or None for constant speed on every row. A cam change over the
+        drive's limits on any row raises CamLimitError before any row changes."""
         cams = cams if cams is not None else [None] * len(self.laws)
+        # every row's change checked first (CamLimitError: no row changes)
+        for law, cam in zip(self.laws, cams):
+            law.check_cam(cam, plants_per_revolution, now, since)
         for law, cam in zip(self.laws, cams):
             law.set_design(spacing, plants_per_revolution, now, planting, cam, since)
 

@@ -42,7 +42,9 @@ Choices the papers leave open, made here on purpose:
   distance, the feed-forward θ′(s)·v, instead of the straight line 2πs/(n·d). The cam is held
   in a `CamTrack` anchored where the grid is anchored (θ there = the measured angle); a new
   cam while the row runs on its grid goes through `CamTrack.change`: it takes effect at the
-  track's next planting instant with θ, θ′ and θ″ continuous. Without a profile (constant, a
+  track's next planting instant with θ, θ′ and θ″ continuous, through a transition checked
+  against the drive's limits; a change no transition makes within them is refused (the
+  row keeps its design and cam: `check_cam`, CamLimitError). Without a profile (constant, a
   drive without CSP, another mechanism) the law is the straight line, unchanged.
 
 Time is passed in explicitly (monotonic seconds), so the law is deterministic and testable.
@@ -88,8 +90,9 @@ class PhaseLockConfig:
     phase_lock: bool = setting(True, 'true: phase-locked to travelled distance; false: '
                                'speed-only (feed-forward)')
     ground_speed_timeout: float = setting(0.5, 'no accepted ground-speed sample for this long '
-                                          '= stale: ramp to 0, then halt', unit='s',
-                                          range=(0.05, 10.0))
+                                          '= stale: ramp to 0, then halt (longer, the rows '
+                                          'plant blind: 2 s at 1.5 m/s is 3 m)', unit='s',
+                                          range=(0.05, 2.0))
     speed_profile: str = setting('constant', "the sun bar's motion within each plant: constant "
                                  '(2πv/(n·d)) or cam (θ(s) of the row\'s travelled distance, '
                                  'five-bar only, CSP drives only; doc/cam.md)',
@@ -214,21 +217,27 @@ class PhaseLock:
             self._try_anchor(now)
             return
         if cam is not None and self._track is not None:
-            from planter_ros.cam import CamError     # only with a cam: scipy's solver behind it
-            try:
-                switch_at = self._track.change(cam, self._change_from(now, since))
-            except CamError:
-                # no transition arc fits before the next plant: a new grid from here
-                self._pending, self.spacing, self.planting = None, float(spacing), planting
-                self.cam, self._anchor, self._track = cam, None, None
-                self._try_anchor(now)
-                return
+            # CamLimitError, CamInputError (one line): no change within the drive's limits;
+            # the row keeps its design and cam (nothing of the change reaches the drive)
+            switch_at = self._track.change(cam, self._change_from(now, since))
             self.cam = cam
             self._pending = (float(spacing), planting, switch_at)
             self._switch_design(now)
             return
         self._pending = (float(spacing), planting, self._next_planting_distance(now))
         self._switch_design(now)
+
+    def check_cam(self, cam: Any, plants_per_revolution: int, now: float,
+                  since: float | None = None) -> None:
+        """Raise what `set_design` with this cam would (CamLimitError, CamInputError: the
+        change from the cam in force is over the drive's limits or has no room), changing
+        nothing: a machine checks every row before it changes any. The transition is planned
+        (or found planned: cam.track caches it) here."""
+        if (cam is None or self._track is None or self.cam is None or not self.section_on
+                or self._starting or self._anchor is None
+                or int(plants_per_revolution) != self.plants_per_revolution):
+            return
+        self._track.transition(cam, self._change_from(now, since))
 
     def _change_from(self, now: float, since: float | None) -> float:
         """The distance a cam change counts its next planting instant from: the row's

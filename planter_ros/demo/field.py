@@ -12,9 +12,11 @@ from planter_ros.sim.field import FieldProfile, demo_curves
 __all__ = ['field_profile', 'glitches']
 
 
-def field_profile(duration: float, cruise: float) -> FieldProfile:
-    """The run's true ground speed and path: `duration` s at `cruise` m/s, two turns."""
-    return FieldProfile(duration, cruise, curves=demo_curves(duration))
+def field_profile(duration: float, cruise: float, top: float | None = None) -> FieldProfile:
+    """The run's true ground speed and path: `duration` s at `cruise` m/s, a speed-up by
+    half (never above `top` m/s, the scene's top ground speed), two turns."""
+    change = 1.5 if not top else min(1.5, top / cruise)
+    return FieldProfile(duration, cruise, change=change, curves=demo_curves(duration))
 
 
 def glitches(duration: float) -> list[tuple[float, float]]:

@@ -267,7 +267,8 @@ class _Run:
 
         demo, options, design = self.demo, self.demo.options, self.demo.design
         channel = f'planter_demo_{os.getpid()}_{time.monotonic_ns() % 1_000_000}'
-        self.profile = profile = field_profile(options.duration, design.nominal_ground_speed)
+        self.profile = profile = field_profile(options.duration, design.nominal_ground_speed,
+                                               design.top_ground_speed)
         ns = interfaces.NAMESPACE
         # the command path first: it takes longest to start (its own interpreter)
         machine = ()

@@ -13,7 +13,8 @@ from typing import Any, Mapping
 from planter_ros.config import as_dict, from_mapping
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
-from planter_ros.kinematics.scene_settings import SceneSettings, ThreeArmSettings
+from planter_ros.kinematics.scene_settings import (SceneSettings, ThreeArmSettings,
+                                                   top_ground_speed)
 
 from .message import from_dict
 from .model import Design
@@ -39,6 +40,8 @@ def design_for_scene(params: Mapping[str, Any]) -> Design:
     out.update(mechanism=scene.mechanism, plants_per_revolution=n,
                plant_spacing=scene.plant_spacing, planting_depth=scene.planting_depth,
                crop=scene.crop, nominal_ground_speed=scene.nominal_ground_speed,
+               top_ground_speed=top_ground_speed(scene.nominal_ground_speed,
+                                                 scene.top_ground_speed),
                nominal_mechanism_speed=2.0 * math.pi * scene.nominal_ground_speed
                / (n * scene.plant_spacing), nozzle_width=scene.nozzle_width)
     return from_dict(out)

@@ -77,12 +77,12 @@ def from_dict(data: Any) -> Design:
         raise DesignMessageError(f'design = {type(data).__name__} is out of range: allowed a '
                                  'JSON object')
     mechanism = data.get('mechanism')
-    cls = MECHANISM_CLASSES.get(mechanism) if isinstance(mechanism, str) else None
-    if cls is None:
+    if not isinstance(mechanism, str) or mechanism not in MECHANISM_CLASSES:
         shown = 'missing' if mechanism is None else repr(mechanism)[:40]
         raise DesignMessageError(f'mechanism = {shown} is out of range: allowed '
                                  f'{" or ".join(MECHANISM_CLASSES)}')
-    values = {}
+    cls = MECHANISM_CLASSES[mechanism]
+    values: dict[str, object] = {}
     for f in fields(cls):
         value = data.get(f.name)
         if value is None and f.name in _ALIASES and cls is FiveBar:
@@ -97,10 +97,12 @@ def from_dict(data: Any) -> Design:
     for name in required:
         if name not in values:
             raise DesignMessageError(f'{mechanism} without {name}: allowed {_ALLOWED[name]}')
-    return cls(**{name: _value(name, value) for name, value in values.items()})
+    # each value checked by _value against its field: a field's type, known to _value only
+    checked: dict[str, Any] = {name: _value(name, value) for name, value in values.items()}
+    return cls(**checked)
 
 
-def _value(name, value):
+def _value(name: str, value: object) -> object:
     """One field's value checked and made immutable (tuples for lists)."""
     if name in _POSITIVE:
         return _positive(name, value)
@@ -109,11 +111,14 @@ def _value(name, value):
             raise DesignMessageError(f'{name} = {_shown(value)} is out of range: allowed an '
                                      'integer >= 1')
         return value
-    if name == 'nozzle_width':
+    if name in ('nozzle_width', 'nominal_ground_speed', 'top_ground_speed'):
+        spec = spec_of(SceneSettings, name)
+        if name == 'top_ground_speed':          # resolved: never 0
+            spec = spec_of(SceneSettings, 'nominal_ground_speed')
         try:
-            return coerce(spec_of(SceneSettings, 'nozzle_width'), value)
+            return coerce(spec, value)
         except ConfigError as exc:
-            raise DesignMessageError(str(exc)) from None
+            raise DesignMessageError(str(exc).replace(spec.name, name, 1)) from None
     if name == 'tip_path':
         return _tip_path(value)
     if name == 'goals':
@@ -131,16 +136,15 @@ def _value(name, value):
     return value
 
 
-def _positive(name, value):
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and \
-        math.isfinite(value) and value > 0
-    if not ok:
+def _positive(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            math.isfinite(value) and value > 0):
         raise DesignMessageError(f'{name} = {_shown(value)} is out of range: allowed finite '
                                  'and > 0 m')
     return float(value)
 
 
-def _tip_path(value):
+def _tip_path(value: object) -> TipPath:
     allowed = 'tip_path = {angle, x, y} (rad, m, m) of one nozzle tip per revolution'
     if not isinstance(value, dict) or not all(
             isinstance(value.get(k), list) for k in ('angle', 'x', 'y')):
@@ -154,12 +158,12 @@ def _tip_path(value):
     return TipPath(*(tuple(float(v) for v in c) for c in columns))
 
 
-def _shown(value):
+def _shown(value: object) -> str:
     text = f'{value:.6g}' if isinstance(value, float) else repr(value)
     return text if len(text) <= 40 else text[:37] + '...'
 
 
-def _short(exc):
+def _short(exc: BaseException) -> str:
     return ' '.join(str(exc).split())[:120]
 
 

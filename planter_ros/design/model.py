@@ -28,6 +28,7 @@ class Design:
     #                                      soil sees is the tip's sweep plus this
     crop: str | None = None              # crop name, for people and recordings
     nominal_ground_speed: float | None = None      # v the scene plans for (m/s)
+    top_ground_speed: float | None = None          # the highest v it plants at (m/s)
     nominal_mechanism_speed: float | None = None   # 2πv/(n·d) at that speed (rad/s)
     planting_phase: float | None = None  # shaft angle of the planting instant (rad); None:
     #                                      the mechanism's own (five-bar π, three-arm lowest tip)

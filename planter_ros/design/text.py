@@ -2,8 +2,15 @@
 `planter design five-bar`, `planter design three-arm` and `planter optimize three-arm` print
 from their JSON-ready results (the keys their --json output has)."""
 
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:                 # text only: the models are not imported to print a table
+    from planter_ros.kinematics.five_bar import HoleTolerance
+    from planter_ros.kinematics.three_arm.paper import PaperComparison
 
 __all__ = ['five_bar_table', 'three_arm_table']
 
@@ -46,7 +53,7 @@ _STEPS = (('l1', 'l1', 1e-4, '+0.1 mm'), ('l2', 'l2', 1e-4, '+0.1 mm'),
           ('depth', 'depth D', 1e-3, '+1 mm'), ('speed_ratio', 'speed ratio λ', 0.01, '+0.01'))
 
 
-def _sensitivity_table(r):
+def _sensitivity_table(r: Mapping[str, Any]) -> list[str]:
     s, hole = r['sensitivity'], r['hole_width']
     rows = [('hole width sensitivity', 'dW/dx', 'change', 'hole moves')]
     for key, label, step, shown in _STEPS:
@@ -59,11 +66,11 @@ def _sensitivity_table(r):
                              'λ by about 0.01)']
 
 
-def _tolerance_table(t):
+def _tolerance_table(t: HoleTolerance) -> list[str]:
     mm, nominal = 1000.0, t['nominal']
     p = t['percentiles']
 
-    def pct(v):
+    def pct(v: float) -> str:
         return f'{v * mm:.4f} mm ({(v - nominal) / nominal * 100:+.1f} %)'
     rows = [(f"built machines ({t['samples']:,} samples)",
              f"bars ±{t['bar_tolerance'] * mm:g} mm, speed ±{t['speed_error'] * 100:g} %"),
@@ -76,12 +83,12 @@ def _tolerance_table(t):
     return _aligned(rows)
 
 
-def _aligned(rows):
+def _aligned(rows: Sequence[Sequence[str]]) -> list[str]:
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     return ['  '.join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
 
 
-def _show(value, unit):
+def _show(value: float | None, unit: str) -> str:
     if value is None:
         return '—'
     if unit == 'rad':
@@ -127,15 +134,15 @@ def three_arm_table(r: dict[str, Any]) -> str:
     return '\n'.join(lines)
 
 
-def _assumed(g):
+def _assumed(g: Mapping[str, Any]) -> str:
     """The assumed values (all lengths) in mm, for the basis column."""
     shown = ', '.join(f'{k} {v * 1000:g} mm' for k, v in g['assumed'].items())
     return f' ({shown})' if shown else ''
 
 
-def _comparison_table(c):
+def _comparison_table(c: PaperComparison) -> list[str]:
     """Model against the paper's Table 1, per arm, in degrees."""
-    def deg(v):
+    def deg(v: float) -> str:
         return f'{math.degrees(v):.1f}'
     rows = [('arm', 'picking θ', 'Table 1', 'Δ', 'planting θ', 'Table 1', 'Δ',
              'picking angle at Table 1 θ', 'pushing angle at Table 1 θ')]
@@ -151,7 +158,7 @@ def _comparison_table(c):
             *_columns(rows, right=tuple(range(1, 9)))]
 
 
-def _columns(rows, right=()):
+def _columns(rows: Sequence[Sequence[str]], right: tuple[int, ...] = ()) -> list[str]:
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     return ['  '.join(c.rjust(w) if i in right else c.ljust(w)
                       for i, (c, w) in enumerate(zip(row, widths))).rstrip() for row in rows]

@@ -9,9 +9,12 @@ Attributes (DBF names are at most 10 characters): ATTRIBUTES maps each plant rec
 (export.runs) to its column, in this order; a key not listed (a field the records gain later)
 becomes a column named by its first 10 characters (made unique), typed by its values (text,
 number, true/false). `bag` (the recording) and `utc` (the planting instant, ISO 8601 UTC) are
-added to every plant. Undefined values are null: numeric and logical cells are left undefined
-(GDAL and pyshp read null), text cells empty (GDAL reads null, pyshp ''). A plant without a map
-position is a Null shape (the Shapefile's own "no geometry"), like GeoJSON's null geometry.
+added to every plant. Undefined values are null as GDAL (and so QGIS, pyogrio, GeoPandas) reads
+them: a numeric cell is filled with '*' (pyshp's undefined number), a logical cell holds '?'
+(dBASE's unknown: a blank logical, which pyshp writes for None, reads as False in GDAL, so the
+cells are set after pyshp wrote the table, `_null_logicals`), a text cell is empty (GDAL reads
+null, pyshp ''). A plant without a map position is a Null shape (the Shapefile's own "no
+geometry"), like GeoJSON's null geometry.
 """
 
 from dataclasses import dataclass
@@ -51,6 +54,8 @@ ATTRIBUTES = (
               'the row along its travelled path (null for the first of a sequence and for an '
               'empty cup)'),
     Attribute('spacing_error', 'sp_err_m', 'N', 16, 6, 'm', 'spacing minus the design spacing'),
+    Attribute('design_spacing', 'design_m', 'N', 16, 6, 'm', 'the design spacing d in force at '
+              'the planting instant (a spacing change or a cam schedule changes it)'),
     Attribute('hole_width', 'hole_w_m', 'N', 16, 6, 'm', 'the hole along the row: tip sweep + '
               'nozzle width'),
     Attribute('tilt', 'tilt_rad', 'N', 12, 6, 'rad', 'stem from vertical, + leaning forward'),
@@ -65,7 +70,9 @@ ATTRIBUTES = (
               '(position interpolated; hole, tilt, upright unknown)'),
 )
 LATER = ('status', 'reason', 'input_gap')  # keys records gain with a seedling sensor
-GEOMETRY = ('longitude', 'latitude')      # record keys that are the point, not attributes
+# record keys that place the point, not attributes (the machine's heading is in the Parquet
+# plants table and places the ISOXML time log's machine)
+GEOMETRY = ('longitude', 'latitude', 'heading')
 SIDECARS = ('.shx', '.dbf', '.prj', '.cpg')
 STALE = ('.qix', '.sbn', '.sbx')           # spatial indexes other programs build from a .shp
 MAX_TEXT = 254                             # bytes in a DBF text cell
@@ -155,6 +162,33 @@ def _cell(attribute, size, value):
     return int(round(value)) if attribute.decimals == 0 else value
 
 
+UNKNOWN_LOGICAL = b'?'                     # dBASE's null of a logical cell
+DBF_HEADER, DBF_FIELD = 32, 32             # bytes of the table header, of a field descriptor
+
+
+def _null_logicals(dbf, columns, records):
+    """Set every undefined logical cell of the written table `dbf` to '?' (module doc): the
+    cells' places from the table's own header and field descriptors."""
+    logical = [(k, a) for k, (a, _) in enumerate(columns) if a.kind == 'L']
+    nulls = [(k, i) for k, a in logical for i, r in enumerate(records) if r.get(a.key) is None]
+    if not nulls:
+        return
+    with open(dbf, 'r+b') as f:
+        head = f.read(DBF_HEADER)
+        header_length = int.from_bytes(head[8:10], 'little')
+        record_length = int.from_bytes(head[10:12], 'little')
+        offsets, at = [], 1                    # byte 0 of a record: its deletion flag
+        for _ in columns:
+            offsets.append(at)
+            at += f.read(DBF_FIELD)[16]        # the field's length
+        if at != record_length:
+            raise ExportError(f'{dbf}: the attribute table has {record_length}-byte records, '
+                              f'its fields {at} bytes: not a table this writer can mark')
+        for k, i in nulls:
+            f.seek(header_length + i * record_length + offsets[k])
+            f.write(UNKNOWN_LOGICAL)
+
+
 def prj_text():
     """WGS 84 (EPSG:4326) as the ESRI WKT a .prj holds."""
     from pyproj import CRS
@@ -192,6 +226,7 @@ def _write_set(shp, shx, dbf, prj, cpg, runs):
                 writer.point(lon, lat)
                 placed += 1
             writer.record(*[_cell(a, size, record.get(a.key)) for a, size in columns])
+    _null_logicals(dbf, columns, records)
     Path(prj).write_text(prj_text(), encoding='ascii')
     Path(cpg).write_text('UTF-8', encoding='ascii')
     return len(records), placed

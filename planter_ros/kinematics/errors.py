@@ -18,9 +18,10 @@ class DesignError(ConfigError):
     """
 
     def __init__(self, parameter: str, value: object, allowed: str, reason: str = '') -> None:
-        self.parameter = parameter
-        self.value = value
-        self.allowed = allowed
+        # None on an error made from a ready message (from_message)
+        self.parameter: str | None = parameter
+        self.value: object = value
+        self.allowed: str | None = allowed
         text = f'{parameter} = {value:.6g}' if isinstance(value, (int, float)) else \
             f'{parameter} = {value}'
         text += f' is out of range: allowed {allowed}'

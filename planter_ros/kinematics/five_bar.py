@@ -21,14 +21,15 @@ mirror-image cycles (x is odd in θ), so the closure checks are the same for bot
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
+from typing import Any, TypedDict, overload
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .arrays import Bools, Floats
+from .arrays import Bools, FloatArray, Floats
 from .errors import DesignError, require_positive_finite
 
 
@@ -44,26 +45,31 @@ _SERIES_LIMIT = 1.0
 
 def _series_psi_minus_sin(psi: Floats) -> Floats:
     z = psi * psi
-    acc = 1.0
+    acc: Floats = 1.0
     for den in _SERIES_DENOMS:
         acc = 1.0 - z / den * acc
     return psi * z / 6.0 * acc
 
 
+@overload
+def psi_minus_sin(psi: float) -> float: ...
+@overload
+def psi_minus_sin(psi: FloatArray) -> FloatArray: ...
+@overload
+def psi_minus_sin(psi: Floats) -> Floats: ...
 def psi_minus_sin(psi: Floats) -> Floats:
     """ψ - sin ψ to full relative precision (series below 1 rad, where the difference cancels)."""
     if isinstance(psi, float):
         return _series_psi_minus_sin(psi) if abs(psi) < _SERIES_LIMIT else psi - math.sin(psi)
-    psi = np.asarray(psi, dtype=float)
+    psi = np.asarray(psi, dtype=np.float64)
     small = np.abs(psi) < _SERIES_LIMIT
     return np.where(small, _series_psi_minus_sin(np.where(small, psi, 0.0)), psi - np.sin(psi))
 
 
-def _one_minus_cos(psi: Floats, sin: Callable) -> Floats:
-    s = sin(0.5 * psi)
-    return 2.0 * s * s
-
-
+@overload
+def solve_psi(c: float) -> float: ...
+@overload
+def solve_psi(c: FloatArray) -> FloatArray: ...
 def solve_psi(c: Floats) -> Floats:
     """Solve ψ - sin ψ = c for ψ in (0, π]; c in (0, π] (scalar or array).
 
@@ -72,29 +78,49 @@ def solve_psi(c: Floats) -> Floats:
     the cancellation-free series, so tiny ψ keeps full relative precision. A fixed step count
     keeps the batch path free of data-dependent loops.
     """
-    scalar = isinstance(c, float)
-    sin = math.sin if scalar else np.sin
-    psi = _initial_psi(c if scalar else np.asarray(c, dtype=float))
-    psi = min(psi, math.pi) if scalar else np.minimum(psi, math.pi)
+    if isinstance(c, float):
+        return _solve_psi_scalar(c)
+    return _solve_psi_batch(np.asarray(c, dtype=np.float64))
+
+
+def _solve_psi_scalar(c: float) -> float:
+    psi = min(_initial_psi(c), math.pi)
     for _ in range(3):
         g = psi_minus_sin(psi) - c
-        g1 = _one_minus_cos(psi, sin)
-        den = 2.0 * g1 * g1 - g * sin(psi)
-        if scalar:
-            if den > 0.0:
-                psi = min(psi - 2.0 * g * g1 / den, math.pi)
-        else:
-            psi = np.minimum(psi - np.where(den > 0, 2.0 * g * g1 / np.where(den > 0, den, 1.0),
-                                            0.0), math.pi)
+        s = math.sin(0.5 * psi)
+        g1 = 2.0 * s * s                       # 1 - cos ψ
+        den = 2.0 * g1 * g1 - g * math.sin(psi)
+        if den > 0.0:
+            psi = min(psi - 2.0 * g * g1 / den, math.pi)
     return psi
 
 
+def _solve_psi_batch(c: FloatArray) -> FloatArray:
+    psi = np.minimum(_initial_psi(c), math.pi)
+    for _ in range(3):
+        g = psi_minus_sin(psi) - c
+        s = np.sin(0.5 * psi)
+        g1 = 2.0 * s * s                       # 1 - cos ψ
+        den = 2.0 * g1 * g1 - g * np.sin(psi)
+        psi = np.minimum(psi - np.where(den > 0, 2.0 * g * g1 / np.where(den > 0, den, 1.0),
+                                        0.0), math.pi)
+    return psi
+
+
+@overload
+def _initial_psi(c: float) -> float: ...
+@overload
+def _initial_psi(c: FloatArray) -> FloatArray: ...
 def _initial_psi(c: Floats) -> Floats:
     # Inverse of ψ³/6 (1 - ψ²/20): s + s³/60 with s = cbrt(6c); lies below the root for c < 1.
-    s = np.cbrt(6.0 * c) if isinstance(c, np.ndarray) else (6.0 * c) ** (1.0 / 3.0)
+    s: Floats = np.cbrt(6.0 * c) if isinstance(c, np.ndarray) else (6.0 * c) ** (1.0 / 3.0)
     return s + s ** 3 / 60.0
 
 
+@overload
+def depth_angle(depth: float, total_length: float) -> float: ...
+@overload
+def depth_angle(depth: Floats, total_length: Floats) -> Floats: ...
 def depth_angle(depth: Floats, total_length: Floats) -> Floats:
     """ψ with cos ψ = 1 - D/(l1+l2): half the crank angle spent below the soil surface.
 
@@ -108,6 +134,10 @@ def depth_angle(depth: Floats, total_length: Floats) -> Floats:
     return 2.0 * np.arctan2(np.sqrt(depth), np.sqrt(np.maximum(2.0 * total_length - depth, 0.0)))
 
 
+@overload
+def bars_depth_angle(l1: float, l2: float, depth: float) -> float: ...
+@overload
+def bars_depth_angle(l1: Floats, l2: Floats, depth: Floats) -> Floats: ...
 def bars_depth_angle(l1: Floats, l2: Floats, depth: Floats) -> Floats:
     """depth_angle for the bars l1, l2 themselves, not their rounded sum.
 
@@ -119,7 +149,7 @@ def bars_depth_angle(l1: Floats, l2: Floats, depth: Floats) -> Floats:
     b = total - l1
     lost = (l1 - (total - b)) + (l2 - b)          # l1 + l2 = total + lost exactly
     gap = (2.0 * total - depth) + 2.0 * lost       # 2L - D
-    if isinstance(gap, float):
+    if isinstance(gap, float) and not isinstance(depth, np.ndarray):
         return 2.0 * math.atan2(math.sqrt(depth), math.sqrt(max(gap, 0.0)))
     return 2.0 * np.arctan2(np.sqrt(depth), np.sqrt(np.maximum(gap, 0.0)))
 
@@ -141,20 +171,20 @@ def hole_ratio_limit(depth: Floats, spacing: Floats) -> Floats:
 class FiveBarDesign:
     """A five-bar design; every length in m, angles in rad (fields are arrays for a batch)."""
 
-    depth: object
-    spacing: object
-    hole_ratio: object
+    depth: Floats
+    spacing: Floats
+    hole_ratio: Floats
     method: str
-    l1: object
-    l2: object
-    l3: object
-    l4: object
-    l5: object
-    psi: object                      # half crank angle below the soil surface
-    hole_width: object               # hole (entry-exit distance) this design achieves at λ = 1
-    assemblable: object              # dyad closes over the whole cycle, no branch flip
-    min_transmission_angle: object   # min over the cycle of min(μ, π - μ), 0 if not assemblable
-    dyad_ratios: tuple = PAPER_DYAD_RATIOS
+    l1: Floats
+    l2: Floats
+    l3: Floats
+    l4: Floats
+    l5: Floats
+    psi: Floats                      # half crank angle below the soil surface
+    hole_width: Floats               # hole (entry-exit distance) this design achieves at λ = 1
+    assemblable: Bools               # dyad closes over the whole cycle, no branch flip
+    min_transmission_angle: Floats   # min over the cycle of min(μ, π - μ), 0 if not assemblable
+    dyad_ratios: tuple[float, float, float] = PAPER_DYAD_RATIOS
 
     @property
     def requested_hole(self) -> Floats:
@@ -169,9 +199,9 @@ class FiveBarDesign:
         """ω1 = 2π v / d (rad/s) that keeps zero-speed planting at ground speed v (m/s)."""
         return sun_bar_speed(ground_speed, self.spacing)
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, object]:
         """Plain SI dict (JSON-ready for scalars)."""
-        out = {k: _plain(getattr(self, k)) for k in (
+        out: dict[str, object] = {k: _plain(getattr(self, k)) for k in (
             'l1', 'l2', 'l3', 'l4', 'l5', 'hole_width', 'assemblable', 'min_transmission_angle',
             'depth', 'spacing', 'hole_ratio', 'psi')}
         out['method'] = self.method
@@ -180,9 +210,10 @@ class FiveBarDesign:
         return out
 
 
-def _plain(v: float | bool | np.bool_ | np.ndarray) -> float | bool | list:
+def _plain(v: Floats | Bools) -> float | bool | list[Any]:
     if isinstance(v, np.ndarray):
-        return v.tolist()
+        values: list[Any] = v.tolist()
+        return values
     if isinstance(v, (np.bool_, bool)):
         return bool(v)
     return float(v)
@@ -218,9 +249,10 @@ def design_five_bar(depth: Floats, spacing: Floats, hole_ratio: Floats = 0.05,
     if not all(isinstance(v, (int, float)) for v in (depth, spacing, hole_ratio)):
         depth, spacing, hole_ratio = np.broadcast_arrays(
             *(np.asarray(v, dtype=float) for v in (depth, spacing, hole_ratio)))
-        return _design_batch(depth, spacing, hole_ratio, method, tuple(dyad_ratios))
+        return _design_batch(depth, spacing, hole_ratio, method,
+                             (dyad_ratios[0], dyad_ratios[1], dyad_ratios[2]))
     return _design_scalar(float(depth), float(spacing), float(hole_ratio), method,
-                          tuple(float(r) for r in dyad_ratios))
+                          (float(dyad_ratios[0]), float(dyad_ratios[1]), float(dyad_ratios[2])))
 
 
 def _infeasible(depth: float, spacing: float, hole_ratio: float, why: str) -> DesignError:
@@ -252,7 +284,7 @@ def _design_scalar(depth: float, spacing: float, k: float, method: str,
     l2 = 0.5 * total + half_gap
     l3, l4, l5 = (r * total for r in ratios)
     psi_a = bars_depth_angle(l1, l2, depth)
-    ideal, slip = _achieved_hole(l1, l2, spacing, psi_a, math.sin)
+    ideal, slip = _achieved_hole(l1, l2, spacing, psi_a)
     if not (abs(slip) <= ROUND_OFF_LIMIT * ideal and ideal >= _TINY):
         raise _unrepresentable(depth, spacing, k, l1 + l2, slip, ideal)
     ok, mu = dyad_closure(l1, l2, l3, l4, l5)
@@ -266,15 +298,21 @@ ROUND_OFF_LIMIT = 1e-9
 _TINY = 2.2250738585072014e-308     # smallest normal float: below it the hole has no precision
 
 
-def _achieved_hole(l1: Floats, l2: Floats, spacing: Floats, psi: Floats,
-                   sin: Callable) -> tuple[Floats, Floats]:
+@overload
+def _achieved_hole(l1: float, l2: float, spacing: float, psi: float) -> tuple[float, float]: ...
+@overload
+def _achieved_hole(l1: FloatArray, l2: FloatArray, spacing: FloatArray,
+                   psi: Floats) -> tuple[FloatArray, FloatArray]: ...
+def _achieved_hole(l1: Floats, l2: Floats, spacing: Floats,
+                   psi: Floats) -> tuple[Floats, Floats]:
     """(ideal, slip): the hole the float bars achieve at advance d/2π is ideal + slip.
 
     Entry-exit distance 2h(ψ), h = adv·ψ - a sin ψ = adv(ψ - sin ψ) + (adv - a) sin ψ with
     a = l2 - l1; `slip` is the second term, nonzero only by the round-off of the bars.
     """
     adv = spacing / TWO_PI
-    return 2.0 * adv * psi_minus_sin(psi), 2.0 * (adv - (l2 - l1)) * sin(psi)
+    sin_psi = math.sin(psi) if isinstance(psi, float) else np.sin(psi)
+    return 2.0 * adv * psi_minus_sin(psi), 2.0 * (adv - (l2 - l1)) * sin_psi
 
 
 def min_hole_ratio(depth: float, spacing: float) -> float:
@@ -284,7 +322,7 @@ def min_hole_ratio(depth: float, spacing: float) -> float:
     with l1+l2 ≈ 2D/ψ², a = d/2π; solved for ψ and mapped to k by ψ³/6 = πkD/d.
     """
     eps = 2.220446049250313e-16
-    psi = (12.0 * eps * depth * TWO_PI / (spacing * ROUND_OFF_LIMIT)) ** 0.25
+    psi: float = (12.0 * eps * depth * TWO_PI / (spacing * ROUND_OFF_LIMIT)) ** 0.25
     return psi ** 3 / 6.0 * spacing / (math.pi * depth)
 
 
@@ -331,7 +369,7 @@ def _design_batch(depth: NDArray[np.float64], spacing: NDArray[np.float64],
     l2 = 0.5 * total + half_gap
     l3, l4, l5 = (r * total for r in ratios)
     psi_a = bars_depth_angle(l1, l2, depth)
-    ideal, slip = _achieved_hole(l1, l2, spacing, psi_a, np.sin)
+    ideal, slip = _achieved_hole(l1, l2, spacing, psi_a)
     bad = ~((np.abs(slip) <= ROUND_OFF_LIMIT * ideal) & (ideal >= _TINY))
     if bad.any():
         i = np.flatnonzero(bad.ravel())[0]
@@ -373,18 +411,19 @@ def _distance_range(l1: Floats, l2: Floats, l5: Floats) -> tuple[Floats, Floats]
     ends_hi = r2(-1.0)
     denom = 4.0 * (l1 / total) * (l2 / total)          # = 1 - a², > 0 for l1, l2 > 0
     if isinstance(denom, np.ndarray) or isinstance(a, np.ndarray):
-        denom = np.asarray(denom)
-        vertex = np.where(denom > 0, -a * e / np.where(denom > 0, denom, 1.0), 2.0)
-        inside = np.abs(vertex) < 1.0
-        rv = np.where(inside, r2(np.clip(vertex, -1.0, 1.0)), ends_lo)
+        denoms = np.asarray(denom)
+        vertices = np.where(denoms > 0, -a * e / np.where(denoms > 0, denoms, 1.0), 2.0)
+        inside = np.abs(vertices) < 1.0
+        rv = np.where(inside, r2(np.clip(vertices, -1.0, 1.0)), ends_lo)
         lo = np.minimum(np.minimum(ends_lo, ends_hi), np.where(inside, rv, np.inf))
         hi = np.maximum(np.maximum(ends_lo, ends_hi), np.where(inside, rv, -np.inf))
         return total * np.sqrt(lo), total * np.sqrt(hi)
-    vals = [ends_lo, ends_hi]
+    # scalars: a is not an array, so neither are l1, l2, l5 nor any value derived from them
+    vals = [float(ends_lo), float(ends_hi)]
     if denom > 0:
-        vertex = -a * e / denom
+        vertex = float(-a * e / denom)
         if abs(vertex) < 1.0:
-            vals.append(r2(vertex))
+            vals.append(float(r2(vertex)))
     return total * math.sqrt(max(min(vals), 0.0)), total * math.sqrt(max(vals))
 
 
@@ -397,18 +436,22 @@ def dyad_closure(l1: Floats, l2: Floats, l3: Floats, l4: Floats,
     the worst value of min(μ, π - μ) is at an extreme of r (see transmission_angle).
     """
     rmin, rmax = _distance_range(l1, l2, l5)
-    if isinstance(rmin, np.ndarray):
-        ok = (rmax < l3 + l4) & (rmin > np.abs(l3 - l4))
+    if (isinstance(rmin, np.ndarray) or isinstance(rmax, np.ndarray)
+            or isinstance(l3, np.ndarray) or isinstance(l4, np.ndarray)):
+        ok = np.asarray(rmax < l3 + l4) & np.asarray(rmin > np.abs(l3 - l4))
         mu = np.minimum(transmission_angle(l3, l4, rmin),
                         transmission_angle(l3, l4, rmax, supplement=True))
         return ok, np.where(ok, mu, 0.0)
-    ok = rmax < l3 + l4 and rmin > abs(l3 - l4)
-    if not ok:
+    if not (rmax < l3 + l4 and rmin > abs(l3 - l4)):
         return False, 0.0
     return True, min(transmission_angle(l3, l4, rmin),
                      transmission_angle(l3, l4, rmax, supplement=True))
 
 
+@overload
+def transmission_angle(l3: float, l4: float, r: float, supplement: bool = False) -> float: ...
+@overload
+def transmission_angle(l3: Floats, l4: Floats, r: Floats, supplement: bool = False) -> Floats: ...
 def transmission_angle(l3: Floats, l4: Floats, r: Floats, supplement: bool = False) -> Floats:
     """Angle μ at D between D-C (l3) and D-E (l4) for |CE| = r, or π - μ with supplement.
 
@@ -417,16 +460,21 @@ def transmission_angle(l3: Floats, l4: Floats, r: Floats, supplement: bool = Fal
     approaches its stretched (μ → π) or folded (μ → 0) position, where arccos of the law of
     cosines loses half the digits and rounds to 0 or π. Requires |l3-l4| <= r <= l3+l4.
     """
+    if isinstance(r, np.ndarray) or isinstance(l3, np.ndarray) or isinstance(l4, np.ndarray):
+        diffs = np.abs(l3 - l4)
+        totals = l3 + l4
+        open_a = np.sqrt(np.maximum((r - diffs) / totals, 0.0)
+                         * np.maximum((r + diffs) / totals, 0.0))
+        shut_a = np.sqrt(np.maximum((totals - r) / totals, 0.0)
+                         * np.maximum((totals + r) / totals, 0.0))
+        angle: FloatArray = (np.arctan2(shut_a, open_a) if supplement
+                             else np.arctan2(open_a, shut_a))
+        return 2.0 * angle
     diff = abs(l3 - l4)
-    total = l3 + l4
-    scale = total
-    if isinstance(r, np.ndarray) or isinstance(scale, np.ndarray):
-        sqrt, atan2, clip = np.sqrt, np.arctan2, lambda v: np.maximum(v, 0.0)
-    else:
-        sqrt, atan2, clip = math.sqrt, math.atan2, lambda v: max(v, 0.0)
-    open_ = sqrt(clip((r - diff) / scale) * clip((r + diff) / scale))
-    shut = sqrt(clip((total - r) / scale) * clip((total + r) / scale))
-    return 2.0 * (atan2(shut, open_) if supplement else atan2(open_, shut))
+    total = l3 + l4                                  # also the scale of the factors
+    open_ = math.sqrt(max((r - diff) / total, 0.0) * max((r + diff) / total, 0.0))
+    shut = math.sqrt(max((total - r) / total, 0.0) * max((total + r) / total, 0.0))
+    return 2.0 * (math.atan2(shut, open_) if supplement else math.atan2(open_, shut))
 
 
 def dyad_positions(design: FiveBarDesign, theta: Floats,
@@ -444,8 +492,8 @@ def dyad_positions(design: FiveBarDesign, theta: Floats,
     l3, l4 = design.l3, design.l4
     # beyond the closure limits by more than round-off: the dyad cannot close (within it, a
     # design dyad_closure calls assemblable touches its singular position and is drawn there)
-    slack = 64.0 * np.finfo(float).eps
-    if np.any(r > (l3 + l4) * (1.0 + slack)) or np.any(r < abs(l3 - l4) * (1.0 - slack)):
+    slack = 64.0 * float(np.finfo(float).eps)
+    if np.any(r > (l3 + l4) * (1.0 + slack)) or np.any(r < np.abs(l3 - l4) * (1.0 - slack)):
         raise DesignError('dyad', f'l3={l3:.4g} m, l4={l4:.4g} m', '|l3-l4| < |CE| < l3+l4',
                           'the passive dyad cannot close at some angle')
     along = (l3 - l4) * ((l3 + l4) / r) / 2.0 + r / 2.0
@@ -521,12 +569,12 @@ def soil_acceleration(l1: Floats, l2: Floats, theta: Floats,
 class Hole:
     """Where the nozzle is below the soil surface, along the row, relative to the bottom point."""
 
-    psi: object          # half crank angle below the surface (rad): entry at π-ψ, exit at π+ψ
-    entry_x: object      # m
-    exit_x: object       # m
-    min_x: object        # m, rearmost point of the path below the surface
-    max_x: object        # m, foremost point
-    width: object        # m, swept extent max_x - min_x (what the soil sees)
+    psi: Floats          # half crank angle below the surface (rad): entry at π-ψ, exit at π+ψ
+    entry_x: Floats      # m
+    exit_x: Floats       # m
+    min_x: Floats        # m, rearmost point of the path below the surface
+    max_x: Floats        # m, foremost point
+    width: Floats        # m, swept extent max_x - min_x (what the soil sees)
 
     @property
     def entry_exit(self) -> Floats:
@@ -542,34 +590,50 @@ def hole_geometry(l1: Floats, l2: Floats, depth: Floats, advance: Floats) -> Hol
     the nozzle forwards: h is monotone and the extent is the entry-exit distance. Any l1, l2 > 0
     (l1 > l2 too) and any advance, including 0 and reversing.
     """
+    if (isinstance(l1, np.ndarray) or isinstance(l2, np.ndarray)
+            or isinstance(depth, np.ndarray) or isinstance(advance, np.ndarray)):
+        return _hole_geometry_batch(l1, l2, depth, advance)
+    return _hole_geometry_scalar(l1, l2, depth, advance)
+
+
+# Below the surface the tip is h(φ) = adv·φ - a sin φ from the bottom point, written as
+# adv (φ - sin φ) + (adv - a) sin φ to avoid cancellation when adv ≈ a and φ is small. l1 > l2
+# runs the ellipse the other way: (a, advance) -> (-a, -advance) flips the sign of h only, so the
+# turning points are those of (|a|, ±advance).
+
+def _hole_geometry_batch(l1: Floats, l2: Floats, depth: Floats, advance: Floats) -> Hole:
     a = l2 - l1
     psi = bars_depth_angle(l1, l2, depth)
-    arrays = any(isinstance(v, np.ndarray) for v in (l1, l2, depth, advance))
-    sin = np.sin if arrays else math.sin
+
     def h(phi: Floats, adv: Floats, a: Floats) -> Floats:
-        # adv·φ - a sin φ written to avoid cancellation when adv ≈ a and φ is small
-        return adv * psi_minus_sin(phi) + (adv - a) * sin(phi)
+        return adv * psi_minus_sin(phi) + (adv - a) * np.sin(phi)
     h_end = h(psi, advance, a)
-    # l1 > l2 runs the ellipse the other way: (a, advance) -> (-a, -advance) flips the sign of
-    # h only, so the turning points are those of (|a|, ±advance)
-    if arrays:
-        flip = np.where(a < 0, -1.0, 1.0)
-        a_abs, adv = np.abs(a), flip * advance
-        ratio_ok = np.abs(adv) <= a_abs
-        a_safe = np.where(a_abs > 0, a_abs, 1.0)
-        phi_star = 2.0 * np.arctan2(np.sqrt(np.maximum(a_safe - adv, 0.0)),
-                                    np.sqrt(np.maximum(a_safe + adv, 0.0)))
-        inside = ratio_ok & (phi_star < psi) & (a_abs > 0)
-        h_star = np.where(inside, np.abs(h(np.where(inside, phi_star, 0.0), adv, a_abs)), 0.0)
-        half = np.maximum(np.abs(h_end), h_star)
-    else:
-        a_abs, adv = (-a, -advance) if a < 0 else (a, advance)
-        half = abs(h_end)
-        if a_abs > 0 and abs(adv) <= a_abs:
-            phi_star = 2.0 * math.atan2(math.sqrt(max(a_abs - adv, 0.0)),
-                                        math.sqrt(max(a_abs + adv, 0.0)))
-            if phi_star < psi:
-                half = max(half, abs(h(phi_star, adv, a_abs)))
+    flip = np.where(a < 0, -1.0, 1.0)
+    a_abs, adv = np.abs(a), flip * advance
+    ratio_ok = np.abs(adv) <= a_abs
+    a_safe = np.where(a_abs > 0, a_abs, 1.0)
+    phi_star = 2.0 * np.arctan2(np.sqrt(np.maximum(a_safe - adv, 0.0)),
+                                np.sqrt(np.maximum(a_safe + adv, 0.0)))
+    inside = ratio_ok & (phi_star < psi) & (a_abs > 0)
+    h_star = np.where(inside, np.abs(h(np.where(inside, phi_star, 0.0), adv, a_abs)), 0.0)
+    half = np.maximum(np.abs(h_end), h_star)
+    return Hole(psi, -h_end, h_end, -half, half, 2.0 * half)
+
+
+def _hole_geometry_scalar(l1: float, l2: float, depth: float, advance: float) -> Hole:
+    a = l2 - l1
+    psi = bars_depth_angle(l1, l2, depth)
+
+    def h(phi: float, adv: float, a: float) -> float:
+        return adv * psi_minus_sin(phi) + (adv - a) * math.sin(phi)
+    h_end = h(psi, advance, a)
+    a_abs, adv = (-a, -advance) if a < 0 else (a, advance)
+    half = abs(h_end)
+    if a_abs > 0 and abs(adv) <= a_abs:
+        phi_star = 2.0 * math.atan2(math.sqrt(max(a_abs - adv, 0.0)),
+                                    math.sqrt(max(a_abs + adv, 0.0)))
+        if phi_star < psi:
+            half = max(half, abs(h(phi_star, adv, a_abs)))
     return Hole(psi, -h_end, h_end, -half, half, 2.0 * half)
 
 
@@ -581,13 +645,13 @@ class HoleSensitivity:
     speed ratio λ = (l2 − l1)/advance. Bars and depth move at fixed advance (the machine kept in
     sync with the plant spacing); λ moves at fixed bars and depth."""
 
-    width: object
-    l1: object
-    l2: object
-    depth: object
-    speed_ratio: object
+    width: Floats
+    l1: Floats
+    l2: Floats
+    depth: Floats
+    speed_ratio: Floats
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, float | bool | list[Any]]:
         return {k: _plain(getattr(self, k)) for k in ('l1', 'l2', 'depth', 'speed_ratio')}
 
 
@@ -649,8 +713,30 @@ TOLERANCE_PERCENTILES = (0.1, 1.0, 5.0, 50.0, 95.0, 99.0, 99.9)
 TOLERANCE_BINS = 20
 
 
+class ToleranceHistogram(TypedDict):
+    edges: list[float]       # m, TOLERANCE_BINS + 1 bin edges
+    counts: list[int]
+
+
+class HoleTolerance(TypedDict):
+    """hole_tolerance's JSON-ready figures (SI)."""
+
+    bar_tolerance: float
+    speed_error: float
+    samples: int
+    distribution: str
+    seed: int
+    nominal: float
+    min: float
+    max: float
+    mean: float
+    std: float
+    percentiles: dict[str, float]        # '0.1', '1', ... '99.9' -> m
+    histogram: ToleranceHistogram
+
+
 def hole_tolerance(design: FiveBarDesign, bar_tolerance: float, speed_error: float,
-                   samples: int = TOLERANCE_SAMPLES, seed: int = 0) -> dict:
+                   samples: int = TOLERANCE_SAMPLES, seed: int = 0) -> HoleTolerance:
     """Hole widths of `samples` built machines: l1 and l2 each uniform within ±bar_tolerance
     (m) of the design, the ground speed uniform within ±speed_error (a fraction) of the
     synchronised speed, so advance = (d/2π)(1 + e); depth as designed. One vectorised
@@ -664,7 +750,7 @@ def hole_tolerance(design: FiveBarDesign, bar_tolerance: float, speed_error: flo
     l1 = design.l1 + bar_tolerance * u[0]
     l2 = design.l2 + bar_tolerance * u[1]
     advance = design.advance * (1.0 + speed_error * u[2])
-    width = hole_geometry(l1, l2, design.depth, advance).width
+    width = np.asarray(hole_geometry(l1, l2, design.depth, advance).width)
     counts, edges = np.histogram(width, bins=TOLERANCE_BINS)
     nominal = float(design.hole_width)
     return {

@@ -159,7 +159,9 @@ class PathPlanting(Planting):
             grid = np.linspace(angle[0], angle[0] + TWO_PI, 4096, endpoint=False)
             i = int(np.argmin(self._y(grid)))
             step = TWO_PI / grid.size
-            planting_phase = minimize_scalar(self._y, bracket=None,
+            def height(phi: float) -> float:
+                return float(self._y(phi))
+            planting_phase = minimize_scalar(height, bracket=None,
                                              bounds=(grid[i] - step, grid[i] + step),
                                              method='bounded', options={'xatol': 1e-12}).x
         phi_p = float(planting_phase)
@@ -195,7 +197,8 @@ class PathPlanting(Planting):
     def tip_sweep(self, advance: ArrayLike) -> Floats:
         advance = np.asarray(advance, dtype=float)
         xs = self._arc_x + advance[..., None] * self._arc
-        return xs.max(axis=-1) - xs.min(axis=-1)
+        sweep: FloatArray = xs.max(axis=-1) - xs.min(axis=-1)
+        return sweep
 
     def tip_path(self, phi: ArrayLike) -> tuple[Floats, Floats]:
         """The tip in the mechanism frame relative to its planting point (x forward, y up; m)
@@ -208,7 +211,7 @@ class PathPlanting(Planting):
         return self._x(angle) - float(self._x(self.planting_phase))
 
 
-def _require_positive(name: str, value: object) -> None:
+def _require_positive(name: str, value: float) -> None:
     try:
         ok = math.isfinite(float(value)) and float(value) > 0
     except (TypeError, ValueError):
@@ -223,6 +226,7 @@ def _nozzle_width(value: object) -> float:
 
     from .scene_settings import SceneSettings
     try:
-        return coerce(spec_of(SceneSettings, 'nozzle_width'), value)
+        width: float = coerce(spec_of(SceneSettings, 'nozzle_width'), value)
+        return width
     except ConfigError as exc:
         raise DesignError.from_message(str(exc)) from None

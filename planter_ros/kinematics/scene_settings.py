@@ -14,6 +14,20 @@ from .errors import DesignError
 from .mechanisms import MECHANISMS, PITCH_CURVE_INTERPOLANTS
 
 
+# the highest ground speed over the nominal one when a scene does not say (the demo's field
+# run speeds up from its cruise at the nominal speed to this)
+TOP_SPEED_FACTOR = 1.5
+
+
+def top_ground_speed(nominal: float, top: float | None = None) -> float:
+    """The highest ground speed a scene plants at (m/s): its `top_ground_speed`, or
+    TOP_SPEED_FACTOR × its nominal ground speed when that is 0 or not given (at most the
+    3 m/s a scene's speeds range to, at least the nominal speed)."""
+    if top:
+        return float(top)
+    return max(float(nominal), min(TOP_SPEED_FACTOR * float(nominal), 3.0))
+
+
 @dataclass(frozen=True, kw_only=True)
 class SceneSettings:
     """Every scene: the crop's agronomic needs and the mechanism (SI units)."""
@@ -28,10 +42,14 @@ class SceneSettings:
                                 'k = t/D; feasible while k·D < d and l1 > 0', range=(1e-4, 2.0))
     design_method: str = setting('exact', "five-bar reverse design: exact, or paper (the "
                                  "paper's cube-root approximation)", choices=('exact', 'paper'))
-    dyad_ratios: list = setting([1.4, 1.5, 1.3], 'five-bar passive dyad l3, l4, l5 over '
+    dyad_ratios: list[float] = setting([1.4, 1.5, 1.3], 'five-bar passive dyad l3, l4, l5 over '
                                 '(l1 + l2)', range=(0.01, 100.0))
     nominal_ground_speed: float = setting(0.2, 'nominal ground speed v: the reported mechanism '
                                           'speed is 2πv/(n·d)', unit='m/s', range=(0.01, 3.0))
+    top_ground_speed: float = setting(0.0, 'the highest ground speed the machine plants at: '
+                                      'the cam is planned for it, the drive checked at it; 0: '
+                                      f'{TOP_SPEED_FACTOR:g} × nominal_ground_speed (the field '
+                                      "run's speed-up)", unit='m/s', range=(0.0, 3.0))
     nozzle_width: float = setting(kind=float, description="the nozzle's width along the row "
                                   '(a duckbill, a planting arm\'s clamp): the hole the soil sees '
                                   "is the tip's sweep plus this; no default, measure it",
@@ -40,7 +58,7 @@ class SceneSettings:
                                     '(its l1, l2); 0: plant_spacing. With speed_profile: cam the '
                                     'sync node plants plant_spacing with this mechanism '
                                     '(doc/cam.md)', unit='m', range=(0.0, 2.0))
-    spacing_schedule: list = setting([], '`planter demo` and `planter simulate` only: [t1, '
+    spacing_schedule: list[float] = setting([], '`planter demo` and `planter simulate` only: [t1, '
                                      'd1, t2, d2, ...], plant_spacing becomes d_i at t_i s of '
                                      'the field run (a spacing changed at run time); the nodes '
                                      'ignore it',
@@ -48,6 +66,10 @@ class SceneSettings:
 
     def __post_init__(self) -> None:
         check(self, DesignError.from_message)
+        if self.top_ground_speed and self.top_ground_speed < self.nominal_ground_speed:
+            raise DesignError('top_ground_speed', self.top_ground_speed,
+                              f'0 or >= nominal_ground_speed = {self.nominal_ground_speed:g} '
+                              'm/s')
 
 
 @dataclass(frozen=True)
@@ -55,11 +77,11 @@ class ThreeArmSettings:
     """A three-arm scene's mechanism (the paper's parameters, SI). The seven model values have
     no default: a scene that lacks one is refused, naming it."""
 
-    control_radii: list = setting(kind=list, description='pitch-curve control radii r_i',
-                                  unit='m', range=(1e-4, 1.0))
-    control_angles: list = setting(kind=list, description='pitch-curve control angles θ_i, in '
-                                   "the carrier's sense of rotation", unit='rad',
-                                   range=(-2 * math.pi, 4 * math.pi))
+    control_radii: list[float] = setting(kind=list, description='pitch-curve control radii '
+                                         'r_i', unit='m', range=(1e-4, 1.0))
+    control_angles: list[float] = setting(kind=list, description='pitch-curve control angles '
+                                          "θ_i, in the carrier's sense of rotation", unit='rad',
+                                          range=(-2 * math.pi, 4 * math.pi))
     carrier_initial_angle: float = setting(kind=float, description='carrier initial angle Φ0',
                                            unit='rad', range=(-2 * math.pi, 2 * math.pi))
     arm_initial_angle: float = setting(kind=float, description='planting arm initial angle β0',

@@ -1,8 +1,10 @@
 """The Foxglove layout of a monitor's bag, made for a scene's rows (config/foxglove_layout*.json
 are made by it; a test keeps them equal to what it makes today).
 
-Panels (the keys Foxglove's panels persist; `foxglovePanelTitle` names a panel, the Plot
-panel's own `title` is deprecated):
+Panels, each under its id `<type>!<name>` with Foxglove's own panel type (case-sensitive: the
+Map panel is `map`, the others `3D`, `Plot`, `DiagnosticSummary`) and only the keys that panel
+persists (`foxglovePanelTitle` names a panel, the Plot panel's own `title` is deprecated); the
+test checks both against Foxglove's registry and config types (test/data/foxglove_panels.json):
 * Map: the machine's GNSS antenna (`gnss/fix`) and each planted plant (`plant_fixes`), both
   sensor_msgs/NavSatFix, the map following the antenna.
 * 3D: the plants and the tip paths (`plant_markers`) in the `field` frame, with a 1 m grid.
@@ -21,11 +23,12 @@ from planter_ros.prediction import QUALITY_FIELDS
 
 from .markers import FRAME
 
-__all__ = ['layout', 'layout_text']
+__all__ = ['MAP', 'layout', 'layout_text']
 
 ROW_COLOURS = ('#1f77b4', '#ff7f0e', '#2ca02c', '#d62728', '#9467bd', '#8c564b', '#e377c2',
                '#7f7f7f', '#bcbd22', '#17becf')
 TARGET_COLOUR = '#555555'
+MAP = 'map!planter-map'          # Foxglove registers the Map panel as type `map`
 QUALITY_COLUMNS = 1 + len(QUALITY_FIELDS)       # the 'row' column, then the indices
 
 
@@ -68,7 +71,7 @@ def layout(labels):
     fix = interfaces.GNSS_FIX.resolved()
     plants = interfaces.PLANT_FIXES.resolved()
     panels = {
-        'Map!planter-map': {
+        MAP: {
             'foxglovePanelTitle': 'where: GNSS antenna track and the planted plants',
             'layer': 'map', 'customTileUrl': '', 'disabledTopics': [],
             'followTopic': fix, 'topicColors': {fix: '#1f77b4', plants: '#2ca02c'},
@@ -103,7 +106,7 @@ def layout(labels):
                                    'minLevel': 0, 'pinnedIds': [], 'hardwareIdFilter': '',
                                    'sortByLevel': True},
     }
-    tree = _split('row', _split('column', 'Map!planter-map', '3D!planter3d', 50),
+    tree = _split('row', _split('column', MAP, '3D!planter3d', 50),
                   _split('column', _split('column', 'Plot!spacing', 'Plot!lambda'),
                          _split('column', 'Plot!quality', 'DiagnosticSummary!diag', 55)), 45)
     return {'configById': panels, 'globalVariables': {}, 'userNodes': {},

@@ -7,7 +7,9 @@ the GNSS velocity (`gnss/vel`) and a wheel or radar pulse counter (`wheel_pulses
 source heard from within `source_timeout` is published; when it goes quiet the next one takes
 over at its next sample, and the switch is logged and shown in /diagnostics (status
 `ground_speed_node: ground speed source`: the source in use, the last switches). The yaw rate
-(twist.angular.z) comes from the GNSS course or an IMU (`imu/data`), or is 0.
+(twist.angular.z) comes from the GNSS course or an IMU (`imu/data`), or is 0. A reading below
+`standstill_speed` is published as 0 until it reaches twice that (standstill is standstill:
+sensing.ground_speed_sources.Standstill).
 """
 
 import math
@@ -22,7 +24,7 @@ from planter_ros.nodes.parameters import ParameterGroup, refuse_undeclared
 from planter_ros.nodes.run import run_node
 from planter_ros.sensing.ground_speed_sources import (
     CourseYawRate, GroundSpeedSourceConfig, IsobusSpeedDecoder, PulseSpeed, SourceSelector,
-    gnss_speed, imu_yaw_rate)
+    Standstill, gnss_speed, imu_yaw_rate)
 
 NAME = 'ground_speed_node'
 TASK = 'ground speed source'
@@ -40,6 +42,7 @@ class GroundSpeedNode(Node):
         cfg = self.config
         self._lock = threading.Lock()
         self.selector = SourceSelector(cfg.sources, cfg.source_timeout)
+        self.standstill = Standstill(cfg.standstill_speed)
         self.course = CourseYawRate(cfg.min_course_speed)
         self.yaw_rate = 0.0
         self.published = 0
@@ -106,7 +109,7 @@ class GroundSpeedNode(Node):
     def _offer(self, sample):
         from geometry_msgs.msg import TwistStamped
         with self._lock:
-            chosen = self.selector.offer(sample)
+            chosen = self.selector.offer(self.standstill.apply(sample))
             events = self.selector.events[self._reported_events:]
             self._reported_events = len(self.selector.events)
             yaw = self.yaw_rate

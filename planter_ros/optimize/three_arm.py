@@ -16,17 +16,33 @@ gives the same search whatever the number of workers. The chosen design is check
 the single-design model before it is returned.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 import math
 import time
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from planter_ros.kinematics.arrays import FloatArray
 
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.three_arm.batch import CurveBasis, MechanismBatch
 from planter_ros.kinematics.three_arm.gear_train import ThreeArmMechanism
-from planter_ros.kinematics.three_arm.goals import (GOAL_NAMES, evaluate_goals, goal_bounds,
-                                                    goal_settings, goal_values, violation)
+from planter_ros.kinematics.three_arm.goals import (GOAL_NAMES, Goal, evaluate_goals,
+                                                    goal_bounds, goal_settings, goal_values,
+                                                    violation)
+
+if TYPE_CHECKING:
+    from multiprocessing.pool import Pool
+
+# a flat scene parameter dict (planter_ros.scene.load_scene): values as the scene file gives them
+SceneParams = Mapping[str, Any]
+# (scores (S,), goals passing (S,)) of a batch of S designs
+Scores = tuple[FloatArray, NDArray[np.int_]]
 
 DEG = math.pi / 180.0
 RADIUS_BOUNDS = (0.015, 0.065)
@@ -49,17 +65,19 @@ REFUSED = 1000.0
 GOAL_SAMPLES = 360
 
 
-def parameters_from_vector(vector, base):
+def parameters_from_vector(vector: ArrayLike, base: SceneParams) -> dict[str, Any]:
     """Scene dict with the optimised values written in (control angles from `base`)."""
     n = len(base['control_angles'])
+    values = np.asarray(vector, dtype=float)
     params = dict(base)
-    params['control_radii'] = [float(v) for v in vector[:n]]
-    for name, value in zip(INSTALL_BOUNDS, vector[n:]):
+    params['control_radii'] = [float(v) for v in values[:n]]
+    for name, value in zip(INSTALL_BOUNDS, values[n:]):
         params[name] = float(value)
     return params
 
 
-def score(vector, base, margin=MARGIN):
+def score(vector: ArrayLike, base: SceneParams,
+          margin: float = MARGIN) -> tuple[float, list[Goal] | None]:
     """One design, by the single-design model: sum of goal violations (0 = all eight pass with
     the margin) and the goals (None if the core refuses the design)."""
     params = parameters_from_vector(vector, base)
@@ -77,7 +95,8 @@ class BatchScorer:
     Built once per search from the base scene (control angles, interpolant, goal settings).
     """
 
-    def __init__(self, base, margin=MARGIN, samples=GOAL_SAMPLES):
+    def __init__(self, base: SceneParams, margin: float = MARGIN,
+                 samples: int = GOAL_SAMPLES) -> None:
         self.n = len(base['control_angles'])
         self.basis = CurveBasis(np.asarray(base['control_angles'], dtype=float),
                                 base.get('interpolant', 'periodic_cubic'))
@@ -86,7 +105,7 @@ class BatchScorer:
         self.margin = margin
         self.samples = samples
 
-    def __call__(self, vectors):
+    def __call__(self, vectors: ArrayLike) -> Scores:
         vectors = np.atleast_2d(np.asarray(vectors, dtype=float))
         n = self.n
         with np.errstate(all='ignore'):
@@ -109,18 +128,20 @@ class BatchScorer:
         return np.where(ok, total, REFUSED), np.where(ok, passing, 0)
 
 
-_WORKER = {}
+_WORKER: dict[str, BatchScorer] = {}       # a pool worker's scorer
 
 
-def _worker_init(base, margin, samples):
+def _worker_init(base: SceneParams, margin: float, samples: int) -> None:
     import multiprocessing
 
     from planter_ros.processes import die_with_parent
-    die_with_parent(multiprocessing.parent_process().pid)    # no orphan when the search dies
+    parent = multiprocessing.parent_process()
+    if parent is not None:                   # (a pool worker always has one)
+        die_with_parent(parent.pid)          # no orphan when the search dies
     _WORKER['scorer'] = BatchScorer(base, margin, samples)
 
 
-def _worker_score(vectors):
+def _worker_score(vectors: FloatArray) -> Scores:
     return _WORKER['scorer'](vectors)
 
 
@@ -129,34 +150,35 @@ class PopulationScorer:
     batch is split in order and joined in order, so the scores do not depend on `workers`.
     Use as a context manager, or call close()."""
 
-    def __init__(self, base, workers=1, margin=MARGIN, samples=GOAL_SAMPLES):
+    def __init__(self, base: SceneParams, workers: object = 1, margin: float = MARGIN,
+                 samples: int = GOAL_SAMPLES) -> None:
         if not (isinstance(workers, int) and workers >= 1):
             raise ValueError(f'workers = {workers} is out of range: allowed an integer >= 1')
         self.local = BatchScorer(base, margin, samples)     # refuses a bad scene up front
         self.workers = workers
-        self._pool = None
+        self._pool: Pool | None = None
         if workers > 1:
             import multiprocessing
             self._pool = multiprocessing.get_context('fork').Pool(
                 workers, initializer=_worker_init, initargs=(base, margin, samples))
 
-    def __call__(self, vectors):
+    def __call__(self, vectors: ArrayLike) -> Scores:
         vectors = np.atleast_2d(np.asarray(vectors, dtype=float))
         if self._pool is None:
             return self.local(vectors)
         parts = self._pool.map(_worker_score, np.array_split(vectors, self.workers))
         return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
 
-    def close(self):
+    def close(self) -> None:
         if self._pool is not None:
             self._pool.close()
             self._pool.join()
             self._pool = None
 
-    def __enter__(self):
+    def __enter__(self) -> PopulationScorer:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
@@ -175,7 +197,7 @@ class SearchProgress:
     generation_score: float          # this generation's best design
     generation_goals: int
 
-    def line(self):
+    def line(self) -> str:
         """One progress line of fixed width (no newline): time, the bests so far, this
         generation's best."""
         n = len(GOAL_NAMES)
@@ -184,8 +206,40 @@ class SearchProgress:
                 f'{self.generation_score:8.4f}, {self.generation_goals}/{n}')
 
 
-def optimize(base, seed=1, max_time=60.0, popsize=POPSIZE, progress=None,
-             max_generations=None, workers=1):
+class SearchInfo(TypedDict):
+    """How a search went (SI)."""
+
+    score: float                        # the best design's (0: all goals met with the margin)
+    generations: int
+    evaluations: int                    # designs scored
+    seconds: float
+    stopped: str                        # 'all goals met', 'generation limit', 'time limit', ...
+    seed: int
+    workers: int
+    designs_per_second: float | None
+    seconds_to_all_goals: float | None  # to the first design meeting all goals (None: none did)
+    designs_to_all_goals: int | None
+
+
+@dataclass
+class _SearchState:
+    """What the search has found so far (updated by the objective and the callback)."""
+
+    best: float = math.inf              # the lowest score of any design scored
+    passing: int = 0                    # that design's goals met
+    x: FloatArray | None = None         # that design (None before the first is scored)
+    evaluations: int = 0
+    generation: int = 0
+    stop: str = ''                      # why the search stopped ('' while it runs, converged)
+    to_all_goals: tuple[float, int] | None = None    # (s, evaluations) to a design meeting all
+    most_goals: int = 0                 # the most goals any design met
+    latest: tuple[float, int] = (math.inf, 0)        # this generation's best (score, goals)
+
+
+def optimize(base: SceneParams, seed: int = 1, max_time: float = 60.0, popsize: int = POPSIZE,
+             progress: Callable[[SearchProgress], object] | None = None,
+             max_generations: int | None = None, workers: int = 1
+             ) -> tuple[dict[str, Any], list[Goal] | None, SearchInfo]:
     """Run differential evolution from the scene `base`; returns (params, goals, info).
     `progress(SearchProgress)` is called after every generation.
 
@@ -195,53 +249,62 @@ def optimize(base, seed=1, max_time=60.0, popsize=POPSIZE, progress=None,
     from scipy.optimize import differential_evolution
     n = len(base['control_angles'])
     bounds = [RADIUS_BOUNDS] * n + list(INSTALL_BOUNDS.values())
-    state = {'best': math.inf, 'passing': 0, 'x': None, 'evaluations': 0, 'generation': 0,
-             'stop': '', 'to_all_goals': None, 'most_goals': 0, 'latest': (math.inf, 0)}
+    state = _SearchState()
     population = PopulationScorer(base, workers)
     start = time.monotonic()
 
-    def objective(x):
+    def objective(x: ArrayLike) -> FloatArray:
         vectors = np.asarray(x, dtype=float).T        # DE hands over (N, S)
         scores, passing = population(vectors)
-        state['evaluations'] += len(vectors)
+        state.evaluations += len(vectors)
         i = int(np.argmin(scores))
-        state['latest'] = (float(scores[i]), int(passing[i]))
-        state['most_goals'] = max(state['most_goals'], int(np.max(passing)))
-        if scores[i] < state['best']:               # the best design so far, and its goals
-            state.update(best=float(scores[i]), passing=int(passing[i]), x=vectors[i].copy())
-        if state['to_all_goals'] is None and np.any(passing == len(GOAL_NAMES)):
-            state['to_all_goals'] = (time.monotonic() - start, state['evaluations'])
+        state.latest = (float(scores[i]), int(passing[i]))
+        state.most_goals = max(state.most_goals, int(np.max(passing)))
+        if scores[i] < state.best:                  # the best design so far, and its goals
+            state.best, state.passing, state.x = float(scores[i]), int(passing[i]), \
+                vectors[i].copy()
+        if state.to_all_goals is None and np.any(passing == len(GOAL_NAMES)):
+            state.to_all_goals = (time.monotonic() - start, state.evaluations)
         return scores
 
-    def callback(intermediate_result):
-        state['generation'] += 1
+    def callback(intermediate_result: object) -> bool:
+        state.generation += 1
         elapsed = time.monotonic() - start
         if progress is not None:
-            progress(SearchProgress(elapsed, max_time, state['generation'], state['best'],
-                                    state['most_goals'], *state['latest']))
-        if state['best'] <= 0.0:
-            state['stop'] = 'all goals met'
+            progress(SearchProgress(elapsed, max_time, state.generation, state.best,
+                                    state.most_goals, *state.latest))
+        if state.best <= 0.0:
+            state.stop = 'all goals met'
             return True
-        if max_generations is not None and state['generation'] >= max_generations:
-            state['stop'] = 'generation limit'
+        if max_generations is not None and state.generation >= max_generations:
+            state.stop = 'generation limit'
             return True
         if elapsed >= max_time:
-            state['stop'] = 'time limit'
+            state.stop = 'time limit'
             return True
         return False
 
+    # scipy-stubs 1.17 type neither a vectorized=True objective (it returns the (S,) scores)
+    # nor bounds as (low, high) pairs nor a callback returning True to stop: all three are
+    # scipy's documented API (scipy.optimize.differential_evolution)
     with population:
-        differential_evolution(objective, bounds, seed=seed, popsize=popsize, tol=0.0,
-                               maxiter=100000, polish=False, init='sobol', callback=callback,
-                               mutation=MUTATION, recombination=RECOMBINATION,
-                               vectorized=True, updating='deferred')
+        differential_evolution(
+            objective, bounds,  # type: ignore[arg-type]  # see above: vectorized, (low, high)
+            seed=seed, popsize=popsize, tol=0.0, maxiter=100000, polish=False, init='sobol',
+            callback=callback,  # type: ignore[arg-type]  # see above: True stops the search
+            mutation=MUTATION, recombination=RECOMBINATION, vectorized=True,
+            updating='deferred')
     seconds = time.monotonic() - start
-    params = parameters_from_vector(state['x'], base)
-    _, goals = score(state['x'], base, margin=0.0)
-    info = {'score': state['best'], 'generations': state['generation'],
-            'evaluations': state['evaluations'], 'seconds': seconds,
-            'stopped': state['stop'] or 'converged', 'seed': seed, 'workers': workers,
-            'designs_per_second': state['evaluations'] / seconds if seconds > 0 else None,
-            'seconds_to_all_goals': (state['to_all_goals'] or (None, None))[0],
-            'designs_to_all_goals': (state['to_all_goals'] or (None, None))[1]}
+    if state.x is None:      # DE scores its first population before anything else
+        raise RuntimeError('the search scored no design')
+    params = parameters_from_vector(state.x, base)
+    _, goals = score(state.x, base, margin=0.0)
+    to_all = state.to_all_goals
+    info: SearchInfo = {
+        'score': state.best, 'generations': state.generation,
+        'evaluations': state.evaluations, 'seconds': seconds,
+        'stopped': state.stop or 'converged', 'seed': seed, 'workers': workers,
+        'designs_per_second': state.evaluations / seconds if seconds > 0 else None,
+        'seconds_to_all_goals': None if to_all is None else to_all[0],
+        'designs_to_all_goals': None if to_all is None else to_all[1]}
     return params, goals, info

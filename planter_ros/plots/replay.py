@@ -78,9 +78,11 @@ def plot_replay(result, path):
 
     ax = axes[2]
     tilt = np.degrees(p.tilt)
+    unknown = int(np.count_nonzero(~np.isfinite(tilt)))      # an input gap's, say
+    tilt = tilt[np.isfinite(tilt)]
     limit = 90.0 - math.degrees(result.settings.upright_threshold)
     # the axis always shows the upright limits, however narrow the tilts are
-    span = 1.1 * max(np.abs(tilt).max() if tilt.size else 0.0, limit, 1.0)
+    span = 1.1 * max(float(np.abs(tilt).max()) if tilt.size else 0.0, limit, 1.0)
     if tilt.size:
         # bins over the tilts found, each at least 1/100 of the axis wide (else unseen)
         lo, hi = float(tilt.min()), float(tilt.max())
@@ -99,6 +101,7 @@ def plot_replay(result, path):
     rate = s['uprightness_rate']
     ax.set_title(f'tilt: {s["plants"]} plants, '
                  f'{"n/a" if rate is None else f"{100 * rate:.1f} %"} upright'
+                 + (f', {unknown} of unknown tilt (not drawn)' if unknown else '')
                  + (' (not validated for this mechanism)' if _tilt_note(result) else ''))
     ax.grid(alpha=0.3)
 
@@ -107,6 +110,14 @@ def plot_replay(result, path):
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def write_plot(result, path):
+    """plot_replay into the PNG `path` (atomically): the line for people."""
+    from planter_ros.output_files import atomic_output
+    with atomic_output(path) as tmp:
+        plot_replay(result, tmp)
+    return f'plot written to {path}'
 
 
 def _map_panel(fig, ax, result, labels, named):

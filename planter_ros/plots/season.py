@@ -17,6 +17,9 @@ import tempfile
 
 import numpy as np
 
+from planter_ros.geo import LocalFrame
+from planter_ros.prediction.quality import MISS_LIMIT, MULTIPLE_LIMIT
+
 __all__ = ['season_report', 'write_season_report']
 
 REPORT_FILE = 'report.html'
@@ -33,6 +36,27 @@ def season_report(out):
     with _matplotlib_home():
         write_season_report(path, groups, plants, bags)
     return format_season_table(groups), path
+
+
+def season_outputs(out, force):
+    """The season's exports (analysis.exports: written when `force` or one is missing) and its
+    report under `out`, each on its own and recorded as the command's (season.record_written):
+    (exports or None, the table for people, the report's path or None, [(path, reason)] of
+    each output not written)."""
+    from planter_ros.analysis import season as seasons
+    from planter_ros.analysis.exports import season_exports
+    exports = season_exports(out, force)
+    seasons.record_written(out, seasons.EXPORTS)
+    failed = [(item['file'], item['reason']) for item in (exports or {}).get('failed', [])]
+    try:
+        table, path = season_report(out)
+    except Exception as exc:                 # the tables and exports are written
+        text = str(exc).strip().splitlines()
+        failed.append((str(Path(out) / REPORT_FILE),
+                       f'{type(exc).__name__}{": " + text[0] if text else ""}'))
+        return exports, '', None, failed
+    seasons.record_written(out, (seasons.REPORT_FILE,))
+    return exports, table, path, failed
 
 
 @contextmanager
@@ -73,6 +97,12 @@ def _kinematic(plants):
     return (plants['spacing_m'] / d).to_numpy(dtype=float)
 
 
+def _miss_or_multiple(ratio):
+    """Spacings (over the design spacing) counted as a miss or a multiple by the ISO 7256-1
+    indices (prediction.quality): > MISS_LIMIT, or <= MULTIPLE_LIMIT; NaN is neither."""
+    return (ratio > MISS_LIMIT) | (ratio <= MULTIPLE_LIMIT)
+
+
 def _maps(plants):
     """Two panels per recording (misses, multiples and gaps; tilt), the MAX_MAPS recordings
     with the most of them first: a recording is one place, a field's bags may be far apart."""
@@ -82,16 +112,16 @@ def _maps(plants):
         return '<p>No plant has a map position (no usable GNSS fix in the bags).</p>'
     trouble = placed.assign(bad=(placed['status'].isin(('empty', 'double'))
                                  | placed['input_gap'].astype(bool)
-                                 | (np.abs(_kinematic(placed) - 1.0) >= 0.5)))
+                                 | _miss_or_multiple(_kinematic(placed))))
     ranked = trouble.groupby('bag')['bad'].sum().sort_values(ascending=False, kind='stable')
     out = [f'<p>{min(len(ranked), MAX_MAPS)} of {len(ranked)} recordings, those with the most '
            'misses, multiples and gaps first.</p>']
     for bag in ranked.index[:MAX_MAPS]:
         mine = placed[placed['bag'] == bag]
-        lat0 = float(mine['latitude_deg'].mean())
-        east = (mine['longitude_deg'] - mine['longitude_deg'].mean()).to_numpy(float) * \
-            111_320.0 * math.cos(math.radians(lat0))
-        north = (mine['latitude_deg'] - lat0).to_numpy(float) * 110_540.0
+        frame = LocalFrame(float(mine['latitude_deg'].mean()),
+                           float(mine['longitude_deg'].mean()))
+        east, north = frame.to_east_north(mine['longitude_deg'].to_numpy(float),
+                                          mine['latitude_deg'].to_numpy(float))
         ratio = _kinematic(mine)
         status = mine['status'].to_numpy(dtype=object)
         fig, (a, b) = plt.subplots(1, 2, figsize=(14, 5))
@@ -99,10 +129,10 @@ def _maps(plants):
         for mask, style, label in (
                 (status == 'empty', dict(c='red', marker='x', s=30), 'empty cup'),
                 (status == 'double', dict(c='blue', marker='+', s=40), 'double'),
-                (ratio > 1.5, dict(facecolors='none', edgecolors='darkorange', s=50),
-                 'spacing > 1.5 d (miss)'),
-                (ratio <= 0.5, dict(facecolors='none', edgecolors='purple', s=50),
-                 'spacing <= 0.5 d (multiple)'),
+                (ratio > MISS_LIMIT, dict(facecolors='none', edgecolors='darkorange', s=50),
+                 f'spacing > {MISS_LIMIT:g} d (miss)'),
+                (ratio <= MULTIPLE_LIMIT, dict(facecolors='none', edgecolors='purple', s=50),
+                 f'spacing <= {MULTIPLE_LIMIT:g} d (multiple)'),
                 (mine['input_gap'].to_numpy(dtype=bool), dict(c='black', marker='s', s=12),
                  'input gap (position interpolated)')):
             if mask.any():
@@ -135,7 +165,7 @@ def _histograms(plants):
         ratio = _kinematic(plants[plants['row_name'] == row])
         ratio = ratio[np.isfinite(ratio)]
         ax.hist(np.clip(ratio, 0, 3.5), bins=np.linspace(0, 3.5, 71), color='tab:green')
-        for limit in (0.5, 1.5):
+        for limit in (MULTIPLE_LIMIT, MISS_LIMIT):
             ax.axvline(limit, color='red', lw=0.8, ls='--')
         ax.set_title(f'row {row}: {ratio.size} spacings')
         ax.set_xlabel('spacing / design spacing')

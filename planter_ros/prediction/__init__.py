@@ -6,9 +6,10 @@ spacing-quality indices.
 by sample for the live monitor) with the prediction settings; `plants` holds the plant fields,
 the `Plants` arrays and a run's summary; `motion` each plant's hole and tilt from the motion
 measured through its in-soil arc; `quality` the spacing-quality indices; `sections` the
-breaks a row's section switched off makes in its spacing sequence. The mechanism's
-planting geometry they use is kinematics.planting. Pure numpy/scipy, no ROS; depends downward
-only (kinematics, sensing, config).
+breaks a row's section switched off makes in its spacing sequence; `pipeline` (imported by
+name) all of them sample by sample as the monitor node and the season simulator run them. The
+mechanism's planting geometry they use is kinematics.planting. Pure numpy/scipy, no ROS;
+depends downward only (kinematics, sensing, design, config).
 """
 
 from .acceptance import (AcceptanceLimits, acceptance_failures, format_acceptance,

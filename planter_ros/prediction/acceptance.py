@@ -23,8 +23,10 @@ rice-transplanting literature counts a seedling at < 30 deg to the ground as fal
 monitor's default threshold), but no confirmed standard gives a rate.
 
 Each planting row is judged on its own (a row's failure names the row); a machine with one
-unnamed row is judged as a whole. An index a row cannot give (no spacings, fewer than two single
-spacings for the CV) is listed as not judged, never as passed or failed. Pure: no ROS, no numpy.
+unnamed row is judged as a whole. A row (or machine) that put no seedling in the ground (no
+planting instant, or only empty cups) fails (`planted`): a run that planted nothing never
+passes. An index a row that planted cannot give (no spacings, fewer than two single spacings
+for the CV) is listed as not judged, never as passed or failed. Pure: no ROS, no numpy.
 """
 
 from dataclasses import dataclass
@@ -102,6 +104,13 @@ def judge_acceptance(limits: AcceptanceLimits, judged: list[tuple[str, dict]]) -
     failed, not_judged = [], []
     for label, summary in judged:
         where = f'row {label}: ' if label else ''
+        instants = summary.get('plants')               # (None: a summary that does not say)
+        seedlings = (summary.get('instants') or {}).get('seedlings', instants)
+        if seedlings is not None and seedlings == 0:
+            failed.append({'row': label, 'index': 'planted', 'value': 0.0, 'limit': 1.0,
+                           'text': f'{where}planted nothing ({instants} planting instants, '
+                                   'no seedling in the ground)'})
+            continue
         for name, words, path, sense, percent in LIMITS:
             limit = float(getattr(limits, name))
             if name == 'max_hole_width' and limit <= 0.0:

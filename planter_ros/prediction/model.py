@@ -51,13 +51,13 @@ from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 import math
-from typing import NamedTuple
+from typing import NamedTuple, TypedDict, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planter_ros.config import check, setting
-from planter_ros.design.model import Design
+from planter_ros.design.model import Design, FiveBar, ThreeArm
 from planter_ros.kinematics.arrays import FloatArray, Floats
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.planting import TWO_PI, FiveBarPlanting, PathPlanting, Planting
@@ -89,21 +89,30 @@ def planting_model_from_design(design: Design, nozzle_width: float | None = None
             raise DesignError('design', 'no nozzle_width', "key nozzle_width (m): the nozzle's "
                               'width along the row, a scene value')
     phase = design.planting_phase
-    if design.mechanism == 'five_bar':
+    if isinstance(design, FiveBar):
         return FiveBarPlanting(design.l1, design.l2, design.planting_depth,
                                design.plant_spacing, math.pi if phase is None else float(phase),
                                nozzle_width)
+    if not isinstance(design, ThreeArm):
+        raise DesignError('mechanism', design.mechanism, 'five_bar or three_arm')
     path = design.tip_path
     return PathPlanting(path.angle, path.x, path.y, design.plants_per_revolution,
                         design.planting_depth, design.plant_spacing, phase,
                         nozzle_width=nozzle_width)
 
 
-def prediction_notes(design: Design, model: Planting) -> list[dict]:
+class PredictionNote(TypedDict):
+    """Which plant fields a caveat is about, and the caveat in words."""
+
+    fields: list[str]
+    text: str
+
+
+def prediction_notes(design: Design, model: Planting) -> list[PredictionNote]:
     """What the figures of this design mean where the model is not validated: a list of
     {fields, text} (empty for the five-bar the model was made for). Shown next to the figures
     by replay and the demo, and in their JSON."""
-    notes = []
+    notes: list[PredictionNote] = []
     mechanism = design.mechanism
     if mechanism != 'five_bar':
         notes.append({'fields': ['tilt', 'upright', 'uprightness_rate'],
@@ -153,28 +162,32 @@ class PredictionSettings:
 
 # ----------------------------------------------------------------------------- the model
 
-def clean_samples(t: ArrayLike, *values: ArrayLike) -> tuple[np.ndarray, ...]:
+def clean_samples(t: ArrayLike, *values: ArrayLike) -> tuple[FloatArray, ...]:
     """Drop samples with a non-finite time or first value, and samples whose time does not
     increase (out-of-order or repeated stamps). Both paths apply the same rule."""
-    t = np.asarray(t, dtype=float)
-    values = [np.asarray(v, dtype=float) for v in values]
-    ok = np.isfinite(t) & np.isfinite(values[0])
-    t = t[ok]
-    values = [v[ok] for v in values]
-    if t.size:
-        prev_max = np.concatenate(([-np.inf], np.maximum.accumulate(t)[:-1]))
-        keep = t > prev_max
-        t = t[keep]
-        values = [v[keep] for v in values]
-    return (t, *values)
+    times = np.asarray(t, dtype=np.float64)
+    columns = [np.asarray(v, dtype=np.float64) for v in values]
+    ok = np.isfinite(times) & np.isfinite(columns[0])
+    times = times[ok]
+    columns = [v[ok] for v in columns]
+    if times.size:
+        prev_max = np.concatenate(([-np.inf], np.maximum.accumulate(times)[:-1]))
+        keep = times > prev_max
+        times = times[keep]
+        columns = [v[keep] for v in columns]
+    return (times, *columns)
 
 
-def travelled_distance(t: np.ndarray, v: np.ndarray) -> np.ndarray:
+def travelled_distance(t: FloatArray, v: FloatArray) -> FloatArray:
     """Trapezoid integral of the ground speed from the first sample (m)."""
     inc = 0.5 * (v[:-1] + v[1:]) * (t[1:] - t[:-1])
     return np.concatenate(([0.0], np.cumsum(inc)))
 
 
+@overload
+def _threshold(model: Planting, k: float) -> float: ...
+@overload
+def _threshold(model: Planting, k: FloatArray) -> FloatArray: ...
 def _threshold(model: Planting, k: Floats) -> Floats:
     return model.planting_phase + k * (TWO_PI / model.plants_per_revolution)
 
@@ -212,7 +225,8 @@ def _at_speed(t_e: Floats, t0: Floats, t1: Floats, v0: Floats, v1: Floats,
 
 def plant_values(model: Planting, settings: PredictionSettings, omega: ArrayLike,
                  v: ArrayLike, arc_sweep: ArrayLike | None = None,
-                 arc_tilt: ArrayLike | None = None) -> tuple[np.ndarray, ...]:
+                 arc_tilt: ArrayLike | None = None
+                 ) -> tuple[FloatArray, Floats, Floats, Floats, FloatArray]:
     """λ, tip sweep, hole width (tip sweep + the model's nozzle width), tilt and upright flag
     for arrays of shaft speed ω > 0 and ground speed v at the planting instants. The sweep and
     tilt of the measured arc (`arc_sweep`, `arc_tilt`: prediction.motion; NaN where the
@@ -225,10 +239,11 @@ def plant_values(model: Planting, settings: PredictionSettings, omega: ArrayLike
     sweep = model.tip_sweep(advance)
     tilt = model.tilt(advance)
     if arc_sweep is not None:
-        arc_sweep, arc_tilt = np.asarray(arc_sweep, float), np.asarray(arc_tilt, float)
-        covered = np.isfinite(arc_sweep) & np.isfinite(arc_tilt)
-        sweep = np.where(covered, arc_sweep, sweep)
-        tilt = np.where(covered, arc_tilt, tilt)
+        measured_sweep = np.asarray(arc_sweep, float)
+        measured_tilt = np.asarray(arc_tilt, float)
+        covered = np.isfinite(measured_sweep) & np.isfinite(measured_tilt)
+        sweep = np.where(covered, measured_sweep, sweep)
+        tilt = np.where(covered, measured_tilt, tilt)
     upright = (0.5 * math.pi - np.abs(tilt) >= settings.upright_threshold).astype(float)
     return ratio, sweep, sweep + model.nozzle_width, tilt, upright
 
@@ -283,28 +298,41 @@ def predict_rows(rows: Sequence[RowInputs], model: Planting,
     if not found:
         return Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
     parts = [one for _, one in found]
-    arcs = (_measured_arcs([one[:3] for one in parts], models, settings.max_input_gap)
+    arcs = (_measured_arcs([(one.motion, one.which, one.theta_k) for one in parts], models,
+                           settings.max_input_gap)
             if settings.measured_arc else None)
-
-    def joined(k: int) -> np.ndarray:
-        return np.concatenate([one[k] for one in parts])
-
-    return _assemble([models[w] for one in parts for w in one[1]], settings, joined(3),
-                     joined(4), joined(5), joined(6), index0=0, prev_position=np.nan,
+    return _assemble([models[w] for one in parts for w in one.which], settings,
+                     np.concatenate([one.t_e for one in parts]),
+                     np.concatenate([one.omega for one in parts]),
+                     np.concatenate([one.v_e for one in parts]),
+                     np.concatenate([one.s_e for one in parts]),
+                     index0=0, prev_position=np.nan,
                      recent=(), new_sequence=np.concatenate(
-                         [_after_gap(one[3], -np.inf, one[8]) for one in parts]),
+                         [_after_gap(one.t_e, -np.inf, one.breaks) for one in parts]),
                      row=[row for row, _ in found],
-                     arcs=None if arcs is None else tuple(np.concatenate(c)
-                                                         for c in zip(*arcs)),
-                     in_gap=joined(7), sizes=[one[3].size for one in parts])
+                     arcs=None if arcs is None else (np.concatenate([a[0] for a in arcs]),
+                                                     np.concatenate([a[1] for a in arcs])),
+                     in_gap=np.concatenate([one.in_gap for one in parts]),
+                     sizes=[one.t_e.size for one in parts])
+
+
+class _RowInstants(NamedTuple):
+    """One row's planting instants located in its ground-speed samples, one entry per plant."""
+
+    motion: Motion                   # the row's cleaned samples
+    which: NDArray[np.intp]          # index into `models` of the design in force
+    theta_k: FloatArray              # planting angle (rad)
+    t_e: FloatArray                  # instant (s)
+    omega: FloatArray                # shaft speed (rad/s)
+    v_e: FloatArray                  # ground speed (m/s)
+    s_e: FloatArray                  # travelled distance (m)
+    in_gap: NDArray[np.bool_]        # inside an input gap
+    breaks: FloatArray               # (start, end) rows: the input gaps and section breaks
 
 
 def _instants(inputs: RowInputs, models: Sequence[Planting], change_times: Sequence[float],
-              settings: PredictionSettings, speed_filter: bool) -> tuple | None:
-    """One row's planting instants located in its ground-speed samples: (Motion, index into
-    `models` of the design in force, planting angle, instant, shaft speed, ground speed,
-    travelled distance, inside an input gap, the gaps and section breaks (start, end)) of
-    each plant; None for a row without any."""
+              settings: PredictionSettings, speed_filter: bool) -> _RowInstants | None:
+    """One row's planting instants (_RowInstants); None for a row without any."""
     joint_vel = np.asarray(inputs.joint_vel, dtype=float)
     if joint_vel.size != np.size(inputs.joint_t):
         joint_vel = np.full(np.size(inputs.joint_t), np.nan)
@@ -332,8 +360,8 @@ def _instants(inputs: RowInputs, models: Sequence[Planting], change_times: Seque
     v_e, s_e = _at_speed(t_e, st[j - 1], st[j], sv[j - 1], sv[j], ss[j - 1])
     starts = np.concatenate((_gaps(jt, gap), _gaps(st, gap),
                              np.asarray(inputs.breaks, dtype=float).reshape(-1, 2)))
-    return Motion(jt, theta, jw, st, sv, ss), which, theta_k, t_e, omega, v_e, s_e, in_gap, \
-        starts
+    return _RowInstants(Motion(jt, theta, jw, st, sv, ss), which, theta_k, t_e, omega,
+                        np.asarray(v_e), np.asarray(s_e), in_gap, starts)
 
 
 def _measured_arcs(rows: Sequence[tuple[Motion, NDArray[np.intp], FloatArray]],
@@ -366,8 +394,9 @@ def _crossings(models: Sequence[Planting], change_times: Sequence[float], jt: Fl
     (index of the joint sample after it, instant, shaft speed, index into `models` of the
     design in force, planting angle). models[0] is in force from the start, models[c] from
     the first crossing after change_times[c - 1] (that crossing still the earlier design's)."""
-    parts = []
-    lo, current = theta[0], 0                  # thresholds strictly beyond lo
+    parts: list[tuple[NDArray[np.intp], FloatArray, FloatArray, NDArray[np.intp],
+                      FloatArray]] = []
+    lo, current = float(theta[0]), 0           # thresholds strictly beyond lo
     while True:
         model = models[current]
         ks = np.arange(_first_k(model, lo), _first_k(model, theta[-1]))
@@ -375,11 +404,11 @@ def _crossings(models: Sequence[Planting], change_times: Sequence[float], jt: Fl
             break
         theta_k = _threshold(model, ks.astype(float))
         i = np.searchsorted(theta, theta_k, side='left')
-        t_e, omega = _crossing(theta_k, jt[i - 1], jt[i], theta[i - 1], theta[i], jw[i - 1],
-                               jw[i])
+        t_e, omega = (np.asarray(v) for v in _crossing(theta_k, jt[i - 1], jt[i], theta[i - 1],
+                                                       theta[i], jw[i - 1], jw[i]))
         # models[current + 1] comes with change_times[current]
         later = (np.nonzero(t_e > change_times[current])[0] if current < len(change_times)
-                 else ())
+                 else np.zeros(0, dtype=np.intp))
         if not len(later):
             parts.append((i, t_e, omega, np.full(t_e.size, current), theta_k))
             break
@@ -387,12 +416,14 @@ def _crossings(models: Sequence[Planting], change_times: Sequence[float], jt: Fl
         parts.append((i[:last + 1], t_e[:last + 1], omega[:last + 1],
                       np.full(last + 1, current), theta_k[:last + 1]))
         # in force after it: the latest change before it
-        current = int(np.searchsorted(change_times, t_e[last], side='left'))
-        lo = theta_k[last]
+        current = int(np.searchsorted(np.asarray(change_times, dtype=float), t_e[last],
+                                      side='left'))
+        lo = float(theta_k[last])
     if not parts:
         return (np.zeros(0, dtype=int), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int),
                 np.zeros(0))
-    return tuple(np.concatenate(c) for c in zip(*parts))
+    i, t_e, omega, which, theta_k = (np.concatenate(c) for c in zip(*parts))
+    return i, t_e, omega, which, theta_k
 
 
 def _gaps(t: FloatArray, gap: float) -> FloatArray:
@@ -427,12 +458,11 @@ def _assemble(models: Planting | Sequence[Planting], settings: PredictionSetting
     spacing from `prev_position` and its rolling rate on its own plants (`recent`: the flags
     before the first row's); None: all of row `row`."""
     n = t_e.size
-    if sizes is None:
-        sizes, row = [n], [row]
-    sizes = np.asarray(sizes, dtype=np.intp)
-    first = np.cumsum(sizes) - sizes                     # each row's first plant
+    rows = np.asarray([row] if sizes is None else row, dtype=float)
+    counts = np.asarray([n] if sizes is None else sizes, dtype=np.intp)
+    first = np.cumsum(counts) - counts                   # each row's first plant
     in_gap = np.zeros(n, dtype=bool) if in_gap is None else np.asarray(in_gap, dtype=bool)
-    if not isinstance(models, (list, tuple)):
+    if isinstance(models, Planting):
         models = [models] * n
     if arcs is None:
         arcs = (np.full(n, np.nan), np.full(n, np.nan))
@@ -446,7 +476,7 @@ def _assemble(models: Planting | Sequence[Planting], settings: PredictionSetting
     for values in (ratio, sweep, hole, tilt, upright):
         values[in_gap] = np.nan            # interpolated across a gap: not known
     spacing = s_e - np.concatenate(([prev_position], s_e[:-1]))
-    starts = first[sizes > 0]
+    starts = first[counts > 0]
     spacing[starts] = s_e[starts] - prev_position
     spacing[new_sequence] = np.nan         # no spacing across a gap in the inputs
     # rolling rate over the last `window` plants of the row, continuing from `recent` flags;
@@ -457,22 +487,38 @@ def _assemble(models: Planting | Sequence[Planting], settings: PredictionSetting
     csum = np.concatenate(([0.0], np.cumsum(np.where(known, history, 0.0))))
     ccount = np.concatenate(([0], np.cumsum(known)))
     end = np.arange(len(recent), len(recent) + n) + 1
-    floor = np.repeat(np.where(first > 0, first + len(recent), 0), sizes)
+    floor = np.repeat(np.where(first > 0, first + len(recent), 0), counts)
     start = np.maximum(end - window, floor)
     counted = ccount[end] - ccount[start]
     with np.errstate(invalid='ignore', divide='ignore'):
         rate = np.where(counted > 0, (csum[end] - csum[start]) / np.maximum(counted, 1),
                         np.nan) if n else np.zeros(0)
     from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
-    return Plants(index=(np.arange(n) - np.repeat(first, sizes) + index0).astype(float),
+    return Plants(index=(np.arange(n) - np.repeat(first, counts) + index0).astype(float),
                   time=t_e, position=s_e, spacing=spacing, spacing_error=spacing - d,
                   speed_ratio=ratio, ground_speed=v_e, shaft_speed=omega, hole_width=hole,
                   tilt=tilt, upright=upright, uprightness_rate=rate,
-                  row=np.repeat(np.asarray(row, dtype=float), sizes), tip_sweep=sweep,
+                  row=np.repeat(rows, counts), tip_sweep=sweep,
                   latitude=np.full(n, np.nan), longitude=np.full(n, np.nan),
                   input_gap=in_gap.astype(float), seedlings=np.full(n, np.nan),
                   status=np.full(n, float(UNKNOWN)),
                   reason=np.where(in_gap, float(INPUT_GAP), float(NO_SENSOR)))
+
+
+# a joint sample (t s, running-maximum shaft angle rad, shaft speed rad/s) and a speed sample
+# (t s, v m/s, travelled distance m)
+_Joint = tuple[float, float, float]
+_Speed = tuple[float, float, float]
+
+
+class _Pending(NamedTuple):
+    """A planting instant not yet completed."""
+
+    t_e: float                 # the instant (s)
+    omega: float               # shaft speed there (rad/s)
+    model: Planting            # the design in force
+    theta_k: float             # planting angle (rad)
+    in_gap: bool               # inside a gap of the joint samples
 
 
 class PlantPredictor:
@@ -492,19 +538,19 @@ class PlantPredictor:
         self.model = model
         self.settings = settings
         self.row = row
-        self._speed = deque(maxlen=self.SPEED_HISTORY)   # (t, v, s) of the samples kept
+        self._speed: deque[_Speed] = deque(maxlen=self.SPEED_HISTORY)   # the samples kept
         self._speed_filter = GroundSpeedFilter(settings.speed_limits) if speed_filter else None
         self._speed_seen = -math.inf                     # latest finite sample time
-        self._joint = None                               # last (t, θmax, ω)
-        self._joints = deque(maxlen=self.SPEED_HISTORY)  # (t, θmax, ω) kept for the arcs
-        self._next_k = None
-        self._pending = []                               # (t_e, ω, model in force)
-        self._changes = []                               # (t, model) not yet in force
+        self._joint: _Joint | None = None                # the last joint sample
+        self._joints: deque[_Joint] = deque(maxlen=self.SPEED_HISTORY)  # kept for the arcs
+        self._next_k = 0                   # planting index of the next crossing (first joint)
+        self._pending: list[_Pending] = []
+        self._changes: list[tuple[float, Planting]] = []     # (t, model) not yet in force
         self._count = 0
         self._prev_position = math.nan
         self._prev_time = -math.inf                      # instant of the last plant reported
-        self._gaps = []                                  # input gaps (start, end) since then
-        self._recent = deque(maxlen=settings.window)
+        self._gaps: list[tuple[float, float]] = []       # input gaps (start, end) since then
+        self._recent: deque[float] = deque(maxlen=settings.window)
 
     def change_model(self, model: Planting, t: float) -> None:
         """A new design arrived at `t` (s): in force from the next planting instant (the
@@ -560,7 +606,8 @@ class PlantPredictor:
             theta_k = _threshold(self.model, float(self._next_k))
             t_e, omega = _crossing(theta_k, t0, t, th0, th1, w0, velocity)
             # a crossing inside a gap: reported, interpolated and flagged (module doc)
-            self._pending.append((float(t_e), float(omega), self.model, theta_k, in_gap))
+            self._pending.append(_Pending(float(t_e), float(omega), self.model, theta_k,
+                                          in_gap))
             self._next_k += 1
             if self._changes and self._changes[0][0] < t_e:
                 # this plant was the old design's last; the latest change before it is in force
@@ -577,13 +624,14 @@ class PlantPredictor:
         was measured, else the figures at its instant)."""
         return self._resolve(final=True)
 
-    def _arc_done(self, t_e: float, model: Planting, theta_k: float, last_t: float) -> bool:
+    def _arc_done(self, joint: _Joint, t_e: float, model: Planting, theta_k: float,
+                  last_t: float) -> bool:
         """Is the plant's arc measured as far as it will be (prediction.motion)? Yes once the
         shaft is past the soil exit and a speed sample later than that has come, or once the
         joint samples have run on `max_input_gap` past the planting instant without that (a
         plant whose feedback stops waits for it, or for `finish`)."""
         exit_angle = theta_k + model.exit_angle
-        t_joint, th_last, _ = self._joint
+        t_joint, th_last, _ = joint
         if th_last < exit_angle:
             # the exit comes later than max_input_gap after the instant: not covered (judged
             # on the joint stamps alone: speed samples may run ahead of late feedback)
@@ -596,10 +644,12 @@ class PlantPredictor:
         return past < last_t
 
     def _resolve(self, final: bool = False) -> Plants:
-        if not self._pending or len(self._speed) < 2:
+        joint = self._joint           # set with the first joint sample, before any plant
+        if not self._pending or len(self._speed) < 2 or joint is None:
             return self._nothing()
         first_t, last_t = self._speed[0][0], self._speed[-1][0]
-        done, keep = [], []
+        done: list[_Pending] = []
+        keep: list[_Pending] = []
         for pending in self._pending:
             t_e, _, model, theta_k, _ = pending
             if keep or t_e >= last_t:
@@ -607,7 +657,7 @@ class PlantPredictor:
             elif t_e < first_t:
                 pass        # before the first speed sample: no position, dropped (as in replay)
             elif (final or not self.settings.measured_arc
-                  or self._arc_done(t_e, model, theta_k, last_t)):
+                  or self._arc_done(joint, t_e, model, theta_k, last_t)):
                 done.append(pending)
             else:
                 keep.append(pending)
@@ -615,7 +665,8 @@ class PlantPredictor:
         if not done:
             return self._nothing()
         times = [s[0] for s in self._speed]
-        rows, models = [], []
+        rows: list[tuple[float, float, float, float, float, bool]] = []
+        models: list[Planting] = []
         for t_e, omega, model, theta_k, in_gap in done:
             j = _bisect_right(times, t_e)
             (t0, v0, s0), (t1, v1, _) = self._speed[j - 1], self._speed[j]
@@ -626,12 +677,13 @@ class PlantPredictor:
             models.append(model)
         if not rows:
             return self._nothing()
-        t_e, omega, v_e, s_e, theta_k, in_gap = (np.array(c) for c in zip(*rows))
-        arcs = self._arcs(models, theta_k) if self.settings.measured_arc else None
-        new_sequence = _after_gap(t_e, self._prev_time, np.array(self._gaps).reshape(-1, 2))
-        plants = _assemble(models, self.settings, t_e, omega, v_e, s_e, self._count,
+        instants, omegas, speeds, places, angles, gaps = (np.array(c) for c in zip(*rows))
+        arcs = self._arcs(models, angles) if self.settings.measured_arc else None
+        new_sequence = _after_gap(instants, self._prev_time,
+                                  np.array(self._gaps).reshape(-1, 2))
+        plants = _assemble(models, self.settings, instants, omegas, speeds, places, self._count,
                            self._prev_position, tuple(self._recent), new_sequence, self.row,
-                           arcs, in_gap=in_gap.astype(bool))
+                           arcs, in_gap=gaps.astype(bool))
         self._count += len(plants)
         self._prev_position = float(plants.position[-1])
         self._prev_time = float(plants.time[-1])
@@ -645,7 +697,7 @@ class PlantPredictor:
         """(sweep, tilt) of the measured arcs of plants at `theta_k` (NaN: not covered)."""
         jt, theta, jw = (np.array(c, dtype=float) for c in zip(*self._joints))
         st, sv, ss = (np.array(c, dtype=float) for c in zip(*self._speed))
-        distinct = list({id(m): m for m in models}.values())
+        distinct: list[Planting] = list({id(m): m for m in models}.values())
         which = np.array([next(w for w, d in enumerate(distinct) if d is m) for m in models],
                          dtype=np.intp)
         return _measured_arcs([(Motion(jt, theta, jw, st, sv, ss), which, theta_k)], distinct,

@@ -39,7 +39,7 @@ alone. Pure numpy: no ROS.
 """
 
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 
@@ -66,7 +66,7 @@ class Motion(NamedTuple):
 
 
 def _locate(samples: Sequence[np.ndarray], queries: Sequence[np.ndarray],
-            side: str) -> tuple[np.ndarray, np.ndarray]:
+            side: Literal['left', 'right']) -> tuple[np.ndarray, np.ndarray]:
     """Each group's queries (`queries[g]`) among its sorted samples (`samples[g]`): the sample
     interval each falls in, as the index of the interval's end in the concatenation of
     `samples` (clipped to the group's first and last interval), and whether the query lies
@@ -98,7 +98,8 @@ def _intervals(jt: np.ndarray, theta: np.ndarray, jw: np.ndarray,
 def _rise(u: np.ndarray, dth: np.ndarray, m0: np.ndarray, m1: np.ndarray) -> np.ndarray:
     """The unit-interval Hermite's rise from θ0 at u."""
     u2, u3 = u * u, u * u * u
-    return (-2 * u3 + 3 * u2) * dth + (u3 - 2 * u2 + u) * m0 + (u3 - u2) * m1
+    rise: np.ndarray = (-2 * u3 + 3 * u2) * dth + (u3 - 2 * u2 + u) * m0 + (u3 - u2) * m1
+    return rise
 
 
 def _cubic(u: np.ndarray, dth: np.ndarray, m0: np.ndarray,
@@ -223,7 +224,7 @@ def _tip_x(models: Sequence[Planting], group: np.ndarray, phi: np.ndarray) -> np
     """The tip path's x (m) at shaft angles `phi` (rad, a row of them per plant) from the
     planting instant, each row by the model of its group (`models[group[row]]`), each distinct
     model called once."""
-    distinct = {}
+    distinct: dict[int, tuple[Planting, list[int]]] = {}
     for k, model in enumerate(models):
         distinct.setdefault(id(model), (model, []))[1].append(k)
     if len(distinct) == 1:
@@ -247,4 +248,5 @@ def _extreme(x: np.ndarray, k: np.ndarray, sign: int) -> np.ndarray:
     with np.errstate(divide='ignore', invalid='ignore'):
         peak = b - (c - a) ** 2 / (8 * curvature)
     refined = interior & (sign * curvature < 0) & np.isfinite(peak)
-    return np.where(refined, peak, value)
+    extreme: np.ndarray = np.where(refined, peak, value)
+    return extreme

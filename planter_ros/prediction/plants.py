@@ -81,7 +81,7 @@ class Plants:
         return [{f: _json_value(v) for f, v in zip(PLANT_FIELDS, row)} for row in self.table()]
 
     @classmethod
-    def from_table(cls, table: ArrayLike, fields: tuple = PLANT_FIELDS) -> 'Plants':
+    def from_table(cls, table: ArrayLike, fields: tuple[str, ...] = PLANT_FIELDS) -> 'Plants':
         """Plants of a table whose columns are `fields` (an older layout: fewer; a field it
         lacks is NaN, but input_gap 0 and status/reason unknown/no sensor)."""
         table = np.asarray(table, dtype=float).reshape(-1, len(fields))

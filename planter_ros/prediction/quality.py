@@ -22,20 +22,25 @@ spacings.
 same class. Pure numpy: no ROS.
 """
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 import math
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ['QUALITY_FIELDS', 'MULTIPLE_LIMIT', 'MISS_LIMIT', 'SpacingQuality', 'spacing_quality',
-           'spacing_quality_by_row', 'format_quality']
+__all__ = ['QUALITY_FIELDS', 'MULTIPLE_LIMIT', 'MISS_LIMIT', 'QualityIndices', 'SpacingQuality',
+           'spacing_quality', 'spacing_quality_by_row', 'format_quality']
 
 # the indices in the order the monitor's topic and the JSON give them ('spacings': the count)
 QUALITY_FIELDS = ('multiple_index', 'miss_index', 'quality_of_feed_index', 'precision',
                   'spacings')
 MULTIPLE_LIMIT = 0.5           # x <= 0.5 d: a multiple
 MISS_LIMIT = 1.5               # x > 1.5 d: a miss
+
+
+# the indices by name (quality_of_feed_index, multiple_index, miss_index, precision: fractions or
+# None without spacings; spacings: their count), JSON-ready
+QualityIndices = dict[str, float | int | None]
 
 
 class SpacingQuality:
@@ -75,7 +80,7 @@ class SpacingQuality:
             self._singles = n
         return self
 
-    def result(self) -> dict[str, float | int | None]:
+    def result(self) -> QualityIndices:
         """{multiple_index, miss_index, quality_of_feed_index, precision, spacings}: fractions
         0..1 or None when undefined, and the count of spacings used."""
         n = self.spacings
@@ -91,14 +96,14 @@ class SpacingQuality:
                 'precision': precision, 'spacings': n}
 
 
-def spacing_quality(spacing: ArrayLike,
-                    design_spacing: ArrayLike) -> dict[str, float | int | None]:
+def spacing_quality(spacing: ArrayLike, design_spacing: ArrayLike) -> QualityIndices:
     """The indices of one set of spacings (see the module doc)."""
     return SpacingQuality().add(spacing, design_spacing).result()
 
 
 def spacing_quality_by_row(spacing: ArrayLike, design_spacing: ArrayLike, row: ArrayLike,
-                           rows: Iterable[int] | None = None) -> tuple[dict[int, dict], dict]:
+                           rows: Iterable[int] | None = None
+                           ) -> tuple[dict[int, QualityIndices], QualityIndices]:
     """(indices of each row {row index: result}, indices of the whole machine): every row's
     spacings judged alike, the machine's = all rows' spacings together. `rows`: the row indices
     to report (those without plants get an empty result); default: the rows present."""
@@ -111,7 +116,7 @@ def spacing_quality_by_row(spacing: ArrayLike, design_spacing: ArrayLike, row: A
     return per_row, spacing_quality(spacing, design_spacing)
 
 
-def format_quality(quality: dict) -> str:
+def format_quality(quality: Mapping[str, float | int | None]) -> str:
     """One line for people: percentages with what each index counts."""
     def pct(value: float | None) -> str:
         return 'n/a' if value is None else f'{100 * value:.1f} %'

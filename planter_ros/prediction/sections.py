@@ -39,7 +39,8 @@ class SectionBreaks:
 def section_breaks(reports: Iterable[tuple[float, Mapping[str, bool]]]
                    ) -> dict[str, list[tuple[float, float]]]:
     """{row name: [(start, end), ...]} of reports [(t, {row name: on})] in time order."""
-    tracker, breaks = SectionBreaks(), {}
+    tracker = SectionBreaks()
+    breaks: dict[str, list[tuple[float, float]]] = {}
     for t, states in reports:
         for row, start, end in tracker.update(t, states):
             breaks.setdefault(row, []).append((start, end))

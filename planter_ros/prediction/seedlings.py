@@ -70,8 +70,9 @@ class SeedlingAccount:
     sees it."""
 
     def __init__(self, sensors: dict[int, bool | None] | None = None) -> None:
-        self._readings = {}                # row -> ([t], [count])
-        self._last = {}                    # row -> (instant time, last seedling position)
+        self._readings: dict[int, tuple[list[float], list[float]]] = {}   # row -> ([t], [count])
+        # row -> (instant time, last seedling position)
+        self._last: dict[int, tuple[float, float]] = {}
         self._sensors = {int(row): on for row, on in (sensors or {}).items() if on is not None}
 
     def add_reading(self, row: int, t: float, count: float) -> None:

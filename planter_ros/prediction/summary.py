@@ -2,18 +2,38 @@
 uprightness, every planting instant's status and the spacing quality between the seedlings in
 the ground (prediction.seedlings, prediction.quality). Pure numpy."""
 
+from typing import TypedDict
+
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .plants import Plants
-from .quality import spacing_quality
+from .quality import QualityIndices, spacing_quality
 from .seedlings import seedling_spacings, status_counts
 
-__all__ = ['summarize']
+__all__ = ['RunSummary', 'summarize']
+
+
+class RunSummary(TypedDict):
+    """summarize's figures (SI; None: no plant has the value)."""
+
+    plants: int
+    instants: dict[str, int]                 # planting instants by status
+    design_spacing: float
+    spacing_error_mean: float | None
+    spacing_error_std: float | None
+    spacing_error_max: float | None
+    hole_width_mean: float | None
+    hole_width_max: float | None
+    tip_sweep_mean: float | None
+    tip_sweep_max: float | None
+    tilt_max: float | None
+    uprightness_rate: float | None
+    spacing_quality: QualityIndices
 
 
 def summarize(plants: Plants, spacing: float,
-              design_spacing: ArrayLike | None = None) -> dict:
+              design_spacing: ArrayLike | None = None) -> RunSummary:
     """Summary figures (SI) of a run: plant count, spacing error, hole width and tip sweep,
     uprightness, spacing quality (each plant's spacing against `design_spacing`: one per plant,
     default `spacing` for all)."""

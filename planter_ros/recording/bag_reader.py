@@ -18,6 +18,7 @@ from pathlib import Path
 import re
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planter_ros import interfaces
 
@@ -26,6 +27,10 @@ from .errors import BagUnreadableError
 from .recovery import Loss, one_line, read_records
 
 MAGIC = b'\x89MCAP0\r\n'
+# one channel's messages: log times (ns) and raw CDR, as lists or as read from a chunk (an int64
+# array and a cdr.Packed)
+LogTimes = Sequence[int] | NDArray[np.int64]
+Blocks = dict[int, tuple[LogTimes, Sequence[Raw]]]
 
 
 def bag_files(path: str | Path) -> list[Path]:
@@ -120,10 +125,10 @@ class TopicMessages:
 
     topic: interfaces.Topic
     name: str
-    log: Sequence[int] = field(default_factory=list)
+    log: LogTimes = field(default_factory=list)
     raw: Sequence[Raw] = field(default_factory=list)
 
-    def add(self, logs: Sequence[int], raws: Sequence[Raw]) -> None:
+    def add(self, logs: LogTimes, raws: Sequence[Raw]) -> None:
         """Messages of the next file (in file order after the ones held)."""
         if not len(self.raw):
             self.log, self.raw = logs, raws
@@ -137,13 +142,13 @@ class TopicMessages:
 class Recording:
     """Raw messages of the topics asked for, plus what the bag says about itself."""
 
-    files: list
-    topics: dict                  # interfaces.Topic -> TopicMessages (found topics only)
-    all_topics: dict              # name -> type, everything in the bag
-    metadata: dict                # MCAP metadata records: name -> {key: value}
-    warnings: list
+    files: list[Path]
+    topics: dict[interfaces.Topic, TopicMessages]   # the found topics only
+    all_topics: dict[str, str]    # name -> type, everything in the bag
+    metadata: dict[str, dict[str, str]]     # MCAP metadata records: name -> {key: value}
+    warnings: list[str]
     message_count: int = 0
-    losses: list = field(default_factory=list)     # one line per lost part (also in warnings)
+    losses: list[str] = field(default_factory=list)   # one line per lost part (also warnings)
 
 
 def pick_topics(channels: Mapping[int, tuple[str, str]], wanted: Iterable[interfaces.Topic]
@@ -165,22 +170,30 @@ def pick_topics(channels: Mapping[int, tuple[str, str]], wanted: Iterable[interf
 def read_recording(path: str | Path, wanted: Sequence[interfaces.Topic]) -> Recording:
     """Read the `wanted` topics (interfaces.Topic) of a bag as raw CDR, in file order."""
     files, missing = _bag_parts(path)
-    topics, all_topics, metadata, warnings = {}, {}, {}, []
-    losses = []                     # (Loss, last log time before it, first log time after it)
-    spans = []                      # (first, last) log time of the wanted messages per file
-    count = 0
+    topics: dict[interfaces.Topic, TopicMessages] = {}
+    all_topics: dict[str, str] = {}
+    metadata: dict[str, dict[str, str]] = {}
+    warnings: list[str] = []
+    losses: list[tuple[Loss, Path]] = []      # each loss and the file (or bag) it is in
+    spans: list[tuple[int | None, int | None]] = []   # (first, last) log time of the wanted
+    count = 0                                         # messages per file
     for file in files:
-        channels = blocks = None
-        file_losses = []
+        channels: dict[int, tuple[str, str]]
+        blocks: Blocks
+        file_metadata: dict[str, dict[str, str]]
+        fast = None
+        file_losses: list[Loss] = []
         if check_magic(file):
             try:
-                channels, blocks, file_metadata = _read_fast(file, wanted)
+                fast = _read_fast(file, wanted)
             except Exception as exc:           # a damaged file: say so, read what is intact
                 warnings.append(f'{file}: {one_line(exc)}; reading every intact chunk')
         else:
             warnings.append(f'{file} is not finalised (recorder killed?): reading every intact '
                             'chunk')
-        if channels is None:
+        if fast is not None:
+            channels, blocks, file_metadata = fast
+        else:
             try:
                 found = read_records(file)
             except BagUnreadableError as exc:
@@ -203,11 +216,12 @@ def read_recording(path: str | Path, wanted: Sequence[interfaces.Topic]) -> Reco
                 topics[topic] = TopicMessages(topic, name)
             elif known.name != name:          # another namespace in a later split: not ours
                 by_channel = {c: t for c, t in by_channel.items() if t is not topic}
-        first = last = None
+        first: int | None = None
+        last: int | None = None
         for cid, (logs, raws) in blocks.items():
-            topic = by_channel.get(cid)
-            if topic is not None and len(logs):
-                topics[topic].add(logs, raws)
+            owner = by_channel.get(cid)
+            if owner is not None and len(logs):
+                topics[owner].add(logs, raws)
                 count += len(logs)
                 lo, hi = int(np.min(logs)), int(np.max(logs))
                 first = lo if first is None else min(first, lo)
@@ -221,9 +235,9 @@ def read_recording(path: str | Path, wanted: Sequence[interfaces.Topic]) -> Reco
         if loss.end is None:
             loss.end = next((s[0] for s in spans[before:] if s[0] is not None), None)
         losses.append((loss, Path(path)))
-    known = [s[0] for s in spans if s[0] is not None] + \
+    times = [s[0] for s in spans if s[0] is not None] + \
         [t for loss, _ in losses for t in (loss.start, loss.end) if t is not None]
-    t0 = min(known) if known else None
+    t0 = min(times) if times else None
     lost = [f'{where}: {loss.what}; {_lost_range(loss, t0)}' for loss, where in losses]
     return Recording(files, topics, all_topics, metadata, warnings + lost, count, lost)
 
@@ -242,21 +256,21 @@ def _lost_range(loss: Loss, t0: int | None) -> str:
 
 
 def _read_fast(file: Path, wanted: Iterable[interfaces.Topic]
-               ) -> tuple[dict[int, tuple[str, str]], dict[int, tuple[list[int], list[Raw]]],
-                          dict[str, dict[str, str]]]:
+               ) -> tuple[dict[int, tuple[str, str]], Blocks, dict[str, dict[str, str]]]:
     """A finalised file through its indexes: (channels {id: (topic, type)}, {id: (log times,
     raw CDR)} of the wanted topics' channels, metadata records). Raises on anything damaged."""
     from .indexed import IndexedFile
     with IndexedFile(file) as indexed:
         ids = {cid for cid, _ in pick_topics(indexed.channels, wanted).values()}
-        return indexed.channels, indexed.messages(ids), indexed.metadata()
+        blocks: Blocks = dict(indexed.messages(ids))
+        return indexed.channels, blocks, indexed.metadata()
 
 
-def _blocks(messages: Iterable[tuple[int, int, Raw]]) -> dict[int, tuple[list[int], list[Raw]]]:
+def _blocks(messages: Iterable[tuple[int, int, Raw]]) -> Blocks:
     """[(channel id, log time, raw)] in file order -> {channel id: (log times, raws)}."""
-    out = {}
+    out: dict[int, tuple[list[int], list[Raw]]] = {}
     for cid, log_time, data in messages:
         logs, raws = out.setdefault(cid, ([], []))
         logs.append(log_time)
         raws.append(data)
-    return out
+    return dict(out)

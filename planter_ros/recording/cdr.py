@@ -41,6 +41,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 import struct
+from typing import Any, Protocol, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,9 +52,19 @@ from .errors import DecodeError
 
 Raw = bytes | bytearray | memoryview                 # one message's CDR bytes
 Ranges = list[tuple[int, int]]                      # byte ranges that fix a layout
+# where a value lies in a message: a float64's offset, (offset, numpy type code) for another
+# number ('i1', 'u1'), or None where the message lacks it
+Offset = int | tuple[int, str] | None
 
 
-class Packed(Sequence):
+class RosMessage(Protocol):
+    """A generated ROS 2 message (rosidl): its fields and their IDL types by name."""
+
+    @classmethod
+    def get_fields_and_field_types(cls) -> dict[str, str]: ...
+
+
+class Packed(Sequence[memoryview]):
     """Messages lying in one buffer, message i = data[start[i]:end[i]] (what the indexed reader
     gives: the records of a decompressed chunk, no object per message). A sequence of memoryviews
     to whoever iterates it; the bulk decoders read its messages of one length straight from the
@@ -69,6 +80,10 @@ class Packed(Sequence):
     def __len__(self) -> int:
         return int(self.start.size)
 
+    @overload
+    def __getitem__(self, i: int) -> memoryview: ...
+    @overload
+    def __getitem__(self, i: slice) -> Packed: ...
     def __getitem__(self, i: int | slice) -> memoryview | Packed:
         if isinstance(i, slice):
             return Packed(self.data, self.start[i], self.end[i])
@@ -207,7 +222,7 @@ def _joint_layout(raw: Raw, joints: Sequence[bytes | None]
         raise DecodeError(f'{what}: name count {count} does not fit in {len(raw)} bytes')
     ranges.append((pos, pos + 4))
     pos += 4
-    index = {}
+    index: dict[bytes, int] = {}
     for i in range(count):
         pos = _align(pos, 4)
         end = _string_end(raw, pos, e, what, f'name[{i}]')
@@ -220,7 +235,7 @@ def _joint_layout(raw: Raw, joints: Sequence[bytes | None]
     ranges.append(span)
     _, _, _, span = _float64_sequence(raw, pos, e, what, 'effort')   # only: does it fit
     ranges.append(span)
-    offsets = []
+    offsets: list[int | None] = []
     for joint in joints:
         k = index.get(joint) if joint is not None else None
         if k is None and count == 0 and n_pos == 1:
@@ -232,7 +247,8 @@ def _joint_layout(raw: Raw, joints: Sequence[bytes | None]
 
 # ----------------------------------------------------------------------------- bulk
 
-def _bulk(raws: Sequence[Raw], layout_of: Callable[[Raw], tuple[str, tuple, Ranges]],
+def _bulk(raws: Sequence[Raw],
+          layout_of: Callable[[Raw], tuple[str, tuple[Offset, ...], Ranges]],
           n_values: int) -> tuple[NDArray[np.int64], FloatArray]:
     """Decode messages grouped by layout. layout_of(raw) -> (byte order, offsets, ranges),
     raising DecodeError for a message it cannot walk; an offset is a float64's, or (offset, numpy
@@ -244,16 +260,15 @@ def _bulk(raws: Sequence[Raw], layout_of: Callable[[Raw], tuple[str, tuple, Rang
     values = np.full((n_values, count), np.nan)
     if not count:
         return stamps, values
-    packed = isinstance(raws, Packed)
-    lengths = raws.lengths() if packed else np.fromiter(map(len, raws), dtype=np.int64,
-                                                        count=count)
+    lengths = raws.lengths() if isinstance(raws, Packed) else np.fromiter(
+        map(len, raws), dtype=np.int64, count=count)
     order = np.argsort(lengths, kind='stable')
     cuts = np.flatnonzero(np.diff(lengths[order])) + 1
     for idx in np.split(order, cuts):               # one group per message length
         size = int(lengths[idx[0]])
         if size < FRAME_ID + 4:                     # not even a header: all left out
             continue
-        if packed:                                  # rows gathered from the chunk buffer
+        if isinstance(raws, Packed):                # rows gathered from the chunk buffer
             block = raws.block(idx, size)
         else:
             # one length (the usual case): idx is 0..n-1 in order (stable sort), join as given
@@ -400,7 +415,7 @@ _PRIMITIVES = {'bool': ('?', 1), 'boolean': ('?', 1), 'byte': ('B', 1), 'octet':
 _ENCAPSULATION = b'\x00\x01\x00\x00'          # CDR little endian, no options
 
 
-def encode_message(msg: object) -> bytes:
+def encode_message(msg: RosMessage) -> bytes:
     """The CDR bytes (XCDR1 little endian, rosbag2's `cdr`) of an rclpy message, written
     deterministically: every alignment padding byte 0 and nothing after the last field.
 
@@ -420,7 +435,7 @@ def _pad(out: bytearray, size: int) -> None:
         out.extend(b'\x00' * (size - extra))
 
 
-def _encode_fields(out: bytearray, msg: object) -> None:
+def _encode_fields(out: bytearray, msg: RosMessage) -> None:
     for name, kind in msg.get_fields_and_field_types().items():
         _encode_value(out, kind, getattr(msg, name))
 
@@ -434,7 +449,8 @@ def _element(kind: str) -> tuple[str, int | None]:
     return base, int(count.rstrip(']'))
 
 
-def _encode_value(out: bytearray, kind: str, value: object) -> None:
+def _encode_value(out: bytearray, kind: str, value: Any) -> None:
+    # a field's value as the message holds it: the generated message classes declare no types
     if kind.startswith('sequence<') or kind.endswith(']'):
         element, count = _element(kind)
         items = list(value) if not isinstance(value, (bytes, bytearray)) else list(value)

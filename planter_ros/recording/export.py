@@ -10,8 +10,10 @@ tilt (rad, + leaning forward), upright (true/false), status (planted | empty | d
 unknown), reason (sensed | no seedling sensor | no sensor reading | input gap), input_gap
 (true: the instant fell in a gap of the inputs, its position interpolated); an undefined value
 is null. Every planting instant is a feature: an empty cup's and an input gap's too.
-CSV: the same table, a header line, empty cells for undefined values, upright and input_gap as
-1/0.
+CSV: the same table, a header line naming each column with its unit (CSV_HEADER: `time_s`,
+`longitude_deg`, `spacing_m`, `tilt_rad`, ...; row, index, upright and input_gap are
+dimensionless), empty cells for undefined values (pandas and DuckDB read them as null), upright and
+input_gap as 1/0.
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     from .replay import ReplayResult
 
 COORDINATE_DECIMALS = 9
@@ -31,6 +35,10 @@ PROPERTIES = ('row', 'row_name', 'index', 'time', 'spacing', 'spacing_error', 'h
 CSV_COLUMNS = ('row', 'row_name', 'index', 'time', 'longitude', 'latitude', 'spacing',
                'spacing_error', 'hole_width', 'tilt', 'upright', 'status', 'reason',
                'input_gap')
+# each column's header: its unit in the name, as the Parquet tables and the Shapefile have them
+CSV_HEADER = {'time': 'time_s', 'longitude': 'longitude_deg', 'latitude': 'latitude_deg',
+              'spacing': 'spacing_m', 'spacing_error': 'spacing_error_m',
+              'hole_width': 'hole_width_m', 'tilt': 'tilt_rad'}
 
 
 def _number(value: float) -> float | None:
@@ -81,7 +89,7 @@ def geojson_text(result: ReplayResult) -> str:
 def csv_text(result: ReplayResult) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator='\n')
-    writer.writerow(CSV_COLUMNS)
+    writer.writerow([CSV_HEADER.get(c, c) for c in CSV_COLUMNS])
     for record in plant_records(result):
         cells = []
         for column in CSV_COLUMNS:
@@ -95,3 +103,22 @@ def csv_text(result: ReplayResult) -> str:
             cells.append('' if value is None else value)
         writer.writerow(cells)
     return out.getvalue()
+
+
+def _counts(result: ReplayResult) -> str:
+    placed = int(sum(1 for v in result.plants.latitude if math.isfinite(v)))
+    return f'({len(result.plants)} plants, {placed} with a map position)'
+
+
+def write_geojson(result: ReplayResult, path: str | Path) -> str:
+    """Write the GeoJSON of a ReplayResult at `path` (atomically): the line for people."""
+    from planter_ros.output_files import write_text_atomically
+    write_text_atomically(path, geojson_text(result))
+    return f'GeoJSON written to {path} {_counts(result)}'
+
+
+def write_csv(result: ReplayResult, path: str | Path) -> str:
+    """Write the CSV of a ReplayResult at `path` (atomically): the line for people."""
+    from planter_ros.output_files import write_text_atomically
+    write_text_atomically(path, csv_text(result))
+    return f'CSV written to {path} {_counts(result)}'

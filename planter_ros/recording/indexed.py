@@ -21,7 +21,7 @@ record by record (mcap's parser).
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 import mmap
 from pathlib import Path
 import struct
@@ -33,10 +33,11 @@ from numpy.typing import NDArray
 
 from .cdr import Packed, Raw
 from .errors import BagDamagedError
-from .recovery import check_chunk_header, read_summary, record_at
+from .recovery import OpenedChunk, check_chunk_header, read_summary, record_at
 
 if TYPE_CHECKING:
     from mcap.records import ChunkIndex
+    import zstandard
 
 _MESSAGE = 0x05
 _MESSAGE_INDEX = 0x07
@@ -50,7 +51,7 @@ class IndexedFile:
 
     def __init__(self, path: str | Path) -> None:
         self.path = path
-        self._zstd = None
+        self._zstd: zstandard.ZstdDecompressor | None = None    # made for the first zstd chunk
         self._file = open(path, 'rb')
         try:
             self._data = mmap.mmap(self._file.fileno(), 0, access=mmap.ACCESS_READ)
@@ -66,10 +67,9 @@ class IndexedFile:
                          for cid, c in summary['channels'].items()}
 
     def close(self) -> None:
-        data = getattr(self, '_data', None)
+        data = getattr(self, '_data', None)       # (absent if mapping the file failed)
         if data is not None:
-            data.close()
-            self._data = None
+            data.close()                         # then any read raises ValueError
         self._file.close()
 
     def __enter__(self) -> IndexedFile:
@@ -89,17 +89,21 @@ class IndexedFile:
             out[record.name] = dict(record.metadata)
         return out
 
-    def messages(self, ids: Collection[int]) -> dict[int, tuple[NDArray[np.int64], Packed]]:
+    def messages(self, ids: Collection[int]
+                 ) -> dict[int, tuple[NDArray[np.int64], Sequence[Raw]]]:
         """{channel id: (log times ns, raw CDR)} of the channels `ids`, each in file order
         (chunk by chunk, then by position in the chunk): the log times an int64 array, the
         messages a cdr.Packed over the decompressed chunks (a list of memoryviews for a file
         written without message indexes)."""
-        out = {cid: (np.zeros(0, dtype=np.int64), Packed(b'', [], [])) for cid in ids}
+        out: dict[int, tuple[NDArray[np.int64], Sequence[Raw]]] = {
+            cid: (np.zeros(0, dtype=np.int64), Packed(b'', np.zeros(0, dtype=np.int64),
+                                                      np.zeros(0, dtype=np.int64)))
+            for cid in ids}
         chunks = sorted(self._summary['chunks'], key=lambda c: c.chunk_start_offset)
         if not ids:
             return out
         if any(index.message_index_length == 0 for index in chunks):
-            lists = {cid: ([], []) for cid in ids}
+            lists: dict[int, tuple[list[int], list[Raw]]] = {cid: ([], []) for cid in ids}
             for index in chunks:                  # a writer without message indexes
                 self._whole_chunk(index, lists)
             return {cid: (np.asarray(logs, dtype=np.int64), raws)
@@ -131,17 +135,17 @@ class IndexedFile:
         bounds = np.cumsum([len(b) for b in buffers])
         # the pieces channel by channel, each channel's in chunk order
         by_channel = sorted(range(len(pieces)), key=owner.__getitem__)
-        count = np.array(count, dtype=np.int64)[by_channel]
-        channel_of = np.repeat(np.array(owner, dtype=np.int64)[by_channel], count)
+        counts = np.array(count, dtype=np.int64)[by_channel]
+        channel_of = np.repeat(np.array(owner, dtype=np.int64)[by_channel], counts)
         # every offset inside its chunk, then all of them in the buffer, sorted by channel and
         # position (chunks follow each other in it: sorting orders each chunk's and keeps
         # their order; the writers' indexes are in order already, then nothing is sorted)
         offset = np.frombuffer(b''.join([pieces[k] for k in by_channel]), dtype='<u8')[1::2]
         inside = offset < np.uint64(1 << 62)              # no wrap-around below
         offset = offset.astype(np.int64)
-        _refuse(~inside | (offset + _DATA > np.repeat(np.array(chunk)[by_channel], count)),
+        _refuse(~inside | (offset + _DATA > np.repeat(np.array(chunk)[by_channel], counts)),
                 channel_of, 'points outside its chunk')
-        at = offset + np.repeat(np.array(start, dtype=np.int64)[by_channel], count)
+        at = offset + np.repeat(np.array(start, dtype=np.int64)[by_channel], counts)
         if np.any((at[1:] <= at[:-1]) & (channel_of[1:] == channel_of[:-1])):
             order = np.lexsort((at, channel_of))
             at, channel_of = at[order], channel_of[order]
@@ -205,6 +209,9 @@ class IndexedFile:
                      out: dict[int, tuple[list[int], list[Raw]]]) -> None:
         from mcap.records import Message
         _, chunk, _ = record_at(self._data, index.chunk_start_offset)
+        if not isinstance(chunk, OpenedChunk):
+            raise BagDamagedError(f'chunk index points at byte {index.chunk_start_offset}, not at '
+                                  'a chunk')
         for record in chunk.records:
             if isinstance(record, Message) and record.channel_id in out:
                 logs, raws = out[record.channel_id]

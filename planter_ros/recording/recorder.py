@@ -23,7 +23,7 @@ caller publishes itself are serialised (`write_message`, rclpy.serialization).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 import json
 import os
@@ -31,7 +31,7 @@ from pathlib import Path
 import re
 import sys
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, BinaryIO
 
 import yaml
 
@@ -40,8 +40,11 @@ from planter_ros.config import check, setting
 from .errors import BagWriteError
 
 if TYPE_CHECKING:               # rclpy only where a message is serialised: replay needs none
+    from mcap.writer import Writer
     from rclpy.duration import Duration
     from rclpy.qos import QoSProfile
+
+    from .cdr import RosMessage
 
     from planter_ros.interfaces import Qos
 
@@ -97,13 +100,13 @@ def _split_type(type_name: str) -> tuple[str, str, str]:
     if len(parts) == 2:
         return parts[0], 'msg', parts[1]
     if len(parts) == 3:
-        return tuple(parts)
+        return parts[0], parts[1], parts[2]
     raise BagWriteError(f'message type {type_name!r} is not pkg/msg/Type')
 
 
 def message_definition(type_name: str) -> str:
     """rosbag2's full ros2msg text of `pkg/msg/Type` (dependencies appended, each once)."""
-    seen = set()
+    seen: set[str] = set()
 
     def text_of(name: str) -> tuple[str, str]:
         package, namespace, base = _split_type(name)
@@ -115,7 +118,7 @@ def message_definition(type_name: str) -> str:
 
     def append(name: str) -> str:
         text, package = text_of(name)
-        deps = set()
+        deps: set[str] = set()
         for match in _FIELD_TYPE.finditer(text):
             dep = match.group(1)
             if dep in PRIMITIVE_TYPES:
@@ -144,11 +147,13 @@ def type_hash(type_name: str) -> str:
     return ''
 
 
-def qos_yaml(qos: Qos | QoSProfile | dict | None) -> str:
+def qos_yaml(qos: Qos | QoSProfile | dict[str, object] | None) -> str:
     """offered_qos_profiles YAML (rosbag2 v9 style) of an interfaces.Qos, an rclpy QoSProfile
     or a ready dict."""
-    if hasattr(qos, 'profile'):
+    from planter_ros.interfaces import Qos
+    if isinstance(qos, Qos):
         qos = qos.profile()
+    profiles: list[dict[str, object]]
     if qos is None:
         profiles = []
     elif isinstance(qos, dict):
@@ -158,7 +163,7 @@ def qos_yaml(qos: Qos | QoSProfile | dict | None) -> str:
     return yaml.safe_dump(profiles, default_flow_style=False, sort_keys=False)
 
 
-def _qos_dict(qos: QoSProfile) -> dict:
+def _qos_dict(qos: QoSProfile) -> dict[str, object]:
     def duration(d: Duration) -> dict[str, int]:
         ns = d.nanoseconds
         if ns >= 2 ** 63 - 1:
@@ -193,7 +198,7 @@ class _Channel:
                  qos: str) -> None:
         self.name, self.type_name, self.definition = name, type_name, definition
         self.hash, self.qos = hash_, qos
-        self.channel = None
+        self.channel = 0        # its MCAP channel id in the current file (set on registering)
         self.count = 0          # whole bag
         self.file_count = 0     # current file
 
@@ -208,6 +213,18 @@ def default_bag_path(bags_dir: str | Path = 'bags', prefix: str = 'planter',
         n += 1
         path = base.with_name(f'{base.name}-{n}')
     return path
+
+
+@dataclass
+class _OpenFile:
+    """The MCAP file being written: its stream and writer, the schemas registered in it, and
+    the first and last log time (ns) written to it."""
+
+    stream: BinaryIO
+    writer: Writer
+    schema_ids: dict[str, int] = field(default_factory=dict)
+    start: int | None = None
+    end: int | None = None
 
 
 class Recorder:
@@ -247,25 +264,20 @@ class Recorder:
         self.flush_period = float(flush_period)
         self.chunk_size = int(chunk_size)
         self._monotonic = monotonic
-        self._topics = {}
-        self._definitions = {}
-        self._metadata = {}
-        self.files = []            # finished and current file paths, in order
-        self._file_info = []       # per finished file: dict for metadata
-        self._writer = None
-        self._stream = None
-        self._schema_ids = {}
-        self._file_start = None    # first log time in the current file
-        self._file_end = None
-        self._bag_start = None
-        self._bag_end = None
+        self._topics: dict[str, _Channel] = {}
+        self._definitions: dict[str, tuple[str, str]] = {}   # type -> (definition, hash)
+        self._metadata: dict[str, dict[str, str]] = {}
+        self.files: list[Path] = []          # finished and current file paths, in order
+        self._file_info: list[dict[str, object]] = []   # per finished file: for metadata
+        self._bag_start: int | None = None   # first and last log time written (ns)
+        self._bag_end: int | None = None
         self._last_flush = monotonic()
         self.closed = False
-        self._open_file()
+        self._file: _OpenFile | None = self._open_file()     # None once closed
 
     # -- public API --------------------------------------------------------------------
     def add_topic(self, topic: str, type_name: str,
-                  qos: Qos | QoSProfile | dict | None = None) -> None:
+                  qos: Qos | QoSProfile | dict[str, object] | None = None) -> None:
         """Declare a topic (`/ns/name`, `pkg/msg/Type`, rclpy QoSProfile or v9 dict)."""
         if topic in self._topics:
             return
@@ -274,13 +286,13 @@ class Recorder:
         definition, hash_ = self._definitions[type_name]
         entry = _Channel(topic, type_name, definition, hash_, qos_yaml(qos))
         self._topics[topic] = entry
-        self._register(entry)
+        self._register(self._open(), entry)
 
     def add_metadata(self, name: str, values: Mapping[str, object]) -> None:
         """An MCAP Metadata record (string key/values), repeated in every split file."""
-        values = {str(k): str(v) for k, v in values.items()}
-        self._metadata[name] = values
-        self._writer.add_metadata(name, values)
+        texts = {str(k): str(v) for k, v in values.items()}
+        self._metadata[name] = texts
+        self._open().writer.add_metadata(name, texts)
 
     def write(self, topic: str, data: bytes | bytearray | memoryview, log_time: int,
               publish_time: int | None = None) -> None:
@@ -291,19 +303,19 @@ class Recorder:
         if entry is None:
             raise BagWriteError(f'topic {topic} was not added to bag {self.path}')
         log_time = int(log_time)
-        self._maybe_split(log_time)
-        self._writer.add_message(entry.channel, log_time, bytes(data),
-                                 int(log_time if publish_time is None else publish_time))
+        file = self._maybe_split(self._open(), log_time)
+        file.writer.add_message(entry.channel, log_time, bytes(data),
+                                int(log_time if publish_time is None else publish_time))
         entry.count += 1
         entry.file_count += 1
-        if self._file_start is None or log_time < self._file_start:
-            self._file_start = log_time
-        self._file_end = log_time if self._file_end is None else max(self._file_end, log_time)
+        if file.start is None or log_time < file.start:
+            file.start = log_time
+        file.end = log_time if file.end is None else max(file.end, log_time)
         self._bag_start = log_time if self._bag_start is None else min(self._bag_start, log_time)
         self._bag_end = log_time if self._bag_end is None else max(self._bag_end, log_time)
         self.tick()
 
-    def write_message(self, topic: str, msg: object, log_time: int,
+    def write_message(self, topic: str, msg: RosMessage, log_time: int,
                       publish_time: int | None = None) -> None:
         """Serialise a message this process publishes and record it: CDR written
         deterministically (recording.cdr.encode_message: padding zeroed, no bytes after the
@@ -314,13 +326,13 @@ class Recorder:
 
     def tick(self) -> None:
         """Close the open chunk if `flush_period` has passed (call from a timer too)."""
-        if self._writer is not None and self._monotonic() - self._last_flush >= self.flush_period:
+        if self._file is not None and self._monotonic() - self._last_flush >= self.flush_period:
             self.flush()
 
     def flush(self) -> None:
         """Close the open chunk and hand it to the OS (survives a SIGKILL of this process)."""
-        if self._writer is not None:
-            self._writer.flush()
+        if self._file is not None:
+            self._file.writer.flush()
         self._last_flush = self._monotonic()
 
     def close(self) -> None:
@@ -328,7 +340,8 @@ class Recorder:
         directory. Safe to call twice."""
         if self.closed:
             return
-        self._close_file()
+        self._close_file(self._open())
+        self._file = None
         self.closed = True
         if not self.single_file:
             text = yaml.safe_dump({'rosbag2_bagfile_information': self.metadata()},
@@ -341,11 +354,11 @@ class Recorder:
     def message_count(self) -> int:
         return sum(t.count for t in self._topics.values())
 
-    def metadata(self) -> dict:
+    def metadata(self) -> dict[str, object]:
         """rosbag2 BagMetadata (version 9) of everything written so far."""
         files = list(self._file_info)
-        if self._writer is not None:
-            files.append(self._current_file_info())
+        if self._file is not None:
+            files.append(self._current_file_info(self._file))
         start = self._bag_start or 0
         return {
             'version': 9,
@@ -379,7 +392,14 @@ class Recorder:
     def _file_path(self, index: int) -> Path:
         return self.path if self.single_file else self.path / f'{self.name}_{index}.mcap'
 
-    def _open_file(self) -> None:
+    def _open(self) -> _OpenFile:
+        """The file being written; BagWriteError once the bag is closed."""
+        if self._file is None:
+            raise BagWriteError(f'bag {self.path} is closed')
+        return self._file
+
+    def _open_file(self) -> _OpenFile:
+        """Start the next file: every topic and metadata record declared again."""
         from mcap.writer import CompressionType, Writer
         path = self._file_path(len(self.files))
         try:
@@ -389,59 +409,59 @@ class Recorder:
                                 'overwritten)') from None
         except OSError as exc:
             raise BagWriteError(f'cannot create bag file {path}: {exc.strerror or exc}') from None
-        self._stream = raw
-        self._writer = Writer(raw, chunk_size=self.chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(profile=PROFILE, library='planter_ros recorder (mcap python)')
+        writer = Writer(raw, chunk_size=self.chunk_size, compression=CompressionType.ZSTD)
+        writer.start(profile=PROFILE, library='planter_ros recorder (mcap python)')
+        file = _OpenFile(raw, writer)
         self.files.append(path)
-        self._schema_ids = {}
-        self._file_start = self._file_end = None
         for entry in self._topics.values():
             entry.file_count = 0
-            self._register(entry)
+            self._register(file, entry)
         for name, values in self._metadata.items():
-            self._writer.add_metadata(name, values)
+            writer.add_metadata(name, values)
         self._last_flush = self._monotonic()
+        return file
 
-    def _register(self, entry: _Channel) -> None:
-        schema = self._schema_ids.get(entry.type_name)
+    def _register(self, file: _OpenFile, entry: _Channel) -> None:
+        schema = file.schema_ids.get(entry.type_name)
         if schema is None:
-            schema = self._writer.register_schema(entry.type_name, SCHEMA_ENCODING,
-                                                  entry.definition.encode())
-            self._schema_ids[entry.type_name] = schema
+            schema = file.writer.register_schema(entry.type_name, SCHEMA_ENCODING,
+                                                 entry.definition.encode())
+            file.schema_ids[entry.type_name] = schema
         metadata = {'offered_qos_profiles': entry.qos}
         if entry.hash:
             metadata['topic_type_hash'] = entry.hash
-        entry.channel = self._writer.register_channel(entry.name, MESSAGE_ENCODING, schema,
-                                                      metadata)
+        entry.channel = file.writer.register_channel(entry.name, MESSAGE_ENCODING, schema,
+                                                     metadata)
 
-    def _current_file_info(self) -> dict:
-        start = self._file_start or 0
+    def _current_file_info(self, file: _OpenFile) -> dict[str, object]:
+        start = file.start or 0
         return {
             'path': self._file_path(len(self.files) - 1).name,
             'starting_time': {'nanoseconds_since_epoch': start},
-            'duration': {'nanoseconds': (self._file_end - start) if self._file_end else 0},
+            'duration': {'nanoseconds': (file.end - start) if file.end else 0},
             'message_count': sum(t.file_count for t in self._topics.values()),
         }
 
-    def _close_file(self) -> None:
-        info = self._current_file_info()
+    def _close_file(self, file: _OpenFile) -> None:
+        info = self._current_file_info(file)
         metadata = self.metadata()
-        self._writer.add_metadata('rosbag2', {
+        file.writer.add_metadata('rosbag2', {
             'serialized_metadata': yaml.safe_dump(metadata, default_flow_style=False,
                                                   sort_keys=False)})
-        self._writer.finish()
-        self._stream.close()
+        file.writer.finish()
+        file.stream.close()
         self._file_info.append(info)
-        self._writer = self._stream = None
 
-    def _maybe_split(self, log_time: int) -> None:
-        if self.single_file or self._file_start is None:
-            return
-        by_time = self.split_duration_ns and log_time - self._file_start >= self.split_duration_ns
-        by_size = self.split_size and self._stream.tell() >= self.split_size
+    def _maybe_split(self, file: _OpenFile, log_time: int) -> _OpenFile:
+        """The file `log_time` goes to: the open one, or the next after a split."""
+        if self.single_file or file.start is None:
+            return file
+        by_time = self.split_duration_ns and log_time - file.start >= self.split_duration_ns
+        by_size = self.split_size and file.stream.tell() >= self.split_size
         if by_time or by_size:
-            self._close_file()
-            self._open_file()
+            self._close_file(file)
+            self._file = file = self._open_file()
+        return file
 
 
 __all__ = ['Recorder', 'default_bag_path', 'message_definition', 'qos_yaml',

@@ -22,16 +22,17 @@ import io
 import mmap
 from pathlib import Path
 import struct
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict
 
 from isal.isal_zlib import crc32
 
 from .errors import BagDamagedError, BagUnreadableError
 
 if TYPE_CHECKING:                 # mcap is imported where a file is read
-    from mcap.records import Chunk, ChunkIndex, McapRecord
+    from mcap.records import Channel, Chunk, ChunkIndex, McapRecord, MetadataIndex
 
 Data = bytes | bytearray | memoryview | mmap.mmap        # a file's bytes (mapped), or a copy
+Searchable = bytes | bytearray | mmap.mmap               # ... that can be searched (find)
 
 SCAN_LIMIT = 16 << 20          # bytes searched for a first valid record
 MAX_CHUNK = 1 << 30            # a chunk header claiming more than this is not believed
@@ -56,11 +57,11 @@ class Recovered:
     """What a careful read found: channels {id: (topic, schema name)}, messages [(channel id,
     log time ns, CDR bytes)], metadata {record name: {key: value}}, and the losses."""
 
-    channels: dict = field(default_factory=dict)
-    messages: list = field(default_factory=list)
-    metadata: dict = field(default_factory=dict)
-    losses: list = field(default_factory=list)
-    _schemas: dict = field(default_factory=dict)
+    channels: dict[int, tuple[str, str]] = field(default_factory=dict)
+    messages: list[tuple[int, int, bytes]] = field(default_factory=list)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    losses: list[Loss] = field(default_factory=list)
+    _schemas: dict[int, str] = field(default_factory=dict)
 
     def add(self, record: McapRecord) -> None:
         from mcap.records import Channel, Message, Metadata, Schema
@@ -75,6 +76,23 @@ class Recovered:
 
     def last_time(self) -> int | None:
         return max((m[1] for m in self.messages[-1000:]), default=None)
+
+
+@dataclass
+class OpenedChunk:
+    """A chunk record and the records it holds (read out, its CRC checked)."""
+
+    chunk: Chunk
+    records: list[McapRecord]
+
+
+class Summary(TypedDict):
+    """What a file's summary section indexes."""
+
+    schemas: dict[int, str]               # schema id -> name
+    channels: dict[int, Channel]
+    chunks: list[ChunkIndex]
+    metadata: list[MetadataIndex]
 
 
 def one_line(exc: BaseException) -> str:
@@ -107,7 +125,7 @@ def read_records(file: str | Path) -> Recovered:
 # ----------------------------------------------------------------------------- records
 
 def record_at(data: Data, pos: int,
-              end: int | None = None) -> tuple[int, McapRecord | None, int]:
+              end: int | None = None) -> tuple[int, McapRecord | OpenedChunk | None, int]:
     """(opcode, record or None for an unknown/ignored kind, end offset) of the record at pos;
     BagDamagedError if it is not a whole, valid record. Chunks are opened and CRC-checked."""
     end = len(data) if end is None else end
@@ -128,14 +146,17 @@ def record_at(data: Data, pos: int,
     from mcap.records import (
         Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, MetadataIndex, Schema,
         Statistics)
-    kinds = {0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
-             0x0B: Statistics, 0x0D: MetadataIndex, 0x0F: DataEnd}
+    kinds: dict[int, type[Header | Footer | Schema | Channel | Metadata | Statistics
+                          | MetadataIndex | DataEnd]] = {
+        0x01: Header, 0x02: Footer, 0x03: Schema, 0x04: Channel, 0x0C: Metadata,
+        0x0B: Statistics, 0x0D: MetadataIndex, 0x0F: DataEnd}
     stream = ReadDataStream(io.BytesIO(data[pos + 9:stop]))
+    record: McapRecord | OpenedChunk | None
     try:
         if opcode == 0x06:
             check_chunk_header(data, pos, length)
-            record = Chunk.read(stream)
-            _open_chunk(record)
+            chunk = Chunk.read(stream)
+            record = OpenedChunk(chunk, _chunk_records(chunk))
         elif opcode == 0x05:
             record = Message.read(stream, length)
         elif opcode in kinds:
@@ -247,15 +268,15 @@ def check_chunk_header(data: Data, pos: int, length: int) -> None:
         raise BagDamagedError('chunk records run past the chunk')
 
 
-def _open_chunk(chunk: Chunk) -> None:
+def _chunk_records(chunk: Chunk) -> list[McapRecord]:
     """The chunk's records, its CRC checked (a chunk written without CRC must at least parse)."""
     from mcap.stream_reader import breakup_chunk
-    chunk.records = breakup_chunk(chunk, validate_crc=True)
+    return breakup_chunk(chunk, validate_crc=True)
 
 
 # ----------------------------------------------------------------------------- with summary
 
-def read_summary(data: Data) -> dict[str, dict | list] | None:
+def read_summary(data: Data) -> Summary | None:
     """The summary section's schemas, channels, chunk and metadata indexes, if the footer and
     the summary CRC are intact; else None (then the file is scanned)."""
     from mcap.records import Channel, ChunkIndex, Footer, MetadataIndex, Schema
@@ -272,7 +293,7 @@ def read_summary(data: Data) -> dict[str, dict | list] | None:
     if footer.summary_crc and crc32(data[footer.summary_start:footer_at + 9 + 16]) \
             != footer.summary_crc:
         return None
-    out = {'schemas': {}, 'channels': {}, 'chunks': [], 'metadata': []}
+    out: Summary = {'schemas': {}, 'channels': {}, 'chunks': [], 'metadata': []}
     pos = footer.summary_start
     try:
         while pos < footer_at:
@@ -297,8 +318,8 @@ def read_summary(data: Data) -> dict[str, dict | list] | None:
     return out
 
 
-def _read_indexed(data: Data, summary: dict[str, dict | list]) -> Recovered:
-    from mcap.records import Chunk, Metadata
+def _read_indexed(data: Data, summary: Summary) -> Recovered:
+    from mcap.records import Metadata
     out = Recovered()
     out._schemas.update(summary['schemas'])
     for cid, channel in summary['channels'].items():
@@ -306,7 +327,7 @@ def _read_indexed(data: Data, summary: dict[str, dict | list]) -> Recovered:
     for index in sorted(summary['chunks'], key=lambda c: c.chunk_start_offset):
         try:
             _, chunk, _ = record_at(data, index.chunk_start_offset)
-            if not isinstance(chunk, Chunk):
+            if not isinstance(chunk, OpenedChunk):
                 raise BagDamagedError('not a chunk', at=index.chunk_start_offset)
         except BagDamagedError as exc:
             out.losses.append(Loss(index.message_start_time, index.message_end_time,
@@ -315,23 +336,23 @@ def _read_indexed(data: Data, summary: dict[str, dict | list]) -> Recovered:
             continue
         for record in chunk.records:
             out.add(record)
-    for index in summary['metadata']:
+    for meta_index in summary['metadata']:
         try:
-            _, record, _ = record_at(data, index.offset)
+            _, meta, _ = record_at(data, meta_index.offset)
         except BagDamagedError:
-            record = None
-        if isinstance(record, Metadata):
-            out.add(record)
+            meta = None
+        if isinstance(meta, Metadata):
+            out.add(meta)
         else:
-            out.losses.append(Loss(None, None, f'metadata record {index.name!r} damaged'))
+            out.losses.append(Loss(None, None, f'metadata record {meta_index.name!r} damaged'))
     return out
 
 
 # ----------------------------------------------------------------------------- without
 
-def _scan(data: Data, file: str | Path) -> Recovered:
+def _scan(data: Searchable, file: str | Path) -> Recovered:
     """Records in file order; resynchronise on the next valid chunk after damage."""
-    from mcap.records import Chunk, DataEnd, Footer
+    from mcap.records import DataEnd, Footer
     out = Recovered()
     size = len(data)
     pos = _MAGIC_SIZE
@@ -352,13 +373,13 @@ def _scan(data: Data, file: str | Path) -> Recovered:
                     out.losses.append(Loss(before, None, f'cut off or damaged from byte {pos} '
                                                          f'({exc.reason})'))
                 break
-            start, chunk = found
-            out.losses.append(Loss(before, chunk.message_start_time,
+            start, opened = found
+            out.losses.append(Loss(before, opened.chunk.message_start_time,
                                    f'damaged bytes {pos}..{start} ({exc.reason})'))
             pos = start
             continue
         valid = True
-        if isinstance(record, Chunk):
+        if isinstance(record, OpenedChunk):
             for inner in record.records:
                 out.add(inner)
         elif isinstance(record, (DataEnd, Footer)):
@@ -369,14 +390,16 @@ def _scan(data: Data, file: str | Path) -> Recovered:
     return out
 
 
-def _next_chunk(data: Data, start: int, stop: int) -> tuple[int, Chunk] | None:
-    """(offset, Chunk) of the first intact chunk at or after `start` and before `stop`."""
+def _next_chunk(data: Searchable, start: int, stop: int) -> tuple[int, OpenedChunk] | None:
+    """(offset, chunk) of the first intact chunk at or after `start` and before `stop`."""
     while True:
         at = data.find(b'\x06', start, stop)
         if at < 0:
             return None
         try:
             _, record, _ = record_at(data, at)
-            return at, record
         except BagDamagedError:
-            start = at + 1
+            record = None
+        if isinstance(record, OpenedChunk):     # (a 0x06 opcode is always read as a chunk)
+            return at, record
+        start = at + 1

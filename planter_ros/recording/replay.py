@@ -28,6 +28,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import json
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 from pathlib import Path
 import struct
 
@@ -40,6 +41,7 @@ from planter_ros.design import Design, from_json, to_dict
 from planter_ros.geo import AntennaSettings
 from planter_ros.kinematics.arrays import FloatArray
 from planter_ros.kinematics.planting import Planting
+from planter_ros.kinematics.scene_settings import SceneSettings
 from planter_ros.prediction import (
     PLANT_FIELDS, AcceptanceLimits, Plants, PredictionSettings, RowInputs, SeedlingAccount,
     design_spacing_of, judge_acceptance, planting_model_from_design, predict_rows,
@@ -53,6 +55,16 @@ from .cdr import (
     decode_joint_states, decode_joints, decode_navsatfix, decode_string, decode_twist, take)
 from .errors import DecodeError, ReplayError, TopicMissingError
 
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+    from planter_ros.prediction.model import PredictionNote
+    from planter_ros.prediction.summary import RunSummary
+
+_D = TypeVar('_D', bound='DataclassInstance')
+# a design message: (log ns, its JSON text, the design, its planting model)
+_DesignEntry = tuple[int, str, Design, Planting]
+
 REQUIRED = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES, interfaces.DESIGN)
 OPTIONAL = (interfaces.GNSS_FIX, interfaces.SECTIONS, interfaces.DIAGNOSTICS,
             interfaces.SEEDLINGS)
@@ -64,38 +76,38 @@ class ReplayResult:
     design: Design
     settings: PredictionSettings
     plants: Plants
-    summary: dict
+    summary: RunSummary
     duration: float               # s of log time covered by the inputs
-    messages: dict                # topic name -> messages used, and 'total_read'
-    warnings: list
+    messages: dict[str, int]      # topic name -> messages used, and 'total_read'
+    warnings: list[str]
     recorded_plants: np.ndarray   # the live monitor's plant table, if recorded (n, fields)
-    rows: list                    # planter_ros.rows.Row of the machine (one without a record)
-    row_summaries: list           # summarize() of each planting row's plants, in `rows` order
-    placement: Placement = None   # each plant in the map's local frame (sensing.plant_map)
-    notes: list = None            # what some figures mean: [{fields, text}] (prediction_notes)
-    map_settings: MapSettings = None
-    antenna: AntennaSettings = None
-    fixes: int = 0                # usable GNSS fixes in the bag
-    nozzle_width: float = None    # m, of the last design's predictions
-    recorded_fields: tuple = ()   # the PLANT_FIELDS the live recording has (older: fewer)
-    acceptance: dict = None       # the run judged by the crop's limits (judge_acceptance)
-    acceptance_source: str = ''   # whose limits: the bag's, a scene's, the defaults
-    seedling_readings: dict = None  # {row index: (times s, counts)} the cup sensors read
+    rows: list[Row]               # the machine's rows (one without a record)
+    row_summaries: list[RunSummary]   # of each row's plants, in `rows` order
+    placement: Placement          # each plant in the map's local frame (sensing.plant_map)
+    notes: list[PredictionNote]   # what some figures mean (prediction_notes)
+    map_settings: MapSettings
+    antenna: AntennaSettings
+    fixes: int                    # usable GNSS fixes in the bag
+    nozzle_width: float           # m, of the last design's predictions
+    recorded_fields: tuple[str, ...]  # the PLANT_FIELDS the live recording has (older: fewer)
+    acceptance: dict[str, Any]    # the run judged by the crop's limits (judge_acceptance)
+    acceptance_source: str        # whose limits: the bag's, a scene's, the defaults
+    seedling_readings: dict[int, tuple[FloatArray, FloatArray]]  # {row: (times s, counts)}
 
     def recorded_columns(self) -> list[int]:
         """Indices of the plant fields the live recording has: replay and the recording can
         be compared on these."""
         return [PLANT_FIELDS.index(f) for f in self.recorded_fields]
 
-    def as_json(self, plants: bool = True) -> dict:
+    def as_json(self, plants: bool = True) -> dict[str, object]:
         """replay --json's object; `plants` False: without the plants (a caller that takes
         them from `self.plants` as arrays)."""
-        out = {'bag': self.path, 'design': to_dict(self.design),
+        out: dict[str, object] = {'bag': self.path, 'design': to_dict(self.design),
                 'settings': config.as_dict(self.settings),
                 'map': {**config.as_dict(self.map_settings), **config.as_dict(self.antenna),
                         'fixes': self.fixes,
-                        'origin': None if self.placement is None or
-                        self.placement.origin is None else list(self.placement.origin)},
+                        'origin': None if self.placement.origin is None else
+                        list(self.placement.origin)},
                 'nozzle_width': self.nozzle_width,
                 'duration': self.duration, 'messages': self.messages,
                 'summary': self.summary,
@@ -118,7 +130,7 @@ def settings_from_recording(recorded: Mapping[str, object],
     value out of range is replaced by the default (with a warning); a bad override is an
     error (ConfigError). A monitor that recorded its settings before `measured_arc` existed
     predicted from the speed ratio at each planting instant: replay does the same."""
-    values = {}
+    values: dict[str, object] = {}
     if recorded and 'measured_arc' not in recorded:
         values['measured_arc'] = False
     for spec in config.specs(PredictionSettings):
@@ -144,9 +156,13 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
     override `acceptance`, a mapping of them) replaces the limits the bag recorded (without
     either: the defaults) in the run's judgement."""
     overrides = dict(settings_overrides or {})
-    nozzle_override = overrides.pop('nozzle_width', None)
+    nozzle = overrides.pop('nozzle_width', None)
+    nozzle_override: float | None = None if nozzle is None else config.coerce(
+        config.spec_of(SceneSettings, 'nozzle_width'), nozzle)
     given = overrides.pop('acceptance', None)       # a scene's limits as a mapping
     if acceptance is None and given is not None:
+        if not isinstance(given, Mapping):
+            raise ConfigError(f'acceptance = {given!r} is not a mapping of limits')
         acceptance = config.from_mapping(AcceptanceLimits, given)
     wanted = REQUIRED + OPTIONAL + ((interfaces.PLANTS,) if with_recorded else ())
     rec = read_recording(path, wanted)
@@ -161,9 +177,9 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
     settings = settings_from_recording(recorded_settings, overrides, rec.warnings)
     map_settings, antenna = map_from_recording(rec.metadata.get(interfaces.MAP_RECORD, {}),
                                                rec.warnings)
-    nozzle = _NozzleWidth(nozzle_override, recorded_settings)
+    widths = _NozzleWidth(nozzle_override, recorded_settings)
 
-    designs = []         # (log ns, text, design, model) of each change
+    designs: list[_DesignEntry] = []         # each change
     undecodable = 0
     for log, raw in sorted(zip(design_topic.log, design_topic.raw) if design_topic else (),
                            key=lambda x: x[0]):
@@ -176,7 +192,7 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
             continue
         try:
             design = from_json(text)
-            model = planting_model_from_design(design, nozzle.width(design))
+            model = planting_model_from_design(design, widths.width(design))
         except (ValueError, ConfigError) as exc:
             rec.warnings.append(f'design message at {log * 1e-9:.3f} s ignored: '
                                 f'{str(exc).splitlines()[0]}')
@@ -192,10 +208,10 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         else:
             try:
                 model = planting_model_from_design(fallback_design,
-                                                   nozzle.width(fallback_design))
+                                                   widths.width(fallback_design))
             except ConfigError as exc:
                 raise ReplayError(f'the scene given has no usable design: {exc}') from None
-            designs.append((np.iinfo(np.int64).min, '', fallback_design, model))
+            designs.append((int(np.iinfo(np.int64).min), '', fallback_design, model))
             rec.warnings.append('the bag holds no usable design message: the whole bag is '
                                 "predicted with the scene's design")
     if not designs:
@@ -207,11 +223,12 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
 
     rows = [implicit_row()]
     if interfaces.ROWS_RECORD in rec.metadata:
-        rows = rows_from_record(rec.metadata[interfaces.ROWS_RECORD])
-        if not rows:
+        recorded_rows = rows_from_record(rec.metadata[interfaces.ROWS_RECORD])
+        if recorded_rows:
+            rows = recorded_rows
+        else:
             rec.warnings.append(f'rows record {interfaces.ROWS_RECORD!r} unreadable: one row '
                                 'assumed')
-            rows = [implicit_row()]
     planting = [row for row in rows if row.enabled]
     offsets = [row.lateral_offset for row in planting]
     breaks = _section_breaks(rec, planting)
@@ -254,6 +271,7 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         if planting:
             _count_undecodable(rec.warnings, interfaces.JOINT_STATES.name, j_stamp,
                                j_positions[0])
+            _unusable_joints(rec.warnings, planting, mechanism, j_stamp, j_positions)
         jt = np.where(j_stamp != 0, j_stamp, j_log[j_idx]) * 1e-9
         # another mechanism starts a new sequence, numbered from 0 like the live monitor; the
         # rows predicted together (their arcs in one pass)
@@ -280,18 +298,20 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
                                                               map_settings.max_fix_sigma))))
     last_design, last_model = designs[-1][2], designs[-1][3]
     logs = np.concatenate((s_log, j_log))
-    recorded, recorded_fields = np.zeros((0, len(PLANT_FIELDS))), ()
+    recorded = np.zeros((0, len(PLANT_FIELDS)))
+    recorded_fields: tuple[str, ...] = ()
     if with_recorded and interfaces.PLANTS in rec.topics:
         recorded, recorded_fields = _recorded_plants(rec.topics[interfaces.PLANTS])
-    if nozzle.fallback_used:
-        rec.warnings.append(nozzle.fallback_used)
+    if widths.fallback_used:
+        rec.warnings.append(widths.fallback_used)
     limits, source = _acceptance_limits(acceptance, rec.metadata, rec.warnings)
     summary = summarize(plants, last_model.spacing, design_spacing)
     row_summaries = [summarize(_of_row(plants, row.index), last_model.spacing,
                                design_spacing[plants.row == row.index]) for row in rows]
     named = len(rows) > 1 or bool(rows[0].name)
-    judged = ([(row.label, s) for row, s in zip(rows, row_summaries) if row.enabled]
-              if named else [('', summary)])
+    # (judge_acceptance takes plain dicts: a copy of each summary)
+    judged = ([(row.label, dict(s)) for row, s in zip(rows, row_summaries) if row.enabled]
+              if named else [('', dict(summary))])
     return ReplayResult(
         path=str(path), design=last_design, settings=settings, plants=plants,
         summary=summary, rows=rows, row_summaries=row_summaries,
@@ -310,7 +330,7 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
 
 
 def _seedlings(rec: Recording, plants: Plants, planting: Sequence[Row],
-               segments: Sequence) -> SeedlingAccount:
+               segments: Sequence[tuple[int, list[_DesignEntry]]]) -> SeedlingAccount:
     """A SeedlingAccount holding every reading of the bag's seedling sensor (by row), each row
     with a sensor or without as its rows record declares it (a bag before the setting: not
     declared, inferred from the readings)."""
@@ -323,15 +343,22 @@ def _seedlings(rec: Recording, plants: Plants, planting: Sequence[Row],
     logs = np.asarray(topic.log, dtype=np.int64)[order]
     mechanisms = {group[0][2].mechanism for _, group in segments}
     joints = [(row, row.joint(mechanism)) for row in planting for mechanism in mechanisms]
-    stamp, counts, _ = decode_joints(raws, [joint for _, joint in joints])
+    stamp, counts, _ = decode_joints(raws, [joint for _, joint in joints] + [None])
     t = np.where(stamp != 0, stamp, logs) * 1e-9
-    for (row, _), count in zip(joints, counts):
-        ok = np.isfinite(count)
+    # a reading without names is one row's only on a machine of one row; on several it is
+    # no row's for sure: not credited to each of them (the live monitor skips it too)
+    unnamed = np.isfinite(counts[-1]) if len(planting) > 1 else np.zeros(t.size, dtype=bool)
+    if unnamed.any():
+        rec.warnings.append(f'{int(unnamed.sum())} seedling reading(s) without a row name on '
+                            f'a machine of {len(planting)} rows: skipped')
+    for (row, _), count in zip(joints, counts[:-1]):
+        ok = np.isfinite(count) & ~unnamed
         account.add_readings(row.index, t[ok], count[ok])
     return account
 
 
-def _acceptance_limits(given: AcceptanceLimits | None, metadata: Mapping[str, Mapping],
+def _acceptance_limits(given: AcceptanceLimits | None,
+                       metadata: Mapping[str, Mapping[str, str]],
                        warnings: list[str]) -> tuple[AcceptanceLimits, str]:
     """(AcceptanceLimits, whose): the limits given, else the bag's record, else the defaults.
     A recorded value out of range is replaced by its default, with a warning."""
@@ -340,7 +367,7 @@ def _acceptance_limits(given: AcceptanceLimits | None, metadata: Mapping[str, Ma
     recorded = metadata.get(interfaces.ACCEPTANCE_RECORD)
     if recorded is None:
         return AcceptanceLimits(), 'the defaults: the bag records no limits'
-    values = {}
+    values: dict[str, object] = {}
     for spec in config.specs(AcceptanceLimits):
         if spec.name in recorded:
             try:
@@ -365,9 +392,8 @@ class _NozzleWidth:
             return self.override
         if design.nozzle_width is not None:
             return None                          # the design's own
-        try:
-            width = float(self.recorded)
-        except (TypeError, ValueError):
+        width = _number(self.recorded)
+        if width is None:
             width = 0.0
             self.fallback_used = ('the design gives no nozzle_width and the bag records none: '
                                   'holes are the tip sweep alone (nozzle width 0 m); give '
@@ -375,11 +401,21 @@ class _NozzleWidth:
         return width
 
 
+def _number(text: str | None) -> float | None:
+    """`text` as a float; None when there is none or it is not a number."""
+    if text is None:
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
 def map_from_recording(record: Mapping[str, str], warnings: list[str] | None = None
                        ) -> tuple[MapSettings, AntennaSettings]:
     """(MapSettings, AntennaSettings) of the monitor's map record (values as JSON text); the
     defaults for a bag without it, or for a value it cannot use (with a warning)."""
-    values = {}
+    values: dict[str, object] = {}
     for key, text in record.items():
         try:
             values[key] = json.loads(text)
@@ -387,15 +423,18 @@ def map_from_recording(record: Mapping[str, str], warnings: list[str] | None = N
             if warnings is not None:
                 warnings.append(f'map record value {key} = {str(text)[:40]!r} is not JSON: '
                                 'default used')
-    out = []
-    for cls in (MapSettings, AntennaSettings):
-        try:
-            out.append(config.from_mapping(cls, values))
-        except ConfigError as exc:
-            if warnings is not None:
-                warnings.append(f'recorded map setting ignored, defaults used: {exc}')
-            out.append(cls())
-    return tuple(out)
+    return (_from_record(MapSettings, values, warnings),
+            _from_record(AntennaSettings, values, warnings))
+
+
+def _from_record(cls: type[_D], values: Mapping[str, object],
+                 warnings: list[str] | None) -> _D:
+    try:
+        return config.from_mapping(cls, values)
+    except ConfigError as exc:
+        if warnings is not None:
+            warnings.append(f'recorded map setting ignored, defaults used: {exc}')
+        return cls()
 
 
 def map_record(map_settings: MapSettings, antenna: AntennaSettings) -> dict[str, str]:
@@ -404,16 +443,28 @@ def map_record(map_settings: MapSettings, antenna: AntennaSettings) -> dict[str,
                                           **config.as_dict(antenna)}.items()}
 
 
-def _fixes(topic: TopicMessages | None) -> tuple[FloatArray, ...]:
-    """(t s, status, latitude, longitude, east and north variance, covariance type) of the
-    recorded fixes in log order, t = header stamp (receive time if 0)."""
+class _Fixes(NamedTuple):
+    """The recorded GNSS fixes in log order (sensing.plant_map's `fixes`)."""
+
+    t: FloatArray                 # s, header stamp (receive time if 0)
+    status: FloatArray
+    latitude: FloatArray          # deg
+    longitude: FloatArray         # deg
+    var_east: FloatArray          # m², east and north variance
+    var_north: FloatArray
+    cov_type: FloatArray
+
+
+def _fixes(topic: TopicMessages | None) -> _Fixes:
+    """The recorded fixes of `topic` (none without it)."""
     if topic is None or not topic.raw:
-        return tuple(np.zeros(0) for _ in range(7))
+        return _Fixes(*(np.zeros(0) for _ in range(7)))
     log = np.asarray(topic.log, dtype=np.int64)
     order = np.argsort(log, kind='stable')
-    stamp, *values = decode_navsatfix(take(topic.raw, order))
+    stamp, status, latitude, longitude, var_east, var_north, cov_type = decode_navsatfix(
+        take(topic.raw, order))
     t = np.where(stamp != 0, stamp, log[order]) * 1e-9
-    return (t, *values)
+    return _Fixes(t, status, latitude, longitude, var_east, var_north, cov_type)
 
 
 def _section_breaks(rec: Recording,
@@ -424,7 +475,7 @@ def _section_breaks(rec: Recording,
     if topic is None or not topic.raw:
         return _diagnostics_section_breaks(rec.topics.get(interfaces.DIAGNOSTICS), planting)
     log = np.asarray(topic.log, dtype=np.int64)
-    states = [{} for _ in topic.raw]             # of each message: {row name: on}
+    states: list[dict[str, bool]] = [{} for _ in topic.raw]   # each message's {row: on}
     times = log * 1e-9
     for k, row in enumerate(planting):
         stamp, position, _ = decode_joint_states(topic.raw, row.name)
@@ -459,12 +510,12 @@ def _diagnostics_section_breaks(topic: TopicMessages | None, planting: Sequence[
     return section_breaks(reports)
 
 
-def _mechanism_segments(designs: Sequence[tuple[int, str, Design, Planting]]
-                        ) -> list[tuple[int, list[tuple[int, str, Design, Planting]]]]:
+def _mechanism_segments(designs: Sequence[_DesignEntry]
+                        ) -> list[tuple[int, list[_DesignEntry]]]:
     """The design messages (log ns, text, design, model) grouped into runs of one mechanism:
     [(log ns of the run's first, [its designs])]. Within a run a change is in force from the
     next planting instant; another mechanism is another machine and starts a new sequence."""
-    segments = []
+    segments: list[tuple[int, list[_DesignEntry]]] = []
     for entry in designs:
         mechanism = entry[2].mechanism
         if segments and segments[-1][1][0][2].mechanism == mechanism:
@@ -480,6 +531,20 @@ def _count_undecodable(warnings: list[str], name: str, stamps: NDArray[np.int64]
     bad = int(np.count_nonzero((stamps == 0) & np.isnan(values)))
     if bad:
         warnings.append(f'{bad} {name} message(s) could not be decoded: skipped')
+
+
+def _unusable_joints(warnings: list[str], planting: Sequence[Row], mechanism: str,
+                     stamps: NDArray[np.int64], positions: FloatArray) -> None:
+    """A row whose recorded joint positions are all NaN (decoded, not one finite) predicts
+    no plant: say so, once per row, rather than report nothing planted in silence."""
+    decoded = stamps != 0
+    for row, values in zip(planting, positions):
+        count = int(np.count_nonzero(decoded))
+        if count and not np.any(np.isfinite(values[decoded])):
+            text = (f'{row.label}: all {count} recorded positions of joint '
+                    f'{row.joint(mechanism)} are NaN: no plant can be predicted from them')
+            if text not in warnings:
+                warnings.append(text)
 
 
 def _of_row(plants: Plants, index: int) -> Plants:

@@ -12,6 +12,7 @@ from planter_ros.prediction import format_acceptance, format_quality
 
 if TYPE_CHECKING:
     from planter_ros.prediction import Plants
+    from planter_ros.prediction.model import PredictionNote
     from .replay import ReplayResult
 
 __all__ = ['format_summary', 'format_table']
@@ -110,7 +111,7 @@ def _nozzle(result: ReplayResult) -> str:
     return _mm(result.nozzle_width)
 
 
-def _notes_for(notes: list[dict], fields: Collection[str]) -> list[str]:
+def _notes_for(notes: list[PredictionNote], fields: Collection[str]) -> list[str]:
     """The notes about any of `fields` not shown yet, as indented lines (taken from `notes`)."""
     lines = []
     for note in list(notes):
@@ -125,7 +126,7 @@ def _map_line(result: ReplayResult) -> str:
     if not result.fixes:
         return 'map: no usable GNSS fix in the bag: no plant has a map position'
     origin = result.placement.origin
+    at = 'no origin' if origin is None else f'origin {origin[0]:.7f}, {origin[1]:.7f}'
     return (f'map: {placed} of {len(result.plants)} plants placed from {result.fixes} GNSS '
             f'fixes (antenna at x = {result.antenna.antenna_position[0]:+.2f} m, y = '
-            f'{result.antenna.antenna_position[1]:+.2f} m; origin {origin[0]:.7f}, '
-            f'{origin[1]:.7f})')
+            f'{result.antenna.antenna_position[1]:+.2f} m; {at})')

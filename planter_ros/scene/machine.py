@@ -42,6 +42,7 @@ RPM = 2.0 * math.pi / 60.0
 _INTERFACE_NAME = re.compile(r'[A-Za-z0-9_.-]{1,15}\Z')     # a Linux network interface name
 MODES = ('csp', 'pv')              # CiA 402 cyclic synchronous position (8), profile velocity (3)
 POLARITIES = ('normal', 'reversed')
+ISOBUS_BITRATE = 250_000          # ISO 11783-2
 
 
 class MachineFileError(SceneError):
@@ -60,10 +61,15 @@ class CanBus:
 
     def __post_init__(self) -> None:
         from planter_ros.config import check
+        from planter_ros.plausibility import STANDARD_BITRATES
         check(self)
         if not self.interface or not _INTERFACE_NAME.match(self.channel):
             raise ConfigError(f'channel = {self.channel!r} is out of range: allowed a network '
                               'interface name (1..15 letters, digits, _ . -)')
+        if self.bitrate not in STANDARD_BITRATES:
+            raise ConfigError(f'bitrate = {self.bitrate} is out of range: allowed a CiA 301 bit '
+                              'rate (the drives support no other): '
+                              + ', '.join(str(b) for b in STANDARD_BITRATES) + ' bit/s')
 
 
 @dataclass(frozen=True)
@@ -81,6 +87,9 @@ class IsobusBus:
         if self.channel and not _INTERFACE_NAME.match(self.channel):
             raise ConfigError(f'channel = {self.channel!r} is out of range: allowed a network '
                               'interface name (1..15 letters, digits, _ . -) or empty')
+        if self.bitrate != ISOBUS_BITRATE:
+            raise ConfigError(f'bitrate = {self.bitrate} is out of range: allowed '
+                              f'{ISOBUS_BITRATE} bit/s (ISO 11783-2: every ISOBUS runs at it)')
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -108,7 +117,9 @@ class MachineRow:
                                   'the bottom of its path (a planting instant)', unit='rad',
                                   range=(0.0, 2.0 * math.pi))
     max_motor_speed: float = setting(kind=float, description="the drive's speed limit at the "
-                                     'motor (0x607F)', unit='rad/s', range=(0.1, 1e4))
+                                     'motor (0x607F; no servo of a planting unit turns faster '
+                                     'than about 10 000 r/min)', unit='rad/s',
+                                     range=(0.1, 1100.0))
     max_motor_acceleration: float = setting(kind=float, description="the drive's acceleration "
                                             'limit at the motor (0x60C5)', unit='rad/s²',
                                             range=(0.1, 1e7))
@@ -211,7 +222,8 @@ class Machine:
         """Each row's limits at the mechanism's shaft for planter_ros.plausibility."""
         from planter_ros.plausibility import RowLimits
         return [RowLimits(name, max_acceleration=row.max_acceleration,
-                          motor_max_speed=row.max_motor_speed, gear_ratio=row.gear_ratio)
+                          motor_max_speed=row.max_motor_speed, gear_ratio=row.gear_ratio,
+                          encoder_counts=row.encoder_counts)
                 for name, row in self.rows.items()]
 
     def scene_parameters(self) -> dict[str, Any]:
@@ -278,12 +290,31 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
                 "'s: allowed a node id no other row uses")
         owner[row.node_id] = row_name
         rows[str(row_name)] = row
+    if isobus.channel and isobus.channel == can.channel:
+        bad('isobus.channel', f'= {isobus.channel!r} is the drives\' bus (can.channel): '
+            'allowed the tractor\'s own CAN interface (another channel) or empty')
     machine = Machine(path, name, can, rows, isobus)
     for row_name, row in rows.items():
         if row.eds and not machine.eds_path(row).is_file():
             bad(f'rows.{row_name}.eds', f'= {row.eds!r} is not a file ('
                 f'{machine.eds_path(row)}): allowed the drive\'s EDS or DCF file')
     return machine
+
+
+def rebased(machine: Machine, path: Path) -> Machine:
+    """`machine` as a file at `path` says it: each row's relative `eds` rewritten relative to
+    the new file's directory, so it names the same EDS file wherever the machine file goes."""
+    import dataclasses
+    import os
+    if machine.path is None or machine.path.parent.resolve() == path.parent.resolve():
+        return machine
+    rows = {}
+    for name, row in machine.rows.items():
+        if row.eds and not Path(row.eds).is_absolute():
+            target = (machine.path.parent / row.eds).resolve()
+            row = dataclasses.replace(row, eds=os.path.relpath(target, path.parent.resolve()))
+        rows[name] = row
+    return dataclasses.replace(machine, rows=rows)
 
 
 def machine_text(machine: Machine, comment: str = '') -> str:
@@ -304,6 +335,7 @@ def write_machine(machine: Machine, path: str | Path, comment: str = '') -> None
     one rename: a reader never sees half a file). MachineFileError (one line) on failure."""
     import os
     path = Path(path)
+    machine = rebased(machine, path)
     text = machine_text(machine, comment)
     if parse_machine(text, path) != Machine(path, machine.name, machine.can, machine.rows,
                                             machine.isobus):

@@ -239,7 +239,7 @@ def _check_keys(pfile: ParameterFile, params: dict[str, Any], nodes: Iterable[st
         if spec is None:
             _unknown(pfile, name, nodes, mechanism, rows, own)
         try:
-            coerce(spec, value)
+            coerce(spec, value, text=False)
         except ConfigError as exc:
             text = str(exc)
             if name != spec.name and text.startswith(spec.name):   # a row's: name the row

@@ -26,6 +26,21 @@ Sources:
 within its `timeout` is used. A source that goes quiet for longer hands over to the next one at
 the next sample of any source (so within timeout + one sample period), and every switch is an
 `event` for the diagnostics ("isobus_ground lost (no sample for 0.3 s): using gnss").
+
+Standstill is standstill (`Standstill`, every source): a speed sensor at rest does not read 0.
+GNSS velocity is a magnitude: with 0.02 m/s of noise per axis it reads 0.025 m/s on average at
+rest, and the phase-locked law turned a five-bar 46 rad in a minute on it, 7.4 plants into one
+spot. Below `standstill_speed` a source's reading is 0 (the machine stands still); it reads
+again once its magnitude reaches twice that (hysteresis: noise crossing the threshold now and
+then does not start the rows; with 0.02 m/s per axis a sample reaches 0.1 m/s once in about
+270 000). Each source keeps its own state, and the direction is the source's where it has one
+(ISOBUS: reverse is negative); GNSS and a pulse count have none (forward). What it costs at a
+start from rest: the distance up to twice the threshold, v²/2a (1 cm at 0.5 m/s²), is not
+counted. Applied here, before the speed is published, so the sync node, the monitor and its
+recording all see the same speeds.
+
+A reading that is not a finite number (a GNSS velocity of 1.7e308 per axis has an infinite
+magnitude; a pulse scale of 1e-300 an infinite speed) gives no sample.
 """
 
 from collections.abc import Sequence
@@ -36,7 +51,8 @@ import math
 from planter_ros.config import ConfigError, check, setting
 
 __all__ = ['CourseYawRate', 'GroundSpeedSourceConfig', 'IsobusSpeedDecoder', 'PGNS',
-           'PulseSpeed', 'SOURCES', 'SourceSelector', 'SpeedSample', 'gnss_speed', 'imu_yaw_rate']
+           'PulseSpeed', 'SOURCES', 'SourceSelector', 'SpeedSample', 'Standstill', 'gnss_speed',
+           'imu_yaw_rate']
 
 # PGN -> (source name, DBC message name, speed signal, direction signal)
 PGNS = {
@@ -47,6 +63,7 @@ PGNS = {
 SOURCES = ('isobus_selected', 'isobus_ground', 'isobus_wheel', 'gnss', 'pulses')
 RAW_VALID_MAX = 0xFAFF              # 16-bit J1939 values above are error / not available
 REVERSE, FORWARD, DIRECTION_ERROR, NOT_AVAILABLE = 0, 1, 2, 3
+MIN_PULSES_PER_METRE = 0.01         # one pulse per 100 m: no coarser sensor measures speed
 
 
 @dataclass(frozen=True)
@@ -72,6 +89,10 @@ class GroundSpeedSourceConfig:
     pulses_per_metre: float = setting(0.0, 'wheel or radar pulses per metre travelled '
                                       '(wheel_pulses); 0: no pulse sensor', unit='1/m',
                                       range=(0.0, 1e6), read_only=True)
+    standstill_speed: float = setting(0.05, 'a reading below this speed is 0 (the machine '
+                                      'stands still: the sensor\'s noise at rest, GNSS about '
+                                      '0.02 m/s per axis); it reads again from twice this; 0: '
+                                      'none', unit='m/s', range=(0.0, 0.5), read_only=True)
 
     def __post_init__(self):
         check(self)
@@ -82,6 +103,10 @@ class GroundSpeedSourceConfig:
         if 'pulses' in self.sources and not self.pulses_per_metre:
             raise ConfigError('pulses_per_metre = 0 is out of range: allowed > 0 when sources '
                               'lists pulses')
+        if 0.0 < self.pulses_per_metre < MIN_PULSES_PER_METRE:
+            raise ConfigError(f'pulses_per_metre = {self.pulses_per_metre:.6g} is out of '
+                              f'range: allowed 0 (no pulse sensor) or '
+                              f'{MIN_PULSES_PER_METRE:g}..1000000 1/m')
 
 
 @dataclass(frozen=True)
@@ -96,10 +121,14 @@ class SpeedSample:
 # --------------------------------------------------------------------------------- GNSS
 
 def gnss_speed(t, east, north, source='gnss'):
-    """The sample of a GNSS velocity (m/s east and north), None if not finite."""
+    """The sample of a GNSS velocity (m/s east and north), None if not finite (its magnitude
+    included: two components of 1.7e308 are finite, their magnitude is not)."""
     if not (math.isfinite(east) and math.isfinite(north)):
         return None
-    return SpeedSample(float(t), math.hypot(east, north), source)
+    speed = math.hypot(east, north)
+    if not math.isfinite(speed):
+        return None
+    return SpeedSample(float(t), speed, source)
 
 
 class CourseYawRate:
@@ -192,9 +221,9 @@ class PulseSpeed:
     """Speed from a pulse counter of `bits` bits (wraps), `pulses_per_metre` calibrated."""
 
     def __init__(self, pulses_per_metre, bits=32, source='pulses'):
-        if not (math.isfinite(pulses_per_metre) and pulses_per_metre > 0):
+        if not (math.isfinite(pulses_per_metre) and pulses_per_metre >= MIN_PULSES_PER_METRE):
             raise ValueError(f'pulses_per_metre = {pulses_per_metre} is out of range: '
-                             'allowed > 0')
+                             f'allowed {MIN_PULSES_PER_METRE:g}..1000000 1/m')
         self.per_metre, self.modulo, self.source = pulses_per_metre, 1 << bits, source
         self._last = None
 
@@ -204,7 +233,42 @@ class PulseSpeed:
         if last is None or not t > last[0]:
             return None
         pulses = (int(count) - last[1]) % self.modulo
-        return SpeedSample(float(t), pulses / self.per_metre / (t - last[0]), self.source)
+        speed = pulses / self.per_metre / (t - last[0])
+        if not math.isfinite(speed):
+            return None
+        return SpeedSample(float(t), speed, self.source)
+
+
+# --------------------------------------------------------------------------- standstill
+
+class Standstill:
+    """Standstill is standstill (module doc): each source's reading below `threshold` (m/s)
+    is 0 until its magnitude reaches twice that. `apply(sample)` gives the sample to use;
+    `standing` the sources standing still now."""
+
+    def __init__(self, threshold):
+        if not (math.isfinite(threshold) and threshold >= 0.0):
+            raise ValueError(f'standstill_speed = {threshold} is out of range: allowed >= 0')
+        self.threshold = float(threshold)
+        self._standing = {}                 # source -> standing still (True before a sample)
+
+    def apply(self, sample):
+        if self.threshold <= 0.0:
+            return sample
+        size = abs(sample.speed)
+        standing = self._standing.get(sample.source, True)
+        if size < self.threshold:
+            standing = True
+        elif size >= 2.0 * self.threshold:
+            standing = False
+        self._standing[sample.source] = standing
+        if standing and sample.speed != 0.0:
+            return SpeedSample(sample.t, 0.0, sample.source)
+        return sample
+
+    @property
+    def standing(self):
+        return sorted(source for source, still in self._standing.items() if still)
 
 
 # ----------------------------------------------------------------------------- selector

@@ -2,12 +2,27 @@
 topics, types and QoS the monitor records (interfaces.MONITOR_INPUTS), log time = measurement
 time. Fast; for the replay benchmark and the recording tests."""
 
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
 from planter_ros import interfaces
-from planter_ros.design import to_json
+from planter_ros.design import Design, to_json
 from planter_ros.recording.recorder import Recorder
 
+if TYPE_CHECKING:
+    from builtin_interfaces.msg import Time
 
-def write_input_bag(run, path, **recorder_options):
+    from planter_ros.rows import Row
+
+    from .closed_loop import RowRun
+    from .field import FieldProfile
+    from .runs import Run
+
+
+def write_input_bag(run: Run, path: str | Path, **recorder_options: Any) -> Recorder:
     """Write a run's measured inputs (design, ground_speed, joint_states, speed_command) into a
     bag at `path`. Returns the closed Recorder."""
     rec = Recorder(path, **recorder_options)
@@ -20,8 +35,10 @@ def write_input_bag(run, path, **recorder_options):
     return rec
 
 
-def write_machine_bag(rows, runs, profile, design, path, epoch=1_700_000_000.0,
-                      speed_period=0.05, joint_period=0.01, extra=()):
+def write_machine_bag(rows: Sequence[Row], runs: Sequence[RowRun], profile: FieldProfile,
+                      design: Design, path: str | Path, epoch: float = 1_700_000_000.0,
+                      speed_period: float = 0.05, joint_period: float = 0.01,
+                      extra: Sequence[tuple[float, interfaces.Topic, Any]] = ()) -> Recorder:
     """Write a simulated machine (sim.closed_loop.simulate_rows: one RowRun per row of `rows`,
     planter_ros.rows.Row) as a monitor would record its inputs: the design, ground speed with
     the profile's true v and yaw rate, one JointState with every row's joint, and the rows
@@ -36,11 +53,11 @@ def write_machine_bag(rows, runs, profile, design, path, epoch=1_700_000_000.0,
 
     from planter_ros.rows import rows_record
 
-    def stamp(t):
+    def stamp(t: float) -> Time:
         sec, nsec = divmod(int(round((epoch + t) * 1e9)), 1_000_000_000)
         return Time(sec=sec, nanosec=nsec)
 
-    def ns(t):
+    def ns(t: float) -> int:
         return int(round((epoch + t) * 1e9))
 
     rec = Recorder(path)
@@ -51,8 +68,9 @@ def write_machine_bag(rows, runs, profile, design, path, epoch=1_700_000_000.0,
     t = runs[0].t
     rec.write_message(interfaces.DESIGN.resolved(), String(data=to_json(design)), ns(-0.001))
     joints = [row.joint(design.mechanism) for row in rows]
-    events = sorted([(float(x), 0, None) for x in np.arange(0.0, t[-1], speed_period)]
-                    + [(float(x), 1, None) for x in np.arange(0.0, t[-1], joint_period)]
+    # (t, kind, index into extra): 0 ground speed, 1 joint states, 2 an extra message
+    events = sorted([(float(x), 0, -1) for x in np.arange(0.0, t[-1], speed_period)]
+                    + [(float(x), 1, -1) for x in np.arange(0.0, t[-1], joint_period)]
                     + [(float(x), 2, k) for k, (x, _, _) in enumerate(extra)])
     for when, kind, k in events:
         if kind == 2:
@@ -61,16 +79,16 @@ def write_machine_bag(rows, runs, profile, design, path, epoch=1_700_000_000.0,
                 msg.header.stamp = stamp(when)
             rec.write_message(topic.resolved(), msg, ns(when))
         elif kind == 0:
-            msg = TwistStamped()
-            msg.header.stamp = stamp(when)
-            msg.twist.linear.x = float(profile(when))
-            msg.twist.angular.z = float(profile.yaw_rate(when))
-            rec.write_message(interfaces.GROUND_SPEED.resolved(), msg, ns(when))
+            twist = TwistStamped()
+            twist.header.stamp = stamp(when)
+            twist.twist.linear.x = float(profile(when))
+            twist.twist.angular.z = float(profile.yaw_rate(when))
+            rec.write_message(interfaces.GROUND_SPEED.resolved(), twist, ns(when))
         else:
             i = int(np.searchsorted(t, when))
-            msg = JointState(name=joints, position=[float(r.angle[i]) for r in runs],
-                             velocity=[float(r.speed[i]) for r in runs])
-            msg.header.stamp = stamp(float(t[i]))
-            rec.write_message(interfaces.JOINT_STATES.resolved(), msg, ns(when))
+            state = JointState(name=joints, position=[float(r.angle[i]) for r in runs],
+                               velocity=[float(r.speed[i]) for r in runs])
+            state.header.stamp = stamp(float(t[i]))
+            rec.write_message(interfaces.JOINT_STATES.resolved(), state, ns(when))
     rec.close()
     return rec

@@ -12,16 +12,26 @@ own speed v − ω_z·y) against one drive model per row; every row's plants are
 row's own true travelled distance (FieldProfile.row_distance).
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 import math
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planter_ros.control.machine import Machine, TurnConfig
 from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
 
-from .field import demo_curves, field_profile
-from .spacing import plant_positions, spacing_stats
+from .field import FieldProfile, demo_curves, field_profile
+from .spacing import SpacingStats, plant_positions, spacing_stats
+
+if TYPE_CHECKING:
+    from typing_extensions import TypeIs
+
+    from planter_ros.control.phase_lock import PlantingAngles
 
 TWO_PI = 2.0 * math.pi
 
@@ -33,6 +43,14 @@ class DriveModel:
     speed_scale: float = 1.0          # achieved / commanded speed in steady state
 
 
+# (t s, the drive model from t on): a drive that changes mid-run
+DriveChange = tuple[float, 'DriveModel']
+
+
+def _one_change(change: DriveChange | Sequence[DriveChange]) -> TypeIs[DriveChange]:
+    return isinstance(change[0], (int, float))
+
+
 @dataclass
 class SimResult:
     t: np.ndarray            # s
@@ -42,8 +60,11 @@ class SimResult:
     speed: np.ndarray        # mechanism speed (rad/s)
 
 
-def simulate(law, profile, duration, drive=DriveModel(), dt=0.001, sample_period=0.05,
-             feedback_period=0.01, noise=0.0, seed=0, drive_change=None, sensor=None):
+def simulate(law: PhaseLock, profile: Callable[[float], float], duration: float,
+             drive: DriveModel = DriveModel(), dt: float = 0.001, sample_period: float = 0.05,
+             feedback_period: float = 0.01, noise: float = 0.0, seed: int = 0,
+             drive_change: DriveChange | Sequence[DriveChange] | None = None,
+             sensor: Callable[[float, float], float] | None = None) -> SimResult:
     """Run `law` (a PhaseLock with its design set) against `drive` for `duration` s.
 
     `profile(t)` is the true ground speed; the law sees it every `sample_period` with Gaussian
@@ -54,9 +75,9 @@ def simulate(law, profile, duration, drive=DriveModel(), dt=0.001, sample_period
     instead of the Gaussian noise.
     """
     rng = np.random.default_rng(seed)
-    changes = list(drive_change or ())
-    if changes and isinstance(changes[0], (int, float)):
-        changes = [tuple(changes)]             # one (t, DriveModel) pair
+    changes: list[DriveChange] = []
+    if drive_change:
+        changes = [drive_change] if _one_change(drive_change) else list(drive_change)
     steps = int(round(duration / dt))
     out = {k: np.empty(steps + 1) for k in ('t', 'distance', 'angle', 'command', 'speed')}
     s = theta = omega = cmd = 0.0
@@ -90,11 +111,13 @@ def simulate(law, profile, duration, drive=DriveModel(), dt=0.001, sample_period
     return SimResult(**out)
 
 
-def run_comparison(config, spacing, plants_per_revolution, cruise, duration=30.0,
-                   drive=DriveModel(), drive_change=None, noise=0.01, seed=0):
+def run_comparison(config: PhaseLockConfig, spacing: float, plants_per_revolution: int,
+                   cruise: float, duration: float = 30.0, drive: DriveModel = DriveModel(),
+                   drive_change: DriveChange | None = None, noise: float = 0.01,
+                   seed: int = 0) -> dict[str, SpacingStats]:
     """Spacing statistics of the same run with phase lock on and off (speed-only)."""
     from dataclasses import replace
-    result = {}
+    result: dict[str, SpacingStats] = {}
     for mode, lock in (('phase_locked', True), ('speed_only', False)):
         law = PhaseLock(replace(config, phase_lock=lock))
         law.set_design(spacing, plants_per_revolution, 0.0)
@@ -114,26 +137,26 @@ class CspDrive:
     (csp_setpoint). The motor's speed is the set point's plus the position error over the
     drive's time constant (its position loop with velocity feed-forward)."""
 
-    def __init__(self, period):
+    def __init__(self, period: float) -> None:
         self.period = float(period)
-        self.target = None                  # the row's angle at the last SYNC's target (rad)
+        self.target: float | None = None    # the row's angle at the last SYNC's target (rad)
         self.target_time = 0.0
-        self.pending = None                 # the set point sent, taken at the next SYNC
+        self.pending: float | None = None   # the set point sent, taken at the next SYNC
         self.start = -math.inf              # the segment the drive interpolates: its start,
         self.first = self.last = 0.0        # from, to (rad)
 
-    def setpoint(self, t):
+    def setpoint(self, t: float) -> float:
         share = min(max((t - self.start) / self.period, 0.0), 1.0)
         return self.first + (self.last - self.first) * share
 
-    def sync(self, t):
+    def sync(self, t: float) -> None:
         """A SYNC at `t`: the drive starts the segment to the target sent since the last."""
         if self.pending is not None:
             self.first, self.last = self.setpoint(t), self.pending
             self.start = t
             self.pending = None
 
-    def send(self, law, command, theta, t):
+    def send(self, law: PhaseLock, command: float, theta: float, t: float) -> None:
         """After the SYNC at `t`: the row's target for the next one (the shaft at `theta`)."""
         from planter_ros.control.row_loop import cam_csp_target, csp_setpoint
         ahead = 0.0
@@ -149,7 +172,7 @@ class CspDrive:
         self.target_time = t
         self.pending = csp_setpoint(self.target, command, self.period, ahead)
 
-    def speed(self, theta, time_constant, t):
+    def speed(self, theta: float, time_constant: float, t: float) -> float:
         """The speed the drive's position loop asks for at `t` (rad/s)."""
         moving = t - self.start < self.period
         feed = (self.last - self.first) / self.period if moving else 0.0
@@ -168,10 +191,20 @@ class RowRun:
     speed: np.ndarray        # mechanism speed (rad/s)
 
 
-def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, config=None,
-                  compensation=True, drive=DriveModel(), dt=0.001, sample_period=0.05,
-                  feedback_period=0.01, noise=0.005, yaw_noise=0.005, seed=0, switches=(),
-                  planting=None, sensor=None, drive_changes=(), cams=None, designs=()):
+def simulate_rows(offsets: Sequence[float], profile: FieldProfile, duration: float,
+                  spacing: float, plants_per_revolution: int = 1,
+                  config: PhaseLockConfig | None = None, compensation: bool = True,
+                  drive: DriveModel = DriveModel(), dt: float = 0.001,
+                  sample_period: float = 0.05, feedback_period: float = 0.01,
+                  noise: float = 0.005, yaw_noise: float = 0.005, seed: int = 0,
+                  switches: Sequence[tuple[float, int, bool]] = (),
+                  planting: PlantingAngles | None = None,
+                  sensor: Callable[[float, float, float], tuple[float, float] | None] | None
+                  = None,
+                  drive_changes: Sequence[tuple[float, int, DriveModel]] = (),
+                  cams: Sequence[Any] | None = None,
+                  designs: Sequence[tuple[float, float, Sequence[Any] | None]] = ()
+                  ) -> list[RowRun]:
     """Run a machine with rows at `offsets` (m) along `profile` (a FieldProfile: speed and yaw
     rate) for `duration` s; the sensor adds Gaussian `noise` (m/s) and `yaw_noise` (rad/s).
     Commands are computed on every sample and every feedback period, as the sync node does.
@@ -190,7 +223,7 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
     machine.set_design(spacing, plants_per_revolution, 0.0, planting, cams)
     csp = [CspDrive(feedback_period) if cam is not None else None
            for cam in (cams or [None] * len(machine.laws))]
-    positioned = [r for r, drive in enumerate(csp) if drive is not None]
+    positioned = {r: drive for r, drive in enumerate(csp) if drive is not None}
     switches = sorted(switches)
     changes = sorted(drive_changes, key=lambda c: (c[0], c[1]))
     designs = sorted(designs, key=lambda c: c[0])
@@ -198,7 +231,7 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
     tau, amax, scale = (np.full(rows, float(getattr(drive, k))) for k in
                         ('time_constant', 'max_acceleration', 'speed_scale'))
     steps = int(round(duration / dt))
-    t_out = np.arange(steps + 1) * dt
+    t_out = np.arange(steps + 1, dtype=np.float64) * dt
     angle, command, speed = (np.empty((rows, steps + 1)) for _ in range(3))
     theta = np.zeros(rows)
     omega = np.zeros(rows)
@@ -219,8 +252,8 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
                                                model.speed_scale)
         sync = t >= next_feedback - 1e-12
         if sync:
-            for r in positioned:
-                csp[r].sync(t)
+            for csp_drive in positioned.values():
+                csp_drive.sync(t)
             for r, law in enumerate(machine.laws):
                 law.feedback(theta[r], omega[r], t)
             fresh = True
@@ -239,21 +272,40 @@ def simulate_rows(offsets, profile, duration, spacing, plants_per_revolution=1, 
         if fresh:
             for r, law in enumerate(machine.laws):
                 cmd[r] = law.command(t)
-            for r in positioned if sync else ():
-                csp[r].send(machine.laws[r], cmd[r], theta[r], t)
+            for r, csp_drive in positioned.items() if sync else ():
+                csp_drive.send(machine.laws[r], cmd[r], theta[r], t)
         angle[:, i], command[:, i], speed[:, i] = theta, cmd, omega
         step = (scale * cmd - omega) * np.minimum(dt / tau, 1.0)
-        for r in positioned:
+        for r, csp_drive in positioned.items():
             # a speed loop lags its command; a position loop asks for its speed at once
-            step[r] = scale[r] * csp[r].speed(theta[r], tau[r], t) - omega[r]
+            step[r] = scale[r] * csp_drive.speed(theta[r], tau[r], t) - omega[r]
         lim = amax * dt
         omega = omega + np.clip(step, -lim, lim)
         theta = theta + omega * dt
-    return [RowRun(y, t_out, profile.row_distance(t_out, y), angle[r], command[r], speed[r])
+    return [RowRun(y, t_out, np.asarray(profile.row_distance(t_out, y)), angle[r], command[r],
+                   speed[r])
             for r, y in enumerate(machine.offsets)]
 
 
-def curve_figures(run, profile, spacing, plants_per_revolution=1):
+class CurveFigure(TypedDict):
+    """One curve's figures for one row (m; None: no plant or no speed there)."""
+
+    radius: float
+    plants: int
+    rms_spacing_error: float | None
+    mean_spacing_error: float | None
+    uncompensated_bias: float
+    median_speed_ratio: float | None
+
+
+class RowCurveFigures(TypedDict):
+    lateral_offset: float
+    curves: list[CurveFigure]
+    rms_spacing_error: float | None      # over every curve's plants
+
+
+def curve_figures(run: RowRun, profile: FieldProfile, spacing: float,
+                  plants_per_revolution: int = 1) -> RowCurveFigures:
     """Per curve of `profile`, through its steady part: the row's plants there, their spacing
     error against d along the row's own travelled distance (RMS and mean, m), the bias a
     machine without turn compensation shows there (−y·d/R, m), and the median of the measured
@@ -262,7 +314,8 @@ def curve_figures(run, profile, spacing, plants_per_revolution=1):
     release = 0.5 * pitch                           # the arm starts at the top
     times = plant_positions(run.angle, run.t, pitch, release=release)
     error = np.diff(plant_positions(run.angle, run.distance, pitch, release=release)) - spacing
-    curves, every = [], []
+    curves: list[CurveFigure] = []
+    every: list[NDArray[np.float64]] = []
     for curve in profile.curves:
         a, b = curve.start + curve.ease, curve.end - curve.ease
         # a spacing counts when both of its plants are set in the steady turn
@@ -280,20 +333,21 @@ def curve_figures(run, profile, spacing, plants_per_revolution=1):
             'uncompensated_bias': -run.lateral_offset * spacing / curve.radius,
             'median_speed_ratio': float(np.median(run.speed[steady][moving] / expected[moving]))
             if moving.any() else None})
-    every = np.concatenate(every) if every else np.zeros(0)
+    joined = np.concatenate(every) if every else np.zeros(0)
     return {'lateral_offset': run.lateral_offset, 'curves': curves,
-            'rms_spacing_error': float(np.sqrt(np.mean(every ** 2))) if every.size else None}
+            'rms_spacing_error': float(np.sqrt(np.mean(joined ** 2))) if joined.size else None}
 
 
 MACHINE_ROWS = (0.75, 0.25, -0.25, -0.75)       # the 4-row scene's lateral offsets (m)
 
 
-def curve_comparison(offsets=MACHINE_ROWS, spacing=0.2, cruise=0.2, duration=30.0,
-                     radius=10.0, seed=0, dt=0.001):
+def curve_comparison(offsets: Sequence[float] = MACHINE_ROWS, spacing: float = 0.2,
+                     cruise: float = 0.2, duration: float = 30.0, radius: float = 10.0,
+                     seed: int = 0, dt: float = 0.001) -> dict[str, list[RowCurveFigures]]:
     """`curve_figures` of every row, with and without turn compensation (tomato, the demo's
     30 s run with a left and a right turn of `radius`)."""
     profile = field_profile(duration, cruise, curves=demo_curves(duration, radius))
-    out = {}
+    out: dict[str, list[RowCurveFigures]] = {}
     for mode, on in (('compensated', True), ('uncompensated', False)):
         runs = simulate_rows(offsets, profile, duration, spacing, compensation=on, seed=seed,
                              dt=dt)
@@ -301,7 +355,14 @@ def curve_comparison(offsets=MACHINE_ROWS, spacing=0.2, cruise=0.2, duration=30.
     return out
 
 
-SCENARIOS = {
+class _Scenario(TypedDict, total=False):
+    """run_comparison's drive arguments of a scenario."""
+
+    drive: DriveModel
+    drive_change: tuple[float, DriveModel]
+
+
+SCENARIOS: dict[str, _Scenario] = {
     'nominal drive (lag 0.05 s)': dict(drive=DriveModel()),
     'drive lag 0.05 -> 0.2 s at 12 s': dict(drive_change=(12.0, DriveModel(
         time_constant=0.2, max_acceleration=15.0))),
@@ -312,10 +373,10 @@ SCENARIOS = {
 NOISES = (0.0, 0.01)          # m/s of ground-speed sensor noise
 
 
-def spacing_rows():
+def spacing_rows() -> list[tuple[float, str, SpacingStats, SpacingStats]]:
     """[(noise m/s, scenario, phase-locked SpacingStats, speed-only SpacingStats)] of the
     tomato scene (30 s field run: 0.2 m/s, +50 % at 13.5 s, stop); deterministic."""
-    out = []
+    out: list[tuple[float, str, SpacingStats, SpacingStats]] = []
     for noise in NOISES:
         for name, kwargs in SCENARIOS.items():
             r = run_comparison(PhaseLockConfig(), 0.2, 1, 0.2, noise=noise, **kwargs)
@@ -323,7 +384,7 @@ def spacing_rows():
     return out
 
 
-def spacing_markdown():
+def spacing_markdown() -> str:
     """The table doc/node_graph.md shows (`--markdown`): max |drift from grid| / max |gap − d|
     in mm per drive and sensor noise, phase-locked against speed-only."""
     lines = ['| drive | sensor noise | phase-locked | speed-only |', '|---|---|---|---|']
@@ -334,7 +395,7 @@ def spacing_markdown():
     return '\n'.join(lines)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Print phase-locked vs speed-only spacing for the tomato scene (30 s field run:
     0.2 m/s, +50 % at 13.5 s, stop), noise-free and with 10 mm/s sensor noise; and the 4-row
     machine through turns."""
@@ -355,12 +416,18 @@ def main(argv=None):
           '5 mrad/s noise): spacing error in the curves, RMS / mean, mm; speed ratio median')
     result = curve_comparison()
     for on, off in zip(result['compensated'], result['uncompensated']):
-        for a, b in zip(on['curves'], off['curves']):
-            print(f"  y = {on['lateral_offset']:+.2f} m, R = {a['radius']:+5.1f} m  compensated "
-                  f"{a['rms_spacing_error'] * 1e3:5.2f} / {a['mean_spacing_error'] * 1e3:+6.2f}, "
-                  f"ratio {a['median_speed_ratio']:.4f}   uncompensated "
-                  f"{b['rms_spacing_error'] * 1e3:5.2f} / {b['mean_spacing_error'] * 1e3:+6.2f} "
-                  f"(-y·d/R {b['uncompensated_bias'] * 1e3:+6.2f})")
+        for c, u in zip(on['curves'], off['curves']):
+            print(f"  y = {on['lateral_offset']:+.2f} m, R = {c['radius']:+5.1f} m  compensated "
+                  f"{_mm(c['rms_spacing_error'])} / {_mm(c['mean_spacing_error'], '+6.2f')}, "
+                  f"ratio {c['median_speed_ratio']:.4f}   uncompensated "
+                  f"{_mm(u['rms_spacing_error'])} / {_mm(u['mean_spacing_error'], '+6.2f')} "
+                  f"(-y·d/R {u['uncompensated_bias'] * 1e3:+6.2f})")
+    return 0
+
+
+def _mm(value: float | None, spec: str = '5.2f') -> str:
+    """A length in mm for the table (n/a without plants)."""
+    return 'n/a' if value is None else format(value * 1e3, spec)
 
 
 if __name__ == '__main__':

@@ -7,9 +7,15 @@ Frames follow REP 103: x forward, y left, the heading and yaw rate + counter-clo
 turn); a row at lateral offset y travels at v·(1 − κ·y), κ the path's signed curvature.
 """
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
+
+from planter_ros.kinematics.arrays import FloatArray, Floats
+
+# (t, s, heading, x, y) on the profile's fine grid
+_Path = tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
 
 
 @dataclass(frozen=True)
@@ -22,7 +28,7 @@ class Curve:
     radius: float
     ease: float = 0.5
 
-    def breakpoints(self):
+    def breakpoints(self) -> tuple[list[float], list[float]]:
         """(times, curvatures) of the piecewise-linear curvature, 0 outside the curve."""
         ease = min(self.ease, 0.5 * (self.end - self.start))
         k = 1.0 / self.radius
@@ -38,7 +44,7 @@ class Stop:
     hold: float
     ramp: float = 1.0
 
-    def factor(self, t):
+    def factor(self, t: float) -> float:
         """The fraction of the run's speed left at time t (0..1)."""
         down = self.start + self.ramp
         up = down + self.hold
@@ -51,7 +57,8 @@ class Stop:
         return (t - up) / self.ramp
 
 
-def demo_curves(duration, radius=10.0, length=8.0):
+def demo_curves(duration: float, radius: float = 10.0,
+                length: float = 8.0) -> tuple[Curve, Curve]:
     """A left and a right turn of `radius` (m), each `length` s (a quarter of the run in a run
     under 32 s), in the two cruise phases of a `FieldProfile` of `duration` s: from 15 % and
     60 % of the run."""
@@ -67,7 +74,9 @@ class FieldProfile:
     (not overlapping) the path makes meanwhile; none = a straight run. `stops`: `Stop`s on the
     way (the yaw rate is v·κ, so the machine does not turn while it stands)."""
 
-    def __init__(self, duration, cruise, change=1.5, start=2.0, stop=2.0, curves=(), stops=()):
+    def __init__(self, duration: float, cruise: float, change: float = 1.5, start: float = 2.0,
+                 stop: float = 2.0, curves: Iterable[Curve] = (),
+                 stops: Iterable[Stop] = ()) -> None:
         self.duration, self.cruise, self.change = duration, cruise, change
         self.stops = tuple(stops)
         self.start, self.stop = start, stop
@@ -81,9 +90,9 @@ class FieldProfile:
             times += t
             kappas += k
         self._kappa = (np.asarray(times), np.asarray(kappas))
-        self._path = None
+        self._path: _Path | None = None              # integrated on first use
 
-    def __call__(self, t):
+    def __call__(self, t: float) -> float:
         if t <= 0.0 or t >= self.t_stop_end:
             return 0.0
         if t < self.start:
@@ -100,29 +109,31 @@ class FieldProfile:
             base *= halt.factor(t)
         return base
 
-    def distance(self, t, dt=1e-3):
+    def distance(self, t: Floats, dt: float = 1e-3) -> Floats:
         """True travelled distance (m) at times t (array), by the trapezoid rule on a fine grid."""
         grid = np.arange(0.0, max(float(np.max(t)), 0.0) + 2 * dt, dt)
         v = np.array([self(x) for x in grid])
         s = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)))
-        return np.interp(t, grid, s)
+        distance: Floats = np.interp(t, grid, s)
+        return distance
 
-    def curvature(self, t):
+    def curvature(self, t: Floats) -> Floats:
         """Signed path curvature κ (1/m, + = turning left) at time(s) t."""
-        return np.interp(t, *self._kappa)
+        kappa: Floats = np.interp(t, *self._kappa)
+        return kappa
 
-    def yaw_rate(self, t):
+    def yaw_rate(self, t: float) -> float:
         """True yaw rate ω_z = v·κ (rad/s, + counter-clockwise) at time t (s)."""
         return self(t) * float(self.curvature(t))
 
-    def _integrated(self):
+    def _integrated(self) -> _Path:
         """(t, s, heading, x, y) on a fine grid over the run, integrated once (trapezoid)."""
         if self._path is None:
             dt = max(1e-3, self.duration / 100_000)
             t = np.arange(0.0, self.duration + 2 * dt, dt)
             v = np.array([self(x) for x in t])
 
-            def integral(f):
+            def integral(f: FloatArray) -> FloatArray:
                 return np.concatenate(([0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * dt)))
             s = integral(v)
             heading = integral(v * self.curvature(t))
@@ -130,27 +141,32 @@ class FieldProfile:
                           integral(v * np.sin(heading)))
         return self._path
 
-    def pose(self, t):
+    def pose(self, t: Floats) -> tuple[Floats, Floats, Floats]:
         """The machine's reference point at time(s) t: (x, y, heading) in m, m, rad, in the
         field frame of the start (x forward at t = 0, y left)."""
         grid, _, heading, x, y = self._integrated()
         return np.interp(t, grid, x), np.interp(t, grid, y), np.interp(t, grid, heading)
 
-    def row_distance(self, t, lateral_offset):
+    def row_distance(self, t: Floats, lateral_offset: float) -> Floats:
         """True distance (m) a row at `lateral_offset` (m, + left) has travelled at time(s) t:
         ∫v·(1 − κ·y) dt = s − y·heading."""
         grid, s, heading, _, _ = self._integrated()
-        return np.interp(t, grid, s) - lateral_offset * np.interp(t, grid, heading)
+        distance: Floats = np.interp(t, grid, s) - lateral_offset * np.interp(t, grid, heading)
+        return distance
 
 
-def field_profile(duration, cruise, change=1.5, start=2.0, stop=2.0, curves=(), stops=()):
+def field_profile(duration: float, cruise: float, change: float = 1.5, start: float = 2.0,
+                  stop: float = 2.0, curves: Iterable[Curve] = (),
+                  stops: Iterable[Stop] = ()) -> FieldProfile:
     return FieldProfile(duration, cruise, change, start, stop, curves, stops)
 
 
-def speed_profile(t, cruise, duration, step_at=None, step=1.25, ramp=2.0):
+def speed_profile(t: Floats, cruise: float, duration: float, step_at: float | None = None,
+                  step: float = 1.25, ramp: float = 2.0) -> Floats:
     """True ground speed (m/s): ramp up, cruise, a step to step·cruise, ramp down to a stop."""
     step_at = 0.5 * duration if step_at is None else step_at
     up = np.clip(t / ramp, 0.0, 1.0)
     down = np.clip((duration - t) / ramp, 0.0, 1.0)
     level = np.where(t < step_at, cruise, step * cruise)
-    return level * np.minimum(up, down)
+    speed: Floats = level * np.minimum(up, down)
+    return speed

@@ -7,13 +7,25 @@ profile's pose(t) (sim.field) and the antenna sits at `antenna_position` on the 
 reports that σ² in its covariance (type diagonal known), like an RTK receiver would.
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from planter_ros.config import check, setting
 from planter_ros.geo import LocalFrame, on_machine
+from planter_ros.kinematics.arrays import FloatArray
+
+if TYPE_CHECKING:
+    from builtin_interfaces.msg import Time
+    from sensor_msgs.msg import NavSatFix
+
+    from .field import FieldProfile
 
 
 @dataclass(frozen=True)
@@ -32,15 +44,17 @@ class SimulatedGnss:
     noise: float = setting(0.02, 'horizontal noise, σ per axis (RTK fix: about 0.02 m)',
                            unit='m', range=(0.0, 10.0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self)
 
 
-def fix_positions(profile, times, gnss, antenna=(0.0, 0.0), rng=None):
+def fix_positions(profile: FieldProfile, times: ArrayLike, gnss: SimulatedGnss,
+                  antenna: Sequence[float] = (0.0, 0.0), rng: np.random.Generator | None = None
+                  ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(latitude, longitude, altitude) in degrees, degrees, m of the antenna at `times` (s since
     the start of `profile`), with noise drawn from `rng` (none without an rng)."""
-    times = np.asarray(times, dtype=float)
-    x, y, heading = profile.pose(times)
+    instants = np.asarray(times, dtype=float)
+    x, y, heading = profile.pose(instants)
     x, y = on_machine(x, y, heading, antenna[0], antenna[1])
     # the start frame (x forward at t = 0) turned to the origin heading: east, north
     c, s = np.cos(gnss.origin_heading), np.sin(gnss.origin_heading)
@@ -49,16 +63,17 @@ def fix_positions(profile, times, gnss, antenna=(0.0, 0.0), rng=None):
         east = east + rng.normal(0.0, gnss.noise, east.shape)
         north = north + rng.normal(0.0, gnss.noise, north.shape)
     lon, lat = _frame(gnss.origin_latitude, gnss.origin_longitude).to_lonlat(east, north)
-    return lat, lon, np.full(times.shape, gnss.origin_altitude)
+    return lat, lon, np.full(instants.shape, gnss.origin_altitude)
 
 
 @lru_cache(maxsize=8)
-def _frame(latitude, longitude):
+def _frame(latitude: float, longitude: float) -> LocalFrame:
     """The field's local frame, made once per origin (the demo asks at every fix)."""
     return LocalFrame(latitude, longitude)
 
 
-def navsatfix(stamp, latitude, longitude, altitude, noise, frame_id='gnss'):
+def navsatfix(stamp: Time, latitude: float, longitude: float, altitude: float, noise: float,
+              frame_id: str = 'gnss') -> NavSatFix:
     """A sensor_msgs/NavSatFix of one fix (status FIX, GPS service), covariance σ² diagonal."""
     from sensor_msgs.msg import NavSatFix, NavSatStatus
     msg = NavSatFix()

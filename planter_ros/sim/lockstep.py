@@ -7,9 +7,20 @@ The nodes fed are the caller's (this package never imports planter_ros.nodes): `
 the samples the receiver has taken, `has_design()` tells it has the design.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
 import time
+from typing import TYPE_CHECKING
 
 from planter_ros import interfaces
+
+if TYPE_CHECKING:
+    from rclpy.clock import Clock
+    from rclpy.context import Context
+    from rclpy.executors import Executor
+
+    from .runs import Run
 
 # reliable, deep: lock-step feeding must never lose a sample (a best-effort subscriber of the
 # contract's QoS still matches a reliable publisher)
@@ -19,7 +30,8 @@ FEED_QOS = interfaces.Qos('reliable', 'volatile', interfaces.RECORDING_DEPTH)
 class LockStepFeeder:
     """Publishes a Run into `executor`'s graph; see the module doc."""
 
-    def __init__(self, context, executor, taken, has_design, timeout=60.0):
+    def __init__(self, context: Context, executor: Executor, taken: Callable[[], int],
+                 has_design: Callable[[], bool], timeout: float = 60.0) -> None:
         import rclpy
         self.executor = executor
         self.taken = taken
@@ -33,15 +45,15 @@ class LockStepFeeder:
                                              interfaces.DESIGN else FEED_QOS)
                       for topic in (interfaces.DESIGN, interfaces.GROUND_SPEED,
                                     interfaces.JOINT_STATES, interfaces.SPEED_COMMAND)}
-        self._now = None
+        self._now: int | None = None           # the simulated time last published (ns)
 
-    def spin_until(self, condition):
+    def spin_until(self, condition: Callable[[], bool]) -> None:
         while not condition():
             if time.monotonic() > self.deadline:
                 raise TimeoutError('the nodes did not take the sample stream in time')
             self.executor.spin_once(timeout_sec=0.01)
 
-    def set_clock(self, stamp, clock_of):
+    def set_clock(self, stamp: int, clock_of: Callable[[], Clock]) -> None:
         """Publish simulated time `stamp` (ns) and wait until `clock_of()` reads it."""
         from builtin_interfaces.msg import Time
         from rosgraph_msgs.msg import Clock
@@ -49,7 +61,7 @@ class LockStepFeeder:
         self._clock.publish(Clock(clock=Time(sec=sec, nanosec=nsec)))
         self.spin_until(lambda: clock_of().now().nanoseconds == stamp)
 
-    def feed(self, run, clock_of):
+    def feed(self, run: Run, clock_of: Callable[[], Clock]) -> None:
         """Publish every message of `run` (sim.runs.Run) in lock-step; `clock_of()` is the
         receiving node's clock."""
         pubs = list(self._pubs.values()) + [self._clock]
@@ -63,8 +75,12 @@ class LockStepFeeder:
             if topic is interfaces.DESIGN:
                 self.spin_until(self.has_design)
             else:
-                self.spin_until(lambda before=before: self.taken() > before)
+                self.spin_until(self._taken_beyond(before))
 
-    def destroy(self):
+    def _taken_beyond(self, count: int) -> Callable[[], bool]:
+        """Has the receiver taken more than `count` samples?"""
+        return lambda: self.taken() > count
+
+    def destroy(self) -> None:
         self.executor.remove_node(self.node)
         self.node.destroy_node()

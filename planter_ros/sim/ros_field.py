@@ -9,7 +9,11 @@ figures; Observer collects each row's measured mechanism angle to compare.
 """
 
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from rclpy.node import Node
@@ -17,17 +21,28 @@ from rclpy.time import Time
 from geometry_msgs.msg import TwistStamped
 
 from planter_ros import interfaces
-from planter_ros.design import from_json
+from planter_ros.design import Design, from_json
+from planter_ros.kinematics.arrays import FloatArray
 
-from .gnss import fix_positions, navsatfix
+from .field import FieldProfile
+from .gnss import SimulatedGnss, fix_positions, navsatfix
 from .spacing import plant_positions
+
+if TYPE_CHECKING:
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64, String
+
+    from planter_ros.rows import Row
+
+    from .tray import SensedCycles
 
 
 class GroundSpeedSource(Node):
     """Publishes `ground_speed` at `rate` Hz from `profile(t)` (t in s since start)."""
 
-    def __init__(self, profile, rate=20.0, noise=0.005, glitches=(), seed=0, yaw_noise=0.005,
-                 **kwargs):
+    def __init__(self, profile: FieldProfile, rate: float = 20.0, noise: float = 0.005,
+                 glitches: Sequence[tuple[float, float]] = (), seed: int = 0,
+                 yaw_noise: float = 0.005, **kwargs: Any) -> None:
         super().__init__('ground_speed_source', **kwargs)
         self.profile = profile
         self.noise = noise
@@ -39,14 +54,14 @@ class GroundSpeedSource(Node):
         self.samples = 0
         self.create_timer(1.0 / rate, self._tick)
 
-    def restart(self):
+    def restart(self) -> None:
         """The field run starts now (the graph is matched): t = 0 of the profile."""
         self.start = self.get_clock().now()
 
-    def elapsed(self, now=None):
+    def elapsed(self, now: Time | None = None) -> float:
         return ((now or self.get_clock().now()) - self.start).nanoseconds * 1e-9
 
-    def _tick(self):
+    def _tick(self) -> None:
         now = self.get_clock().now()
         t = self.elapsed(now)
         v = self.profile(t)
@@ -68,7 +83,8 @@ class GnssSource(Node):
     """Publishes `gnss/fix` at the receiver's rate along the profile's path (sim.gnss), on the
     clock of `start` (the ground-speed source's start: both describe one machine)."""
 
-    def __init__(self, profile, gnss, start, antenna=(0.0, 0.0), seed=0, **kwargs):
+    def __init__(self, profile: FieldProfile, gnss: SimulatedGnss, start: Time,
+                 antenna: Sequence[float] = (0.0, 0.0), seed: int = 0, **kwargs: Any) -> None:
         super().__init__('gnss_source', **kwargs)
         self.profile, self.gnss, self.start = profile, gnss, start
         self.antenna = tuple(antenna)
@@ -79,7 +95,7 @@ class GnssSource(Node):
         fix_positions(profile, np.zeros(1), gnss, self.antenna)
         self.create_timer(1.0 / gnss.rate, self._tick)
 
-    def _tick(self):
+    def _tick(self) -> None:
         now = self.get_clock().now()
         t = (now - self.start).nanoseconds * 1e-9
         if t < 0.0:
@@ -97,7 +113,8 @@ class SeedlingSensor(Node):
     half a cycle before its planting angle), as `planter simulate`'s runs record it. `rows`:
     the planting rows; each row's tray draws from its own generator of `seed`."""
 
-    def __init__(self, design, rows, empty_rate=0.0, double_rate=0.0, seed=0, **kwargs):
+    def __init__(self, design: Design, rows: Sequence[Row], empty_rate: float = 0.0,
+                 double_rate: float = 0.0, seed: int = 0, **kwargs: Any) -> None:
         super().__init__('seedling_sensor', **kwargs)
         from planter_ros.prediction import planting_model_from_design
         from sensor_msgs.msg import JointState
@@ -105,14 +122,14 @@ class SeedlingSensor(Node):
         from .tray import SensedCycles, Tray
         self._message = JointState
         model = planting_model_from_design(design, 0.0)      # its phase and cycle only
-        self._rows = {row.joint(design.mechanism): SensedCycles(
+        self._rows: dict[str, SensedCycles] = {row.joint(design.mechanism): SensedCycles(
             model, Tray(empty_rate, double_rate, np.random.default_rng([seed, row.index, 3])))
             for row in rows}
-        self.read = {joint: [] for joint in self._rows}       # joint -> [count] published
+        self.read: dict[str, list[float]] = {joint: [] for joint in self._rows}  # published
         self._pub = interfaces.SEEDLINGS.publisher(self)
         interfaces.JOINT_STATES.subscribe(self, self._on_joint)
 
-    def _on_joint(self, msg):
+    def _on_joint(self, msg: JointState) -> None:
         names = list(msg.name) or [next(iter(self._rows))]   # a drive that leaves names out
         for name, angle in zip(names, msg.position):
             cycles = self._rows.get(name)
@@ -123,22 +140,29 @@ class SeedlingSensor(Node):
                 self.read[name].append(count)
 
 
+def _since(start: Time, time: Time) -> float:
+    """Seconds from `start` to `time`."""
+    return (time - start).nanoseconds * 1e-9
+
+
 class Observer(Node):
     """Collects joint_states (measured), the speed commands and the designs for the demo's
     summary, per joint (one per row; `sun_bar` / `carrier` in a scene without rows)."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, **kwargs: Any) -> None:
         super().__init__('demo_observer', **kwargs)
-        self.start = None            # rclpy Time the field run started
-        self.joint = {}              # joint -> [(t since start, angle rad, velocity rad/s)]
-        self.command = {}            # joint (None: speed_command) -> [(t since start, rad/s)]
-        self.designs = []            # (rclpy Time received, Design), each new one
+        self.start: Time | None = None   # when the field run started
+        # joint -> [(t since start, angle rad, velocity rad/s)]
+        self.joint: dict[str | None, list[tuple[float, float, float]]] = {}
+        # joint (None: speed_command) -> [(t since start, rad/s)]
+        self.command: dict[str | None, list[tuple[float, float]]] = {}
+        self.designs: list[tuple[Time, Design]] = []     # (received, design), each new one
         interfaces.JOINT_STATES.subscribe(self, self._on_joint)
         interfaces.SPEED_COMMAND.subscribe(self, self._on_command)
         interfaces.SPEED_COMMANDS.subscribe(self, self._on_commands)
         interfaces.DESIGN.subscribe(self, self._on_design)
 
-    def _on_design(self, msg):
+    def _on_design(self, msg: String) -> None:
         try:
             design = from_json(msg.data)
         except ValueError:
@@ -146,44 +170,43 @@ class Observer(Node):
         if not self.designs or self.designs[-1][1] != design:
             self.designs.append((self.get_clock().now(), design))
 
-    def design_changes(self):
+    def design_changes(self) -> list[tuple[float, Design]]:
         """(t since start s, design) of each design after the first (the one in force when
         the field run started)."""
-        if self.start is None:
+        start = self.start
+        if start is None:
             return []
-        return [(self._since_start(t), design) for t, design in self.designs[1:]]
+        return [(_since(start, t), design) for t, design in self.designs[1:]]
 
-    def _since_start(self, time):
-        return (time - self.start).nanoseconds * 1e-9
-
-    def _on_joint(self, msg):
+    def _on_joint(self, msg: JointState) -> None:
         if self.start is None:
             return
-        t = self._since_start(Time.from_msg(msg.header.stamp))
-        names = list(msg.name) or [None]
+        t = _since(self.start, Time.from_msg(msg.header.stamp))
+        names: list[str | None] = list(msg.name) or [None]
         for i, name in enumerate(names[:len(msg.position)]):
             velocity = msg.velocity[i] if len(msg.velocity) > i else math.nan
             self.joint.setdefault(name, []).append((t, msg.position[i], velocity))
 
-    def _on_command(self, msg):
+    def _on_command(self, msg: Float64) -> None:
         if self.start is not None:
             self.command.setdefault(None, []).append(
-                (self._since_start(self.get_clock().now()), msg.data))
+                (_since(self.start, self.get_clock().now()), msg.data))
 
-    def _on_commands(self, msg):
+    def _on_commands(self, msg: JointState) -> None:
         if self.start is not None:
-            t = self._since_start(self.get_clock().now())
+            t = _since(self.start, self.get_clock().now())
             for name, value in zip(msg.name, msg.velocity):
                 self.command.setdefault(name, []).append((t, value))
 
-    def _joint(self, joint):
+    def _joint(self, joint: str | None) -> list[tuple[float, float, float]]:
         rows = self.joint.get(joint)
         if rows is None and len(self.joint) == 1:
             rows = next(iter(self.joint.values()))
         return list(rows or [])
 
-    def window(self, what, a, b, joint=None):
+    def window(self, what: str, a: float, b: float, joint: str | None = None) -> FloatArray:
         """Commanded ('command') or measured ('velocity') speeds of `joint` between a and b s."""
+        rows: Sequence[tuple[float, ...]]
         if what == 'command':
             rows = self.command.get(joint if joint in self.command else None, [])
             col = 1
@@ -191,7 +214,8 @@ class Observer(Node):
             rows, col = self._joint(joint), 2
         return np.array([r[col] for r in list(rows) if a <= r[0] <= b])
 
-    def plants(self, profile, design, joint=None, lateral_offset=0.0):
+    def plants(self, profile: FieldProfile, design: Design, joint: str | None = None,
+               lateral_offset: float = 0.0) -> tuple[FloatArray, FloatArray]:
         """(times s, positions m) of each plant release seen in `joint`'s measured angle; the
         position is the row's own true travelled distance (profile.row_distance)."""
         rows = [r for r in self._joint(joint) if r[0] >= 0.0]
@@ -206,6 +230,7 @@ class Observer(Node):
         return (plant_positions(angle, t, pitch, release=release),
                 plant_positions(angle, distance, pitch, release=release))
 
-    def plant_positions(self, profile, design, joint=None, lateral_offset=0.0):
+    def plant_positions(self, profile: FieldProfile, design: Design, joint: str | None = None,
+                        lateral_offset: float = 0.0) -> FloatArray:
         """True travelled distance (m) at each plant release seen in the measured angle."""
         return self.plants(profile, design, joint, lateral_offset)[1]

@@ -4,8 +4,10 @@ against the drive model of sim.closed_loop. Deterministic for a given seed; the 
 the replay benchmark and many tests are made from them.
 """
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 import math
+from typing import Any
 
 import numpy as np
 
@@ -31,7 +33,7 @@ class Run:
     joint_vel: np.ndarray        # measured shaft speed (rad/s)
     command: np.ndarray          # shaft speed command at joint_t (rad/s)
 
-    def messages(self):
+    def messages(self) -> Iterator[tuple[int, interfaces.Topic, Any]]:
         """The stream as ROS messages in time order: (time ns, Topic, message), the design first
         (1 ms before the first sample), then ground speed and joint state + speed command."""
         from builtin_interfaces.msg import Time
@@ -47,24 +49,25 @@ class Run:
         for stamp, kind, i in events:
             sec, nsec = divmod(stamp, 1_000_000_000)
             if kind == 0:
-                msg = TwistStamped()
-                msg.header.stamp = Time(sec=sec, nanosec=nsec)
-                msg.twist.linear.x = float(self.speed_v[i])
-                yield stamp, interfaces.GROUND_SPEED, msg
+                twist = TwistStamped()
+                twist.header.stamp = Time(sec=sec, nanosec=nsec)
+                twist.twist.linear.x = float(self.speed_v[i])
+                yield stamp, interfaces.GROUND_SPEED, twist
             else:
-                msg = JointState(name=[joint], position=[float(self.joint_pos[i])],
-                                 velocity=[float(self.joint_vel[i])])
-                msg.header.stamp = Time(sec=sec, nanosec=nsec)
-                yield stamp, interfaces.JOINT_STATES, msg
+                state = JointState(name=[joint], position=[float(self.joint_pos[i])],
+                                   velocity=[float(self.joint_vel[i])])
+                state.header.stamp = Time(sec=sec, nanosec=nsec)
+                yield stamp, interfaces.JOINT_STATES, state
                 yield stamp, interfaces.SPEED_COMMAND, Float64(data=float(self.command[i]))
 
 
-def _ns(seconds):
+def _ns(seconds: float) -> int:
     return int(round(seconds * 1e9))
 
 
-def five_bar_design_message(depth=0.045, spacing=0.2, hole_ratio=0.05, method='exact',
-                            ground_speed=0.2, nozzle_width=0.04):
+def five_bar_design_message(depth: float = 0.045, spacing: float = 0.2,
+                            hole_ratio: float = 0.05, method: str = 'exact',
+                            ground_speed: float = 0.2, nozzle_width: float = 0.04) -> Design:
     """The design of a five-bar scene (tomato defaults), as design_node makes it."""
     return design_for_scene({'mechanism': 'five_bar', 'planting_depth': depth,
                              'plant_spacing': spacing, 'hole_ratio': hole_ratio,
@@ -72,9 +75,11 @@ def five_bar_design_message(depth=0.045, spacing=0.2, hole_ratio=0.05, method='e
                              'nozzle_width': nozzle_width})
 
 
-def simulate_run(design, duration=30.0, cruise=0.2, speed_rate=20.0, joint_rate=100.0,
-                 drive_lag=0.08, phase_gain=4.0, speed_noise=0.02, encoder_counts=4096,
-                 step=1.25, stall_at=None, stall_for=0.8, stall_level=0.2, seed=1):
+def simulate_run(design: Design, duration: float = 30.0, cruise: float = 0.2,
+                 speed_rate: float = 20.0, joint_rate: float = 100.0, drive_lag: float = 0.08,
+                 phase_gain: float = 4.0, speed_noise: float = 0.02, encoder_counts: int = 4096,
+                 step: float = 1.25, stall_at: float | None = None, stall_for: float = 0.8,
+                 stall_level: float = 0.2, seed: int = 1) -> Run:
     """Measured stream of a planting run (see module doc). Deterministic for a given seed.
 
     The machine is the sync node's own law (control.phase_lock; `phase_gain` = 0 is speed-only)
@@ -91,15 +96,15 @@ def simulate_run(design, duration=30.0, cruise=0.2, speed_rate=20.0, joint_rate=
                                     max_acceleration=200.0, max_correction=20.0))
     law.set_design(spacing, n, 0.0)
 
-    def true_speed(t):
+    def true_speed(t: float) -> float:
         # slow true speed variation (soil, slip) on top of the profile
         wobble = 1.0 + 0.03 * math.sin(2 * math.pi * t / 7.0) \
             + 0.02 * math.sin(2 * math.pi * t / 2.3)
         return float(speed_profile(t, cruise, duration, step=step)) * wobble
 
-    readings = []
+    readings: list[tuple[float, float]] = []
 
-    def sensor(t, v):
+    def sensor(t: float, v: float) -> float:
         reading = v * (1.0 + rng.normal(0.0, speed_noise))
         readings.append((t, reading))
         return reading

@@ -9,9 +9,10 @@ model (sim.closed_loop.simulate_rows); what its sensors, drives and sync node re
 into the bag as the monitor would have received it: stamped when measured, logged a little
 later, every topic of interfaces.RECORDED with the monitor's QoS, its settings and rows
 records, chunks closed every second of log time. The monitor's own outputs (plants,
-uprightness_rate) come from its model fed sample by sample in log-time order, as monitor_node
-feeds it (RowSpeedStream, one PlantPredictor per row, the map's PlantPlacer), so replaying the
-bag reproduces them.
+uprightness_rate) come from the monitor's own pipeline (prediction.pipeline.MonitorPipeline,
+the one monitor_node runs) fed sample by sample in log-time order, and its messages are built
+where the node builds them (recording.monitor_topics), so the bag carries what the node would
+have published and replaying it reproduces them.
 Every row with a seedling sensor (all rows, or those a scene declares with one: its
 `seedling_sensor`, `<row>.seedling_sensor`) is fed by a simulated tray (`tray_readings`, sim.tray:
 a cell empty with `empty_rate`, two seedlings with `double_rate`): one `seedlings` reading per
@@ -21,22 +22,35 @@ The bag has no /diagnostics, sections, spacing_quality or plant_markers messages
 there): replay derives the indices and the map from the plants and fixes.
 """
 
-from collections import deque
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from planter_ros import interfaces
 from planter_ros.config import check, setting
-from planter_ros.design import to_json
+from planter_ros.design import Design, to_json
 from planter_ros.rows import Row, implicit_row
 
-from .closed_loop import DriveModel, simulate_rows
+from .closed_loop import DriveModel, RowRun, simulate_rows
 from .field import Curve, FieldProfile, Stop
 from .gnss import SimulatedGnss
 from .runs import SIM_EPOCH
+
+if TYPE_CHECKING:                 # imported where a run needs them (the module stays light)
+    from builtin_interfaces.msg import Time
+
+    from planter_ros.control.phase_lock import PhaseLockConfig
+    from planter_ros.geo import AntennaSettings
+    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
+    from planter_ros.prediction.pipeline import Placed
 
 ROW_PITCH = 0.5            # m between neighbouring simulated rows
 SAMPLE_PERIOD = 0.05       # s, ground-speed sensor (20 Hz)
@@ -62,11 +76,11 @@ class SeasonOptions:
     double_rate: float = setting(0.01, "share of the tray's cells holding two seedlings (the "
                                  'sensor reads 2)', range=(0.0, 1.0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self)
 
 
-def bag_name(seed, index):
+def bag_name(seed: int, index: int) -> str:
     """The file name of run `index` of the season of `seed`."""
     return f'run_{seed}_{index:05d}.mcap'
 
@@ -99,12 +113,12 @@ class RunPlan:
     index: int                    # the run's number in the season
     seed: int                     # the season's seed
     duration: float
-    rows: tuple                   # planter_ros.rows.Row
+    rows: tuple[Row, ...]
     cruise: float                 # m/s
     change: float                 # speed factor after the change at 45 % of the run
-    stops: tuple = ()             # field.Stop
-    curves: tuple = ()            # field.Curve
-    glitches: tuple = ()          # Glitch
+    stops: tuple[Stop, ...] = ()
+    curves: tuple[Curve, ...] = ()
+    glitches: tuple[Glitch, ...] = ()
     stall: Stall | None = None
     drive_lag: float = 0.05       # s, the drives' velocity time constant
     gnss: SimulatedGnss = field(default_factory=SimulatedGnss)
@@ -112,18 +126,18 @@ class RunPlan:
     double_rate: float = 0.0
     seedling_sensor: bool = True  # each row's cup sensor reads every cycle (topic seedlings)
     # a scene's spacing schedule: (t s from the run's start, Design) the design node publishes
-    designs: tuple = ()
+    designs: tuple[tuple[float, Design], ...] = ()
 
     @property
-    def start_time(self):
+    def start_time(self) -> float:
         """The run's start on the simulated clock (s since the epoch)."""
         return SIM_EPOCH + self.index * RUN_PERIOD
 
-    def profile(self):
+    def profile(self) -> FieldProfile:
         return FieldProfile(self.duration, self.cruise, change=self.change, curves=self.curves,
                             stops=self.stops)
 
-    def events(self):
+    def events(self) -> dict[str, object]:
         """The plan for people and JSON (SI)."""
         return {'cruise': self.cruise, 'speed_change': self.change,
                 'stops': [{'start': s.start, 'hold': s.hold} for s in self.stops],
@@ -138,7 +152,7 @@ class RunPlan:
                     'length': self.stall.length, 'level': self.stall.level}}
 
 
-def machine_rows(count):
+def machine_rows(count: int) -> tuple[Row, ...]:
     """`count` rows ROW_PITCH apart, centred on the machine, left first; one row is a machine
     without rows (the implicit row, as a scene without `rows`)."""
     if count == 1:
@@ -147,26 +161,31 @@ def machine_rows(count):
                  for i in range(count))
 
 
-def draw_plan(seed, index, duration, rows, cruise=(0.15, 0.4), empty_rate=0.0,
-              double_rate=0.0):
+# a run's speed change, as a factor of its cruise speed (drawn)
+SPEED_CHANGE_MIN, SPEED_CHANGE_MAX = 0.75, 1.35
+
+
+def draw_plan(seed: int, index: int, duration: float, rows: int | Iterable[Row],
+              cruise: tuple[float, float] = (0.15, 0.4), empty_rate: float = 0.0,
+              double_rate: float = 0.0) -> RunPlan:
     """Run `index` of the season of `seed`: the same arguments give the same run. `rows`: a
     count (machine_rows) or the machine's rows (a scene's); `cruise`: the range (m/s) its
     cruise speed is drawn from."""
     machine = machine_rows(rows) if isinstance(rows, int) else tuple(rows)
-    rows = len(machine)
+    count = len(machine)
     rng = np.random.default_rng([int(seed), int(index)])
     d = float(duration)
-    stops = []
+    stops: list[Stop] = []
     if d >= 30.0:
         for _ in range(int(rng.choice(3, p=(0.4, 0.4, 0.2)))):
             stops.append(Stop(float(rng.uniform(0.1, 0.75) * d), float(rng.uniform(1.0, 4.0))))
-    curves = []
+    curves: list[Curve] = []
     if rng.random() < 0.75:
         length = float(rng.uniform(4.0, max(4.0, min(12.0, 0.3 * d))))
         start = float(rng.uniform(0.1 * d, max(0.1 * d, 0.85 * d - length)))
         radius = float(rng.uniform(6.0, 25.0)) * (1.0 if rng.random() < 0.5 else -1.0)
         curves.append(Curve(start, min(start + length, d - 3.0), radius))
-    glitches = []
+    glitches: list[Glitch] = []
     for _ in range(min(int(rng.poisson(1.5)), 4)):
         kind = str(rng.choice(('spike', 'nan', 'dropout'), p=(0.4, 0.3, 0.3)))
         glitches.append(Glitch(kind, float(rng.uniform(3.0, d - 4.0)),
@@ -174,13 +193,14 @@ def draw_plan(seed, index, duration, rows, cruise=(0.15, 0.4), empty_rate=0.0,
                                factor=float(rng.uniform(2.0, 4.0))))
     stall = None
     if rng.random() < 0.3:
-        stall = Stall(int(rng.integers(rows)), float(rng.uniform(0.15, 0.8) * d),
+        stall = Stall(int(rng.integers(count)), float(rng.uniform(0.15, 0.8) * d),
                       float(rng.uniform(0.5, 3.0)), float(rng.uniform(0.05, 0.3)))
     gnss = SimulatedGnss(origin_latitude=52.0 + float(rng.uniform(-0.05, 0.05)),
                          origin_longitude=5.0 + float(rng.uniform(-0.08, 0.08)),
                          origin_heading=float(rng.uniform(-math.pi, math.pi)))
     return RunPlan(index=int(index), seed=int(seed), duration=d, rows=machine,
-                   cruise=float(rng.uniform(*cruise)), change=float(rng.uniform(0.75, 1.35)),
+                   cruise=float(rng.uniform(*cruise)),
+                   change=float(rng.uniform(SPEED_CHANGE_MIN, SPEED_CHANGE_MAX)),
                    stops=tuple(sorted(stops, key=lambda s: s.start)), curves=tuple(curves),
                    glitches=tuple(sorted(glitches, key=lambda g: g.start)), stall=stall,
                    drive_lag=float(rng.uniform(0.03, 0.1)), gnss=gnss,
@@ -188,7 +208,7 @@ def draw_plan(seed, index, duration, rows, cruise=(0.15, 0.4), empty_rate=0.0,
 
 
 @lru_cache(maxsize=1)
-def season_design():
+def season_design() -> Design:
     """The design of every simulated run (tomato, geared five-bar)."""
     from .runs import five_bar_design_message
     return five_bar_design_message()
@@ -213,17 +233,17 @@ class MachineRun:
     altitude: np.ndarray
     # the rows' seedling sensor readings: (row position in plan.rows, time s, count), in time
     # order; the count is what the tray put in that cycle's cup (0 empty, 1, 2 double)
-    seedlings: tuple = ()
+    seedlings: tuple[tuple[int, float, int], ...] = ()
 
 
 @lru_cache(maxsize=4)
-def _cam(design_json, rule):
+def _cam(design_json: str, rule: str) -> Any:        # a control.cam_law row cam
     from planter_ros.control.cam_law import plan_row_cam
     from planter_ros.design import from_json
     return plan_row_cam(from_json(design_json), rule)
 
 
-def machine_cam(design, law):
+def machine_cam(design: Design, law: PhaseLockConfig | None) -> Any:
     """The cam profile every row of the sync law `law` (a PhaseLockConfig) follows with
     `design` (control.cam_law.plan_row_cam, as the sync node plans it), or None: constant
     speed. A design the cam cannot run raises ValueError or CamError (one line): the sync node
@@ -233,12 +253,14 @@ def machine_cam(design, law):
     return _cam(to_json(design), law.cam_rule)
 
 
-def _row_cams(design, law, rows):
+def _row_cams(design: Design, law: PhaseLockConfig | None,
+              rows: Sequence[Row]) -> list[Any] | None:
     cam = machine_cam(design, law)
     return None if cam is None else [cam] * len(rows)
 
 
-def simulate_plan(plan, design=None, law=None):
+def simulate_plan(plan: RunPlan, design: Design | None = None,
+                  law: PhaseLockConfig | None = None) -> MachineRun:
     """Run the machine of `plan` in closed loop (no ROS): a MachineRun. `law`: the sync law's
     PhaseLockConfig (a scene's; default the defaults); with `speed_profile: cam` every row
     follows the cam planned for `design` (`machine_cam`) on a CSP drive, and for each design of
@@ -250,9 +272,9 @@ def simulate_plan(plan, design=None, law=None):
     law = law or PhaseLockConfig()
     rng = np.random.default_rng([plan.seed, plan.index, 1])
     profile = plan.profile()
-    readings = []
+    readings: list[tuple[float, float, float]] = []
 
-    def sensor(t, v, w):
+    def sensor(t: float, v: float, w: float) -> tuple[float, float] | None:
         for g in plan.glitches:
             if g.kind == 'dropout' and g.start <= t < g.start + g.length:
                 return None
@@ -271,7 +293,7 @@ def simulate_plan(plan, design=None, law=None):
     # the drive does what the law may ask of it (a cam scene's law: its out-of-soil arc)
     acceleration = max(DriveModel.max_acceleration, law.max_acceleration)
     nominal = DriveModel(time_constant=plan.drive_lag, max_acceleration=acceleration)
-    changes = []
+    changes: list[tuple[float, int, DriveModel]] = []
     if plan.stall is not None:
         s = plan.stall
         changes = [(s.start, s.row, DriveModel(time_constant=plan.drive_lag,
@@ -302,7 +324,8 @@ def simulate_plan(plan, design=None, law=None):
                       gnss_t, lat, lon, alt, seedlings)
 
 
-def tray_readings(plan, design, runs):
+def tray_readings(plan: RunPlan, design: Design,
+                  runs: Sequence[RowRun]) -> tuple[tuple[int, float, int], ...]:
     """The seedling sensor readings of a run: for every planting instant of every row one
     reading, half a planting cycle before the planting angle (the cup passing the sensor), of
     what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1.
@@ -314,7 +337,7 @@ def tray_readings(plan, design, runs):
     n = model.plants_per_revolution
     tray = Tray(plan.empty_rate, plan.double_rate,
                 np.random.default_rng([plan.seed, plan.index, 3]))
-    out = []
+    out: list[tuple[int, float, int]] = []
     for r, run in enumerate(runs):
         if plan.rows[r].seedling_sensor is False:
             continue                    # the scene declares this row without a sensor
@@ -331,107 +354,23 @@ def tray_readings(plan, design, runs):
     return tuple(sorted(out, key=lambda x: (x[1], x[0])))
 
 
-class MonitorModel:
-    """The monitor's prediction as monitor_node runs it, without the node: one RowSpeedStream
-    for the machine (the yaw rate always: the map dead-reckons the heading), one PlantPredictor
-    per planting row, the as-planted map (sensing.plant_map.PlantPlacer: a plant is published
-    once the fixes that place it are in), the machine's rolling upright rate."""
+class BagSummary(TypedDict):
+    """What write_monitor_bag wrote (SI): the plan's events with the tray's counts."""
 
-    def __init__(self, rows, design, settings, map_settings, antenna):
-        from planter_ros.prediction import (PlantPredictor, SeedlingAccount,
-                                            planting_model_from_design)
-        from planter_ros.sensing.plant_map import PlantPlacer
-        from planter_ros.sensing.row_speed import RowSpeedStream
-        model = planting_model_from_design(design)
-        planting = [row for row in rows if row.enabled]
-        self.predictors = [PlantPredictor(model, settings, row=row.index, speed_filter=False)
-                           for row in planting]
-        self.speeds = RowSpeedStream([row.lateral_offset for row in planting],
-                                     settings.speed_limits, yaw=True)
-        self.placer = PlantPlacer(map_settings, antenna.antenna_position,
-                                  {row.index: row.lateral_offset for row in rows})
-        self.recent = deque(maxlen=settings.window)
-        self.seedlings = SeedlingAccount({row.index: row.seedling_sensor for row in rows})
-        self.spacing = model.spacing
-
-    def speed(self, t, v, w):
-        """Plants batches placed after a ground-speed message (t s, v m/s, ω_z rad/s)."""
-        motion = self.speeds.motion(t, v, w)
-        if motion is None:
-            return []
-        t, v, yaw_rate = motion
-        out = self._placed(self.placer.add_motion(t, v, yaw_rate))
-        for p, s in zip(self.predictors, self.speeds.speeds(v, yaw_rate).tolist()):
-            out += self._predicted(p.add_speed(t, s))
-        return out
-
-    def joint(self, t, positions, velocities):
-        """Plants batches placed after a joint-state message (each planting row's joint)."""
-        out = []
-        for p, a, w in zip(self.predictors, positions, velocities):
-            out += self._predicted(p.add_joint(t, a, w))
-        return out
-
-    def fix(self, t, status, latitude, longitude, cov_east, cov_north, cov_type):
-        """Plants batches placed after a GNSS fix."""
-        return self._placed(self.placer.add_fix(t, status, latitude, longitude, cov_east,
-                                                cov_north, cov_type))
-
-    def flush(self):
-        """The plants whose arcs were still open, then the plants still held for fixes,
-        placed with the fixes there are (the monitor's end of recording)."""
-        out = []
-        for p in self.predictors:
-            out += self._predicted(p.finish())
-        return out + self._placed(self.placer.flush())
-
-    def design(self, t, design):
-        """A new design arrived at `t` (s): each row's from its next planting instant."""
-        from planter_ros.prediction import planting_model_from_design
-        model = planting_model_from_design(design)
-        for p in self.predictors:
-            p.change_model(model, t)
-        self.spacing = model.spacing
-
-    def seedling(self, t, row, count):
-        """A seedling sensor reading of planting row `row` (its index) at `t` (s)."""
-        self.seedlings.add_reading(row, t, count)
-
-    def _predicted(self, plants):
-        from planter_ros.prediction import design_spacing_of
-        if not len(plants):
-            return []
-        plants = self.seedlings.apply(plants, design_spacing_of(plants, self.spacing))
-        return self._placed(self.placer.add_plants(plants))
-
-    @staticmethod
-    def _placed(placed):
-        return [plants for plants, _ in placed]
-
-    def rate(self, plants):
-        """The machine's rolling upright rate after `plants` (what uprightness_rate carries:
-        the plants whose uprightness is known)."""
-        self.recent.extend(u for u in plants.upright.tolist() if math.isfinite(u))
-        return float(sum(self.recent) / len(self.recent)) if self.recent else math.nan
+    bag: str
+    run: int
+    duration: float
+    rows: int
+    messages: int
+    plants: int
+    events: dict[str, Any]           # RunPlan.events() (JSON-ready) + empty_cells, double_cells
 
 
-def plants_message(plants):
-    """std_msgs/Float64MultiArray of a Plants batch in the layout monitor_node publishes on
-    `plants` (dim[0] 'plant' × dim[1] = the field names)."""
-    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-
-    from planter_ros.prediction import PLANT_FIELDS
-    table = plants.table()
-    n, f = table.shape
-    msg = Float64MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label='plant', size=n, stride=n * f),
-                      MultiArrayDimension(label=','.join(PLANT_FIELDS), size=f, stride=f)]
-    msg.data = table.ravel().tolist()
-    return msg
-
-
-def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, antenna=None,
-                      **recorder_options):
+def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None = None,
+                      settings: PredictionSettings | None = None,
+                      acceptance: AcceptanceLimits | None = None,
+                      antenna: AntennaSettings | None = None,
+                      **recorder_options: Any) -> BagSummary:
     """Record `run` (a MachineRun) at `path` as monitor_node would have (see the module doc);
     `settings`, `acceptance` and `antenna` the monitor's (a scene's; default the defaults);
     `recorder_options` (split_size, split_duration) as the monitor's parameters. Every message
@@ -445,6 +384,8 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
     from planter_ros.config import as_dict
     from planter_ros.geo import AntennaSettings
     from planter_ros.prediction import AcceptanceLimits, PredictionSettings
+    from planter_ros.prediction.pipeline import MonitorPipeline
+    from planter_ros.recording.monitor_topics import plants_message
     from planter_ros.recording.recorder import Recorder
     from planter_ros.recording.replay import map_record
     from planter_ros.sensing.plant_map import MapSettings
@@ -462,10 +403,10 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
     rng = np.random.default_rng([plan.seed, plan.index, 2])
     epoch = int(round(plan.start_time * 1e9))
 
-    def ns(t):
+    def ns(t: ArrayLike) -> NDArray[np.int64]:
         return epoch + np.round(np.asarray(t, dtype=float) * 1e9).astype(np.int64)
 
-    def stamp(value):
+    def stamp(value: int) -> Time:
         sec, nsec = divmod(int(value), 1_000_000_000)
         return Time(sec=sec, nanosec=nsec)
 
@@ -474,15 +415,15 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
     joint_stamp = ns(run.joint_t)
     gnss_stamp = ns(run.gnss_t)
     command_stamp = joint_stamp + 200_000             # sent after the feedback it answers
-    logs = (speed_stamp + rng.integers(200_000, 3_000_000, speed_stamp.size),
+    logs = [speed_stamp + rng.integers(200_000, 3_000_000, speed_stamp.size),
             joint_stamp + rng.integers(500_000, 2_000_000, joint_stamp.size),
             command_stamp + rng.integers(200_000, 1_000_000, joint_stamp.size),
-            gnss_stamp + rng.integers(5_000_000, 30_000_000, gnss_stamp.size))
+            gnss_stamp + rng.integers(5_000_000, 30_000_000, gnss_stamp.size)]
     seed_t = np.array([t for _, t, _ in run.seedlings], dtype=float)
     seedling_stamp = ns(seed_t)
-    logs += (seedling_stamp + rng.integers(200_000, 1_000_000, seedling_stamp.size),)
+    logs.append(seedling_stamp + rng.integers(200_000, 1_000_000, seedling_stamp.size))
     # the spacing schedule's designs, received 1 ms after the design node published them
-    logs += (ns([t for t, _ in plan.designs]) + 1_000_000,)
+    logs.append(ns([t for t, _ in plan.designs]) + 1_000_000)
     kinds = np.concatenate([np.full(a.size, k, dtype=np.int8) for k, a in enumerate(logs)])
     index = np.concatenate([np.arange(a.size) for a in logs])
     log = np.concatenate(logs)
@@ -500,21 +441,18 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
         k: repr(v) for k, v in as_dict(acceptance or AcceptanceLimits()).items()})
     map_settings, antenna = MapSettings(), antenna or AntennaSettings()
     rec.add_metadata(interfaces.MAP_RECORD, map_record(map_settings, antenna))
-    monitor = MonitorModel(rows, design, settings, map_settings, antenna)
+    # the monitor's own pipeline, fed what it would have received, in its receive order
+    monitor = MonitorPipeline(rows, settings, map_settings, antenna.antenna_position)
     start = int(log.min()) - 500_000_000 if log.size else epoch
     clock[0] = start * 1e-9
     rec.write_message(names[interfaces.DESIGN], String(data=to_json(design)), start)
-    plants_written = 0
+    monitor.set_design(start * 1e-9, design)
 
-    def publish(batches, now):
-        nonlocal plants_written
-        for plants in batches:
-            if not len(plants):
-                continue
-            rec.write_message(names[interfaces.PLANTS], plants_message(plants), now, now)
+    def publish(batches: Iterable[Placed], now: int) -> None:
+        for batch in batches:
+            rec.write_message(names[interfaces.PLANTS], plants_message(batch.plants), now, now)
             rec.write_message(names[interfaces.UPRIGHTNESS_RATE],
-                              Float64(data=monitor.rate(plants)), now, now)
-            plants_written += len(plants)
+                              Float64(data=batch.upright_rate), now, now)
 
     speed_v, speed_w = run.speed_v.tolist(), run.speed_w.tolist()
     positions, velocities = run.joint_pos.T.tolist(), run.joint_vel.T.tolist()
@@ -524,23 +462,23 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
         kind, i, now = int(kinds[k]), int(index[k]), int(log[k])
         clock[0] = now * 1e-9
         if kind == 0:
-            msg = TwistStamped()
-            msg.header.stamp = stamp(speed_stamp[i])
-            msg.twist.linear.x = speed_v[i]
-            msg.twist.angular.z = speed_w[i]
-            rec.write_message(names[interfaces.GROUND_SPEED], msg, now, int(speed_stamp[i]))
+            twist = TwistStamped()
+            twist.header.stamp = stamp(speed_stamp[i])
+            twist.twist.linear.x = speed_v[i]
+            twist.twist.angular.z = speed_w[i]
+            rec.write_message(names[interfaces.GROUND_SPEED], twist, now, int(speed_stamp[i]))
             publish(monitor.speed(int(speed_stamp[i]) * 1e-9, speed_v[i], speed_w[i]), now)
         elif kind == 1:
-            msg = JointState(name=joints, position=positions[i], velocity=velocities[i])
-            msg.header.stamp = stamp(joint_stamp[i])
-            rec.write_message(names[interfaces.JOINT_STATES], msg, now, int(joint_stamp[i]))
-            publish(monitor.joint(int(joint_stamp[i]) * 1e-9, positions[i], velocities[i]),
-                    now)
+            state = JointState(name=joints, position=positions[i], velocity=velocities[i])
+            state.header.stamp = stamp(joint_stamp[i])
+            rec.write_message(names[interfaces.JOINT_STATES], state, now, int(joint_stamp[i]))
+            publish(monitor.joints(int(joint_stamp[i]) * 1e-9, joints, positions[i],
+                                   velocities[i]), now)
         elif kind == 2:
             if named:
-                msg = JointState(name=joints, velocity=commands[i])
-                msg.header.stamp = stamp(command_stamp[i])
-                rec.write_message(names[interfaces.SPEED_COMMANDS], msg, now,
+                state = JointState(name=joints, velocity=commands[i])
+                state.header.stamp = stamp(command_stamp[i])
+                rec.write_message(names[interfaces.SPEED_COMMANDS], state, now,
                                   int(command_stamp[i]))
             else:
                 rec.write_message(names[interfaces.SPEED_COMMAND], Float64(data=commands[i][0]),
@@ -548,24 +486,24 @@ def write_monitor_bag(run, path, design=None, settings=None, acceptance=None, an
         elif kind == 5:
             changed = plan.designs[i][1]
             rec.write_message(names[interfaces.DESIGN], String(data=to_json(changed)), now)
-            monitor.design(now * 1e-9, changed)
+            monitor.set_design(now * 1e-9, changed)
         elif kind == 4:
             r, _, count = run.seedlings[i]
-            msg = JointState(name=[joints[r]], position=[float(count)])
-            msg.header.stamp = stamp(seedling_stamp[i])
-            rec.write_message(names[interfaces.SEEDLINGS], msg, now, int(seedling_stamp[i]))
-            monitor.seedling(int(seedling_stamp[i]) * 1e-9, rows[r].index, count)
+            state = JointState(name=[joints[r]], position=[float(count)])
+            state.header.stamp = stamp(seedling_stamp[i])
+            rec.write_message(names[interfaces.SEEDLINGS], state, now, int(seedling_stamp[i]))
+            monitor.seedlings(int(seedling_stamp[i]) * 1e-9, state.name, state.position)
         else:
             msg = navsatfix(stamp(gnss_stamp[i]), lat[i], lon[i], alt[i], plan.gnss.noise)
             rec.write_message(names[interfaces.GNSS_FIX], msg, now, int(gnss_stamp[i]))
             cov = msg.position_covariance
             publish(monitor.fix(int(gnss_stamp[i]) * 1e-9, msg.status.status, lat[i], lon[i],
                                 cov[0], cov[4], msg.position_covariance_type), now)
-    publish(monitor.flush(), int(log.max()) if log.size else start)
+    publish(monitor.finish(), int(log.max()) if log.size else start)
     rec.close()
     counts = [c for _, _, c in run.seedlings]
     return {'bag': str(path), 'run': plan.index, 'duration': plan.duration,
-            'rows': len(rows), 'messages': rec.message_count, 'plants': plants_written,
+            'rows': len(rows), 'messages': rec.message_count, 'plants': monitor.plants,
             'events': {**plan.events(), 'empty_cells': counts.count(0),
                        'double_cells': counts.count(2)}}
 
@@ -576,29 +514,31 @@ class SceneMachine:
     design, the rows, the monitor's settings, the crop's acceptance limits, the GNSS antenna
     and the cruise speeds drawn (m/s, around the scene's nominal ground speed)."""
 
-    design: object
-    rows: tuple
-    settings: object
-    acceptance: object
-    antenna: object
-    cruise: tuple
-    law: object = None            # the sync law's PhaseLockConfig (speed_profile, gains)
-    schedule: tuple = ()          # (t s of the run, Design): the scene's spacing schedule
+    design: Design
+    rows: tuple[Row, ...]
+    settings: PredictionSettings
+    acceptance: AcceptanceLimits
+    antenna: AntennaSettings
+    cruise: tuple[float, float]
+    law: PhaseLockConfig | None = None    # the sync law (speed_profile, gains)
+    schedule: tuple[tuple[float, Design], ...] = ()    # (t s of the run, Design): the scene's
+                                                       # spacing schedule
 
 
-def simulate_bag(path, seed, index, duration, rows, machine=None, empty_rate=0.0,
-                 double_rate=0.0):
+def simulate_bag(path: str | Path, seed: int, index: int, duration: float, rows: int,
+                 machine: SceneMachine | None = None, empty_rate: float = 0.0,
+                 double_rate: float = 0.0) -> BagSummary:
     """Draw run `index` of the season of `seed`, simulate it and record it at `path` (a task
     of `planter simulate`): a machine of `rows` rows with the season's design, or `machine` (a
     SceneMachine: a scene's design, rows, monitor settings, limits and antenna), its tray with
     `empty_rate` empty cells and `double_rate` doubles. Returns write_monitor_bag's summary; a
     bag left unfinished by an error is removed."""
-    from pathlib import Path
-    tray = {'empty_rate': empty_rate, 'double_rate': double_rate}
     if machine is None:
-        plan = draw_plan(seed, index, duration, rows, **tray)
+        plan = draw_plan(seed, index, duration, rows, empty_rate=empty_rate,
+                         double_rate=double_rate)
     else:
-        plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise, **tray)
+        plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise,
+                         empty_rate=empty_rate, double_rate=double_rate)
         plan = replace(plan, designs=tuple((t, d) for t, d in machine.schedule
                                            if t < plan.duration))
     existed = Path(path).exists()          # the recorder refuses it: never removed here

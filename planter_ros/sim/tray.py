@@ -9,9 +9,18 @@ row's measured shaft angle as it comes, the cycles whose cup has just passed the
 numpy, no ROS.
 """
 
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Sequence
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from planter_ros.kinematics.planting import Planting
 
 TWO_PI = 2.0 * math.pi
 
@@ -21,24 +30,26 @@ class Tray:
     `double_rate` (of what the empty cells leave), else 1; from the generator `rng` (the same
     seed, the same tray)."""
 
-    def __init__(self, empty_rate, double_rate, rng):
+    def __init__(self, empty_rate: float, double_rate: float, rng: np.random.Generator) -> None:
         self.empty_rate, self.double_rate, self.rng = float(empty_rate), float(double_rate), rng
 
-    def cells(self, n):
+    def cells(self, n: int) -> NDArray[np.int_]:
         """The next `n` cells' seedling counts (int array)."""
         draw = self.rng.random(int(n))
-        return np.where(draw < self.empty_rate, 0,
+        counts: NDArray[np.int_] = np.where(draw < self.empty_rate, 0,
                         np.where(draw < self.empty_rate + self.double_rate, 2, 1))
+        return counts
 
 
-def sense_angle(model, k):
+def sense_angle(model: Planting, k: ArrayLike) -> NDArray[np.float64]:
     """The shaft angle (rad) at which cycle k's cup passes the sensor: half a planting cycle
     before planting angle k of the planting model (prediction.planting_model_from_design)."""
-    return model.planting_phase + (np.asarray(k, dtype=float) - 0.5) * TWO_PI \
-        / model.plants_per_revolution
+    angle: NDArray[np.float64] = model.planting_phase + (np.asarray(k, dtype=float) - 0.5) \
+        * TWO_PI / model.plants_per_revolution
+    return angle
 
 
-def cycles_between(model, theta0, theta1):
+def cycles_between(model: Planting, theta0: float, theta1: float) -> NDArray[np.int_]:
     """The cycles k whose sense angle lies in (theta0, theta1] (int array)."""
     n = model.plants_per_revolution
     # a candidate either side (the floor of a rounded product may land one off a boundary):
@@ -47,7 +58,8 @@ def cycles_between(model, theta0, theta1):
     last = math.floor((theta1 - model.planting_phase) * n / TWO_PI + 0.5) + 1
     ks = np.arange(first, last + 1)
     angles = sense_angle(model, ks)
-    return ks[(angles > theta0) & (angles <= theta1)]
+    cycles: NDArray[np.int_] = ks[(angles > theta0) & (angles <= theta1)]
+    return cycles
 
 
 class SensedCycles:
@@ -56,11 +68,11 @@ class SensedCycles:
     count from the row's tray; the first sample reads a cup whose sense angle it is. The running
     maximum of the angle is used (a shaft that turns back does not read a cup twice)."""
 
-    def __init__(self, model, tray):
+    def __init__(self, model: Planting, tray: Tray) -> None:
         self.model, self.tray = model, tray
-        self._theta = None
+        self._theta: float | None = None         # the running maximum (None: no sample yet)
 
-    def add(self, theta):
+    def add(self, theta: float) -> list[tuple[int, int]]:
         """[(cycle k, count)] of the cups read between the previous angle and `theta` (rad)."""
         theta = float(theta)
         if not math.isfinite(theta) or (self._theta is not None and theta <= self._theta):
@@ -73,7 +85,9 @@ class SensedCycles:
         return list(zip(ks.tolist(), self.tray.cells(ks.size).tolist()))
 
 
-def add_tray_arguments(parser, options, defaults, spec_option):
+def add_tray_arguments(parser: argparse.ArgumentParser, options: type,
+                       defaults: Sequence[float],
+                       spec_option: Callable[[type, str, str], Callable[[str], Any]]) -> None:
     """The command line's --empty-rate and --double-rate, checked as the `options` dataclass's
     settings `empty_rate` and `double_rate` (`spec_option`: the command line's checker);
     `defaults`: (empty, double)."""

@@ -21,15 +21,22 @@ by other processes (as timeit's best of N), and the note gives the median's figu
 row times empty tasks through the same cluster: Dask's own cost per task.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
 import os
 from pathlib import Path
 import shutil
 import statistics
 import tempfile
 import time
+from typing import TYPE_CHECKING, Any
 
-from ..registry import Row, Target, bench_case
+from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
+
+if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
+    from planter_ros.sim.season import BagSummary
 
 WHAT = 'season analysis (planter analyze)'
 REAL_TIME_TARGET = 3000.0       # × real time per worker (per core)
@@ -40,12 +47,12 @@ ROWS = 4
 TRAY = (0.02, 0.01)        # empty cells, doubles: planter simulate's defaults
 
 
-def _noop(i):
+def _noop(i: int) -> int:
     return i
 
 
-def _simulate(directory, runs, duration):
-    """Simulate `runs` runs into `directory` on the local cluster: (seconds, workers, bytes)."""
+def _simulate(directory: Path, runs: int, duration: float) -> tuple[float, int]:
+    """Simulate `runs` runs into `directory` on the local cluster: (seconds, workers)."""
     from planter_ros.analysis.engine import check_workers, cluster, completed
     from planter_ros.analysis.task import model_version, warm_up
     from planter_ros.sim.season import bag_name, simulate_bag
@@ -61,12 +68,14 @@ def _simulate(directory, runs, duration):
     return seconds, workers
 
 
-def _analyse(bags, out, workers):
+def _analyse(bags: Sequence[str | Path], out: Path, workers: int
+             ) -> tuple[Any, float, float, float, float]:        # report: analysis.season's
     """One analysis of `bags` into fresh tables at `out` with `workers` local workers:
     (report, seconds to start the cluster and warm the workers up, CPU seconds during the
     analysis of this process (the client and the scheduler) and of the worker processes, load
     average before it)."""
     from planter_ros.analysis import season as seasons
+    from planter_ros.analysis.bags import identity
     from planter_ros.analysis.engine import check_workers, cluster
     from planter_ros.analysis.tables import load_pyarrow
     from planter_ros.analysis.task import model_version, warm_up
@@ -79,8 +88,14 @@ def _analyse(bags, out, workers):
         load_pyarrow()                   # what run() loads before its clock starts
         load = os.getloadavg()[0]
         with seasons.Season(out, root) as season:
-            keys, _ = season.plan(seasons.bag_keys(bags, root), version,
-                                  seasons.options_key({}, None))
+            # the bench's season is copies of a few runs, and a bag is its content (a real
+            # season's copies are one bag: season.plan): each copy is analysed as a bag here
+            options = seasons.options_key({}, None)
+            keys = []
+            for path, name in seasons.bag_keys(bags, root).items():
+                size, mtime_ns = identity(path)
+                keys.append(seasons.BagKey(name, size, mtime_ns, version, options, path,
+                                           f'bench-copy:{name}'))
             before = client.run(time.process_time)
             cpu = time.process_time()
             report = seasons.run(season, client, keys, {}, None)
@@ -91,7 +106,7 @@ def _analyse(bags, out, workers):
     return report, startup, cpu, workers_cpu, load
 
 
-def _task_overhead(count):
+def _task_overhead(count: int) -> float:
     """Seconds per empty task through a 2-worker local cluster (submit → result gathered)."""
     from planter_ros.analysis.engine import cluster, completed
     with cluster(workers=2) as client:
@@ -101,7 +116,7 @@ def _task_overhead(count):
         return (time.monotonic() - started) / done
 
 
-def _replay_error(bag, out):
+def _replay_error(bag: str | Path, out: Path) -> float:
     """Max |Parquet − replay JSON| over the plants of `bag` (None-for-None must match)."""
     import math
 
@@ -109,7 +124,7 @@ def _replay_error(bag, out):
 
     from planter_ros.analysis.tables import plant_dicts
     from planter_ros.recording.replay import replay
-    expected = replay(str(bag)).as_json()['plants']
+    expected = replay(str(bag)).plants.rows()         # as replay --json gives them
     table = ds.dataset(out / 'plants').to_table(filter=ds.field('bag') == Path(bag).name)
     got = plant_dicts(table)
     if len(got) != len(expected):
@@ -122,13 +137,14 @@ def _replay_error(bag, out):
         for key in a:
             if (a[key] is None) != (b[key] is None):
                 raise RuntimeError(f'{bag}: {key} null in one and not the other')
-            if a[key] is not None:
-                worst = max(worst, abs(a[key] - b[key]) if math.isfinite(b[key]) else 0.0)
+            mine, theirs = a[key], b[key]
+            if mine is not None and theirs is not None:
+                worst = max(worst, abs(mine - theirs) if math.isfinite(theirs) else 0.0)
     return worst
 
 
 @bench_case('analyze', requires=('distributed', 'pyarrow', 'planter_ros.analysis.season'))
-def season_analysis(ctx):
+def season_analysis(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     import pyarrow.parquet as pq
 
@@ -136,8 +152,8 @@ def season_analysis(ctx):
     count, runs = ctx.n(200, 8), ctx.n(20, 4)
     duration = ctx.n(60.0, 10.0)
     repeats = ctx.n(3, 1)
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory() as name:
+        tmp = Path(name)
         made, season_dir = tmp / 'runs', tmp / 'season'
         made.mkdir()
         season_dir.mkdir()
@@ -245,13 +261,14 @@ LOSSES = 'injected losses (planter simulate → planter analyze)'
 LOSS_TRAY = (0.05, 0.03)        # empty cells, doubles: enough of both in short runs
 
 
-def _simulate_season(directory, count, duration, rows, tray):
+def _simulate_season(directory: Path, count: int, duration: float, rows: int,
+                     tray: tuple[float, float]) -> dict[str, BagSummary]:
     """`count` distinct runs of `duration` s on the local cluster: {bag name: summary}."""
     from planter_ros.analysis.engine import check_workers, cluster, completed
     from planter_ros.analysis.task import model_version, warm_up
     from planter_ros.sim.season import bag_name, simulate_bag
     names = [bag_name(1, k) for k in range(count)]
-    out = {}
+    out: dict[str, BagSummary] = {}
     with cluster() as client:
         check_workers(client, warm_up, model_version(), 'the local cluster')
         arguments = [(str(directory / name), 1, k, duration, rows, None, *tray)
@@ -264,7 +281,7 @@ def _simulate_season(directory, count, duration, rows, tray):
 
 
 @bench_case('losses', requires=('distributed', 'pyarrow', 'planter_ros.analysis.losses'))
-def injected_losses(ctx):
+def injected_losses(ctx: BenchContext) -> Iterator[Row]:
     """A season simulated with a tray of empty cells and doubles and the usual glitches (speed
     drop-outs among them), analysed by `planter analyze`'s code path; each bag's plants from
     the Parquet table against what its cup sensors read (analysis.losses): injected against
@@ -278,8 +295,8 @@ def injected_losses(ctx):
     from planter_ros.analysis.tables import plant_columns
     from planter_ros.recording.replay import replay
     count, duration = ctx.n(200, 6), ctx.n(15.0, 12.0)
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory() as name:
+        tmp = Path(name)
         season_dir = tmp / 'season'
         season_dir.mkdir()
         ctx.progress(f'  simulating {count} runs of {duration:.0f} s with a tray of '

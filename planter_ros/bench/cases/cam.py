@@ -1,11 +1,18 @@
 """Electronic cam rows: the per-cycle evaluation of θ(s), the planned tip sweep against a
 brute-force sampled tip path, and one mechanism designed for 0.15 m planting 0.15–0.5 m."""
 
+from __future__ import annotations
+
+from collections.abc import Iterator
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..registry import Row, Target, bench_case
+from ..registry import BenchContext, Row, Target, bench_case
+
+if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
+    from planter_ros.cam import CamMechanism
 
 EVAL_TARGET = 20e-6          # cam evaluation ≤ 20 µs per row per SYNC cycle (scalar)
 SWEEP_TARGET = 1e-6          # planned tip sweep vs brute force ≤ 1e-6 m
@@ -22,14 +29,14 @@ SWEEP_ERROR_OF = ('max over the profiles |closed-form tip sweep − brute force|
 HOLE_ERROR_OF = '|tip sweep − the design hole k·D| (m)'
 
 
-def _mechanism():
+def _mechanism() -> CamMechanism:
     from planter_ros.cam import CamMechanism
     from planter_ros.kinematics.five_bar import design_five_bar
     return CamMechanism.from_design(design_five_bar(DEPTH, DESIGN_SPACING, HOLE_RATIO))
 
 
 @bench_case('cam evaluation', requires=('planter_ros.cam',))
-def cam_evaluation(ctx):
+def cam_evaluation(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.cam import CamTrack, plan_cam
 
     mech = _mechanism()
@@ -58,7 +65,7 @@ def cam_evaluation(ctx):
 
 
 @bench_case('cam tip sweep vs brute force', requires=('planter_ros.cam',))
-def cam_sweep(ctx):
+def cam_sweep(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.cam import constant_profile, plan_cam, sampled_tip_sweep
 
     mech = _mechanism()
@@ -92,7 +99,7 @@ def cam_sweep(ctx):
 
 
 @bench_case('cam, one mechanism designed for 0.15 m', requires=('planter_ros.cam',))
-def cam_one_mechanism(ctx):
+def cam_one_mechanism(ctx: BenchContext) -> Iterator[Row]:
     import time
 
     from planter_ros.cam import constant_profile, plan_cam
@@ -129,7 +136,7 @@ def cam_one_mechanism(ctx):
                          'loads': cf.as_dict()})
 
 
-def _figures_note(sweep, tilt, f):
+def _figures_note(sweep: float, tilt: float, f: Any) -> str:
     return (f'sweep {sweep * 1000:.4f} mm, tilt {math.degrees(tilt):+.2f}°, peak ω '
             f'{f.peak_speed:.3g} rad/s, α {f.peak_acceleration:.3g} rad/s², jerk '
             f'{f.peak_jerk:.3g} rad/s³, motor torque {f.peak_torque:.3g} N·m peak / '

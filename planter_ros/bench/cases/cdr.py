@@ -12,11 +12,24 @@ after its end, so uncut it could not be measured.) Every method produces the sam
 stamp (ns), and position + velocity or linear.x + angular.z.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
 import os
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from ..registry import Row, bench_case
+from ..registry import BenchContext, Row, bench_case
+
+if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
+    from rosbags.typesys.store import Typestore
+
+    from planter_ros.kinematics.arrays import FloatArray
+
+    # (stamps ns, then two float fields) of decoded messages
+    Fields = tuple[NDArray[np.int64], FloatArray, FloatArray]
 
 JOINT = 'sun_bar'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
@@ -29,7 +42,8 @@ ERROR_OF = ('max |decoded − rosbags deserialize_cdr| over the float fields (po
             '(checked); — for rosbags itself')
 
 
-def _messages(n, seed, typestore):
+def _messages(n: int, seed: int, typestore: Typestore
+              ) -> tuple[list[bytes], list[bytes], list[bytes]]:
     """n rclpy-serialised JointStates (as serialize_message leaves them, and cut) and
     TwistStampeds (cut) with varying stamps and values; cut = to the size rosbags' serializer
     gives the same message (the wire size)."""
@@ -40,7 +54,8 @@ def _messages(n, seed, typestore):
     rng = np.random.default_rng(seed)
     pos, vel, lx, az = rng.normal(size=(4, n)) * np.array([[100.0], [10.0], [2.0], [0.5]])
     stamps = 1_795_325_092_000_000_000 + np.cumsum(rng.integers(9_000_000, 11_000_000, n))
-    joints, twists = [], []
+    joints: list[bytes] = []
+    twists: list[bytes] = []
     js, tw = JointState(name=[JOINT]), TwistStamped()
     tw.header.frame_id = 'base_link'
     for k in range(n):
@@ -55,7 +70,8 @@ def _messages(n, seed, typestore):
             _cut(twists, _wire_size(typestore, TWIST_STAMPED, 'base_link')))
 
 
-def _wire_size(typestore, typename, frame_id, names=None):
+def _wire_size(typestore: Typestore, typename: str, frame_id: str,
+               names: Sequence[str] = ()) -> int:
     """Bytes rosbags serialises such a message to (values do not change the size)."""
     t = typestore.types
     header = t['std_msgs/msg/Header'](
@@ -70,13 +86,13 @@ def _wire_size(typestore, typename, frame_id, names=None):
     return len(typestore.serialize_cdr(msg, typename))
 
 
-def _cut(raws, size):
+def _cut(raws: Sequence[bytes], size: int) -> list[bytes]:
     if any(len(r) < size for r in raws):
         raise RuntimeError(f'rclpy serialised a message to fewer than the {size} bytes of rosbags')
     return [r[:size] for r in raws]
 
 
-def _joint_fields(msgs, name, stamp_of):
+def _joint_fields(msgs: Sequence[Any], name: str, stamp_of: Callable[[Any], int]) -> Fields:
     """(stamp, position, velocity) of the named joint from message objects (the same rule as
     the bulk decoder: first of that name, or the only position of a nameless JointState)."""
     n = len(msgs)
@@ -95,18 +111,18 @@ def _joint_fields(msgs, name, stamp_of):
     return stamps, pos, vel
 
 
-def _twist_fields(msgs, stamp_of):
+def _twist_fields(msgs: Sequence[Any], stamp_of: Callable[[Any], int]) -> Fields:
     stamps = np.fromiter((stamp_of(m) for m in msgs), dtype=np.int64, count=len(msgs))
     lx = np.fromiter((m.twist.linear.x for m in msgs), dtype=float, count=len(msgs))
     az = np.fromiter((m.twist.angular.z for m in msgs), dtype=float, count=len(msgs))
     return stamps, lx, az
 
 
-def _stamp(m):
+def _stamp(m: Any) -> int:              # a decoded message (rclpy's or rosbags' class)
     return m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
 
 
-def _error(got, ref, label):
+def _error(got: Fields, ref: Fields, label: str) -> float:
     if not np.array_equal(got[0], ref[0]):
         raise RuntimeError(f'{label}: stamps differ from rosbags')
     for a, b in zip(got[1:], ref[1:]):
@@ -117,7 +133,7 @@ def _error(got, ref, label):
 
 
 @bench_case('CDR field decoding', requires=('rosbags', 'rclpy', 'planter_ros.recording.cdr'))
-def cdr_decoding(ctx):
+def cdr_decoding(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     from geometry_msgs.msg import TwistStamped
     from rclpy.serialization import deserialize_message
@@ -131,10 +147,10 @@ def cdr_decoding(ctx):
     ctx.progress(f'  serialising {n} JointState and {n} TwistStamped messages with rclpy ...')
     uncut, joints, twists = _messages(n, ctx.seed, ts)
 
-    def joint_fields(msgs):
+    def joint_fields(msgs: Sequence[Any]) -> Fields:
         return _joint_fields(msgs, JOINT, _stamp)
 
-    def twist_fields(msgs):
+    def twist_fields(msgs: Sequence[Any]) -> Fields:
         return _twist_fields(msgs, _stamp)
     kinds = {
         'JointState (stamp, position, velocity of one joint)': [

@@ -17,14 +17,18 @@ drives saw them, how many exceeded 50 ms, and the drives' watchdog trips. Target
 command or SYNC gaps over 50 ms, heartbeat gaps ≤ 150 ms, 0 watchdog trips.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping
 import os
 import subprocess
 import sys
 import threading
 import time
+from typing import Any, TypedDict
 import uuid
 
-from ..registry import Row, Target, bench_case
+from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
 
 WHAT = 'command path while DDS participants join and leave the graph (drive-side gaps)'
@@ -55,10 +59,22 @@ for k in range(count):
 '''
 
 
-def _drive_figures(report):
+class DriveFigures(TypedDict):
+    """The drives' own figures of a run (s, counts)."""
+
+    command_max: float
+    command_over_50ms: int
+    sync_max: float
+    sync_over_50ms: int
+    heartbeat_max: float
+    watchdog_trips: int
+    loop: dict[str, float]
+
+
+def _drive_figures(report: Mapping[str, Any]) -> DriveFigures:
     """The drives' own figures: the largest gap (s) and the count over 50 ms of command frames,
     SYNC frames and master heartbeats, and the watchdog trips."""
-    def worst(table):
+    def worst(table: Mapping[str, Any] | None) -> tuple[float, int]:
         gaps = list((table or {}).values())
         return (max((g['max'] for g in gaps), default=0.0),
                 sum(g['over'].get('50 ms', 0) for g in gaps))
@@ -72,7 +88,12 @@ def _drive_figures(report):
             'loop': report.get('loop', {})}
 
 
-def stall_run(command_process, joins, progress=lambda text: None):
+def _silent(text: str) -> None:
+    pass
+
+
+def stall_run(command_process: bool, joins: int, progress: Callable[[str], None] = _silent
+              ) -> tuple[DriveFigures, int, float]:
     """One run of the layout; returns (figures, joins done, seconds)."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     import rclpy
@@ -89,8 +110,9 @@ def stall_run(command_process, joins, progress=lambda text: None):
     from planter_ros.sim.runs import five_bar_design_message
 
     domain = claim_private_domain()
-    rows = {'rows': ['r1', 'r2', 'r3', 'r4']}
-    for i, name in enumerate(rows['rows']):
+    names = ['r1', 'r2', 'r3', 'r4']
+    rows: dict[str, object] = {'rows': names}
+    for i, name in enumerate(names):
         rows[f'{name}.lateral_offset'] = 0.75 - 0.5 * i
         rows[f'{name}.drive_node_id'] = i + 1
     channel = f'planter-bench-stall-{uuid.uuid4().hex[:8]}'
@@ -104,7 +126,8 @@ def stall_run(command_process, joins, progress=lambda text: None):
     node = Node('stall_source', context=context, namespace=interfaces.NAMESPACE)
     speed_pub = interfaces.GROUND_SPEED.publisher(node)
     design_pub = interfaces.DESIGN.publisher(node)
-    joiners, done = [], [0]
+    joiners: list[subprocess.Popen[str]] = []
+    done = [0]
     stop = threading.Event()
     t0 = time.perf_counter()
     try:
@@ -117,8 +140,8 @@ def stall_run(command_process, joins, progress=lambda text: None):
                                     stderr=subprocess.DEVNULL)
                    for _ in range(JOINERS)]
 
-        def count(proc):
-            for _ in proc.stdout:
+        def count(proc: subprocess.Popen[str]) -> None:
+            for _ in proc.stdout or ():
                 done[0] += 1
         counters = [threading.Thread(target=count, args=(p,), daemon=True) for p in joiners]
         for thread in counters:
@@ -143,8 +166,8 @@ def stall_run(command_process, joins, progress=lambda text: None):
             if proc.poll() is None:
                 proc.kill()
             proc.wait()
-        report = sync.stop()
-        report = report.flat() if report is not None else {}
+        final = sync.stop()
+        report = final.flat() if final is not None else {}
         node.destroy_node()
         context.try_shutdown()
     return _drive_figures(report), done[0], time.perf_counter() - t0
@@ -152,15 +175,16 @@ def stall_run(command_process, joins, progress=lambda text: None):
 
 @bench_case('graph-join stall', requires=('rclpy', 'can', 'planter_ros.command.process',
                                           'planter_ros.demo.sync_process'))
-def graph_join_stall(ctx):
+def graph_join_stall(ctx: BenchContext) -> Iterator[Row]:
     joins = ctx.n(400, 2 * JOINERS)          # --quick: the smoke run, two rounds of joiners
-    results = {}
+    results: dict[str, tuple[DriveFigures, int, float]] = {}
     for command_process in (False, True):
         name = 'after' if command_process else 'before'
         ctx.progress(f'  {name}: {joins} joins, {JOINERS} joiners at a time ...')
         results[name] = stall_run(command_process, joins, ctx.progress)
     for name, (fig, done, seconds) in results.items():
-        ms = {k: 1e3 * v for k, v in fig.items() if k.endswith('_max')}
+        ms = {'command_max': 1e3 * fig['command_max'], 'sync_max': 1e3 * fig['sync_max'],
+              'heartbeat_max': 1e3 * fig['heartbeat_max']}
         targets = []
         if name == 'after':
             targets = [Target('0 command or SYNC gaps > 50 ms',

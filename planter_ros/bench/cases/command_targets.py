@@ -21,17 +21,25 @@ killed (planter_ros.processes). The host's load average is noted with each run: 
 shared host say little without it.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 import math
 import subprocess
 import sys
 import tempfile
 import time
+from typing import TYPE_CHECKING, Any, TypedDict
 import uuid
 from pathlib import Path
 
-from ..registry import Row, Target, bench_case
+from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import Timing, from_samples
+
+if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
+    from planter_ros.control.loop_timing import PeriodStats
+    from planter_ros.demo.run import DemoResult
 
 HOGS = 2
 RATE = 50.0                     # Hz, ground-speed samples of the latency case
@@ -47,7 +55,7 @@ SPACING_TARGET = 0.005          # spacing error RMS per row, fraction of d
 SYNC_TOLERANCE = 1e-3           # s: SYNC interval p1 and p99 within the period ± this
 
 
-def load_average():
+def load_average() -> float | None:
     """The host's 1-minute load average (None where /proc/loadavg is not there)."""
     try:
         with open('/proc/loadavg', encoding='ascii') as f:
@@ -56,14 +64,14 @@ def load_average():
         return None
 
 
-def _load(before, after):
+def _load(before: float | None, after: float | None) -> str:
     if before is None or after is None:
         return 'load average unknown'
     return f'load average {before:.1f}→{after:.1f}'
 
 
 @contextmanager
-def cpu_hogs(count=HOGS):
+def cpu_hogs(count: int = HOGS) -> Iterator[list[subprocess.Popen[bytes]]]:
     """`count` CPU-bound processes for the length of the block; they die with this process,
     also when it is killed with SIGKILL."""
     from planter_ros.processes import preexec_die_with_parent
@@ -77,7 +85,7 @@ def cpu_hogs(count=HOGS):
             hog.wait()
 
 
-def latency_timing(histogram):
+def latency_timing(histogram: dict[str, Any]) -> tuple[Timing, int, float]:
     """Timing (median = p50, p10–p90, p99) and (count, max) of a PeriodStats histogram of
     single latencies."""
     from planter_ros.control.loop_timing import PeriodStats
@@ -89,7 +97,9 @@ def latency_timing(histogram):
             stats.gaps, stats.max_gap)
 
 
-def latency_run(seconds, rows=LATENCY_ROWS, hogs=0, timeout=120.0, parameters=()):
+def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
+                timeout: float = 120.0, parameters: Sequence[tuple[str, object]] = ()
+                ) -> dict[str, Any]:              # the command process's report (JSON)
     """One run of the demo's command path with `rows` rows in profile velocity, fed RATE Hz
     ground-speed samples for `seconds` s (`hogs` CPU hogs beside it meanwhile; `parameters`:
     more (name, value) of the sync node); returns the command process's final report."""
@@ -122,7 +132,6 @@ def latency_run(seconds, rows=LATENCY_ROWS, hogs=0, timeout=120.0, parameters=()
     node = Node('latency_source', context=context, namespace=interfaces.NAMESPACE)
     speed_pub = interfaces.GROUND_SPEED.publisher(node)
     design_pub = interfaces.DESIGN.publisher(node)
-    report = None
     try:
         sync.wait_for('ready', timeout)
         design_pub.publish(String(data=to_json(five_bar_design_message(spacing=0.2))))
@@ -146,8 +155,8 @@ def latency_run(seconds, rows=LATENCY_ROWS, hogs=0, timeout=120.0, parameters=()
                 next_pub += 1.0 / RATE
                 sync.poll(0.0)
     finally:
-        report = sync.stop()
-        report = report.flat() if report is not None else {}
+        final = sync.stop()
+        report = final.flat() if final is not None else {}
         node.destroy_node()
         context.try_shutdown()
     if not report.get('sample_to_frame_histogram'):
@@ -157,7 +166,7 @@ def latency_run(seconds, rows=LATENCY_ROWS, hogs=0, timeout=120.0, parameters=()
 
 @bench_case('command-latency', requires=('rclpy', 'can', 'planter_ros.command.process',
                                          'planter_ros.demo.sync_process'))
-def command_latency(ctx):
+def command_latency(ctx: BenchContext) -> Iterator[Row]:
     seconds = ctx.n(20.0, 2.0)
     for hogs in (0, HOGS):
         ctx.progress(f'  {LATENCY_ROWS} rows, {seconds:g} s of {RATE:g} Hz samples, '
@@ -170,22 +179,34 @@ def command_latency(ctx):
                   'sample', timing, error_of='no error defined: timings only',
                   # the target is set beside the hogs (quiet, an idle core's wake-up shows:
                   # printed for comparison, not judged)
-                  targets=[Target('p99 ≤ 1 ms', timing.p99 <= LATENCY_TARGET)] if hogs else [],
+                  targets=[Target('p99 ≤ 1 ms', timing.tail <= LATENCY_TARGET)] if hogs else [],
                   note=f'{count} samples: p50 {timing.median * 1e3:.2f} ms, p99 '
-                       f'{timing.p99 * 1e3:.2f} ms, max {worst * 1e3:.2f} ms; {trips} watchdog '
+                       f'{timing.tail * 1e3:.2f} ms, max {worst * 1e3:.2f} ms; {trips} watchdog '
                        f'trip(s); {_load(before, load_average())}',
                   extra={'hogs': hogs, 'rows': LATENCY_ROWS, 'samples': count,
                          'p50_s': timing.median, 'max_s': worst, 'watchdog_trips': trips,
                          'load_average': before})
 
 
-def run_figures(result, bag):
+class RunFigures(TypedDict):
+    """One demo run's figures (s; spacing RMS as a fraction of d per row label)."""
+
+    passed: bool
+    verdict: str
+    trips: int
+    rows: dict[str, float]
+    sync: PeriodStats
+    period: float
+    drive_sync_max: float
+
+
+def run_figures(result: DemoResult, bag: str) -> RunFigures:
     """One demo run's figures: verdict, trips, each row's spacing error RMS over d from the
     replay of its bag, the SYNC intervals (a PeriodStats) and the drives' largest SYNC gap."""
     from planter_ros.control.loop_timing import PeriodStats
     from planter_ros.recording.replay import replay
     report = result.report or {}
-    rows = {}
+    rows: dict[str, float] = {}
     try:
         replayed = replay(bag)
     except Exception as exc:         # noqa: BLE001 - a run without a usable bag is a figure too
@@ -195,7 +216,7 @@ def run_figures(result, bag):
         for row, summary in zip(replayed.rows, replayed.row_summaries):
             mean, sigma = summary['spacing_error_mean'], summary['spacing_error_std']
             if row.enabled:
-                rows[row.label] = (math.nan if mean is None else
+                rows[row.label] = (math.nan if mean is None or sigma is None else
                                    math.hypot(mean, sigma) / summary['design_spacing'])
     sync = (PeriodStats.from_histogram(report['sync_histogram'])
             if report.get('sync_histogram') else PeriodStats())
@@ -206,7 +227,12 @@ def run_figures(result, bag):
             'drive_sync_max': max((v['gaps']['max'] for v in drives), default=math.nan)}
 
 
-def demo_runs(runs, duration, progress=lambda text: None):
+def _silent(text: str) -> None:
+    pass
+
+
+def demo_runs(runs: int, duration: float, progress: Callable[[str], None] = _silent
+              ) -> list[tuple[float, RunFigures, tuple[float | None, float | None]]]:
     """`runs` 4-row demo runs of `duration` s, HOGS CPU hogs beside each; per run (seconds,
     figures, load average before and after)."""
     import io
@@ -214,7 +240,7 @@ def demo_runs(runs, duration, progress=lambda text: None):
     from planter_ros.demo.options import DemoOptions
     from planter_ros.demo.run import prepare
     from planter_ros.scene import default_scene_path
-    out = []
+    out: list[tuple[float, RunFigures, tuple[float | None, float | None]]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
             bag = str(Path(tmp) / f'run{k}.mcap')
@@ -226,6 +252,8 @@ def demo_runs(runs, duration, progress=lambda text: None):
                 t0 = time.perf_counter()
                 demo.run()
                 seconds = time.perf_counter() - t0
+            if demo.result is None:          # run() returns with its result made
+                raise RuntimeError('the demo run gave no result')
             figures = run_figures(demo.result, bag)
             out.append((seconds, figures, (before, load_average())))
             progress(f'  run {k + 1}/{runs}: {"PASS" if figures["passed"] else "FAIL"}, '
@@ -235,13 +263,13 @@ def demo_runs(runs, duration, progress=lambda text: None):
     return out
 
 
-def _worst(values):
+def _worst(values: Iterable[float]) -> float:
     """The largest of `values` (NaN if any is NaN or there are none)."""
-    values = list(values)
-    return math.nan if not values or any(math.isnan(v) for v in values) else max(values)
+    seen = list(values)
+    return math.nan if not seen or any(math.isnan(v) for v in seen) else max(seen)
 
 
-def _sync_text(stats, period):
+def _sync_text(stats: PeriodStats, period: float) -> str:
     if not stats.gaps:
         return 'no SYNC sent'
     return (f'SYNC interval p1 {stats.quantile(0.01) * 1e3:.1f} ms, p99 '
@@ -249,14 +277,14 @@ def _sync_text(stats, period):
             f'(period {period * 1e3:g} ms, {stats.gaps} intervals)')
 
 
-def _sync_within(stats, period):
+def _sync_within(stats: PeriodStats, period: float) -> bool:
     return bool(stats.gaps) and (stats.quantile(0.01) >= period - SYNC_TOLERANCE
                                  and stats.quantile(0.99) <= period + SYNC_TOLERANCE)
 
 
 @bench_case('demo-runs under load', requires=('rclpy', 'can', 'planter_ros.command.process',
                                               'planter_ros.demo.run'))
-def demo_runs_under_load(ctx):
+def demo_runs_under_load(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.control.loop_timing import PeriodStats
     runs = ctx.runs or ctx.n(RUNS, 1)
     duration = ctx.n(30.0, 8.0)

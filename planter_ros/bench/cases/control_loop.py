@@ -10,28 +10,40 @@ run: p99.9 and the largest gap; the targets are no watchdog trip and p99.9 ≤ 5
 of the deadline).
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
 import io
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 import time
+from typing import TYPE_CHECKING
 
-from ..registry import Row, Target, bench_case
+from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
+
+if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
+    from planter_ros.demo.run import DemoResult
 
 WHAT = 'control loop under load: gap between command frames (demo, 2 CPU hogs beside it)'
 P999_TARGET = 0.05          # s
 HOGS = 2
 
 
-def loaded_runs(runs, duration, progress=lambda text: None):
+def _silent(text: str) -> None:
+    pass
+
+
+def loaded_runs(runs: int, duration: float, progress: Callable[[str], None] = _silent
+                ) -> list[tuple[float, DemoResult]]:
     """`runs` demo runs of `duration` s, each beside HOGS CPU-bound processes; returns a list
     of (seconds the run took, DemoResult)."""
     from planter_ros.demo.options import DemoOptions
     from planter_ros.demo.run import prepare
     from planter_ros.processes import preexec_die_with_parent
-    results = []
+    results: list[tuple[float, DemoResult]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
             # the hogs die with the bench, also when it is killed (no orphan burning cores)
@@ -43,13 +55,17 @@ def loaded_runs(runs, duration, progress=lambda text: None):
                                out=io.StringIO(), install_signals=False, log_level='error')
                 t0 = time.perf_counter()
                 demo.run()
-                results.append((time.perf_counter() - t0, demo.result))
+                took = time.perf_counter() - t0
             finally:
                 for hog in hogs:
                     hog.kill()
                     hog.wait()
-            verdict = demo.result.verdict
-            loop = (demo.result.report or {}).get('loop', {})
+            result = demo.result
+            if result is None:               # run() returns with its result made
+                raise RuntimeError('the demo run gave no result')
+            results.append((took, result))
+            verdict = result.verdict
+            loop = (result.report or {}).get('loop', {})
             progress(f'  run {k + 1}/{runs}: {"PASS" if verdict.passed else "FAIL"}, '
                      f'p99.9 {1e3 * (loop.get("p999") or 0):.1f} ms, max '
                      f'{1e3 * (loop.get("max") or 0):.1f} ms')
@@ -59,7 +75,7 @@ def loaded_runs(runs, duration, progress=lambda text: None):
 @bench_case('control loop under load',
             requires=('rclpy', 'can', 'planter_ros.demo.sync_process',
                       'planter_ros.control.loop_timing'))
-def control_loop_under_load(ctx):
+def control_loop_under_load(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.control.loop_timing import PeriodStats
     runs, duration = ctx.runs or ctx.n(10, 1), ctx.n(30.0, 8.0)
     ctx.progress(f'  {runs} demo run(s) of {duration:g} s, {HOGS} CPU hogs beside each ...')

@@ -5,20 +5,28 @@ channel of their own), so the latencies include both Python stacks and the hand-
 their threads, no wire time. Each figure is measured event by event: median, p10–p90 and p99.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterator
 from contextlib import contextmanager
 import logging
 import time
+from typing import TYPE_CHECKING
 import uuid
 
-from ..registry import Row, bench_case
+from ..registry import BenchContext, Row, bench_case
 from ..timing import from_samples
+
+if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
+    from planter_ros.drive.cia402 import Cia402Drive
+    from planter_ros.drive.simulated_drive import SimulatedDrive
 
 WHAT = 'CAN drive (virtual bus, master and simulated drive in one process)'
 ERROR_OF = 'no error defined: timings only'
 
 
 @contextmanager
-def _quiet(*names):
+def _quiet(*names: str) -> Iterator[None]:
     """Our final shutdown finds no drive on the bus (we stopped it first): expected, not news."""
     loggers = [logging.getLogger(n) for n in names]
     levels = [lg.level for lg in loggers]
@@ -32,7 +40,7 @@ def _quiet(*names):
 
 
 @contextmanager
-def _drive_pair():
+def _drive_pair() -> Iterator[tuple[SimulatedDrive, Cia402Drive]]:
     """A simulated drive and our master on a fresh virtual channel; both stopped on exit."""
     from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
     from planter_ros.drive.simulated_drive import SimulatedDrive
@@ -49,9 +57,10 @@ def _drive_pair():
         drive.shutdown()                 # no drive left: closes without waiting
 
 
-def drive_session(samples, fresh):
+def drive_session(samples: int, fresh: int) -> dict[str, list[float]]:
     """Per-event seconds of every drive figure: {'first_enable': [...], 'sdo': [...], ...}."""
-    f = {k: [] for k in ('first_enable', 'enable', 'sdo', 'tpdo', 'rpdo', 'send', 'send_alone')}
+    f: dict[str, list[float]] = {k: [] for k in ('first_enable', 'enable', 'sdo', 'tpdo',
+                                                  'rpdo', 'send', 'send_alone')}
     for _ in range(fresh):
         with _drive_pair() as (_, drive):
             t0 = time.perf_counter()
@@ -67,6 +76,8 @@ def drive_session(samples, fresh):
             drive.shutdown()
         drive.connect_and_enable()
         node = drive.node
+        if node is None:                 # connect_and_enable() made it or raised
+            raise RuntimeError('the drive has no CANopen node after connect_and_enable()')
         for _ in range(samples):
             t0 = time.perf_counter()
             _ = node.sdo[0x6041].raw                   # expedited upload, one round trip
@@ -74,9 +85,9 @@ def drive_session(samples, fresh):
         # TPDO latency: drive-side send stamp (virtual bus: time.time()) -> master callback
         node.tpdo[2].add_callback(lambda m: f['tpdo'].append(time.time() - m.timestamp))
         # command latency: send_velocity() call -> the simulated drive decoded the RPDO
-        sent = {'t': None}
+        sent: dict[str, float | None] = {'t': None}
 
-        def decoded(_pdo_map):
+        def decoded(_pdo_map: object) -> None:
             if sent['t'] is not None:
                 f['rpdo'].append(time.perf_counter() - sent['t'])
                 sent['t'] = None
@@ -117,7 +128,7 @@ ROWS = (
 
 
 @bench_case('CAN drive', requires=('can', 'canopen', 'planter_ros.drive.cia402'))
-def can_drive(ctx):
+def can_drive(ctx: BenchContext) -> Iterator[Row]:
     samples = ctx.n(1000, 50)
     fresh = ctx.n(10, 2)
     ctx.progress(f'  {samples} samples per figure, {fresh} fresh enables ...')

@@ -1,11 +1,20 @@
 """Five-bar rows: reverse design (exact vs paper, scalar and batched), hole width (closed form vs
 root-finding vs dense sampling) and trajectory throughput, each against an mpmath reference."""
 
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..registry import Row, Target, bench_case
+from ..registry import BenchContext, Row, Target, bench_case
+
+if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
+    from planter_ros.kinematics.arrays import FloatArray, Floats
+
+    from ..timing import Timing
 
 DESIGN_TIME_TARGET = 20e-6     # quality target: a five-bar design <= 20 µs scalar
 DESIGN_RATE_TARGET = 1e6       # ... and >= 1e6 designs/s batched
@@ -16,16 +25,19 @@ HOLE_ERROR_OF = ('max |hole of the computed bars − k·D| / k·D over the check
 WIDTH_ERROR_OF = 'max relative error of the swept hole width vs mpmath (same design, same λ)'
 
 
-def design_domain(rng, n):
+def design_domain(rng: np.random.Generator, n: int
+                  ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """n random agronomic scenes: D 20-100 mm, d 0.15-0.6 m, k up to half its feasible limit."""
     from planter_ros.kinematics.five_bar import hole_ratio_limit
     depth = rng.uniform(0.02, 0.10, n)
     spacing = rng.uniform(0.15, 0.6, n)
-    k = rng.uniform(0.01, 0.5, n) * hole_ratio_limit(depth, spacing)
+    k = rng.uniform(0.01, 0.5, n) * np.asarray(hole_ratio_limit(depth, spacing))
     return depth, spacing, k
 
 
-def _design_errors(l1, l2, depth, spacing, k, refs):
+def _design_errors(l1: Sequence[float] | FloatArray, l2: Sequence[float] | FloatArray,
+                   depth: FloatArray, spacing: FloatArray,
+                   k: FloatArray, refs: Sequence[tuple[Any, Any]]) -> tuple[float, float]:
     """(max hole error, max length error) of computed bars against the mpmath references."""
     from mpmath import mp, mpf
     from ..reference import DIGITS, hole_reference
@@ -42,7 +54,7 @@ def _design_errors(l1, l2, depth, spacing, k, refs):
 
 
 @bench_case('five-bar reverse design')
-def five_bar_design(ctx):
+def five_bar_design(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.kinematics.five_bar import design_five_bar
     from ..reference import design_reference
 
@@ -58,8 +70,8 @@ def five_bar_design(ctx):
         args = [(float(depth[i]), float(spacing[i]), float(k[i])) for i in range(n_ref)]
         t = ctx.measure(lambda: [design_five_bar(a, b, c, method) for a, b, c in args]).per(n_ref)
         designs = [design_five_bar(a, b, c, method) for a, b, c in args]
-        l1 = [d.l1 for d in designs]
-        l2 = [d.l2 for d in designs]
+        l1 = [float(d.l1) for d in designs]          # scalar designs: floats
+        l2 = [float(d.l2) for d in designs]
         hole_err, len_err = _design_errors(l1, l2, depth, spacing, k, refs)
         yield _design_row(method, 'scalar', 1, t, hole_err, len_err, n_ref)
         for n in sizes:
@@ -69,13 +81,15 @@ def five_bar_design(ctx):
                             repeats=5 if n >= 100_000 else None)
             out = design_five_bar(D, d, kk, method)
             m = min(n, n_ref)
-            hole_err, len_err = _design_errors(out.l1[:m], out.l2[:m], depth, spacing, k,
+            hole_err, len_err = _design_errors(np.asarray(out.l1)[:m], np.asarray(out.l2)[:m],
+                                               depth, spacing, k,
                                                refs[:m])
             yield _design_row(method, 'batched', n, t, hole_err, len_err, m)
 
 
-def _design_row(method, how, n, t, hole_err, len_err, checked):
-    targets = []
+def _design_row(method: str, how: str, n: int, t: Timing, hole_err: float, len_err: float,
+                checked: int) -> Row:
+    targets: list[Target] = []
     if how == 'scalar':
         targets.append(Target('≤ 20 µs', t.median <= DESIGN_TIME_TARGET))
     elif n >= 1_000_000:
@@ -93,27 +107,29 @@ def _design_row(method, how, n, t, hole_err, len_err, checked):
 
 # --- hole width -----------------------------------------------------------------------------
 
-def hole_by_sampling(l1, l2, depth, advance, samples):
+def hole_by_sampling(l1: float, l2: float, depth: float, advance: float, samples: int) -> float:
     """The naive way: sample one sun-bar turn, keep the points below the soil surface, take the
     extent along the row. Error shrinks like 1/samples (the surface crossing is missed by up to
     one step)."""
     from planter_ros.kinematics.five_bar import soil_trajectory
     theta = np.linspace(0.0, 2.0 * math.pi, samples)
-    x, y = soil_trajectory(l1, l2, theta, advance)
+    x, y = (np.asarray(v) for v in soil_trajectory(l1, l2, theta, advance))
     below = x[y <= depth]
     return float(below.max() - below.min()) if below.size > 1 else 0.0
 
 
-def hole_by_root_finding(l1, l2, depth, advance):
+def hole_by_root_finding(l1: float, l2: float, depth: float, advance: float) -> float:
     """The generic way: scipy brentq for the surface crossings y(θ) = D and the turning points
     dx/dθ = 0 between them, then the extent of x over those angles."""
     from scipy.optimize import brentq
     total, a = l1 + l2, l2 - l1
-    def y(th):
+    def y(th: float) -> float:
         return total * (1.0 + math.cos(th)) - depth
-    def x(th):
+
+    def x(th: float) -> float:
         return a * math.sin(th) + advance * th
-    def dx(th):
+
+    def dx(th: float) -> float:
         return a * math.cos(th) + advance
     t_in = brentq(y, 0.0, math.pi)
     t_out = brentq(y, math.pi, 2.0 * math.pi)
@@ -125,23 +141,23 @@ def hole_by_root_finding(l1, l2, depth, advance):
     return max(xs) - min(xs)
 
 
-def _speed_ratios(a):
+def _speed_ratios(a: float) -> list[float]:
     """Advances v/ω1 covering dragging, in sync, slight and strong overspeed, and reversing."""
     return [a / lam for lam in (0.5, 0.9, 1.0, 1.05, 1.2, 2.0, 10.0)] + [-0.5 * a]
 
 
 @bench_case('hole width')
-def hole_width(ctx):
+def hole_width(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.kinematics.five_bar import design_five_bar, hole_geometry
     from ..reference import hole_reference, rel_error
 
     design = design_five_bar(*TOMATO)
-    l1, l2, depth = design.l1, design.l2, design.depth
+    l1, l2, depth = float(design.l1), float(design.l2), float(design.depth)   # one design
     advances = _speed_ratios(l2 - l1)
     refs = [hole_reference(l1, l2, depth, adv)[1] for adv in advances]
     count = len(advances)
 
-    def max_err(widths):
+    def max_err(widths: Sequence[Floats]) -> float:
         return max(rel_error(w, r) for w, r in zip(widths, refs))
 
     t = ctx.measure(lambda: [hole_geometry(l1, l2, depth, adv) for adv in advances]).per(count)
@@ -160,9 +176,10 @@ def hole_width(ctx):
         adv = (batch.l2 - batch.l1) / rng.uniform(0.5, 2.0, n)
         t = ctx.measure(lambda: hole_geometry(batch.l1, batch.l2, D, adv),
                         repeats=5 if n >= 100_000 else None)
-        widths = hole_geometry(batch.l1, batch.l2, D, adv).width
+        widths = np.asarray(hole_geometry(batch.l1, batch.l2, D, adv).width)
         m = min(n, n_ref)
-        err = max(rel_error(widths[i], hole_reference(batch.l1[i], batch.l2[i], D[i],
+        bars = np.asarray(batch.l1), np.asarray(batch.l2)
+        err = max(rel_error(widths[i], hole_reference(bars[0][i], bars[1][i], D[i],
                                                       adv[i])[1]) for i in range(m))
         yield Row('hole width', 'closed form (hole_geometry), batched', n, 'hole', t,
                   error=err, error_of=WIDTH_ERROR_OF,
@@ -190,7 +207,7 @@ def hole_width(ctx):
 # --- tolerances -----------------------------------------------------------------------------
 
 @bench_case('hole-width tolerance')
-def hole_width_tolerance(ctx):
+def hole_width_tolerance(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.kinematics.five_bar import design_five_bar, hole_sensitivity, hole_tolerance
 
     design = design_five_bar(*TOMATO)
@@ -216,12 +233,12 @@ def hole_width_tolerance(ctx):
 # --- trajectory -----------------------------------------------------------------------------
 
 @bench_case('trajectory evaluation')
-def trajectory(ctx):
+def trajectory(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.kinematics.five_bar import chain_kinematics, design_five_bar, soil_trajectory
     from ..reference import chain_reference, soil_point_reference
 
     design = design_five_bar(*TOMATO)
-    l1, l2, adv = design.l1, design.l2, design.advance
+    l1, l2, adv = float(design.l1), float(design.l2), float(design.advance)   # one design
     total = l1 + l2
     rng = np.random.default_rng(ctx.seed + 2)
     n_ref = ctx.n(200, 10)
@@ -230,7 +247,7 @@ def trajectory(ctx):
         theta = np.sort(rng.uniform(0.0, 6.0 * math.pi, n))
         t = ctx.measure(lambda: soil_trajectory(l1, l2, theta, adv),
                         repeats=5 if n >= 100_000 else None)
-        x, y = soil_trajectory(l1, l2, theta, adv)
+        x, y = (np.asarray(v) for v in soil_trajectory(l1, l2, theta, adv))
         idx = rng.choice(n, min(n, n_ref), replace=False)
         err = 0.0
         for i in idx:
@@ -250,8 +267,8 @@ def trajectory(ctx):
         rp, rv, ra = chain_reference(alpha[i], omega, l1, l2, -2.0, 0.5 * math.pi, 0.0)
         for got, ref, scale in ((pos, rp, total), (vel, rv, total * omega),
                                 (acc, ra, total * omega ** 2)):
-            err = max(err, float(abs(got[0][i] - ref[0]) / scale),
-                      float(abs(got[1][i] - ref[1]) / scale))
+            err = max(err, float(abs(np.asarray(got[0])[i] - ref[0]) / scale),
+                      float(abs(np.asarray(got[1])[i] - ref[1]) / scale))
     yield Row('trajectory evaluation', 'chain_kinematics (pos, vel, acc)', n, 'point', t,
               error=err, error_of='max error / (l1+l2)·ω^j (j = 0, 1, 2) vs mpmath',
               note='paper formula 3, ω1 = 2π rad/s')

@@ -2,13 +2,14 @@
 each in a fresh interpreter, next to a bare interpreter for scale; and which heavy modules the
 run loaded (it should load none: a five-bar scene skips what it does not need)."""
 
+from collections.abc import Iterator
 import json
 import os
 import subprocess
 import sys
 import time
 
-from ..registry import Row, bench_case
+from ..registry import BenchContext, Row, bench_case
 from ..timing import from_samples
 
 # heavy modules a five-bar design must not load
@@ -45,7 +46,7 @@ sys.exit(main())
 '''
 
 
-def run_measured(code, env=None):
+def run_measured(code: str, env: dict[str, str] | None = None) -> tuple[float, int, str]:
     """Run `python -c code` in a fresh interpreter; (wall seconds, peak RSS bytes, stdout)."""
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, '-c', PEAK_RSS + code], capture_output=True,
@@ -58,7 +59,7 @@ def run_measured(code, env=None):
     return wall, int(peaks[-1]) * 1024, proc.stdout
 
 
-def _env():
+def _env() -> dict[str, str]:
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(
         os.path.abspath(__file__)))))
     path = os.environ.get('PYTHONPATH', '')
@@ -66,7 +67,7 @@ def _env():
 
 
 @bench_case('footprint of a minimal five-bar run')
-def footprint(ctx):
+def footprint(ctx: BenchContext) -> Iterator[Row]:
     env = _env()
     repeats = ctx.n(7, 1)
     runs = {
@@ -86,7 +87,7 @@ def footprint(ctx):
                 heavy = r['heavy']
         peak_mb = max(rss) / 1e6
         note = f'peak RSS {peak_mb:.1f} MB (max of {repeats})'
-        extra = {'peak_rss_bytes': max(rss)}
+        extra: dict[str, object] = {'peak_rss_bytes': max(rss)}
         if imports:
             it = from_samples(imports)
             note += (f'; import five_bar {it.median * 1e3:.1f} ms '

@@ -9,15 +9,23 @@ predictions, so its rows have no error; the sample bags were recorded by the rea
 and hold its per-plant table, which replay must reproduce.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterator
 import os
 from pathlib import Path
 import tempfile
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planter_ros import interfaces
 
-from ..registry import Row, Target, bench_case
+from ..registry import BenchContext, Row, Target, bench_case
+
+if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
+    from planter_ros.recording.replay import ReplayResult
+    from planter_ros.sim.runs import Run
 
 WHAT = 'replay (planter replay)'
 REAL_TIME_TARGET = 1000.0      # quality target: replay >= 1000x real time
@@ -26,7 +34,9 @@ ERROR_OF = ('max |replayed − live monitor prediction| over every field of ever
             'm, m/s, rad/s, rad), absolute; — for a generated bag (no live predictions in it)')
 
 
-def _replay_row(ctx, path, label, result, bag_messages, error=None, target=False, note=''):
+def _replay_row(ctx: BenchContext, path: Path, label: str, result: ReplayResult,
+                bag_messages: int, error: float | None = None, target: bool = False,
+                note: str = '') -> Row:
     from planter_ros.recording.replay import replay
 
     t = ctx.measure(lambda: replay(path))
@@ -35,19 +45,19 @@ def _replay_row(ctx, path, label, result, bag_messages, error=None, target=False
                if target else [])
     used = sum(result.messages[t.name] for t in (interfaces.GROUND_SPEED,
                                                  interfaces.JOINT_STATES))
-    extra = {'bag_duration_s': result.duration, 'bag_messages': bag_messages,
+    extra: dict[str, object] = {'bag_duration_s': result.duration, 'bag_messages': bag_messages,
              'bag_bytes': os.path.getsize(path), 'messages_used': used,
              'plants': result.summary['plants'], 'times_real_time': speed,
              'used_messages_per_s': used / t.median}
     note = (f'{speed:.0f}× real time; {result.duration:.0f} s bag, {bag_messages} messages, '
-            f'{extra["bag_bytes"] / 1e6:.2f} MB, {result.summary["plants"]} plants; '
+            f'{os.path.getsize(path) / 1e6:.2f} MB, {result.summary["plants"]} plants; '
             f'{used / t.median / 1e3:.0f} k decoded input messages/s'
             + (f'; {note}' if note else ''))
     return Row(WHAT, label, bag_messages, 'message', t, error=error, error_of=ERROR_OF,
                targets=targets, note=note, extra=extra)
 
 
-def _damaged_row(ctx, run, tmp, whole):
+def _damaged_row(ctx: BenchContext, run: Run, tmp: Path, whole: ReplayResult) -> Row:
     """The generated run in chunks of 64 kB, the middle chunk's bytes zeroed: every other chunk
     is read."""
     from mcap.reader import make_reader
@@ -57,8 +67,10 @@ def _damaged_row(ctx, run, tmp, whole):
     path, damaged = tmp / 'chunked.mcap', tmp / 'damaged.mcap'
     bag_messages = write_input_bag(run, path, chunk_size=64_000).message_count
     with open(path, 'rb') as f:
-        chunks = sorted(make_reader(f).get_summary().chunk_indexes,
-                        key=lambda c: c.chunk_start_offset)
+        summary = make_reader(f).get_summary()
+    if summary is None:                      # the bag was just written and closed
+        raise RuntimeError(f'{path} has no summary')
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
     data = bytearray(path.read_bytes())
     hit = chunks[len(chunks) // 2]
     middle = hit.chunk_start_offset + hit.chunk_length // 2
@@ -72,7 +84,7 @@ def _damaged_row(ctx, run, tmp, whole):
                        f'{whole.summary["plants"]} plants')
 
 
-def _garbage_rows(ctx, tmp):
+def _garbage_rows(ctx: BenchContext, tmp: Path) -> Iterator[Row]:
     """Files that start like MCAP and hold no valid record: refused after a bounded scan."""
     from planter_ros.recording.errors import BagUnreadableError
     from planter_ros.recording.replay import replay
@@ -84,7 +96,7 @@ def _garbage_rows(ctx, tmp):
     noise.write_bytes(b'\x89MCAP0\r\n' + np.random.default_rng(0).bytes(64 << 20))
     for path, label in ((zeros, f'MCAP magic + {size >> 20} MiB of zeros'),
                         (noise, 'MCAP magic + 64 MiB of random bytes')):
-        def refuse():
+        def refuse() -> None:
             try:
                 replay(path)
             except BagUnreadableError:
@@ -96,7 +108,7 @@ def _garbage_rows(ctx, tmp):
                   note='no valid record in the first 16 MiB: refused (exit 2)')
 
 
-def _live_error(result, path):
+def _live_error(result: ReplayResult, path: Path) -> float:
     """Max |replayed − recorded live prediction| over the plant table (NaN must match NaN)."""
     # the fields this recording has (one made before tip_sweep and the map has fewer)
     columns = result.recorded_columns()
@@ -114,7 +126,7 @@ def _live_error(result, path):
 
 @bench_case('replay',
             requires=('rosbags', 'mcap', 'rclpy', 'planter_ros.recording.replay'))
-def replay_throughput(ctx):
+def replay_throughput(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     from planter_ros.recording.replay import replay
     from planter_ros.sim.bags import write_input_bag

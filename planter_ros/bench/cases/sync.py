@@ -17,12 +17,13 @@ their load, which a machine's real drives do not put on the master; and a virtua
 copies the frame in Python, where SocketCAN hands it to the kernel.
 """
 
+from collections.abc import Iterator
 import os
 import threading
 import time
 import uuid
 
-from ..registry import Row, Target, bench_case
+from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
 
 WHAT = 'sync loop: ground-speed message → CAN frame'
@@ -34,20 +35,25 @@ RATE = 50.0                # Hz, ground-speed samples
 ERROR_OF = 'no error defined: timings only'
 
 
-def row_parameters(rows):
+def row_parameters(rows: int) -> dict[str, object]:
     """Scene parameters of a machine of `rows` rows (node ids 1..rows, 0.5 m apart), as a
     parameter file gives them; none for one row (a scene without rows)."""
     if rows <= 1:
         return {}
     names = [f'row{i + 1}' for i in range(rows)]
-    out = {'rows': names}
+    out: dict[str, object] = {'rows': names}
     for i, name in enumerate(names):
         out[f'{name}.lateral_offset'] = 0.5 * (0.5 * (rows - 1) - i)
         out[f'{name}.drive_node_id'] = i + 1
     return out
 
 
-def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
+# a drive watchdog trip: (node id, reason, EMCY code)
+Trip = tuple[int, str, int]
+
+
+def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: float = 10.0,
+                   rows: int = 1) -> tuple[list[float], int, list[Trip]]:
     """Seconds from publish() to the last row's CAN frame it caused, one entry per sample
     matched on every row; returns (latencies, samples sent). The node spins in rclpy's
     single-threaded executor, as sync_node's main does."""
@@ -74,9 +80,12 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
     rclpy.init(args=['--ros-args', *PRIVATE_GRAPH_ROS_ARGS], context=context,
                domain_id=claim_private_domain(),
                signal_handler_options=SignalHandlerOptions.NO)
-    sims = None
-    sync = source = ex = listener = None
-    frames = []
+    sims: SimulatedBus | None = None
+    sync: SyncNode | None = None
+    source: Node | None = None
+    ex: SingleThreadedExecutor | None = None
+    listener: can.BusABC | None = None
+    frames: list[tuple[float, int, bytes]] = []
     stop = threading.Event()
     try:
         sims = SimulatedBus(channel, range(1, max(rows, 1) + 1))
@@ -95,16 +104,16 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
         listener = can.Bus(interface='virtual', channel=channel)
         rpdo_ids = range(0x200 + 1, 0x200 + max(rows, 1) + 1)
 
-        def listen():
+        def listen(bus: can.BusABC) -> None:
             while not stop.is_set():
-                msg = listener.recv(timeout=0.1)
+                msg = bus.recv(timeout=0.1)
                 if msg is not None and msg.arbitration_id in rpdo_ids:
                     frames.append((msg.timestamp, msg.arbitration_id, bytes(msg.data)))
 
         ex = SingleThreadedExecutor(context=context)
         ex.add_node(sync)
         sync.enable_drive()
-        threading.Thread(target=listen, daemon=True).start()
+        threading.Thread(target=listen, args=(listener,), daemon=True).start()
         threading.Thread(target=ex.spin, daemon=True).start()
         deadline = time.monotonic() + timeout
         # discovery done and the latched design taken
@@ -112,7 +121,7 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
             if time.monotonic() > deadline:
                 raise TimeoutError(f'the sync node did not see the source within {timeout} s')
             time.sleep(0.01)
-        sent = []
+        sent: list[float] = []
         msg = TwistStamped()
         for i in range(samples + warmup):
             msg.twist.linear.x = 0.2 + 0.001 * (i % 200)    # a new command every sample
@@ -138,7 +147,7 @@ def sync_latencies(samples, rate=RATE, warmup=50, timeout=10.0, rows=1):
     return match_frames(sent, frames), len(sent), trips
 
 
-def tripped(trips):
+def tripped(trips: list[Trip]) -> str:
     """Why no command changed, when a drive's watchdog stopped it (the host starved the
     process past the drive's deadlines): '' otherwise."""
     if not trips:
@@ -148,12 +157,12 @@ def tripped(trips):
             f'{reason}, EMCY {code:04X}h)')
 
 
-def match_frames(sent, frames):
+def match_frames(sent: list[float], frames: list[tuple[float, int, bytes]]) -> list[float]:
     """Latency of each sample: per row (COB-ID), the first RPDO after it, before the next
     sample, with a new payload; the sample's latency is the last row's. A sample some row has
     no such frame for is left out."""
-    changes = {}
-    last = {}
+    changes: dict[int, list[float]] = {}
+    last: dict[int, bytes] = {}
     for stamp, cob, data in frames:
         if last.get(cob) is not None and data != last[cob]:
             changes.setdefault(cob, []).append(stamp)
@@ -179,7 +188,7 @@ def match_frames(sent, frames):
 
 
 @bench_case('sync loop latency', requires=('rclpy', 'can', 'planter_ros.nodes.sync_node'))
-def sync_latency(ctx):
+def sync_latency(ctx: BenchContext) -> Iterator[Row]:
     samples = ctx.n(1000, 50)
     ctx.progress(f'  {samples} samples at {RATE:g} Hz ...')
     lat, sent, trips = sync_latencies(samples, RATE, warmup=ctx.n(50, 10))
@@ -188,7 +197,7 @@ def sync_latency(ctx):
                            + tripped(trips))
     t = from_samples(lat, tail=True)
     yield Row(WHAT, 'sync_node (single-threaded executor, own thread)', 1, 'message', t,
-              error_of=ERROR_OF, targets=[Target('p99 ≤ 2 ms', t.p99 <= P99_TARGET)],
+              error_of=ERROR_OF, targets=[Target('p99 ≤ 2 ms', t.tail <= P99_TARGET)],
               note=f'{len(lat)}/{sent} samples matched at {RATE:g} Hz, max '
                    f'{max(lat) * 1e3:.2f} ms; frame stamped by python-can at send',
               extra={'samples': sent, 'matched': len(lat), 'max_s': max(lat)})
@@ -196,7 +205,7 @@ def sync_latency(ctx):
 
 @bench_case('sync loop latency per row count',
             requires=('rclpy', 'can', 'planter_ros.nodes.sync_node', 'planter_ros.rows'))
-def sync_latency_rows(ctx):
+def sync_latency_rows(ctx: BenchContext) -> Iterator[Row]:
     samples = ctx.n(1000, 50)
     for rows in ROW_COUNTS:
         ctx.progress(f'  {rows} row(s): {samples} samples at {RATE:g} Hz ...')
@@ -205,32 +214,37 @@ def sync_latency_rows(ctx):
             raise RuntimeError(f'{rows} rows: no sample matched a CAN frame on every row'
                                + tripped(trips))
         t = from_samples(lat, tail=True)
-        targets = [Target('8 rows: p99 ≤ 2 ms', t.p99 <= P99_TARGET)] if rows == 8 else []
+        targets = [Target('8 rows: p99 ≤ 2 ms', t.tail <= P99_TARGET)] if rows == 8 else []
         yield Row(WHAT_ROWS, f'{rows} row(s), simulated drives in the process', rows,
                   'row', t, error_of=ERROR_OF, targets=targets,
                   note=f'{len(lat)}/{sent} samples matched on every row at {RATE:g} Hz, p50 '
-                       f'{t.median * 1e3:.2f} ms, p99 {t.p99 * 1e3:.2f} ms, max '
+                       f'{t.median * 1e3:.2f} ms, p99 {t.tail * 1e3:.2f} ms, max '
                        f'{max(lat) * 1e3:.2f} ms',
                   extra={'rows': rows, 'samples': sent, 'matched': len(lat),
                          'max_s': max(lat)})
 
 
 @bench_case('closed loop through curves', requires=('planter_ros.control.machine',))
-def closed_loop_curves(ctx):
-    from planter_ros.sim.closed_loop import curve_comparison
-    result = {}
+def closed_loop_curves(ctx: BenchContext) -> Iterator[Row]:
+    from planter_ros.sim.closed_loop import RowCurveFigures, curve_comparison
+    result: dict[str, list[RowCurveFigures]] = {}
     t = ctx.measure(lambda: result.update(curve_comparison(dt=ctx.n(0.001, 0.002))),
                     repeats=1, min_time=0.0)
     d = 0.2
+
+    def known(value: float | None) -> float:
+        if value is None:
+            raise RuntimeError('a curve of the run has no plants: it has no figures')
+        return value
     for mode in ('compensated', 'uncompensated'):
         for row in result[mode]:
-            worst = max(c['rms_spacing_error'] for c in row['curves'])
-            ratios = [c['median_speed_ratio'] for c in row['curves']]
+            worst = max(known(c['rms_spacing_error']) for c in row['curves'])
+            ratios = [known(c['median_speed_ratio']) for c in row['curves']]
             detail = '; '.join(
-                f"R {c['radius']:+g} m: RMS {c['rms_spacing_error'] * 1e3:.2f} mm, mean "
-                f"{c['mean_spacing_error'] * 1e3:+.2f} mm (−y·d/R "
+                f"R {c['radius']:+g} m: RMS {known(c['rms_spacing_error']) * 1e3:.2f} mm, mean "
+                f"{known(c['mean_spacing_error']) * 1e3:+.2f} mm (−y·d/R "
                 f"{c['uncompensated_bias'] * 1e3:+.1f} mm), speed ratio "
-                f"{c['median_speed_ratio']:.3f}" for c in row['curves'])
+                f"{known(c['median_speed_ratio']):.3f}" for c in row['curves'])
             targets = []
             if mode == 'compensated':
                 targets = [Target('RMS ≤ 2 % of d', worst <= 0.02 * d),

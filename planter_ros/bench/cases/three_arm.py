@@ -2,11 +2,19 @@
 trapezoid rule) against an mpmath reference, the build of a gear train, and one full cycle of
 all three arms after the build."""
 
+from __future__ import annotations
+
+from collections.abc import Iterator
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..registry import Row, Target, bench_case
+from ..registry import BenchContext, Row, Target, bench_case
+
+if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
+    from planter_ros.kinematics.arrays import FloatArray
+    from planter_ros.kinematics.three_arm.pitch_curve import PitchCurve
 
 CLOSURE_TARGET = 1e-9          # quality target: gear-closure integral <= 1e-9 relative
 CYCLE_TARGET = 1e-3            # ... and a full three-arm cycle <= 1 ms
@@ -14,24 +22,24 @@ CLOSURE_ERROR_OF = ('|a − a_ref| / a_ref, centre distance vs mpmath (30 digits
                     'pitch curve; the closure residual |mean ratio − 1| is in the note')
 
 
-def _paper_scene():
+def _paper_scene() -> dict[str, Any]:
     from planter_ros.scene import default_scene_path, load_scene
     return load_scene(default_scene_path('rice_three_arm.yaml'), 'design_node')
 
 
-def _mpmath_mean_ratio(curve, a):
+def _mpmath_mean_ratio(curve: PitchCurve, a: float) -> Any:      # an mpmath mpf
     """(1/2π)∮ρ/(a−ρ)dθ by mpmath quadrature, piece by piece between the spline knots."""
     import mpmath
     ends = [float(e) for e in curve.pieces]
-    a = mpmath.mpf(a)
+    exact = mpmath.mpf(a)
     total = mpmath.fsum(
-        mpmath.quad(lambda t: (lambda r: r / (a - r))(mpmath.mpf(float(curve(float(t))))),
+        mpmath.quad(lambda t: (lambda r: r / (exact - r))(mpmath.mpf(float(curve(float(t))))),
                     [ends[i], ends[i + 1]]) for i in range(len(ends) - 1))
     return total / (2 * mpmath.pi)
 
 
 @bench_case('gear-train closure', requires=('planter_ros.kinematics.three_arm',))
-def three_arm_closure(ctx):
+def three_arm_closure(ctx: BenchContext) -> Iterator[Row]:
     import mpmath
     from planter_ros.kinematics.three_arm import PitchCurve, solve_centre_distance
 
@@ -42,7 +50,7 @@ def three_arm_closure(ctx):
     with mpmath.workdps(30):
         a_ref = mpmath.findroot(lambda a: _mpmath_mean_ratio(curve, a) - 1,
                                 solve_centre_distance(curve).a)
-        methods = [('gauss', {}), ('paper', {})]
+        methods: list[tuple[str, dict[str, int]]] = [('gauss', {}), ('paper', {})]
         methods += [('trapezoid', {'samples': n}) for n in ctx.n((90, 360, 1024, 4096), (360,))]
         for method, kw in methods:
             t = ctx.measure(lambda: solve_centre_distance(curve, method, **kw))
@@ -62,7 +70,7 @@ def three_arm_closure(ctx):
 
 
 @bench_case('three-arm build and cycle', requires=('planter_ros.kinematics.three_arm',))
-def three_arm_cycle(ctx):
+def three_arm_cycle(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.kinematics.three_arm import ThreeArmMechanism
 
     params = _paper_scene()
@@ -79,7 +87,7 @@ def three_arm_cycle(ctx):
         end = np.array([mech.tip(2 * math.pi, arm) for arm in range(3)])
         per_arm = np.array([mech.tip(theta, arm) for arm in range(3)])
         err = max(float(np.max(np.abs(end - start))),
-                  float(np.max(np.abs(per_arm - tips)))) / mech.arm_length
+                  float(np.max(np.abs(per_arm - tips)))) / float(mech.arm_length)
         yield Row('three-arm cycle (3 arms)', f'{samples} angles per arm', 1, 'cycle', t,
                   error=err, error_of='max |tip(2π) − tip(0)| and |cycle − per-arm tip| over '
                   'the arm length S',
@@ -91,7 +99,7 @@ OPTIMISER_TARGET = 15.0        # quality target: all eight goals in <= 15 s of s
 OPTIMISER_SEED = 1
 
 
-def _search_box(rng, count):
+def _search_box(rng: np.random.Generator, count: int) -> FloatArray:
     """`count` random designs from the optimiser's search box (radii, then Φ0, β0, S, H1, γ0)."""
     from planter_ros.optimize.three_arm import INSTALL_BOUNDS, RADIUS_BOUNDS
     radii = rng.uniform(*RADIUS_BOUNDS, (count, 12))
@@ -100,7 +108,7 @@ def _search_box(rng, count):
 
 
 @bench_case('three-arm optimiser', requires=('planter_ros.optimize.three_arm',))
-def three_arm_optimiser(ctx):
+def three_arm_optimiser(ctx: BenchContext) -> Iterator[Row]:
     from planter_ros.optimize.three_arm import PopulationScorer, optimize, score
     from ..timing import from_samples
 
@@ -135,7 +143,7 @@ def three_arm_optimiser(ctx):
                          f'{workers} ...')
             _, goals, info = optimize(params, seed=OPTIMISER_SEED, max_time=120,
                                       workers=workers)
-            met = sum(g.passed for g in goals) == len(goals) and \
+            met = goals is not None and sum(g.passed for g in goals) == len(goals) and \
                 info['seconds'] <= OPTIMISER_TARGET
             # the target is the command's default, both cores
             targets = [Target('≤ 15 s', met)] if workers == 2 else []

@@ -66,7 +66,7 @@ class CurveBasis:
         self.interpolant = interpolant
         self._unit = [cls(row, self.angles) for row in np.eye(n)]
         self.pieces = analytic_pieces(self._unit[0].breakpoints)
-        self._cache = {}
+        self._cache: dict[_CacheKey, FloatArray] = {}
         self.table_nodes = subdivide(self.pieces, 2 ** TABLE_SPLITS)
         intervals = len(self.table_nodes) - 1
         points = int(np.clip(math.ceil(GAUSS_NODES_PER_TURN / intervals), *GAUSS_POINTS))
@@ -91,6 +91,10 @@ class CurveBasis:
         return out
 
 
+# a cached evaluation: (shape, bytes of the angles u, derivative order)
+_CacheKey = tuple[tuple[int, ...], bytes, int]
+
+
 class BatchCurve:
     """The pitch curves of a batch: ρ^(nu) at shared angles u -> (P, len(u))."""
 
@@ -99,12 +103,14 @@ class BatchCurve:
         self.radii = radii
         self.interpolant = basis.interpolant
         self.pieces = basis.pieces
-        self._memo = {}
-        lo = hi = None
-        for nodes in (basis.range_nodes, basis.quad_nodes.ravel(), basis.table_nodes):
-            rho = self(nodes)
-            lo = rho.min(axis=-1) if lo is None else np.minimum(lo, rho.min(axis=-1))
-            hi = rho.max(axis=-1) if hi is None else np.maximum(hi, rho.max(axis=-1))
+        self._memo: dict[_CacheKey, FloatArray] = {}
+        first, *others = (self(nodes) for nodes in
+                          (basis.range_nodes, basis.quad_nodes.ravel(), basis.table_nodes))
+        lo: FloatArray = first.min(axis=-1)
+        hi: FloatArray = first.max(axis=-1)
+        for rho in others:
+            lo = np.minimum(lo, rho.min(axis=-1))
+            hi = np.maximum(hi, rho.max(axis=-1))
         self.rho_min, self.rho_max = lo, hi
 
     def __call__(self, u: ArrayLike, nu: int = 0) -> FloatArray:
@@ -120,7 +126,8 @@ class BatchCurve:
     def length(self) -> FloatArray:
         b = self.basis
         r, r1 = self(b.length_nodes), self(b.length_nodes, 1)
-        return np.sum(b.length_weights * np.hypot(r, r1), axis=-1)
+        length: FloatArray = np.sum(b.length_weights * np.hypot(r, r1), axis=-1)
+        return length
 
 
 class _Closure:
@@ -216,7 +223,7 @@ def _solve_centre_distance(rho: FloatArray, w: FloatArray, rho_max: FloatArray) 
     (max ρ at the nodes, 2·max ρ]; rows stop once a step moves a by under 1e-14 of it."""
     rho = rho.reshape(len(rho), -1)
     w = w.ravel()
-    lo = rho.max(axis=-1)
+    lo: FloatArray = rho.max(axis=-1)
     hi = 2.0 * np.maximum(rho_max, lo)
     a = 0.5 * (lo + hi)
     todo = np.arange(len(a))
@@ -279,8 +286,8 @@ class MechanismBatch(ThreeArmMechanism):
         self.pusher_offset = col['h'][:, None]
         self.gamma0 = col['gamma0'][:, None]
         self.delta = np.arcsin(self.pusher_offset / self.arm_length)
-        self.train = BatchGearTrain(curve)
-        self.a = self.train.a[:, None]
+        self.train = train = BatchGearTrain(curve)
+        self.a = train.a[:, None]
         self._c = math.pi - self.gamma0
         self._w0 = [self.train.theta(self.train.psi(-k * ARM_PHASE) + self._c)
                     for k in range(ARMS)]

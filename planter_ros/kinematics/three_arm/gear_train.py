@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -48,7 +48,8 @@ from planter_ros.config import specs
 from ..arrays import FloatArray, Floats
 from ..errors import DesignError
 from ..scene_settings import ThreeArmSettings
-from .pitch_curve import TWO_PI, PitchCurve, leggauss, solve_centre_distance, subdivide
+from .pitch_curve import (
+    INTERPOLANTS, TWO_PI, PitchCurve, leggauss, solve_centre_distance, subdivide)
 
 if TYPE_CHECKING:
     from scipy.interpolate import PPoly
@@ -85,7 +86,7 @@ class GearTrain:
         self._theta = quintic_hermite(psi, nodes, g, g1)
         self.ratio_range = (float(f.min()), float(f.max()))
 
-    def psi(self, u: ArrayLike, nu: int = 0) -> Floats:
+    def psi(self, u: ArrayLike, nu: int = 0) -> FloatArray:
         """Intermediate polar angle in mesh with the sun's polar angle u (any real u), or its
         nu-th derivative (nu = 1: the transmission ratio ρ/(a−ρ))."""
         u = np.asarray(u, dtype=float)
@@ -93,7 +94,7 @@ class GearTrain:
         out = self._psi(u - turns * TWO_PI, nu)
         return out + turns * TWO_PI if nu == 0 else out
 
-    def theta(self, p: ArrayLike, nu: int = 0) -> Floats:
+    def theta(self, p: ArrayLike, nu: int = 0) -> FloatArray:
         """Inverse of psi: the sun (or planet) polar angle in mesh with intermediate angle p, or
         its nu-th derivative."""
         p = np.asarray(p, dtype=float)
@@ -107,6 +108,44 @@ class GearTrain:
         return self.psi(u), self.a - self.curve(u)
 
 
+class PitchCurves(Protocol):
+    """What the goals read of the sun's pitch curve: one design's (PitchCurve) or a batch's
+    (batch.BatchCurve, arrays of the batch's shape)."""
+
+    @property
+    def pieces(self) -> FloatArray: ...
+    @property
+    def interpolant(self) -> str: ...
+    @property
+    def rho_min(self) -> Floats: ...
+    @property
+    def rho_max(self) -> Floats: ...
+    def __call__(self, theta: FloatArray, nu: int = 0, /) -> FloatArray: ...
+    def length(self) -> Floats: ...
+
+
+class ClosureFigures(Protocol):
+    """How well the pair closes (pitch_curve.Closure, or a batch's)."""
+
+    @property
+    def residual(self) -> Floats: ...
+    @property
+    def method(self) -> str: ...
+
+
+class MeshMaps(Protocol):
+    """A gear train as the mechanism uses it: GearTrain, or batch.BatchGearTrain."""
+
+    @property
+    def a(self) -> Floats: ...
+    @property
+    def curve(self) -> PitchCurves: ...
+    @property
+    def closure(self) -> ClosureFigures: ...
+    def psi(self, u: ArrayLike, nu: int = 0) -> FloatArray: ...
+    def theta(self, p: ArrayLike, nu: int = 0) -> FloatArray: ...
+
+
 class ThreeArmMechanism:
     """A built three-arm mechanism: gear train plus installation parameters (SI units).
 
@@ -118,12 +157,23 @@ class ThreeArmMechanism:
     inherits them unchanged; `batch_shape` is () here and (P,) there.
     """
 
-    batch_shape = ()
+    # one design: floats; a MechanismBatch: arrays of shape (P, 1) (its train a BatchGearTrain)
+    batch_shape: tuple[int, ...] = ()
+    phi0: Floats
+    beta0: Floats
+    arm_length: Floats
+    pusher_offset: Floats
+    gamma0: Floats
+    delta: Floats
+    a: Floats
+    train: MeshMaps
+    _c: Floats
+    _w0: list[Floats]
 
     def __init__(self, curve: PitchCurve, carrier_initial_angle: float,
                  arm_initial_angle: float, arm_length: float, pusher_offset: float,
                  planet_carrier_angle: float, closure_method: str = 'gauss') -> None:
-        values = dict(carrier_initial_angle=carrier_initial_angle,
+        values: dict[str, object] = dict(carrier_initial_angle=carrier_initial_angle,
                       arm_initial_angle=arm_initial_angle, arm_length=arm_length,
                       pusher_offset=pusher_offset, planet_carrier_angle=planet_carrier_angle)
         for name, value in values.items():
@@ -138,13 +188,12 @@ class ThreeArmMechanism:
         self.beta0 = float(arm_initial_angle)
         self.arm_length = float(arm_length)
         self.pusher_offset = float(pusher_offset)
-        self.gamma0 = float(planet_carrier_angle)
-        self.delta = math.asin(self.pusher_offset / self.arm_length)
-        self.train = GearTrain(curve, closure_method)
-        self.a = self.train.a
-        self._c = math.pi - self.gamma0
-        self._w0 = [float(self.train.theta(self.train.psi(-k * ARM_PHASE) + self._c))
-                    for k in range(ARMS)]
+        self.gamma0 = gamma0 = float(planet_carrier_angle)
+        self.delta = math.asin(float(pusher_offset) / float(arm_length))
+        self.train = train = GearTrain(curve, closure_method)
+        self.a = train.a
+        self._c = c = math.pi - gamma0
+        self._w0 = [float(train.theta(train.psi(-k * ARM_PHASE) + c)) for k in range(ARMS)]
 
     @classmethod
     def from_parameters(cls, params: Mapping[str, object]) -> ThreeArmMechanism:
@@ -152,9 +201,16 @@ class ThreeArmMechanism:
         missing = [k for k in PARAMETER_NAMES if k not in params]
         if missing:
             raise DesignError(missing[0], 'missing', 'present in the scene (three_arm)')
+        interpolant = params.get('interpolant', 'periodic_cubic')
+        if not isinstance(interpolant, str):
+            raise DesignError('interpolant', interpolant, ' | '.join(INTERPOLANTS))
         curve = PitchCurve(_floats(params, 'control_radii'), _floats(params, 'control_angles'),
-                           params.get('interpolant', 'periodic_cubic'))
-        return cls(curve, **{k: _float(params, k) for k in PARAMETER_NAMES[2:]})
+                           interpolant)
+        return cls(curve, carrier_initial_angle=_float(params, 'carrier_initial_angle'),
+                   arm_initial_angle=_float(params, 'arm_initial_angle'),
+                   arm_length=_float(params, 'arm_length'),
+                   pusher_offset=_float(params, 'pusher_offset'),
+                   planet_carrier_angle=_float(params, 'planet_carrier_angle'))
 
     # --- angles --------------------------------------------------------------------------
     def carrier_angle(self, theta: ArrayLike, arm: int = 0) -> Floats:
@@ -244,8 +300,8 @@ class ThreeArmMechanism:
         alpha = self._attitude(ph, self.train.theta(self.train.psi(u) + self._c))
         x, y = self._tip(ph, alpha)
         shape = self.batch_shape + (ARMS, samples)
-        return theta, np.stack([x.reshape(shape), y.reshape(shape)], axis=-2), \
-            alpha.reshape(shape)
+        return theta, np.stack([np.reshape(x, shape), np.reshape(y, shape)], axis=-2), \
+            np.reshape(alpha, shape)
 
 
 def quintic_hermite(x: FloatArray, y: FloatArray, dy: FloatArray, d2y: FloatArray) -> PPoly:

@@ -49,7 +49,7 @@ from dataclasses import asdict, dataclass, field
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from planter_ros.config import specs
 
@@ -64,6 +64,7 @@ PRESSURE_ANGLE = 20.0 * DEG
 ADDENDUM = 1.0
 MIN_MODULE = 0.0025
 MODULE_SAMPLES = 2048       # per turn, where the pitch curves' curvature is checked (goal 8)
+PUSH_TOLERANCE = 0.01       # m, goal 5's upper bound
 
 # name: (lower, upper, unit, scale used by the optimiser to weigh a violation)
 BOUNDS = {
@@ -71,13 +72,12 @@ BOUNDS = {
     'picking_angle': (-5.0 * DEG, 15.0 * DEG, 'rad', 5.0 * DEG),
     'pushing_angle': (45.0 * DEG, 65.0 * DEG, 'rad', 5.0 * DEG),
     'angle_difference': (50.0 * DEG, 60.0 * DEG, 'rad', 5.0 * DEG),
-    'seedling_push': (None, 0.01, 'm', 0.01),
+    'seedling_push': (None, PUSH_TOLERANCE, 'm', 0.01),
     'gearbox_clearance': (0.02, None, 'm', 0.01),
     'trajectory_height': (0.26, None, 'm', 0.02),
     'gear_module': (MIN_MODULE, None, 'm', 0.0005),
 }
 GOAL_NAMES = tuple(BOUNDS)
-PUSH_TOLERANCE = BOUNDS['seedling_push'][1]
 
 # paper: the paper states the goal and its bound, nothing else is needed; assumption: the goal
 # needs values the paper never gives (listed per goal by `assumed_values`)
@@ -102,8 +102,9 @@ class Goal:
     unit: str
     passed: bool
     basis: str = ''                                  # 'paper' or 'assumption' (BASIS)
-    assumed: dict = field(default_factory=dict)      # the assumed values it rests on (SI)
-    derived: dict = field(default_factory=dict)      # figures computed alongside (SI)
+    # the assumed values it rests on, figures computed alongside (SI)
+    assumed: dict[str, float] = field(default_factory=dict)
+    derived: dict[str, float] = field(default_factory=dict)
 
     def violation(self, margin: float = 0.0) -> float:
         """Distance outside [lower + margin, upper − margin] over the goal's scale (0 inside)."""
@@ -125,7 +126,7 @@ def violation(name: str, value: Floats, lower: float | None, upper: float | None
 
 def goal_bounds(cfg: Mapping[str, float]) -> dict[str, tuple[float | None, float | None, str]]:
     """name -> (lower, upper, unit) for the scene values `cfg` (arm_width is goal 1's bound)."""
-    out = {}
+    out: dict[str, tuple[float | None, float | None, str]] = {}
     for name, (lower, upper, unit, _) in BOUNDS.items():
         out[name] = (cfg['arm_width'] if name == 'arm_clearance' else lower, upper, unit)
     return out
@@ -145,38 +146,47 @@ def assumed_values(name: str, cfg: Mapping[str, float]) -> dict[str, float]:
 
 def goal_settings(params: Mapping[str, object]) -> dict[str, float]:
     """The goal-related scene values (SI), checked, with defaults for the missing ones."""
-    out = {}
+    out: dict[str, float] = {}
     for key, default in GOAL_DEFAULTS.items():
         value = params.get(key, default)
+        spec = GOAL_SPECS[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or \
                 not math.isfinite(value):
-            raise DesignError(key, value, GOAL_SPECS[key].allowed())
+            raise DesignError(key, value, spec.allowed())
         if key in _POSITIVE and value <= 0:
             raise DesignError(key, value, 'finite and > 0 m')
-        if key in _PHASES and not GOAL_SPECS[key].low <= value <= GOAL_SPECS[key].high:
-            raise DesignError(key, value, GOAL_SPECS[key].allowed())
+        if key in _PHASES and not ((spec.low is None or spec.low <= value)
+                                   and (spec.high is None or value <= spec.high)):
+            raise DesignError(key, value, spec.allowed())
         out[key] = float(value)
     return out
 
 
-def _take(values: FloatArray, index: ArrayLike) -> Floats:
+Indices = NDArray[np.intp]
+
+
+def _take(values: FloatArray, index: Indices) -> FloatArray:
     """values[..., index] for an index array of the leading shape (periodic)."""
     n = values.shape[-1]
-    return np.take_along_axis(values, (np.asarray(index) % n)[..., None], axis=-1)[..., 0]
+    taken: FloatArray = np.take_along_axis(values, (np.asarray(index) % n)[..., None],
+                                           axis=-1)[..., 0]
+    return taken
 
 
-def _refine_extreme(theta: FloatArray, values: FloatArray, i: ArrayLike) -> Floats:
+def _refine_extreme(theta: FloatArray, values: FloatArray, i: Indices) -> Floats:
     """Parabolic refinement of a sampled extreme at index i on a periodic uniform grid."""
     y0, y1, y2 = _take(values, i - 1), _take(values, i), _take(values, i + 1)
     den = y0 - 2.0 * y1 + y2
     step = theta[1] - theta[0]
     with np.errstate(divide='ignore', invalid='ignore'):
         shift = np.where(den == 0, 0.0, 0.5 * (y0 - y2) / np.where(den == 0, 1.0, den))
-    return theta[i] + np.clip(shift, -1.0, 1.0) * step
+    refined: Floats = theta[i] + np.clip(shift, -1.0, 1.0) * step
+    return refined
 
 
 def _below_horizontal(angle: Floats) -> Floats:
-    return -np.arctan2(np.sin(angle), np.abs(np.cos(angle)))
+    below: Floats = -np.arctan2(np.sin(angle), np.abs(np.cos(angle)))
+    return below
 
 
 def _segment_distance(p1: FloatArray, q1: FloatArray, p2: FloatArray,
@@ -195,7 +205,8 @@ def _segment_distance(p1: FloatArray, q1: FloatArray, p2: FloatArray,
         t = np.clip(t, 0.0, 1.0)
         s = np.clip((b * t - c) / a, 0.0, 1.0)
     diff = p1 + d1 * s - (p2 + d2 * t)
-    return np.sqrt(np.sum(diff * diff, axis=0))
+    distance: FloatArray = np.sqrt(np.sum(diff * diff, axis=0))
+    return distance
 
 
 def gear_module_limit(mech: ThreeArmMechanism,
@@ -234,20 +245,26 @@ def _extremes(theta: FloatArray, y: FloatArray) -> tuple[Floats, Floats]:
             _refine_extreme(theta, y, np.argmin(y, axis=-1)))
 
 
-def _at(mech: ThreeArmMechanism, fn: Callable, theta: ArrayLike,
-        arm: int = 0) -> Floats | tuple[Floats, ...]:
+def _at(mech: ThreeArmMechanism, fn: Callable[[FloatArray, int], Floats], theta: ArrayLike,
+        arm: int = 0) -> FloatArray:
     """fn(θ, arm) at one carrier angle per design (θ of batch_shape)."""
-    out = fn(np.asarray(theta, dtype=float)[..., None], arm)
-    if isinstance(out, tuple):
-        return tuple(v[..., 0] for v in out)
+    out = np.asarray(fn(np.asarray(theta, dtype=float)[..., None], arm))
     return out[..., 0]
 
 
+def _at_pair(mech: ThreeArmMechanism, fn: Callable[[FloatArray, int], tuple[Floats, Floats]],
+             theta: ArrayLike, arm: int = 0) -> tuple[FloatArray, FloatArray]:
+    """_at for a function of (x, y)."""
+    x, y = fn(np.asarray(theta, dtype=float)[..., None], arm)
+    return np.asarray(x)[..., 0], np.asarray(y)[..., 0]
+
+
 def _phases(theta: FloatArray, y: FloatArray, cfg: Mapping[str, float],
-            shape: tuple[int, ...]) -> tuple[Floats, Floats, Floats, Floats]:
+            shape: tuple[int, ...]) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """(picking, planting, highest, lowest) carrier angles of arm I: the scene's phases where
-    given, else the highest and lowest tip points (refined from the samples y)."""
-    high, low = _extremes(theta, y)
+    given, else the highest and lowest tip points (refined from the samples y; one design's are
+    0-d arrays)."""
+    high, low = (np.asarray(v) for v in _extremes(theta, y))
     pick = high if cfg['picking_phase'] < 0 else np.full(shape, cfg['picking_phase'])
     plant = low if cfg['planting_phase'] < 0 else np.full(shape, cfg['planting_phase'])
     return pick, plant, high, low
@@ -259,14 +276,14 @@ def goal_values(mech: ThreeArmMechanism, cfg: Mapping[str, float],
     used ('picking_phase', 'planting_phase') and the zero-slip plant spacing."""
     theta, tips, _ = mech.cycle(samples)
     y = tips[..., 0, 1, :]
-    out = {}
+    out: dict[str, Floats] = {}
 
     centres = [mech.centres(theta, k) for k in range(ARMS)]
 
     # 1. non-interference between arms
     o3 = [np.stack(c[1]) for c in centres]
     ends = [np.moveaxis(tips[..., k, :, :], -2, 0) for k in range(ARMS)]
-    clearance = np.inf
+    clearance: Floats = np.inf
     for j in range(ARMS):
         k = (j + 1) % ARMS
         dist = _segment_distance(o3[j], ends[j], o3[k], ends[k])
@@ -282,14 +299,14 @@ def goal_values(mech: ThreeArmMechanism, cfg: Mapping[str, float],
     out['angle_difference'] = push - pick
 
     # 7. trajectory height; the ground is planting_depth above the planting point (5 and 6)
-    y_top = _at(mech, mech.tip, th_high)[1]
-    y_low = _at(mech, mech.tip, th_low)[1]
-    tip_x, tip_y = _at(mech, mech.tip, th_plant)
+    y_top = _at_pair(mech, mech.tip, th_high)[1]
+    y_low = _at_pair(mech, mech.tip, th_low)[1]
+    tip_x, tip_y = _at_pair(mech, mech.tip, th_plant)
     ground = tip_y + cfg['planting_depth']
 
     # 5. seedling push: ground frame, from planting until the tip clears the seedling top
     window = th_plant[..., None] + theta
-    gx, gy = mech.tip_ground(window, cfg['plant_spacing'])
+    gx, gy = (np.asarray(v) for v in mech.tip_ground(window, cfg['plant_spacing']))
     above = gy > (ground + cfg['seedling_height'])[..., None]
     end = np.maximum(np.where(above.any(axis=-1), np.argmax(above, axis=-1), len(theta)), 1)
     o3x = _at(mech, lambda t, arm: mech.centres(t, arm)[1][0], th_plant)
@@ -303,8 +320,8 @@ def goal_values(mech: ThreeArmMechanism, cfg: Mapping[str, float],
     rho_max, rho_min = mech.train.curve.rho_max, mech.train.curve.rho_min
     lowest = -(rho_max + MIN_MODULE)
     for (_, iy), (_, py) in centres:
-        lowest = np.minimum(lowest, np.minimum(iy.min(axis=-1) - (a - rho_min + MIN_MODULE),
-                                               py.min(axis=-1) - (rho_max + MIN_MODULE)))
+        lowest = np.minimum(lowest, np.minimum(np.min(iy, axis=-1) - (a - rho_min + MIN_MODULE),
+                                               np.min(py, axis=-1) - (rho_max + MIN_MODULE)))
     out['gearbox_clearance'] = lowest - ground
     out['trajectory_height'] = y_top - y_low
 
@@ -313,7 +330,7 @@ def goal_values(mech: ThreeArmMechanism, cfg: Mapping[str, float],
 
     # the plant spacing at which the ground keeps pace with the tip at planting
     # (ground-frame dx/dθ = tip dx/dθ + 3d/2π = 0)
-    out['zero_slip_spacing'] = -TWO_PI / ARMS * _at(mech, mech.tip_velocity, th_plant)[0]
+    out['zero_slip_spacing'] = -TWO_PI / ARMS * _at_pair(mech, mech.tip_velocity, th_plant)[0]
     out['picking_phase'] = np.mod(th_pick, TWO_PI)
     out['planting_phase'] = np.mod(th_plant, TWO_PI)
     return out
@@ -328,7 +345,7 @@ def evaluate_goals(mech: ThreeArmMechanism, params: Mapping[str, object] | None 
 
 def goals_from_values(values: Mapping[str, Floats], cfg: Mapping[str, float]) -> list[Goal]:
     """Goal records (one design) from goal_values' output."""
-    out = []
+    out: list[Goal] = []
     for name, (lower, upper, unit) in goal_bounds(cfg).items():
         value = float(values[name])
         if not math.isfinite(value):
@@ -343,7 +360,7 @@ def goals_from_values(values: Mapping[str, Floats], cfg: Mapping[str, float]) ->
 
 def goal_counts(goals: list[Goal]) -> dict[str, tuple[int, int]]:
     """{'paper': (passed, of), 'assumption': (passed, of)} by provenance."""
-    out = {}
+    out: dict[str, tuple[int, int]] = {}
     for basis in ('paper', 'assumption'):
         mine = [g for g in goals if g.basis == basis]
         out[basis] = (sum(g.passed for g in mine), len(mine))
@@ -351,14 +368,14 @@ def goal_counts(goals: list[Goal]) -> dict[str, tuple[int, int]]:
 
 
 def design_summary(params: Mapping[str, object], mech: ThreeArmMechanism | None = None,
-                   goals: list[Goal] | None = None) -> dict:
+                   goals: list[Goal] | None = None) -> dict[str, object]:
     """JSON-ready design of a three-arm scene (SI units) for the `design` topic and the CLI."""
     mech = mech or ThreeArmMechanism.from_parameters(params)
     cfg = goal_settings(params)
     values = goal_values(mech, cfg)
     goals = goals if goals is not None else goals_from_values(values, cfg)
     counts = goal_counts(goals)
-    summary = {
+    summary: dict[str, object] = {
         'mechanism': 'three_arm',
         'plants_per_revolution': ARMS,
         'plant_spacing': cfg['plant_spacing'],

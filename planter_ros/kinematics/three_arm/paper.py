@@ -25,10 +25,11 @@ from __future__ import annotations
 from collections.abc import Mapping
 import itertools
 import math
+from typing import TypedDict
 
 import numpy as np
 
-from .gear_train import ARMS, ThreeArmMechanism
+from .gear_train import ARMS, ThreeArmMechanism, _float
 from .goals import _below_horizontal, _extremes, gear_module_limit
 from .pitch_curve import INTERPOLANTS, TWO_PI
 
@@ -48,7 +49,7 @@ def _wrap(angle: float) -> float:
 def arm_timing(mech: ThreeArmMechanism, arm: int, samples: int = 3600) -> tuple[float, float]:
     """(picking, planting) carrier angles of one arm: its highest and lowest tip points."""
     theta = np.linspace(0.0, TWO_PI, samples, endpoint=False)
-    high, low = _extremes(theta, mech.tip(theta, arm)[1])
+    high, low = _extremes(theta, np.asarray(mech.tip(theta, arm)[1]))
     return float(np.mod(high, TWO_PI)), float(np.mod(low, TWO_PI))
 
 
@@ -56,10 +57,31 @@ def _attitude_below(mech: ThreeArmMechanism, theta: float, arm: int) -> float:
     return float(_below_horizontal(mech.pusher_attitude(theta, arm)))
 
 
-def paper_comparison(mech: ThreeArmMechanism, samples: int = 3600) -> dict:
+class ArmComparison(TypedDict):
+    """One arm's timing and attitudes beside Table 1's (rad)."""
+
+    arm: str
+    picking_phase: float
+    paper_picking_phase: float
+    picking_phase_difference: float
+    planting_phase: float
+    paper_planting_phase: float
+    planting_phase_difference: float
+    picking_angle: float
+    picking_angle_at_paper_phase: float
+    pushing_angle: float
+    pushing_angle_at_paper_phase: float
+
+
+class PaperComparison(TypedDict):
+    source: str
+    arms: list[ArmComparison]
+
+
+def paper_comparison(mech: ThreeArmMechanism, samples: int = 3600) -> PaperComparison:
     """Per arm: the model's picking and planting carrier angles beside Table 1's, their
     differences, and the picking and pushing angles (goals 2 and 3) at both (rad)."""
-    arms = []
+    arms: list[ArmComparison] = []
     for k in range(ARMS):
         pick, plant = arm_timing(mech, k, samples)
         paper_pick, paper_plant = TABLE_1['picking'][k], TABLE_1['planting'][k]
@@ -94,20 +116,37 @@ def reading_parameters(params: Mapping[str, object],
     """The scene values that make our model follow `reading` (see the module doc)."""
     gamma_sense, beta_sense, offset, reference, interpolant = reading
     out = dict(params, interpolant=interpolant)
-    out['planet_carrier_angle'] = _SENSES[gamma_sense] * params['planet_carrier_angle']
-    beta = _SENSES[beta_sense] * params['arm_initial_angle']
+    out['planet_carrier_angle'] = _SENSES[gamma_sense] * _float(params, 'planet_carrier_angle')
+    beta = _SENSES[beta_sense] * _float(params, 'arm_initial_angle')
     if offset == 'opposite':
         beta += math.pi
     if reference == 'from θ = 0':
-        beta += ThreeArmMechanism.from_parameters(dict(out, arm_initial_angle=beta))._w0[0]
+        mech = ThreeArmMechanism.from_parameters(dict(out, arm_initial_angle=beta))
+        beta += float(mech._w0[0])
     out['arm_initial_angle'] = beta
     return out
 
 
-def reading_table(params: Mapping[str, object], samples: int = 3600) -> list[dict]:
+class ReadingRow(TypedDict):
+    """Arm I's timing against Table 1 and the attitude goals (rad), and the gear module (m),
+    under one reading."""
+
+    reading: tuple[str, str, str, str, str]
+    picking_phase: float
+    picking_phase_difference: float
+    planting_phase: float
+    planting_phase_difference: float
+    picking_angle: float
+    pushing_angle: float
+    picking_angle_at_paper_phase: float
+    pushing_angle_at_paper_phase: float
+    gear_module: float
+
+
+def reading_table(params: Mapping[str, object], samples: int = 3600) -> list[ReadingRow]:
     """One row per reading: arm I's timing against Table 1 and the attitude goals (rad), and
     the gear module (m)."""
-    rows = []
+    rows: list[ReadingRow] = []
     for reading in readings():
         mech = ThreeArmMechanism.from_parameters(reading_parameters(params, reading))
         pick, plant = arm_timing(mech, 0, samples)
@@ -121,6 +160,6 @@ def reading_table(params: Mapping[str, object], samples: int = 3600) -> list[dic
             'pushing_angle': _attitude_below(mech, plant, 0),
             'picking_angle_at_paper_phase': _attitude_below(mech, TABLE_1['picking'][0], 0),
             'pushing_angle_at_paper_phase': _attitude_below(mech, TABLE_1['planting'][0], 0),
-            'gear_module': gear_module_limit(mech)[0],
+            'gear_module': float(gear_module_limit(mech)[0]),   # a float for one design
         })
     return rows

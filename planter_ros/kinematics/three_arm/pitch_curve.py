@@ -36,7 +36,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from functools import lru_cache
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -67,7 +67,8 @@ def leggauss(n: int) -> tuple[FloatArray, FloatArray]:
 def subdivide(ends: FloatArray, m: int) -> FloatArray:
     """Split each interval of the sorted `ends` into m equal parts; returns all the new ends."""
     lo, hi = ends[:-1, None], ends[1:, None]
-    return np.r_[(lo + (hi - lo) * (np.arange(m) / m)).ravel(), ends[-1]]
+    out: FloatArray = np.r_[(lo + (hi - lo) * (np.arange(m) / m)).ravel(), ends[-1]]
+    return out
 
 
 class _PiecewisePolynomial:
@@ -121,7 +122,8 @@ class _PolarBSpline(_PiecewisePolynomial):
         knots = np.r_[angles[n - 3:] - TWO_PI, angles, angles[:4] + TWO_PI]
         coef = np.r_[radii[n - 1], radii, radii[0], radii[1]]
         spline = BSpline(knots, coef, 3, extrapolate=False)
-        self._init_ppoly(PPoly.from_spline(spline), angles[0], angles)
+        # the spline's (t, c, k) and its extrapolate flag: what from_spline(spline) reads
+        self._init_ppoly(PPoly.from_spline(spline.tck, extrapolate=False), angles[0], angles)
 
 
 class _Trigonometric:
@@ -157,8 +159,9 @@ class _Trigonometric:
         kt = k * t
         # d^nu/dθ^nu of cos, sin: rotate the phase by nu·π/2 and scale by k^nu
         shift = nu * math.pi / 2
-        out = (np.sum(k ** nu * (ca * np.cos(kt + shift) + sb * np.sin(kt + shift)), axis=0)
-               + (self._c[0] if nu == 0 else 0.0))
+        out: Floats = (np.sum(k ** nu * (ca * np.cos(kt + shift) + sb * np.sin(kt + shift)),
+                              axis=0)
+                       + (self._c[0] if nu == 0 else 0.0))
         if self._even:
             n2 = self._n2
             out = out + self._c[-1] * n2 ** nu * np.cos(n2 * (t - self._a0) + shift)
@@ -215,8 +218,8 @@ class _CartesianBSpline:
         for c in self._coef:
             cx, cy = poly(c[::-1, 0]), poly(c[::-1, 1])
             cross = cx * cy.deriv() - cy * cx.deriv()
-            crit = [r.real for r in cross.deriv().roots() if abs(r.imag) < 1e-12
-                    and 0.0 <= r.real <= 1.0]
+            roots = [complex(r) for r in cross.deriv().roots()]
+            crit = [r.real for r in roots if abs(r.imag) < 1e-12 and 0.0 <= r.real <= 1.0]
             worst = min(worst, float(np.min(cross(np.r_[0.0, 1.0, crit]))))
         start = self._coef[:, 3, :]
         turns = np.sum(np.diff(np.unwrap(np.r_[np.arctan2(start[:, 1], start[:, 0]),
@@ -229,7 +232,8 @@ class _CartesianBSpline:
     def _point(self, seg: NDArray[np.intp], t: FloatArray, nu: int = 0) -> FloatArray:
         c = self._coef[seg]                       # (..., 4, 2)
         powers = _POWERS[nu](t)
-        return sum(p[..., None] * c[..., j, :] for j, p in enumerate(powers))
+        point: FloatArray = sum(p[..., None] * c[..., j, :] for j, p in enumerate(powers))
+        return point
 
     def _parameter(self, theta: ArrayLike) -> tuple[NDArray[np.intp], FloatArray]:
         """(segment, t) of the curve point at polar angle θ (arrays)."""
@@ -264,12 +268,14 @@ class _CartesianBSpline:
         dot = np.sum(c * c1, axis=-1)
         r_t, th_t = dot / r, cross / (r * r)
         if nu == 1:
-            return r_t / th_t
+            first: FloatArray = r_t / th_t
+            return first
         c2 = self._point(seg, t, 2)
         r_tt = (np.sum(c1 * c1, axis=-1) + np.sum(c * c2, axis=-1)) / r - dot * dot / r ** 3
         cross2 = c[..., 0] * c2[..., 1] - c[..., 1] * c2[..., 0]
         th_tt = cross2 / (r * r) - 2.0 * cross * dot / r ** 4
-        return (r_tt * th_t - r_t * th_tt) / th_t ** 3
+        second: FloatArray = (r_tt * th_t - r_t * th_tt) / th_t ** 3
+        return second
 
     def extrema(self) -> FloatArray:
         """Polar angles where ρ is stationary: roots of C · C' (a quintic per segment)."""
@@ -277,11 +283,12 @@ class _CartesianBSpline:
         out = []
         for c in self._coef:
             cx, cy = poly(c[::-1, 0]), poly(c[::-1, 1])
-            for root in (cx * cx.deriv() + cy * cy.deriv()).roots():
+            for root in map(complex, (cx * cx.deriv() + cy * cy.deriv()).roots()):
                 if abs(root.imag) < 1e-12 and 0.0 <= root.real <= 1.0:
                     x, y = cx(root.real), cy(root.real)
                     out.append(math.atan2(y, x))
-        return np.mod(np.asarray(out, dtype=float), TWO_PI)
+        angles: FloatArray = np.mod(np.asarray(out, dtype=float), TWO_PI)
+        return angles
 
 
 INTERPOLANTS = {cls.name: cls for cls in (_PeriodicCubic, _Trigonometric, _PolarBSpline,
@@ -331,8 +338,12 @@ class PitchCurve:
                               f'the {interpolant} interpolant dips to '
                               f'{self.rho_min * 1e3:.3g} mm between the points')
 
+    @overload
+    def __call__(self, theta: FloatArray, nu: int = 0) -> FloatArray: ...
+    @overload
+    def __call__(self, theta: ArrayLike, nu: int = 0) -> Floats: ...
     def __call__(self, theta: ArrayLike, nu: int = 0) -> Floats:
-        """ρ (nu=0) or its nu-th derivative with respect to θ."""
+        """ρ (nu=0) or its nu-th derivative with respect to θ (an array for an array θ)."""
         return self._f(theta, nu)
 
     @property
@@ -453,8 +464,7 @@ def solve_centre_distance(curve: PitchCurve, method: str = 'gauss',
         n = 360 if method == 'paper' else int(samples or 360)
         if n < 8:
             raise DesignError('samples', n, '≥ 8')
-        nodes = np.arange(n) * (TWO_PI / n)
-        rho = curve(nodes)
+        rho = curve(np.arange(n, dtype=np.float64) * (TWO_PI / n))
         weights = np.full(n, TWO_PI / n)
         a = _root(brentq, rho, weights, max(rmax, float(rho.max())))
         evaluations = n
@@ -462,10 +472,13 @@ def solve_centre_distance(curve: PitchCurve, method: str = 'gauss',
     return Closure(a, abs(mean - 1.0), method, evaluations)
 
 
-def _root(brentq: Callable, rho: FloatArray, weights: FloatArray, rmax: float) -> float:
+def _root(brentq: Callable[..., float], rho: FloatArray, weights: FloatArray,
+          rmax: float) -> float:
     lo = rmax * (1.0 + 1e-12)
     hi = 2.0 * rmax
-    f = lambda a: closure_mean(rho, weights, a) - 1.0  # noqa: E731
+
+    def f(a: float) -> float:
+        return closure_mean(rho, weights, a) - 1.0
     flo = f(lo)
     while flo <= 0.0:       # the peak of ρ is so narrow that even a ≈ max ρ under-closes
         lo = rmax + (lo - rmax) * 1e-3
