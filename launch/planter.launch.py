@@ -6,7 +6,7 @@ nodes.
 Every node reads the same scene file (`/**` parameters); the sync node additionally gets the
 CAN interface and channel, the ground-speed node its sources (ISOBUS on `isobus_channel`, empty:
 none; the GNSS velocity on /planter/gnss/vel). Topics live in the /planter namespace
-(planter_ros.interfaces).
+(planter_ros.interfaces). Stopping as launch/tractor.launch.py says (STOP_TIMEOUTS).
 """
 
 from launch import LaunchDescription
@@ -18,6 +18,8 @@ from launch_ros.substitutions import FindPackageShare
 from planter_ros.interfaces import NAMESPACE
 
 PACKAGE = 'planter_ros'
+# s launch waits after its SIGINT before SIGTERM, then before SIGKILL (each node)
+STOP_TIMEOUTS = {'sigterm_timeout': '20', 'sigkill_timeout': '5'}
 
 
 def generate_launch_description():
@@ -36,14 +38,15 @@ def generate_launch_description():
                               description="the tractor's ISOBUS CAN channel (e.g. can1); empty: "
                                           'ground speed from the GNSS velocity only'),
         Node(package=PACKAGE, executable='ground_speed_node', namespace=NAMESPACE,
-             output='screen',
+             output='screen', **STOP_TIMEOUTS,
              parameters=[{'isobus_channel': LaunchConfiguration('isobus_channel')}]),
         Node(package=PACKAGE, executable='design_node', namespace=NAMESPACE,
-             parameters=[scene], output='screen'),
+             parameters=[scene], output='screen', **STOP_TIMEOUTS),
         Node(package=PACKAGE, executable='sync_node', namespace=NAMESPACE, output='screen',
+             **STOP_TIMEOUTS,
              parameters=[scene, {'can_interface': LaunchConfiguration('can_interface'),
                                  'can_channel': LaunchConfiguration('can_channel'),
                                  'drive_node_id': LaunchConfiguration('drive_node_id')}]),
         Node(package=PACKAGE, executable='monitor_node', namespace=NAMESPACE,
-             parameters=[scene], output='screen'),
+             parameters=[scene], output='screen', **STOP_TIMEOUTS),
     ])

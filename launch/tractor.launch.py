@@ -8,7 +8,17 @@ Every node reads the scene file; on top, each gets its share of the machine file
 the rows, their drives and lever arms: planter_ros.scene.machine_file.deployment_parameters, which
 checks both files and the scene's plausibility on this machine first and refuses to launch
 otherwise). ground_speed_node gets the ISOBUS channel from the machine file and its sources
-from `speed_sources`. Topics live in the /planter namespace.
+from `speed_sources`; the sync node the service manager's note of how the last run ended
+(`last_stop_file`: after an automatic restart the rows wait at zero for an operator's
+enable_rows). Topics live in the /planter namespace.
+
+Stopping: SIGINT to `ros2 launch --noninteractive` (systemd/planter.service) passes SIGINT to
+every node, and each stops cleanly (rows ramped to 0, drives disabled, bag finalised); in a
+terminal, Ctrl-C reaches every node itself and launch sends no SIGINT of its own. Launch's own
+escalation (SIGTERM, then SIGKILL, to a node still running) waits STOP_TIMEOUTS: its default
+of 5 s would cut a stop short (a second signal forces a node's exit), these stay inside the
+unit's TimeoutStopSec. (SIGTERM to `ros2 launch` alone makes it cancel its run without stopping
+the nodes: launch's behaviour, hence SIGINT.)
 """
 
 from launch import LaunchDescription
@@ -24,7 +34,10 @@ NODES = ('ground_speed_node', 'design_node', 'sync_node', 'monitor_node')
 ARGUMENT_PARAMETERS = {
     'speed_sources': ('ground_speed_node', 'sources'),
     'yaw_rate_source': ('ground_speed_node', 'yaw_rate_source'),
+    'last_stop_file': ('sync_node', 'last_stop_file'),
 }
+# s launch waits after its SIGINT before SIGTERM, then before SIGKILL (each node)
+STOP_TIMEOUTS = {'sigterm_timeout': '20', 'sigkill_timeout': '5'}
 
 
 def _nodes(context):
@@ -34,13 +47,15 @@ def _nodes(context):
     overrides = {'ground_speed_node': {
         'sources': [s.strip() for s in
                     LaunchConfiguration('speed_sources').perform(context).split(',')],
-        'yaw_rate_source': LaunchConfiguration('yaw_rate_source').perform(context)}}
+        'yaw_rate_source': LaunchConfiguration('yaw_rate_source').perform(context)},
+        'sync_node': {'last_stop_file': LaunchConfiguration('last_stop_file').perform(context)}}
     params, warnings = deployment_parameters(machine, scene, overrides)
     actions = [LogInfo(msg=f'planter: warning: {w}') for w in warnings]
     for name in NODES:
         files = [] if name == 'ground_speed_node' else [scene]
         actions.append(Node(package=PACKAGE, executable=name, namespace=NAMESPACE,
-                            output='screen', parameters=files + [params[name]]))
+                            output='screen', parameters=files + [params[name]],
+                            **STOP_TIMEOUTS))
     return actions
 
 
@@ -55,5 +70,10 @@ def generate_launch_description():
                                           'separated (doc/ground_speed.md)'),
         DeclareLaunchArgument('yaw_rate_source', default_value='gnss',
                               description='yaw rate from gnss, imu or none'),
+        DeclareLaunchArgument('last_stop_file', default_value='',
+                              description='how the last run ended, as the service manager '
+                                          'noted it (systemd/planter.service: '
+                                          '/run/planter/last-stop); after a run that did not '
+                                          'end with success the rows wait for enable_rows'),
         OpaqueFunction(function=_nodes),
     ])

@@ -34,6 +34,12 @@ class ConfigError(ValueError):
     """A configuration value outside its allowed domain; the message is one line."""
 
 
+def one_line(text: str) -> str:
+    """`text` as one printable line: a newline or an undecodable byte from the user's own
+    arguments (surrogate escapes) is shown escaped, never printed raw."""
+    return ''.join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 @dataclass(frozen=True)
 class Spec:
     """What one configuration field means and allows."""

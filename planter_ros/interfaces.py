@@ -250,6 +250,10 @@ SECTION = Service('section', 'std_srvs/srv/SetBool',
                   'sync node, per row: data false = switch the row off (stops within one plant '
                   'pitch, plants nothing more), true = on (a new grid from the switch-on point)')
 
+ENABLE_ROWS = Service('enable_rows', 'std_srvs/srv/Trigger',
+                      'sync node: an operator enables the rows held at zero after an automatic '
+                      'restart (of the command process or of the service; doc/command.md)')
+
 # the mechanism's shaft in joint_states, per mechanism
 MECHANISM_JOINT = {'five_bar': 'sun_bar', 'three_arm': 'carrier'}
 

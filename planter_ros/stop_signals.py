@@ -11,18 +11,31 @@ ends the process at once (`os._exit`, exit code 128 + the signal), for a stop th
 Pure Python: no ROS import.
 """
 
+from contextlib import contextmanager
 import os
 import signal
+
+__all__ = ['STOP_SIGNALS', 'StopSignals', 'held_for_child', 'ignore', 'install', 'installed',
+           'spin', 'signal_number', 'unblock']
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 class StopSignals:
-    """The handler of both stop signals; `received` is the first one (None until then)."""
+    """The handler of both stop signals; `received` is the first one (None until then);
+    `source`: '' when it reached this process, else who passed it on (`ask`)."""
 
     def __init__(self, name):
         self.name = name
         self.received = None
+        self.source = ''
+
+    def ask(self, signum, source):
+        """A stop that reached another process of ours (`source`: 'the command process'), as
+        if `signum` had reached this one; the first stop counts."""
+        if self.received is None:
+            self.source = source
+            self.received = signum
 
     def __call__(self, signum, _frame):
         if self.received is None:
@@ -37,14 +50,49 @@ class StopSignals:
         """'SIGTERM', 'SIGINT' or '' (no stop asked for)."""
         return signal.Signals(self.received).name if self.received is not None else ''
 
+    @property
+    def description(self):
+        """'SIGTERM', 'SIGTERM to the command process', or '' (no stop asked for)."""
+        name = self.name_received
+        return f'{name} to {self.source}' if name and self.source else name
+
+
+def installed():
+    """The StopSignals handler this process installed (None: none)."""
+    handler = signal.getsignal(signal.SIGTERM)
+    return handler if isinstance(handler, StopSignals) else None
+
 
 def install(name):
     """Handle SIGINT and SIGTERM in this process as described above (call from the main
-    thread, before rclpy.init()); returns the handler."""
+    thread, before rclpy.init()); returns the handler. A stop signal held back while the
+    process started (`held_for_child`) arrives now."""
     handler = StopSignals(name)
     for signum in STOP_SIGNALS:
         signal.signal(signum, handler)
+    unblock()
     return handler
+
+
+@contextmanager
+def held_for_child():
+    """Start a child process inside this: SIGINT and SIGTERM are blocked in the calling thread
+    meanwhile, and the child inherits that mask (fork and exec keep it), so a stop signal that
+    reaches the child before it has its own handlers (Python starting, its imports: a
+    KeyboardInterrupt traceback, or death by SIGTERM) waits for them: `install`, `ignore` and
+    `unblock` let it through. This process's own handler still gets a signal meanwhile (another
+    thread takes it, or it waits until the block ends)."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def unblock():
+    """Let SIGINT and SIGTERM through in this thread (a child started `held_for_child`, once
+    its handlers are set)."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
 
 
 def spin(executor, handler, period=0.2):
@@ -65,8 +113,15 @@ def spin(executor, handler, period=0.2):
             return
 
 
+def signal_number(name):
+    """The number of a stop signal's name ('SIGTERM' -> 15); SIGTERM for another name."""
+    return getattr(signal, name, signal.SIGTERM) if name in ('SIGTERM', 'SIGINT') else \
+        signal.SIGTERM
+
+
 def ignore():
     """A helper process its parent stops (over a pipe): the terminal's Ctrl-C, which reaches
     the whole process group, must not stop it on its own."""
     for signum in STOP_SIGNALS:
         signal.signal(signum, signal.SIG_IGN)
+    unblock()

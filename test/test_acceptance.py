@@ -142,7 +142,8 @@ def test_the_rice_sample_fails_its_crops_limits_on_uprightness_and_hole_width(ca
 
 def test_the_demo_verdict_lists_every_acceptance_failure():
     rows = [RowResult('', 34, 0.01)]
-    report = {'watchdog_trips': [], 'rows': [], 'design': {}}
+    from planter_ros.demo.sync_process import DesignReport, DrivesReport, SyncReport
+    report = SyncReport(None, DrivesReport(), DesignReport(), 'none in this test')
     result = judge_acceptance(AcceptanceLimits(max_hole_width=0.05),
                               [('', summary(upright=0.0, hole=0.173))])
     verdict = judge(rows, report, acceptance=result)

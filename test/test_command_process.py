@@ -156,7 +156,8 @@ def test_a_shell_killed_with_sigkill_leaves_no_motor_running_and_no_process(driv
             os.kill(command_pid, signal.SIGKILL)
 
 
-def test_a_command_process_that_dies_is_reported_and_restarted(drives_and_fd):
+def test_a_command_process_that_dies_is_restarted_held_until_an_operator_enables_it(
+        drives_and_fd):
     sims, fd = drives_and_fd
     lines = []
     client = CommandClient(settings(fd, command_restarts=1),
@@ -164,11 +165,34 @@ def test_a_command_process_that_dies_is_reported_and_restarted(drives_and_fd):
     client.enable()
     try:
         first = client.process.pid
+        client.set_design(from_json(DESIGN), DESIGN, time.monotonic())
+        for _ in range(50):
+            client.sample(0.4, 0.0, time.monotonic())
+            time.sleep(0.02)
         os.kill(first, signal.SIGKILL)
-        assert wait_until(lambda: client.restarts == 1 and 'ready' in client.info, 20.0)
+        assert wait_until(lambda: client.restarts == 1 and 'held' in client.info, 20.0)
         assert client.process.pid != first
         assert any(level == logging.ERROR and 'command process died' in text
-                   for level, text in lines)
+                   and 'until an operator enables them' in text for level, text in lines)
+        # held: the ground speed goes on, yet no drive is enabled and the rows stay at zero
+        for _ in range(50):
+            client.sample(0.4, 0.0, time.monotonic())
+            time.sleep(0.02)
+        assert client.held and 'ready' not in client.info
+        assert all(d.state != OPERATION_ENABLED for d in sims.drives)
+        report = client.process_report(time.monotonic())
+        assert report.level == 1 and 'rows held at zero' in report.message
+        assert 'enable_rows' in report.message
+        assert client.reset_fault('left')[0] is False
+        ok, message = client.operator_enable()
+        assert ok, message
+        assert wait_until(lambda: all(d.state == OPERATION_ENABLED for d in sims.drives), 5.0)
+        assert client.operator_enable() == (False, 'the rows are enabled already')
+
+        def fed():
+            client.sample(0.4, 0.0, time.monotonic())
+            return all(d.target_velocity > 0 for d in sims.drives)
+        assert wait_until(fed, 5.0)
         report = client.process_report(time.monotonic())
         assert report.level in (1, 2) and 'died' in report.message  # WARN once running again
         # no restart left: the next death is an ERROR that stays
@@ -206,3 +230,51 @@ def test_the_shell_asks_for_a_larger_cpu_share_for_every_thread_or_says_why_not(
     else:
         assert 'nice -3 refused' in refused and 'CAP_SYS_NICE' in refused
     assert nothing == ''                        # 0 asks for nothing
+
+
+def test_a_deliberate_exit_is_never_taken_for_a_crash_and_nothing_restarts_after_a_stop(
+        drives_and_fd):
+    """SIGTERM to the command process alone: it ramps to zero, disables the drives and says
+    why it ends; the client does not restart it (restarts left), and tells its shell."""
+    sims, fd = drives_and_fd
+    lines, exits = [], []
+    client = CommandClient(settings(fd, command_restarts=3),
+                           log=lambda level, text: lines.append((level, text)),
+                           on_exit=exits.append)
+    client.enable()
+    try:
+        client.set_design(from_json(DESIGN), DESIGN, time.monotonic())
+        for _ in range(50):
+            client.sample(0.4, 0.0, time.monotonic())
+            time.sleep(0.02)
+        assert all(d.motor_velocity > 5.0 for d in sims.drives)
+        os.kill(client.process.pid, signal.SIGTERM)
+        assert wait_until(lambda: client.dead, 15.0)
+        assert exits == ['SIGTERM'] and client.restarts == 0
+        assert client.process.returncode == 0
+        assert all(d.state in (READY_TO_SWITCH_ON, SWITCH_ON_DISABLED) for d in sims.drives)
+        assert all(abs(d.motor_velocity) < 1.0 for d in sims.drives)
+        assert sims.watchdog_trips == []                 # the process stopped them itself
+        assert client.final_report()['accepted'] > 0     # its report came (not lost at close)
+        report = client.process_report(time.monotonic())
+        assert report.level == 2 and 'stopped by SIGTERM' in report.message
+        assert client.operator_enable()[0] is False
+    finally:
+        client.shutdown()
+    assert not any('restarting' in text for _, text in lines), lines
+
+
+def test_a_stop_asked_for_during_a_crash_restarts_nothing(drives_and_fd):
+    sims, fd = drives_and_fd
+    stop = []
+    client = CommandClient(settings(fd, command_restarts=3), log=lambda level, text: None,
+                           stop_asked=lambda: bool(stop))
+    client.enable()
+    try:
+        stop.append('SIGTERM')                 # the shell's own stop signal came
+        pid = client.process.pid
+        os.kill(pid, signal.SIGKILL)
+        assert wait_until(lambda: client.dead, 15.0)
+        assert client.restarts == 0 and client.process.pid == pid
+    finally:
+        client.shutdown()

@@ -1,10 +1,10 @@
-"""`planter demo` as a user runs it: bad input is one line; SIGTERM (what systemd, docker and
-`timeout` send) stops it like Ctrl-C with a summary, a finalised bag and exit 0; a killed
-demo's drives are still shut down; the verdict line and its exit code; two demos side by side
-and a stray node in the default domain change nothing; a design published into the demo's
-graph is logged, fails the verdict and is scored as the design in force; the four-row demo's
-map, markers and spacing quality. (The second signal's forced exit itself:
-test_stop_signals.py.)"""
+"""`planter demo` as a user runs it: bad input is one line; SIGTERM to the demo alone (what
+`timeout` sends) stops it like Ctrl-C with a summary, a finalised bag and exit 0 (every other way
+of stopping it by a signal: test_demo_stops.py); a killed demo's drives are still shut down; the
+verdict line and its exit code; two demos side by side and a stray node in the default domain
+change nothing; a design published into the demo's graph is logged, fails the verdict and is
+scored as the design in force; the four-row demo's map, markers and spacing quality. (The second
+signal's forced exit itself: test_stop_signals.py.)"""
 import json
 import math
 import os

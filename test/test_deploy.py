@@ -6,6 +6,7 @@ import ast
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 
@@ -101,6 +102,7 @@ def test_the_units_name_executables_and_files_that_exist(name):
             seen += 1
         elif words[:2] == ['exec', 'ros2'] or words[:1] == ['ros2']:
             words = words[1:] if words[0] == 'exec' else words
+            words = [w for w in words if not w.startswith('-')]       # launch's options
             assert words[1:3] == ['launch', 'planter_ros']
             assert (REPO / 'launch' / words[3]).is_file(), words[3]
             seen += 1
@@ -203,3 +205,94 @@ def test_a_scene_the_machine_cannot_run_or_other_rows_are_refused(tmp_path):
     with pytest.raises(MachineFileError, match='motor_max_speed = 50 rad/s .* of row '
                                                'left_outer of the machine file'):
         deployment_parameters(slow, SCENE)
+
+
+@pytest.mark.skipif(shutil.which('systemd-analyze') is None, reason='no systemd-analyze here')
+def test_systemd_analyze_verifies_the_units_without_a_word(tmp_path):
+    """systemd's own reading of the units (a reference we did not write): every key known,
+    every value parsed, the executables there. It warns but exits 0 on a bad key: silence is
+    the pass."""
+    for name in ('planter.service', 'planter-can.service'):
+        shutil.copy(REPO / 'systemd' / name, tmp_path / name)
+    out = subprocess.run(['systemd-analyze', 'verify', str(tmp_path / 'planter.service'),
+                          str(tmp_path / 'planter-can.service')], capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 0 and out.stdout == '' and out.stderr == '', out.stderr
+    # and it is not silent about a mistake
+    (tmp_path / 'planter.service').write_text(
+        (REPO / 'systemd' / 'planter.service').read_text().replace('KillMode=mixed',
+                                                                   'KillMode=gently'))
+    out = subprocess.run(['systemd-analyze', 'verify', str(tmp_path / 'planter.service')],
+                         capture_output=True, text=True, timeout=60)
+    assert 'Failed to parse kill mode' in out.stderr
+
+
+def test_the_graph_unit_stops_the_main_process_first_and_runs_with_only_what_it_needs():
+    from planter_ros.control.loop_timing import SyncLoopConfig
+    service = unit('planter.service')['Service']
+    # SIGINT to `ros2 launch` alone, which stops every node; SIGKILL only after the timeout
+    assert values(service, 'KillMode') == ['mixed'] and values(service, 'KillSignal') == ['SIGINT']
+    assert int(values(service, 'TimeoutStopSec')[0]) >= 20
+    # SCHED_FIFO at the command process's priority, memory locked, the shell's nice value
+    assert int(values(service, 'LimitRTPRIO')[0]) > SyncLoopConfig().realtime_priority
+    assert values(service, 'LimitMEMLOCK') == ['infinity']
+    assert int(values(service, 'LimitNICE')[0]) <= SyncLoopConfig().shell_nice
+    # a dedicated user, no capability at all
+    assert values(service, 'User') == ['planter'] and values(service, 'Group') == ['planter']
+    assert values(service, 'CapabilityBoundingSet') == [''] and \
+        values(service, 'AmbientCapabilities') == ['']
+    assert values(service, 'NoNewPrivileges') == ['yes']
+    assert 'AF_CAN' in values(service, 'RestrictAddressFamilies')[0]
+    can = unit('planter-can.service')['Service']
+    assert values(can, 'CapabilityBoundingSet') == ['CAP_NET_ADMIN']
+
+
+def stop_timeouts(path):
+    """(STOP_TIMEOUTS of a launch file, whether every Node(...) of it passes **STOP_TIMEOUTS)."""
+    tree = ast.parse(path.read_text())
+    timeouts = next(ast.literal_eval(node.value) for node in tree.body
+                    if isinstance(node, ast.Assign) and
+                    getattr(node.targets[0], 'id', '') == 'STOP_TIMEOUTS')
+    nodes = [node for node in ast.walk(tree) if isinstance(node, ast.Call) and
+             getattr(node.func, 'id', '') == 'Node']
+    passed = [any(k.arg is None and getattr(k.value, 'id', '') == 'STOP_TIMEOUTS'
+                  for k in node.keywords) for node in nodes]
+    return timeouts, bool(nodes) and all(passed)
+
+
+@pytest.mark.parametrize('name', ['planter.launch.py', 'tractor.launch.py'])
+def test_launch_escalates_a_stop_only_after_the_graph_had_time_to_stop_and_before_systemd(name):
+    """launch's own escalation (SIGTERM after `sigterm_timeout`, SIGKILL `sigkill_timeout`
+    later; 5 s each by default) must not cut a clean stop short, and must come before the
+    unit's TimeoutStopSec; the unit's SIGINT must reach the nodes (`--noninteractive`: launch
+    then passes SIGINT on; interactive, it assumes the terminal sent it to every node)."""
+    timeouts, every_node = stop_timeouts(REPO / 'launch' / name)
+    assert every_node, f'a Node of {name} does not pass **STOP_TIMEOUTS'
+    sigterm, sigkill = float(timeouts['sigterm_timeout']), float(timeouts['sigkill_timeout'])
+    service = unit('planter.service')['Service']
+    assert 5.0 < sigterm and sigterm + sigkill < float(values(service, 'TimeoutStopSec')[0])
+    assert 'ros2 launch --noninteractive ' in values(service, 'ExecStart')[0]
+
+
+def test_after_an_automatic_restart_the_sync_node_holds_the_rows_and_not_after_a_clean_stop(
+        tmp_path):
+    """The note ExecStopPost writes (kept across restarts only) is the one launch hands the
+    sync node; what it says decides whether the rows wait for an operator."""
+    from planter_ros.control.loop_timing import SyncLoopConfig
+    from planter_ros.nodes.sync_node import restart_hold_reason
+    service = unit('planter.service')['Service']
+    note = '/run/planter/last-stop'
+    assert note in values(service, 'ExecStopPost')[0] and '$SERVICE_RESULT' in \
+        values(service, 'ExecStopPost')[0]
+    assert f'last_stop_file:={note}' in values(service, 'ExecStart')[0]
+    assert values(service, 'RuntimeDirectory') == ['planter']
+    assert values(service, 'RuntimeDirectoryPreserve') == ['restart']
+    path = tmp_path / 'last-stop'
+    loop = SyncLoopConfig(last_stop_file=str(path))
+    assert restart_hold_reason(loop) == ''                        # a boot: no note
+    for text, held in (('success exited 0', False), ('exit-code exited 1', True),
+                       ('signal killed 9', True), ('timeout killed 9', True)):
+        path.write_text(text + '\n')
+        assert bool(restart_hold_reason(loop)) is held, text
+        assert bool(restart_hold_reason(SyncLoopConfig(last_stop_file=str(path),
+                                                       enable_after_restart=True))) is False

@@ -41,12 +41,17 @@ def test_a_publisher_gone_before_its_design_is_taken_is_said_so():
     assert gone.text == 'a publisher no longer on the graph' and gone.foreign
 
 
-def report(**changes):
-    base = {'watchdog_trips': [], 'rows': [{'label': '', 'faults': 0, 'last_fault': '',
-                                            'left_out': ''}],
-            'design': {'changes': 0, 'last_change': ''}}
-    base.update(changes)
-    return base
+def report(watchdog_trips=(), rows=None, design=None):
+    """The sync process's typed final report (demo.sync_process.SyncReport)."""
+    from planter_ros.command.reports import CommandReport, RowReport
+    from planter_ros.demo.sync_process import DesignReport, DrivesReport, SyncReport
+    rows = rows or [{'label': '', 'faults': 0, 'last_fault': '', 'left_out': ''}]
+    command = CommandReport(
+        accepted=0, rejected={}, yaw_accepted=0, yaw_rejected={}, phase_slips=0,
+        send_errors=0, phase_lock=True, turn_compensation=True,
+        rows=[RowReport(loop={}, **row) for row in rows], loop={}, command_timeout=0.2)
+    return SyncReport(command, DrivesReport(watchdog_trips=list(watchdog_trips)),
+                      DesignReport(**{'changes': 0, 'last_change': '', **(design or {})}))
 
 
 def test_a_latched_design_that_beats_its_nodes_discovery_is_named_once_the_graph_knows():

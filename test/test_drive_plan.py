@@ -225,8 +225,8 @@ def machine_with(tmp_path, eds: Path, name='machine.yaml', **row):
 
 
 def test_a_machine_file_whose_drive_cannot_run_its_row_is_refused_before_the_start(tmp_path):
-    """`python -m planter_ros.scene.machine_file --check`: exit 2, one line (issue 32: an EDS with a
-    wrong type, a binary EDS, a homing method no CiA 402 drive knows)."""
+    """`python -m planter_ros.scene.machine_file --check`: exit 2, one line (issue 32: an EDS
+    with a wrong type, a binary EDS, a homing method no CiA 402 drive knows)."""
     import shutil
     cases = []
     prl = tmp_path / 'prl_like.eds'

@@ -15,7 +15,7 @@ PACKAGE = 'planter_ros'
 # doc/architecture.md shows it and says what lives where)
 LAYERS = (
     ('config', 'interfaces', 'output_files', 'stop_signals', 'diagnostics', 'safe_yaml',
-     'shipped', 'processes'),                      # base: pure declarations and helpers
+     'shipped', 'processes', 'dependencies'),      # base: pure declarations and helpers
     ('geo', 'rows', 'dds_domain'),
     ('kinematics', 'drive', 'sensing'),            # core models
     ('design', 'simdrive'),                        # the typed design; simulated drives

@@ -23,6 +23,7 @@ CLI_MODULES = FIVE_BAR_MODULES | {'planter_ros.cli', 'planter_ros.cli.main',
                                   'planter_ros.output_files', 'planter_ros.design',
                                   'planter_ros.design.text',
                                   'planter_ros.shipped',          # the version, for --version
+                                  'planter_ros.dependencies',     # the extras it checks
                                   # plausibility of the speed against the sync law's limits
                                   'planter_ros.plausibility', 'planter_ros.control',
                                   'planter_ros.control.phase_lock', 'planter_ros.sensing',

@@ -273,3 +273,43 @@ def test_a_design_from_another_node_is_counted_and_named_and_the_loop_timed(rig)
         assert loop.level == DiagnosticStatus.OK, loop.message
     else:
         assert loop.level == DiagnosticStatus.WARN and 'half the deadline' in loop.message
+
+
+def test_after_an_automatic_restart_the_rows_wait_at_zero_until_an_operator_enables_them(
+        rig, tmp_path):
+    """The service manager noted that the last run failed (systemd/planter.service's
+    ExecStopPost): nothing is enabled, whatever the ground speed, until enable_rows; the
+    diagnostics say so."""
+    note = tmp_path / 'last-stop'
+    note.write_text('exit-code exited 1\n')
+    r = rig(last_stop_file=str(note))
+    assert r.sync.held and 'exit-code exited 1' in r.sync.hold_reason
+    r.drive(0.2, 0.8)
+    assert r.sim.state != 'OPERATION ENABLED' and r.sim.target_velocity == 0.0
+    held = r.diag('enable')
+    assert held.level == DiagnosticStatus.WARN and 'rows held at zero' in held.message
+    assert 'enable_rows' in held.message
+    client = r.io.create_client(Trigger, 'enable_rows')
+    assert client.wait_for_service(timeout_sec=2.0)
+    future = client.call_async(Trigger.Request())
+    assert r.ros.spin_until(future.done)
+    assert future.result().success, future.result().message
+    r.drive(0.2, 0.8)
+    assert r.sim.state == 'OPERATION ENABLED'
+    # the rows follow the ground speed (plus the phase lock's pull-in to the grid)
+    assert r.sync.command_value >= 0.9 * 2 * math.pi * 0.2 / D and r.sim.target_velocity > 0
+    assert not any(s.name == 'sync_node: enable' for s in r.sync.diagnostics())
+    again = client.call_async(Trigger.Request())
+    assert r.ros.spin_until(again.done)
+    assert not again.result().success and 'already' in again.result().message
+
+
+def test_a_clean_last_stop_or_a_fenced_machine_enables_at_start(rig, tmp_path):
+    note = tmp_path / 'last-stop'
+    note.write_text('success exited 0\n')
+    r = rig(last_stop_file=str(note))
+    assert not r.sync.held and r.sim.state == 'OPERATION ENABLED'
+    note.write_text('signal killed 9\n')
+    r2 = rig(last_stop_file=str(note), enable_after_restart=True,
+             channel=unique_channel('fenced'))
+    assert not r2.sync.held and r2.sim.state == 'OPERATION ENABLED'

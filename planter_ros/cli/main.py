@@ -91,24 +91,24 @@ def build_parser(argv=()):
 
 
 def main(argv=None):
-    from planter_ros.config import ConfigError
+    from planter_ros.config import ConfigError, one_line
+    from planter_ros.dependencies import MissingExtra, check_command, error_line
     from planter_ros.output_files import OutputError
+    argv = sys.argv[1:] if argv is None else list(argv)
+    selected = _selected(argv)
+    if selected == ('demo',):     # a stop signal from the very start is a clean stop (demo.run)
+        from planter_ros import stop_signals
+        stop_signals.install('planter demo')
     try:
-        argv = sys.argv[1:] if argv is None else list(argv)
         args = build_parser(argv).parse_args(argv)
+        check_command(selected, args)
         return int(args._run(args) or 0)
-    except (BadInput, ConfigError, OutputError) as exc:
-        print(f'planter: error: {one_line(str(exc))}', file=sys.stderr)
+    except (BadInput, ConfigError, OutputError, MissingExtra, ModuleNotFoundError) as exc:
+        print(f'planter: error: {one_line(error_line(selected, exc))}', file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print('planter: interrupted', file=sys.stderr)
         return 130
-
-
-def one_line(text):
-    """`text` as one printable line: a newline or an undecodable byte from the user's own
-    arguments (surrogate escapes) is shown escaped, never printed raw."""
-    return ''.join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 if __name__ == '__main__':

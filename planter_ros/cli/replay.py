@@ -93,7 +93,8 @@ def run(args):
     """Replay the bag, then write each output asked for on its own (export.replay.write_each:
     one that fails is named on stderr, exit 1)."""
     from planter_ros.analysis.bags import BagSearchError, check_bag
-    from planter_ros.cli.main import BadInput, one_line
+    from planter_ros.cli.main import BadInput
+    from planter_ros.config import one_line
     from planter_ros.export import geojson_csv, replay as exports
     from planter_ros.output_files import check_distinct
     from planter_ros.plots.replay import write_plot

@@ -8,7 +8,13 @@ Two kinds of sending, as the command path needs them:
 * `send(kind, payload)` (designs, sections, resets, replies, diagnostics): never lost; queued
   in order when the peer's buffer is full and sent before anything newer (`flush`).
 The receiver takes every waiting message at once (`receive`); of several ground-speed samples
-it uses the newest.
+it uses the newest; it reads every message the peer sent before it went, even after a send to
+the gone peer failed, then end-of-file.
+
+The side that ends the channel on purpose (the command process) ends it with `finish()`: its
+queued messages out, no more input (SHUT_RD), its unread input dropped, then closed. A plain
+close with unread input makes the kernel report "connection reset" to the peer *before* the
+messages still waiting for it: a final report and the reason of a deliberate exit would be lost.
 """
 from __future__ import annotations
 
@@ -16,6 +22,7 @@ from collections import deque
 import json
 import select
 import socket
+import time
 import threading
 from typing import Any
 
@@ -38,7 +45,8 @@ class Channel:
         self._pending: deque[bytes] = deque()
         self._lock = threading.Lock()
         self.dropped = 0              # latest-value messages dropped (peer's buffer full)
-        self.closed = False
+        self.closed = False           # this end closed
+        self.peer_gone = False        # a send found the peer gone
 
     def fileno(self) -> int:
         return self.sock.fileno()
@@ -88,16 +96,19 @@ class Channel:
             self._pending.popleft()
 
     def _closed(self, exc: BaseException | None = None) -> ChannelClosed:
-        self.closed = True
+        self.peer_gone = True
         return ChannelClosed(f'channel closed ({exc})' if exc else 'channel closed')
 
     def receive(self, timeout: float | None) -> list[tuple[str, Any]]:
         """Every waiting message, waiting up to `timeout` s for the first (None: forever).
-        Raises ChannelClosed at end-of-file."""
+        Raises ChannelClosed at end-of-file (or once this end is closed)."""
         if self.closed:
-            raise self._closed()
-        if self._pending:
-            self.flush()
+            raise ChannelClosed('channel closed')
+        if self._pending and not self.peer_gone:
+            try:
+                self.flush()
+            except ChannelClosed:
+                pass                   # what the peer sent before it went is still read
         out = []
         readable, _, _ = select.select([self.sock], [], [], timeout)
         if not readable:
@@ -115,6 +126,35 @@ class Channel:
                 raise self._closed()
             kind, payload = json.loads(data)
             out.append((kind, payload))
+
+    def drain(self, timeout: float) -> bool:
+        """Wait up to `timeout` s until every queued message is sent (before a close: a final
+        report queued because the peer's buffer was full is not lost); True when none waits.
+        Raises ChannelClosed when the peer is gone."""
+        deadline = time.monotonic() + timeout
+        while True:
+            self.flush()
+            if not self._pending:
+                return True
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            select.select([], [self.sock], [], min(remaining, 0.05))
+
+    def finish(self, timeout: float) -> None:
+        """End the channel on purpose (see the module doc): what is queued is sent (up to
+        `timeout` s), no more input is taken, the unread input is dropped, then it closes."""
+        try:
+            self.drain(timeout)
+        except ChannelClosed:
+            pass
+        try:
+            self.sock.shutdown(socket.SHUT_RD)
+            while self.sock.recv(MAX_MESSAGE):
+                pass
+        except OSError:                # nothing left to read (or the peer is gone)
+            pass
+        self.close()
 
     def close(self) -> None:
         self.closed = True

@@ -6,18 +6,24 @@ section, reset_fault, configure, feedback, commands, sections, reports, snapshot
 final_report, enable, shutdown), so the node is the same shell whether the engine runs in its
 own process (this) or in the node's (a test handing it a bus).
 
-Supervision: a reader thread takes every message; end-of-file means the process died. Unless
-the shell is stopping, that is logged and reported as an ERROR status ('command process'), and
-the process is started again (at most `command_restarts` times), given the design and the
-section states again; the drives' own watchdogs (RPDO deadline, heartbeat consumer) stop the
-motors meanwhile. The child dies with this process (PR_SET_PDEATHSIG and end-of-file): it is
-spawned from the thread that lives as long as the shell (the kernel signals a child when the
-thread that forked it ends).
+Supervision: a reader thread takes every message; end-of-file without the process's `exit`
+message means it died. Unless a stop has been asked for (the shell's `shutdown()` or
+`request_stop()`, or `stop_asked()` true: the shell's stop signal), that is logged and reported
+as an ERROR status ('command process'), and the process is started again (at most
+`command_restarts` times), given the design and the section states again, **held**: it enables
+no drive until an operator asks (`operator_enable()`, the sync node's `enable_rows` service),
+unless `enable_after_restart` (a fenced machine); the drives' own watchdogs (RPDO deadline,
+heartbeat consumer) have stopped the motors meanwhile. A deliberate exit (its `exit` message: a
+stop signal reached it, its drives ramped to zero and disabled) is never taken for a crash:
+nothing restarts it, and `on_exit(reason)` tells the shell, which stops too. Once a stop has
+been asked for, nothing here starts a process or enables a drive. The child dies with this
+process (PR_SET_PDEATHSIG and end-of-file): it is spawned from the thread that lives as long as
+the shell (the kernel signals a child when the thread that forked it ends).
 """
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 import itertools
 import logging
 import math
@@ -28,7 +34,7 @@ import threading
 import time
 from typing import Any
 
-from planter_ros import diagnostics
+from planter_ros import diagnostics, stop_signals
 from planter_ros.config import ConfigError
 from planter_ros.design import Design
 from planter_ros.drive.bus_load import BusLoad
@@ -36,18 +42,20 @@ from planter_ros.drive.errors import DriveError
 
 from .channel import Channel, ChannelClosed
 from .engine import Feedback, Log, checked_bus_load
+from .reports import CommandExit, ReportError
 from planter_ros.control.cam_law import plan_for_design, profile_to_data, warm_up
 
 from .settings import CommandSettings, law_to_data
 from planter_ros.drive.socket_bus import INTERFACE, socket_pair
 
-__all__ = ['COMMAND_PROCESS', 'CommandProcessError', 'CommandClient']
+__all__ = ['COMMAND_PROCESS', 'CommandProcessError', 'CommandClient', 'ENABLE_TIMEOUT']
 
 COMMAND_PROCESS = 'command process'      # its status name in /diagnostics
 REPLY_TIMEOUT = 2.0                      # s a section or reset request waits for its answer
 # feedback samples held for the shell: 5 s at a 10 ms SYNC period (a shell that has not
 # published for that long is reported by its own diagnostics long before)
 FEEDBACK_QUEUE = 500
+ENABLE_TIMEOUT = 30.0                    # s an operator's enable waits for the drives
 
 
 class CommandProcessError(DriveError):
@@ -58,9 +66,15 @@ class CommandClient:
     """The command process of a sync node (see the module doc)."""
 
     def __init__(self, settings: CommandSettings, log: Log,
-                 extra_fds: Sequence[int] = ()) -> None:
+                 extra_fds: Sequence[int] = (),
+                 stop_asked: Callable[[], bool] = lambda: False,
+                 on_exit: Callable[[str], None] = lambda reason: None,
+                 enable_service: str = 'enable_rows') -> None:
         self.settings = settings
         self.log = log
+        self.stop_asked = stop_asked          # the shell's own stop (its signal handler)
+        self.on_exit = on_exit                # the process ended on purpose (a signal to it)
+        self.enable_service = enable_service  # named in the held status
         cfg = settings.drive
         self.bus_load: BusLoad = checked_bus_load(cfg, settings.loop,
                                                   [row for row in settings.rows if row.enabled])
@@ -89,6 +103,10 @@ class CommandClient:
         self.deaths: list[str] = []          # why each command process ended unasked
         self.restarts = 0
         self.stopping = False
+        self.stop_requested = False         # no restart, no enable from now on
+        self.exit: CommandExit | None = None    # its deliberate exit, once said
+        self.held_reason = ''               # why the rows wait for an operator ('' = they don't)
+        self._life = threading.RLock()      # a restart and a stop, one at a time
         self.dead = False                   # gone and not restarted
         self._design: str | None = None
         # the last design as sent ([kind, payload]); with a cam, once planned
@@ -102,23 +120,42 @@ class CommandClient:
         self._reader: threading.Thread | None = None
 
     # ---------------------------------------------------------------- start / stop
-    def _spawn(self) -> None:
+    def _stop_asked(self) -> bool:
+        return self.stop_requested or self.stopping or bool(self.stop_asked())
+
+    def request_stop(self) -> None:
+        """A stop has been asked for (the shell's signal): from now on nothing restarts the
+        command process or enables a drive; `shutdown()` does the stop itself."""
+        with self._life:
+            self.stop_requested = True
+
+    def _spawn(self, hold: bool = False) -> None:
         ours, theirs = socket_pair()
         fds = (theirs.fileno(),) + self.extra_fds
-        self.process = subprocess.Popen(
-            [sys.executable, '-m', 'planter_ros.command', '--fd', str(theirs.fileno()),
-             '--parent', str(os.getpid())], pass_fds=fds, stdin=subprocess.DEVNULL)
+        with stop_signals.held_for_child():     # its handlers first, then a stop signal
+            self.process = subprocess.Popen(
+                [sys.executable, '-m', 'planter_ros.command', '--fd', str(theirs.fileno()),
+                 '--parent', str(os.getpid())], pass_fds=fds, stdin=subprocess.DEVNULL)
         theirs.close()
         self.channel = Channel(ours)
         self.info = {}
-        self.channel.send('settings', self.settings.data())
+        self.exit = None
+        self.channel.send('settings', self.settings.held(hold).data())
 
-    def enable(self, timeout: float = 60.0) -> None:
+    def enable(self, timeout: float = 60.0, hold_reason: str = '') -> None:
         """Start the command process and wait until its drives are enabled (BLOCKING, start-up
-        only). Raises DriveError (or ConfigError) with the process's own line."""
-        self._spawn()
+        only); with `hold_reason` (why the rows wait for an operator), until it is built and
+        held instead. Raises DriveError (or ConfigError) with the process's own line."""
+        with self._life:
+            if self._stop_asked():
+                raise CommandProcessError('stopped before the command process started')
+            self.held_reason = hold_reason
+            self._spawn(hold=bool(hold_reason))
         deadline = time.monotonic() + timeout
-        while 'ready' not in self.info:
+        stop_sent = False
+        while 'ready' not in self.info and 'held' not in self.info:
+            if not stop_sent and self._stop_asked():
+                stop_sent = self._send('stop')   # it enables nothing it has not yet enabled
             if self.error is not None:
                 kind, text = self.error
                 self._reap()
@@ -134,6 +171,9 @@ class CommandClient:
                 code = self._reap()
                 if self.error is not None:
                     continue
+                if self.exit is not None:
+                    raise CommandProcessError(f'the command process stopped ({self.exit.reason}) '
+                                              'before its drives were enabled') from None
                 raise CommandProcessError(f'the command process ended (exit code {code}) '
                                           'before its drives were enabled') from None
         self._reader = threading.Thread(target=self._read, daemon=True,
@@ -153,7 +193,8 @@ class CommandClient:
     def shutdown(self, timeout: float = 30.0) -> None:
         """Ask the command process to shut its drives down and wait for its report
         (BLOCKING, idempotent)."""
-        self.stopping = True
+        with self._life:                  # not while a restart is being made
+            self.stopping = self.stop_requested = True
         channel = self.channel
         if channel is None or self.process is None:
             return
@@ -179,26 +220,55 @@ class CommandClient:
             except ChannelClosed:
                 if self.stopping:
                     return
+                if self.exit is not None:
+                    self._stopped_itself()
+                    return
                 if not self._died():
                     return
 
+    def _stopped_itself(self) -> None:
+        """The command process ended on purpose (a stop signal reached it): its rows ramped to
+        zero and its drives are disabled. Never restarted; the shell is told."""
+        self._reap()
+        with self._life:
+            self.stop_requested = True
+            self.dead = True
+        reason = self.exit.reason
+        self.log(logging.WARNING, f'command process stopped by {reason}: rows ramped to 0, '
+                                  'drives disabled; not restarted (a stop is a stop)')
+        self.on_exit(reason)
+
     def _died(self) -> bool:
-        """The command process ended unasked: report; restart it if allowed (True)."""
+        """The command process ended unasked: report; restart it, held, if allowed (True)."""
         code = self._reap()
         why = f'command process died (exit code {code})'
-        self.deaths.append(why)
-        limit = self.settings.loop.command_restarts
-        if self.restarts >= limit:
-            self.dead = True
-            self.log(logging.ERROR, f'{why}; not restarted ({limit} restart(s) used): the '
-                                    "drives' watchdogs have stopped the motors")
-            return False
-        self.info = {}
-        self.restarts += 1
-        self.log(logging.ERROR, f'{why}: restarting it ({self.restarts} of {limit}); the '
-                                "drives' watchdogs stop the motors meanwhile")
+        with self._life:
+            if self._stop_asked():
+                self.dead = True
+                self.log(logging.WARNING, f'{why} while stopping: not restarted')
+                return False
+            self.deaths.append(why)
+            limit = self.settings.loop.command_restarts
+            if self.restarts >= limit:
+                self.dead = True
+                self.log(logging.ERROR, f'{why}; not restarted ({limit} restart(s) used): the '
+                                        "drives' watchdogs have stopped the motors")
+                return False
+            self.info = {}
+            self.restarts += 1
+            automatic = self.settings.loop.enable_after_restart
+            self.held_reason = '' if automatic else f'restarted after: {why}'
+            self.log(logging.ERROR, f'{why}: restarting it ({self.restarts} of {limit}); the '
+                                    "drives' watchdogs stop the motors meanwhile; " + (
+                                        'the rows run again once it is ready '
+                                        '(enable_after_restart)' if automatic else
+                                        'the rows stay at zero until an operator enables them '
+                                        f'(service {self.enable_service})'))
+            return self._respawn(hold=not automatic)
+
+    def _respawn(self, hold: bool) -> bool:
         try:
-            self._spawn()
+            self._spawn(hold=hold)
             if self._design is not None:
                 if self._design_message is not None:
                     self.channel.send(*self._design_message)
@@ -233,10 +303,16 @@ class CommandClient:
             self.final = payload
         elif kind == 'error':
             self.error = (payload[0], payload[1])
+        elif kind == 'exit':
+            try:
+                self.exit = CommandExit.from_data(payload)
+            except ReportError as exc:
+                self.log(logging.ERROR, f'command process: {exc}')
+                self.exit = CommandExit('stop')
         else:
             self.info[kind] = payload
-            if kind == 'ready' and payload.get('realtime'):
-                pass                                      # said in its own log line
+            if kind == 'ready':
+                self.held_reason = ''
 
     # ---------------------------------------------------------------- inputs
     def _send(self, kind: str, payload: Any = None, latest: bool = False) -> bool:
@@ -308,6 +384,37 @@ class CommandClient:
                                    f'{REPLY_TIMEOUT:g} s', False]
                 self._replied.wait(remaining)
             return self._replies.pop(ident)
+
+    def operator_enable(self, timeout: float = ENABLE_TIMEOUT) -> tuple[bool, str]:
+        """An operator enables the held rows (BLOCKING up to `timeout`): (ok, message)."""
+        with self._life:
+            if self._stop_asked():
+                return False, 'stopping: nothing is enabled any more'
+            if self.dead:
+                return False, 'the command process is not running'
+            if 'ready' in self.info:
+                return False, 'the rows are enabled already'
+            if 'held' not in self.info:
+                return False, 'the command process is starting: try again in a moment'
+            ident = next(self._ids)
+            if not self._send('enable', [ident]):
+                return False, 'the command process is not running'
+        deadline = time.monotonic() + timeout
+        with self._replied:
+            while ident not in self._replies:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False, f'the drives were not enabled within {timeout:g} s'
+                self._replied.wait(remaining)
+            ok, message, _ = self._replies.pop(ident)
+        if ok:
+            self.log(logging.WARNING, f'rows enabled by an operator: {message}')
+        return bool(ok), str(message)
+
+    @property
+    def held(self) -> bool:
+        """The rows wait at zero for an operator (`operator_enable`)."""
+        return bool(self.held_reason) and 'ready' not in self.info and not self.dead
 
     def section(self, name: str, on: bool, now: float) -> tuple[bool, str, bool]:
         ok, message, changed = self._request('section', name, bool(on))
@@ -391,9 +498,19 @@ class CommandClient:
         if age is not None:
             values.append(('last feedback age', f'{age:.3f} s'))
         values.append(('feedback samples dropped', self.feedback_dropped))
-        if self.dead:
+        if self.exit is not None and self.dead:
             return diagnostics.Report(COMMAND_PROCESS, diagnostics.ERROR,
-                                      f'{self.deaths[-1]}; not restarted', tuple(values))
+                                      f'stopped by {self.exit.reason}: rows at 0, drives '
+                                      'disabled; not restarted', tuple(values))
+        if self.dead:
+            why = self.deaths[-1] if self.deaths else 'command process ended while stopping'
+            return diagnostics.Report(COMMAND_PROCESS, diagnostics.ERROR,
+                                      f'{why}; not restarted', tuple(values))
+        if self.held:
+            return diagnostics.Report(COMMAND_PROCESS, diagnostics.WARN,
+                                      f'rows held at zero ({self.held_reason}): an operator '
+                                      f'enables them (service {self.enable_service})',
+                                      tuple(values))
         if self.process is not None and self.process.poll() is not None and not self.stopping:
             return diagnostics.Report(COMMAND_PROCESS, diagnostics.ERROR,
                                       'command process died: restarting', tuple(values))

@@ -8,22 +8,30 @@ publishes. It owns the CAN bus, the CiA 402 masters, the heartbeats and the row 
 
 shell -> here: `settings` (first), `speed` [v, ω_z, t] (latest value), `design` text,
 `section` / `reset` requests [id, row, ...] (answered by `reply` [id, ok, message, changed]),
-`configure` (the law's settings), `stop`.
-here -> shell: `built`, `ready`, `error` (start), `log` [level, line], `fb` (every control
-period: joint feedback, commands, sections, a snapshot), `diag` (reports, every diagnostics
-period), `final` (the run's figures).
+`configure` (the law's settings), `enable` [id] (an operator's, to a held process), `stop`.
+here -> shell: `built`, `held` (start: waiting for an operator), `ready`, `error` (start),
+`log` [level, line], `fb` (every control period: joint feedback, commands, sections, a
+snapshot), `diag` (reports, every diagnostics period), `final` (the run's figures:
+`reports.CommandReport`), `exit` (why it ends on purpose: `reports.CommandExit`, last).
+
+Held (the settings say `hold`: a restart after a crash, doc/command.md): it builds the engine and
+checks the bus but does not enable a drive; the rows stay at zero until an `enable` request (an
+operator's service call on the sync node) or it is stopped.
 
 It asks for SCHED_FIFO (`realtime_priority`) and locked memory, and says in one log line (and
 in the `ready` message, which the shell puts in /diagnostics) what it did not get, then runs
-on. Supervision: the kernel sends SIGTERM when the parent dies (PR_SET_PDEATHSIG) and the
-channel reads end-of-file; either way the process is orphaned: every row ramps to 0 at its
-acceleration limit, the drives are disabled (0x60FF = 0, 0x06, pre-operational) and it exits.
-It never runs on without its shell. SIGINT is ignored (a terminal's Ctrl-C reaches the whole
-process group; the shell decides).
+on. A stop is a stop however it comes: its shell's `stop`, SIGTERM or SIGINT (a service
+manager or a terminal's Ctrl-C stopping the whole process group, or someone stopping this process
+alone), or its shell gone (the channel reads end-of-file; the kernel sends SIGTERM when the parent
+dies: PR_SET_PDEATHSIG): every row ramps to 0 at its acceleration limit, the drives are disabled
+(0x60FF = 0, 0x06, pre-operational), `final` and `exit` (the reason) are sent while the shell is
+there to read them, and it exits 0. A second signal changes nothing (the stop is under way). It
+never runs on without its shell, and never enables a drive once a stop has come.
 """
 from __future__ import annotations
 
 import argparse
+from dataclasses import asdict
 import gc
 import logging
 import math
@@ -34,6 +42,7 @@ import sys
 import time
 from typing import Any
 
+from planter_ros import stop_signals
 from planter_ros.config import ConfigError
 from planter_ros.control.cam_law import profile_from_data
 from planter_ros.design import from_json
@@ -42,12 +51,14 @@ from planter_ros.drive.errors import DriveError
 from . import realtime
 from .channel import Channel, ChannelClosed
 from .engine import CommandEngine
+from .reports import CommandExit
 from .settings import CommandSettings, law_from_data
 from planter_ros.drive.socket_bus import INTERFACE, SocketPairBus
 
 __all__ = ['ORPHAN_RAMP_LIMIT', 'main', 'run']
 
 ORPHAN_RAMP_LIMIT = 5.0       # s an orphaned process ramps at most before disabling anyway
+DRAIN_TIMEOUT = 5.0           # s its last messages may wait for room in the shell's buffer
 SWITCH_INTERVAL = 5e-4        # s a worker thread may hold the interpreter while the loop waits
 LIBRARY_LOGGERS = ('can', 'canopen', 'planter_ros.drive')
 
@@ -67,15 +78,18 @@ class _ChannelLog(logging.Handler):
 
 
 class _Terminated:
-    """SIGTERM (the parent died: PR_SET_PDEATHSIG, or a service manager stops the group)."""
+    """SIGTERM or SIGINT: a stop (the parent died: PR_SET_PDEATHSIG; a service manager or a
+    terminal stops the group; someone stops this process). `received`: its name, '' before."""
 
     def __init__(self) -> None:
-        self.received = False
+        self.received = ''
         signal.signal(signal.SIGTERM, self._on_signal)
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGINT, self._on_signal)
+        stop_signals.unblock()          # its shell started it with both held back
 
-    def _on_signal(self, _signum: int, _frame: Any) -> None:
-        self.received = True
+    def _on_signal(self, signum: int, _frame: Any) -> None:
+        if not self.received:
+            self.received = signal.Signals(signum).name
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -89,16 +103,31 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return run(channel, terminated, death)
     finally:
-        channel.close()
+        channel.finish(DRAIN_TIMEOUT)         # `final` and `exit` reach the shell
 
 
-def _settings(channel: Channel, terminated: _Terminated) -> CommandSettings | None:
+def _settings(channel: Channel, terminated: _Terminated,
+              early: list) -> CommandSettings | None:
+    """The settings (None: stopped first); what the shell sent right after them (the design
+    and sections a restart sends again) is put in `early`, to be applied once built."""
     deadline = time.monotonic() + 30.0
     while time.monotonic() < deadline and not terminated.received:
-        for kind, payload in channel.receive(0.1):
+        messages = channel.receive(0.1)
+        for i, (kind, payload) in enumerate(messages):
             if kind == 'settings':
+                early += [m for m in messages[i + 1:] if m[0] != 'speed']
                 return CommandSettings.from_data(payload)
+            if kind == 'stop':
+                return None
     return None
+
+
+def _exit(channel: Channel, reason: str, enabled: bool) -> None:
+    """The last message: why this process ends on purpose (reports.CommandExit)."""
+    try:
+        channel.send('exit', asdict(CommandExit(reason, enabled)))
+    except ChannelClosed:
+        pass
 
 
 def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
@@ -109,12 +138,14 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
         except ChannelClosed:
             pass
 
+    early: list = []
     try:
-        settings = _settings(channel, terminated)
+        settings = _settings(channel, terminated, early)
     except ChannelClosed:
         return 1
-    if settings is None:
-        return 1
+    if settings is None:              # stopped (or never told what to run) before a start
+        _exit(channel, terminated.received or 'stop', False)
+        return 0 if terminated.received else 1
     handler = _ChannelLog(channel)
     for name in LIBRARY_LOGGERS:
         logging.getLogger(name).addHandler(handler)
@@ -136,7 +167,20 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
                                setups=settings.setups)
         channel.send('built', {'bus_load': engine.bus_load.load,
                                'bitrate': engine.bus_load.bitrate, 'pid': os.getpid()})
-        engine.enable()
+        if any(kind == 'stop' for kind, _ in early):
+            early, stopped = [], 'stop'
+        elif settings.hold:
+            stopped = _held(engine, channel, terminated, refused, settings, early)
+        else:
+            stopped = terminated.received or _pending_stop(engine, channel)
+        if stopped:                         # a stop before any drive was enabled
+            engine.shutdown()               # (only the bus is closed)
+            _exit(channel, 'stop' if stopped == 'orphaned' else stopped, False)
+            return 0
+        if not settings.hold:
+            engine.enable()
+            for kind, payload in early:
+                _handle(engine, channel, kind, payload)
     except (DriveError, ConfigError, OSError) as exc:
         text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         kind = 'config' if isinstance(exc, ConfigError) and not isinstance(exc, DriveError) \
@@ -147,7 +191,23 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
             pass
         if engine is not None:
             engine.shutdown()
+        _exit(channel, 'start failed', False)
         return 2
+    _send_ready(channel, engine, refused, settings)
+    gc.freeze()       # start-up's objects out of the collector's reach: short collections
+    why = _loop(engine, channel, settings, terminated)
+    _ramp_down(engine, why)
+    engine.shutdown()
+    try:
+        channel.send('final', engine.final_report())
+    except ChannelClosed:
+        pass
+    _exit(channel, why if why != 'orphaned' else 'stop', True)
+    return 0
+
+
+def _send_ready(channel: Channel, engine: CommandEngine, refused: list[str],
+                settings: CommandSettings) -> None:
     try:
         channel.send('ready', {'running': sum(unit.running for unit in engine.units),
                                'mode': engine.mode_text(),
@@ -155,20 +215,68 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
                                'priority': settings.loop.realtime_priority})
     except ChannelClosed:
         pass
-    gc.freeze()       # start-up's objects out of the collector's reach: short collections
-    orphaned = _loop(engine, channel, settings, terminated)
-    _ramp_down(engine, orphaned)
-    engine.shutdown()
+
+
+def _pending_stop(engine: CommandEngine, channel: Channel) -> str:
+    """'stop' if the shell asked for a stop before the drives were enabled ('' if not; what
+    else it sent is handled)."""
     try:
-        channel.send('final', engine.final_report())
+        messages = channel.receive(0.0)
     except ChannelClosed:
-        pass
-    return 0
+        return 'orphaned'
+    stop = ''
+    for kind, payload in messages:
+        if kind == 'stop':
+            stop = 'stop'
+        elif kind not in ('speed', 'enable'):
+            _handle(engine, channel, kind, payload)
+    return stop
+
+
+def _held(engine: CommandEngine, channel: Channel, terminated: _Terminated,
+          refused: list[str], settings: CommandSettings, deferred: list) -> str:
+    """Held: no drive enabled until an `enable` request; '' once enabled (the loop follows),
+    else why it stopped first ('stop', a signal's name, 'orphaned')."""
+    channel.send('held', {'pid': os.getpid(), 'realtime': refused,
+                          'priority': settings.loop.realtime_priority})
+    # `deferred`: the design, sections, settings: applied once the drives run
+    while not terminated.received:
+        try:
+            messages = channel.receive(0.1)
+        except ChannelClosed:
+            return 'orphaned'
+        for kind, payload in messages:
+            if kind == 'stop':
+                return 'stop'
+            if kind == 'enable':
+                ident = payload[0]
+                try:
+                    engine.enable()
+                except (DriveError, ConfigError, OSError) as exc:
+                    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                    channel.send('reply', [ident, False, f'not enabled: {text}', False])
+                    continue
+                for later in deferred:
+                    _handle(engine, channel, *later)
+                channel.send('reply', [ident, True, 'enabled ({}): the rows follow the ground '
+                                       'speed'.format(engine.mode_text()), True])
+                return ''
+            if kind == 'reset':
+                channel.send('reply', [payload[0], False, 'the rows are held: enable them '
+                                       'first', False])
+            elif kind == 'section':         # answered now, applied once the drives run
+                ident, name, on = payload
+                deferred.append(('section', [0, name, on]))
+                channel.send('reply', [ident, True, f'row {name} {"on" if on else "off"} once '
+                                       'the rows are enabled', True])
+            elif kind != 'speed':
+                deferred.append((kind, payload))
+    return terminated.received
 
 
 def _loop(engine: CommandEngine, channel: Channel, settings: CommandSettings,
-          terminated: _Terminated) -> bool:
-    """Until `stop` (False) or orphaned (True)."""
+          terminated: _Terminated) -> str:
+    """Until a stop: 'stop' (the shell's), 'SIGTERM' / 'SIGINT', or 'orphaned'."""
     period = engine.period
     diag_period = settings.loop.diagnostics_period
     next_tick = time.monotonic()
@@ -177,18 +285,18 @@ def _loop(engine: CommandEngine, channel: Channel, settings: CommandSettings,
     sampled = -math.inf         # when a sample last sent every row's frames (profile velocity)
     while True:
         if terminated.received:
-            return True
+            return terminated.received
         try:
             messages = channel.receive(max(next_tick - time.monotonic(), 0.0))
         except ChannelClosed:
-            return True
+            return 'orphaned'
         speed = None
         for kind, payload in messages:
             if kind == 'speed':
                 skipped += speed is not None
                 speed = payload
             elif kind == 'stop':
-                return False
+                return 'stop'
             else:
                 _handle(engine, channel, kind, payload)
         if speed is not None:
@@ -214,7 +322,7 @@ def _loop(engine: CommandEngine, channel: Channel, settings: CommandSettings,
                     channel.send('diag', [[[r.task, r.level, r.message, list(r.values)], hw]
                                           for r, hw in engine.reports(now)])
             except ChannelClosed:
-                return True
+                return 'orphaned'
 
 
 def _handle(engine: CommandEngine, channel: Channel, kind: str, payload: Any) -> None:
@@ -237,16 +345,21 @@ def _handle(engine: CommandEngine, channel: Channel, kind: str, payload: Any) ->
             channel.send('reply', [ident, ok, message, False])
         elif kind == 'configure':
             engine.configure(law_from_data(payload))
+        elif kind == 'enable':              # enabled already: nothing to do
+            channel.send('reply', [payload[0], False, 'the rows are enabled already', False])
     except (ValueError, KeyError, TypeError, ConfigError, StopIteration) as exc:
         engine.log(logging.ERROR, f'{kind} ignored: {exc}')
 
 
-def _ramp_down(engine: CommandEngine, orphaned: bool) -> None:
+def _ramp_down(engine: CommandEngine, why: str) -> None:
     """Every row to 0 at its acceleration limit (frames, SYNC and heartbeat go on) before the
-    drives are disabled: asked to stop, or orphaned."""
-    if orphaned:
+    drives are disabled: asked to stop, stopped by a signal, or orphaned."""
+    if why == 'orphaned':
         engine.log(logging.ERROR, 'command process orphaned (its shell died): ramping every '
                                   'row to 0, then disabling the drives')
+    elif why != 'stop':
+        engine.log(logging.WARNING, f'command process stopped by {why}: ramping every row to '
+                                    '0, then disabling the drives')
     start = time.monotonic()
     engine.stop_ramp(start)
     while time.monotonic() - start < ORPHAN_RAMP_LIMIT:

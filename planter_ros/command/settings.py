@@ -29,19 +29,24 @@ def law_from_data(data: list[dict[str, Any]]) -> tuple:
 
 
 class CommandSettings:
-    """The command process's settings: drive, loop, rows, law; `data()` / `from_data()`."""
+    """The command process's settings: drive, loop, rows, law; `data()` / `from_data()`.
+    `hold`: build and check, but enable no drive until an operator's `enable` (a restart after
+    a crash: doc/command.md)."""
 
     def __init__(self, drive: DriveConfig, loop: SyncLoopConfig, rows: list[Row], law: tuple,
-                 log_level: str = 'info', setups: dict[str, DriveSetup] | None = None) -> None:
+                 log_level: str = 'info', setups: dict[str, DriveSetup] | None = None,
+                 hold: bool = False) -> None:
         self.drive, self.loop, self.rows, self.law = drive, loop, list(rows), tuple(law)
         self.log_level = log_level
         self.setups = dict(setups or {})     # row name -> its drive per the machine file
+        self.hold = bool(hold)
 
     def data(self) -> dict[str, Any]:
         return {'drive': asdict(self.drive), 'loop': asdict(self.loop),
                 'rows': [row.as_dict() for row in self.rows], 'law': law_to_data(self.law),
                 'log_level': self.log_level,
-                'setups': {name: setup.data() for name, setup in self.setups.items()}}
+                'setups': {name: setup.data() for name, setup in self.setups.items()},
+                'hold': self.hold}
 
     @classmethod
     def from_data(cls, data: dict[str, Any]) -> 'CommandSettings':
@@ -51,4 +56,10 @@ class CommandSettings:
         return cls(DriveConfig(**data['drive']), SyncLoopConfig(**data['loop']), rows,
                    law_from_data(data['law']), data.get('log_level', 'info'),
                    {name: DriveSetup.from_data(setup)
-                    for name, setup in data.get('setups', {}).items()})
+                    for name, setup in data.get('setups', {}).items()},
+                   bool(data.get('hold', False)))
+
+    def held(self, hold: bool = True) -> 'CommandSettings':
+        """The same settings, held (or not)."""
+        return CommandSettings(self.drive, self.loop, self.rows, self.law, self.log_level,
+                               self.setups, hold)

@@ -55,6 +55,16 @@ class SyncLoopConfig:
     command_restarts: int = setting(3, 'times the node restarts a command process that died '
                                     "(the drives' own watchdogs stop the motors meanwhile); "
                                     'then it reports ERROR', range=(0, 100), read_only=True)
+    enable_after_restart: bool = setting(False, 'true (a fenced machine only): after an '
+                                         'automatic restart of the command process or of the '
+                                         'service the rows run again by themselves; false: '
+                                         'they wait at zero until an operator calls '
+                                         'enable_rows', read_only=True)
+    last_stop_file: str = setting('', 'where the service manager notes how the last run of '
+                                  'the graph ended (systemd/planter.service: '
+                                  '/run/planter/last-stop); a start after a run that did not '
+                                  'end with success is an automatic restart ("" = none)',
+                                  read_only=True)
 
     def __post_init__(self) -> None:
         check(self)

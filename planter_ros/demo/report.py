@@ -10,6 +10,7 @@ design changes)."""
 import math
 from typing import Any
 
+from .sync_process import SyncReport
 from .verdict import RowResult
 
 __all__ = ['command_path_lines', 'progress_line', 'row_summary']
@@ -37,7 +38,7 @@ def spacing_changes(observer: Any) -> list[tuple[float, float]]:
 
 
 def row_summary(design: Any, rows: list, profile: Any, observer: Any,
-                report: dict) -> tuple[str, list[RowResult]]:
+                report: SyncReport) -> tuple[str, list[RowResult]]:
     """The demo's own figures per planting row and the command path's report:
     (text, [RowResult] for the verdict). `rows`: every row of the scene."""
     import numpy as np
@@ -90,35 +91,47 @@ def row_summary(design: Any, rows: list, profile: Any, observer: Any,
     return '\n'.join(lines), results
 
 
-def command_path_lines(report: dict) -> list[str]:
+def command_path_lines(report: SyncReport) -> list[str]:
     """Sample counts, slips, send errors, watchdog trips and the control loop's period
-    statistics, from the sync process's report (sync_process.final_report)."""
-    lines = [f"  ground-speed samples     {report['accepted']} accepted, rejected "
-             + ', '.join(f'{k} {v}' for k, v in report['rejected'].items()),
-             f"  yaw-rate samples         {report['yaw_accepted']} accepted, rejected "
-             + ', '.join(f'{k} {v}' for k, v in report['yaw_rejected'].items()),
-             f"  phase slips              {report['phase_slips']}; CAN send errors "
-             f"{report['send_errors']}; mode "
-             f"{'phase-locked' if report['phase_lock'] else 'speed-only'}, turn "
-             f"compensation {'on' if report['turn_compensation'] else 'off'}"]
+    statistics, from the sync process's report (sync_process.final_report), and how each
+    drive ended."""
+    lines = []
+    command = report.command
+    if command is None:
+        lines.append(f'  command path             no figures: {report.command_missing}')
+    else:
+        lines += [f'  ground-speed samples     {command.accepted} accepted, rejected '
+                  + ', '.join(f'{k} {v}' for k, v in command.rejected.items()),
+                  f'  yaw-rate samples         {command.yaw_accepted} accepted, rejected '
+                  + ', '.join(f'{k} {v}' for k, v in command.yaw_rejected.items()),
+                  f'  phase slips              {command.phase_slips}; CAN send errors '
+                  f'{command.send_errors}; mode '
+                  f"{'phase-locked' if command.phase_lock else 'speed-only'}, turn "
+                  f"compensation {'on' if command.turn_compensation else 'off'}"]
     trips = ', '.join(f'node {node}: {why} (0x{code:04X})'
-                      for node, why, code in report['watchdog_trips'])
+                      for node, why, code in report.drives.watchdog_trips)
     lines.append(f"  drive watchdog trips     {trips or 'none'}")
-    deadline = report['command_timeout']
-    for row in report['rows']:
-        loop = row['loop']
-        name = f' {row["label"]}' if len(report['rows']) > 1 else ''
-        if not loop['gaps']:
-            lines.append(f'  control loop{name:<12} no command frames')
-            continue
-        lines.append(f"  control loop{name:<12} command gap mean {loop['mean'] * 1e3:.1f} "
-                     f"ms, p99.9 {loop['p999'] * 1e3:.1f} ms, max {loop['max'] * 1e3:.1f} "
-                     f"ms over {loop['gaps'] + 1} frames (drive deadline "
-                     f'{deadline * 1e3:.0f} ms)')
-    sources = report['design']
-    lines.append(f"  design                   from {sources['first'] or 'nobody'}"
-                 + (f"; {sources['changes']} change(s) during the run, the latest from "
-                    f"{sources['last_change']}" if sources['changes'] else
+    if command is not None:
+        deadline = command.command_timeout
+        for row in command.rows:
+            loop = row.loop
+            name = f' {row.label}' if len(command.rows) > 1 else ''
+            if not loop['gaps']:
+                lines.append(f'  control loop{name:<12} no command frames')
+                continue
+            lines.append(f"  control loop{name:<12} command gap mean {loop['mean'] * 1e3:.1f} "
+                         f"ms, p99.9 {loop['p999'] * 1e3:.1f} ms, max {loop['max'] * 1e3:.1f} "
+                         f"ms over {loop['gaps'] + 1} frames (drive deadline "
+                         f'{deadline * 1e3:.0f} ms)')
+    if report.command_exit and report.command_exit != 'stop':
+        lines.append(f'  command process          stopped by {report.command_exit}: rows '
+                     'ramped to 0, drives disabled')
+    for node, end in sorted(report.drives.end.items(), key=lambda item: int(item[0])):
+        lines.append(f'  drive node {node:<13} ended {end.text()}')
+    sources = report.design
+    lines.append(f'  design                   from {sources.first or "nobody"}'
+                 + (f'; {sources.changes} change(s) during the run, the latest from '
+                    f'{sources.last_change}' if sources.changes else
                     '; unchanged during the run'))
     return lines
 

@@ -8,9 +8,11 @@ end the demo prints per row the plants placed, the spacing error, commanded agai
 speed and in the turns the compensation's effect (demo.report). The monitor records the run
 (bags/planter_<date-time> unless a bag is given); the demo ends by replaying that bag offline
 and printing the replay summary, then one verdict line: PASS, or FAIL and every reason
-(demo.verdict); the exit code is 0 on PASS, 1 on FAIL. Ctrl-C or SIGTERM stops it cleanly
-(drives shut down, bus closed, bag finalised) with the summaries and the verdict on what ran;
-a second signal forces the exit.
+(demo.verdict); the exit code is 0 on PASS, 1 on FAIL. A stop is a stop however it comes:
+Ctrl-C or SIGTERM to the demo alone or to its whole process group (a terminal, systemd,
+`docker stop`), to its sync process or to its command process, at start-up, in the run or while
+stopping, stops it cleanly (the rows ramped to zero, the drives disabled, the bus closed, the bag
+finalised) with the summaries and the verdict on what ran; a second signal forces the exit.
 
 The graph runs in a DDS domain of its own (planter_ros.dds_domain), so no other graph on the
 host reaches it, and the sync node with the simulated drives runs in a process of its own
@@ -49,7 +51,7 @@ from .field import field_profile, glitches
 from .machine import (
     first_plant_errors, first_plant_lines, first_plant_reasons, machine_rows, simulated_drives)
 from .options import DemoOptions, check_bag_path
-from .report import progress_line, row_summary
+from .report import command_path_lines, progress_line, row_summary
 from .sync_process import SyncProcess, SyncProcessError, SyncProcessSettings
 from .verdict import judge
 
@@ -92,7 +94,7 @@ class Demo:
 
     def __init__(self, scene, design, rows, options: DemoOptions, out: TextIO | None = None,
                  install_signals: bool = True, log_level: str = 'info', antenna=None,
-                 machine=None) -> None:
+                 machine=None, stop=None) -> None:
         self.scene, self.design, self.rows, self.options = scene, design, rows, options
         self.machine = machine            # scene.machine_file.Machine of --machine, or None
         self._replayed = None             # the replay of the bag, once done
@@ -100,6 +102,7 @@ class Demo:
         self.planting = [row for row in rows if row.enabled]
         self.out = out or sys.stdout
         self.install_signals = install_signals
+        self.stop = stop                  # a stop_signals handler installed by the caller
         self.log_level = log_level
         self.result: DemoResult | None = None
         self.schedule = spacing_schedule(scene.parameters('design_node'), scene.path)
@@ -111,8 +114,21 @@ class Demo:
     def run(self) -> int:
         """The whole run; returns the exit code (0 PASS, 1 FAIL)."""
 
-        stop = (stop_signals.install('planter demo') if self.install_signals
-                else stop_signals.StopSignals('planter demo'))
+        # the command line installs its handler first thing (a stop while the demo reads its
+        # inputs is a stop too)
+        stop = self.stop or ((stop_signals.installed() or stop_signals.install('planter demo'))
+                             if self.install_signals else stop_signals.StopSignals('planter demo'))
+        try:
+            return self._run(stop)
+        finally:
+            if self.install_signals:
+                # the verdict is out: a stop signal while the interpreter winds down (its
+                # threads, DDS) changes nothing, not even the exit code
+                stop_signals.ignore()
+
+    def _run(self, stop) -> int:
+        if stop.received is not None:     # stopped while it was reading its inputs
+            return self.stopped_before_start(stop)
         try:
             # a domain of its own: no other graph on the host (another demo, a stray node in
             # the default domain 0) can reach this one, nor this one them
@@ -127,6 +143,17 @@ class Demo:
             run.stop()
         return self.finish(run)
 
+    def stopped_before_start(self, stop) -> int:
+        """A stop that came before the graph started: nothing ran, nothing to shut down."""
+        from .verdict import Verdict
+        self._print(f'interrupted by {stop.description} before the graph started: nothing ran')
+        self._print('\nsummary\n  no field run, no drive enabled, no bag')
+        verdict = Verdict(['stopped before the graph started: no bag'], stop.description)
+        self.result = DemoResult(verdict, None, [], -1)
+        self._print('')
+        self._print(verdict.line())
+        return verdict.exit_code
+
     def finish(self, run: '_Run') -> int:
         """Summaries, the replay of the bag, the verdict line; the exit code."""
         report = run.sync.report if run.sync is not None else None
@@ -135,6 +162,11 @@ class Demo:
             summary, rows = row_summary(self.design, self.rows, run.profile, run.observer,
                                         report)
             self._print(summary)
+        else:                             # stopped (or failed) before the field run
+            self._print('\n'.join(['', 'summary', '  no field run (stopped or failed before '
+                                    'it started): no plant placed']
+                                   + (command_path_lines(report) if report is not None else
+                                      ['  the sync process gave no report'])))
         bag_error = run.bag_error()
         acceptance = None
         if not bag_error:
@@ -149,11 +181,13 @@ class Demo:
         first_plants = {}
         if self.machine is not None and self._replayed is not None and report is not None:
             first_plants = first_plant_errors(self.rows, self._replayed,
-                                              report.get('bottom_times', {}), run.profile,
+                                              report.drives.bottom_times, run.profile,
                                               *run.field_start)
             self._print('\n'.join(first_plant_lines(first_plants)))
+        field_run = run.observer is not None and run.observer.start is not None
         verdict = judge(rows, report, run.start_error, bag_error, monitor_changes,
-                        acceptance, scheduled_changes=run.scheduled_changes)
+                        acceptance if field_run else None,
+                        scheduled_changes=run.scheduled_changes, field_run=field_run)
         if first_plants:
             verdict.reasons += first_plant_reasons(first_plants)
         verdict.stopped_by, verdict.elapsed = run.stopped_by, run.elapsed
@@ -208,13 +242,21 @@ class _Run:
         self._next_switch = 0           # the spacing schedule's next switch
         self.field_start = (0.0, 0.0)   # (ROS time s, monotonic s) of the field run's t = 0
         self.scheduled_changes = 0      # design changes the schedule made (not foreign)
+        self.completed = False          # the field run ran its full length
 
     @property
     def stopped_by(self):
-        return self.stop_signal.name_received
+        """What stopped the run early: a signal to the demo (its process group), or one that
+        reached its sync process or command process ('' = none, also for a signal that came
+        after the field run had run its full length)."""
+        if self.completed:
+            return ''
+        return self.stop_signal.description or (self.sync.stop_requested
+                                                if self.sync is not None else '')
 
     def _stopped(self):
-        return self.stop_signal.received is not None
+        return (self.stop_signal.received is not None
+                or (self.sync is not None and bool(self.sync.poll_stop())))
 
     def start_and_drive(self):
         demo, options, design = self.demo, self.demo.options, self.demo.design
@@ -275,8 +317,8 @@ class _Run:
                 demo._print('rows: ' + ', '.join(
                     f'{row.name} (y = {row.lateral_offset:+.2f} m, node {row.drive_node_id}'
                     f'{"" if row.enabled else ", disabled"})' for row in demo.rows)
-                    + f"; CAN bus load {100 * built['bus_load']:.1f} % of "
-                    f"{built['bitrate']} bit/s")
+                    + f"; CAN bus load {100 * built.bus_load:.1f} % of "
+                    f"{built.bitrate} bit/s")
             ready = self.sync.wait_for('ready', self.START_TIMEOUT, self._stopped)
             if ready is None:
                 return self._interrupted()
@@ -285,10 +327,10 @@ class _Run:
             demo._print(f'drives not started: {exc}')
             return None
         demo._print(('drive enabled' if len(demo.planting) == 1 else
-                     f"{ready['running']} drives enabled")
-                    + f" (CiA 402 {ready.get('mode') or 'mode unknown'}; "
+                     f"{ready.running} drives enabled")
+                    + f" (CiA 402 {ready.mode or 'mode unknown'}; "
                     + ('CAN bus and drives in a command process without DDS, the simulated '
-                       "drives in a process of their own" if ready.get('command_process') else
+                       "drives in a process of their own" if ready.command_process else
                        f'CAN virtual:{channel}, drives in the sync process')
                     + '); field run starts')
         self._start_field(profile)
@@ -349,6 +391,7 @@ class _Run:
             if self._stopped():
                 return self._interrupted()
             if t >= duration:
+                self.completed = True
                 return None
             self._switch_spacing(t)
             if t >= next_print:
@@ -408,10 +451,15 @@ class DemoResult:
     """What a run found, for callers that run demos themselves (the bench)."""
 
     verdict: Any                  # verdict.Verdict
-    report: dict | None           # the sync process's final report (None if none came)
+    sync: Any                     # sync_process.SyncReport (None if none came)
     rows: list                    # verdict.RowResult per planting row
-    domain: int                   # the private DDS domain it ran in
+    domain: int                   # the private DDS domain it ran in (-1: none)
     first_plants: dict | None = None    # --machine: demo.machine.first_plant_errors
+
+    @property
+    def report(self) -> dict | None:
+        """The sync process's final report as one plain mapping (SyncReport.flat)."""
+        return self.sync.flat() if self.sync is not None else None
 
 
 def _param(name: str, value: Any):

@@ -14,29 +14,141 @@ snapshot four times a second for the progress lines, and at the end a report (sa
 faults, watchdog trips, the control loop's period statistics, design changes). With
 `command_process=False` the drives and the engine run in the child on a virtual bus instead.
 
-The child ignores SIGINT and SIGTERM (the terminal's Ctrl-C reaches the whole process group):
-the demo decides when it stops. It stops on the demo's request or when the pipe breaks (the
-demo closed it or was forced out): either way its drives are shut down (0x60FF = 0, disable).
-A demo killed outright (SIGKILL) leaves the child PARENT_GONE_GRACE s for that, then the kernel
-ends it (planter_ros.processes), stuck or not; if the child itself is killed, its command
-process ramps to zero, disables the drives and exits, and the drives' process ends with its
-parent."""
+A stop is a stop however it comes. The demo decides when the graph stops (the drives first,
+then its own nodes, so the bag holds the ramp to zero): a SIGINT or SIGTERM that reaches the
+child (the terminal's Ctrl-C and a service manager reach the whole process group; someone may
+stop the child alone), or the command process's own stop (a signal that reached it: it ramps
+its rows to zero and disables its drives by itself), is passed on to the demo (`stop_requested`)
+and from then on nothing restarts the command process or enables a drive. It stops on the
+demo's request or when the pipe breaks (the demo closed it or was forced out): either way its
+drives are shut down (0x60FF = 0, disable); a second signal ends it at once (its command
+process, orphaned, still ramps down and disables). A demo killed outright (SIGKILL) leaves the
+child PARENT_GONE_GRACE s for that, then the kernel ends it (planter_ros.processes), stuck or
+not; if the child itself is killed, its command process ramps to zero, disables the drives and
+exits, and the drives' process ends with its parent.
+
+What the child says is typed (`SyncBuilt`, `SyncReady`, `SyncReport` with the command path's
+`command.reports.CommandReport` and the drives' `DrivesReport`): a report without the command
+path's figures says why (`command_missing`), never a KeyError at the end of a run."""
 
 from dataclasses import dataclass, field
 import gc
 import multiprocessing
 import threading
 import time
+from typing import Any
 
-__all__ = ['SyncProcess', 'SyncProcessError', 'SyncProcessSettings', 'child_main',
+from planter_ros.command.reports import CommandReport, ReportError, from_data
+from planter_ros.drive.state_names import (FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
+                                           QUICK_STOP_ACTIVE)
+
+__all__ = ['DesignReport', 'DriveEnd', 'DrivesReport', 'STANDSTILL', 'SyncBuilt', 'SyncProcess',
+           'SyncProcessError', 'SyncProcessSettings', 'SyncReady', 'SyncReport', 'child_main',
            'final_report', 'snapshot']
 
 STATUS_PERIOD = 0.25       # s between status snapshots sent to the demo
 PARENT_GONE_GRACE = 4      # s the child may take to shut its drives down once the demo is gone
+STANDSTILL = 1.0           # rad/s of a motor below which it stands still (a coasting remainder)
+# the CiA 402 states with the drive function (torque) on
+POWERED = (OPERATION_ENABLED, QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE)
 
 
 class SyncProcessError(RuntimeError):
     """The sync process did not start (one line: why)."""
+
+
+@dataclass(frozen=True)
+class SyncBuilt:
+    """The sync node is built: the CAN bus load it will make."""
+
+    bus_load: float              # fraction of the bit rate
+    bitrate: int                 # bit/s
+
+
+@dataclass(frozen=True)
+class SyncReady:
+    """The drives are enabled (or, held, wait for an operator)."""
+
+    running: int                 # rows whose drives run
+    mode: str                    # the CiA 402 mode, in words
+    command_process: bool        # the drives behind a command process of their own
+
+
+@dataclass(frozen=True)
+class DriveEnd:
+    """A simulated drive as the run left it."""
+
+    state: str                   # CiA 402 state name
+    motor_velocity: float        # rad/s
+    nmt: str                     # NMT state
+
+    @property
+    def disabled(self) -> bool:
+        """The drive function is off (no torque): not enabled, not stopping under power."""
+        return self.state not in POWERED
+
+    @property
+    def at_standstill(self) -> bool:
+        return abs(self.motor_velocity) < STANDSTILL
+
+    def text(self) -> str:
+        speed = f'{self.motor_velocity:.3f}'.replace('-0.000', '0.000')
+        return f'{self.state.lower()} at {speed} rad/s (motor), NMT {self.nmt.lower()}'
+
+
+@dataclass
+class DrivesReport:
+    """What the simulated drives counted, on their own clock (simdrive.process's report)."""
+
+    watchdog_trips: list = field(default_factory=list)     # [node id, reason, EMCY code]
+    bottom_times: dict = field(default_factory=dict)       # node id -> [monotonic s]
+    rpdo_gaps: dict | None = None     # node id -> gaps between command frames (own process)
+    sync: dict = field(default_factory=dict)
+    heartbeat_gaps: dict = field(default_factory=dict)
+    end: dict[str, DriveEnd] = field(default_factory=dict)  # node id -> as the run left it
+
+    @classmethod
+    def from_data(cls, data: dict) -> 'DrivesReport':
+        report = from_data(cls, data)
+        report.end = {node: from_data(DriveEnd, end) for node, end in report.end.items()}
+        return report
+
+
+@dataclass(frozen=True)
+class DesignReport:
+    """Who set the design the sync node ran (scene.design_sources)."""
+
+    first: str = ''
+    changes: int = 0
+    foreign_changes: int = 0
+    last_change: str = ''
+
+
+@dataclass
+class SyncReport:
+    """The sync process's final report: the command path's figures (None when they never came:
+    `command_missing` says why), the drives', who set the design, and how the command process
+    ended (`command_exit`: its reason for a deliberate exit, '' otherwise)."""
+
+    command: CommandReport | None
+    drives: DrivesReport
+    design: DesignReport
+    command_missing: str = ''
+    command_exit: str = ''
+
+    def flat(self) -> dict[str, Any]:
+        """The report as one plain mapping (the command path's figures, the drives' under
+        drive_* keys), for tools that keep it as JSON (the bench)."""
+        from dataclasses import asdict
+        out = asdict(self.command) if self.command is not None else {}
+        out['watchdog_trips'] = self.drives.watchdog_trips
+        out['bottom_times'] = self.drives.bottom_times
+        if self.drives.rpdo_gaps is not None:
+            out['drive_gaps'] = self.drives.rpdo_gaps
+            out['drive_sync'] = self.drives.sync
+            out['drive_heartbeat_gaps'] = self.drives.heartbeat_gaps
+        out['design'] = asdict(self.design)
+        return out
 
 
 @dataclass(frozen=True)
@@ -61,12 +173,15 @@ class SyncProcess:
         self._conn, child = context.Pipe()
         self.process = context.Process(target=child_main, args=(child, settings),
                                        name='planter-demo-sync')
-        self.process.start()
+        from planter_ros import stop_signals
+        with stop_signals.held_for_child():      # its own handler first, then a stop signal
+            self.process.start()
         child.close()
-        self.info = {}               # what the child said at start
+        self.info = {}               # what the child said at start: SyncBuilt, SyncReady
         self.status = {}             # the latest snapshot
-        self.report = None           # the final report
+        self.report: SyncReport | None = None      # the final report
         self.error = None
+        self.stop_requested = ''     # a stop that reached the child or its command process
 
     def _handle(self, kind, payload):
         if kind == 'status':
@@ -75,8 +190,16 @@ class SyncProcess:
             self.report = payload
         elif kind == 'error':
             self.error = payload
+        elif kind == 'stop_requested':
+            self.stop_requested = self.stop_requested or payload
         else:
             self.info[kind] = payload
+
+    def poll_stop(self):
+        """A stop that reached the child or its command process ('' = none), after taking
+        what the child has sent."""
+        self.poll(0.0)
+        return self.stop_requested
 
     def poll(self, timeout=0.0):
         """Take every message the child has sent (waiting up to `timeout` for the first)."""
@@ -105,7 +228,7 @@ class SyncProcess:
             self.poll(0.05)
         return self.info[kind]
 
-    def stop(self, timeout=30.0):
+    def stop(self, timeout=30.0) -> SyncReport | None:
         """Ask the child to shut its drives down and report; returns the report (None if it
         never came)."""
         try:
@@ -133,7 +256,8 @@ def child_main(conn, settings):
     # down), but it is only read between status snapshots; the kernel's signal ends this
     # process PARENT_GONE_GRACE s after the demo however stuck it is
     die_with_parent(multiprocessing.parent_process().pid, grace=PARENT_GONE_GRACE)
-    stop_signals.ignore()
+    # a stop signal here (or one its command process received) is passed on to the demo
+    stop = stop_signals.install('planter demo: sync process')
     import rclpy
     from rclpy.context import Context
     from rclpy.exceptions import ParameterException
@@ -166,8 +290,9 @@ def child_main(conn, settings):
         kwargs = {'supported_modes': [3, 8], **settings.drive_kwargs}
         # the drives stand for hardware: just below the command process's real-time priority
         priority = dict(parameters).get('realtime_priority', SyncLoopConfig().realtime_priority)
-        sims = SimProcess(ours.fileno(), list(settings.node_ids),
-                          priority=max(int(priority) - 1, 0), **kwargs)
+        with stop_signals.held_for_child():      # the drives ignore stop signals
+            sims = SimProcess(ours.fileno(), list(settings.node_ids),
+                              priority=max(int(priority) - 1, 0), **kwargs)
         ours.close()
         parameters = [(k, v) for k, v in parameters if k not in ('can_interface', 'can_channel')]
         parameters += [('can_interface', INTERFACE), ('can_channel', str(theirs.fileno()))]
@@ -181,12 +306,21 @@ def child_main(conn, settings):
     executor = SingleThreadedExecutor(context=context)
     library_log = LibraryLog()
     sync = None
+    passed_on = False
+
+    def pass_on_stop():
+        nonlocal passed_on
+        if stop.received is not None and not passed_on:
+            passed_on = send('stop_requested', stop.description if stop.source else
+                             f'{stop.name_received} to the sync process')
+
     try:
         sync = SyncNode(context=context, namespace=settings.namespace, parameter_overrides=[
-            Parameter(name, value=value) for name, value in parameters])
-        send('built', {'bus_load': sync.bus_load.load, 'bitrate': sync.bus_load.bitrate})
+            Parameter(name, value=value) for name, value in parameters], stop=stop)
+        send('built', SyncBuilt(sync.bus_load.load, sync.bus_load.bitrate))
         sync.raise_shell_priority()
-        sync.enable_drive()                        # blocking; the loop spins right after it
+        if stop.received is None:
+            sync.enable_drive()                    # blocking; the loop spins right after it
         # what start-up built (canopen's object dictionaries, rclpy, numpy, scipy) lives as
         # long as the process: out of the collector's reach, a full collection scans only
         # what the run allocates (the start-up objects alone take ~45 ms to scan, unloaded)
@@ -195,9 +329,11 @@ def child_main(conn, settings):
         spinner = threading.Thread(target=executor.spin, daemon=True, name='sync-executor')
         spinner.start()
         library_log.node = sync
-        send('ready', {'running': sync.engine.running, 'mode': sync.engine.mode_text(),
-                       'command_process': settings.command_process})
+        if stop.received is None:
+            send('ready', SyncReady(sync.engine.running, sync.engine.mode_text(),
+                                    settings.command_process))
         while True:
+            pass_on_stop()
             if conn.poll(STATUS_PERIOD) and conn.recv() == 'stop':
                 break
             if not send('status', snapshot(sync)):
@@ -205,7 +341,11 @@ def child_main(conn, settings):
     except (EOFError, OSError):
         pass                                       # the demo is gone: stop the drives
     except (DriveError, ConfigError, ParameterException) as exc:
-        send('error', start_error(exc, sync.drive_config if sync is not None else None))
+        if stop.received is None:
+            send('error', start_error(exc, sync.drive_config if sync is not None else None))
+        else:                                      # the start was cut short by the stop
+            pass_on_stop()
+            _wait_for_stop(conn)
     finally:
         executor.shutdown(timeout_sec=2.0)
         if sync is not None:
@@ -215,6 +355,7 @@ def child_main(conn, settings):
             drive_report = sims.stop()
         else:                       # the drives in this process, measured the same way
             sims.stop()
+            from planter_ros.simdrive.process import end_states
             drive_report = {
                 'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
                 'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
@@ -222,11 +363,23 @@ def child_main(conn, settings):
                 'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
                                    for d in sims.drives},
                 'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
-                                 if d.record_bottom}}
+                                 if d.record_bottom},
+                'end': end_states(sims.drives)}
         library_log.close()
     if sync is not None:
         send('final', final_report(sync, drive_report))
     conn.close()
+
+
+def _wait_for_stop(conn, timeout=30.0):
+    """Until the demo says stop (or is gone): it decides when the graph stops."""
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline:
+            if conn.poll(STATUS_PERIOD) and conn.recv() == 'stop':
+                return
+    except (EOFError, OSError):
+        return
 
 
 def snapshot(sync):
@@ -234,19 +387,30 @@ def snapshot(sync):
     return sync.engine.snapshot()
 
 
-def final_report(sync, drives):
-    """The run's figures from the command path (JSON-ready); `drives`: what the simulated
-    drives counted (watchdog trips; in a process of their own also the gaps between command
-    frames on their own clock)."""
-    report = dict(sync.engine.final_report())
-    report['watchdog_trips'] = drives.get('watchdog_trips', [])
-    report['bottom_times'] = drives.get('bottom_times', {})
-    if 'rpdo_gaps' in drives:
-        report['drive_gaps'] = drives['rpdo_gaps']
-        report['drive_sync'] = drives.get('sync', {})
-        report['drive_heartbeat_gaps'] = drives.get('heartbeat_gaps', {})
+def final_report(sync, drives: dict) -> SyncReport:
+    """The run's figures from the command path; `drives`: what the simulated drives counted
+    (watchdog trips, their state at the end; in a process of their own also the gaps between
+    command frames on their own clock)."""
+    data = sync.engine.final_report()
+    command, missing = None, ''
+    if not data:
+        exit_ = getattr(sync.engine, 'exit', None)
+        missing = ('the command process sent no report (it never enabled a drive)'
+                   if exit_ is not None and not exit_.enabled else
+                   'the command process sent no report')
+    else:
+        try:
+            command = CommandReport.from_data(data)
+        except ReportError as exc:
+            missing = f'the command path\'s report is unreadable: {exc}'
+    try:
+        drives_report = DrivesReport.from_data(drives or {})
+    except ReportError as exc:
+        drives_report, missing = DrivesReport(), missing or f'the drives\' report: {exc}'
     sources = sync.design_sources
-    report['design'] = {'first': sources.first.text if sources.first else '',
-                        'changes': sources.changes, 'foreign_changes': sources.foreign_changes,
-                        'last_change': sources.last_change.text if sources.last_change else ''}
-    return report
+    design = DesignReport(sources.first.text if sources.first else '', sources.changes,
+                          sources.foreign_changes,
+                          sources.last_change.text if sources.last_change else '')
+    exit_ = getattr(sync.engine, 'exit', None)
+    return SyncReport(command, drives_report, design, missing,
+                      exit_.reason if exit_ is not None else '')

@@ -7,6 +7,7 @@ A run passes when the machine did what it is for and left a record of it:
   against the design in force when its plant was set) is at most SPACING_TOLERANCE of d;
 * no node changed the design during the run (the demo's own design node publishes once);
 * the bag was recorded, finalised and replays;
+* every drive ended disabled (no torque) at standstill, however the run was stopped;
 * the crop planted well: every row's ISO 7256-1 indices, uprightness rate and hole width,
   from the replay of the bag, within the crop's acceptance limits (the scene's, recorded in
   the bag: prediction.acceptance); each failure names the row, the index, its value and limit.
@@ -62,34 +63,24 @@ class Verdict:
 
 
 def judge(rows, sync_report, start_error='', bag_error='', monitor_design_changes='',
-          acceptance=None, scheduled_changes=0):
+          acceptance=None, scheduled_changes=0, field_run=True):
     """The verdict of a run. `rows`: RowResult per planting row (empty if the run never
     started); `sync_report`: the sync process's final report (sync_process.final_report, None if
     it never came); `start_error`: why the drives did not start; `bag_error`: why there is no
     usable bag; `monitor_design_changes`: the monitor's account of design changes, if any;
     `acceptance`: the replay's judgement of the bag by the crop's limits
     (prediction.judge_acceptance; None: no replay, `bag_error` says why);
-    `scheduled_changes`: design changes the scene's spacing schedule made (not a fault)."""
+    `scheduled_changes`: design changes the scene's spacing schedule made (not a fault);
+    `field_run`: False when the run was stopped before its field run began (nothing planted:
+    the rows and the crop are not judged, the drives and the bag are)."""
     reasons = []
     if start_error:
         reasons.append(f'drives not started: {start_error}')
     if sync_report is None and not start_error:
         reasons.append('the sync process gave no report')
-    report = sync_report or {}
-    trips = report.get('watchdog_trips', [])
-    if trips:
-        reasons.append('drive watchdog trip: ' + ', '.join(
-            f'node {node} {why} (EMCY 0x{code:04X})' for node, why, code in trips))
-    for row in report.get('rows', []):
-        name = f'row {row["label"]}' if row['label'] else 'the drive'
-        if row['left_out']:
-            reasons.append(f'{name} left out: {row["left_out"]}')
-        elif row['faults']:
-            missed = row.get('plants_missed', 0)
-            reasons.append(f'drive fault on {name} ({row["faults"]}x, last: '
-                           f'{row["last_fault"]}'
-                           + (f'; {missed} plant(s) missed' if missed else '') + ')')
-    if not start_error:
+    if sync_report is not None:
+        reasons += _command_path_reasons(sync_report)
+    if not start_error and field_run:
         for row in rows:
             name = f'row {row.label}' if row.label else 'the row'
             if row.plants < 2:
@@ -98,16 +89,38 @@ def judge(rows, sync_report, start_error='', bag_error='', monitor_design_change
             elif row.rms > SPACING_TOLERANCE:
                 reasons.append(f'{name} spacing error RMS {100 * row.rms:.2f} % of d > '
                                f'{100 * SPACING_TOLERANCE:g} % (true distance)')
-    sources = report.get('design', {})         # who set the design (scene.design_sources)
-    if sources.get('changes', 0) > scheduled_changes:
-        reasons.append(f'design changed by another node during the run ({sources["changes"]}x, '
-                       f'the latest from {sources["last_change"]})')
+    sources = sync_report.design if sync_report is not None else None   # who set the design
+    if sources is not None and sources.changes > scheduled_changes:
+        reasons.append(f'design changed by another node during the run ({sources.changes}x, '
+                       f'the latest from {sources.last_change})')
     elif monitor_design_changes:
         reasons.append(f'design changed by another node during the run '
                        f'({monitor_design_changes})')
     if bag_error:
         reasons.append(f'no bag: {bag_error}')
-    if not start_error:
+    if not start_error and field_run:
         reasons += [f'below the crop\'s limits: {text}' for text in
                     acceptance_failures(acceptance)]
     return Verdict(reasons)
+
+
+def _command_path_reasons(report):
+    """Watchdog trips, drive faults, rows left out, and a drive the run did not leave disabled
+    at standstill (sync_process.SyncReport)."""
+    reasons = []
+    trips = report.drives.watchdog_trips
+    if trips:
+        reasons.append('drive watchdog trip: ' + ', '.join(
+            f'node {node} {why} (EMCY 0x{code:04X})' for node, why, code in trips))
+    for row in (report.command.rows if report.command is not None else []):
+        name = f'row {row.label}' if row.label else 'the drive'
+        if row.left_out:
+            reasons.append(f'{name} left out: {row.left_out}')
+        elif row.faults:
+            missed = row.plants_missed
+            reasons.append(f'drive fault on {name} ({row.faults}x, last: {row.last_fault}'
+                           + (f'; {missed} plant(s) missed' if missed else '') + ')')
+    for node, end in sorted(report.drives.end.items(), key=lambda item: int(item[0])):
+        if not (end.disabled and end.at_standstill):
+            reasons.append(f'drive node {node} not left disabled at standstill: {end.text()}')
+    return reasons

@@ -291,12 +291,19 @@ class Cia402Drive:
                        complaint: str) -> None:
         deadline = time.monotonic() + self.config.step_timeout
         next_heartbeat = 0.0
+        failed = None
         while True:
-            self.commander.transmit(controlword)
             now = time.monotonic()
-            if now >= next_heartbeat:
-                self.send_heartbeat()
-                next_heartbeat = now + self.config.heartbeat_period
+            try:
+                # (in CSP the SYNC producer started with the NMT start runs on: feedback comes)
+                self.commander.transmit(controlword)
+                if now >= next_heartbeat:
+                    self.send_heartbeat()
+                    next_heartbeat = now + self.config.heartbeat_period
+            except DriveError as exc:
+                # a send that failed (a full transmit queue) is sent again until the deadline:
+                # one lost frame must not leave the drive enabled
+                failed = exc
             status = self.status()
             if done(status):
                 return
@@ -305,8 +312,9 @@ class Cia402Drive:
                             self.config.drive_node_id)
                 return
             if now > deadline:
-                log.warning('drive node %d: shutdown: %s (%s, %.3f rad/s)',
-                            self.config.drive_node_id, complaint, status.state, status.velocity)
+                log.warning('drive node %d: shutdown: %s (%s, %.3f rad/s)%s',
+                            self.config.drive_node_id, complaint, status.state, status.velocity,
+                            f'; last send error: {failed}' if failed is not None else '')
                 return
             with self.feedback.lock:
                 self.feedback.lock.wait(0.01)

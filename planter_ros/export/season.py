@@ -20,6 +20,7 @@ from planter_ros.analysis.season import (
     ANALYSED, BAGS_FILE, EXPORTS, ISOXML, PLANTS_DIR, SHAPEFILE, read_bags)
 from planter_ros.analysis.tables import HEADING, plant_columns
 from planter_ros.prediction import PLANT_FIELDS, Plants
+from planter_ros.recording.recovery import one_line
 
 from . import isoxml, shapefile
 from .runs import RowPlace, run_of_plants
@@ -78,19 +79,14 @@ def write_season_exports(out, force=False):
         result['plants'], result['placed'] = shapefile.write_shapefile(out / SHAPEFILE, runs)
         result['shapefile'] = str(out / SHAPEFILE)
     except Exception as exc:           # a disk full, a bug on odd data: the ISOXML still goes
-        result['failed'].append({'file': str(out / SHAPEFILE), 'reason': _one_line(exc)})
+        result['failed'].append({'file': str(out / SHAPEFILE), 'reason': one_line(exc)})
     try:
         result['tasks'], _, skipped = isoxml.write_isoxml(out / ISOXML, runs)
         result['isoxml'] = str(out / ISOXML)
         result['skipped'] = [{'bag': bag, 'reason': reason} for bag, reason in skipped]
     except Exception as exc:
-        result['failed'].append({'file': str(out / ISOXML), 'reason': _one_line(exc)})
+        result['failed'].append({'file': str(out / ISOXML), 'reason': one_line(exc)})
     return result
-
-
-def _one_line(exc):
-    text = str(exc).strip().splitlines()
-    return f'{type(exc).__name__}: {text[0]}' if text else type(exc).__name__
 
 
 def season_exports(out, force):

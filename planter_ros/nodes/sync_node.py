@@ -65,11 +65,33 @@ from planter_ros.sensing.row_speed import YawRateLimits
 STAMP_AGE_MAX = 10.0
 
 
-class SyncNode(Node):
-    """Keeps each planting mechanism in step with its row's ground through a CiA 402 drive."""
+def restart_hold_reason(loop):
+    """Why this start must wait for an operator ('' = it need not): the service manager's note
+    of how the graph's last run ended (`last_stop_file`, written by systemd/planter.service
+    after every stop) says it did not end with success, so this start is an automatic restart
+    (a boot or an operator's stop and start leaves no note: /run is new, the unit removes its
+    runtime directory on a stop). `enable_after_restart` (a fenced machine) never waits."""
+    if loop.enable_after_restart or not loop.last_stop_file:
+        return ''
+    try:
+        with open(loop.last_stop_file, encoding='utf-8', errors='replace') as note:
+            text = ' '.join(note.read(200).split())
+    except OSError:
+        return ''
+    if not text or text.split()[0] == 'success':
+        return ''
+    return f'the service restarted after its last run ended: {text}'
 
-    def __init__(self, bus=None, arguments=None, **kwargs):
+
+class SyncNode(Node):
+    """Keeps each planting mechanism in step with its row's ground through a CiA 402 drive.
+    `stop`: the process's stop_signals handler (a stop asked for: nothing restarts the command
+    process or enables a drive; the command process stopped by a signal of its own stops this
+    node too)."""
+
+    def __init__(self, bus=None, arguments=None, stop=None, **kwargs):
         super().__init__('sync_node', **kwargs)
+        self._stop = stop
         self.machine = self._machine_file()
         self.drive_config = ParameterGroup(self, DriveConfig).value
         self.loop = ParameterGroup(self, SyncLoopConfig).value
@@ -86,12 +108,16 @@ class SyncNode(Node):
                            or cfg.can_interface == 'virtual')
         self._held_logs = []                     # the command process's, until it is ready
         self._ready = False
+        self.hold_reason = restart_hold_reason(self.loop)   # the rows wait for an operator
+        self._in_process_held = False
         if self.in_process:
             self.engine = CommandEngine(cfg, self.loop, self.rows, law.value, bus=bus,
                                         log=self._log, setups=setups)
         else:
-            self.engine = CommandClient(CommandSettings(cfg, self.loop, self.rows, law.value,
-                                                        setups=setups), log=self._log)
+            self.engine = CommandClient(
+                CommandSettings(cfg, self.loop, self.rows, law.value, setups=setups),
+                log=self._log, stop_asked=self._stop_asked, on_exit=self._command_stopped,
+                enable_service=self.resolve_service_name(interfaces.ENABLE_ROWS.name))
         self.bus_load = self.engine.bus_load
         self.bus_id = f'{cfg.can_interface}:{cfg.can_channel}'
         self.hardware_id = f'{self.bus_id} node {self.rows[0].drive_node_id}'
@@ -115,6 +141,8 @@ class SyncNode(Node):
                                 interfaces.SECTION.for_row(row.name),
                                 lambda req, res, r=row: self._on_section(r, req, res),
                                 callback_group=group)
+        self.create_service(interfaces.ENABLE_ROWS.srv_class(), interfaces.ENABLE_ROWS.name,
+                            self._on_enable_rows, callback_group=group)
         self._group = group
         self._control_timer = self.create_timer(self.loop.control_period, self._on_control,
                                                 callback_group=group)
@@ -221,20 +249,70 @@ class SyncNode(Node):
             if refused:
                 self._log(logging.WARNING, f'sync node shell runs at normal priority: {refused}')
 
+    def _stop_asked(self):
+        return self._stop is not None and self._stop.received is not None
+
+    def _command_stopped(self, reason):
+        """The command process ended on purpose (a stop signal reached it alone): a stop is a
+        stop, this node stops too."""
+        if self._stop is not None:
+            self._stop.ask(stop_signals.signal_number(reason), 'the command process')
+
+    @property
+    def held(self):
+        """The rows wait at zero for an operator's enable_rows."""
+        return self._in_process_held if self.in_process else self.engine.held
+
     def enable_drive(self):
         """BLOCKING: start the command path and enable every row's drive at once (start-up
         only). A row whose drive does not answer is reported and left out; raises DriveError
-        when no row runs (in a scene without rows: that drive's error)."""
-        self.engine.enable()
-        if self.in_process and self.engine.period != self.loop.control_period:
-            # CSP in this process: one step (SYNC + targets) per SYNC period
-            self.destroy_timer(self._control_timer)
-            self._control_timer = self.create_timer(self.engine.period, self._on_control,
-                                                    callback_group=self._group)
+        when no row runs (in a scene without rows: that drive's error). After an automatic
+        restart (`hold_reason`) nothing is enabled: the rows wait at zero for an operator's
+        enable_rows; so does a stop asked for meanwhile."""
+        if self.hold_reason:
+            self.get_logger().warning(f'{self.hold_reason}: the rows stay at zero until an '
+                                      'operator enables them (service '
+                                      f'{self.resolve_service_name(interfaces.ENABLE_ROWS.name)})')
+        if self.in_process:
+            if self.hold_reason:
+                self._in_process_held = True
+            elif not self._stop_asked():
+                self._enable_in_process()
+        else:
+            self.engine.enable(hold_reason=self.hold_reason)
         self._ready = True
         held, self._held_logs = self._held_logs, []
         for level, text in held:
             self._log(level, text)
+
+    def _enable_in_process(self):
+        self.engine.enable()
+        if self.engine.period != self.loop.control_period:
+            # CSP in this process: one step (SYNC + targets) per SYNC period
+            self.destroy_timer(self._control_timer)
+            self._control_timer = self.create_timer(self.engine.period, self._on_control,
+                                                    callback_group=self._group)
+
+    def _on_enable_rows(self, _request, response):
+        """An operator enables the rows held after an automatic restart."""
+        if self._stop_asked():
+            response.success, response.message = False, 'stopping: nothing is enabled any more'
+        elif not self.in_process:
+            response.success, response.message = self.engine.operator_enable()
+        elif not self._in_process_held:
+            response.success, response.message = False, 'the rows are enabled already'
+        else:
+            try:
+                self._enable_in_process()
+            except DriveError as exc:
+                response.success, response.message = False, f'not enabled: {exc}'
+                return response
+            self._in_process_held = False
+            response.success = True
+            response.message = f'enabled ({self.engine.mode_text()}): the rows follow the ' \
+                               'ground speed'
+            self.get_logger().warning(f'rows enabled by an operator: {response.message}')
+        return response
 
     def shutdown_drive(self):
         """BLOCKING, idempotent: every row at once: 0x60FF = 0, disable, NMT pre-operational."""
@@ -247,6 +325,8 @@ class SyncNode(Node):
 
     # ---------------------------------------------------------------- callbacks
     def _on_ground_speed(self, msg):
+        if self._in_process_held:      # held: the rows start from where they are, once enabled
+            return
         self.engine.sample(msg.twist.linear.x, msg.twist.angular.z, time.monotonic())
         if self.in_process:
             self._publish_commands()
@@ -346,7 +426,13 @@ class SyncNode(Node):
         return list(diagnostics.array(self._reports(), self.get_name()).status)
 
     def _reports(self):
-        return self.engine.reports(time.monotonic(), [self.design_sources.report()])
+        shared = [self.design_sources.report()]
+        if self.in_process and self._in_process_held:
+            shared.append(diagnostics.Report(
+                'enable', diagnostics.WARN, f'rows held at zero ({self.hold_reason}): an '
+                'operator enables them (service '
+                f'{self.resolve_service_name(interfaces.ENABLE_ROWS.name)})'))
+        return self.engine.reports(time.monotonic(), shared)
 
 
 class LibraryLog(logging.Handler):
@@ -403,7 +489,7 @@ def main(args=None):
     error, code = None, 1
     try:
         node = SyncNode(namespace=interfaces.NAMESPACE,
-                        arguments=sys.argv if args is None else args)
+                        arguments=sys.argv if args is None else args, stop=stop)
         node.raise_shell_priority()
         node.enable_drive()
         library_log.node = node
@@ -416,7 +502,8 @@ def main(args=None):
     except SceneError as exc:                # a parameter file it refuses: bad input
         error, code = f'sync_node: error: {str(exc).splitlines()[0]}', 2
     except (DriveError, ConfigError, ParameterException) as exc:
-        error = start_error(exc, node.drive_config if node is not None else None)
+        if stop.received is None:        # (a start cut short by a stop is no error)
+            error = start_error(exc, node.drive_config if node is not None else None)
     finally:
         if node is not None:
             node.destroy_node()

@@ -66,6 +66,8 @@ def services_table() -> str:
     for service in (interfaces.RESET_FAULT, interfaces.SECTION):
         lines.append(f'| `<row>/{service.name}` (`{service.name}` without rows) | '
                      f'{service.type_name} | {_cell(service.doc)} |')
+    service = interfaces.ENABLE_ROWS
+    lines.append(f'| `{service.name}` | {service.type_name} | {_cell(service.doc)} |')
     return '\n'.join(lines)
 
 

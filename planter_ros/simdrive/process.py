@@ -27,7 +27,15 @@ import sys
 import threading
 from typing import Any
 
-__all__ = ['SimProcess', 'main']
+__all__ = ['SimProcess', 'end_states', 'main']
+
+
+def end_states(drives: list) -> dict[str, dict[str, Any]]:
+    """Each drive's CiA 402 state, mode of operation (display), motor speed (rad/s), NMT state
+    and whether it is homed, when it was stopped."""
+    return {str(d.node_id): {'state': d.state, 'mode': d.mode_display,
+                             'motor_velocity': d.motor_velocity, 'nmt': d.nmt_state,
+                             'homed': d.device.homing.homed} for d in drives}
 
 
 class SimProcess:
@@ -93,7 +101,11 @@ def main(argv: list[str] | None = None) -> int:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.priority))
         except (OSError, ValueError, AttributeError) as exc:
             refused = f'SCHED_FIFO {args.priority} refused: {exc}'
-    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides
+    # the parent decides: the drives stand for hardware, which no stop signal to the process
+    # group reaches (they end with their stdin, after the master shut them down)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, (signal.SIGINT, signal.SIGTERM))
     node_ids = [int(n) for n in args.nodes.split(',') if n]
     sims = SimulatedBus(SocketPairBus(args.fd), node_ids, **json.loads(args.options))
     sims.start()
@@ -123,9 +135,7 @@ def main(argv: list[str] | None = None) -> int:
                                if d.record_bottom},
               'faults': {str(d.node_id): {'power_cycles': d.power_cycles,
                                           'emcy_sent': d.emcy_sent} for d in sims.drives},
-              'drives': {str(d.node_id): {'state': d.state, 'mode': d.mode_display,
-                                          'nmt': d.nmt_state, 'homed': d.device.homing.homed}
-                         for d in sims.drives}}
+              'end': end_states(sims.drives)}
     print(json.dumps(report), flush=True)
     return 0
 

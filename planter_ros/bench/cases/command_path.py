@@ -224,7 +224,8 @@ def stall_run(command_process: bool, joins: int, progress: Callable[[str], None]
             if proc.poll() is None:
                 proc.kill()
             proc.wait()
-        report = sync.stop() or {}
+        final = sync.stop()
+        report = final.flat() if final is not None else {}
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()

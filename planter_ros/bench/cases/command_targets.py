@@ -155,7 +155,8 @@ def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
                 next_pub += 1.0 / RATE
                 sync.poll(0.0)
     finally:
-        report = sync.stop() or {}
+        final = sync.stop()
+        report = final.flat() if final is not None else {}
         node.destroy_node()
         context.try_shutdown()
     if not report.get('sample_to_frame_histogram'):
