@@ -4,7 +4,7 @@ the tip still in the soil and the design-speed rule makes the design hole; the c
 agrees with a sampled tip path; a plan is within the limits unless even constant speed is not."""
 import math
 
-from hypothesis import HealthCheck, event, given, settings, strategies as st
+from hypothesis import HealthCheck, event, example, given, settings, strategies as st
 import numpy as np
 
 from planter_ros.cam import CamMechanism, constant_profile, plan_cam, sampled_tip_sweep
@@ -38,6 +38,10 @@ def sweep_bound(profile):
 
 @PROPERTY
 @given(scenes())
+# found by this test: the rule's out-of-soil arc cannot be planned within the drive at all, and
+# its figures were reported as the feasible blend's (a rule that does not run said to run)
+@example((CamMechanism(l1=0.06911943826038551, l2=0.08652701016106155, depth=0.109375,
+                       nozzle_width=0.0), 0.21875, 1.0, 'zero_slip'))
 def test_every_plan_is_c2_periodic_forward_and_within_limits_when_it_can_be(scene):
     mech, spacing, speed, rule = scene
     if spacing <= 2.0 * mech.a * mech.psi * 1.001:
@@ -64,4 +68,4 @@ def test_every_plan_is_c2_periodic_forward_and_within_limits_when_it_can_be(scen
         assert abs(p.tip_sweep - mech.design_hole) <= 1e-9 * mech.design_hole
         assert abs(p.tilt) <= 1e-9
     if not plan.exact:
-        assert not plan.rule_figures.feasible
+        assert not plan.rule_runs and plan.rule_exceeds

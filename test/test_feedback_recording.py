@@ -131,7 +131,8 @@ def test_a_stalled_shell_publishes_every_sample_afterwards_with_its_own_stamp():
         run(1.5)
         recording.clear()
     finally:
-        report = sync.stop() or {}
+        final = sync.stop()
+        report = final.flat() if final is not None else {}
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()

@@ -223,7 +223,9 @@ class CamPlan:
     blend_of: str                  # the law blended (the rule, or a fallback), by name
     blended_with: str              # the law it is blended with ('' when β = 1: the rule itself)
     figures: LoadFigures           # the profile's loads at `speed`
-    rule_figures: LoadFigures      # the rule's own (β = 1) loads at `speed`
+    # the rule's own (β = 1) loads at `speed`; None: its out-of-soil arc cannot be planned
+    # within the drive's limits at all (the rule does not run)
+    rule_figures: LoadFigures | None
     top_speeds: dict               # rule -> (m/s, limit that stops it) for this spacing
 
     @property
@@ -236,10 +238,25 @@ class CamPlan:
         return not self.blended_with
 
     @property
+    def rule_runs(self):
+        """The rule's own profile is within every limit."""
+        return self.rule_figures is not None and self.rule_figures.feasible
+
+    @property
+    def rule_exceeds(self):
+        """The limits the rule's own profile exceeds (['out-of-soil arc']: not plannable)."""
+        return ['out-of-soil arc'] if self.rule_figures is None else self.rule_figures.exceeded
+
+    @property
+    def rule_loads(self):
+        return None if self.rule_figures is None else self.rule_figures.as_dict()
+
+    @property
     def binding(self):
         """Which limit binds: the rule's most exceeded limit, else the profile's closest."""
-        return self.rule_figures.binding if not self.rule_figures.feasible else \
-            self.figures.binding
+        if self.rule_figures is not None and not self.rule_figures.feasible:
+            return self.rule_figures.binding
+        return self.figures.binding
 
     def as_dict(self):
         p = self.profile
@@ -248,8 +265,8 @@ class CamPlan:
                 'blended_with': self.blended_with or None,
                 'tip_sweep': p.tip_sweep, 'hole_width': p.hole_width, 'tilt': p.tilt,
                 'feasible': self.feasible, 'binding': self.binding,
-                'rule_exceeds': self.rule_figures.exceeded,
-                'loads': self.figures.as_dict(), 'rule_loads': self.rule_figures.as_dict(),
+                'rule_exceeds': self.rule_exceeds,
+                'loads': self.figures.as_dict(), 'rule_loads': self.rule_loads,
                 'top_speeds': {k: {'ground_speed': v, 'limit': why}
                                for k, (v, why) in self.top_speeds.items()}}
 
@@ -313,8 +330,6 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
                 else:
                     hi = mid
             break
-        if rule_figures is None:              # the rule's own figures: as constant speed's
-            rule_figures = figures
     tops = rule_top_speeds(mech, spacing, drive, speed, pieces) if top_speeds else {}
     return CamPlan(profile, rule, spacing, speed, beta, blend_of, blended_with, figures,
                    rule_figures, tops)

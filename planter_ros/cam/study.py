@@ -36,8 +36,8 @@ def compare(mech, spacing, speed, drive=None, rule='design_speed', samples=BRUTE
     cam = profile_summary(plan.profile, speed, samples)
     cam.update({'rule': rule, 'blend': plan.blend, 'blend_of': plan.blend_of,
                 'blended_with': plan.blended_with or None, 'feasible': plan.feasible,
-                'binding': plan.binding, 'rule_exceeds': plan.rule_figures.exceeded,
-                'rule_loads': plan.rule_figures.as_dict(), 'plan_time': planned})
+                'binding': plan.binding, 'rule_exceeds': plan.rule_exceeds,
+                'rule_loads': plan.rule_loads, 'plan_time': planned})
     constant = profile_summary(constant_profile(plan.profile.mech, spacing, drive), speed,
                                samples)
     constant['feasible'] = constant['loads']['feasible']

@@ -91,7 +91,7 @@ def plot_cam(mech, drive, rule, spacings, speeds, cases, tops, path):
     dense = np.linspace(min(grid), max(grid), 200)
     c_sweep = [constant_law(d).tip_sweep(mech) for d in dense]
     c_tilt = [constant_law(d).tilt(mech) for d in dense]
-    exceeded = [not p.rule_figures.feasible for p in plans]
+    exceeded = [not p.rule_runs for p in plans]
     for ax, values, c_values, label, unit in (
             (axes[0, 2], [p.profile.tip_sweep * mm for p in plans],
              np.array(c_sweep) * mm, 'tip sweep', 'mm'),
