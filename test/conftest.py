@@ -41,7 +41,7 @@ if str(REPO) not in sys.path:
 
 # Every test graph runs in a DDS domain of this test session's own: a second test run, a demo
 # or any other ROS process on the host can neither see nor disturb it.
-from planter_ros.dds_domain import isolate_environment  # noqa: E402
+from planter_ros.host.dds_domain import isolate_environment  # noqa: E402
 
 isolate_environment()
 

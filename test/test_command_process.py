@@ -209,7 +209,7 @@ def test_the_shell_asks_for_a_larger_cpu_share_for_every_thread_or_says_why_not(
     # those started after it all get the nice value, or the refusal names the limit to raise
     script = textwrap.dedent('''
         import json, os, threading, time
-        from planter_ros.command import realtime
+        from planter_ros.host import realtime
         stop = threading.Event()
         before = threading.Thread(target=stop.wait); before.start()
         refused = realtime.request_nice(-3)

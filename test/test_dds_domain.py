@@ -4,7 +4,7 @@ import socket
 import subprocess
 import sys
 
-from planter_ros import dds_domain
+from planter_ros.host import dds_domain
 
 
 def test_the_session_runs_in_a_private_domain_not_the_default():
@@ -16,7 +16,8 @@ def test_the_session_runs_in_a_private_domain_not_the_default():
 def test_a_second_process_gets_another_domain():
     out = subprocess.run(
         [sys.executable, '-c',
-         'from planter_ros.dds_domain import claim_private_domain; print(claim_private_domain())'],
+         'from planter_ros.host.dds_domain import claim_private_domain; '
+         'print(claim_private_domain())'],
         capture_output=True, text=True, check=True, timeout=30)
     assert int(out.stdout) != dds_domain.claim_private_domain()
 

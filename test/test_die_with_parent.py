@@ -15,7 +15,7 @@ import pytest
 
 from cli_helpers import REPO
 
-from planter_ros.processes import supported
+from planter_ros.host.processes import supported
 
 pytestmark = [pytest.mark.realtime,          # (test/conftest.py)
               pytest.mark.skipif(not supported(), reason='needs Linux prctl(PR_SET_PDEATHSIG)')]
@@ -110,7 +110,7 @@ def reap():
 
 GRANDCHILD = '''
 import subprocess, sys, time
-from planter_ros.processes import preexec_die_with_parent
+from planter_ros.host.processes import preexec_die_with_parent
 tie = preexec_die_with_parent() if sys.argv[1] == 'tied' else None
 child = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(120)'], preexec_fn=tie)
 print(child.pid, flush=True)
@@ -134,7 +134,7 @@ def test_a_tied_child_dies_with_its_killed_parent_and_an_untied_one_does_not(tmp
 GRACE_CHILD = """
 import os, subprocess, sys, time
 code = ('import os, sys, time\\n'
-        'from planter_ros.processes import die_with_parent\\n'
+        'from planter_ros.host.processes import die_with_parent\\n'
         'die_with_parent(int(sys.argv[1]), grace=2)\\n'
         'print("tied", flush=True)\\n'
         'time.sleep(120)\\n')
@@ -162,7 +162,8 @@ def test_a_child_given_grace_outlives_its_killed_parent_by_the_grace_only(tmp_pa
 def test_a_child_whose_parent_is_already_gone_ends_at_once():
     env = dict(os.environ, PYTHONPATH=str(REPO))
     # pid 1 is never this child's parent: as if the parent had died before the request
-    code = 'from planter_ros.processes import die_with_parent\ndie_with_parent(1)\nprint("ran")'
+    code = ('from planter_ros.host.processes import die_with_parent\n'
+            'die_with_parent(1)\nprint("ran")')
     proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, env=env,
                           timeout=60)
     assert proc.returncode == -signal.SIGKILL and 'ran' not in proc.stdout
@@ -215,7 +216,7 @@ def test_the_local_clusters_workers_and_the_optimisers_pool_are_tied_by_the_kern
     set in each worker."""
     from planter_ros.analysis.engine import cluster
     from planter_ros.optimize.three_arm import PopulationScorer
-    from planter_ros.processes import parent_death_signal
+    from planter_ros.host.processes import parent_death_signal
     from planter_ros.scene import default_scene_path
     from planter_ros.cli.design_three_arm import load_params
     with cluster(workers=1) as client:
@@ -226,5 +227,5 @@ def test_the_local_clusters_workers_and_the_optimisers_pool_are_tied_by_the_kern
 
 
 def _signal_of_worker(_):
-    from planter_ros.processes import parent_death_signal
+    from planter_ros.host.processes import parent_death_signal
     return parent_death_signal()

@@ -78,7 +78,7 @@ def test_a_stalled_shell_publishes_every_sample_afterwards_with_its_own_stamp():
     from rclpy.signals import SignalHandlerOptions
     from std_msgs.msg import String
 
-    from planter_ros.dds_domain import claim_private_domain
+    from planter_ros.host.dds_domain import claim_private_domain
     from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
     from planter_ros.design import to_json
     from planter_ros.sim.runs import five_bar_design_message

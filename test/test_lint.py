@@ -18,7 +18,7 @@ TYPE_CHECKED = (
     'planter_ros/bench',
     'planter_ros/sim',
     'planter_ros/config.py',
-    'planter_ros/dds_domain.py',
+    'planter_ros/host',
     'planter_ros/diagnostics.py',
     'planter_ros/geo.py',
     'planter_ros/interfaces.py',

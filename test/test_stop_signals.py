@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from planter_ros import stop_signals
+from planter_ros.host import stop_signals
 
 pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
@@ -17,7 +17,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 HUNG_CLEANUP = r'''
 import time
-from planter_ros import stop_signals
+from planter_ros.host import stop_signals
 stop = stop_signals.install('test')
 print('running', flush=True)
 while stop.received is None:

@@ -1,6 +1,6 @@
 """The local cluster's workers die with `planter analyze` (or `planter simulate`), also when it is
 killed with SIGKILL: a Dask worker plugin ties each worker process to the command's process
-(planter_ros.processes). Dask's own link (a pipe whose end-of-file ends the worker) needs the
+(planter_ros.host.processes). Dask's own link (a pipe whose end-of-file ends the worker) needs the
 worker's Python to run; the kernel's signal does not. Only for the local cluster: the workers
 of an existing cluster (--scheduler) are not ours."""
 
@@ -8,7 +8,7 @@ import os
 
 from distributed import WorkerPlugin
 
-from planter_ros.processes import die_with_parent
+from planter_ros.host.processes import die_with_parent
 
 
 class DieWithParent(WorkerPlugin):

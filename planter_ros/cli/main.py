@@ -97,7 +97,7 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = _selected(argv)
     if selected == ('demo',):     # a stop signal from the very start is a clean stop (demo.run)
-        from planter_ros import stop_signals
+        from planter_ros.host import stop_signals
         stop_signals.install('planter demo')
     try:
         args = build_parser(argv).parse_args(argv)

@@ -34,7 +34,8 @@ import threading
 import time
 from typing import Any
 
-from planter_ros import diagnostics, stop_signals
+from planter_ros import diagnostics
+from planter_ros.host import stop_signals
 from planter_ros.config import ConfigError
 from planter_ros.design import Design
 from planter_ros.drive.bus_load import BusLoad

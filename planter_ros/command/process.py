@@ -42,13 +42,12 @@ import sys
 import time
 from typing import Any
 
-from planter_ros import stop_signals
+from planter_ros.host import realtime, stop_signals
 from planter_ros.config import ConfigError
 from planter_ros.control.cam_law import profile_from_data
 from planter_ros.design import from_json
 from planter_ros.drive.errors import DriveError
 
-from . import realtime
 from .channel import Channel, ChannelClosed
 from .engine import CommandEngine
 from .reports import CommandExit

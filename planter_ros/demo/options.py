@@ -27,7 +27,7 @@ class DemoOptions:
                                  'seedlings (the cup sensor reads 2)', range=(0.0, 1.0))
     origin_latitude: float | None = None    # deg WGS 84; None: the simulated receiver's default
     origin_longitude: float | None = None   # deg WGS 84; None: the simulated receiver's default
-    machine: str | None = None      # machine file (demo.machine); None: the scene's rows alone
+    machine: str | None = None      # machine file (demo.commissioned); None: the scene rows
 
     def __post_init__(self) -> None:
         check(self)

@@ -14,7 +14,7 @@ Ctrl-C or SIGTERM to the demo alone or to its whole process group (a terminal, s
 stopping, stops it cleanly (the rows ramped to zero, the drives disabled, the bus closed, the bag
 finalised) with the summaries and the verdict on what ran; a second signal forces the exit.
 
-The graph runs in a DDS domain of its own (planter_ros.dds_domain), so no other graph on the
+The graph runs in a DDS domain of its own (planter_ros.host.dds_domain), so no other graph on the
 host reaches it, and the sync node with the simulated drives runs in a process of its own
 (demo.sync_process), so nothing else the demo does can hold up the drives' commands.
 """
@@ -32,8 +32,9 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
-from planter_ros import interfaces, stop_signals
-from planter_ros.dds_domain import (
+from planter_ros import interfaces
+from planter_ros.host import stop_signals
+from planter_ros.host.dds_domain import (
     PRIVATE_GRAPH_ROS_ARGS, NoFreeDomainError, claim_private_domain, keep_discovery_on_host)
 from planter_ros.geo import AntennaSettings
 from planter_ros.nodes.design_node import DesignNode
@@ -48,7 +49,7 @@ from planter_ros.sim.gnss import SimulatedGnss
 from planter_ros.sim.ros_field import GnssSource, GroundSpeedSource, Observer, SeedlingSensor
 
 from .field import field_profile, glitches
-from .machine import (
+from .commissioned import (
     first_plant_errors, first_plant_lines, first_plant_reasons, machine_rows, simulated_drives)
 from .options import DemoOptions, check_bag_path
 from .report import command_path_lines, progress_line, row_summary
@@ -72,7 +73,7 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     rows = scene.rows(default_node_id=node_id)
     antenna = scene.antenna()
     machine = None
-    if options.machine:                   # its rows and drives over the scene's (demo.machine)
+    if options.machine:                   # its rows and drives over the scene (demo.commissioned)
 
         machine = open_machine(options.machine)
         deployment_parameters(options.machine, scene.path)
@@ -454,7 +455,7 @@ class DemoResult:
     sync: Any                     # sync_process.SyncReport (None if none came)
     rows: list                    # verdict.RowResult per planting row
     domain: int                   # the private DDS domain it ran in (-1: none)
-    first_plants: dict | None = None    # --machine: demo.machine.first_plant_errors
+    first_plants: dict | None = None    # --machine: demo.commissioned.first_plant_errors
 
     @property
     def report(self) -> dict | None:

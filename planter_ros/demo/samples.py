@@ -18,7 +18,7 @@ SAMPLES = {
 def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
     """Run the real monitor node on `run` (sim.runs.Run) and let it record `bag_path`.
 
-    The graph runs in a DDS domain of this process's own (planter_ros.dds_domain), on a
+    The graph runs in a DDS domain of this process's own (planter_ros.host.dds_domain), on a
     simulated clock fed in lock-step (sim.lockstep). Returns the list of plant tables the
     monitor published (its live predictions), in order.
     """
@@ -26,7 +26,7 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
-    from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
+    from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
     from planter_ros.nodes.monitor_node import MonitorNode
     from planter_ros.recording.errors import BagWriteError
     from planter_ros.sim.lockstep import LockStepFeeder

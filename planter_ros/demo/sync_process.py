@@ -23,7 +23,7 @@ and from then on nothing restarts the command process or enables a drive. It sto
 demo's request or when the pipe breaks (the demo closed it or was forced out): either way its
 drives are shut down (0x60FF = 0, disable); a second signal ends it at once (its command
 process, orphaned, still ramps down and disables). A demo killed outright (SIGKILL) leaves the
-child PARENT_GONE_GRACE s for that, then the kernel ends it (planter_ros.processes), stuck or
+child PARENT_GONE_GRACE s for that, then the kernel ends it (planter_ros.host.processes), stuck or
 not; if the child itself is killed, its command process ramps to zero, disables the drives and
 exits, and the drives' process ends with its parent.
 
@@ -173,7 +173,7 @@ class SyncProcess:
         self._conn, child = context.Pipe()
         self.process = context.Process(target=child_main, args=(child, settings),
                                        name='planter-demo-sync')
-        from planter_ros import stop_signals
+        from planter_ros.host import stop_signals
         with stop_signals.held_for_child():      # its own handler first, then a stop signal
             self.process.start()
         child.close()
@@ -250,8 +250,8 @@ class SyncProcess:
 
 def child_main(conn, settings):
     """The child process: the sync node on the simulated bus until asked to stop."""
-    from planter_ros import stop_signals
-    from planter_ros.processes import die_with_parent
+    from planter_ros.host import stop_signals
+    from planter_ros.host.processes import die_with_parent
     # a demo killed outright (SIGKILL): the broken pipe below is the clean way out (drives shut
     # down), but it is only read between status snapshots; the kernel's signal ends this
     # process PARENT_GONE_GRACE s after the demo however stuck it is
@@ -266,7 +266,7 @@ def child_main(conn, settings):
     from rclpy.signals import SignalHandlerOptions
 
     from planter_ros.config import ConfigError
-    from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS
+    from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS
     from planter_ros.drive.errors import DriveError
     from planter_ros.control.loop_timing import SyncLoopConfig
     from planter_ros.simdrive.process import SimProcess

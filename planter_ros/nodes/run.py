@@ -9,9 +9,9 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-from planter_ros import stop_signals
+from planter_ros.host import stop_signals
 from planter_ros.config import ConfigError
-from planter_ros.dds_domain import keep_discovery_on_host
+from planter_ros.host.dds_domain import keep_discovery_on_host
 
 __all__ = ['run_node']
 

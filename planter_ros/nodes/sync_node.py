@@ -37,8 +37,9 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from planter_ros import diagnostics, interfaces, stop_signals
-from planter_ros.command import realtime
+from planter_ros import diagnostics, interfaces
+from planter_ros.host import stop_signals
+from planter_ros.host import realtime
 from planter_ros.command.client import CommandClient
 from planter_ros.command.engine import CommandEngine
 from planter_ros.command.settings import LAW_CLASSES, CommandSettings
@@ -46,7 +47,7 @@ from planter_ros.config import ConfigError, spec_of
 from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
-from planter_ros.dds_domain import keep_discovery_on_host
+from planter_ros.host.dds_domain import keep_discovery_on_host
 from planter_ros.design import from_json
 from planter_ros.scene.design_sources import DesignSources
 from planter_ros.scene.files import SceneError

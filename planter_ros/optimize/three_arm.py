@@ -134,9 +134,9 @@ _WORKER: dict[str, BatchScorer] = {}       # a pool worker's scorer
 def _worker_init(base: SceneParams, margin: float, samples: int) -> None:
     import multiprocessing
 
-    from planter_ros.processes import die_with_parent
+    from planter_ros.host.processes import die_with_parent
     parent = multiprocessing.parent_process()
-    if parent is not None:                   # (a pool worker always has one)
+    if parent is not None and parent.pid is not None:     # (a pool worker has one)
         die_with_parent(parent.pid)          # no orphan when the search dies
     _WORKER['scorer'] = BatchScorer(base, margin, samples)
 

@@ -127,7 +127,7 @@ def stall_run(command_process: bool, joins: int, progress: Callable[[str], None]
     from std_msgs.msg import String
 
     from planter_ros import interfaces
-    from planter_ros.dds_domain import claim_private_domain
+    from planter_ros.host.dds_domain import claim_private_domain
     from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
     from planter_ros.design import to_json
     from planter_ros.drive.config import DriveConfig

@@ -17,7 +17,7 @@
   largest SYNC gap the drives saw on their own clock.
 
 The hogs are `python -c "while True: pass"` processes that die with the bench, also when it is
-killed (planter_ros.processes). The host's load average is noted with each run: timings on a
+killed (planter_ros.host.processes). The host's load average is noted with each run: timings on a
 shared host say little without it.
 """
 
@@ -74,7 +74,7 @@ def _load(before: float | None, after: float | None) -> str:
 def cpu_hogs(count: int = HOGS) -> Iterator[list[subprocess.Popen[bytes]]]:
     """`count` CPU-bound processes for the length of the block; they die with this process,
     also when it is killed with SIGKILL."""
-    from planter_ros.processes import preexec_die_with_parent
+    from planter_ros.host.processes import preexec_die_with_parent
     hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'],
                              preexec_fn=preexec_die_with_parent()) for _ in range(count)]
     try:
@@ -113,7 +113,7 @@ def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
     from std_msgs.msg import String
 
     from planter_ros import interfaces
-    from planter_ros.dds_domain import claim_private_domain
+    from planter_ros.host.dds_domain import claim_private_domain
     from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
     from planter_ros.design import to_json
     from planter_ros.sim.runs import five_bar_design_message

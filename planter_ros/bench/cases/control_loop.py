@@ -42,7 +42,7 @@ def loaded_runs(runs: int, duration: float, progress: Callable[[str], None] = _s
     of (seconds the run took, DemoResult)."""
     from planter_ros.demo.options import DemoOptions
     from planter_ros.demo.run import prepare
-    from planter_ros.processes import preexec_die_with_parent
+    from planter_ros.host.processes import preexec_die_with_parent
     results: list[tuple[float, DemoResult]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):

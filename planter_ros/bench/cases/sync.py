@@ -71,7 +71,7 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
     from planter_ros import interfaces
     from planter_ros.simdrive.bus import SimulatedBus
     from planter_ros.nodes.sync_node import SyncNode
-    from planter_ros.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
+    from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
     from planter_ros.design import to_json
     from planter_ros.sim.runs import five_bar_design_message
 

@@ -11,9 +11,14 @@ ends the process at once (`os._exit`, exit code 128 + the signal), for a stop th
 Pure Python: no ROS import.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterator
 from contextlib import contextmanager
 import os
 import signal
+from types import FrameType
+from typing import Any
 
 __all__ = ['STOP_SIGNALS', 'StopSignals', 'held_for_child', 'ignore', 'install', 'installed',
            'spin', 'signal_number', 'unblock']
@@ -25,19 +30,19 @@ class StopSignals:
     """The handler of both stop signals; `received` is the first one (None until then);
     `source`: '' when it reached this process, else who passed it on (`ask`)."""
 
-    def __init__(self, name):
+    def __init__(self, name: str) -> None:
         self.name = name
-        self.received = None
+        self.received: int | None = None
         self.source = ''
 
-    def ask(self, signum, source):
+    def ask(self, signum: int, source: str) -> None:
         """A stop that reached another process of ours (`source`: 'the command process'), as
         if `signum` had reached this one; the first stop counts."""
         if self.received is None:
             self.source = source
             self.received = signum
 
-    def __call__(self, signum, _frame):
+    def __call__(self, signum: int, _frame: FrameType | None) -> None:
         if self.received is None:
             self.received = signum
             return
@@ -46,24 +51,24 @@ class StopSignals:
         os._exit(128 + signum)
 
     @property
-    def name_received(self):
+    def name_received(self) -> str:
         """'SIGTERM', 'SIGINT' or '' (no stop asked for)."""
         return signal.Signals(self.received).name if self.received is not None else ''
 
     @property
-    def description(self):
+    def description(self) -> str:
         """'SIGTERM', 'SIGTERM to the command process', or '' (no stop asked for)."""
         name = self.name_received
         return f'{name} to {self.source}' if name and self.source else name
 
 
-def installed():
+def installed() -> StopSignals | None:
     """The StopSignals handler this process installed (None: none)."""
     handler = signal.getsignal(signal.SIGTERM)
     return handler if isinstance(handler, StopSignals) else None
 
 
-def install(name):
+def install(name: str) -> StopSignals:
     """Handle SIGINT and SIGTERM in this process as described above (call from the main
     thread, before rclpy.init()); returns the handler. A stop signal held back while the
     process started (`held_for_child`) arrives now."""
@@ -75,7 +80,7 @@ def install(name):
 
 
 @contextmanager
-def held_for_child():
+def held_for_child() -> Iterator[None]:
     """Start a child process inside this: SIGINT and SIGTERM are blocked in the calling thread
     meanwhile, and the child inherits that mask (fork and exec keep it), so a stop signal that
     reaches the child before it has its own handlers (Python starting, its imports: a
@@ -89,13 +94,13 @@ def held_for_child():
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
-def unblock():
+def unblock() -> None:
     """Let SIGINT and SIGTERM through in this thread (a child started `held_for_child`, once
     its handlers are set)."""
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
 
 
-def spin(executor, handler, period=0.2):
+def spin(executor: Any, handler: StopSignals, period: float = 0.2) -> None:
     """Spin `executor` (an rclpy executor with the node added) until a stop signal arrives or
     its context ends. rclpy's own handler wakes a waiting executor, but a signal that lands
     while the wait is being set up can be missed (seen: about one SIGTERM in ten left a
@@ -104,22 +109,25 @@ def spin(executor, handler, period=0.2):
     wait shuts the context down under it: rclpy then refuses the wait (its RCLError "context is
     not valid"), which is this stop, not an error (seen on CI: a design node's SIGTERM ended in
     that traceback and exit code 1)."""
-    while handler.received is None and executor.context.ok():
+    def running() -> bool:
+        return handler.received is None and bool(executor.context.ok())
+
+    while running():
         try:
             executor.spin_once(timeout_sec=period)
         except Exception:                       # noqa: BLE001  (rclpy's RCLError: no ROS here)
-            if handler.received is None and executor.context.ok():
+            if running():
                 raise
             return
 
 
-def signal_number(name):
+def signal_number(name: str) -> int:
     """The number of a stop signal's name ('SIGTERM' -> 15); SIGTERM for another name."""
     return getattr(signal, name, signal.SIGTERM) if name in ('SIGTERM', 'SIGINT') else \
         signal.SIGTERM
 
 
-def ignore():
+def ignore() -> None:
     """A helper process its parent stops (over a pipe): the terminal's Ctrl-C, which reaches
     the whole process group, must not stop it on its own."""
     for signum in STOP_SIGNALS:

@@ -19,11 +19,15 @@ Linux).
   it is (in the main thread, which installs the handler).
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
 import ctypes
 import math
 import os
 import signal
 import sys
+from types import FrameType
 
 __all__ = ['GRACE_SIGNAL', 'PR_SET_PDEATHSIG', 'die_with_parent', 'parent_death_signal',
            'preexec_die_with_parent', 'supported']
@@ -32,7 +36,7 @@ PR_SET_PDEATHSIG = 1            # <linux/prctl.h>
 PR_GET_PDEATHSIG = 2
 
 
-def _prctl():
+def _prctl() -> Callable[..., int] | None:
     """libc's prctl, or None where there is none (not Linux)."""
     if not sys.platform.startswith('linux'):
         return None
@@ -42,12 +46,12 @@ def _prctl():
         return None
 
 
-def supported():
+def supported() -> bool:
     """True where the kernel can tie a child's life to its parent's."""
     return _prctl() is not None
 
 
-def parent_death_signal():
+def parent_death_signal() -> int | None:
     """The signal this process receives when its parent goes away (0: none; None: unknown
     here)."""
     prctl = _prctl()
@@ -59,7 +63,8 @@ def parent_death_signal():
     return value.value
 
 
-def _tie(prctl, parent_pid, signum, exit_now=True):
+def _tie(prctl: Callable[..., int] | None, parent_pid: int, signum: int,
+         exit_now: bool = True) -> None:
     if prctl is not None and prctl(PR_SET_PDEATHSIG, int(signum), 0, 0, 0) != 0:
         errno = ctypes.get_errno()
         raise OSError(errno, f'prctl(PR_SET_PDEATHSIG): {os.strerror(errno)}')
@@ -72,7 +77,8 @@ def _tie(prctl, parent_pid, signum, exit_now=True):
 GRACE_SIGNAL = signal.SIGUSR1       # the parent-death signal of a child given a grace period
 
 
-def die_with_parent(parent_pid, signum=signal.SIGKILL, grace=None):
+def die_with_parent(parent_pid: int, signum: int = signal.SIGKILL,
+                    grace: float | None = None) -> None:
     """In a child process: receive `signum` when the parent goes away. `parent_pid` is the pid
     of the process that started this one; if it is already gone, this process ends now. With
     `grace` (whole seconds >= 1) the signal is GRACE_SIGNAL and only starts an alarm: the
@@ -80,7 +86,7 @@ def die_with_parent(parent_pid, signum=signal.SIGKILL, grace=None):
     if grace is not None:
         seconds = max(1, math.ceil(grace))
 
-        def parent_gone(_signum, _frame):
+        def parent_gone(_signum: int, _frame: FrameType | None) -> None:
             if os.getppid() == parent_pid:          # not the kernel's: the parent is alive
                 return
             signal.signal(signal.SIGALRM, signal.SIG_DFL)
@@ -92,11 +98,11 @@ def die_with_parent(parent_pid, signum=signal.SIGKILL, grace=None):
     _tie(_prctl(), parent_pid, signum)
 
 
-def preexec_die_with_parent(signum=signal.SIGKILL):
+def preexec_die_with_parent(signum: int = signal.SIGKILL) -> Callable[[], None]:
     """A `preexec_fn` for subprocess.Popen: the child is tied to the calling process (libc is
     looked up here, in the parent, so the forked child only makes the call)."""
     prctl, parent_pid = _prctl(), os.getpid()
 
-    def preexec():
+    def preexec() -> None:
         _tie(prctl, parent_pid, signum)
     return preexec

@@ -9,7 +9,7 @@ import ctypes.util
 import os
 import signal
 
-from planter_ros import processes
+from planter_ros.host import processes
 
 __all__ = ['MCL_CURRENT', 'MCL_FUTURE', 'request_fifo', 'request_nice', 'lock_memory',
            'die_with_parent']
@@ -74,7 +74,7 @@ def lock_memory() -> str:
 
 
 def die_with_parent(parent: int, sig: int = signal.SIGTERM) -> str:
-    """Ask the kernel for `sig` when the parent (pid `parent`) dies (planter_ros.processes);
+    """Ask the kernel for `sig` when the parent (pid `parent`) dies (planter_ros.host.processes);
     '' when set, else why not (for the log line and diagnostics). A parent already gone:
     `sig` at once."""
     if not processes.supported():
