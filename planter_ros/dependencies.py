@@ -19,6 +19,8 @@ from __future__ import annotations
 import importlib.util
 import re
 
+from planter_ros.errors import PlanterError
+
 __all__ = ['BASE', 'COMMAND_EXTRAS', 'EXTRAS', 'IMPORT_NAMES', 'ROLES', 'MissingExtra',
            'check_command', 'distribution', 'error_line',
            'extra_of_module', 'install_hint', 'missing_modules', 'modules_of', 'require']
@@ -105,7 +107,7 @@ COMMAND_EXTRAS = {
 }
 
 
-class MissingExtra(Exception):
+class MissingExtra(PlanterError):
     """A command needs an extra that is not installed (one line: which, and how to get it)."""
 
     def __init__(self, what: str, extra: str, missing: list[str]) -> None:

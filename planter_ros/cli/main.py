@@ -7,6 +7,8 @@ import argparse
 import importlib
 import sys
 
+from planter_ros.errors import PlanterError
+
 # (command words) -> (module, one-line help)
 COMMANDS = {
     ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
@@ -32,7 +34,7 @@ GROUPS = {'drive': 'check the CANopen drives of a machine file'}    # others: a 
 EXIT_BAD_INPUT = 2
 
 
-class BadInput(Exception):
+class BadInput(PlanterError):
     """A user error the command line reports as one line with exit code 2."""
 
 

@@ -2,9 +2,10 @@
 caller reacts to the kind of failure, never to the wording. Every message is one line."""
 
 from planter_ros.config import ConfigError
+from planter_ros.errors import PlanterError
 
 
-class DriveError(RuntimeError):
+class DriveError(PlanterError, RuntimeError):
     """A drive operation failed (base of the family)."""
 
 
