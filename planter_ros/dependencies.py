@@ -19,7 +19,10 @@ from __future__ import annotations
 import importlib.util
 import re
 
-from planter_ros.errors import PlanterError
+try:
+    from planter_ros.errors import PlanterError
+except ImportError:      # setup.py execs this file alone, before anything is installed: it
+    PlanterError = Exception    # reads the roles only, nothing here is raised there
 
 __all__ = ['BASE', 'COMMAND_EXTRAS', 'EXTRAS', 'IMPORT_NAMES', 'ROLES', 'MissingExtra',
            'check_command', 'distribution', 'error_line',

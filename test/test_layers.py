@@ -14,8 +14,8 @@ PACKAGE = 'planter_ros'
 # bottom to top; a package may import its own layer and every layer below (the one declaration:
 # doc/architecture.md shows it and says what lives where)
 LAYERS = (
-    ('config', 'interfaces', 'output_files', 'stop_signals', 'diagnostics', 'safe_yaml',
-     'shipped', 'processes', 'dependencies'),      # base: pure declarations and helpers
+    ('errors', 'config', 'interfaces', 'output_files', 'stop_signals', 'diagnostics',
+     'safe_yaml', 'shipped', 'processes', 'dependencies'),   # base: declarations and helpers
     ('geo', 'rows', 'dds_domain'),
     ('kinematics', 'drive', 'sensing'),            # core models
     ('design', 'simdrive'),                        # the typed design; simulated drives
