@@ -209,3 +209,20 @@ def test_the_facts_survive_pickling():
     assert (drive.node, drive.index, drive.abort_code) == (5, 0x6502, 0x06020000)
     closed = again(ChannelClosed('the command process is gone'))
     assert isinstance(closed, ConnectionError)
+
+
+@pytest.mark.parametrize('error', [
+    DriveTimeoutError('drive node 5: identify: no SDO answer reading 0x1000'),
+    ConfigError('plant_spacing = 9 is out of range: allowed 0.05..0.6 m'),
+    PlanterError('line one\nline two')], ids=lambda e: type(e).__name__)
+def test_the_command_line_turns_any_planter_error_into_one_line_and_exit_2(monkeypatch, capsys,
+                                                                           error):
+    from planter_ros.cli import main as cli
+
+    def run(_args):
+        raise error
+    parser = SimpleNamespace(parse_args=lambda argv: SimpleNamespace(_run=run))
+    monkeypatch.setattr(cli, 'build_parser', lambda argv: parser)
+    assert cli.main(['bench']) == cli.EXIT_BAD_INPUT == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and err.startswith('planter: error: ' + str(error)[:8])
