@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any, NoReturn, TypeVar, overload
 if TYPE_CHECKING:
     from _typeshed import DataclassInstance
 
+from planter_ros.errors import PlanterError
+
 _T = TypeVar('_T')
 _D = TypeVar('_D', bound='DataclassInstance')
 # what a caller raises for a bad value (ConfigError, DesignError.from_message, ...)
@@ -30,7 +32,7 @@ ErrorFactory = Callable[[str], Exception]
 KINDS = (float, int, bool, str, list)
 
 
-class ConfigError(ValueError):
+class ConfigError(PlanterError, ValueError):
     """A configuration value outside its allowed domain; the message is one line."""
 
 

@@ -12,12 +12,20 @@ every name here; package.xml lists the same by rosdep key; tests check all three
 
 A command that needs an extra that is not installed says so in one line, naming the extra and
 how to install it (`require`, `MissingExtra`; exit code 2 on the command line). Pure: no import
-beyond the standard library, so setup.py can read it before anything is installed.
+beyond the standard library (and the error root, when it can be imported), so setup.py can read
+it before anything is installed.
 """
 from __future__ import annotations
 
 import importlib.util
 import re
+
+# setup.py execs this file alone, before anything is installed: it reads the roles only, and
+# the error root (standard library only itself) may not be importable there
+try:
+    from planter_ros.errors import PlanterError
+except ImportError:
+    PlanterError = Exception  # type: ignore[misc,assignment]
 
 __all__ = ['BASE', 'COMMAND_EXTRAS', 'EXTRAS', 'IMPORT_NAMES', 'ROLES', 'MissingExtra',
            'check_command', 'distribution', 'error_line',
@@ -105,7 +113,7 @@ COMMAND_EXTRAS = {
 }
 
 
-class MissingExtra(Exception):
+class MissingExtra(PlanterError):
     """A command needs an extra that is not installed (one line: which, and how to get it)."""
 
     def __init__(self, what: str, extra: str, missing: list[str]) -> None:

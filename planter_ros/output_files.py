@@ -17,11 +17,13 @@ import stat
 import tempfile
 from typing import TypeVar
 
+from planter_ros.errors import PlanterError
+
 _T = TypeVar('_T')
 PathLike = str | os.PathLike[str]
 
 
-class OutputError(ValueError):
+class OutputError(PlanterError, ValueError):
     """An output path that cannot be written as asked (one line: the option, the path, why)."""
 
 

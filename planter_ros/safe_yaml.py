@@ -13,12 +13,14 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     import yaml
 
+from planter_ros.errors import PlanterError
+
 __all__ = ['MAX_ALIAS_NODES', 'YamlError', 'load_yaml']
 
 MAX_ALIAS_NODES = 10_000           # nodes all alias uses of a document may expand to
 
 
-class YamlError(ValueError):
+class YamlError(PlanterError, ValueError):
     """A text that is not usable YAML; the message is one line naming `what` was read."""
 
 

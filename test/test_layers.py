@@ -14,7 +14,7 @@ PACKAGE = 'planter_ros'
 # bottom to top; a package may import its own layer and every layer below (the one declaration:
 # doc/architecture.md shows it and says what lives where)
 LAYERS = (
-    ('config', 'interfaces', 'output_files', 'host', 'diagnostics', 'safe_yaml',
+    ('errors', 'config', 'interfaces', 'output_files', 'host', 'diagnostics', 'safe_yaml',
      'shipped', 'dependencies'),      # base: pure declarations and helpers; the host's plumbing
     ('geo', 'rows'),
     ('kinematics', 'drive', 'sensing'),            # core models

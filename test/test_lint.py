@@ -20,6 +20,7 @@ TYPE_CHECKED = (
     'planter_ros/config.py',
     'planter_ros/host',
     'planter_ros/diagnostics.py',
+    'planter_ros/errors.py',
     'planter_ros/geo.py',
     'planter_ros/interfaces.py',
     'planter_ros/output_files.py',

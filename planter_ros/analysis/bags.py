@@ -20,8 +20,10 @@ from pathlib import Path
 import re
 import stat
 
+from planter_ros.errors import PlanterError
 
-class BagSearchError(ValueError):
+
+class BagSearchError(PlanterError, ValueError):
     """A path given to search that is not there or not a bag (one line)."""
 
 

@@ -19,6 +19,7 @@ import shutil
 import tempfile
 
 from planter_ros.config import check, setting
+from planter_ros.errors import PlanterError
 
 CONNECT_TIMEOUT = 10.0      # s to reach an existing scheduler
 WORKER_WAIT = 30.0          # s an existing scheduler may take to have a worker
@@ -32,7 +33,7 @@ HANDSHAKE_GRACE = 2.0       # s beyond CONNECT_TIMEOUT for a connected scheduler
 WORKER_MALLOC = {'MALLOC_MMAP_THRESHOLD_': str(16 << 20), 'MALLOC_TRIM_THRESHOLD_': str(32 << 20)}
 
 
-class EngineError(ValueError):
+class EngineError(PlanterError, ValueError):
     """A cluster the command cannot use (one line: the option or address and why)."""
 
 

@@ -9,6 +9,7 @@ from functools import lru_cache
 from pathlib import Path
 import time
 
+from planter_ros.errors import PlanterError
 from planter_ros.recording.errors import RecordingError
 from planter_ros.recording.replay import replay
 
@@ -16,7 +17,7 @@ from .model_code import closure_version
 from .tables import flatten, load_pyarrow, plants_arrays_table, with_heading
 
 
-class WorkerMismatch(RuntimeError):
+class WorkerMismatch(PlanterError, RuntimeError):
     """The worker runs another model version than the client asked for (one line)."""
 
 

@@ -1,11 +1,12 @@
 """The cam's errors: one base class and the cases a caller acts on differently."""
 
+from planter_ros.errors import PlanterError
 from planter_ros.kinematics.errors import DesignError
 
 __all__ = ['CamError', 'CamInputError', 'CamLimitError', 'CamPlanningError']
 
 
-class CamError(Exception):
+class CamError(PlanterError):
     """Anything the cam planner refuses or fails at; the message is one line."""
 
 

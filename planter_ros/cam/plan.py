@@ -172,14 +172,14 @@ class CamProfile:
 
 def _check_spacing_speed(spacing, speed):
     """Spacing and speed in the scene's ranges (the same as the command line's)."""
-    from planter_ros.config import ConfigError, coerce, spec_of
+    from planter_ros.config import coerce, spec_of
     from planter_ros.kinematics.design_inputs import DesignInputs
     for value, field, name in ((spacing, 'plant_spacing', 'spacing'),
                                (speed, 'nominal_ground_speed', 'speed')):
         spec = spec_of(DesignInputs, field)
         try:
             coerce(spec, float(value))
-        except (ConfigError, TypeError, ValueError):
+        except (TypeError, ValueError):         # ValueError: a ConfigError too
             raise CamInputError(name, value, spec.allowed()) from None
 
 

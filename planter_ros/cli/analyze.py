@@ -28,8 +28,8 @@ def add_arguments(parser):
 
 def run(args):
     from planter_ros.analysis import season as seasons
-    from planter_ros.analysis.bags import BagSearchError, find_bags
-    from planter_ros.analysis.engine import EngineError, check_workers, cluster
+    from planter_ros.analysis.bags import find_bags
+    from planter_ros.analysis.engine import check_workers, cluster
     from planter_ros.analysis.progress import Progress
     from planter_ros.analysis.task import model_version, warm_up
     from planter_ros.cli.main import BadInput
@@ -38,10 +38,7 @@ def run(args):
     design = fallback_design(args)
     overrides = settings_overrides(args)
     ignored = []
-    try:
-        bags = find_bags(args.paths, skip=[out], ignored=ignored)
-    except BagSearchError as exc:
-        raise BadInput(str(exc)) from None
+    bags = find_bags(args.paths, skip=[out], ignored=ignored)    # BagSearchError: exit 2
     for path, why in ignored:
         print(f'planter: warning: {path} is {why}, not a bag: skipped', file=sys.stderr)
     if not bags:
@@ -58,15 +55,12 @@ def run(args):
         report = seasons.Report(out=str(out))
         if keys:
             where = args.scheduler or 'the local cluster'
-            try:
-                with cluster(args.workers, args.scheduler) as client:
-                    workers = check_workers(client, warm_up, version, where)
-                    season.clear(keys)
-                    progress = Progress(len(keys), label='planter analyze')
-                    report = seasons.run(season, client, keys, overrides, design, progress)
-                    report.workers = workers
-            except EngineError as exc:
-                raise BadInput(str(exc)) from None
+            with cluster(args.workers, args.scheduler) as client:    # EngineError: exit 2
+                workers = check_workers(client, warm_up, version, where)
+                season.clear(keys)
+                progress = Progress(len(keys), label='planter analyze')
+                report = seasons.run(season, client, keys, overrides, design, progress)
+                report.workers = workers
         exports, table, html, failed = season_outputs(out, force=bool(keys) or renamed)
     report.found, report.skipped = len(bags) - len(season.copies), skipped
     report.copies = season.copies

@@ -1,4 +1,5 @@
-"""Entry point of `planter`: builds the sub-command tree and turns bad input into exit code 2.
+"""Entry point of `planter`: builds the sub-command tree and turns any of planter_ros's errors
+(`errors.PlanterError`: bad input, a setting, a bag or a drive refused) into exit code 2.
 
 Each sub-command's module has `add_arguments(parser)` and `run(args) -> int` and imports numpy,
 scipy, matplotlib or rclpy only inside run(): `planter --help` loads none of them."""
@@ -6,6 +7,8 @@ scipy, matplotlib or rclpy only inside run(): `planter --help` loads none of the
 import argparse
 import importlib
 import sys
+
+from planter_ros.errors import PlanterError
 
 # (command words) -> (module, one-line help)
 COMMANDS = {
@@ -32,7 +35,7 @@ GROUPS = {'drive': 'check the CANopen drives of a machine file'}    # others: a 
 EXIT_BAD_INPUT = 2
 
 
-class BadInput(Exception):
+class BadInput(PlanterError):
     """A user error the command line reports as one line with exit code 2."""
 
 
@@ -91,9 +94,8 @@ def build_parser(argv=()):
 
 
 def main(argv=None):
-    from planter_ros.config import ConfigError, one_line
-    from planter_ros.dependencies import MissingExtra, check_command, error_line
-    from planter_ros.output_files import OutputError
+    from planter_ros.config import one_line
+    from planter_ros.dependencies import check_command, error_line
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = _selected(argv)
     if selected == ('demo',):     # a stop signal from the very start is a clean stop (demo.run)
@@ -103,7 +105,7 @@ def main(argv=None):
         args = build_parser(argv).parse_args(argv)
         check_command(selected, args)
         return int(args._run(args) or 0)
-    except (BadInput, ConfigError, OutputError, MissingExtra, ModuleNotFoundError) as exc:
+    except (PlanterError, ModuleNotFoundError) as exc:     # ModuleNotFoundError: an extra's
         print(f'planter: error: {one_line(error_line(selected, exc))}', file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

@@ -92,22 +92,17 @@ OUTPUTS = ('plot', 'geojson', 'csv', 'shapefile', 'isoxml')
 def run(args):
     """Replay the bag, then write each output asked for on its own (export.replay.write_each:
     one that fails is named on stderr, exit 1)."""
-    from planter_ros.analysis.bags import BagSearchError, check_bag
-    from planter_ros.cli.main import BadInput
+    from planter_ros.analysis.bags import check_bag
     from planter_ros.config import one_line
     from planter_ros.export import geojson_csv, replay as exports
     from planter_ros.output_files import check_distinct
     from planter_ros.plots.replay import write_plot
-    from planter_ros.recording.errors import RecordingError
     from planter_ros.recording.replay import replay
     from planter_ros.recording.replay_text import format_table
     check_distinct({f'--{o}': getattr(args, o) for o in OUTPUTS})
     design = fallback_design(args)
-    try:
-        check_bag(args.bag)
-        result = replay(args.bag, settings_overrides(args), fallback_design=design)
-    except (BagSearchError, RecordingError) as exc:
-        raise BadInput(str(exc)) from None
+    check_bag(args.bag)         # BagSearchError, RecordingError: one line, exit 2 (cli.main)
+    result = replay(args.bag, settings_overrides(args), fallback_design=design)
     for warning in result.warnings:
         print(f'planter: warning: {warning}', file=sys.stderr)
     plants = exports.replay_run(result, args.shapefile, args.isoxml)

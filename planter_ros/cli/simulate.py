@@ -37,21 +37,16 @@ def add_arguments(parser):
 
 
 def run(args):
-    from planter_ros.analysis.engine import EngineError
     from planter_ros.analysis.simulate import (check_path, check_tray, season_machine,
                                                simulate_season)
-    from planter_ros.cli.main import BadInput
     from planter_ros.sim.season import bag_name
     check_tray(args.empty_rate, args.double_rate)
     scene, rows = season_machine(args.scene, args.rows)     # a bad scene: one line, exit 2
     names = [bag_name(args.seed, k) for k in range(args.bags)]
     path = check_path(args.path, names)
-    try:
-        report, written, errors = simulate_season(path, names, args.seed, args.duration,
-                                                  rows, args.workers, args.scheduler, scene,
-                                                  (args.empty_rate, args.double_rate))
-    except EngineError as exc:
-        raise BadInput(str(exc)) from None
+    report, written, errors = simulate_season(path, names, args.seed, args.duration, rows,
+                                              args.workers, args.scheduler, scene,
+                                              (args.empty_rate, args.double_rate))
     if args.json:
         print(json.dumps({**report, 'runs': written}, indent=1, allow_nan=False))
     else:

@@ -26,12 +26,14 @@ import time
 import threading
 from typing import Any
 
+from planter_ros.errors import PlanterError
+
 __all__ = ['ChannelClosed', 'Channel', 'MAX_MESSAGE']
 
 MAX_MESSAGE = 1 << 18          # bytes; a diagnostics array of 8 rows is about 10 kB
 
 
-class ChannelClosed(ConnectionError):
+class ChannelClosed(PlanterError, ConnectionError):
     """The other end is gone (closed, or its process died)."""
 
 

@@ -346,7 +346,7 @@ def _handle(engine: CommandEngine, channel: Channel, kind: str, payload: Any) ->
             engine.configure(law_from_data(payload))
         elif kind == 'enable':              # enabled already: nothing to do
             channel.send('reply', [payload[0], False, 'the rows are enabled already', False])
-    except (ValueError, KeyError, TypeError, ConfigError, StopIteration) as exc:
+    except (ValueError, KeyError, TypeError, StopIteration) as exc:  # ConfigError: ValueError
         engine.log(logging.ERROR, f'{kind} ignored: {exc}')
 
 

@@ -18,6 +18,8 @@ from dataclasses import MISSING, dataclass, field, fields
 import typing
 from typing import Any
 
+from planter_ros.errors import PlanterError
+
 __all__ = ['EXIT_REASONS', 'CommandExit', 'CommandReport', 'ReportError', 'RowReport',
            'from_data']
 
@@ -25,7 +27,7 @@ __all__ = ['EXIT_REASONS', 'CommandExit', 'CommandReport', 'ReportError', 'RowRe
 EXIT_REASONS = ('stop', 'SIGTERM', 'SIGINT', 'start failed')
 
 
-class ReportError(ValueError):
+class ReportError(PlanterError, ValueError):
     """A message that is not the report it claims to be (one line: the type and the field)."""
 
 

@@ -31,6 +31,7 @@ from planter_ros.drive.dictionary import entry
 from planter_ros.drive.errors import DriveError
 from planter_ros.drive.setup import (HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED, DriveSetup,
                                      homing_timeout, missing_modes)
+from planter_ros.errors import PlanterError
 
 __all__ = ['CommissionError', 'Observer', 'RowFindings', 'SimulatedObserver', 'checklist',
            'commission_machine', 'commission_row', 'run_warnings', 'updated_machine']
@@ -43,7 +44,7 @@ JOG_TIME = 1.0           # s
 SEARCH_SPEED, EDGE_SPEED = HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED
 
 
-class CommissionError(Exception):
+class CommissionError(PlanterError):
     """Commissioning cannot go on; one line naming the row and what was found."""
 
 

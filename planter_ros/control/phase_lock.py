@@ -121,7 +121,7 @@ def planting_angles(design: Any) -> PlantingAngles | None:
     from planter_ros.prediction import planting_model_from_design
     try:
         model = planting_model_from_design(design)
-    except (ValueError, TypeError, KeyError, ConfigError):
+    except (ValueError, TypeError, KeyError):    # ValueError: a ConfigError too
         return None
     return PlantingAngles(float(model.planting_phase), float(model.entry_angle),
                           float(model.exit_angle))

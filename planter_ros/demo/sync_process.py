@@ -41,6 +41,7 @@ from typing import Any
 from planter_ros.command.reports import CommandReport, ReportError, from_data
 from planter_ros.drive.state_names import (FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
                                            QUICK_STOP_ACTIVE)
+from planter_ros.errors import PlanterError
 
 __all__ = ['DesignReport', 'DriveEnd', 'DrivesReport', 'STANDSTILL', 'SyncBuilt', 'SyncProcess',
            'SyncProcessError', 'SyncProcessSettings', 'SyncReady', 'SyncReport', 'child_main',
@@ -53,7 +54,7 @@ STANDSTILL = 1.0           # rad/s of a motor below which it stands still (a coa
 POWERED = (OPERATION_ENABLED, QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE)
 
 
-class SyncProcessError(RuntimeError):
+class SyncProcessError(PlanterError, RuntimeError):
     """The sync process did not start (one line: why)."""
 
 

@@ -1,13 +1,8 @@
 """SDO access to one drive, by the master's own object declarations (drive.objects): values are
 encoded and decoded from their declared types, not from the EDS, so a read of an object the
 file lacks still asks the drive, and nothing fails inside canopen's object lookup. Every
-failure is one line in the right family (drive.errors):
-
-* no answer (`SdoCommunicationError`): `DriveTimeoutError`, with how long and how often it asked;
-* the drive aborts because the object or sub-index does not exist (06020000h, 06090011h): a
-  `DictionaryError`, naming the object: the drive is not what its EDS describes;
-* any other abort: `DriveRefusedError` with the abort's text;
-* python-can failing to send: `BusError`.
+failure is one line in the right family (drive.errors.sdo_error: no answer, no such object,
+any other abort, CAN send failed).
 
 BLOCKING (each call waits for the drive's answer): never from a bus callback or the loop.
 """
@@ -16,11 +11,10 @@ from __future__ import annotations
 import struct
 from typing import TYPE_CHECKING
 
-from canopen.sdo import SdoAbortedError, SdoCommunicationError
+from canopen.sdo import SdoAbortedError
 
 from . import objects as od
-from .errors import (BusError, DictionaryError, DriveError, DriveRefusedError,
-                     DriveTimeoutError)
+from .errors import DriveError, sdo_error
 
 if TYPE_CHECKING:
     from canopen import RemoteNode
@@ -30,7 +24,6 @@ if TYPE_CHECKING:
 __all__ = ['SDO_ATTEMPTS', 'Sdo']
 
 SDO_ATTEMPTS = 2            # each SDO request is sent at most this often (sdo_timeout each)
-NO_SUCH_OBJECT = (0x06020000, 0x06090011)
 
 
 class Sdo:
@@ -42,8 +35,9 @@ class Sdo:
         node.sdo.RESPONSE_TIMEOUT = config.sdo_timeout
         node.sdo.MAX_RETRIES = SDO_ATTEMPTS             # a request or answer lost: asked again
 
-    def fail(self, step: str, detail: str, kind: type = DriveError) -> DriveError:
-        return kind(f'drive node {self.config.drive_node_id}: {step}: {detail}')
+    def fail(self, step: str, detail: str, kind: type[DriveError] = DriveError) -> DriveError:
+        node = self.config.drive_node_id
+        return kind(f'drive node {node}: {step}: {detail}', node=node)
 
     def _wait_text(self) -> str:
         return (f' within {SDO_ATTEMPTS} x {self.config.sdo_timeout:g} s (sdo_timeout, asked '
@@ -51,21 +45,9 @@ class Sdo:
 
     def _error(self, step: str, obj: od.Obj, verb: str, exc: Exception) -> DriveError:
         cfg = self.config
-        if isinstance(exc, SdoCommunicationError):
-            where = (f'is the drive on {cfg.can_interface}:{cfg.can_channel} as node '
-                     f'{cfg.drive_node_id}? ' if verb == 'reading' else '')
-            return self.fail(step, f'no SDO answer {verb} 0x{obj.index:04X}'
-                                   f'{self._wait_text()} ({where}{exc})', DriveTimeoutError)
-        if isinstance(exc, SdoAbortedError):
-            if exc.code in NO_SUCH_OBJECT:
-                return self.fail(step, f'the drive has no 0x{obj.index:04X}'
-                                       + (f':{obj.subindex}' if obj.subindex else '')
-                                       + f' {obj.name} ({exc}) although its EDS lists it: use '
-                                       'the EDS of this drive and firmware', DictionaryError)
-            return self.fail(step, f'drive refused {verb} 0x{obj.index:04X}'
-                                   + (f':{obj.subindex}' if obj.subindex else '') + f' ({exc})',
-                             DriveRefusedError)
-        return self.fail(step, f'CAN send failed: {type(exc).__name__}: {exc}', BusError)
+        return sdo_error(exc, node=cfg.drive_node_id, step=step, verb=verb, index=obj.index,
+                         subindex=obj.subindex, name=obj.name, waited=self._wait_text(),
+                         bus=f'{cfg.can_interface}:{cfg.can_channel}')
 
     def read(self, step: str, obj: od.Obj, optional: bool = False) -> int | None:
         """The value of `obj`; None for an `optional` one the drive does not have."""

@@ -22,7 +22,8 @@ import time
 from typing import TYPE_CHECKING
 
 from . import objects as od
-from .errors import BusError, DriveConfigError, DriveRefusedError, DriveTimeoutError
+from .errors import (BusError, DriveConfigError, DriveError, DriveRefusedError,
+                     DriveTimeoutError)
 from .plan import MODE_NAMES, DrivePlan, choose_mode, homing_writes, plan_drive
 from .setup import (HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED, homing_timeout, identity_mismatch,
                     missing_modes, pdo_mismatch)
@@ -62,7 +63,7 @@ class StartUp:
         self.connected = False            # PDOs configured, the drive operational
         self.enable_duration = float('nan')
 
-    def fail(self, step: str, detail: str, kind: type) -> Exception:
+    def fail(self, step: str, detail: str, kind: type[DriveError]) -> DriveError:
         return self.sdo.fail(step, detail, kind)
 
     def run(self) -> None:
@@ -101,7 +102,7 @@ class StartUp:
             cfg = self.config
             raise BusError(f'drive node {cfg.drive_node_id}: CAN send of NMT '
                            f'{state.lower()} failed on {cfg.can_interface}:{cfg.can_channel}: '
-                           f'{type(exc).__name__}: {exc}') from None
+                           f'{type(exc).__name__}: {exc}', node=cfg.drive_node_id) from None
 
     def _identify(self) -> int | None:
         """Refuse a node that is not a CiA 402 drive; its 6502h (None: it does not say)."""

@@ -22,6 +22,8 @@ import sys
 import tempfile
 from typing import TextIO
 
+from planter_ros.errors import PlanterError
+
 # 1..101: the domain ids whose ports stay below Linux's ephemeral range (32768 and up)
 CANDIDATES = range(1, 102)
 PARTICIPANTS_PROBED = 5
@@ -31,7 +33,7 @@ PRIVATE_GRAPH_ROS_ARGS = ('--disable-external-lib-logs',)
 _held: dict[int, socket.socket | TextIO] = {}
 
 
-class NoFreeDomainError(RuntimeError):
+class NoFreeDomainError(PlanterError, RuntimeError):
     """Every candidate domain is in use on this host (one line)."""
 
 

@@ -27,7 +27,7 @@ class DesignError(ConfigError):
         text += f' is out of range: allowed {allowed}'
         if reason:
             text += f' ({reason})'
-        super().__init__(text)
+        super().__init__(text, where=parameter, limit=allowed)
 
     @classmethod
     def from_message(cls, text: str) -> DesignError:

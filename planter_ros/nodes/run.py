@@ -1,6 +1,7 @@
 """The main of a node that only spins: discovery kept on the host, SIGTERM stopping like Ctrl-C,
-each wait bounded (`stop_signals`), a bad parameter or setting answered in one line with exit
-code 2, the node destroyed and rclpy shut down however the run ends."""
+each wait bounded (`stop_signals`), a bad parameter or setting (any of planter_ros's errors:
+`errors.PlanterError`) answered in one line with exit code 2, the node destroyed and rclpy shut
+down however the run ends."""
 from collections.abc import Callable, Sequence
 import sys
 
@@ -9,8 +10,8 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
+from planter_ros.errors import PlanterError
 from planter_ros.host import stop_signals
-from planter_ros.config import ConfigError
 from planter_ros.host.dds_domain import keep_discovery_on_host
 
 __all__ = ['run_node']
@@ -20,7 +21,7 @@ def run_node(name: str, make_node: Callable[[list[str]], Node], args: list[str] 
              errors: Sequence[type[BaseException]] = ()) -> int:
     """Run the node `make_node(arguments)` makes (arguments: `args` or the command line) until
     a stop signal or the context ends; the exit code: 0, or 2 after one line `name: error: ...`
-    on stderr for a ConfigError, a ParameterException or one of `errors`."""
+    on stderr for a PlanterError, a ParameterException or one of `errors`."""
     keep_discovery_on_host()
     stop = stop_signals.install(name)      # SIGTERM stops like Ctrl-C: the node's clean-up runs
     rclpy.init(args=args)
@@ -32,7 +33,7 @@ def run_node(name: str, make_node: Callable[[list[str]], Node], args: list[str] 
         stop_signals.spin(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (ConfigError, ParameterException, *errors) as exc:
+    except (PlanterError, ParameterException, *errors) as exc:
         print(f'{name}: error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
     finally:

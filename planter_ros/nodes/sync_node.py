@@ -364,7 +364,7 @@ class SyncNode(Node):
         try:
             design = from_json(msg.data)
             changed = self.engine.set_design(design, msg.data, time.monotonic())
-        except (ValueError, KeyError, TypeError, ConfigError) as exc:
+        except (ValueError, KeyError, TypeError) as exc:     # ValueError: ConfigError too
             self.get_logger().error(f'design ignored, keeping the last one: {exc}')
             return
         self._design_text = msg.data

@@ -22,8 +22,10 @@ RecordingError for "this recording cannot be used"; catch a subclass only to act
 
 from __future__ import annotations
 
+from planter_ros.errors import PlanterError
 
-class RecordingError(Exception):
+
+class RecordingError(PlanterError):
     """A recording that cannot be read, replayed or written as asked (one line)."""
 
 

@@ -193,7 +193,7 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         try:
             design = from_json(text)
             model = planting_model_from_design(design, widths.width(design))
-        except (ValueError, ConfigError) as exc:
+        except ValueError as exc:    # a ConfigError (ours) or a foreign JSON error
             rec.warnings.append(f'design message at {log * 1e-9:.3f} s ignored: '
                                 f'{str(exc).splitlines()[0]}')
             continue

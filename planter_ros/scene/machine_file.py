@@ -317,7 +317,6 @@ def check_drive_plans(machine: Machine, params: dict[str, Any], where: str) -> l
     the plans' warnings, one line each, naming the row."""
     from dataclasses import fields
     from planter_ros.drive.config import DriveConfig
-    from planter_ros.drive.errors import DictionaryError
     from planter_ros.drive.plan import plan_for_file
     names = {f.name for f in fields(DriveConfig)}
     settings = {key: value for key, value in params.items() if key in names}
@@ -333,7 +332,7 @@ def check_drive_plans(machine: Machine, params: dict[str, Any], where: str) -> l
                                     'counts_per_motor_rev': row.encoder_counts})
             plan = plan_for_file(str(machine.eds_path(row)), config,
                                  machine.drive_setups()[name], who)
-        except (DictionaryError, ConfigError) as exc:
+        except ConfigError as exc:         # a DictionaryError too
             text = str(exc)
             raise MachineFileError(f'{where}: {text if text.startswith(who) else f"{who}: {text}"}'
                                    ) from None
