@@ -1,6 +1,8 @@
 """`planter commission` against the simulated drive (issue 22 item 2): a mechanism with a random
 (seeded) offset between the encoder's zero and its bottom, wired reversed or not; commissioning
-must find the polarity and, after homing, the bottom within 0.5 degrees."""
+must find the polarity and, after homing, the bottom within 0.5 degrees. Against a real switch
+(delay, hysteresis, jitter; issue 31): the bottom within a tolerance derived from the jitter,
+where fewer than four edges would miss it."""
 import dataclasses
 import math
 import shutil
@@ -14,6 +16,7 @@ from cli_helpers import REPO, run_planter
 
 from planter_ros.commission import (CommissionError, SimulatedObserver, commission_machine,
                                     updated_machine)
+from planter_ros.commission.procedure import EDGE_SPEED
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
 from planter_ros.drive.errors import DriveRefusedError
 from planter_ros.simdrive.drive import SimulatedDrive
@@ -181,3 +184,58 @@ def test_a_relative_eds_names_the_same_file_from_another_directory(tmp_path):
     # in its own directory nothing changes
     write_machine(machine, here / 'again.yaml')
     assert open_machine(here / 'again.yaml').rows[ROW].eds == 'drive.eds'
+
+
+# ------------------------------------------------------------ a real switch (issue 31)
+# The bottom switch as a real one is (simdrive.switch): its input shows a change DELAY s late
+# plus a jitter drawn from [0, JITTER) s per change, and its edges lie HYST apart crossed
+# forwards and backwards. Exaggerated against a real drive's input (a few ms, a fraction of a
+# degree) so that each effect stands out of the procedure's own timing.
+SWITCH_WIDTH, HYST, DELAY, JITTER = 0.25, 2.0 ** -5, 0.1, 0.02     # rad, rad, s, s
+# s: how late the procedure can read an edge's position on its own (procedure._switch_edges):
+# its poll loop (5 ms sleep + the 60FDh SDO upload), the motor's 2 ms tick, the position's age
+# (one 10 ms SYNC period): about 20 ms, allowed 50 ms for a loaded 2-core host
+POLL = 0.05
+# Each edge is read at (its angle) +- EDGE_SPEED x (DELAY + jitter + poll lateness), + when
+# crossed forwards, - backwards, and the hysteresis moves it +-HYST/2 the same way. The
+# middle of the four edges (two crossed each way) cancels DELAY and HYST exactly; of the
+# random lateness, in [0, JITTER + POLL) per edge, it keeps (2 x forwards - 2 x backwards)/4,
+# at most EDGE_SPEED x (JITTER + POLL) / 2:
+TOLERANCE = EDGE_SPEED * (JITTER + POLL) / 2         # 1.75 mrad, 0.10 degrees
+# a middle from one direction alone keeps DELAY and HYST, and all of the random lateness:
+ONE_SIDED_SPREAD = EDGE_SPEED * (JITTER + POLL)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('hysteresis, method', [(HYST, 19), (0.0, 0)],
+                         ids=['hysteresis-delay-jitter-homed', 'delay-jitter'])
+def test_four_edges_cancel_the_switch_delay_and_hysteresis(rig, hysteresis, method):
+    """The phase offset is the true bottom within TOLERANCE; a procedure using fewer edges
+    (from the same measured edges) would miss it by about EDGE_SPEED x DELAY + HYST / 2, more
+    than TOLERANCE: this test catches a regression to fewer edges."""
+    make, bus = rig
+    machine, sim = make({'homing_method': method, 'polarity': 'normal', 'phase_offset': 0.0},
+                        mechanical_offset=4.0, home_switch_width=SWITCH_WIDTH,
+                        home_switch_hysteresis=hysteresis, home_switch_delay=DELAY,
+                        home_switch_jitter=JITTER, seed=31)
+    [found] = commission_machine(machine, [ROW], SimulatedObserver({ROW: sim}), bus=bus)
+    assert found.homed == bool(method)
+    true = sim.mechanism_angle_at            # master's rad -> true angle from the bottom
+    error = true(found.phase_offset)
+    lower_back, lower_fwd, upper_fwd, upper_back = found.edges
+    one_way = EDGE_SPEED * DELAY + hysteresis / 2        # what one direction keeps
+    misses = {
+        # homing-like: one edge crossed forwards, the switch's nominal half width added
+        'one edge': true(lower_fwd + SWITCH_WIDTH / 2),
+        'two edges forwards': true(0.5 * (lower_fwd + upper_fwd)),
+        'two edges backwards': -true(0.5 * (lower_back + upper_back)),
+    }
+    print(f'\n{hysteresis=} rad: four edges {error * 1e3:+.3f} mrad (tolerance '
+          f'{TOLERANCE * 1e3:.3f}); switch width {found.switch_width:.5f} rad; fewer edges '
+          + ', '.join(f'{k} {v * 1e3:+.3f} mrad' for k, v in misses.items())
+          + f' (model {one_way * 1e3:.3f})')
+    assert abs(error) <= TOLERANCE
+    assert found.switch_width == pytest.approx(SWITCH_WIDTH, abs=2 * TOLERANCE)
+    for name, miss in misses.items():
+        assert miss > TOLERANCE, name                  # fewer edges: caught
+        assert miss == pytest.approx(one_way, abs=ONE_SIDED_SPREAD), name

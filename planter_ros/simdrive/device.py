@@ -224,6 +224,7 @@ class SimulatedDevice:
             return motor.coast(dt), math.inf          # power stage off: the load coasts
 
         def after(before: float, dt: float, t: float) -> None:
+            self.mechanism.note_motion(motor.position, t)
             if self.homing.phase is not None and control.state == OPERATION_ENABLED:
                 self.homing.step(before, motor.position, motor.velocity)
             self.mechanism.note_bottom(before, motor.position, dt, t)

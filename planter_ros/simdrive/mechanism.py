@@ -1,7 +1,8 @@
 """The mechanism behind a simulated drive: a gear (`gear_ratio` motor turns per mechanism turn),
 a motor possibly wired the other way round (`motor_reversed`), a bottom (the planting tip
 lowest) at an unknown `mechanical_offset` from the encoder's zero, and a proximity switch at
-the bottom wired as the drive's home switch (60FDh bit 2). Optionally the instants the
+the bottom wired as the drive's home switch (60FDh bit 2; ideal, or with the delay, hysteresis
+and jitter of a real one: `switch`). Optionally the instants the
 mechanism truly passes its bottom forwards (`bottom_times`: the truth a test measures the
 machine's own account of its plants against). Pure arithmetic on motor counts."""
 from __future__ import annotations
@@ -9,6 +10,7 @@ from __future__ import annotations
 import math
 
 from .spec import SimSpec
+from .switch import HomeSwitch
 
 __all__ = ['Mechanism', 'simulated_mechanism', 'wrap_angle']
 
@@ -29,6 +31,9 @@ class Mechanism:
         self.motor_reversed = bool(spec.motor_reversed)
         self.offset = float(spec.mechanical_offset)
         self.switch_width = float(spec.home_switch_width)
+        self.switch = HomeSwitch(spec.home_switch_width, spec.home_switch_hysteresis,
+                                 spec.home_switch_delay, spec.home_switch_jitter, spec.seed)
+        self._now = 0.0           # the motor time last moved to (s)
         self.record_bottom = bool(spec.record_bottom)
         #: monotonic s at which the mechanism passed its bottom forwards (record_bottom)
         self.bottom_times: list[float] = []
@@ -40,7 +45,18 @@ class Mechanism:
         return wiring * TWO_PI * turns - self.offset
 
     def switch_active(self, counts: float) -> bool:
-        return abs(wrap_angle(self.angle(counts))) <= 0.5 * self.switch_width
+        """The home switch input as the drive reads it with the motor at `counts` (now)."""
+        if self.switch.ideal:
+            return self.switch.ideal_active(self.angle(counts))
+        self.switch.sense(self.angle(counts), self._now)
+        return self.switch.read(self._now)
+
+    def note_motion(self, after: float, now: float) -> None:
+        """The motor moved to `after` counts at motor time `now` (each sub-step): the switch
+        senses it (a real switch's changes are timed on the motor's clock)."""
+        self._now = now
+        if not self.switch.ideal:
+            self.switch.sense(self.angle(after), now)
 
     def note_bottom(self, before: float, after: float, dt: float, now: float) -> None:
         """The bottom passed forwards in a sub-step from `before` to `after` counts that ended

@@ -10,6 +10,8 @@ from typing import Any
 
 from planter_ros.drive.states import PROFILE_VELOCITY
 
+from .switch import HomeSwitch
+
 __all__ = ['SimSpec']
 
 
@@ -32,6 +34,11 @@ class SimSpec:
     motor_reversed: bool = False         # a positive motor turn turns the mechanism back
     mechanical_offset: float = 0.0       # rad, the mechanism's bottom from the encoder's zero
     home_switch_width: float = 0.2       # rad of mechanism turn the bottom switch is active
+    # a real switch (simdrive.switch; 0: ideal): on hysteresis/2 inside its nominal edge, off
+    # hysteresis/2 outside it; the input shows a change delay + uniform [0, jitter) s later
+    home_switch_hysteresis: float = 0.0  # rad, 0 <= hysteresis < home_switch_width
+    home_switch_delay: float = 0.0       # s
+    home_switch_jitter: float = 0.0      # s, drawn per change from `seed`
     record_bottom: bool = False          # keep the instants the mechanism passes its bottom
     # a slow drive: SDO answers late (one at a time, in order), from a seeded random stream
     sdo_delay: tuple[float, float] | None = None
@@ -44,6 +51,8 @@ class SimSpec:
             if not getattr(self, name) > 0:
                 raise ValueError(f'{name} = {getattr(self, name)!r} is out of range: allowed '
                                  '> 0')
+        HomeSwitch(self.home_switch_width, self.home_switch_hysteresis,
+                   self.home_switch_delay, self.home_switch_jitter)       # checks its values
         if self.sdo_delay is not None and not 0.0 <= self.sdo_delay[0] <= self.sdo_delay[1]:
             raise ValueError(f'sdo_delay = {self.sdo_delay!r}: allowed (shortest, longest) '
                              '>= 0 s')
