@@ -215,19 +215,7 @@ class SyncNode(Node):
     def _initial_sections(self):
         return {row.name: True for row in self.rows if row.enabled}
 
-    # ---------------------------------------------------------------- in-process engine
-    def __getattr__(self, name):
-        # the in-process engine's rows and law, for tests and the bench (units, machine, law,
-        # drives, unit(), command_value...); a command process keeps them to itself
-        engine = self.__dict__.get('engine')
-        if isinstance(engine, CommandEngine) and hasattr(engine, name):
-            return getattr(engine, name)
-        raise AttributeError(name)
-
-    @property
-    def drive(self):
-        return self.engine.units[0].drive
-
+    # ---------------------------------------------------------------- what it commands
     @property
     def command_value(self):
         """The first row's last command (rad/s)."""
