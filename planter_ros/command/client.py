@@ -41,11 +41,12 @@ from planter_ros.drive.bus_load import BusLoad
 from planter_ros.drive.errors import DriveError
 
 from .channel import Channel, ChannelClosed
-from .engine import Feedback, Log, checked_bus_load
+from .engine import Log, checked_bus_load
 from .reports import CommandExit, ReportError
 from planter_ros.control.cam_law import plan_for_design, profile_to_data, warm_up
 
 from .settings import CommandSettings, law_to_data
+from .state import Feedback
 from planter_ros.drive.socket_bus import INTERFACE, socket_pair
 
 __all__ = ['COMMAND_PROCESS', 'CommandProcessError', 'CommandClient', 'ENABLE_TIMEOUT']
