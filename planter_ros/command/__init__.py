@@ -2,9 +2,10 @@
 row loop in a process of their own, with no DDS participant and no rclpy (doc/command.md).
 
 `engine` is the command path as one object (also run in-process by sync_node when handed a
-bus); `process` the process's main loop; `client` the shell's handle (start, feed, supervise);
-`channel` the local message channel between them; `realtime` SCHED_FIFO, mlockall and dying
-with the parent; `settings` what the shell hands over at start. The CAN bus to simulated drives
-in a process of their own is `planter_ros.drive.socket_bus`."""
+bus), `state` what it holds per row, `reports` the typed messages it sends; `process` the
+process's main loop; `client` the shell's handle (start, feed, supervise); `channel` the local
+message channel between them; `realtime` SCHED_FIFO, mlockall and dying with the parent;
+`settings` what the shell hands over at start. The CAN bus to simulated drives in a process of
+their own is `planter_ros.drive.socket_bus`."""
 
-__all__ = ['channel', 'client', 'engine', 'process', 'realtime', 'settings']
+__all__ = ['channel', 'client', 'engine', 'process', 'realtime', 'reports', 'settings', 'state']

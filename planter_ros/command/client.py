@@ -42,7 +42,7 @@ from planter_ros.drive.errors import DriveError
 
 from .channel import Channel, ChannelClosed
 from .engine import Log, checked_bus_load
-from .reports import CommandExit, ReportError
+from .reports import CommandExit, CommandReport, Ready, Reply, ReportError, Snapshot
 from planter_ros.control.cam_law import plan_for_design, profile_to_data, warm_up
 
 from .settings import CommandSettings, law_to_data
@@ -86,7 +86,7 @@ class CommandClient:
         self.channel: Channel | None = None
         self._lock = threading.Lock()
         self._ids = itertools.count(1)
-        self._replies: dict[int, list] = {}
+        self._replies: dict[int, Reply] = {}
         self._replied = threading.Condition(self._lock)
         self.info: dict[str, Any] = {}
         self.last_fb: dict[str, Any] = {}
@@ -99,7 +99,10 @@ class CommandClient:
         self.feedback_dropped = 0           # samples dropped because the queue was full
         self._fb_overflowing = False
         self.last_diag: list = []
-        self.final: dict | None = None
+        self.last_snapshot = Snapshot()
+        self._snapshot_error = ''           # the last unreadable snapshot's (said once)
+        self.final: CommandReport | None = None
+        self.final_error = ''               # why the `final` message was unreadable
         self.error: tuple[str, str] | None = None
         self.deaths: list[str] = []          # why each command process ended unasked
         self.restarts = 0
@@ -293,15 +296,24 @@ class CommandClient:
             self.last_fb_time = time.monotonic()
             self.fb_count += 1
             self._queue_feedback(payload.get('feedback', []))
+            self._take_snapshot(payload.get('snapshot'))
         elif kind == 'diag':
             self.last_diag = payload
         elif kind == 'reply':
-            ident, ok, message, changed = payload
+            ident, data = payload
+            try:
+                reply = Reply.from_data(data)
+            except ReportError as exc:
+                reply = Reply(False, f'the command process answered wrongly: {exc}')
             with self._replied:
-                self._replies[ident] = [ok, message, changed]
+                self._replies[ident] = reply
                 self._replied.notify_all()
         elif kind == 'final':
-            self.final = payload
+            try:
+                self.final = CommandReport.from_data(payload)
+            except ReportError as exc:
+                self.final_error = str(exc)
+                self.log(logging.ERROR, f'command process: its report is unreadable: {exc}')
         elif kind == 'error':
             self.error = (payload[0], payload[1])
         elif kind == 'exit':
@@ -310,10 +322,26 @@ class CommandClient:
             except ReportError as exc:
                 self.log(logging.ERROR, f'command process: {exc}')
                 self.exit = CommandExit('stop')
-        else:
-            self.info[kind] = payload
+        elif kind in ('ready', 'held'):
+            try:
+                self.info[kind] = Ready.from_data(payload)
+            except ReportError as exc:
+                self.log(logging.ERROR, f'command process: {exc}')
+                self.info[kind] = Ready(0, 0, (f'unreadable {kind} message',))
             if kind == 'ready':
                 self.held_reason = ''
+        else:
+            self.info[kind] = payload
+
+    def _take_snapshot(self, data: Any) -> None:
+        if data is None:
+            return
+        try:
+            self.last_snapshot = Snapshot.from_data(data)
+        except ReportError as exc:
+            if str(exc) != self._snapshot_error:
+                self.log(logging.ERROR, f'command process: {exc}')
+            self._snapshot_error = str(exc)
 
     # ---------------------------------------------------------------- inputs
     def _send(self, kind: str, payload: Any = None, latest: bool = False) -> bool:
@@ -372,70 +400,75 @@ class CommandClient:
     def configure(self, law_values: Sequence[Any]) -> None:
         self._send('configure', law_to_data(tuple(law_values)))
 
-    def _request(self, kind: str, *args: Any) -> list:
+    def _request(self, kind: str, *args: Any) -> Reply:
         ident = next(self._ids)
         if not self._send(kind, [ident, *args]):
-            return [False, 'the command process is not running', False]
+            return Reply(False, 'the command process is not running')
         deadline = time.monotonic() + REPLY_TIMEOUT
         with self._replied:
             while ident not in self._replies:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    return [False, f'the command process did not answer within '
-                                   f'{REPLY_TIMEOUT:g} s', False]
+                    return Reply(False, f'the command process did not answer within '
+                                        f'{REPLY_TIMEOUT:g} s')
                 self._replied.wait(remaining)
             return self._replies.pop(ident)
 
-    def operator_enable(self, timeout: float = ENABLE_TIMEOUT) -> tuple[bool, str]:
-        """An operator enables the held rows (BLOCKING up to `timeout`): (ok, message)."""
+    def operator_enable(self, timeout: float = ENABLE_TIMEOUT) -> Reply:
+        """An operator enables the held rows (BLOCKING up to `timeout`)."""
         with self._life:
             if self._stop_asked():
-                return False, 'stopping: nothing is enabled any more'
+                return Reply(False, 'stopping: nothing is enabled any more')
             if self.dead:
-                return False, 'the command process is not running'
+                return Reply(False, 'the command process is not running')
             if 'ready' in self.info:
-                return False, 'the rows are enabled already'
+                return Reply(False, 'the rows are enabled already')
             if 'held' not in self.info:
-                return False, 'the command process is starting: try again in a moment'
+                return Reply(False, 'the command process is starting: try again in a moment')
             ident = next(self._ids)
             if not self._send('enable', [ident]):
-                return False, 'the command process is not running'
+                return Reply(False, 'the command process is not running')
         deadline = time.monotonic() + timeout
         with self._replied:
             while ident not in self._replies:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    return False, f'the drives were not enabled within {timeout:g} s'
+                    return Reply(False, f'the drives were not enabled within {timeout:g} s')
                 self._replied.wait(remaining)
-            ok, message, _ = self._replies.pop(ident)
-        if ok:
-            self.log(logging.WARNING, f'rows enabled by an operator: {message}')
-        return bool(ok), str(message)
+            reply = self._replies.pop(ident)
+        if reply.ok:
+            self.log(logging.WARNING, f'rows enabled by an operator: {reply.message}')
+        return reply
 
     @property
     def held(self) -> bool:
         """The rows wait at zero for an operator (`operator_enable`)."""
         return bool(self.held_reason) and 'ready' not in self.info and not self.dead
 
-    def section(self, name: str, on: bool, now: float) -> tuple[bool, str, bool]:
-        ok, message, changed = self._request('section', name, bool(on))
-        if ok:
+    def section(self, name: str, on: bool, now: float) -> Reply:
+        reply = self._request('section', name, bool(on))
+        if reply.ok:
             self._sections[name] = bool(on)
-        return bool(ok), str(message), bool(changed)
+        return reply
 
-    def reset_fault(self, name: str) -> tuple[bool, str]:
-        ok, message, _ = self._request('reset', name)
-        return bool(ok), str(message)
+    def reset_fault(self, name: str) -> Reply:
+        return self._request('reset', name)
 
     # ---------------------------------------------------------------- outputs
     @property
+    def ready(self) -> Ready | None:
+        """What the command process said once its drives ran (None before)."""
+        ready = self.info.get('ready')
+        return ready if isinstance(ready, Ready) else None
+
+    @property
     def running(self) -> int:
         """Rows whose drives run (as the command process said when ready)."""
-        return int(self.info.get('ready', {}).get('running', 0))
+        return self.ready.running if self.ready is not None else 0
 
     def mode_text(self) -> str:
         """The CiA 402 mode the command process's drives run, in words."""
-        return str(self.info.get('ready', {}).get('mode', ''))
+        return self.ready.mode if self.ready is not None else ''
 
     def feedback(self) -> list[Feedback]:
         return [Feedback(*item) for item in self.last_fb.get('feedback', [])]
@@ -479,20 +512,21 @@ class CommandClient:
     def sections(self) -> dict[str, bool]:
         return dict(self.last_fb.get('sections', self._sections))
 
-    def snapshot(self) -> dict:
-        return self.last_fb.get('snapshot', {'rows': [], 'spacing': None})
+    def snapshot(self) -> Snapshot:
+        return self.last_snapshot
 
-    def final_report(self) -> dict:
-        return self.final or {}
+    def final_report(self) -> CommandReport | None:
+        """The run's figures (None before the command process sent them, or unreadable:
+        `final_error`)."""
+        return self.final
 
     def process_report(self, now: float) -> diagnostics.Report:
         """The command process's own status: alive, its pid, real time granted or not."""
         values = [('restarts', self.restarts), ('deaths', len(self.deaths))]
-        ready = self.info.get('ready', {})
-        if ready:
-            values += [('pid', ready.get('pid')),
-                       ('SCHED_FIFO priority asked', ready.get('priority'))]
-        refused = ready.get('realtime') or []
+        ready = self.ready
+        if ready is not None:
+            values += [('pid', ready.pid), ('SCHED_FIFO priority asked', ready.priority)]
+        refused = ready.realtime if ready is not None else ()
         if refused:
             values.append(('real time refused', '; '.join(refused)))
         age = now - self.last_fb_time if self.last_fb_time >= 0 else None

@@ -38,6 +38,7 @@ from planter_ros.rows import IMPLICIT, Row
 
 from . import recovery
 from .recovery import communication_fault
+from .reports import CommandReport, Reply, RowReport, RowSnapshot, Snapshot
 from .state import Feedback, RowUnit
 
 if TYPE_CHECKING:
@@ -332,26 +333,26 @@ class CommandEngine:
         with self._lock:
             self.machine.configure(*law_values)
 
-    def reset_fault(self, name: str) -> tuple[bool, str]:
+    def reset_fault(self, name: str) -> Reply:
         unit = self.unit(name)
         with self._lock:
             if not unit.running:
-                return False, f'row {unit.label} does not run ({self.idle_reason(unit)})'
+                return Reply(False, f'row {unit.label} does not run ({self.idle_reason(unit)})')
             status = unit.drive.status()
             if not status.fault and status.state != FAULT:
-                return False, f'no drive fault to reset (state {status.state})'
+                return Reply(False, f'no drive fault to reset (state {status.state})')
             unit.drive.request_fault_reset()
             message = (f'fault reset requested (error 0x{status.error_code:04X}); the drive '
                        're-enables if the cause is gone')
         self.log(logging.WARNING, message if self.implicit else f'row {unit.label}: {message}')
-        return True, message
+        return Reply(True, message)
 
-    def section(self, name: str, on: bool, now: float) -> tuple[bool, str, bool]:
-        """Switch row `name`'s section; (success, message, changed)."""
+    def section(self, name: str, on: bool, now: float) -> Reply:
+        """Switch row `name`'s section (`changed`: it was not so already)."""
         unit = self.unit(name)
         with self._lock:
             if unit.drive is None:
-                return False, f'row {unit.label} is disabled in the scene: it never plants', False
+                return Reply(False, f'row {unit.label} is disabled in the scene: it never plants')
             was = unit.law.section_on
             unit.law.switch(on, now)
             if was == on:
@@ -363,7 +364,7 @@ class CommandEngine:
                 message = (f'row {unit.label} off: coming to rest'
                            + (f' at {stop:.3f} rad' if stop is not None else ''))
         self.log(logging.INFO, message)
-        return True, message, was != on
+        return Reply(True, message, was != on)
 
     # ---------------------------------------------------------------- the control step
     def step(self, now: float) -> None:
@@ -544,12 +545,12 @@ class CommandEngine:
         record = rec.running(now, in_step, law.phase_slips)
         if record is None:
             return
-        restarted = 'the drive restarted; ' if record['restarted'] else ''
-        state = 'back in step' if record['in_step'] else 'not back in step'
-        self.log(logging.WARNING if record['plants_missed'] else logging.INFO, self._row_text(
-            unit, f'{state} {record["back_in_step_s"]:.2f} s after: {record["cause"]} '
-                  f'({restarted}halted {record["halted_s"]:.2f} s): '
-                  f'{record["plants_missed"]} plant(s) missed'))
+        restarted = 'the drive restarted; ' if record.restarted else ''
+        state = 'back in step' if record.in_step else 'not back in step'
+        self.log(logging.WARNING if record.plants_missed else logging.INFO, self._row_text(
+            unit, f'{state} {record.back_in_step_s:.2f} s after: {record.cause} '
+                  f'({restarted}halted {record.halted_s:.2f} s): '
+                  f'{record.plants_missed} plant(s) missed'))
 
     def _recovery_values(self, unit: RowUnit) -> tuple:
         rec = unit.recovery
@@ -559,9 +560,9 @@ class CommandEngine:
                   ('EMCY received', rec.emcy_count)]
         if rec.recoveries:
             last = rec.recoveries[-1]
-            values.append(('last recovery', f'{last["cause"]}: back in step after '
-                                            f'{last["back_in_step_s"]:.2f} s, '
-                                            f'{last["plants_missed"]} plant(s) missed'))
+            values.append(('last recovery', f'{last.cause}: back in step after '
+                                            f'{last.back_in_step_s:.2f} s, '
+                                            f'{last.plants_missed} plant(s) missed'))
         if rec.reconfigure_error:
             values.append(('configuring again', rec.reconfigure_error))
         return tuple(values)
@@ -730,18 +731,17 @@ class CommandEngine:
                 f'{1e3 * self.drive_config.sync_period:g} ms' if self.csp
                 else 'profile velocity')
 
-    def snapshot(self) -> dict:
+    def snapshot(self) -> Snapshot:
         """What the demo's progress lines show: each row's command, speed and state."""
         with self._lock:
-            rows = [{'label': unit.label, 'command': unit.command,
-                     'velocity': unit.status.velocity if unit.status else 0.0,
-                     'state': unit.status.state if unit.status else '-',
-                     'running': unit.running}
-                    for unit in self.units if unit.drive is not None]
-            return {'rows': rows, 'spacing': self.law.spacing}
+            return Snapshot(tuple(
+                RowSnapshot(unit.label, unit.command,
+                            unit.status.velocity if unit.status else 0.0,
+                            unit.status.state if unit.status else '-', unit.running)
+                for unit in self.units if unit.drive is not None), self.law.spacing)
 
-    def final_report(self) -> dict:
-        """The run's figures from the command path (JSON-ready)."""
+    def final_report(self) -> CommandReport:
+        """The run's figures from the command path."""
         with self._lock:
             law, yaw = self.law, self.machine.filter.yaw
             everything = PeriodStats()
@@ -751,30 +751,24 @@ class CommandEngine:
                     continue
                 everything.merge(unit.period)
                 rec = unit.recovery
-                rows.append({'label': unit.label, 'faults': unit.faults,
-                             'last_fault': unit.last_fault, 'left_out': unit.left_out,
-                             'loop': unit.period.summary(),
-                             'plants_missed': rec.plants_missed, 'restarts': rec.restarts,
-                             'auto_resets': rec.auto_resets, 'emcy': rec.emcy_count,
-                             'recoveries': list(rec.recoveries)})
-            return {
-                'accepted': law.accepted, 'rejected': dict(law.rejected),
-                'yaw_accepted': yaw.accepted, 'yaw_rejected': dict(yaw.rejected),
-                'phase_slips': sum(unit.law.phase_slips for unit in self.units),
-                'send_errors': self.send_errors,
-                'receive_errors': self.drives.canbus.receive_errors.count,
-                'phase_lock': law.config.phase_lock,
-                'turn_compensation': self.machine.turn.turn_compensation,
-                'rows': rows,
-                'loop': everything.summary(),
-                'loop_histogram': everything.histogram(),
-                'command_timeout': self.drive_config.command_timeout,
-                'sample_to_frame': self.sample_latency.summary(),
-                'sample_to_frame_histogram': self.sample_latency.histogram(),
-                'sync': self.sync_intervals.summary(),
-                'sync_histogram': self.sync_intervals.histogram(),
-                'csp': self.csp,
-            }
+                rows.append(RowReport(
+                    unit.label, unit.faults, unit.last_fault, unit.left_out,
+                    unit.period.summary(), plants_missed=rec.plants_missed,
+                    restarts=rec.restarts, auto_resets=rec.auto_resets, emcy=rec.emcy_count,
+                    recoveries=list(rec.recoveries)))
+            return CommandReport(
+                accepted=law.accepted, rejected=dict(law.rejected),
+                yaw_accepted=yaw.accepted, yaw_rejected=dict(yaw.rejected),
+                phase_slips=sum(unit.law.phase_slips for unit in self.units),
+                send_errors=self.send_errors, phase_lock=law.config.phase_lock,
+                turn_compensation=self.machine.turn.turn_compensation, rows=rows,
+                loop=everything.summary(), command_timeout=self.drive_config.command_timeout,
+                receive_errors=self.drives.canbus.receive_errors.count,
+                loop_histogram=everything.histogram(),
+                sample_to_frame=self.sample_latency.summary(),
+                sample_to_frame_histogram=self.sample_latency.histogram(),
+                sync=self.sync_intervals.summary(),
+                sync_histogram=self.sync_intervals.histogram(), csp=self.csp)
 
 
 def machine_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: int, csp: bool) -> BusLoad:

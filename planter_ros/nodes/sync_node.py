@@ -224,8 +224,12 @@ class SyncNode(Node):
 
     @property
     def send_errors(self):
-        return self.engine.send_errors if isinstance(self.engine, CommandEngine) else \
-            self.engine.final_report().get('send_errors', 0)
+        """CAN send errors so far (with a command process: as its final report says, 0
+        before it)."""
+        if isinstance(self.engine, CommandEngine):
+            return self.engine.send_errors
+        report = self.engine.final_report()
+        return report.send_errors if report is not None else 0
 
     # ---------------------------------------------------------------- life cycle
     def raise_shell_priority(self):
@@ -286,7 +290,8 @@ class SyncNode(Node):
         if self._stop_asked():
             response.success, response.message = False, 'stopping: nothing is enabled any more'
         elif not self.in_process:
-            response.success, response.message = self.engine.operator_enable()
+            reply = self.engine.operator_enable()
+            response.success, response.message = reply.ok, reply.message
         elif not self._in_process_held:
             response.success, response.message = False, 'the rows are enabled already'
         else:
@@ -363,15 +368,14 @@ class SyncNode(Node):
                                       "in force from each row's next planting instant")
 
     def _on_reset_fault(self, row, _request, response):
-        ok, message = self.engine.reset_fault(row.name)
-        response.success, response.message = ok, message
+        reply = self.engine.reset_fault(row.name)
+        response.success, response.message = reply.ok, reply.message
         return response
 
     def _on_section(self, row, request, response):
-        ok, message, changed = self.engine.section(row.name, bool(request.data),
-                                                   time.monotonic())
-        response.success, response.message = ok, message
-        if ok and changed:
+        reply = self.engine.section(row.name, bool(request.data), time.monotonic())
+        response.success, response.message = reply.ok, reply.message
+        if reply.ok and reply.changed:
             sections = self._initial_sections()
             sections.update(self.engine.sections())
             sections[row.name] = bool(request.data)
