@@ -272,7 +272,7 @@ def test_commissioned_then_a_demo_plants_its_first_plant_within_5_mm(tmp_path):
 
 
 def test_placing_the_phase_offset_moves_every_angle_the_law_holds_so_nothing_jumps():
-    from planter_ros.command.engine import bottom_angle
+    from planter_ros.command.design_change import bottom_angle
     from planter_ros.control.phase_lock import PhaseLock
     law = PhaseLock(PhaseLockConfig())
     law.ground_speed(0.3, 0.0)
