@@ -32,7 +32,7 @@ import subprocess
 import sys
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from planter_ros import diagnostics, stop_signals
 from planter_ros.config import ConfigError
@@ -41,12 +41,15 @@ from planter_ros.drive.bus_load import BusLoad
 from planter_ros.drive.errors import DriveError
 
 from .channel import Channel, ChannelClosed
-from .engine import Log, checked_bus_load
+from .lifecycle import checked_bus_load
 from .reports import CommandExit, CommandReport, Ready, Reply, ReportError, Snapshot
 from planter_ros.control.cam_law import plan_for_design, profile_to_data, warm_up
 
 from .settings import CommandSettings, law_to_data
-from .state import Feedback
+from .state import Feedback, Log
+
+if TYPE_CHECKING:
+    from planter_ros.cam import CamProfile
 from planter_ros.drive.socket_bus import INTERFACE, socket_pair
 
 __all__ = ['COMMAND_PROCESS', 'CommandProcessError', 'CommandClient', 'ENABLE_TIMEOUT']
@@ -116,7 +119,7 @@ class CommandClient:
         # the last design as sent ([kind, payload]); with a cam, once planned
         self._design_message: tuple[str, Any] | None = None
         self._cam = settings.law[0].speed_profile == 'cam'
-        self._profile = None                # the cam profile sent last
+        self._profile: CamProfile | None = None     # the cam profile sent last
         if self._cam:           # the first plan imports and sets up the LP solver (~0.4 s)
             threading.Thread(target=warm_up, daemon=True, name='cam-warm-up').start()
         self._sections: dict[str, bool] = {row.name: True for row in settings.rows
@@ -169,7 +172,7 @@ class CommandClient:
                 raise CommandProcessError(f'the command process was not ready within '
                                           f'{timeout:g} s')
             try:
-                for kind, payload in self.channel.receive(0.1):
+                for kind, payload in self._live_channel().receive(0.1):
                     self._handle(kind, payload)
             except ChannelClosed:
                 code = self._reap()
@@ -217,27 +220,33 @@ class CommandClient:
     # ---------------------------------------------------------------- the reader
     def _read(self) -> None:
         while True:
-            channel = self.channel
             try:
-                for kind, payload in channel.receive(0.5):
+                for kind, payload in self._live_channel().receive(0.5):
                     self._handle(kind, payload)
             except ChannelClosed:
                 if self.stopping:
                     return
                 if self.exit is not None:
-                    self._stopped_itself()
+                    self._stopped_itself(self.exit)
                     return
                 if not self._died():
                     return
 
-    def _stopped_itself(self) -> None:
+    def _live_channel(self) -> Channel:
+        """The channel to the command process (ChannelClosed when there is none)."""
+        channel = self.channel
+        if channel is None:
+            raise ChannelClosed('no command process')
+        return channel
+
+    def _stopped_itself(self, exit_: CommandExit) -> None:
         """The command process ended on purpose (a stop signal reached it): its rows ramped to
         zero and its drives are disabled. Never restarted; the shell is told."""
         self._reap()
         with self._life:
             self.stop_requested = True
             self.dead = True
-        reason = self.exit.reason
+        reason = exit_.reason
         self.log(logging.WARNING, f'command process stopped by {reason}: rows ramped to 0, '
                                   'drives disabled; not restarted (a stop is a stop)')
         self.on_exit(reason)
@@ -273,14 +282,15 @@ class CommandClient:
     def _respawn(self, hold: bool) -> bool:
         try:
             self._spawn(hold=hold)
+            channel = self._live_channel()
             if self._design is not None:
                 if self._design_message is not None:
-                    self.channel.send(*self._design_message)
+                    channel.send(*self._design_message)
                 elif not self._cam:
-                    self.channel.send('design', self._design)
+                    channel.send('design', self._design)
             for name, on in self._sections.items():
                 if not on:
-                    self.channel.send('section', [0, name, False])
+                    channel.send('section', [0, name, False])
         except (OSError, ChannelClosed) as exc:
             self.dead = True
             self.log(logging.ERROR, f'command process restart failed: {exc}')
@@ -498,7 +508,7 @@ class CommandClient:
     def take_feedback(self) -> list[list[Feedback]]:
         """Every feedback sample received since the last call, oldest first (one list of
         rows each): what the shell publishes, one joint_states message per sample."""
-        out = []
+        out: list[list[Feedback]] = []
         while True:
             try:
                 items = self._fb_queue.popleft()
@@ -522,7 +532,8 @@ class CommandClient:
 
     def process_report(self, now: float) -> diagnostics.Report:
         """The command process's own status: alive, its pid, real time granted or not."""
-        values = [('restarts', self.restarts), ('deaths', len(self.deaths))]
+        values: list[tuple[str, Any]] = [('restarts', self.restarts),
+                                         ('deaths', len(self.deaths))]
         ready = self.ready
         if ready is not None:
             values += [('pid', ready.pid), ('SCHED_FIFO priority asked', ready.priority)]

@@ -21,7 +21,6 @@ Pure: no ROS, no CAN import.
 from __future__ import annotations
 
 from dataclasses import MISSING, asdict, dataclass, field, fields
-import functools
 import typing
 from typing import Any, TypeVar
 
@@ -54,13 +53,19 @@ def from_data(cls: type[T], data: Any) -> T:
     return cls(**values)
 
 
-@functools.cache
+_FIELDS: dict[type, tuple[tuple[str, bool, Any], ...]] = {}
+
+
 def _fields(cls: type) -> tuple[tuple[str, bool, Any], ...]:
     """(name, required, type) of each field (type hints resolved once per class: the shell
     reads a snapshot every control period)."""
-    hints = typing.get_type_hints(cls)
-    return tuple((f.name, f.default is MISSING and f.default_factory is MISSING, hints[f.name])
-                 for f in fields(cls))
+    known = _FIELDS.get(cls)
+    if known is None:
+        hints = typing.get_type_hints(cls)
+        known = _FIELDS[cls] = tuple(
+            (f.name, f.default is MISSING and f.default_factory is MISSING, hints[f.name])
+            for f in fields(cls))
+    return known
 
 
 def _convert(hint: Any, value: Any) -> Any:
