@@ -12,7 +12,7 @@ import uuid
 import pytest
 
 from planter_ros import interfaces
-from planter_ros.command import client as client_module
+from planter_ros.command import inbox as inbox_module
 from planter_ros.command.client import CommandClient
 from planter_ros.command.settings import CommandSettings
 from planter_ros.control.loop_timing import SyncLoopConfig
@@ -50,7 +50,7 @@ def test_samples_wait_in_order_and_a_repeated_sample_is_not_published_twice():
 
 
 def test_a_full_queue_drops_the_oldest_counts_it_and_says_so_once(monkeypatch):
-    monkeypatch.setattr(client_module, 'FEEDBACK_QUEUE', 5)
+    monkeypatch.setattr(inbox_module, 'FEEDBACK_QUEUE', 5)
     log = []
     client = _client(log)
     for k in range(8):

@@ -22,17 +22,15 @@ the shell (the kernel signals a child when the thread that forked it ends).
 """
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Callable, Sequence
 import itertools
 import logging
-import math
 import os
 import subprocess
 import sys
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from planter_ros import diagnostics, stop_signals
 from planter_ros.config import ConfigError
@@ -41,24 +39,19 @@ from planter_ros.drive.bus_load import BusLoad
 from planter_ros.drive.errors import DriveError
 
 from .channel import Channel, ChannelClosed
+from .inbox import Inbox
 from .lifecycle import checked_bus_load
-from .reports import CommandExit, CommandReport, Ready, Reply, ReportError, Snapshot
-from planter_ros.control.cam_law import plan_for_design, profile_to_data, warm_up
+from .orders import Orders
+from .reports import CommandExit, CommandReport, Ready, Reply, Snapshot
 
 from .settings import CommandSettings, law_to_data
 from .state import Feedback, Log
-
-if TYPE_CHECKING:
-    from planter_ros.cam import CamProfile
 from planter_ros.drive.socket_bus import INTERFACE, socket_pair
 
 __all__ = ['COMMAND_PROCESS', 'CommandProcessError', 'CommandClient', 'ENABLE_TIMEOUT']
 
 COMMAND_PROCESS = 'command process'      # its status name in /diagnostics
 REPLY_TIMEOUT = 2.0                      # s a section or reset request waits for its answer
-# feedback samples held for the shell: 5 s at a 10 ms SYNC period (a shell that has not
-# published for that long is reported by its own diagnostics long before)
-FEEDBACK_QUEUE = 500
 ENABLE_TIMEOUT = 30.0                    # s an operator's enable waits for the drives
 
 
@@ -87,43 +80,17 @@ class CommandClient:
             self.extra_fds += (int(cfg.can_channel),)
         self.process: subprocess.Popen | None = None
         self.channel: Channel | None = None
-        self._lock = threading.Lock()
         self._ids = itertools.count(1)
-        self._replies: dict[int, Reply] = {}
-        self._replied = threading.Condition(self._lock)
-        self.info: dict[str, Any] = {}
-        self.last_fb: dict[str, Any] = {}
-        self.last_fb_time = -1.0
-        self.fb_count = 0
-        # every feedback sample the command process sent, until the shell publishes it
-        # (take_feedback): a shell whose DDS stalls catches up afterwards, none is lost
-        self._fb_queue: deque[list] = deque()
-        self._fb_newest = -math.inf         # the newest stamp queued so far
-        self.feedback_dropped = 0           # samples dropped because the queue was full
-        self._fb_overflowing = False
-        self.last_diag: list = []
-        self.last_snapshot = Snapshot()
-        self._snapshot_error = ''           # the last unreadable snapshot's (said once)
-        self.final: CommandReport | None = None
-        self.final_error = ''               # why the `final` message was unreadable
-        self.error: tuple[str, str] | None = None
+        self.inbox = Inbox(log)             # what the command process said
         self.deaths: list[str] = []          # why each command process ended unasked
         self.restarts = 0
         self.stopping = False
         self.stop_requested = False         # no restart, no enable from now on
-        self.exit: CommandExit | None = None    # its deliberate exit, once said
         self.held_reason = ''               # why the rows wait for an operator ('' = they don't)
         self._life = threading.RLock()      # a restart and a stop, one at a time
         self.dead = False                   # gone and not restarted
-        self._design: str | None = None
-        # the last design as sent ([kind, payload]); with a cam, once planned
-        self._design_message: tuple[str, Any] | None = None
-        self._cam = settings.law[0].speed_profile == 'cam'
-        self._profile: CamProfile | None = None     # the cam profile sent last
-        if self._cam:           # the first plan imports and sets up the LP solver (~0.4 s)
-            threading.Thread(target=warm_up, daemon=True, name='cam-warm-up').start()
-        self._sections: dict[str, bool] = {row.name: True for row in settings.rows
-                                           if row.enabled}
+        self.orders = Orders(settings.law[0], [row.name for row in settings.rows if row.enabled],
+                             log, self._send)
         self._reader: threading.Thread | None = None
 
     # ---------------------------------------------------------------- start / stop
@@ -145,8 +112,7 @@ class CommandClient:
                  '--parent', str(os.getpid())], pass_fds=fds, stdin=subprocess.DEVNULL)
         theirs.close()
         self.channel = Channel(ours)
-        self.info = {}
-        self.exit = None
+        self.inbox.restart()
         self.channel.send('settings', self.settings.held(hold).data())
 
     def enable(self, timeout: float = 60.0, hold_reason: str = '') -> None:
@@ -163,8 +129,8 @@ class CommandClient:
         while 'ready' not in self.info and 'held' not in self.info:
             if not stop_sent and self._stop_asked():
                 stop_sent = self._send('stop')   # it enables nothing it has not yet enabled
-            if self.error is not None:
-                kind, text = self.error
+            if self.inbox.error is not None:
+                kind, text = self.inbox.error
                 self._reap()
                 raise (ConfigError if kind == 'config' else DriveError)(text)
             if time.monotonic() > deadline:
@@ -176,7 +142,7 @@ class CommandClient:
                     self._handle(kind, payload)
             except ChannelClosed:
                 code = self._reap()
-                if self.error is not None:
+                if self.inbox.error is not None:
                     continue
                 if self.exit is not None:
                     raise CommandProcessError(f'the command process stopped ({self.exit.reason}) '
@@ -267,7 +233,7 @@ class CommandClient:
                 self.log(logging.ERROR, f'{why}; not restarted ({limit} restart(s) used): the '
                                         "drives' watchdogs have stopped the motors")
                 return False
-            self.info = {}
+            self.inbox.restart()
             self.restarts += 1
             automatic = self.settings.loop.enable_after_restart
             self.held_reason = '' if automatic else f'restarted after: {why}'
@@ -282,15 +248,7 @@ class CommandClient:
     def _respawn(self, hold: bool) -> bool:
         try:
             self._spawn(hold=hold)
-            channel = self._live_channel()
-            if self._design is not None:
-                if self._design_message is not None:
-                    channel.send(*self._design_message)
-                elif not self._cam:
-                    channel.send('design', self._design)
-            for name, on in self._sections.items():
-                if not on:
-                    channel.send('section', [0, name, False])
+            self.orders.tell_again(self._live_channel())
         except (OSError, ChannelClosed) as exc:
             self.dead = True
             self.log(logging.ERROR, f'command process restart failed: {exc}')
@@ -298,60 +256,35 @@ class CommandClient:
         return True
 
     def _handle(self, kind: str, payload: Any) -> None:
-        if kind == 'log':
-            level, text = payload
-            self.log(int(level), text)
-        elif kind == 'fb':
-            self.last_fb = payload
-            self.last_fb_time = time.monotonic()
-            self.fb_count += 1
-            self._queue_feedback(payload.get('feedback', []))
-            self._take_snapshot(payload.get('snapshot'))
-        elif kind == 'diag':
-            self.last_diag = payload
-        elif kind == 'reply':
-            ident, data = payload
-            try:
-                reply = Reply.from_data(data)
-            except ReportError as exc:
-                reply = Reply(False, f'the command process answered wrongly: {exc}')
-            with self._replied:
-                self._replies[ident] = reply
-                self._replied.notify_all()
-        elif kind == 'final':
-            try:
-                self.final = CommandReport.from_data(payload)
-            except ReportError as exc:
-                self.final_error = str(exc)
-                self.log(logging.ERROR, f'command process: its report is unreadable: {exc}')
-        elif kind == 'error':
-            self.error = (payload[0], payload[1])
-        elif kind == 'exit':
-            try:
-                self.exit = CommandExit.from_data(payload)
-            except ReportError as exc:
-                self.log(logging.ERROR, f'command process: {exc}')
-                self.exit = CommandExit('stop')
-        elif kind in ('ready', 'held'):
-            try:
-                self.info[kind] = Ready.from_data(payload)
-            except ReportError as exc:
-                self.log(logging.ERROR, f'command process: {exc}')
-                self.info[kind] = Ready(0, 0, (f'unreadable {kind} message',))
-            if kind == 'ready':
-                self.held_reason = ''
-        else:
-            self.info[kind] = payload
+        self.inbox.handle(kind, payload)
+        if kind == 'ready':
+            self.held_reason = ''
 
-    def _take_snapshot(self, data: Any) -> None:
-        if data is None:
-            return
-        try:
-            self.last_snapshot = Snapshot.from_data(data)
-        except ReportError as exc:
-            if str(exc) != self._snapshot_error:
-                self.log(logging.ERROR, f'command process: {exc}')
-            self._snapshot_error = str(exc)
+    # ---------------------------------------------------------------- what it said
+    @property
+    def info(self) -> dict[str, Any]:
+        """Its start messages so far ('built', 'held', 'ready')."""
+        return self.inbox.info
+
+    @property
+    def exit(self) -> CommandExit | None:
+        """Its deliberate exit, once said."""
+        return self.inbox.exit
+
+    @property
+    def final_error(self) -> str:
+        """Why its `final` message was unreadable ('' = it was not)."""
+        return self.inbox.final_error
+
+    @property
+    def fb_count(self) -> int:
+        """Feedback messages received so far."""
+        return self.inbox.fb_count
+
+    @property
+    def feedback_dropped(self) -> int:
+        """Feedback samples dropped because the shell did not publish them in time."""
+        return self.inbox.feedback_dropped
 
     # ---------------------------------------------------------------- inputs
     def _send(self, kind: str, payload: Any = None, latest: bool = False) -> bool:
@@ -375,37 +308,8 @@ class CommandClient:
                 pass
 
     def set_design(self, design: Design, text: str, now: float) -> bool:
-        if text == self._design:
-            return False
-        self._design = text
-        if self._cam:
-            # planned here, in the shell, not in the command process (a plan holds the
-            # interpreter for up to tens of ms: the SYNC loop must not wait for it)
-            self._design_message = None
-            threading.Thread(target=self._plan_cam, args=(design, text, now), daemon=True,
-                             name='cam-plan').start()
-            return True
-        self._design_message = ('design', text)
-        self._send('design', text)
-        return True
-
-    def _plan_cam(self, design: Design, text: str, arrived: float) -> None:
-        """Plan the cam and the change from the one sent last (planter_ros.control.cam_law);
-        one over the drive's limits is refused here, before it reaches the command process."""
-        from planter_ros.cam import CamError
-        previous = self._profile
-        try:
-            profile, why = plan_for_design(design, self.settings.law[0].cam_rule, previous)
-            data = None if profile is None else profile_to_data(profile, previous)
-        except CamError as exc:
-            self.log(logging.ERROR, f'design refused, the rows keep theirs: {exc}')
-            return
-        if text != self._design:            # a newer design came meanwhile
-            return
-        self._profile = profile
-        message = ('design_cam', [text, data, why, arrived])
-        self._design_message = message
-        self._send(*message)
+        """A design for the command process (with a cam: planned here first, orders)."""
+        return self.orders.set_design(design, text, now)
 
     def configure(self, law_values: Sequence[Any]) -> None:
         self._send('configure', law_to_data(tuple(law_values)))
@@ -414,15 +318,11 @@ class CommandClient:
         ident = next(self._ids)
         if not self._send(kind, [ident, *args]):
             return Reply(False, 'the command process is not running')
-        deadline = time.monotonic() + REPLY_TIMEOUT
-        with self._replied:
-            while ident not in self._replies:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    return Reply(False, f'the command process did not answer within '
-                                        f'{REPLY_TIMEOUT:g} s')
-                self._replied.wait(remaining)
-            return self._replies.pop(ident)
+        reply = self.inbox.reply(ident, time.monotonic() + REPLY_TIMEOUT)
+        if reply is None:
+            return Reply(False, f'the command process did not answer within '
+                                f'{REPLY_TIMEOUT:g} s')
+        return reply
 
     def operator_enable(self, timeout: float = ENABLE_TIMEOUT) -> Reply:
         """An operator enables the held rows (BLOCKING up to `timeout`)."""
@@ -438,14 +338,9 @@ class CommandClient:
             ident = next(self._ids)
             if not self._send('enable', [ident]):
                 return Reply(False, 'the command process is not running')
-        deadline = time.monotonic() + timeout
-        with self._replied:
-            while ident not in self._replies:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    return Reply(False, f'the drives were not enabled within {timeout:g} s')
-                self._replied.wait(remaining)
-            reply = self._replies.pop(ident)
+        reply = self.inbox.reply(ident, time.monotonic() + timeout)
+        if reply is None:
+            return Reply(False, f'the drives were not enabled within {timeout:g} s')
         if reply.ok:
             self.log(logging.WARNING, f'rows enabled by an operator: {reply.message}')
         return reply
@@ -458,7 +353,7 @@ class CommandClient:
     def section(self, name: str, on: bool, now: float) -> Reply:
         reply = self._request('section', name, bool(on))
         if reply.ok:
-            self._sections[name] = bool(on)
+            self.orders.sections[name] = bool(on)
         return reply
 
     def reset_fault(self, name: str) -> Reply:
@@ -468,8 +363,7 @@ class CommandClient:
     @property
     def ready(self) -> Ready | None:
         """What the command process said once its drives ran (None before)."""
-        ready = self.info.get('ready')
-        return ready if isinstance(ready, Ready) else None
+        return self.inbox.ready
 
     @property
     def running(self) -> int:
@@ -481,54 +375,26 @@ class CommandClient:
         return self.ready.mode if self.ready is not None else ''
 
     def feedback(self) -> list[Feedback]:
-        return [Feedback(*item) for item in self.last_fb.get('feedback', [])]
-
-    def _queue_feedback(self, items: list) -> None:
-        """Queue one message's feedback when it holds a sample not queued before (the
-        command process repeats the last one when no new TPDO came). A full queue drops its
-        oldest sample, counted and said once per overflow."""
-        if not items:
-            return
-        newest = max(item[3] for item in items)
-        if newest <= self._fb_newest:
-            return
-        self._fb_newest = newest
-        if len(self._fb_queue) >= FEEDBACK_QUEUE:
-            self._fb_queue.popleft()
-            self.feedback_dropped += 1
-            if not self._fb_overflowing:
-                self._fb_overflowing = True
-                self.log(logging.ERROR, f'joint feedback lost: the shell published none for '
-                                        f'{FEEDBACK_QUEUE} samples; the oldest are dropped '
-                                        '(counted in diagnostics)')
-        else:
-            self._fb_overflowing = False
-        self._fb_queue.append(items)
+        return self.inbox.feedback()
 
     def take_feedback(self) -> list[list[Feedback]]:
         """Every feedback sample received since the last call, oldest first (one list of
         rows each): what the shell publishes, one joint_states message per sample."""
-        out: list[list[Feedback]] = []
-        while True:
-            try:
-                items = self._fb_queue.popleft()
-            except IndexError:
-                return out
-            out.append([Feedback(*item) for item in items])
+        return self.inbox.take_feedback()
 
     def commands(self) -> list[tuple[str, float]]:
-        return [tuple(item) for item in self.last_fb.get('commands', [])]
+        return self.inbox.commands()
 
     def sections(self) -> dict[str, bool]:
-        return dict(self.last_fb.get('sections', self._sections))
+        return dict(self.inbox.last_fb.get('sections', self.orders.sections))
 
     def snapshot(self) -> Snapshot:
-        return self.last_snapshot
+        return self.inbox.last_snapshot
 
     def final_report(self) -> CommandReport | None:
         """The run's figures (None before the command process sent them, or unreadable:
         `final_error`)."""
-        return self.final
+        return self.inbox.final
 
     def process_report(self, now: float) -> diagnostics.Report:
         """The command process's own status: alive, its pid, real time granted or not."""
@@ -540,7 +406,8 @@ class CommandClient:
         refused = ready.realtime if ready is not None else ()
         if refused:
             values.append(('real time refused', '; '.join(refused)))
-        age = now - self.last_fb_time if self.last_fb_time >= 0 else None
+        last = self.inbox.last_fb_time
+        age = now - last if last >= 0 else None
         if age is not None:
             values.append(('last feedback age', f'{age:.3f} s'))
         values.append(('feedback samples dropped', self.feedback_dropped))
@@ -580,7 +447,7 @@ class CommandClient:
                 shared: Sequence[diagnostics.Report] = ()) -> list[tuple[diagnostics.Report, str]]:
         """The command process's last reports, then the shell's (`shared` and its own)."""
         out = [(diagnostics.Report(task, level, message, tuple(tuple(v) for v in values)), hw)
-               for (task, level, message, values), hw in self.last_diag]
+               for (task, level, message, values), hw in self.inbox.last_diag]
         bus_id = f'{self.settings.drive.can_interface}:{self.settings.drive.can_channel}'
         return out + [(report, bus_id) for report in shared] + [
             (self.process_report(now), bus_id)]

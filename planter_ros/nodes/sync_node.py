@@ -61,7 +61,7 @@ from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits
 
 # a feedback sample's stamp is carried back from the command process's clock at most this
-# far (s): the queue it waits in holds 5 s (command.client.FEEDBACK_QUEUE)
+# far (s): the queue it waits in holds 5 s (command.inbox.FEEDBACK_QUEUE)
 STAMP_AGE_MAX = 10.0
 
 
