@@ -142,23 +142,23 @@ def test_a_power_cycled_drive_is_configured_again_resumes_and_the_plants_missed_
     assert sim_b.sync_summary()['period'] == pytest.approx(0.01)     # 0x1006 written again
     assert sim_b.heartbeat_period == pytest.approx(0.05)              # 0x1017 written again
     record = b.recovery.recoveries[-1]
-    assert record['restarted'] and record['in_step']
+    assert record.restarted and record.in_step
     assert r.logged('the drive restarted (boot-up message): configured again')
     # the plants missed, as counted by the engine, are the ones the true shaft angle did not
     # set against the grid of the row's travelled distance
     positions, grid = r.plants(1, since=cut - 0.5)
     set_by_shaft = positions.size
-    assert record['plants_missed'] >= 1, (str(record), str(r.lines[2:]))
-    assert abs((grid - set_by_shaft) - record['plants_missed']) <= 1.0
-    assert b.recovery.plants_missed == record['plants_missed']
-    assert r.logged(f'{record["plants_missed"]} plant(s) missed')
+    assert record.plants_missed >= 1, (str(record), str(r.lines[2:]))
+    assert abs((grid - set_by_shaft) - record.plants_missed) <= 1.0
+    assert b.recovery.plants_missed == record.plants_missed
+    assert r.logged(f'{record.plants_missed} plant(s) missed')
     # visible to the user: the row's /diagnostics and the run's final report
     report = dict(next(rep for rep, _ in engine.reports(time.monotonic())
                        if rep.task == 'b').values)
-    assert report['plants missed (halts)'] == record['plants_missed']
+    assert report['plants missed (halts)'] == record.plants_missed
     assert report['drive restarts'] == 1
-    final = {row['label']: row for row in engine.final_report()['rows']}
-    assert final['b']['plants_missed'] == record['plants_missed'] and final['b']['restarts'] == 1
+    final = {row.label: row for row in engine.final_report().rows}
+    assert final['b'].plants_missed == record.plants_missed and final['b'].restarts == 1
     # after it, row b plants at the spacing again; row a never stopped
     late = steady_spacing(r.plants(1, since=time.monotonic() - 3.0)[0], skip=0)
     assert np.all(np.abs(late - D) < 0.1 * D)
@@ -212,7 +212,7 @@ def test_bus_off_and_send_errors_are_counted_reported_and_the_rows_resume(rig):
     assert all(sim.state == OPERATION_ENABLED for sim in r.sims.drives)
     for unit in engine.units:
         record = unit.recovery.recoveries[-1]
-        assert record['bus'] and record['in_step'] and record['auto_resets'] >= 1
+        assert record.bus and record.in_step and record.auto_resets >= 1
     assert r.logged('back (no error for')
     assert r.logged('the CAN bus is back: re-enabling the drive')
     # feedback flows again: the bus reader survived
@@ -220,7 +220,7 @@ def test_bus_off_and_send_errors_are_counted_reported_and_the_rows_resume(rig):
     r.run(0.5)
     assert engine.units[0].status.stamp > stamp
     final = engine.final_report()
-    assert final['send_errors'] > 0 and final['receive_errors'] > 0
+    assert final.send_errors > 0 and final.receive_errors > 0
 
 
 def test_a_drive_fault_of_its_own_is_not_reset_by_the_bus_recovery(rig):
@@ -317,7 +317,7 @@ def test_an_emcy_storm_is_counted_and_logged_without_flooding_and_a_real_fault_s
     assert np.all(np.abs(np.diff(positions)[:-1] - D) < 0.05 * D)
     # the storm over, the operator resets both rows and they plant on
     for unit in (a, b):
-        assert r.engine.reset_fault(unit.row.name)[0]
+        assert r.engine.reset_fault(unit.row.name).ok
     assert r.run(5.0, until=lambda: a.halt is None and b.halt is None)
     assert logging.WARNING in {level for level, line in r.lines if 'EMCY' in line}
 

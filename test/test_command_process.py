@@ -15,6 +15,7 @@ import pytest
 
 from drive_helpers import wait_until
 from planter_ros.command.client import CommandClient
+from planter_ros.command.reports import Reply
 from planter_ros.command.settings import CommandSettings
 from planter_ros.drive.socket_bus import INTERFACE, SocketPairBus, socket_pair
 from planter_ros.control.loop_timing import SyncLoopConfig
@@ -72,7 +73,7 @@ def test_fed_over_its_channel_it_drives_every_row_and_stops_on_request(drives_an
     client = CommandClient(settings(fd), log=lambda level, text: lines.append((level, text)))
     client.enable()
     try:
-        assert client.info['ready']['running'] == 2
+        assert client.ready is not None and client.ready.running == 2 == client.running
         client.set_design(from_json(DESIGN), DESIGN, time.monotonic())
 
         def fed(seconds):
@@ -85,12 +86,12 @@ def test_fed_over_its_channel_it_drives_every_row_and_stops_on_request(drives_an
         assert all(d.target_velocity > 0 for d in sims.drives)
         joints = [f.joint for f in client.feedback()]
         assert joints == ['left/sun_bar', 'right/sun_bar']
-        ok, message, changed = client.section('right', False, time.monotonic())
-        assert ok and changed and 'right off' in message
+        reply = client.section('right', False, time.monotonic())
+        assert reply.ok and reply.changed and 'right off' in reply.message
         assert client.sections() == {'left': True, 'right': False} or wait_until(
             lambda: client.sections() == {'left': True, 'right': False}, 1.0)
-        ok, message = client.reset_fault('left')
-        assert not ok and 'no drive fault to reset' in message
+        reply = client.reset_fault('left')
+        assert not reply.ok and 'no drive fault to reset' in reply.message
         levels = {report.task: report.level for report, _ in client.reports(time.monotonic())}
         assert levels['command process'] in (0, 1)          # OK (or WARN: no real time)
         assert 'left' in levels and 'bus' in levels
@@ -99,7 +100,7 @@ def test_fed_over_its_channel_it_drives_every_row_and_stops_on_request(drives_an
     assert client.process.returncode == 0
     assert all(d.state in (READY_TO_SWITCH_ON, SWITCH_ON_DISABLED) for d in sims.drives)
     assert sims.watchdog_trips == []                         # a clean stop, not the watchdog
-    assert client.final_report()['rows'][0]['label'] == 'left'
+    assert client.final_report().rows[0].label == 'left'
     assert not [t for level, t in lines if level >= logging.ERROR], lines
 
 
@@ -183,11 +184,11 @@ def test_a_command_process_that_dies_is_restarted_held_until_an_operator_enables
         report = client.process_report(time.monotonic())
         assert report.level == 1 and 'rows held at zero' in report.message
         assert 'enable_rows' in report.message
-        assert client.reset_fault('left')[0] is False
-        ok, message = client.operator_enable()
-        assert ok, message
+        assert client.reset_fault('left').ok is False
+        reply = client.operator_enable()
+        assert reply.ok, reply.message
         assert wait_until(lambda: all(d.state == OPERATION_ENABLED for d in sims.drives), 5.0)
-        assert client.operator_enable() == (False, 'the rows are enabled already')
+        assert client.operator_enable() == Reply(False, 'the rows are enabled already')
 
         def fed():
             client.sample(0.4, 0.0, time.monotonic())
@@ -255,10 +256,10 @@ def test_a_deliberate_exit_is_never_taken_for_a_crash_and_nothing_restarts_after
         assert all(d.state in (READY_TO_SWITCH_ON, SWITCH_ON_DISABLED) for d in sims.drives)
         assert all(abs(d.motor_velocity) < 1.0 for d in sims.drives)
         assert sims.watchdog_trips == []                 # the process stopped them itself
-        assert client.final_report()['accepted'] > 0     # its report came (not lost at close)
+        assert client.final_report().accepted > 0        # its report came (not lost at close)
         report = client.process_report(time.monotonic())
         assert report.level == 2 and 'stopped by SIGTERM' in report.message
-        assert client.operator_enable()[0] is False
+        assert client.operator_enable().ok is False
     finally:
         client.shutdown()
     assert not any('restarting' in text for _, text in lines), lines

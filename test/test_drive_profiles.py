@@ -100,7 +100,7 @@ def test_every_profile_runs_start_up_csp_homing_and_a_power_cycle_or_is_refused_
             u.recovery.restarts == 1 and not u.recovery.episode for u in running))
         assert done, [text for _, text in lines if 'restart' in text or 'again' in text]
         for unit in running:
-            assert unit.recovery.recoveries[-1]['in_step'], unit.recovery.recoveries[-1]
+            assert unit.recovery.recoveries[-1].in_step, unit.recovery.recoveries[-1]
             assert unit.status.enabled and unit.status.mode == CYCLIC_SYNC_POSITION
     finally:
         engine.shutdown()

@@ -12,7 +12,7 @@ import uuid
 import pytest
 
 from planter_ros import interfaces
-from planter_ros.command import client as client_module
+from planter_ros.command import inbox as inbox_module
 from planter_ros.command.client import CommandClient
 from planter_ros.command.settings import CommandSettings
 from planter_ros.control.loop_timing import SyncLoopConfig
@@ -50,7 +50,7 @@ def test_samples_wait_in_order_and_a_repeated_sample_is_not_published_twice():
 
 
 def test_a_full_queue_drops_the_oldest_counts_it_and_says_so_once(monkeypatch):
-    monkeypatch.setattr(client_module, 'FEEDBACK_QUEUE', 5)
+    monkeypatch.setattr(inbox_module, 'FEEDBACK_QUEUE', 5)
     log = []
     client = _client(log)
     for k in range(8):
@@ -119,6 +119,12 @@ def test_a_stalled_shell_publishes_every_sample_afterwards_with_its_own_stamp():
     try:
         sync.wait_for('ready', 120.0)
         design_pub.publish(String(data=to_json(five_bar_design_message(spacing=0.2))))
+        # joint_states name the joints of the design in force: wait for it (DDS discovery
+        # of the design topic can take a while on a loaded host), then for a steady run
+        deadline = time.monotonic() + 30.0
+        while sync.status.spacing is None:
+            assert time.monotonic() < deadline, 'the design never came into force'
+            run(0.1)
         run(1.0)
         recording.set()
         run(0.5)
@@ -131,18 +137,19 @@ def test_a_stalled_shell_publishes_every_sample_afterwards_with_its_own_stamp():
         run(1.5)
         recording.clear()
     finally:
-        final = sync.stop()
-        report = final.flat() if final is not None else {}
+        report = sync.stop()
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()
+    assert report is not None, 'the sync process sent no report'
+    trips = report.drives.watchdog_trips
     assert stamps, 'no joint_states recorded'
     ordered = sorted(stamps)
     holes = [b - a for a, b in zip(ordered, ordered[1:])]
     # the stall lies inside the recorded span, and its samples are there
     assert ordered[0] < stopped_at < stopped_at + STALL < ordered[-1]
     during = [t for t in ordered if stopped_at <= t <= stopped_at + STALL]
-    assert len(during) >= 0.8 * STALL / period, (len(during), report.get('watchdog_trips'))
+    assert len(during) >= 0.8 * STALL / period, (len(during), trips)
     assert max(holes) <= 2 * period, f'largest joint_states hole {max(holes) * 1e3:.1f} ms'
     assert len(set(stamps)) == len(stamps), 'a sample was published twice'
-    assert not report.get('watchdog_trips')
+    assert not trips

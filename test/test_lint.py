@@ -16,6 +16,7 @@ TYPE_CHECKED = (
     'planter_ros/optimize',
     'planter_ros/recording',
     'planter_ros/bench',
+    'planter_ros/command',
     'planter_ros/sim',
     'planter_ros/config.py',
     'planter_ros/host',

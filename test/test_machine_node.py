@@ -59,7 +59,7 @@ class Machine:
         interfaces.JOINT_STATES.subscribe(self.io, self.joints.append)
         interfaces.SPEED_COMMANDS.subscribe(self.io, self.commands.append)
         interfaces.DESIGN.publisher(self.io).publish(String(data=json.dumps(design)))
-        assert ros.spin_until(lambda: self.sync.law.spacing == design['plant_spacing'])
+        assert ros.spin_until(lambda: self.sync.engine.law.spacing == design['plant_spacing'])
 
     def drive(self, v, yaw_rate, seconds, rate=50.0):
         """Publish the ground speed at `rate` Hz for `seconds`, spinning the nodes."""
@@ -178,9 +178,9 @@ def test_a_fault_on_one_row_stops_that_row_only_and_its_own_reset_clears_it(mach
     # a lost heartbeat is one row's too
     m.sim[1].set_heartbeat_enabled(False)
     m.drive(0.2, 0.0, 1.0)
-    assert 'heartbeat' in m.diag('left').message and m.sync.unit('left').command == 0.0
+    assert 'heartbeat' in m.diag('left').message and m.sync.engine.unit('left').command == 0.0
     # the right row still runs (on its way back to its grid after its own reset)
-    assert m.sync.unit('right').halt is None and m.speed(2) > 0.5 * 2 * math.pi * 0.2 / D
+    assert m.sync.engine.unit('right').halt is None and m.speed(2) > 0.5 * 2 * math.pi * 0.2 / D
 
 
 def test_section_off_stops_a_row_on_and_it_plants_again_the_other_row_runs_on(machine):
@@ -210,7 +210,7 @@ def test_a_disabled_row_is_never_enabled_and_a_silent_drive_is_left_out(machine)
     # c's drive (node 3) is absent: left out, a keeps running
     m.drive(0.2, 0.0, 2.0)
     assert m.average_speeds(0.2, 0.0)[1] == pytest.approx(2 * math.pi * 0.2 / D, rel=0.03)
-    assert [u.running for u in m.sync.units] == [True, False, False]
+    assert [u.running for u in m.sync.engine.units] == [True, False, False]
     b, c = m.diag('b'), m.diag('c')
     assert b.level == DiagnosticStatus.OK and 'disabled in the scene' in b.message
     assert c.level == DiagnosticStatus.ERROR and 'left out' in c.message
@@ -259,7 +259,7 @@ def test_a_three_arm_machine_with_rows(machine):
     speeds = m.average_speeds(v, w)
     for y, node in ROWS.values():
         assert speeds[node] == pytest.approx(2 * math.pi * (v - w * y) / (3 * d), rel=0.03)
-    assert m.sync.unit('left').law.planting is not None     # section stops know the arms
+    assert m.sync.engine.unit('left').law.planting is not None     # section stops know the arms
 
 
 def test_joint_states_carry_every_row_at_one_instant(machine):

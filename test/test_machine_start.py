@@ -239,9 +239,9 @@ def test_sync_node_takes_the_machine_file_and_checks_its_run_time_limits(ros, tm
             'allowed nominal_ground_speed <= 0.159 m/s at this spacing')
         [result] = rig.sync.set_parameters([Parameter('max_acceleration', value=1.0)])
         assert not result.successful and 'over max_acceleration = 1 rad/s²' in result.reason
-        assert rig.sync.law.config.max_speed == PhaseLockConfig().max_speed   # unchanged
+        assert rig.sync.engine.law.config.max_speed == PhaseLockConfig().max_speed   # unchanged
         [result] = rig.sync.set_parameters([Parameter('max_speed', value=15.0)])
-        assert result.successful and rig.sync.law.config.max_speed == 15.0
+        assert result.successful and rig.sync.engine.law.config.max_speed == 15.0
     finally:
         rig.close()
 
@@ -272,7 +272,7 @@ def test_commissioned_then_a_demo_plants_its_first_plant_within_5_mm(tmp_path):
 
 
 def test_placing_the_phase_offset_moves_every_angle_the_law_holds_so_nothing_jumps():
-    from planter_ros.command.engine import bottom_angle
+    from planter_ros.command.design_change import bottom_angle
     from planter_ros.control.phase_lock import PhaseLock
     law = PhaseLock(PhaseLockConfig())
     law.ground_speed(0.3, 0.0)

@@ -80,8 +80,8 @@ COMMAND = textwrap.dedent('''
     for _ in range(20):
         client.sample(0.3, 0.0, time.monotonic())
         time.sleep(0.02)
-    ok, message, _ = client.section('left', False, time.monotonic())
-    print('command process answered:', ok, message, flush=True)
+    reply = client.section('left', False, time.monotonic())
+    print('command process answered:', reply.ok, reply.message, flush=True)
     client.shutdown()
     print('exit', client.exit.reason if client.exit else None, client.process.returncode)
     sims.stop()

@@ -55,7 +55,7 @@ class Rig:
         self.joints = []
         interfaces.JOINT_STATES.subscribe(self.io, self.joints.append)
         self.design_pub.publish(String(data=json.dumps(TOMATO)))
-        assert ros.spin_until(lambda: self.sync.law.spacing == D)
+        assert ros.spin_until(lambda: self.sync.engine.law.spacing == D)
 
     def drive(self, speed, seconds, rate=50.0):
         """Publish `speed` (number or t -> value) at `rate` Hz for `seconds`, spinning."""
@@ -116,7 +116,7 @@ def run_step(rig, phase_lock):
     """Speed step 0.2 -> 0.35 m/s against a sluggish drive; the final phase error (m)."""
     r = rig(sim_kwargs={'time_constant': 0.3}, phase_lock=phase_lock)
     r.drive(lambda t: 0.2 if t < 1.0 else 0.35, 3.0)
-    return abs(r.sync.law.phase_error(time.monotonic())) * D / (2 * math.pi)
+    return abs(r.sync.engine.law.phase_error(time.monotonic())) * D / (2 * math.pi)
 
 
 def test_phase_lock_keeps_spacing_through_speed_step_and_drive_lag_speed_only_does_not(rig):
@@ -153,7 +153,7 @@ def test_bad_samples_are_rejected_counted_and_not_followed(rig):
     for bad in (math.nan, math.inf, -math.inf, 50.0, 1.5, -1.0):
         r.drive(bad, 0.021, rate=50.0)
         r.drive(0.2, 0.1)
-    rejected = r.sync.law.rejected
+    rejected = r.sync.engine.law.rejected
     assert rejected['non_finite'] >= 3 and rejected['too_fast'] >= 1 and rejected['spike'] >= 2
     r.drive(0.2, 0.3)
     assert r.sync.command_value == pytest.approx(2 * math.pi * 0.2 / D, rel=0.05)
@@ -242,7 +242,7 @@ def test_law_parameters_are_validated(rig):
     r = rig()
     assert not r.sync.set_parameters([Parameter('max_speed', value=-1.0)])[0].successful
     assert r.sync.set_parameters([Parameter('max_speed', value=8.0)])[0].successful
-    assert r.sync.law.config.max_speed == 8.0
+    assert r.sync.engine.law.config.max_speed == 8.0
     assert not r.sync.set_parameters([Parameter('can_channel', value='x')])[0].successful
 
 
@@ -261,7 +261,7 @@ def test_a_design_from_another_node_is_counted_and_named_and_the_loop_timed(rig)
     assert v['design from'].startswith('/test_io (publisher ')
     assert v['design changes by other nodes'] == '1'
     assert v['design publishers seen'] == '/stray_design, /test_io'
-    assert r.sync.law.spacing == 0.3      # no planting angles known here: in force at once
+    assert r.sync.engine.law.spacing == 0.3      # no planting angles known here: in force at once
     loop = r.diag('control loop')
     lv = values(loop)
     assert int(lv['command frames']) > 50

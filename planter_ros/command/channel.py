@@ -111,7 +111,7 @@ class Channel:
                 self.flush()
             except ChannelClosed:
                 pass                   # what the peer sent before it went is still read
-        out = []
+        out: list[tuple[str, Any]] = []
         readable, _, _ = select.select([self.sock], [], [], timeout)
         if not readable:
             return out

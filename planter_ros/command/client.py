@@ -22,11 +22,9 @@ the shell (the kernel signals a child when the thread that forked it ends).
 """
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Callable, Sequence
 import itertools
 import logging
-import math
 import os
 import subprocess
 import sys
@@ -42,20 +40,19 @@ from planter_ros.drive.bus_load import BusLoad
 from planter_ros.drive.errors import DriveError
 
 from .channel import Channel, ChannelClosed
-from .engine import Feedback, Log, checked_bus_load
-from .reports import CommandExit, ReportError
-from planter_ros.control.cam_law import plan_for_design, profile_to_data, warm_up
+from .inbox import Inbox
+from .lifecycle import checked_bus_load
+from .orders import Orders
+from .reports import CommandExit, CommandReport, Ready, Reply, Snapshot
 
 from .settings import CommandSettings, law_to_data
+from .state import Feedback, Log
 from planter_ros.drive.socket_bus import INTERFACE, socket_pair
 
 __all__ = ['COMMAND_PROCESS', 'CommandProcessError', 'CommandClient', 'ENABLE_TIMEOUT']
 
 COMMAND_PROCESS = 'command process'      # its status name in /diagnostics
 REPLY_TIMEOUT = 2.0                      # s a section or reset request waits for its answer
-# feedback samples held for the shell: 5 s at a 10 ms SYNC period (a shell that has not
-# published for that long is reported by its own diagnostics long before)
-FEEDBACK_QUEUE = 500
 ENABLE_TIMEOUT = 30.0                    # s an operator's enable waits for the drives
 
 
@@ -84,40 +81,17 @@ class CommandClient:
             self.extra_fds += (int(cfg.can_channel),)
         self.process: subprocess.Popen | None = None
         self.channel: Channel | None = None
-        self._lock = threading.Lock()
         self._ids = itertools.count(1)
-        self._replies: dict[int, list] = {}
-        self._replied = threading.Condition(self._lock)
-        self.info: dict[str, Any] = {}
-        self.last_fb: dict[str, Any] = {}
-        self.last_fb_time = -1.0
-        self.fb_count = 0
-        # every feedback sample the command process sent, until the shell publishes it
-        # (take_feedback): a shell whose DDS stalls catches up afterwards, none is lost
-        self._fb_queue: deque[list] = deque()
-        self._fb_newest = -math.inf         # the newest stamp queued so far
-        self.feedback_dropped = 0           # samples dropped because the queue was full
-        self._fb_overflowing = False
-        self.last_diag: list = []
-        self.final: dict | None = None
-        self.error: tuple[str, str] | None = None
+        self.inbox = Inbox(log)             # what the command process said
         self.deaths: list[str] = []          # why each command process ended unasked
         self.restarts = 0
         self.stopping = False
         self.stop_requested = False         # no restart, no enable from now on
-        self.exit: CommandExit | None = None    # its deliberate exit, once said
         self.held_reason = ''               # why the rows wait for an operator ('' = they don't)
         self._life = threading.RLock()      # a restart and a stop, one at a time
         self.dead = False                   # gone and not restarted
-        self._design: str | None = None
-        # the last design as sent ([kind, payload]); with a cam, once planned
-        self._design_message: tuple[str, Any] | None = None
-        self._cam = settings.law[0].speed_profile == 'cam'
-        self._profile = None                # the cam profile sent last
-        if self._cam:           # the first plan imports and sets up the LP solver (~0.4 s)
-            threading.Thread(target=warm_up, daemon=True, name='cam-warm-up').start()
-        self._sections: dict[str, bool] = {row.name: True for row in settings.rows
-                                           if row.enabled}
+        self.orders = Orders(settings.law[0], [row.name for row in settings.rows if row.enabled],
+                             log, self._send)
         self._reader: threading.Thread | None = None
 
     # ---------------------------------------------------------------- start / stop
@@ -139,8 +113,7 @@ class CommandClient:
                  '--parent', str(os.getpid())], pass_fds=fds, stdin=subprocess.DEVNULL)
         theirs.close()
         self.channel = Channel(ours)
-        self.info = {}
-        self.exit = None
+        self.inbox.restart()
         self.channel.send('settings', self.settings.held(hold).data())
 
     def enable(self, timeout: float = 60.0, hold_reason: str = '') -> None:
@@ -157,8 +130,8 @@ class CommandClient:
         while 'ready' not in self.info and 'held' not in self.info:
             if not stop_sent and self._stop_asked():
                 stop_sent = self._send('stop')   # it enables nothing it has not yet enabled
-            if self.error is not None:
-                kind, text = self.error
+            if self.inbox.error is not None:
+                kind, text = self.inbox.error
                 self._reap()
                 raise (ConfigError if kind == 'config' else DriveError)(text)
             if time.monotonic() > deadline:
@@ -166,11 +139,11 @@ class CommandClient:
                 raise CommandProcessError(f'the command process was not ready within '
                                           f'{timeout:g} s')
             try:
-                for kind, payload in self.channel.receive(0.1):
+                for kind, payload in self._live_channel().receive(0.1):
                     self._handle(kind, payload)
             except ChannelClosed:
                 code = self._reap()
-                if self.error is not None:
+                if self.inbox.error is not None:
                     continue
                 if self.exit is not None:
                     raise CommandProcessError(f'the command process stopped ({self.exit.reason}) '
@@ -214,27 +187,33 @@ class CommandClient:
     # ---------------------------------------------------------------- the reader
     def _read(self) -> None:
         while True:
-            channel = self.channel
             try:
-                for kind, payload in channel.receive(0.5):
+                for kind, payload in self._live_channel().receive(0.5):
                     self._handle(kind, payload)
             except ChannelClosed:
                 if self.stopping:
                     return
                 if self.exit is not None:
-                    self._stopped_itself()
+                    self._stopped_itself(self.exit)
                     return
                 if not self._died():
                     return
 
-    def _stopped_itself(self) -> None:
+    def _live_channel(self) -> Channel:
+        """The channel to the command process (ChannelClosed when there is none)."""
+        channel = self.channel
+        if channel is None:
+            raise ChannelClosed('no command process')
+        return channel
+
+    def _stopped_itself(self, exit_: CommandExit) -> None:
         """The command process ended on purpose (a stop signal reached it): its rows ramped to
         zero and its drives are disabled. Never restarted; the shell is told."""
         self._reap()
         with self._life:
             self.stop_requested = True
             self.dead = True
-        reason = self.exit.reason
+        reason = exit_.reason
         self.log(logging.WARNING, f'command process stopped by {reason}: rows ramped to 0, '
                                   'drives disabled; not restarted (a stop is a stop)')
         self.on_exit(reason)
@@ -255,7 +234,7 @@ class CommandClient:
                 self.log(logging.ERROR, f'{why}; not restarted ({limit} restart(s) used): the '
                                         "drives' watchdogs have stopped the motors")
                 return False
-            self.info = {}
+            self.inbox.restart()
             self.restarts += 1
             automatic = self.settings.loop.enable_after_restart
             self.held_reason = '' if automatic else f'restarted after: {why}'
@@ -270,14 +249,7 @@ class CommandClient:
     def _respawn(self, hold: bool) -> bool:
         try:
             self._spawn(hold=hold)
-            if self._design is not None:
-                if self._design_message is not None:
-                    self.channel.send(*self._design_message)
-                elif not self._cam:
-                    self.channel.send('design', self._design)
-            for name, on in self._sections.items():
-                if not on:
-                    self.channel.send('section', [0, name, False])
+            self.orders.tell_again(self._live_channel())
         except (OSError, ChannelClosed) as exc:
             self.dead = True
             self.log(logging.ERROR, f'command process restart failed: {exc}')
@@ -285,35 +257,35 @@ class CommandClient:
         return True
 
     def _handle(self, kind: str, payload: Any) -> None:
-        if kind == 'log':
-            level, text = payload
-            self.log(int(level), text)
-        elif kind == 'fb':
-            self.last_fb = payload
-            self.last_fb_time = time.monotonic()
-            self.fb_count += 1
-            self._queue_feedback(payload.get('feedback', []))
-        elif kind == 'diag':
-            self.last_diag = payload
-        elif kind == 'reply':
-            ident, ok, message, changed = payload
-            with self._replied:
-                self._replies[ident] = [ok, message, changed]
-                self._replied.notify_all()
-        elif kind == 'final':
-            self.final = payload
-        elif kind == 'error':
-            self.error = (payload[0], payload[1])
-        elif kind == 'exit':
-            try:
-                self.exit = CommandExit.from_data(payload)
-            except ReportError as exc:
-                self.log(logging.ERROR, f'command process: {exc}')
-                self.exit = CommandExit('stop')
-        else:
-            self.info[kind] = payload
-            if kind == 'ready':
-                self.held_reason = ''
+        self.inbox.handle(kind, payload)
+        if kind == 'ready':
+            self.held_reason = ''
+
+    # ---------------------------------------------------------------- what it said
+    @property
+    def info(self) -> dict[str, Any]:
+        """Its start messages so far ('built', 'held', 'ready')."""
+        return self.inbox.info
+
+    @property
+    def exit(self) -> CommandExit | None:
+        """Its deliberate exit, once said."""
+        return self.inbox.exit
+
+    @property
+    def final_error(self) -> str:
+        """Why its `final` message was unreadable ('' = it was not)."""
+        return self.inbox.final_error
+
+    @property
+    def fb_count(self) -> int:
+        """Feedback messages received so far."""
+        return self.inbox.fb_count
+
+    @property
+    def feedback_dropped(self) -> int:
+        """Feedback samples dropped because the shell did not publish them in time."""
+        return self.inbox.feedback_dropped
 
     # ---------------------------------------------------------------- inputs
     def _send(self, kind: str, payload: Any = None, latest: bool = False) -> bool:
@@ -337,165 +309,106 @@ class CommandClient:
                 pass
 
     def set_design(self, design: Design, text: str, now: float) -> bool:
-        if text == self._design:
-            return False
-        self._design = text
-        if self._cam:
-            # planned here, in the shell, not in the command process (a plan holds the
-            # interpreter for up to tens of ms: the SYNC loop must not wait for it)
-            self._design_message = None
-            threading.Thread(target=self._plan_cam, args=(design, text, now), daemon=True,
-                             name='cam-plan').start()
-            return True
-        self._design_message = ('design', text)
-        self._send('design', text)
-        return True
-
-    def _plan_cam(self, design: Design, text: str, arrived: float) -> None:
-        """Plan the cam and the change from the one sent last (planter_ros.control.cam_law);
-        one over the drive's limits is refused here, before it reaches the command process."""
-        from planter_ros.cam import CamError
-        previous = self._profile
-        try:
-            profile, why = plan_for_design(design, self.settings.law[0].cam_rule, previous)
-            data = None if profile is None else profile_to_data(profile, previous)
-        except CamError as exc:
-            self.log(logging.ERROR, f'design refused, the rows keep theirs: {exc}')
-            return
-        if text != self._design:            # a newer design came meanwhile
-            return
-        self._profile = profile
-        message = ('design_cam', [text, data, why, arrived])
-        self._design_message = message
-        self._send(*message)
+        """A design for the command process (with a cam: planned here first, orders)."""
+        return self.orders.set_design(design, text, now)
 
     def configure(self, law_values: Sequence[Any]) -> None:
         self._send('configure', law_to_data(tuple(law_values)))
 
-    def _request(self, kind: str, *args: Any) -> list:
+    def _request(self, kind: str, *args: Any) -> Reply:
         ident = next(self._ids)
         if not self._send(kind, [ident, *args]):
-            return [False, 'the command process is not running', False]
-        deadline = time.monotonic() + REPLY_TIMEOUT
-        with self._replied:
-            while ident not in self._replies:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    return [False, f'the command process did not answer within '
-                                   f'{REPLY_TIMEOUT:g} s', False]
-                self._replied.wait(remaining)
-            return self._replies.pop(ident)
+            return Reply(False, 'the command process is not running')
+        reply = self.inbox.reply(ident, time.monotonic() + REPLY_TIMEOUT)
+        if reply is None:
+            return Reply(False, f'the command process did not answer within '
+                                f'{REPLY_TIMEOUT:g} s')
+        return reply
 
-    def operator_enable(self, timeout: float = ENABLE_TIMEOUT) -> tuple[bool, str]:
-        """An operator enables the held rows (BLOCKING up to `timeout`): (ok, message)."""
+    def operator_enable(self, timeout: float = ENABLE_TIMEOUT) -> Reply:
+        """An operator enables the held rows (BLOCKING up to `timeout`)."""
         with self._life:
             if self._stop_asked():
-                return False, 'stopping: nothing is enabled any more'
+                return Reply(False, 'stopping: nothing is enabled any more')
             if self.dead:
-                return False, 'the command process is not running'
+                return Reply(False, 'the command process is not running')
             if 'ready' in self.info:
-                return False, 'the rows are enabled already'
+                return Reply(False, 'the rows are enabled already')
             if 'held' not in self.info:
-                return False, 'the command process is starting: try again in a moment'
+                return Reply(False, 'the command process is starting: try again in a moment')
             ident = next(self._ids)
             if not self._send('enable', [ident]):
-                return False, 'the command process is not running'
-        deadline = time.monotonic() + timeout
-        with self._replied:
-            while ident not in self._replies:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    return False, f'the drives were not enabled within {timeout:g} s'
-                self._replied.wait(remaining)
-            ok, message, _ = self._replies.pop(ident)
-        if ok:
-            self.log(logging.WARNING, f'rows enabled by an operator: {message}')
-        return bool(ok), str(message)
+                return Reply(False, 'the command process is not running')
+        reply = self.inbox.reply(ident, time.monotonic() + timeout)
+        if reply is None:
+            return Reply(False, f'the drives were not enabled within {timeout:g} s')
+        if reply.ok:
+            self.log(logging.WARNING, f'rows enabled by an operator: {reply.message}')
+        return reply
 
     @property
     def held(self) -> bool:
         """The rows wait at zero for an operator (`operator_enable`)."""
         return bool(self.held_reason) and 'ready' not in self.info and not self.dead
 
-    def section(self, name: str, on: bool, now: float) -> tuple[bool, str, bool]:
-        ok, message, changed = self._request('section', name, bool(on))
-        if ok:
-            self._sections[name] = bool(on)
-        return bool(ok), str(message), bool(changed)
+    def section(self, name: str, on: bool, now: float) -> Reply:
+        reply = self._request('section', name, bool(on))
+        if reply.ok:
+            self.orders.sections[name] = bool(on)
+        return reply
 
-    def reset_fault(self, name: str) -> tuple[bool, str]:
-        ok, message, _ = self._request('reset', name)
-        return bool(ok), str(message)
+    def reset_fault(self, name: str) -> Reply:
+        return self._request('reset', name)
 
     # ---------------------------------------------------------------- outputs
     @property
+    def ready(self) -> Ready | None:
+        """What the command process said once its drives ran (None before)."""
+        return self.inbox.ready
+
+    @property
     def running(self) -> int:
         """Rows whose drives run (as the command process said when ready)."""
-        return int(self.info.get('ready', {}).get('running', 0))
+        return self.ready.running if self.ready is not None else 0
 
     def mode_text(self) -> str:
         """The CiA 402 mode the command process's drives run, in words."""
-        return str(self.info.get('ready', {}).get('mode', ''))
+        return self.ready.mode if self.ready is not None else ''
 
     def feedback(self) -> list[Feedback]:
-        return [Feedback(*item) for item in self.last_fb.get('feedback', [])]
-
-    def _queue_feedback(self, items: list) -> None:
-        """Queue one message's feedback when it holds a sample not queued before (the
-        command process repeats the last one when no new TPDO came). A full queue drops its
-        oldest sample, counted and said once per overflow."""
-        if not items:
-            return
-        newest = max(item[3] for item in items)
-        if newest <= self._fb_newest:
-            return
-        self._fb_newest = newest
-        if len(self._fb_queue) >= FEEDBACK_QUEUE:
-            self._fb_queue.popleft()
-            self.feedback_dropped += 1
-            if not self._fb_overflowing:
-                self._fb_overflowing = True
-                self.log(logging.ERROR, f'joint feedback lost: the shell published none for '
-                                        f'{FEEDBACK_QUEUE} samples; the oldest are dropped '
-                                        '(counted in diagnostics)')
-        else:
-            self._fb_overflowing = False
-        self._fb_queue.append(items)
+        return self.inbox.feedback()
 
     def take_feedback(self) -> list[list[Feedback]]:
         """Every feedback sample received since the last call, oldest first (one list of
         rows each): what the shell publishes, one joint_states message per sample."""
-        out = []
-        while True:
-            try:
-                items = self._fb_queue.popleft()
-            except IndexError:
-                return out
-            out.append([Feedback(*item) for item in items])
+        return self.inbox.take_feedback()
 
     def commands(self) -> list[tuple[str, float]]:
-        return [tuple(item) for item in self.last_fb.get('commands', [])]
+        return self.inbox.commands()
 
     def sections(self) -> dict[str, bool]:
-        return dict(self.last_fb.get('sections', self._sections))
+        return dict(self.inbox.last_fb.get('sections', self.orders.sections))
 
-    def snapshot(self) -> dict:
-        return self.last_fb.get('snapshot', {'rows': [], 'spacing': None})
+    def snapshot(self) -> Snapshot:
+        return self.inbox.last_snapshot
 
-    def final_report(self) -> dict:
-        return self.final or {}
+    def final_report(self) -> CommandReport | None:
+        """The run's figures (None before the command process sent them, or unreadable:
+        `final_error`)."""
+        return self.inbox.final
 
     def process_report(self, now: float) -> diagnostics.Report:
         """The command process's own status: alive, its pid, real time granted or not."""
-        values = [('restarts', self.restarts), ('deaths', len(self.deaths))]
-        ready = self.info.get('ready', {})
-        if ready:
-            values += [('pid', ready.get('pid')),
-                       ('SCHED_FIFO priority asked', ready.get('priority'))]
-        refused = ready.get('realtime') or []
+        values: list[tuple[str, Any]] = [('restarts', self.restarts),
+                                         ('deaths', len(self.deaths))]
+        ready = self.ready
+        if ready is not None:
+            values += [('pid', ready.pid), ('SCHED_FIFO priority asked', ready.priority)]
+        refused = ready.realtime if ready is not None else ()
         if refused:
             values.append(('real time refused', '; '.join(refused)))
-        age = now - self.last_fb_time if self.last_fb_time >= 0 else None
+        last = self.inbox.last_fb_time
+        age = now - last if last >= 0 else None
         if age is not None:
             values.append(('last feedback age', f'{age:.3f} s'))
         values.append(('feedback samples dropped', self.feedback_dropped))
@@ -535,7 +448,7 @@ class CommandClient:
                 shared: Sequence[diagnostics.Report] = ()) -> list[tuple[diagnostics.Report, str]]:
         """The command process's last reports, then the shell's (`shared` and its own)."""
         out = [(diagnostics.Report(task, level, message, tuple(tuple(v) for v in values)), hw)
-               for (task, level, message, values), hw in self.last_diag]
+               for (task, level, message, values), hw in self.inbox.last_diag]
         bus_id = f'{self.settings.drive.can_interface}:{self.settings.drive.can_channel}'
         return out + [(report, bus_id) for report in shared] + [
             (self.process_report(now), bus_id)]

@@ -7,12 +7,13 @@ publishes. It owns the CAN bus, the CiA 402 masters, the heartbeats and the row 
 (`command.channel`):
 
 shell -> here: `settings` (first), `speed` [v, ω_z, t] (latest value), `design` text,
-`section` / `reset` requests [id, row, ...] (answered by `reply` [id, ok, message, changed]),
+`section` / `reset` requests [id, row, ...] (answered by `reply` [id, `reports.Reply`]),
 `configure` (the law's settings), `enable` [id] (an operator's, to a held process), `stop`.
-here -> shell: `built`, `held` (start: waiting for an operator), `ready`, `error` (start),
-`log` [level, line], `fb` (every control period: joint feedback, commands, sections, a
-snapshot), `diag` (reports, every diagnostics period), `final` (the run's figures:
-`reports.CommandReport`), `exit` (why it ends on purpose: `reports.CommandExit`, last).
+here -> shell: `built`, `held` (start: waiting for an operator: `reports.Ready`), `ready`
+(`reports.Ready`), `error` (start), `log` [level, line], `fb` (every control period: joint
+feedback, commands, sections, a `reports.Snapshot`), `diag` (reports, every diagnostics
+period), `final` (the run's figures: `reports.CommandReport`), `exit` (why it ends on purpose:
+`reports.CommandExit`, last). The typed ones travel as their `to_data()`.
 
 Held (the settings say `hold`: a restart after a crash, doc/command.md): it builds the engine and
 checks the bus but does not enable a drive; the rows stay at zero until an `enable` request (an
@@ -31,7 +32,6 @@ never runs on without its shell, and never enables a drive once a stop has come.
 from __future__ import annotations
 
 import argparse
-from dataclasses import asdict
 import gc
 import logging
 import math
@@ -50,7 +50,7 @@ from planter_ros.drive.errors import DriveError
 
 from .channel import Channel, ChannelClosed
 from .engine import CommandEngine
-from .reports import CommandExit
+from .reports import CommandExit, Ready, Reply
 from .settings import CommandSettings, law_from_data
 from planter_ros.drive.socket_bus import INTERFACE, SocketPairBus
 
@@ -124,7 +124,7 @@ def _settings(channel: Channel, terminated: _Terminated,
 def _exit(channel: Channel, reason: str, enabled: bool) -> None:
     """The last message: why this process ends on purpose (reports.CommandExit)."""
     try:
-        channel.send('exit', asdict(CommandExit(reason, enabled)))
+        channel.send('exit', CommandExit(reason, enabled).to_data())
     except ChannelClosed:
         pass
 
@@ -198,7 +198,7 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
     _ramp_down(engine, why)
     engine.shutdown()
     try:
-        channel.send('final', engine.final_report())
+        channel.send('final', engine.final_report().to_data())
     except ChannelClosed:
         pass
     _exit(channel, why if why != 'orphaned' else 'stop', True)
@@ -208,10 +208,9 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
 def _send_ready(channel: Channel, engine: CommandEngine, refused: list[str],
                 settings: CommandSettings) -> None:
     try:
-        channel.send('ready', {'running': sum(unit.running for unit in engine.units),
-                               'mode': engine.mode_text(),
-                               'realtime': refused, 'pid': os.getpid(),
-                               'priority': settings.loop.realtime_priority})
+        channel.send('ready', Ready(os.getpid(), settings.loop.realtime_priority,
+                                    tuple(refused), engine.running,
+                                    engine.mode_text()).to_data())
     except ChannelClosed:
         pass
 
@@ -236,8 +235,8 @@ def _held(engine: CommandEngine, channel: Channel, terminated: _Terminated,
           refused: list[str], settings: CommandSettings, deferred: list) -> str:
     """Held: no drive enabled until an `enable` request; '' once enabled (the loop follows),
     else why it stopped first ('stop', a signal's name, 'orphaned')."""
-    channel.send('held', {'pid': os.getpid(), 'realtime': refused,
-                          'priority': settings.loop.realtime_priority})
+    channel.send('held', Ready(os.getpid(), settings.loop.realtime_priority,
+                               tuple(refused)).to_data())
     # `deferred`: the design, sections, settings: applied once the drives run
     while not terminated.received:
         try:
@@ -253,21 +252,20 @@ def _held(engine: CommandEngine, channel: Channel, terminated: _Terminated,
                     engine.enable()
                 except (DriveError, ConfigError, OSError) as exc:
                     text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-                    channel.send('reply', [ident, False, f'not enabled: {text}', False])
+                    _reply(channel, ident, Reply(False, f'not enabled: {text}'))
                     continue
                 for later in deferred:
                     _handle(engine, channel, *later)
-                channel.send('reply', [ident, True, 'enabled ({}): the rows follow the ground '
-                                       'speed'.format(engine.mode_text()), True])
+                _reply(channel, ident, Reply(True, f'enabled ({engine.mode_text()}): the rows '
+                                                   'follow the ground speed', True))
                 return ''
             if kind == 'reset':
-                channel.send('reply', [payload[0], False, 'the rows are held: enable them '
-                                       'first', False])
+                _reply(channel, payload[0], Reply(False, 'the rows are held: enable them first'))
             elif kind == 'section':         # answered now, applied once the drives run
                 ident, name, on = payload
                 deferred.append(('section', [0, name, on]))
-                channel.send('reply', [ident, True, f'row {name} {"on" if on else "off"} once '
-                                       'the rows are enabled', True])
+                _reply(channel, ident, Reply(True, f'row {name} {"on" if on else "off"} once the '
+                                                   'rows are enabled', True))
             elif kind != 'speed':
                 deferred.append((kind, payload))
     return terminated.received
@@ -315,7 +313,8 @@ def _loop(engine: CommandEngine, channel: Channel, settings: CommandSettings,
                                                  for f in engine.feedback()],
                                     'commands': engine.commands(),
                                     'sections': engine.sections(),
-                                    'snapshot': engine.snapshot(), 'skipped': skipped})
+                                    'snapshot': engine.snapshot().to_data(),
+                                    'skipped': skipped})
                 if now >= next_diag:
                     next_diag = now + diag_period
                     channel.send('diag', [[[r.task, r.level, r.message, list(r.values)], hw]
@@ -336,18 +335,21 @@ def _handle(engine: CommandEngine, channel: Channel, kind: str, payload: Any) ->
                               arrived=float(arrived))
         elif kind == 'section':
             ident, name, on = payload
-            ok, message, changed = engine.section(name, bool(on), now)
-            channel.send('reply', [ident, ok, message, changed])
+            _reply(channel, ident, engine.section(name, bool(on), now))
         elif kind == 'reset':
             ident, name = payload
-            ok, message = engine.reset_fault(name)
-            channel.send('reply', [ident, ok, message, False])
+            _reply(channel, ident, engine.reset_fault(name))
         elif kind == 'configure':
             engine.configure(law_from_data(payload))
         elif kind == 'enable':              # enabled already: nothing to do
-            channel.send('reply', [payload[0], False, 'the rows are enabled already', False])
+            _reply(channel, payload[0], Reply(False, 'the rows are enabled already'))
     except (ValueError, KeyError, TypeError, StopIteration) as exc:  # ConfigError: ValueError
         engine.log(logging.ERROR, f'{kind} ignored: {exc}')
+
+
+def _reply(channel: Channel, ident: int, reply: Reply) -> None:
+    """The answer to request `ident` (`reply` [id, Reply data])."""
+    channel.send('reply', [ident, reply.to_data()])
 
 
 def _ramp_down(engine: CommandEngine, why: str) -> None:

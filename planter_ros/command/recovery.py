@@ -21,10 +21,12 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 import math
-from typing import Any
+import threading
 
 from planter_ros.control import sync_status
 from planter_ros.control.sync_status import Halt
+
+from .reports import Recovery
 
 __all__ = ['AUTO_RESETS', 'BACK_IN_STEP', 'BUS_QUIET', 'BUS_WINDOW', 'EMCY_LOG_PERIOD',
            'Episode', 'RowRecovery', 'communication_fault']
@@ -71,7 +73,7 @@ class RowRecovery:
     """One row's recovery state and counts (see the module doc)."""
 
     episode: Episode | None = None
-    recoveries: deque = field(default_factory=lambda: deque(maxlen=20))   # closed episodes
+    recoveries: deque[Recovery] = field(default_factory=lambda: deque(maxlen=20))  # closed
     plants_missed: int = 0
     restarts: int = 0                # the drive restarted and was configured again
     auto_resets: int = 0
@@ -79,7 +81,7 @@ class RowRecovery:
     next_reconfigure: float = 0.0
     reconfigure_error: str = ''
     probing: bool = False            # a worker asks the drive whether it restarted
-    worker: Any = None               # the thread doing either (joined at shutdown)
+    worker: threading.Thread | None = None   # the thread doing either (joined at shutdown)
     next_probe: float = 0.0
     next_auto_reset: float = 0.0
     resumed: bool = False            # frames start again: their pause is no loop gap
@@ -98,7 +100,7 @@ class RowRecovery:
         self.episode.resumed = None
         self.episode.steady_since = None
 
-    def running(self, now: float, in_step: bool, slips: int) -> dict | None:
+    def running(self, now: float, in_step: bool, slips: int) -> Recovery | None:
         """The row is commanded at `now`; `in_step`: on its grid. Returns
         the closed episode's record once the row has been in step for `STEADY` s."""
         episode = self.episode
@@ -115,10 +117,10 @@ class RowRecovery:
         if not steady and now - episode.since < EPISODE_LIMIT:
             return None
         missed = max(slips - episode.slips, 0)
-        record = {'cause': episode.cause, 'restarted': episode.restarted, 'bus': episode.bus,
-                  'halted_s': round(episode.resumed - episode.since, 3),
-                  'back_in_step_s': round((episode.steady_since or now) - episode.since, 3),
-                  'plants_missed': missed, 'in_step': steady, 'auto_resets': episode.resets}
+        record = Recovery(episode.cause, episode.restarted, episode.bus,
+                          halted_s=round(episode.resumed - episode.since, 3),
+                          back_in_step_s=round((episode.steady_since or now) - episode.since, 3),
+                          plants_missed=missed, in_step=steady, auto_resets=episode.resets)
         self.plants_missed += missed
         self.recoveries.append(record)
         self.episode = None

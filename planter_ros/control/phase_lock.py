@@ -54,10 +54,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from planter_ros.config import ConfigError, check, setting
 from planter_ros.sensing.ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits
+
+if TYPE_CHECKING:
+    from planter_ros.cam import CamProfile
 
 TWO_PI = 2.0 * math.pi
 # measured angle is extrapolated with the measured speed for at most this long (s)
@@ -162,7 +165,7 @@ class PhaseLock:
         self.planting = None                # PlantingAngles, if the design gives them
         self.filter = speed_filter or GroundSpeedFilter(limits or GroundSpeedLimits())
         self.section_on = True              # section control: planting (True) or off
-        self.stop_angle = None              # where a row switched off comes to rest (rad)
+        self.stop_angle: float | None = None    # where a row switched off comes to rest (rad)
         self.parked = False                 # switched off and at rest at stop_angle
         self._starting = False              # switched on, not up to speed: no grid yet
         self.phase_slips = 0                # whole plant pitches given up (fault, stale gap)
@@ -178,7 +181,7 @@ class PhaseLock:
         self._t_cmd = None
         self.last_error = 0.0               # phase error at the last command (rad)
         self._pending = None                # (d, PlantingAngles, s at its planting instant)
-        self.cam = None                     # CamProfile in force (or next), None: constant
+        self.cam: CamProfile | None = None  # in force (or next), None: constant
         self._track = None                  # CamTrack of the grid, once anchored with a cam
         self._cam_offset = 0.0              # whole pitches given up on the cam's grid (rad)
         self.cam_fallback = ''              # why a cam was asked for and is not run

@@ -10,23 +10,25 @@ design changes)."""
 import math
 from typing import Any
 
+from planter_ros.command.reports import RowSnapshot, Snapshot
+
 from .sync_process import SyncReport
 from .verdict import RowResult
 
 __all__ = ['command_path_lines', 'progress_line', 'row_summary']
 
 
-def progress_line(t: float, profile: Any, status: dict, plants: int, rows: list) -> str:
+def progress_line(t: float, profile: Any, status: Snapshot, plants: int, rows: list) -> str:
     """The line printed every few seconds: time, speed, each row's command (and with one row
     its measured speed and drive state), plants so far. `rows`: the planting rows."""
-    shown = status.get('rows', [])
+    shown = status.rows
     if len(rows) == 1:
-        row = shown[0] if shown else {}
+        row = shown[0] if shown else RowSnapshot('', 0.0, 0.0, '-', False)
         return (f't = {t:5.1f} s  v = {profile(t):.3f} m/s  command = '
-                f'{row.get("command", 0.0):6.3f} rad/s  measured = '
-                f'{row.get("velocity", 0.0):6.3f} rad/s  plants = {plants:3d}  '
-                f'drive: {row.get("state", "-")}')
-    commands = ' '.join(f'{row["command"]:5.2f}' for row in shown)
+                f'{row.command:6.3f} rad/s  measured = '
+                f'{row.velocity:6.3f} rad/s  plants = {plants:3d}  '
+                f'drive: {row.state}')
+    commands = ' '.join(f'{row.command:5.2f}' for row in shown)
     return (f't = {t:5.1f} s  v = {profile(t):.3f} m/s  yaw rate = '
             f'{profile.yaw_rate(t):+.3f} rad/s  commands = {commands} rad/s  '
             f'plants = {plants:3d}')

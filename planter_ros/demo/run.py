@@ -36,6 +36,7 @@ from planter_ros import interfaces
 from planter_ros.host import stop_signals
 from planter_ros.host.dds_domain import (
     PRIVATE_GRAPH_ROS_ARGS, NoFreeDomainError, claim_private_domain, keep_discovery_on_host)
+from planter_ros.command.reports import Snapshot
 from planter_ros.geo import AntennaSettings
 from planter_ros.nodes.design_node import DesignNode
 from planter_ros.nodes.monitor_node import MonitorNode
@@ -214,7 +215,7 @@ class Demo:
         lines += [f'  warning: {w}' for w in result.warnings]
         return '\n'.join(lines), '', result.acceptance
 
-    def progress(self, t: float, profile, status: dict, observer) -> str:
+    def progress(self, t: float, profile, status: Snapshot, observer) -> str:
         """The progress line at `t` s of the field run."""
         plants = sum(len(observer.plant_positions(profile, self.design,
                                                   row.joint(self.design.mechanism),
@@ -348,7 +349,7 @@ class _Run:
         while time.monotonic() < deadline and not self._stopped():
             self.sync.poll(0.05)
             if (self.source._pub.get_subscription_count() >= 2
-                    and self.sync.status.get('spacing') is not None):
+                    and self.sync.status.spacing is not None):
                 break
         self.source.restart()
         self.field_start = (self.source.start.nanoseconds * 1e-9, time.monotonic())

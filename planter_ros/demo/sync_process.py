@@ -38,7 +38,7 @@ import threading
 import time
 from typing import Any
 
-from planter_ros.command.reports import CommandReport, ReportError, from_data
+from planter_ros.command.reports import CommandReport, ReportError, Snapshot, from_data
 from planter_ros.drive.state_names import (FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
                                            QUICK_STOP_ACTIVE)
 from planter_ros.errors import PlanterError
@@ -179,7 +179,7 @@ class SyncProcess:
             self.process.start()
         child.close()
         self.info = {}               # what the child said at start: SyncBuilt, SyncReady
-        self.status = {}             # the latest snapshot
+        self.status = Snapshot()     # the latest snapshot
         self.report: SyncReport | None = None      # the final report
         self.error = None
         self.stop_requested = ''     # a stop that reached the child or its command process
@@ -383,7 +383,7 @@ def _wait_for_stop(conn, timeout=30.0):
         return
 
 
-def snapshot(sync):
+def snapshot(sync) -> Snapshot:
     """What the progress lines show: each running row's command, measured speed and state."""
     return sync.engine.snapshot()
 
@@ -392,18 +392,16 @@ def final_report(sync, drives: dict) -> SyncReport:
     """The run's figures from the command path; `drives`: what the simulated drives counted
     (watchdog trips, their state at the end; in a process of their own also the gaps between
     command frames on their own clock)."""
-    data = sync.engine.final_report()
-    command, missing = None, ''
-    if not data:
+    command = sync.engine.final_report()
+    missing = ''
+    unreadable = getattr(sync.engine, 'final_error', '')
+    if unreadable:
+        missing = f'the command path\'s report is unreadable: {unreadable}'
+    elif command is None:
         exit_ = getattr(sync.engine, 'exit', None)
         missing = ('the command process sent no report (it never enabled a drive)'
                    if exit_ is not None and not exit_.enabled else
                    'the command process sent no report')
-    else:
-        try:
-            command = CommandReport.from_data(data)
-        except ReportError as exc:
-            missing = f'the command path\'s report is unreadable: {exc}'
     try:
         drives_report = DrivesReport.from_data(drives or {})
     except ReportError as exc:

@@ -62,7 +62,7 @@ from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
 from planter_ros.sensing.row_speed import YawRateLimits
 
 # a feedback sample's stamp is carried back from the command process's clock at most this
-# far (s): the queue it waits in holds 5 s (command.client.FEEDBACK_QUEUE)
+# far (s): the queue it waits in holds 5 s (command.inbox.FEEDBACK_QUEUE)
 STAMP_AGE_MAX = 10.0
 
 
@@ -216,19 +216,7 @@ class SyncNode(Node):
     def _initial_sections(self):
         return {row.name: True for row in self.rows if row.enabled}
 
-    # ---------------------------------------------------------------- in-process engine
-    def __getattr__(self, name):
-        # the in-process engine's rows and law, for tests and the bench (units, machine, law,
-        # drives, unit(), command_value...); a command process keeps them to itself
-        engine = self.__dict__.get('engine')
-        if isinstance(engine, CommandEngine) and hasattr(engine, name):
-            return getattr(engine, name)
-        raise AttributeError(name)
-
-    @property
-    def drive(self):
-        return self.engine.units[0].drive
-
+    # ---------------------------------------------------------------- what it commands
     @property
     def command_value(self):
         """The first row's last command (rad/s)."""
@@ -237,8 +225,12 @@ class SyncNode(Node):
 
     @property
     def send_errors(self):
-        return self.engine.send_errors if isinstance(self.engine, CommandEngine) else \
-            self.engine.final_report().get('send_errors', 0)
+        """CAN send errors so far (with a command process: as its final report says, 0
+        before it)."""
+        if isinstance(self.engine, CommandEngine):
+            return self.engine.send_errors
+        report = self.engine.final_report()
+        return report.send_errors if report is not None else 0
 
     # ---------------------------------------------------------------- life cycle
     def raise_shell_priority(self):
@@ -299,7 +291,8 @@ class SyncNode(Node):
         if self._stop_asked():
             response.success, response.message = False, 'stopping: nothing is enabled any more'
         elif not self.in_process:
-            response.success, response.message = self.engine.operator_enable()
+            reply = self.engine.operator_enable()
+            response.success, response.message = reply.ok, reply.message
         elif not self._in_process_held:
             response.success, response.message = False, 'the rows are enabled already'
         else:
@@ -376,15 +369,14 @@ class SyncNode(Node):
                                       "in force from each row's next planting instant")
 
     def _on_reset_fault(self, row, _request, response):
-        ok, message = self.engine.reset_fault(row.name)
-        response.success, response.message = ok, message
+        reply = self.engine.reset_fault(row.name)
+        response.success, response.message = reply.ok, reply.message
         return response
 
     def _on_section(self, row, request, response):
-        ok, message, changed = self.engine.section(row.name, bool(request.data),
-                                                   time.monotonic())
-        response.success, response.message = ok, message
-        if ok and changed:
+        reply = self.engine.section(row.name, bool(request.data), time.monotonic())
+        response.success, response.message = reply.ok, reply.message
+        if reply.ok and reply.changed:
             sections = self._initial_sections()
             sections.update(self.engine.sections())
             sections[row.name] = bool(request.data)

@@ -136,7 +136,7 @@ def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
         sync.wait_for('ready', timeout)
         design_pub.publish(String(data=to_json(five_bar_design_message(spacing=0.2))))
         deadline = time.monotonic() + timeout
-        while sync.status.get('spacing') is None:          # the design is in force
+        while sync.status.spacing is None:          # the design is in force
             if time.monotonic() > deadline:
                 raise TimeoutError(f'the sync node took no design within {timeout:g} s')
             sync.poll(0.05)

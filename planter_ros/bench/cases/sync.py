@@ -117,7 +117,7 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
         threading.Thread(target=ex.spin, daemon=True).start()
         deadline = time.monotonic() + timeout
         # discovery done and the latched design taken
-        while speed_pub.get_subscription_count() == 0 or sync.law.spacing is None:
+        while speed_pub.get_subscription_count() == 0 or sync.engine.law.spacing is None:
             if time.monotonic() > deadline:
                 raise TimeoutError(f'the sync node did not see the source within {timeout} s')
             time.sleep(0.01)
