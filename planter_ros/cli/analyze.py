@@ -37,7 +37,7 @@ def run(args):
     out = seasons.check_out(args.out)
     design = fallback_design(args)
     overrides = settings_overrides(args)
-    ignored = []
+    ignored: list[tuple[str, str]] = []
     try:
         bags = find_bags(args.paths, skip=[out], ignored=ignored)
     except BagSearchError as exc:
