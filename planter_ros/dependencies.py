@@ -101,7 +101,7 @@ IMPORT_NAMES = {
 
 # what a `planter` command needs beyond the base install: command words -> [(extra, the
 # distributions of it it uses (all: ()), the option that needs them (None: the command itself))]
-COMMAND_EXTRAS = {
+COMMAND_EXTRAS: dict[tuple[str, ...], list[tuple[str, tuple[str, ...], str | None]]] = {
     ('analyze',): [('analysis', (), None)],
     ('simulate',): [('analysis', (), None)],
     ('bench',): [('dev', ('mpmath',), None), ('analysis', (), None)],
@@ -173,7 +173,8 @@ def require(extra: str, what: str, names: tuple[str, ...] = ()) -> None:
 def check_command(words: tuple[str, ...] | None, args: object) -> None:
     """MissingExtra when the `planter` command `words`, with the options in `args` (argparse's
     namespace), needs an extra that is not installed (before any work starts)."""
-    for extra, names, option in COMMAND_EXTRAS.get(words or (), ()):
+    words = words or ()
+    for extra, names, option in COMMAND_EXTRAS.get(words, []):
         if option is None or getattr(args, option, None):
             what = 'planter ' + ' '.join(words) + (f' --{option}' if option else '')
             require(extra, what, names)
@@ -185,7 +186,8 @@ def error_line(words: tuple[str, ...] | None, exc: Exception) -> str:
     install)."""
     if not isinstance(exc, ModuleNotFoundError):
         return str(exc)
-    extra = extra_of_module(exc.name or '')
+    name = exc.name or ''
+    extra = extra_of_module(name)
     if extra is None:
         raise exc
-    return str(MissingExtra('planter ' + ' '.join(words or ()), extra, [exc.name]))
+    return str(MissingExtra('planter ' + ' '.join(words or ()), extra, [name]))

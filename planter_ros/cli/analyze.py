@@ -37,7 +37,7 @@ def run(args):
     out = seasons.check_out(args.out)
     design = fallback_design(args)
     overrides = settings_overrides(args)
-    ignored = []
+    ignored: list[tuple[str, str]] = []
     bags = find_bags(args.paths, skip=[out], ignored=ignored)    # BagSearchError: exit 2
     for path, why in ignored:
         print(f'planter: warning: {path} is {why}, not a bag: skipped', file=sys.stderr)

@@ -44,7 +44,7 @@ class _Parser(argparse.ArgumentParser):
     abbreviated option (`--dur` for `--duration` would change meaning when an option is added)."""
 
     def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs, allow_abbrev=False)
+        super().__init__(*args, **{**kwargs, 'allow_abbrev': False})
 
     def error(self, message):
         # main() prints 'planter: error: ': name only the sub-command after it

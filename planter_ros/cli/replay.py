@@ -90,8 +90,7 @@ OUTPUTS = ('plot', 'geojson', 'csv', 'shapefile', 'isoxml')
 
 
 def run(args):
-    """Replay the bag, then write each output asked for on its own (export.replay.write_each:
-    one that fails is named on stderr, exit 1)."""
+    """Replay the bag, then write each output asked for on its own (a failed one: stderr, 1)."""
     from planter_ros.analysis.bags import check_bag
     from planter_ros.config import one_line
     from planter_ros.export import geojson_csv, replay as exports
@@ -108,9 +107,10 @@ def run(args):
     plants = exports.replay_run(result, args.shapefile, args.isoxml)
     writers = {'plot': lambda p: write_plot(result, p),
                'geojson': lambda p: geojson_csv.write_geojson(result, p),
-               'csv': lambda p: geojson_csv.write_csv(result, p),
-               'shapefile': lambda p: exports.write_shapefile_output(plants, p),
-               'isoxml': lambda p: exports.write_isoxml_output(plants, p)}
+               'csv': lambda p: geojson_csv.write_csv(result, p)}
+    if plants is not None:   # --shapefile or --isoxml given
+        writers |= {'shapefile': lambda p: exports.write_shapefile_output(plants, p),
+                    'isoxml': lambda p: exports.write_isoxml_output(plants, p)}
     written, failed = exports.write_each([(f'--{o}', getattr(args, o), writers[o])
                                           for o in OUTPUTS if getattr(args, o)])
     print(json.dumps(result.as_json(), indent=1, allow_nan=False) if args.json else

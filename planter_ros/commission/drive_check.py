@@ -14,7 +14,12 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:   # for the annotations only: nothing heavy at import (module doc)
+    import can
+
+    from planter_ros.simdrive.drive import SimulatedDrive
 
 __all__ = ['add_arguments', 'run', 'check_row']
 
@@ -69,7 +74,8 @@ class _bus:
 
     def __init__(self, machine: Any, rows: list[str], simulated: bool) -> None:
         self.machine, self.rows, self.simulated = machine, rows, simulated
-        self.bus, self.sims = None, []
+        self.bus: can.BusABC | None = None
+        self.sims: list[SimulatedDrive] = []
 
     def __enter__(self) -> Any:
         if not self.simulated:

@@ -269,7 +269,7 @@ def checklist(findings: list[RowFindings], machine_path) -> str:
                      f'{"C0h" if f.polarity == "reversed" else "0"})')
         lines.append('  [found] homing: ' + (f'method {f.homing_method}, attained'
                                               if f.homed else 'none (method 0)'))
-        if f.phase_offset is None:
+        if f.phase_offset is None or f.switch_width is None:   # set together
             lines.append('  [by hand] no home switch seen within a turn: jog the unit until the '
                          f'tip is lowest and write that angle as rows.{f.row}.phase_offset')
         else:

@@ -71,27 +71,28 @@ class DesignSources:
     """Attributes, counts and reports the designs one node accepts."""
 
     def __init__(self) -> None:
-        self.known = {}              # gid -> node name, every publisher seen on the topic
-        self.first = None            # Attribution of the first design
+        self.known: dict[str, str] = {}   # gid -> node name, every publisher seen on the topic
+        self.first: Attribution | None = None         # of the first design
         self.changes = 0             # designs accepted after the first
         self.foreign_changes = 0
-        self.last_change = None      # Attribution of the latest change
+        self.last_change: Attribution | None = None   # of the latest change
 
     def accepted(self, endpoints: Iterable[Endpoint]) -> Attribution:
         """A design was accepted; `endpoints` are the topic's publishers now. Returns its
         Attribution (and counts it)."""
-        endpoints = tuple(endpoints)
-        new = tuple(e for e in endpoints if e.gid not in self.known)
-        self._learn(endpoints)
-        if len(endpoints) == 1:
-            candidates = endpoints
+        now = tuple(endpoints)
+        new = tuple(e for e in now if e.gid not in self.known)
+        self._learn(now)
+        candidates: tuple[Endpoint, ...]
+        if len(now) == 1:
+            candidates = now
         elif len(new) == 1:
             candidates = new
         else:
-            candidates = endpoints
+            candidates = now
         if self.first is None:
-            self.first = Attribution(candidates, True, False)
-            return self.first
+            first = self.first = Attribution(candidates, True, False)
+            return first
         original = {e.gid for e in self.first.candidates}
         foreign = not any(e.gid in original for e in candidates)
         self.last_change = Attribution(candidates, False, foreign)
@@ -120,7 +121,7 @@ class DesignSources:
 
     def values(self) -> list[tuple[str, str | int]]:
         """Key/value pairs for /diagnostics."""
-        out = [('design from', self.first.text if self.first else ''),
+        out: list[tuple[str, str | int]] = [('design from', self.first.text if self.first else ''),
                ('design changes', self.changes),
                ('design changes by other nodes', self.foreign_changes),
                ('design publishers seen', ', '.join(sorted(set(self.known.values()))))]
@@ -133,10 +134,11 @@ class DesignSources:
         values = tuple(self.values())
         if self.first is None:
             return Report(DESIGN, STALE, 'waiting for design', values)
-        if self.foreign_changes:
+        last = self.last_change      # set with every change counted
+        if last is not None and self.foreign_changes:
             return Report(DESIGN, WARN, f'{self.foreign_changes} design change(s) by another '
-                          f'node, the latest from {self.last_change.text}', values)
-        if self.changes:
+                          f'node, the latest from {last.text}', values)
+        if last is not None and self.changes:
             return Report(DESIGN, OK, f'{self.changes} design change(s), the latest from '
-                          f'{self.last_change.text}', values)
+                          f'{last.text}', values)
         return Report(DESIGN, OK, f'from {self.first.text}', values)

@@ -289,7 +289,8 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
         RowLayout(rows=[str(r) for r in rows_data])
     except ConfigError as exc:
         bad('rows', f'has a bad name: {exc}')
-    rows, owner = {}, {}
+    rows: dict[str, MachineRow] = {}
+    owner: dict[int, object] = {}       # node id -> the row that has it
     for row_name, block in rows_data.items():
         row = _block(block, MachineRow, f'rows.{row_name}', where)
         if row.node_id in owner:

@@ -26,7 +26,7 @@ A refusal is a SceneError of one line naming the file, the key and the closest v
 
 from difflib import SequenceMatcher
 from functools import cache
-from typing import Any, Iterable
+from typing import Any, Iterable, NoReturn
 
 from planter_ros import interfaces
 from planter_ros.config import ConfigError, Spec, coerce, specs
@@ -109,7 +109,7 @@ def scene_mechanism(params: dict[str, Any]) -> str:
     mechanism = params.get('mechanism')
     if isinstance(mechanism, str):
         return mechanism
-    return next(s.default for s in specs(DesignInputs) if s.name == 'mechanism')
+    return str(next(s.default for s in specs(DesignInputs) if s.name == 'mechanism'))
 
 
 def scene_rows(params: dict[str, Any]) -> list[str]:
@@ -247,7 +247,7 @@ def _check_keys(pfile: ParameterFile, params: dict[str, Any], nodes: Iterable[st
 
 
 def _unknown(pfile: ParameterFile, name: str, nodes: list[str], mechanism: str | None,
-             rows: list[str], own: bool) -> None:
+             rows: list[str], own: bool) -> NoReturn:
     """Raise the one line for a key no node it reaches takes (the closest valid key)."""
     valid = []
     for node in nodes:

@@ -285,9 +285,9 @@ class SourceSelector:
                              f'allowed a list of {", ".join(SOURCES)}')
         self.preference = list(preference)
         self.timeout = timeout
-        self.last_heard = {}            # source -> t of its last sample
-        self.active = None
-        self.events = []
+        self.last_heard: dict[str, float] = {}      # source -> t of its last sample
+        self.active: str | None = None
+        self.events: list[tuple[float, str]] = []
 
     def _fresh(self, source, now):
         heard = self.last_heard.get(source)

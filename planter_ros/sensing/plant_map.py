@@ -107,7 +107,8 @@ class DeadReckoning:
     def __init__(self, keep):
         self.keep = keep
         self.t, self.x, self.y, self.psi = [], [], [], []
-        self._last = None                  # (v cos ψ, v sin ψ, turn rate) of the last sample
+        # (v cos ψ, v sin ψ, turn rate) of the last sample (read only once there is one)
+        self._last = (0.0, 0.0, 0.0)
 
     def add(self, t, v, w):
         t, v = float(t), float(v)
@@ -178,18 +179,20 @@ class FixTrack:
         self.first_heading = None     # (instant, transform) of the first fix with a heading
         self.fixes = 0                # usable fixes taken
 
-    def anchor(self, latitude, longitude):
+    def anchor(self, latitude, longitude) -> LocalFrame:
+        """The local frame, made at the first fix."""
         if self.frame is None:
             self.frame = LocalFrame(latitude, longitude)
+        return self.frame
 
     def add(self, t, latitude, longitude, sigma, pose, east_north=None):
         """A usable fix at t (s) with its σ (m) and the dead-reckoned pose (x, y, ψ) at t;
         `east_north`: the fix already in the local frame (replay converts all at once)."""
         settings = self.settings
         t = float(t)
-        self.anchor(latitude, longitude)
+        frame = self.anchor(latitude, longitude)
         if east_north is None:
-            east_north = self.frame.to_east_north(longitude, latitude)
+            east_north = frame.to_east_north(longitude, latitude)
         e, n = float(east_north[0]), float(east_north[1])
         ax, ay = on_machine(pose[0], pose[1], pose[2], *self.antenna)
         ax, ay = float(ax), float(ay)
@@ -315,7 +318,7 @@ class FixTrack:
         heading = extent >= 0.5 * self.settings.track_length
         cross = sacb - total * (amx * bmy - amy * bmx)
         dot = sab - total * (amx * bmx + amy * bmy)
-        out = []
+        out: list[tuple[float, float, float] | None] = []
         phi = self._phi
         for has, y, x, mx, my, bx, by in zip(
                 heading.tolist(), cross.tolist(), dot.tolist(), amx.tolist(), amy.tolist(),
@@ -464,12 +467,12 @@ def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna, plant_
     arrived = finite & (ft > np.concatenate(([-np.inf], latest[:-1])))
     usable = np.flatnonzero(arrived & np.isfinite(sigma))
     if usable.size:
-        track.anchor(lat[usable[0]], lon[usable[0]])
+        frame = track.anchor(lat[usable[0]], lon[usable[0]])
         taken = usable[(ft[usable] >= mt[0]) & (ft[usable] <= mt[-1])] if mt.size else \
             usable[:0]
         # the poses and the local frame of all fixes at once; each fix then as live
         px, py, ppsi = _pose(mt, x, y, psi, ft[taken])
-        east, north = track.frame.to_east_north(lon[taken], lat[taken])
+        east, north = frame.to_east_north(lon[taken], lat[taken])
         track.add_all(ft[taken], lat[taken], lon[taken], sigma[taken], (px, py, ppsi), east,
                       north)
     forward = None if plant_forward is None else np.asarray(plant_forward, dtype=float)
@@ -499,7 +502,8 @@ class PlantPlacer:
         self.forward = dict(forward_offsets or {})    # row index -> forward offset (m)
         self.track = FixTrack(settings, antenna)
         self.dr = DeadReckoning(keep=settings.fix_window + settings.max_fix_age + 5.0)
-        self._fixes = deque()                         # usable fixes waiting for the motion
+        # usable fixes waiting for the motion: (t, latitude, longitude, σ)
+        self._fixes: deque[tuple[float, float, float, float]] = deque()
         self._fix_seen = -math.inf                    # newest fix stamp received (any status)
         self._motion_seen = -math.inf
         self._pending = deque()                       # Plants not released yet
