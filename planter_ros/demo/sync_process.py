@@ -356,16 +356,8 @@ def child_main(conn, settings):
             drive_report = sims.stop()
         else:                       # the drives in this process, measured the same way
             sims.stop()
-            from planter_ros.simdrive.process import end_states
-            drive_report = {
-                'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
-                'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
-                'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
-                'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
-                                   for d in sims.drives},
-                'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
-                                 if d.record_bottom},
-                'end': end_states(sims.drives)}
+            from planter_ros.simdrive.process import drives_report
+            drive_report = drives_report(sims)
         library_log.close()
     if sync is not None:
         send('final', final_report(sync, drive_report))

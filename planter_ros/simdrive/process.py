@@ -27,7 +27,7 @@ import sys
 import threading
 from typing import Any
 
-__all__ = ['SimProcess', 'end_states', 'main']
+__all__ = ['SimProcess', 'drives_report', 'end_states', 'main']
 
 
 def end_states(drives: list) -> dict[str, dict[str, Any]]:
@@ -36,6 +36,22 @@ def end_states(drives: list) -> dict[str, dict[str, Any]]:
     return {str(d.node_id): {'state': d.state, 'mode': d.mode_display,
                              'motor_velocity': d.motor_velocity, 'nmt': d.nmt_state,
                              'homed': d.device.homing.homed} for d in drives}
+
+
+def drives_report(sims: Any) -> dict[str, Any]:
+    """What the simulated drives of `sims` (a SimulatedBus) counted on their own clock: watchdog
+    trips, RPDO, SYNC and heartbeat gaps, the instants each mechanism truly passed its bottom,
+    faults, and each drive's end state; the same whether they ran in their own process or in
+    the caller's."""
+    return {'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
+            'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
+            'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
+            'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary() for d in sims.drives},
+            'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
+                             if d.record_bottom},
+            'faults': {str(d.node_id): {'power_cycles': d.power_cycles,
+                                        'emcy_sent': d.emcy_sent} for d in sims.drives},
+            'end': end_states(sims.drives)}
 
 
 class SimProcess:
@@ -126,17 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     threading.Thread(target=watch_stdin, daemon=True).start()
     done.wait()
     sims.stop()
-    report = {'watchdog_trips': [list(trip) for trip in sims.watchdog_trips],
-              'rpdo_gaps': {str(d.node_id): d.rpdo_gaps.summary() for d in sims.drives},
-              'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
-              'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary()
-                                 for d in sims.drives},
-              'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
-                               if d.record_bottom},
-              'faults': {str(d.node_id): {'power_cycles': d.power_cycles,
-                                          'emcy_sent': d.emcy_sent} for d in sims.drives},
-              'end': end_states(sims.drives)}
-    print(json.dumps(report), flush=True)
+    print(json.dumps(drives_report(sims)), flush=True)
     return 0
 
 
