@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
 
     from planter_ros.scene.files import SceneError
     from planter_ros.scene.machine_file import CanBus, deployment_parameters, open_machine, \
-        write_machine
+        rows_asked, write_machine
 
     from .procedure import (CommissionError, Observer, SimulatedObserver, checklist,
                             commission_machine, updated_machine)
@@ -75,11 +75,10 @@ def run(args: argparse.Namespace) -> int:
                      ('.yaml', '.yml'))
     except (SceneError, OutputError) as exc:
         return fail(str(exc))
-    rows = args.row or list(machine.rows)
-    unknown = [r for r in rows if r not in machine.rows]
-    if unknown:
-        return fail(f'--row {unknown[0]} is not a row of {args.machine}: allowed '
-                    + ', '.join(machine.rows))
+    try:
+        rows = rows_asked(machine, args.row, args.machine)
+    except SceneError as exc:
+        return fail(str(exc))
     simulated = args.simulated or machine.can.interface == 'virtual'
     bus, sims = None, {}
     observer: Observer = Observer()

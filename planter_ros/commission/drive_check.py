@@ -43,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from planter_ros.scene.files import SceneError
-    from planter_ros.scene.machine_file import open_machine
+    from planter_ros.scene.machine_file import open_machine, rows_asked
 
     def fail(message: str) -> int:
         print(f'planter: error: drive check: {message}', file=sys.stderr)
@@ -55,11 +55,10 @@ def run(args: argparse.Namespace) -> int:
         machine = open_machine(args.machine)
     except SceneError as exc:
         return fail(str(exc))
-    rows = args.row or list(machine.rows)
-    unknown = [r for r in rows if r not in machine.rows]
-    if unknown:
-        return fail(f'--row {unknown[0]} is not a row of {args.machine}: allowed '
-                    + ', '.join(machine.rows))
+    try:
+        rows = rows_asked(machine, args.row, args.machine)
+    except SceneError as exc:
+        return fail(str(exc))
     simulated = args.simulated or machine.can.interface == 'virtual'
     outcome = 0
     with _bus(machine, rows, simulated) as bus:

@@ -47,7 +47,7 @@ from .schema import NODES, closest, node_parameters
 __all__ = ['CanBus', 'IsobusBus', 'Machine', 'MachineFileError', 'MachineFileSetting',
            'MachineRow', 'SECTIONS',
            'check_drive_plans', 'deployment_parameters', 'machine_text', 'open_machine',
-           'parse_machine',
+           'parse_machine', 'rows_asked',
            'write_machine']
 
 RPM = 2.0 * math.pi / 60.0
@@ -308,6 +308,17 @@ def parse_machine(text: str, path: Path | None = None) -> Machine:
                 f'{machine.eds_path(row)}): allowed the drive\'s EDS or DCF file')
     check_drive_plans(machine, {}, where)
     return machine
+
+
+def rows_asked(machine: Machine, asked: list[str] | None, path: str) -> list[str]:
+    """The rows a command was asked for with --row (every row of the machine file when none);
+    MachineFileError (one line) naming the first that is not a row of the file at `path`."""
+    rows = asked or list(machine.rows)
+    unknown = [r for r in rows if r not in machine.rows]
+    if unknown:
+        raise MachineFileError(f'--row {unknown[0]} is not a row of {path}: allowed '
+                               + ', '.join(machine.rows))
+    return rows
 
 
 def check_drive_plans(machine: Machine, params: dict[str, Any], where: str) -> list[str]:
