@@ -27,14 +27,21 @@ the torque-limited acceleration in `jerk_ramp_time` = 40 ms, about one period of
 torsional mode of a geared arm (an assumption: measure the machine's and override it).
 """
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 import math
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planter_ros.config import check, setting, spec_of
+from planter_ros.kinematics.arrays import FloatArray
+from planter_ros.kinematics.errors import DesignError
 
 from .errors import CamInputError
+from .mechanism import CamMechanism
+from .piecewise import Piecewise, State
 
 __all__ = ['DriveLimits', 'EffectiveLimits', 'LoadFigures', 'LoadSamples', 'LIMIT_NAMES',
            'DRIVE_SOURCE', 'GRAVITY', 'sun_bar_motion']
@@ -53,8 +60,12 @@ DRIVE_SOURCE = ('motor: Yaskawa Σ-7 SGM7J-08A, 750 W (Σ-7-Series Rotary Servom
 # utilisation names, in the order tables show them
 LIMIT_NAMES = ('speed', 'acceleration', 'jerk', 'torque', 'rms torque')
 
+# per angle θ: (k_α, k_ω, g) of the motor torque T_m = k_α·α + k_ω·ω² + g
+TorqueTerms = tuple[FloatArray, FloatArray, FloatArray]
 
-def sun_bar_motion(derivatives, ground_speed, ground_acceleration=0.0):
+
+def sun_bar_motion(derivatives: State, ground_speed: float,
+                   ground_acceleration: float = 0.0) -> tuple[float, float, float]:
     """(θ, ω, α) of the sun bar from the cam's (θ, θ′, θ″) at the row's distance, its ground
     speed v (m/s) and acceleration a (m/s²): ω = v θ′, α = v² θ″ + a θ′ (rad, rad/s, rad/s²)."""
     theta, d1, d2 = derivatives
@@ -62,7 +73,7 @@ def sun_bar_motion(derivatives, ground_speed, ground_acceleration=0.0):
     return theta, v * d1, v * v * d2 + ground_acceleration * d1
 
 
-def _error(text):
+def _error(text: str) -> DesignError:
     return CamInputError.from_message(text)
 
 
@@ -102,7 +113,7 @@ class DriveLimits:
                                     "servo's thermal time constant is minutes; assumed)",
                                     unit='s', range=(0.1, 3600.0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self, _error)
         if self.motor_rated_torque > self.motor_peak_torque:
             raise CamInputError('motor_rated_torque', self.motor_rated_torque,
@@ -116,7 +127,7 @@ class DriveLimits:
                 raise CamInputError(name, value, f'0 (derived) or {least:g}..{high:g} {unit} '
                                     '(below it no out-of-soil arc can be planned)')
 
-    def effective(self, mech):
+    def effective(self, mech: CamMechanism) -> 'EffectiveLimits':
         """The limits in force for mechanism `mech` (derived ones filled in)."""
         n, eta = self.gear_ratio, self.gearbox_efficiency
         speed = self.max_speed or self.motor_max_speed / n
@@ -130,14 +141,14 @@ class DriveLimits:
                                rms_torque=self.motor_rated_torque,
                                torque_acceleration=torque_acceleration)
 
-    def _load(self, mech, theta):
+    def _load(self, mech: CamMechanism, theta: FloatArray) -> TorqueTerms:
         """(J(θ), ½J′(θ), weight term) at the sun bar for angles θ (array)."""
         m, a, big = self.tip_mass, mech.a, mech.total
         c, s = np.cos(theta), np.sin(theta)
         inertia = self.bar_inertia + m * (a * a * c * c + big * big * s * s)
         return inertia, m * (big * big - a * a) * s * c, -m * GRAVITY * big * s
 
-    def torque_terms(self, mech, theta):
+    def torque_terms(self, mech: CamMechanism, theta: FloatArray) -> TorqueTerms:
         """Per angle θ (array): (k_α, k_ω, g) with motor torque T_m = k_α·α + k_ω·ω² + g."""
         through = self.gear_ratio * self.gearbox_efficiency
         inertia, half_slope, weight = self._load(mech, theta)
@@ -145,7 +156,8 @@ class DriveLimits:
             + inertia / through
         return k_alpha, half_slope / through, weight / through
 
-    def sun_bar_torque(self, mech, theta, omega, alpha):
+    def sun_bar_torque(self, mech: CamMechanism, theta: FloatArray, omega: FloatArray,
+                       alpha: FloatArray) -> FloatArray:
         """Torque at the sun bar (the gearbox output), N·m."""
         inertia, half_slope, weight = self._load(mech, theta)
         return inertia * alpha + half_slope * omega ** 2 + weight
@@ -163,7 +175,7 @@ class EffectiveLimits:
     rms_torque: float
     torque_acceleration: float      # α the peak torque gives at the largest inertia
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, float | None]:
         return {'sun_bar_speed': self.speed, 'sun_bar_acceleration': self.acceleration or None,
                 'sun_bar_jerk': self.jerk, 'motor_peak_torque': self.torque,
                 'motor_rms_torque': self.rms_torque,
@@ -182,22 +194,22 @@ class LoadFigures:
     peak_torque: float              # N·m, motor
     rms_torque: float               # N·m, motor, over one plant
     peak_sun_bar_torque: float      # N·m, gearbox output
-    utilisation: dict
+    utilisation: dict[str, float]   # limit (LIMIT_NAMES) -> peak / limit
 
     @property
-    def feasible(self):
+    def feasible(self) -> bool:
         return all(u <= 1.0 + 1e-9 for u in self.utilisation.values())
 
     @property
-    def binding(self):
+    def binding(self) -> str:
         """The limit closest to (or furthest beyond) its value."""
-        return max(self.utilisation, key=self.utilisation.get)
+        return max(self.utilisation, key=lambda name: self.utilisation[name])
 
     @property
-    def exceeded(self):
+    def exceeded(self) -> list[str]:
         return [k for k in LIMIT_NAMES if self.utilisation.get(k, 0.0) > 1.0 + 1e-9]
 
-    def limit_text(self, name=None):
+    def limit_text(self, name: str | None = None) -> str:
         """One limit's figure against the limit in words, e.g. 'sun-bar speed 37.7 rad/s over
         its limit 31.4 rad/s (120 %)' (default: the binding limit)."""
         name = name or self.binding
@@ -213,11 +225,12 @@ class LoadFigures:
         return (f'{words} {peak:.4g} {unit} {side} its limit {limit:.4g} {unit} '
                 f'({used * 100:.1f} %) at {self.ground_speed:.3g} m/s')
 
-    def over_text(self):
+    def over_text(self) -> str:
         """Every exceeded limit's `limit_text`, joined ('' when within every limit)."""
         return '; '.join(self.limit_text(name) for name in self.exceeded)
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready (numbers, the utilisations by limit, the binding limit's name)."""
         return {'ground_speed': self.ground_speed, 'peak_sun_bar_speed': self.peak_speed,
                 'peak_sun_bar_acceleration': self.peak_acceleration,
                 'peak_sun_bar_jerk': self.peak_jerk, 'peak_motor_torque': self.peak_torque,
@@ -238,18 +251,20 @@ _FACTORS = [np.array([1., 1., 1., 1., 1., 1.]), np.array([1., 2., 3., 4., 5.]),
             np.array([2., 6., 12., 20.]), np.array([6., 24., 60.])]
 
 
-def _derivative(coeffs, x, order):
+def _derivative(coeffs: FloatArray, x: FloatArray, order: int) -> FloatArray:
     """The `order`-th derivative of degree-5 pieces `coeffs` (rows) at local abscissae x."""
     c = coeffs[:, order:] * _FACTORS[order]
-    out = c[:, -1].copy()
+    out: FloatArray = c[:, -1].copy()
     for j in range(c.shape[1] - 2, -1, -1):
         out = out * x + c[:, j]
     return out
 
 
-def _derivatives(coeffs, x):
+def _derivatives(coeffs: FloatArray,
+                 x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """θ, θ′, θ″, θ‴ of degree-5 pieces `coeffs` (rows) at local abscissae x (same length)."""
-    return tuple(_derivative(coeffs, x, order) for order in range(4))
+    return (_derivative(coeffs, x, 0), _derivative(coeffs, x, 1), _derivative(coeffs, x, 2),
+            _derivative(coeffs, x, 3))
 
 
 class LoadSamples:
@@ -262,7 +277,9 @@ class LoadSamples:
     one plant: the whole stretch (`spacing` long, a periodic profile's period) or, with
     `windows` ((start, end) pairs of r), the largest over those plants (a transition)."""
 
-    def __init__(self, period, spacing, mech, drive, windows=None):
+    def __init__(self, period: Piecewise, spacing: float, mech: CamMechanism,
+                 drive: 'DriveLimits',
+                 windows: Sequence[tuple[float, float]] | None = None) -> None:
         n = SAMPLES_PER_PIECE
         t = np.linspace(0.0, 1.0, n)
         b = period.breaks
@@ -284,10 +301,10 @@ class LoadSamples:
         self.limits = drive.effective(mech)
         self.k_alpha, self.k_omega, self.gravity = drive.torque_terms(mech, self.theta)
 
-    def torque(self, v):
+    def torque(self, v: float) -> FloatArray:
         return v * v * (self.k_alpha * self.d2 + self.k_omega * self.d1 ** 2) + self.gravity
 
-    def _rms(self, torque):
+    def _rms(self, torque: FloatArray) -> float:
         """The RMS of the torque samples over one plant (the largest of the windows)."""
         square = torque * torque
         if self.windows is None:
@@ -299,7 +316,8 @@ class LoadSamples:
         return max(math.sqrt(max(e - a, 0.0) / (w1 - w0))
                    for (a, e), (w0, w1) in zip(zip(ends[::2], ends[1::2]), self.windows))
 
-    def _peak(self, sampled, value):
+    def _peak(self, sampled: FloatArray,
+              value: Callable[[NDArray[np.intp], FloatArray], FloatArray]) -> float:
         """The continuous maximum of |value(piece, x)| over every piece, from the samples'
         |values| `sampled`: each piece's best sample bracketed by its neighbours, then a
         golden-section search in the bracket (all pieces at once)."""
@@ -327,19 +345,19 @@ class LoadSamples:
             f1, f2 = np.where(right, f2, f_new), np.where(right, f_new, f1)
         return float(max(top, np.max(f1), np.max(f2)))
 
-    def figures(self, v):
+    def figures(self, v: float) -> LoadFigures:
         lim = self.limits
         omega, alpha = v * self.d1, v * v * self.d2
         torque = self.torque(v)
         rms = self._rms(torque)
         drive, mech = self.drive, self.mech
 
-        def motor_torque(index, x):
+        def motor_torque(index: NDArray[np.intp], x: FloatArray) -> FloatArray:
             th, d1, d2 = (_derivative(c[index], x, k) for k in range(3))
             k_alpha, k_omega, gravity = drive.torque_terms(mech, th)
             return v * v * (k_alpha * d2 + k_omega * d1 ** 2) + gravity
 
-        def sun_torque(index, x):
+        def sun_torque(index: NDArray[np.intp], x: FloatArray) -> FloatArray:
             th, d1, d2 = (_derivative(c[index], x, k) for k in range(3))
             return drive.sun_bar_torque(mech, th, v * d1, v * v * d2)
 
@@ -358,7 +376,7 @@ class LoadSamples:
         return LoadFigures(v, peak['speed'], peak['acceleration'], peak['jerk'], peak['torque'],
                            rms, sun_peak, util)
 
-    def top_speed(self):
+    def top_speed(self) -> tuple[float, str]:
         """The largest steady ground speed at which this (fixed) motion meets every limit,
         with the limit that stops it: (m/s, name). 0 if even a standstill does not (the
         mechanism's weight alone over the torque limit)."""
@@ -387,5 +405,5 @@ class LoadSamples:
         if qa > 0:
             u = (-qb + math.sqrt(qb * qb - 4 * qa * qc)) / (2 * qa)
             speeds['rms torque'] = math.sqrt(max(u, 0.0))
-        name = min(speeds, key=speeds.get)
+        name = min(speeds, key=lambda limit: speeds[limit])
         return speeds[name], name

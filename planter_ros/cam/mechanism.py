@@ -31,7 +31,9 @@ Pure numpy: no ROS.
 
 from dataclasses import dataclass
 import math
+from typing import Protocol
 
+from planter_ros.kinematics.arrays import Floats
 from planter_ros.kinematics.five_bar import (
     TWO_PI, bars_depth_angle, hole_geometry, soil_trajectory)
 from planter_ros.kinematics.planting import FiveBarPlanting
@@ -47,7 +49,21 @@ RULES = ('design_speed', 'zero_slip')
 _MIN_SLOPE = 1e-6
 
 
-def _finite_positive(name, value, unit):
+class _Bars(Protocol):
+    """A five-bar design as `CamMechanism.from_design` reads it (lengths in m; one design:
+    an array holds one value)."""
+
+    @property
+    def l1(self) -> Floats: ...
+
+    @property
+    def l2(self) -> Floats: ...
+
+    @property
+    def depth(self) -> Floats: ...
+
+
+def _finite_positive(name: str, value: object, unit: str) -> float:
     if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
         raise CamInputError(name, value, f'finite and > 0 {unit}')
     return float(value)
@@ -63,10 +79,10 @@ class CamMechanism:
     depth: float
     nozzle_width: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ('l1', 'l2', 'depth'):
             object.__setattr__(self, name, _finite_positive(name, getattr(self, name), 'm'))
-        w = self.nozzle_width
+        w: object = self.nozzle_width          # checked: the caller's value, of any type
         if not (isinstance(w, (int, float)) and math.isfinite(w) and w >= 0):
             raise CamInputError('nozzle_width', w, 'finite and >= 0 m')
         object.__setattr__(self, 'nozzle_width', float(w))
@@ -77,36 +93,36 @@ class CamMechanism:
                                 f'{2 * (self.l1 + self.l2):.6g} m')
 
     @classmethod
-    def from_design(cls, design, nozzle_width=0.0):
+    def from_design(cls, design: _Bars, nozzle_width: float = 0.0) -> 'CamMechanism':
         """From the five-bar core's design (`five_bar.FiveBarDesign`, scalar) or any object
         with l1, l2 and depth in m."""
         return cls(float(design.l1), float(design.l2), float(design.depth), nozzle_width)
 
     @property
-    def a(self):
+    def a(self) -> float:
         """l2 − l1 (m): the tip's speed in the frame at the bottom is a·θ′ backwards."""
         return self.l2 - self.l1
 
     @property
-    def total(self):
+    def total(self) -> float:
         return self.l1 + self.l2
 
     @property
-    def psi(self):
+    def psi(self) -> float:
         """Half the sun-bar angle spent in the soil (rad): entry at π − ψ, exit at π + ψ."""
         return bars_depth_angle(self.l1, self.l2, self.depth)
 
     @property
-    def design_spacing(self):
+    def design_spacing(self) -> float:
         """The spacing this mechanism plants at zero speed turning at constant speed, 2π·a."""
         return TWO_PI * self.a
 
     @property
-    def design_hole(self):
+    def design_hole(self) -> float:
         """The tip sweep at its own zero-speed ratio (m): the hole it was designed for."""
         return float(hole_geometry(self.l1, self.l2, self.depth, self.a).width)
 
-    def tip(self, theta, s):
+    def tip(self, theta: Floats, s: Floats) -> tuple[Floats, Floats]:
         """Tip in the soil frame (m) at sun-bar angle θ and travelled distance s (arrays)."""
         x, y = soil_trajectory(self.l1, self.l2, theta, 0.0)
         return x + s, y
@@ -121,7 +137,7 @@ class SoilLaw:
     advance: float
     name: str = ''
 
-    def check(self, mech):
+    def check(self, mech: CamMechanism) -> 'SoilLaw':
         """Refuse a law that does not move forward over the whole in-soil arc (exact zero slip
         with the soil surface at or above the sun-bar axis, ψ ≥ π/2)."""
         slowest = self.zero_slip * mech.a * math.cos(mech.psi) + self.advance
@@ -131,20 +147,20 @@ class SoilLaw:
                                 'backwards in the frame over the whole in-soil arc')
         return self
 
-    def distance(self, mech, phi):
+    def distance(self, mech: CamMechanism, phi: float) -> float:
         """s(φ) (m): distance travelled from the planting instant to sun-bar angle π + φ."""
         return self.zero_slip * mech.a * math.sin(phi) + self.advance * phi
 
-    def derivatives(self, mech, phi):
+    def derivatives(self, mech: CamMechanism, phi: float) -> tuple[float, float, float]:
         """(s′, s″, s‴)(φ) in m/rad, m/rad², m/rad³."""
         za = self.zero_slip * mech.a
         return (za * math.cos(phi) + self.advance, -za * math.sin(phi), -za * math.cos(phi))
 
-    def half_length(self, mech):
+    def half_length(self, mech: CamMechanism) -> float:
         """Distance from the planting instant to the soil exit (= from the entry to it), m."""
         return self.distance(mech, mech.psi)
 
-    def angle_derivatives(self, mech, phi):
+    def angle_derivatives(self, mech: CamMechanism, phi: float) -> tuple[float, float, float]:
         """(θ′, θ″, θ‴) at φ: the derivatives of the inverse function θ(s)."""
         s1, s2, s3 = self.derivatives(mech, phi)
         d1 = 1.0 / s1
@@ -152,13 +168,13 @@ class SoilLaw:
         d3 = (3.0 * s2 * s2 - s1 * s3) * d1 ** 5
         return d1, d2, d3
 
-    def edge_state(self, mech, side):
+    def edge_state(self, mech: CamMechanism, side: float) -> tuple[float, float, float]:
         """(θ, θ′, θ″) at the soil exit (side = +1) or entry (side = −1), θ of the plant at π."""
         phi = side * mech.psi
         d1, d2, _ = self.angle_derivatives(mech, phi)
         return math.pi + phi, d1, d2
 
-    def tip_sweep(self, mech):
+    def tip_sweep(self, mech: CamMechanism) -> float:
         """The tip's swept extent along the row in the soil (m), closed form (module doc)."""
         a_eff = (1.0 - self.zero_slip) * mech.a
         if a_eff == 0.0 and self.advance == 0.0:
@@ -167,38 +183,38 @@ class SoilLaw:
         return float(hole_geometry(0.5 * mech.total - half, 0.5 * mech.total + half,
                                    mech.depth, self.advance).width)
 
-    def hole_width(self, mech):
+    def hole_width(self, mech: CamMechanism) -> float:
         return self.tip_sweep(mech) + mech.nozzle_width
 
-    def climb_advance(self, mech, psi=None):
+    def climb_advance(self, mech: CamMechanism, psi: float | None = None) -> float:
         """Mean advance over the climb from the planting instant to the soil exit, Δs/ψ
         (m/rad): what the tilt model's v/ω means when ω is not constant."""
         psi = mech.psi if psi is None else psi
         return self.distance(mech, psi) / psi
 
-    def tilt(self, mech):
+    def tilt(self, mech: CamMechanism) -> float:
         """The seedling's tilt from vertical (rad, + = top leaning forward) by the monitor's
         tilt model (`kinematics.planting`), fed this law's exit climb."""
         model = FiveBarPlanting(mech.l1, mech.l2, mech.depth, mech.design_spacing,
                                 nozzle_width=mech.nozzle_width)
         return float(model.tilt(self.climb_advance(mech, model.exit_angle)))
 
-    def blend(self, other, beta):
+    def blend(self, other: 'SoilLaw', beta: float) -> 'SoilLaw':
         """β·self + (1 − β)·other (both coefficients): β = 1 is this law, 0 the other."""
         return SoilLaw(beta * self.zero_slip + (1.0 - beta) * other.zero_slip,
                        beta * self.advance + (1.0 - beta) * other.advance,
                        f'{self.name} blended {beta:.4g} with {other.name}')
 
-    def same_as(self, other):
+    def same_as(self, other: 'SoilLaw') -> bool:
         return self.zero_slip == other.zero_slip and self.advance == other.advance
 
 
-def constant_law(spacing):
+def constant_law(spacing: float) -> SoilLaw:
     """Constant sun-bar speed at spacing d: one revolution per d."""
     return SoilLaw(0.0, spacing / TWO_PI, 'constant speed')
 
 
-def rule_law(mech, rule):
+def rule_law(mech: CamMechanism, rule: str) -> SoilLaw:
     """The in-soil law of a cam rule: 'design_speed' or 'zero_slip'."""
     if rule == 'design_speed':
         return SoilLaw(0.0, mech.a, 'design-speed rule')
