@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from planter_ros.cam import (CamInputError, CamMechanism, DriveLimits, build_profile,
+from planter_ros.cam import (CamInputError, CamMechanism, CamSpec, DriveLimits, build_profile,
                              constant_law, constant_profile, plan_cam, rule_law,
                              rule_top_speed, sampled_tip_sweep)
 from planter_ros.cam.drive import GRAVITY
@@ -121,8 +121,8 @@ def test_the_sweep_is_the_five_bar_hole_and_the_tilt_the_monitors_model(mech):
     # a blend's sweep, in closed form, against the sampled tip path
     zero, design = rule_law(mech, 'zero_slip'), rule_law(mech, 'design_speed')
     for beta, other in ((0.3, design), (0.6, constant_law(0.4))):
-        p = build_profile(mech, 0.4, zero.blend(other, beta), 0.3, DriveLimits(), 'zero_slip',
-                          beta)
+        p = build_profile(CamSpec(mech, 0.4, 0.3, DriveLimits(), 'zero_slip'),
+                          zero.blend(other, beta), beta)
         assert abs(sampled_tip_sweep(p) - p.tip_sweep) <= 5e-7
 
 
@@ -133,8 +133,8 @@ def test_the_zero_slip_edge_acceleration_is_the_issues_991_v2(mech):
     psi, a = m20.psi, m20.a
     edge = math.sin(psi) / (a * a * math.cos(psi) ** 3)
     assert 985 < edge < 995
-    p = build_profile(m20, 0.3, rule_law(m20, 'zero_slip'), 0.3, DriveLimits(), 'zero_slip',
-                      1.0)
+    p = build_profile(CamSpec(m20, 0.3, 0.3, DriveLimits(), 'zero_slip'),
+                      rule_law(m20, 'zero_slip'), 1.0)
     for v in (0.2, 0.3, 0.5):
         assert p.figures(v).peak_acceleration == pytest.approx(edge * v * v, rel=1e-6)
 
@@ -188,7 +188,7 @@ def test_a_tight_limit_is_reported_and_the_closest_feasible_profile_returned(mec
     assert plan.figures.utilisation['speed'] == pytest.approx(BLEND_HEADROOM, abs=2e-3)
     # closer to the rule leaves less: the next β up passes the headroom
     law = rule_law(mech, 'design_speed').blend(constant_law(0.3), plan.blend + 2e-3)
-    above = build_profile(mech, 0.3, law, 0.6, drive, 'design_speed', plan.blend + 2e-3)
+    above = build_profile(CamSpec(mech, 0.3, 0.6, drive, 'design_speed'), law, plan.blend + 2e-3)
     assert above.figures(0.6).utilisation['speed'] > BLEND_HEADROOM
     # its sweep and tilt lie between the rule's and constant speed's
     const = constant_profile(mech, 0.3, drive)
@@ -217,8 +217,8 @@ def test_the_top_speed_of_a_rule_is_where_its_limit_binds(mech):
         v, limit = rule_top_speed(mech, 0.3, rule, DriveLimits())
         assert 0.1 < v < 3.0
         law = rule_law(mech, rule)
-        at = build_profile(mech, 0.3, law, v, DriveLimits(), rule, 1.0).figures(v)
-        beyond = build_profile(mech, 0.3, law, 1.03 * v, DriveLimits(), rule,
+        at = build_profile(CamSpec(mech, 0.3, v, DriveLimits(), rule), law, 1.0).figures(v)
+        beyond = build_profile(CamSpec(mech, 0.3, 1.03 * v, DriveLimits(), rule), law,
                                1.0).figures(1.03 * v)
         assert at.feasible and not beyond.feasible
         assert limit in beyond.exceeded

@@ -11,8 +11,8 @@ import re
 import numpy as np
 import pytest
 
-from planter_ros.cam import (CamLimitError, CamMechanism, CamTrack, DriveLimits, build_profile,
-                             constant_law, plan_cam)
+from planter_ros.cam import (CamLimitError, CamMechanism, CamSpec, CamTrack, DriveLimits,
+                             build_profile, constant_law, plan_cam)
 from planter_ros.cam.track import plan_transition
 from planter_ros.control.cam_law import plan_for_design, plan_row_cam
 from planter_ros.kinematics.five_bar import design_five_bar
@@ -145,7 +145,7 @@ def test_a_change_one_arc_cannot_make_is_spread_over_more_plants():
     # from constant speed at 0.8 m (a long soil arc) to the design-speed cam at 0.15 m at
     # 0.3 m/s: one out-of-soil arc would need the sun bar at 40 rad/s (limit 31.4)
     drive = DriveLimits()
-    old = build_profile(MECH, 0.8, constant_law(0.8), 0.3, drive, 'constant', 0.0)
+    old = build_profile(CamSpec(MECH, 0.8, 0.3, drive, 'constant'), constant_law(0.8), 0.0)
     new = plan_cam(MECH, 0.15, 0.3, drive, 'design_speed', top_speeds=False).profile
     transition = plan_transition(old, new)
     assert transition.plants >= 2
@@ -169,7 +169,7 @@ def test_a_change_one_arc_cannot_make_is_spread_over_more_plants():
 
 def test_a_change_nothing_brings_within_the_drive_is_refused_and_the_track_kept():
     drive = DriveLimits(gear_ratio=30.0)
-    old = build_profile(MECH, 1.2, constant_law(1.2), 0.4, drive, 'constant', 0.0)
+    old = build_profile(CamSpec(MECH, 1.2, 0.4, drive, 'constant'), constant_law(1.2), 0.0)
     new = plan_cam(MECH, 0.15, 0.4, drive, 'design_speed', top_speeds=False).profile
     track = CamTrack(old)
     before = track.values(np.linspace(0.0, 5.0, 1001))

@@ -10,6 +10,7 @@ from cli_helpers import REPO
 # The packages and modules mypy passes with 0 errors (strict on the pure core: mypy.ini). A
 # package joins this list in the commit that brings it to 0; the goal is all of planter_ros.
 TYPE_CHECKED = (
+    'planter_ros/cam',
     'planter_ros/kinematics',
     'planter_ros/prediction',
     'planter_ros/design',

@@ -12,11 +12,11 @@ evaluation).
 from .drive import DRIVE_SOURCE, DriveLimits, LoadFigures, sun_bar_motion
 from .errors import CamError, CamInputError, CamLimitError, CamPlanningError
 from .mechanism import RULES, CamMechanism, SoilLaw, constant_law, rule_law
-from .plan import (CamPlan, CamProfile, build_profile, constant_profile, plan_cam,
+from .plan import (CamPlan, CamProfile, CamSpec, build_profile, constant_profile, plan_cam,
                    rule_top_speed, sampled_tip_sweep)
 from .track import CamTrack
 
 __all__ = ['CamError', 'CamInputError', 'CamLimitError', 'CamPlanningError', 'CamMechanism',
            'SoilLaw', 'RULES', 'rule_law', 'constant_law', 'DriveLimits', 'DRIVE_SOURCE',
-           'LoadFigures', 'CamProfile', 'CamPlan', 'plan_cam', 'build_profile', 'constant_profile',
-           'rule_top_speed', 'sampled_tip_sweep', 'CamTrack', 'sun_bar_motion']
+           'LoadFigures', 'CamSpec', 'CamProfile', 'CamPlan', 'plan_cam', 'build_profile',
+           'constant_profile', 'rule_top_speed', 'sampled_tip_sweep', 'CamTrack', 'sun_bar_motion']

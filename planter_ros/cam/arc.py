@@ -28,14 +28,20 @@ keeps `MARGIN` inside its limit. The end equalities are then closed to round-off
 correction of two interior knots.
 """
 
+from collections.abc import Callable
+from dataclasses import dataclass
 import math
 
 import numpy as np
+from numpy.typing import NDArray
 
+from planter_ros.kinematics.arrays import FloatArray
+
+from .drive import EffectiveLimits, TorqueTerms
 from .errors import CamPlanningError
-from .piecewise import Piecewise
+from .piecewise import Piecewise, State
 
-__all__ = ['plan_arc', 'ARC_PIECES']
+__all__ = ['plan_arc', 'straight_arc', 'ArcEnds', 'ARC_PIECES']
 
 ARC_PIECES = 64
 LINEARISATIONS = 4
@@ -47,15 +53,26 @@ SPEED_SUBSTEPS = 1           # parts of a step the speed's convex hull is taken 
 END_STEPS = 8                # fine steps where an end's θ″ must be turned round (`_grid`)
 
 
-def _grid(length, n, start, end, jerk_per_m3):
+@dataclass(frozen=True)
+class ArcEnds:
+    """What an out-of-soil arc joins: `length` (m) of row from the state `start` to the state
+    `end`, (θ, θ′, θ″) each (rad, rad/m, rad/m²)."""
+
+    length: float
+    start: State
+    end: State
+
+
+def _grid(ends: ArcEnds, n: int, jerk_per_m3: float) -> FloatArray:
     """The knots' steps (n of them, summing to `length`): equal, except where an end state
     has a large θ″: the jerk limit then needs the distance λ = |θ″|/j (j the jerk limit in
     rad/m³ at the planning speed) to turn it round, and a coarse first step lets the speed
     overshoot meanwhile (a soil exit near the speed limit: 0.2 % over it). There `END_STEPS`
     steps cover 2λ (at most a quarter of the arc), the rest are equal."""
+    length = ends.length
     uniform = length / n
     fine = []
-    for state in (start, end):
+    for state in (ends.start, ends.end):
         ramp = abs(state[2]) / jerk_per_m3
         fine.append(min(2.0 * ramp, 0.25 * length) if ramp > uniform / END_STEPS else 0.0)
     counts = [END_STEPS if f else 0 for f in fine]
@@ -65,7 +82,7 @@ def _grid(length, n, start, end, jerk_per_m3):
                     + [fine[1] / END_STEPS] * counts[1])
 
 
-def _integrals(h):
+def _integrals(h: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Matrices B, C with θ′_j = θ′_0 + B[j]·x and θ_j = θ_0 + θ′_0·s_j + C[j]·x for knot
     values x of θ″ (piecewise linear), steps h (array)."""
     n = h.size
@@ -82,7 +99,7 @@ def _integrals(h):
     return b, c
 
 
-def _speed_hull(bm, h, parts):
+def _speed_hull(bm: FloatArray, h: FloatArray, parts: int) -> FloatArray:
     """Rows R with R·x + θ′_0 = every Bernstein coefficient of θ′ on `parts` equal parts of
     every step (the parts' start values and middle coefficients; the ends are knots): θ′
     on step i is θ′_i + x_i τ + (x_(i+1) − x_i) τ²/(2h_i)."""
@@ -101,7 +118,8 @@ def _speed_hull(bm, h, parts):
     return np.vstack(out)
 
 
-def _integrate(x, h, theta0, d0):
+def _integrate(x: FloatArray, h: FloatArray, theta0: float,
+               d0: float) -> tuple[FloatArray, FloatArray]:
     """θ and θ′ at the knots from the knot values of θ″ (the cubic pieces' own recurrence),
     steps h (array)."""
     n = x.size - 1
@@ -115,7 +133,7 @@ def _integrate(x, h, theta0, d0):
     return th, d1
 
 
-def _close(x, h, start, end):
+def _close(x: FloatArray, h: FloatArray, start: State, end: State) -> FloatArray:
     """Move two interior knots so θ′ and θ at the far end match `end` to round-off."""
     n = x.size - 1
     j1, j2 = max(1, n // 3), max(2, (2 * n) // 3)
@@ -136,25 +154,33 @@ def _close(x, h, start, end):
     return x
 
 
-def _quintic_guess(length, start, end, knots):
+def _quintic_guess(ends: ArcEnds, knots: FloatArray) -> tuple[FloatArray, FloatArray]:
     """θ, θ′ at the knots of the quintic that meets both end states (the first linearisation
     point of the torque)."""
+    # lazy: scipy.interpolate costs 0.39 s (python -X importtime); only planning needs it, not
+    # the command process, which imports the cam to run planned profiles
     from scipy.interpolate import BPoly
-    poly = BPoly.from_derivatives([0.0, length], [list(start), list(end)])
+    poly = BPoly.from_derivatives([0.0, ends.length], [list(ends.start), list(ends.end)])
     return poly(knots), poly(knots, 1)
 
 
-def plan_arc(length, start, end, speed, limits, torque_terms, pieces=ARC_PIECES):
-    """A C2 arc of `length` (m) from state `start` to `end` ((θ, θ′, θ″) each), planned for
+def plan_arc(ends: ArcEnds, speed: float, limits: EffectiveLimits,
+             torque_terms: Callable[[FloatArray], TorqueTerms],
+             pieces: int = ARC_PIECES) -> tuple[Piecewise, float]:
+    """A C2 arc over `ends` (its length, m, from state `start` to `end`), planned for
     ground speed `speed` (m/s) against `limits` (drive.EffectiveLimits); `torque_terms(θ)`
     gives (k_α, k_ω, g) of the motor torque. Returns (Piecewise over [0, length], t) with t the
     largest utilisation at the knots."""
+    # lazy: scipy.optimize costs 0.28 s (python -X importtime): only planning needs it, not
+    # the command process, which imports the cam to run planned profiles
     from scipy.optimize import linprog
-    from scipy.sparse import csr_matrix, vstack
+    from scipy.sparse import csr_matrix, vstack  # lazy: 0.13 s, the same reason
+
+    length, start, end = ends.length, ends.start, ends.end
 
     n = int(pieces)
     v = float(speed)
-    h = _grid(length, n, start, end, limits.jerk / max(v, 1e-3) ** 3)
+    h = _grid(ends, n, limits.jerk / max(v, 1e-3) ** 3)
     knots = np.concatenate(([0.0], np.cumsum(h)))
     knots[-1] = length
     bm, cm = _integrals(h)
@@ -172,11 +198,13 @@ def plan_arc(length, start, end, speed, limits, torque_terms, pieces=ARC_PIECES)
     eq[0, :n + 1] = bm[n]
     eq[1, :n + 1] = cm[n]
     eq_rhs = [end[1] - start[1], end[0] - start[0] - start[1] * length]
-    bounds = [(None, None)] * (n + 1) + [(0.0, None)] * (5 + n)
+    bounds: list[tuple[float | None, float | None]] = \
+        [(None, None)] * (n + 1) + [(0.0, None)] * (5 + n)
     bounds[0] = (start[2], start[2])
     bounds[n] = (end[2], end[2])
 
-    def rows(block_x, col=None, coef=None, col_e=None):
+    def rows(block_x: FloatArray, col: int | None = None, coef: float | None = None,
+             col_e: FloatArray | None = None) -> FloatArray:
         m = block_x.shape[0]
         full = np.zeros((m, nv))
         full[:, :n + 1] = block_x
@@ -186,10 +214,11 @@ def plan_arc(length, start, end, speed, limits, torque_terms, pieces=ARC_PIECES)
             full[:, ie:] = col_e
         return full
 
-    def free(block_x):
+    def free(block_x: FloatArray) -> NDArray[np.bool_]:
         """The rows of a block that move with the free knots (1..n−1): a row fixed by the
         end states alone is what it is, and must not force the utilisation up."""
-        return np.any(block_x[:, 1:n] != 0.0, axis=1)
+        moving: NDArray[np.bool_] = np.any(block_x[:, 1:n] != 0.0, axis=1)
+        return moving
 
     fixed_rows, fixed_rhs = [], []
     # each peak below t (the acceleration's only where it is a limit: without one it is
@@ -230,9 +259,9 @@ def plan_arc(length, start, end, speed, limits, torque_terms, pieces=ARC_PIECES)
     a_fixed = csr_matrix(np.vstack(fixed_rows))
     b_fixed = np.concatenate(fixed_rhs)
 
-    theta_k, d1_k = _quintic_guess(length, start, end, knots)
-    x = None
-    for _ in range(LINEARISATIONS):
+    def solve(theta_k: FloatArray, d1_k: FloatArray) -> tuple[FloatArray, float]:
+        """The knot values of θ″ with the torque linearised about θ_k, θ′_k (closed to the end
+        states), and t."""
         k_alpha, k_omega, g = torque_terms(theta_k)
         # T = v² k_α x + v² k_ω (2 p θ′ − p²) + g, θ′ = θ′0 + B x
         lin = v * v * (np.diag(k_alpha) + (2.0 * k_omega * d1_k)[:, None] * bm)
@@ -242,29 +271,35 @@ def plan_arc(length, start, end, speed, limits, torque_terms, pieces=ARC_PIECES)
                        rows(-lin, itq, -MARGIN * limits.torque)]
         a_ub = vstack([a_fixed, csr_matrix(np.vstack(torque_rows))])
         b_ub = np.concatenate([b_fixed, -const, const])
-        res = linprog(cost, A_ub=a_ub, b_ub=b_ub, A_eq=eq, b_eq=eq_rhs, bounds=bounds,
-                      method='highs')
-        if res.status != 0:
+        # scipy-stubs type A_ub as dense only; HiGHS takes a sparse matrix (documented,
+        # scipy/optimize/_linprog_highs.py: issparse)
+        res = linprog(cost, A_ub=a_ub, b_ub=b_ub,  # type: ignore[call-overload]
+                      A_eq=eq, b_eq=eq_rhs, bounds=bounds, method='highs')
+        if res.status != 0 or res.x is None:
             raise CamPlanningError(f'out-of-soil arc of {length:.6g} m: the linear programme '
                                    f'failed ({res.message})')
-        x_new = np.array(res.x[:n + 1])
+        x_new = np.array(res.x[:n + 1], dtype=np.float64)
         x_new[0], x_new[n] = start[2], end[2]
-        x_new = _close(x_new, h, start, end)
-        theta_new, d1_new = _integrate(x_new, h, start[0], start[1])
-        done = x is not None and np.max(np.abs(x_new - x)) <= 1e-9 * max(np.max(np.abs(x)), 1.0)
-        x, theta_k, d1_k = x_new, theta_new, d1_new
+        return _close(x_new, h, start, end), float(res.x[it])
+
+    x, t = solve(*_quintic_guess(ends, knots))
+    for _ in range(LINEARISATIONS - 1):
+        x_new, t = solve(*_integrate(x, h, start[0], start[1]))
+        done = np.max(np.abs(x_new - x)) <= 1e-9 * max(np.max(np.abs(x)), 1.0)
+        x = x_new
         if done:
             break
     th, d1 = _integrate(x, h, start[0], start[1])
     coeffs = np.column_stack([th[:-1], d1[:-1], 0.5 * x[:-1], (x[1:] - x[:-1]) / (6.0 * h)])
     if not np.all(np.isfinite(coeffs)):
         raise CamPlanningError(f'out-of-soil arc of {length:.6g} m: non-finite result')
-    return Piecewise(knots, coeffs), float(res.x[it])
+    return Piecewise(knots, coeffs), t
 
 
-def straight_arc(length, start, end):
+def straight_arc(ends: ArcEnds) -> Piecewise | None:
     """The arc when both ends already lie on one straight line θ = θ0 + θ′·s (constant speed):
     one linear piece, or None if they do not (to round-off)."""
+    length, start, end = ends.length, ends.start, ends.end
     rate = start[1]
     if start[2] != 0.0 or end[2] != 0.0 or end[1] != rate:
         return None

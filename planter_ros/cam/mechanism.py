@@ -49,7 +49,7 @@ RULES = ('design_speed', 'zero_slip')
 _MIN_SLOPE = 1e-6
 
 
-class _Bars(Protocol):
+class BarsAndDepth(Protocol):
     """A five-bar design as `CamMechanism.from_design` reads it (lengths in m; one design:
     an array holds one value)."""
 
@@ -93,7 +93,7 @@ class CamMechanism:
                                 f'{2 * (self.l1 + self.l2):.6g} m')
 
     @classmethod
-    def from_design(cls, design: _Bars, nozzle_width: float = 0.0) -> 'CamMechanism':
+    def from_design(cls, design: BarsAndDepth, nozzle_width: float = 0.0) -> 'CamMechanism':
         """From the five-bar core's design (`five_bar.FiveBarDesign`, scalar) or any object
         with l1, l2 and depth in m."""
         return cls(float(design.l1), float(design.l2), float(design.depth), nozzle_width)

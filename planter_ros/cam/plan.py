@@ -10,20 +10,25 @@ constant speed), β maximised under the limits, and reports which limit binds an
 ground speed each rule (exact zero slip, the design-speed rule) holds at this spacing.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 import math
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from planter_ros.kinematics.five_bar import TWO_PI
+from planter_ros.config import coerce, spec_of
+from planter_ros.kinematics.arrays import FloatArray
+from planter_ros.kinematics.design_inputs import DesignInputs
+from planter_ros.kinematics.five_bar import TWO_PI, soil_trajectory
 
-from .arc import ARC_PIECES, plan_arc, straight_arc
+from .arc import ARC_PIECES, ArcEnds, plan_arc, straight_arc
 from .drive import DriveLimits, LoadFigures, LoadSamples
 from .errors import CamInputError, CamPlanningError
-from .mechanism import RULES, CamMechanism, constant_law, rule_law
-from .piecewise import Piecewise
+from .mechanism import RULES, BarsAndDepth, CamMechanism, SoilLaw, constant_law, rule_law
+from .piecewise import Piecewise, State
 
-__all__ = ['CamProfile', 'CamPlan', 'plan_cam', 'constant_profile', 'build_profile',
+__all__ = ['CamSpec', 'CamProfile', 'CamPlan', 'plan_cam', 'constant_profile', 'build_profile',
            'fallback_laws', 'rule_top_speed', 'rule_top_speeds', 'sampled_tip_sweep',
            'BRUTE_FORCE_SAMPLES', 'BLEND_HEADROOM', 'BLEND_STEPS', 'SPEED_RANGE']
 
@@ -39,7 +44,7 @@ _MAX_SOIL_PIECES = 4096
 
 # --- the in-soil arc -------------------------------------------------------------------------
 
-def _phi_of_distance(law, mech, u, phi0):
+def _phi_of_distance(law: SoilLaw, mech: CamMechanism, u: float, phi0: float) -> float:
     """Invert s(φ) = u by Newton's method from φ0 (s is increasing over the arc)."""
     phi = phi0
     for _ in range(50):
@@ -51,12 +56,12 @@ def _phi_of_distance(law, mech, u, phi0):
     return phi
 
 
-def quintic_hermite(x, states):
+def quintic_hermite(x: ArrayLike, states: ArrayLike) -> FloatArray:
     """Power-basis coefficients of the C2 quintic through (θ, θ′, θ″) at each x: per piece,
     c0..c2 from the left end, c3..c5 solved from the right end's deltas (so each break is met
     to round-off of θ″ itself, not of the large higher coefficients)."""
-    x = np.asarray(x, dtype=float)
-    st = np.asarray(states, dtype=float)
+    x = np.asarray(x, dtype=np.float64)
+    st = np.asarray(states, dtype=np.float64)
     h = np.diff(x)
     y0, d0, a0 = st[:-1, 0], st[:-1, 1], st[:-1, 2]
     y1, d1, a1 = st[1:, 0], st[1:, 1], st[1:, 2]
@@ -69,7 +74,7 @@ def quintic_hermite(x, states):
     return np.column_stack([y0, d0, 0.5 * a0, c3, c4, c5])
 
 
-def soil_arc(mech, law):
+def soil_arc(mech: CamMechanism, law: SoilLaw) -> Piecewise:
     """The in-soil arc θ(r) as a Piecewise, r from the soil entry (0) to the exit.
 
     Linear laws are one exact piece; others are quintic Hermite pieces through the exact θ, θ′,
@@ -82,13 +87,14 @@ def soil_arc(mech, law):
     pieces = 8
     while True:
         phi = np.linspace(-psi, psi, pieces + 1)
-        u = np.array([law.distance(mech, p) for p in phi])
-        states = [[math.pi + p, *law.angle_derivatives(mech, p)[:2]] for p in phi]
+        u = np.array([law.distance(mech, p) for p in phi.tolist()])
+        states = [[math.pi + p, *law.angle_derivatives(mech, p)[:2]] for p in phi.tolist()]
         fit = Piecewise(u + u_in, quintic_hermite(u, states))
         mid_u = 0.5 * (u[:-1] + u[1:])
         mid_phi = [_phi_of_distance(law, mech, m, 0.5 * (p0 + p1))
-                   for m, p0, p1 in zip(mid_u, phi[:-1], phi[1:])]
-        err = max(abs(fit.at(m + u_in)[0] - (math.pi + p)) for m, p in zip(mid_u, mid_phi))
+                   for m, p0, p1 in zip(mid_u.tolist(), phi[:-1].tolist(), phi[1:].tolist())]
+        err = max(abs(fit.at(m + u_in)[0] - (math.pi + p))
+                  for m, p in zip(mid_u.tolist(), mid_phi))
         if err <= SOIL_TOLERANCE:
             return fit
         if pieces >= _MAX_SOIL_PIECES:
@@ -100,26 +106,42 @@ def soil_arc(mech, law):
 
 # --- a profile -------------------------------------------------------------------------------
 
+@dataclass(frozen=True)
+class CamSpec:
+    """What a row's cam is planned for: the mechanism, the plant spacing (m), the top ground
+    speed (m/s), the drive and its limits, and the rule ('design_speed', 'zero_slip', or
+    'constant' for constant speed)."""
+
+    mech: CamMechanism
+    spacing: float
+    speed: float
+    drive: DriveLimits = field(default_factory=DriveLimits)
+    rule: str = 'design_speed'
+
+
 class CamProfile:
     """θ(s) of a row: plant k at s = k·spacing with θ = π + 2πk; periodic in the spacing.
 
     `evaluate(s)` gives (θ, θ′, θ″) in rad, rad/m, rad/m² for a scalar s (m) in a few µs:
     floats only, one bisect and Horner's rule. `period` is one plant's θ(r), r from its soil
-    entry (r = 0, s = −entry) to the next plant's entry (r = spacing)."""
+    entry (r = 0, s = −entry) to the next plant's entry (r = spacing); `law` its in-soil law,
+    `blend` β of it: 1 = the rule's law, 0 = constant speed."""
 
-    def __init__(self, mech, law, spacing, period, speed, drive, rule, blend):
-        self.mech = mech
+    def __init__(self, spec: CamSpec, law: SoilLaw, period: Piecewise, blend: float) -> None:
+        self.spec = spec
+        self.mech = spec.mech
         self.law = law
-        self.spacing = float(spacing)
+        self.spacing = float(spec.spacing)
         self.period = period
-        self.entry = law.half_length(mech)      # from the soil entry to the planting instant
-        self.speed = speed                      # ground speed it was planned for (m/s)
-        self.drive = drive
-        self.rule = rule                        # 'constant', 'design_speed' or 'zero_slip'
-        self.blend = blend                      # β: 1 = the rule's law, 0 = constant speed
-        self._samples = None
+        self.entry = law.half_length(spec.mech)   # from the soil entry to the planting instant
+        self.speed = spec.speed                   # ground speed it was planned for (m/s)
+        self.drive = spec.drive
+        self.rule = spec.rule                     # 'constant', 'design_speed' or 'zero_slip'
+        self.blend = blend                        # β: 1 = the rule's law, 0 = constant speed
+        self._samples: LoadSamples | None = None
+        self._fingerprint: str | None = None      # cam.track.fingerprint's, once computed
 
-    def evaluate(self, s):
+    def evaluate(self, s: float) -> State:
         """(θ, θ′, θ″) at travelled distance s (m), θ unwrapped."""
         d = self.spacing
         w = s + self.entry
@@ -131,60 +153,60 @@ class CamProfile:
         th, d1, d2 = self.period.at(r)
         return th + TWO_PI * k, d1, d2
 
-    def values(self, s, order=0):
+    def values(self, s: ArrayLike, order: int = 0) -> FloatArray:
         """θ (order 0) or its derivative (1..3) at an array of s (numpy)."""
-        s = np.asarray(s, dtype=float)
-        w = s + self.entry
+        w = np.asarray(s, dtype=np.float64) + self.entry
         k = np.floor(w / self.spacing)
         r = w - k * self.spacing
         out = self.period.values(r, order)
         return out + TWO_PI * k if order == 0 else out
 
-    def edge_state(self, side):
+    def edge_state(self, side: float) -> State:
         """(θ, θ′, θ″) of plant 0's soil exit (side +1, s = exit) or entry (side −1)."""
         r = self.period.end if side < 0 else 2.0 * self.entry
         th, d1, d2 = self.period.at(r)
         return th - (TWO_PI if side < 0 else 0.0), d1, d2
 
     @property
-    def loads(self):
+    def loads(self) -> LoadSamples:
         """The dense samples the load figures come from (computed once)."""
         if self._samples is None:
             self._samples = LoadSamples(self.period, self.spacing, self.mech, self.drive)
         return self._samples
 
-    def figures(self, speed):
+    def figures(self, speed: float) -> LoadFigures:
         """Peak loads and utilisations at a steady ground speed (m/s)."""
         return self.loads.figures(float(speed))
 
     @property
-    def tip_sweep(self):
+    def tip_sweep(self) -> float:
         return self.law.tip_sweep(self.mech)
 
     @property
-    def hole_width(self):
+    def hole_width(self) -> float:
         return self.law.hole_width(self.mech)
 
     @property
-    def tilt(self):
+    def tilt(self) -> float:
         return self.law.tilt(self.mech)
 
 
-def _check_spacing_speed(spacing, speed):
+def _check_spacing_speed(spacing: float, speed: float) -> None:
     """Spacing and speed in the scene's ranges (the same as the command line's)."""
-    from planter_ros.config import coerce, spec_of
-    from planter_ros.kinematics.design_inputs import DesignInputs
-    for value, field, name in ((spacing, 'plant_spacing', 'spacing'),
-                               (speed, 'nominal_ground_speed', 'speed')):
-        spec = spec_of(DesignInputs, field)
+    for value, scene_name, name in ((spacing, 'plant_spacing', 'spacing'),
+                                    (speed, 'nominal_ground_speed', 'speed')):
+        spec = spec_of(DesignInputs, scene_name)
         try:
             coerce(spec, float(value))
         except (TypeError, ValueError):         # ValueError: a ConfigError too
             raise CamInputError(name, value, spec.allowed()) from None
 
 
-def build_profile(mech, spacing, law, speed, drive, rule, blend, pieces=ARC_PIECES):
-    """The profile of `law` in the soil and a planned out-of-soil arc (module doc)."""
+def build_profile(spec: CamSpec, law: SoilLaw, blend: float,
+                  pieces: int = ARC_PIECES) -> CamProfile:
+    """The profile of `law` (β = `blend` of the rule's) in the soil and an out-of-soil arc
+    planned for `spec` (module doc)."""
+    mech, spacing, drive = spec.mech, spec.spacing, spec.drive
     half = law.half_length(mech)
     length = spacing - 2.0 * half
     if not length > 1e-6 * spacing:
@@ -194,19 +216,22 @@ def build_profile(mech, spacing, law, speed, drive, rule, blend, pieces=ARC_PIEC
     start = law.edge_state(mech, +1)
     end_th, end_d1, end_d2 = law.edge_state(mech, -1)
     end = (end_th + TWO_PI, end_d1, end_d2)
-    arc = straight_arc(length, start, end)
+    ends = ArcEnds(length, start, end)
+    arc = straight_arc(ends)
     if arc is None:
         limits = drive.effective(mech)
-        arc, _ = plan_arc(length, start, end, speed, limits,
-                          lambda th: drive.torque_terms(mech, th), pieces)
+        arc, _ = plan_arc(ends, spec.speed, limits, lambda th: drive.torque_terms(mech, th),
+                          pieces)
     period = Piecewise.join([soil, arc.shifted(2.0 * half)])
-    return CamProfile(mech, law, spacing, period, speed, drive, rule, blend)
+    return CamProfile(spec, law, period, blend)
 
 
-def constant_profile(mech, spacing, drive=None):
+def constant_profile(mech: CamMechanism, spacing: float,
+                     drive: DriveLimits | None = None) -> CamProfile:
     """Constant sun-bar speed 2π/d (today's machine), as a profile."""
     drive = DriveLimits() if drive is None else drive
-    return build_profile(mech, spacing, constant_law(spacing), 0.0, drive, 'constant', 0.0)
+    return build_profile(CamSpec(mech, spacing, 0.0, drive, 'constant'), constant_law(spacing),
+                         0.0)
 
 
 # --- planning --------------------------------------------------------------------------------
@@ -226,39 +251,40 @@ class CamPlan:
     # the rule's own (β = 1) loads at `speed`; None: its out-of-soil arc cannot be planned
     # within the drive's limits at all (the rule does not run)
     rule_figures: LoadFigures | None
-    top_speeds: dict               # rule -> (m/s, limit that stops it) for this spacing
+    top_speeds: dict[str, tuple[float, str]]  # rule -> (m/s, limit that stops it) here
 
     @property
-    def feasible(self):
+    def feasible(self) -> bool:
         return self.figures.feasible
 
     @property
-    def exact(self):
+    def exact(self) -> bool:
         """The rule itself runs (no fallback)."""
         return not self.blended_with
 
     @property
-    def rule_runs(self):
+    def rule_runs(self) -> bool:
         """The rule's own profile is within every limit."""
         return self.rule_figures is not None and self.rule_figures.feasible
 
     @property
-    def rule_exceeds(self):
+    def rule_exceeds(self) -> list[str]:
         """The limits the rule's own profile exceeds (['out-of-soil arc']: not plannable)."""
         return ['out-of-soil arc'] if self.rule_figures is None else self.rule_figures.exceeded
 
     @property
-    def rule_loads(self):
+    def rule_loads(self) -> dict[str, Any] | None:
         return None if self.rule_figures is None else self.rule_figures.as_dict()
 
     @property
-    def binding(self):
+    def binding(self) -> str:
         """Which limit binds: the rule's most exceeded limit, else the profile's closest."""
         if self.rule_figures is not None and not self.rule_figures.feasible:
             return self.rule_figures.binding
         return self.figures.binding
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready (SI)."""
         p = self.profile
         return {'rule': self.rule, 'spacing': self.spacing, 'ground_speed': self.speed,
                 'law': p.law.name, 'blend': self.blend, 'blend_of': self.blend_of,
@@ -271,7 +297,7 @@ class CamPlan:
                                for k, (v, why) in self.top_speeds.items()}}
 
 
-def fallback_laws(mech, spacing, rule):
+def fallback_laws(mech: CamMechanism, spacing: float, rule: str) -> list[SoilLaw]:
     """The laws tried, in order, when the rule cannot run: from exact zero slip first towards
     the design-speed rule (the design hole, no tilt), then towards constant speed."""
     laws = [rule_law(mech, rule)]
@@ -281,8 +307,9 @@ def fallback_laws(mech, spacing, rule):
     return laws
 
 
-def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=True,
-             pieces=ARC_PIECES):
+def plan_cam(mech: CamMechanism | BarsAndDepth, spacing: float, speed: float,
+             drive: DriveLimits | None = None, rule: str = 'design_speed',
+             top_speeds: bool = True) -> CamPlan:
     """Plan the cam for `mech` (a CamMechanism, or a five-bar design) at plant spacing
     `spacing` (m) and top ground speed `speed` (m/s) within `drive`'s limits (module doc).
 
@@ -297,49 +324,55 @@ def plan_cam(mech, spacing, speed, drive=None, rule='design_speed', top_speeds=T
     drive = DriveLimits() if drive is None else drive
     _check_spacing_speed(spacing, speed)
     spacing, speed = float(spacing), float(speed)
+    spec = CamSpec(mech, spacing, speed, drive, rule)
     laws = fallback_laws(mech, spacing, rule)
 
-    def build(law, beta):
-        """The law's profile and its figures; (None, None) when its out-of-soil arc cannot be
-        planned at all (limits so far below the motion that the programme fails): that law
-        does not run."""
+    def build(law: SoilLaw, beta: float) -> tuple[CamProfile, LoadFigures] | None:
+        """The law's profile and its figures; None when its out-of-soil arc cannot be planned
+        at all (limits so far below the motion that the programme fails): that law does not
+        run."""
         try:
-            candidate = build_profile(mech, spacing, law, speed, drive, rule, beta, pieces)
+            candidate = build_profile(spec, law, beta)
         except CamPlanningError:
-            return None, None
+            return None
         return candidate, candidate.figures(speed)
 
-    profile, rule_figures = build(laws[0], 1.0)
-    figures = rule_figures
+    chosen = build(laws[0], 1.0)
+    rule_figures = None if chosen is None else chosen[1]
     beta, blend_of, blended_with = 1.0, laws[0].name, ''
     if rule_figures is None or not rule_figures.feasible:
         for upper, lower in zip(laws, laws[1:]):
-            candidate, f = build(lower, 0.0)
-            if candidate is None:
+            low = build(lower, 0.0)
+            if low is None:
                 continue
-            profile, figures, beta, blend_of, blended_with = (candidate, f, 0.0, upper.name,
-                                                              lower.name)
-            if not f.feasible:
+            chosen, beta, blend_of, blended_with = low, 0.0, upper.name, lower.name
+            if not low[1].feasible:
                 continue
             lo, hi = 0.0, 1.0
             for _ in range(BLEND_STEPS):
                 mid = 0.5 * (lo + hi)
-                candidate, f = build(upper.blend(lower, mid), mid)
-                if f is not None and max(f.utilisation.values()) <= BLEND_HEADROOM:
-                    lo, profile, figures, beta = mid, candidate, f, mid
+                candidate = build(upper.blend(lower, mid), mid)
+                if candidate is not None and \
+                        max(candidate[1].utilisation.values()) <= BLEND_HEADROOM:
+                    lo, chosen, beta = mid, candidate, mid
                 else:
                     hi = mid
             break
-    tops = rule_top_speeds(mech, spacing, drive, speed, pieces) if top_speeds else {}
+    if chosen is None:      # the chain ends at constant speed, whose arc is a straight line
+        raise CamPlanningError(f'no law of the {rule} fallback chain could be planned at '
+                               f'{spacing:.6g} m')
+    profile, figures = chosen
+    tops = rule_top_speeds(mech, spacing, drive, speed) if top_speeds else {}
     return CamPlan(profile, rule, spacing, speed, beta, blend_of, blended_with, figures,
                    rule_figures, tops)
 
 
-def rule_top_speeds(mech, spacing, drive=None, hint=0.3, pieces=ARC_PIECES):
+def rule_top_speeds(mech: CamMechanism, spacing: float, drive: DriveLimits | None = None,
+                    hint: float = 0.3, pieces: int = ARC_PIECES) -> dict[str, tuple[float, str]]:
     """Up to what ground speed each rule, and constant speed, holds at this spacing:
     {'zero_slip' | 'design_speed' | 'constant': (m/s, the limit that stops it)}."""
     drive = DriveLimits() if drive is None else drive
-    tops = {}
+    tops: dict[str, tuple[float, str]] = {}
     for name in RULES:
         try:
             tops[name] = rule_top_speed(mech, spacing, name, drive, hint, pieces)
@@ -351,7 +384,8 @@ def rule_top_speeds(mech, spacing, drive=None, hint=0.3, pieces=ARC_PIECES):
     return tops
 
 
-def rule_top_speed(mech, spacing, rule, drive, hint=0.3, pieces=ARC_PIECES):
+def rule_top_speed(mech: CamMechanism, spacing: float, rule: str, drive: DriveLimits,
+                   hint: float = 0.3, pieces: int = ARC_PIECES) -> tuple[float, str]:
     """Up to what steady ground speed the rule's full profile (β = 1), planned for that speed,
     stays within every limit at this spacing: (m/s, the limit that stops it). Searched over
     SPEED_RANGE; the top of the range if it holds there.
@@ -359,12 +393,17 @@ def rule_top_speed(mech, spacing, rule, drive, hint=0.3, pieces=ARC_PIECES):
     Fixed point: plan at v, find the fixed profile's own top speed v* (closed form per
     limit), plan again at v*; a few rounds, then a bisection guard keeps the answer feasible."""
     law = rule_law(mech, rule)
+    spec = CamSpec(mech, spacing, hint, drive, rule)
+
+    def profile_at(v: float) -> CamProfile:
+        return build_profile(replace(spec, speed=v), law, 1.0, pieces)
+
     lo_v, hi_v = SPEED_RANGE
     v = min(max(hint, lo_v), hi_v)
     best, why = 0.0, 'speed'
     tried = set()
     for _ in range(8):
-        profile = build_profile(mech, spacing, law, v, drive, rule, 1.0, pieces)
+        profile = profile_at(v)
         top, limit = profile.loads.top_speed()
         if profile.figures(v).feasible:
             best = max(best, v)
@@ -378,7 +417,7 @@ def rule_top_speed(mech, spacing, rule, drive, hint=0.3, pieces=ARC_PIECES):
             break
         tried.add(key)
         v = nxt
-    profile = build_profile(mech, spacing, law, v, drive, rule, 1.0, pieces)
+    profile = profile_at(v)
     if profile.figures(v).feasible:
         return v, why
     # guard: bisect between the best feasible speed seen and v
@@ -387,7 +426,7 @@ def rule_top_speed(mech, spacing, rule, drive, hint=0.3, pieces=ARC_PIECES):
         mid = 0.5 * (lo + hi)
         if mid < lo_v:
             break
-        f = build_profile(mech, spacing, law, mid, drive, rule, 1.0, pieces).figures(mid)
+        f = profile_at(mid).figures(mid)
         if f.feasible:
             lo = mid
         else:
@@ -399,13 +438,12 @@ def rule_top_speed(mech, spacing, rule, drive, hint=0.3, pieces=ARC_PIECES):
 BRUTE_FORCE_SAMPLES = 1_000_000
 
 
-def sampled_tip_sweep(profile, samples=BRUTE_FORCE_SAMPLES):
+def sampled_tip_sweep(profile: CamProfile, samples: int = BRUTE_FORCE_SAMPLES) -> float:
     """The tip sweep found by brute force, independently of the closed form: θ(s) through
     scipy's PPoly of the profile's coefficients at `samples` equally spaced distances over one
     revolution (one spacing, from plant 0's soil entry), the tip from the five-bar's soil
     trajectory, the extent along the row of the samples in the soil (y ≤ D). It misses each
     soil edge by less than one step, an error of at most max|dx/ds|·d/samples."""
-    from planter_ros.kinematics.five_bar import soil_trajectory
     mech = profile.mech
     r = np.linspace(0.0, profile.spacing, int(samples), endpoint=False)
     theta = profile.period.to_scipy()(r)

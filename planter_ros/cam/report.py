@@ -2,24 +2,44 @@
 and top ground speeds, constant sun-bar speed beside the cam, and up to what ground speed each
 in-soil rule holds. Pure: no ROS, no matplotlib."""
 
+from collections.abc import Mapping
+from dataclasses import dataclass
 import math
+from typing import Any
+
+# loaded here, before the plans are timed (the arc planner imports them when first used)
+import scipy.interpolate  # noqa: F401
+import scipy.optimize  # noqa: F401
 
 from .drive import DRIVE_SOURCE, DriveLimits
 from .mechanism import CamMechanism
-from .plan import rule_top_speeds
+from .plan import CamSpec, rule_top_speeds
 from .study import compare
 
-__all__ = ['format_table', 'study']
+__all__ = ['CamStudy', 'format_table', 'study']
 
 
-def study(mech: CamMechanism, drive: DriveLimits, rule: str, spacings: list[float],
-          speeds: list[float], design_spacing: float, hole_ratio: float) -> dict:
+@dataclass(frozen=True)
+class CamStudy:
+    """What `planter cam` studies: a mechanism (a five-bar designed for `design_spacing`, m,
+    with hole ratio `hole_ratio`), its drive, the rule, and the plant spacings (m) and top
+    ground speeds (m/s) to compare at."""
+
+    mech: CamMechanism
+    drive: DriveLimits
+    rule: str
+    spacings: tuple[float, ...]
+    speeds: tuple[float, ...]
+    design_spacing: float
+    hole_ratio: float
+
+
+def study(asked: CamStudy) -> dict[str, Any]:
     """The study (SI units): the mechanism, the limits, per spacing and speed the constant-speed
     and cam figures, and per spacing the top ground speed of each rule with its binding limit."""
-    import scipy.interpolate  # noqa: F401  (loaded before the plans are timed)
-    import scipy.optimize  # noqa: F401
-    top = max(speeds)
-    cases = [compare(mech, d, v, drive, rule) for d in spacings for v in speeds]
+    mech, drive, rule, spacings = asked.mech, asked.drive, asked.rule, asked.spacings
+    top = max(asked.speeds)
+    cases = [compare(CamSpec(mech, d, v, drive, rule)) for d in spacings for v in asked.speeds]
     tops = []
     for d in spacings:
         found = rule_top_speeds(mech, d, drive, top)
@@ -27,7 +47,8 @@ def study(mech: CamMechanism, drive: DriveLimits, rule: str, spacings: list[floa
                                       for k, (v, why) in found.items()}})
     result = {
         'mechanism': {'l1': mech.l1, 'l2': mech.l2, 'depth': mech.depth,
-                      'design_spacing': design_spacing, 'hole_ratio': hole_ratio,
+                      'design_spacing': asked.design_spacing,
+                      'hole_ratio': asked.hole_ratio,
                       'nozzle_width': mech.nozzle_width, 'design_hole': mech.design_hole,
                       'design_hole_width': mech.design_hole + mech.nozzle_width},
         'rule': rule,
@@ -40,11 +61,11 @@ def study(mech: CamMechanism, drive: DriveLimits, rule: str, spacings: list[floa
     return result
 
 
-def _pct(u):
+def _pct(u: float) -> str:
     return f'{u * 100:.0f} %'
 
 
-def format_table(r):
+def format_table(r: Mapping[str, Any]) -> str:
     """Human table: mm, degrees, the loads' units labelled."""
     mm, m = 1000.0, r['mechanism']
     lim = r['limits']

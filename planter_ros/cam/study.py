@@ -2,17 +2,19 @@
 command line prints, the plot draws and the bench checks (SI, JSON-ready)."""
 
 import time
+from typing import Any
 
-from .drive import DriveLimits
-from .plan import BRUTE_FORCE_SAMPLES, constant_profile, plan_cam, sampled_tip_sweep
+from .plan import (BRUTE_FORCE_SAMPLES, CamProfile, CamSpec, constant_profile, plan_cam,
+                   sampled_tip_sweep)
 
 __all__ = ['profile_summary', 'compare']
 
 
-def profile_summary(profile, speed, samples=BRUTE_FORCE_SAMPLES):
+def profile_summary(profile: CamProfile, speed: float,
+                    samples: int = BRUTE_FORCE_SAMPLES) -> dict[str, Any]:
     """Sweep, hole, tilt and loads of a profile at ground speed `speed`; with `samples` > 0
     also the brute-force sweep and its difference from the closed form (m)."""
-    out = {'law': profile.law.name, 'tip_sweep': profile.tip_sweep,
+    out: dict[str, Any] = {'law': profile.law.name, 'tip_sweep': profile.tip_sweep,
            'hole_width': profile.hole_width, 'tilt': profile.tilt,
            'loads': profile.figures(speed).as_dict()}
     if samples:
@@ -24,14 +26,12 @@ def profile_summary(profile, speed, samples=BRUTE_FORCE_SAMPLES):
     return out
 
 
-def compare(mech, spacing, speed, drive=None, rule='design_speed', samples=BRUTE_FORCE_SAMPLES,
-            plan=None):
-    """Constant speed and the planned cam at one spacing and top ground speed. `plan`: an
-    already planned CamPlan for them (else planned here, timed)."""
-    drive = DriveLimits() if drive is None else drive
+def compare(spec: CamSpec, samples: int = BRUTE_FORCE_SAMPLES) -> dict[str, Any]:
+    """Constant speed and the cam planned (and timed) for `spec`: its spacing and top ground
+    speed, drive and rule."""
+    spacing, speed, drive, rule = spec.spacing, spec.speed, spec.drive, spec.rule
     t0 = time.perf_counter()
-    if plan is None:
-        plan = plan_cam(mech, spacing, speed, drive, rule, top_speeds=False)
+    plan = plan_cam(spec.mech, spacing, speed, drive, rule, top_speeds=False)
     planned = time.perf_counter() - t0
     cam = profile_summary(plan.profile, speed, samples)
     cam.update({'rule': rule, 'blend': plan.blend, 'blend_of': plan.blend_of,

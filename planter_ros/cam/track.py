@@ -35,17 +35,24 @@ evaluation. Pure Python floats; no ROS.
 
 from bisect import bisect_left, bisect_right
 from collections import OrderedDict
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 import hashlib
 import math
 import threading
+from typing import Any
 
+import numpy as np
+from numpy.typing import ArrayLike
+
+from planter_ros.kinematics.arrays import FloatArray
 from planter_ros.kinematics.five_bar import TWO_PI
 
-from .arc import ARC_PIECES, plan_arc
-from .drive import LoadFigures, LoadSamples, sun_bar_motion
+from .arc import ARC_PIECES, ArcEnds, plan_arc
+from .drive import LoadFigures, LoadSamples, TorqueTerms, sun_bar_motion
 from .errors import CamInputError, CamLimitError
-from .piecewise import Piecewise
+from .piecewise import Piecewise, State
+from .plan import CamProfile, soil_arc
 
 __all__ = ['CamTrack', 'MAX_TRANSITION_PLANTS', 'Transition', 'fingerprint', 'plan_transition',
            'remember_transition']
@@ -54,20 +61,19 @@ MAX_TRANSITION_PLANTS = 6        # a transition is spread over at most this many
 _CACHE_SIZE = 32
 
 
-def fingerprint(profile):
+def fingerprint(profile: CamProfile) -> str:
     """A profile's identity by content (its mechanism, law, spacing, speed, drive and
     coefficients): the same in the process that planned it and in one that rebuilt it from
     `control.cam_law.profile_to_data` (floats survive JSON exactly)."""
-    known = getattr(profile, '_fingerprint', None)
-    if known is not None:
-        return known
+    if profile._fingerprint is not None:
+        return profile._fingerprint
     digest = hashlib.sha256()
     digest.update(repr((profile.mech, profile.law.zero_slip, profile.law.advance,
                         profile.spacing, profile.speed, profile.drive)).encode())
     digest.update(profile.period.breaks.tobytes())
     digest.update(profile.period.coeffs.tobytes())
-    profile._fingerprint = digest.hexdigest()[:32]
-    return profile._fingerprint
+    known = profile._fingerprint = digest.hexdigest()[:32]
+    return known
 
 
 @dataclass(frozen=True)
@@ -81,16 +87,16 @@ class Transition:
 
     old: str                         # fingerprints
     new: str
-    gaps: tuple
+    gaps: tuple[float, ...]
     piecewise: Piecewise | None
     figures: LoadFigures | None
     speed: float
 
     @property
-    def plants(self):
+    def plants(self) -> int:
         return len(self.gaps)
 
-    def as_data(self):
+    def as_data(self) -> dict[str, Any]:
         """JSON-ready data (`from_data` reads it back exactly)."""
         pw = self.piecewise
         return {'old': self.old, 'new': self.new, 'gaps': list(self.gaps), 'speed': self.speed,
@@ -98,7 +104,7 @@ class Transition:
                 'coeffs': None if pw is None else pw.coeffs.tolist()}
 
     @classmethod
-    def from_data(cls, data):
+    def from_data(cls, data: Mapping[str, Any]) -> 'Transition':
         pw = None if data['breaks'] is None else Piecewise(data['breaks'], data['coeffs'])
         gaps = tuple(float(g) for g in data['gaps'])
         if not gaps or not all(math.isfinite(g) and g > 0 for g in gaps):
@@ -106,11 +112,11 @@ class Transition:
         return cls(str(data['old']), str(data['new']), gaps, pw, None, float(data['speed']))
 
 
-_cache = OrderedDict()
+_cache: OrderedDict[tuple[str, str], Transition] = OrderedDict()
 _cache_lock = threading.Lock()
 
 
-def remember_transition(transition):
+def remember_transition(transition: Transition) -> None:
     """Keep a transition planned elsewhere (a shell planning for its command process) so a
     `CamTrack.change` between the same two profiles uses it instead of planning."""
     with _cache_lock:
@@ -120,33 +126,34 @@ def remember_transition(transition):
             _cache.popitem(last=False)
 
 
-def _known(old, new):
+def _known(old: CamProfile, new: CamProfile) -> Transition | None:
     with _cache_lock:
         return _cache.get((fingerprint(old), fingerprint(new)))
 
 
-def _placed(parts):
+def _placed(parts: Sequence[tuple[Piecewise, float, float]]) -> Piecewise:
     """One Piecewise of consecutive parts (piecewise, r of its first break, θ added): each
     part's local polynomials kept, its breaks moved; where two parts meet the first break of
     the later one is taken as the earlier one's end."""
-    breaks, coeffs = [], []
+    breaks: list[FloatArray] = []
+    coeffs: list[FloatArray] = []
+    end = 0.0
     for pw, r0, dtheta in parts:
         b = pw.breaks - pw.breaks[0] + r0
         c = pw.coeffs.copy()
         c[:, 0] += dtheta
         breaks.append(b[:-1])
         coeffs.append(c)
-        end = b[-1]
-    import numpy as np
+        end = float(b[-1])
     return Piecewise(np.concatenate(breaks + [[end]]), np.concatenate(coeffs))
 
 
-def _spread(old, new, plants):
+def _spread(old: CamProfile, new: CamProfile, plants: int) -> tuple[
+        tuple[float, ...], Piecewise, Piecewise, list[tuple[float, float]]]:
     """The transition over `plants` = k plants (module doc): (gaps, the piecewise from the old
     exit to plant k's entry, the stretch judged and its RMS window). Plant m (1 ≤ m < k) sits
     a gap stepped from the old spacing towards the new after the one before and has an
     in-soil law stepped from the old law towards the new (blends)."""
-    from .plan import soil_arc
     mech, d, d_old = new.mech, new.spacing, old.spacing
     gaps = tuple(d_old + (d - d_old) * m / plants for m in range(1, plants + 1))
     at = [0.0]
@@ -159,10 +166,11 @@ def _spread(old, new, plants):
     state = old.evaluate(exit_r)
     limits = new.drive.effective(mech)
 
-    def torque_terms(th):
+    def torque_terms(th: FloatArray) -> TorqueTerms:
         return new.drive.torque_terms(mech, th)
 
-    parts, r = [], exit_r
+    parts: list[tuple[Piecewise, float, float]] = []
+    r = exit_r
     for m in range(1, plants + 1):
         entry_r = at[m] - halves[m]
         length = entry_r - r
@@ -171,8 +179,8 @@ def _spread(old, new, plants):
                                 f'{halves[m]:.6g} m (the soil arcs either side of the change)')
         end = laws[m].edge_state(mech, -1) if m < plants else new.edge_state(-1)
         end = (end[0] + TWO_PI * m, end[1], end[2])
-        arc, _ = plan_arc(length, state, end, max(new.speed, 1e-3), limits, torque_terms,
-                          ARC_PIECES)
+        arc, _ = plan_arc(ArcEnds(length, state, end), max(new.speed, 1e-3), limits,
+                          torque_terms, ARC_PIECES)
         parts.append((arc, r, 0.0))
         if m < plants:
             soil = soil_arc(mech, laws[m])
@@ -191,22 +199,22 @@ def _spread(old, new, plants):
     return gaps, piecewise, stretch, windows
 
 
-def _thermal(figures, stretch_length, old, new, speed):
+def _thermal(figures: LoadFigures, stretch_length: float, old: CamProfile, new: CamProfile,
+             speed: float) -> LoadFigures:
     """The transition's figures with the RMS torque over the drive's thermal window (the
     rated torque is a thermal limit): the heat of the stretch (the old last plant's soil entry
     to the end of the new profile's first own plant) plus, for the rest of the window, the
     hotter of the two steady profiles'."""
-    import dataclasses
     window = max(speed * new.drive.thermal_window, stretch_length)
     steady = max(old.figures(speed).rms_torque, new.figures(speed).rms_torque)
     heat = figures.rms_torque ** 2 * stretch_length + steady ** 2 * (window - stretch_length)
     rms = math.sqrt(heat / window)
     limit = new.drive.effective(new.mech).rms_torque
-    return dataclasses.replace(figures, rms_torque=rms,
+    return replace(figures, rms_torque=rms,
                                utilisation={**figures.utilisation, 'rms torque': rms / limit})
 
 
-def plan_transition(old, new):
+def plan_transition(old: CamProfile, new: CamProfile) -> Transition:
     """The transition from profile `old` to profile `new` (a `Transition`), checked against
     the drive's limits at the new profile's planning speed and spread over as few plants as
     keep it within them (module doc); cached. CamLimitError when even
@@ -221,7 +229,9 @@ def plan_transition(old, new):
         remember_transition(out)
         return out
     speed = max(new.speed, 1e-3)
-    first = figures = no_room = None
+    first: LoadFigures | None = None
+    figures: LoadFigures | None = None
+    no_room: CamInputError | None = None
     for plants in range(1, MAX_TRANSITION_PLANTS + 1):
         try:
             gaps, piecewise, stretch, windows = _spread(old, new, plants)
@@ -237,7 +247,8 @@ def plan_transition(old, new):
                              new.speed)
             remember_transition(out)
             return out
-    if figures is None:
+    if first is None or figures is None:
+        assert no_room is not None, 'every spread either raised or gave figures'
         raise no_room
     raise CamLimitError.from_message(
         f'the change from {_named(old)} to {_named(new)} cannot be made within the drive\'s '
@@ -245,7 +256,7 @@ def plan_transition(old, new):
         f'{MAX_TRANSITION_PLANTS} plants')
 
 
-def _named(profile):
+def _named(profile: CamProfile) -> str:
     return f'{profile.law.name or "a law"} at {profile.spacing:.4g} m'
 
 
@@ -254,15 +265,15 @@ class _Periodic:
 
     __slots__ = ('profile', 'origin', 'turn', '_offset')
 
-    def __init__(self, profile, origin, turn):
+    def __init__(self, profile: CamProfile, origin: float, turn: int) -> None:
         self.profile, self.origin, self.turn = profile, float(origin), int(turn)
         self._offset = TWO_PI * self.turn
 
-    def evaluate(self, s):
+    def evaluate(self, s: float) -> State:
         th, d1, d2 = self.profile.evaluate(s - self.origin)
         return th + self._offset, d1, d2
 
-    def values(self, s, order):
+    def values(self, s: FloatArray, order: int) -> FloatArray:
         out = self.profile.values(s - self.origin, order)
         return out + self._offset if order == 0 else out
 
@@ -272,14 +283,14 @@ class _Arc:
 
     __slots__ = ('piecewise', 's0', 'offset')
 
-    def __init__(self, piecewise, s0, offset=0.0):
+    def __init__(self, piecewise: Piecewise, s0: float, offset: float = 0.0) -> None:
         self.piecewise, self.s0, self.offset = piecewise, float(s0), float(offset)
 
-    def evaluate(self, s):
+    def evaluate(self, s: float) -> State:
         th, d1, d2 = self.piecewise.at(s - self.s0)
         return th + self.offset, d1, d2
 
-    def values(self, s, order):
+    def values(self, s: FloatArray, order: int) -> FloatArray:
         out = self.piecewise.values(s - self.s0, order)
         return out + self.offset if order == 0 else out
 
@@ -290,10 +301,10 @@ class _Plants:
     __slots__ = ('periodic', 'first', 'last')
     transitional = False
 
-    def __init__(self, periodic, first, last=math.inf):
+    def __init__(self, periodic: _Periodic, first: float, last: float = math.inf) -> None:
         self.periodic, self.first, self.last = periodic, first, last
 
-    def after(self, s):
+    def after(self, s: float) -> tuple[float, int] | None:
         """(s_plant, θ turn) of this profile's first plant strictly after s, or None."""
         p = self.periodic
         d = p.profile.spacing
@@ -316,74 +327,80 @@ class _Listed:
     __slots__ = ('periodic', 'at', 'turns', 'last')
     transitional = True
 
-    def __init__(self, periodic, at, turns):
+    def __init__(self, periodic: _Periodic, at: Sequence[float], turns: Sequence[int]) -> None:
         self.periodic, self.at, self.turns = periodic, list(at), list(turns)
         self.last = math.inf
 
-    def after(self, s):
+    def after(self, s: float) -> tuple[float, int] | None:
         for at, turn in zip(self.at, self.turns):
             if at > s and at <= self.last:
                 return at, turn
         return None
 
 
+_Segment = _Periodic | _Arc          # a stretch of the track: a placed profile or an arc
+_PlantRun = _Plants | _Listed         # the planting instants of one stretch
+
+
 class CamTrack:
     """θ(s) of one row across spacing changes (module doc)."""
 
-    def __init__(self, profile, origin=0.0, turn=0):
+    def __init__(self, profile: CamProfile, origin: float = 0.0, turn: int = 0) -> None:
         first = _Periodic(profile, origin, turn)
         self._starts = [-math.inf]
-        self._segments = [first]
-        self._plants = [_Plants(first, -math.inf)]
+        self._segments: list[_Segment] = [first]
+        self._plants: list[_PlantRun] = [_Plants(first, -math.inf)]
 
     @property
-    def joins(self):
+    def joins(self) -> list[float]:
         """Distances (m) where one piece of the track hands over to the next (the old
         profile's soil exit, a transition arc's end) — where a change could show a jump."""
         return list(self._starts[1:])
 
-    def segment_values(self, index, s):
+    def segment_values(self, index: int, s: float) -> State:
         """(θ, θ′, θ″) of the track's segment `index` (0 = the first) at s, even outside the
         stretch where it is in force: the left and right limits at a join."""
         return self._segments[index].evaluate(s)
 
     @property
-    def profile(self):
+    def profile(self) -> CamProfile:
         """The profile in force last (the newest change)."""
         return self._plants[-1].periodic.profile
 
-    def evaluate(self, s):
+    def evaluate(self, s: float) -> State:
         """(θ, θ′, θ″) at the row's travelled distance s (m): rad, rad/m, rad/m²."""
         return self._segments[bisect_right(self._starts, s) - 1].evaluate(s)
 
-    def motion(self, s, ground_speed, ground_acceleration=0.0):
+    def motion(self, s: float, ground_speed: float,
+               ground_acceleration: float = 0.0) -> tuple[float, float, float]:
         """(θ, ω, α) the sun bar must have at the row's distance s (m), ground speed (m/s)
         and acceleration (m/s²): the CSP target and its feed-forwards (rad, rad/s, rad/s²)."""
         return sun_bar_motion(self.evaluate(s), ground_speed, ground_acceleration)
 
-    def values(self, s, order=0):
+    def values(self, s: ArrayLike, order: int = 0) -> FloatArray:
         """θ (order 0) or its derivative (1..3) at an array of s (numpy; plots, checks)."""
-        import numpy as np
-        s = np.asarray(s, dtype=float)
-        which = np.searchsorted(self._starts, s, side='right') - 1
-        out = np.empty_like(s)
-        for i in np.unique(which):
+        at = np.asarray(s, dtype=np.float64)
+        which = np.searchsorted(self._starts, at, side='right') - 1
+        out = np.empty_like(at)
+        for i in np.unique(which).tolist():
             mine = which == i
-            out[mine] = self._segments[i].values(s[mine], order)
+            out[mine] = self._segments[i].values(at[mine], order)
         return out
 
-    def next_plant(self, s):
+    def next_plant(self, s: float) -> tuple[float, CamProfile]:
         """(s_plant, profile) of the first planting instant strictly after s."""
-        best = None
+        best: tuple[float, _PlantRun] | None = None
         for plants in self._plants:
             hit = plants.after(s)
             if hit is not None and (best is None or hit[0] < best[0]):
-                best = (hit[0], hit[1], plants)
-        return best[0], best[2].periodic.profile
+                best = (hit[0], plants)
+        if best is None:
+            raise AssertionError('the profile in force last plants without end')
+        return best[0], best[1].periodic.profile
 
-    def plants(self, s0, s1):
+    def plants(self, s0: float, s1: float) -> list[tuple[float, float]]:
         """Planting instants (s, θ) in [s0, s1], in order."""
-        out = []
+        out: list[tuple[float, float]] = []
         s = math.nextafter(s0, -math.inf)
         while True:
             at, _ = self.next_plant(s)
@@ -392,25 +409,27 @@ class CamTrack:
             out.append((at, self.evaluate(at)[0]))
             s = at
 
-    def _change_point(self, s_now):
+    def _change_point(self, s_now: float) -> tuple[float, int, int]:
         """(s_k, θ turn, index into the plants) of the plant a change asked at s_now follows:
         the next planting instant, not one of a transition still under way."""
-        best = None
+        best: tuple[float, int, int] | None = None
         for index, plants in enumerate(self._plants):
             if plants.transitional:
                 continue
             hit = plants.after(s_now)
             if hit is not None and (best is None or hit[0] < best[0]):
                 best = (hit[0], hit[1], index)
+        if best is None:
+            raise AssertionError('the profile in force last plants without end')
         return best
 
-    def transition(self, profile, s_now):
+    def transition(self, profile: CamProfile, s_now: float) -> Transition:
         """The `Transition` a change to `profile` asked at s_now would take (planned, or found
         planned), changing nothing; CamLimitError / CamInputError as `change` would raise."""
         index = self._change_point(s_now)[2]
         return plan_transition(self._plants[index].periodic.profile, profile)
 
-    def change(self, profile, s_now):
+    def change(self, profile: CamProfile, s_now: float) -> float:
         """Switch to `profile` at the next planting instant after `s_now` (module doc).
         Returns s_k, the old spacing's last plant; the new spacing's first is at s_k + d′
         (later when the change is spread over more plants). CamLimitError (the track
@@ -425,7 +444,7 @@ class CamTrack:
             at.append(at[-1] + gap)
         k = transition.plants
         new = _Periodic(profile, at[k], turn + k)
-        segments = []
+        segments: list[tuple[float, _Segment]] = []
         if transition.piecewise is None:
             segments.append((exit_s, new))
         else:

@@ -91,7 +91,7 @@ def add_arguments(parser):
 
 def run(args):
     from planter_ros.cam import CamMechanism, DriveLimits
-    from planter_ros.cam.report import format_table, study
+    from planter_ros.cam.report import CamStudy, format_table, study
     from planter_ros.kinematics.five_bar import design_five_bar
     from planter_ros.output_files import atomic_output
 
@@ -99,14 +99,14 @@ def run(args):
                            if k.startswith('drive_') and v is not None})   # checked together
     design = design_five_bar(args.depth, args.design_spacing, args.hole_ratio)
     mech = CamMechanism.from_design(design, args.nozzle_width)
-    result = study(mech, drive, args.rule, args.spacing, args.speed, args.design_spacing,
-                   args.hole_ratio)
+    asked = CamStudy(mech, drive, args.rule, tuple(args.spacing), tuple(args.speed),
+                     args.design_spacing, args.hole_ratio)
+    result = study(asked)
     require_finite(result, 'cam')
     if args.plot:
         from planter_ros.plots.cam import plot_cam
         with atomic_output(args.plot) as tmp:
-            plot_cam(mech, drive, args.rule, args.spacing, args.speed, result['cases'],
-                     result['top_speeds'], tmp)
+            plot_cam(asked, result['cases'], result['top_speeds'], tmp)
         result['plot'] = args.plot
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))

@@ -21,8 +21,8 @@ import math
 from typing import Any
 
 from planter_ros.cam import (
-    CamError, CamInputError, CamLimitError, CamMechanism, CamProfile, CamTrack, DriveLimits,
-    SoilLaw, plan_cam)
+    CamError, CamInputError, CamLimitError, CamMechanism, CamProfile, CamSpec, CamTrack,
+    DriveLimits, SoilLaw, plan_cam)
 from planter_ros.cam.piecewise import Piecewise
 from planter_ros.cam.track import Transition, fingerprint, plan_transition, remember_transition
 from planter_ros.kinematics.design_inputs import top_ground_speed
@@ -121,10 +121,10 @@ def profile_to_data(profile: CamProfile, previous: CamProfile | None = None) -> 
 def profile_from_data(data: dict) -> CamProfile:
     """The profile `profile_to_data` gave (ValueError/TypeError/KeyError if it is not one);
     a transition that came with it is kept for `CamTrack.change` (cam.track)."""
-    profile = CamProfile(CamMechanism(**data['mech']), SoilLaw(**data['law']),
-                         float(data['spacing']), Piecewise(data['breaks'], data['coeffs']),
-                         float(data['speed']), DriveLimits(**data['drive']),
-                         str(data['rule']), float(data['blend']))
+    spec = CamSpec(CamMechanism(**data['mech']), float(data['spacing']), float(data['speed']),
+                   DriveLimits(**data['drive']), str(data['rule']))
+    profile = CamProfile(spec, SoilLaw(**data['law']), Piecewise(data['breaks'], data['coeffs']),
+                         float(data['blend']))
     if data.get('fingerprint') not in (None, fingerprint(profile)):
         raise ValueError('cam profile: its data do not match its fingerprint')
     if data.get('transition') is not None:

@@ -18,9 +18,11 @@ def _grid(mech, spacings):
     return sorted(set(np.linspace(lo, hi, GRID).tolist()) | set(spacings))
 
 
-def plot_cam(mech, drive, rule, spacings, speeds, cases, tops, path):
-    """Six labelled panels (mm and degrees for people) for the command's inputs and results;
-    `cases` and `tops` as in `planter cam --json`."""
+def plot_cam(asked, cases, tops, path):
+    """Six labelled panels (mm and degrees for people) for the command's inputs (`asked`, a
+    cam.report.CamStudy) and results; `cases` and `tops` as in `planter cam --json`."""
+    mech, drive, rule = asked.mech, asked.drive, asked.rule
+    spacings, speeds = list(asked.spacings), list(asked.speeds)
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
