@@ -94,8 +94,11 @@ class CanopenBus:
             network = canopen.Network(self._bus)
             network.NOTIFIER_CYCLE = 0.05                 # close() waits at most this long
             network.connect()
-            network.notifier.add_listener(self.receive_errors)
-            self.receive_errors.notifier = network.notifier
+            notifier = network.notifier
+            if notifier is None:                          # connect() always starts one
+                raise BusError(f'open bus: {self.where}: canopen started no notifier')
+            notifier.add_listener(self.receive_errors)
+            self.receive_errors.notifier = notifier
             self.network = network
             return network
 
