@@ -24,8 +24,8 @@ from typing import TYPE_CHECKING
 
 from . import objects as od
 from .dictionary import pdo_maps
-from .errors import (BusError, DriveConfigError, DriveError, DriveRefusedError,
-                     DriveTimeoutError)
+from .errors import (DriveConfigError, DriveError, DriveRefusedError, DriveTimeoutError,
+                     can_calls)
 from .plan import MODE_NAMES, DrivePlan, Write, choose_mode, homing_writes, plan_drive
 from .setup import (HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED, homing_timeout, identity_mismatch,
                     missing_modes, pdo_mismatch)
@@ -109,13 +109,10 @@ class StartUp:
                  1000 * self.enable_duration, MODE_NAMES[mode])
 
     def _send_nmt(self, state: str) -> None:
-        try:
+        node = self.config.drive_node_id
+        with can_calls(f'drive node {node}: CAN send of NMT {state.lower()} failed on '
+                       f'{self.canbus.where}', node):
             self.node.nmt.state = state
-        except Exception as exc:            # python-can raises CanError, OSError, ValueError...
-            cfg = self.config
-            raise BusError(f'drive node {cfg.drive_node_id}: CAN send of NMT '
-                           f'{state.lower()} failed on {cfg.can_interface}:{cfg.can_channel}: '
-                           f'{type(exc).__name__}: {exc}', node=cfg.drive_node_id) from None
 
     def _identify(self) -> int | None:
         """Refuse a node that is not a CiA 402 drive; its 6502h (None: it does not say)."""
