@@ -113,7 +113,7 @@ def commission_row(drive, name: str, row, observer: Observer) -> RowFindings:
     if missing:
         raise CommissionError(f'row {name}: node {row.node_id} supports modes 0x{modes:08X} '
                               f'(0x6502), without {", ".join(missing)} the machine file needs')
-    polarity = entry(drive.startup.dictionary, od.POLARITY.index)
+    polarity = entry(drive.dictionary, od.POLARITY.index)
     settable = polarity is not None and polarity.writable
     if settable:
         drive.set_polarity(False)

@@ -25,7 +25,7 @@ import canopen
 
 from . import objects as od
 from .config import BusConfig
-from .errors import BusError, NotConnectedError
+from .errors import BusError, NotConnectedError, bus_error, can_calls
 
 __all__ = ['CanopenBus', 'ReceiveErrors']
 
@@ -86,16 +86,17 @@ class CanopenBus:
             if self.network is not None:
                 return self.network
             cfg = self.config
-            try:
+            with can_calls(f'open bus: {self.where}'):
                 self._bus = self._given_bus or can.Bus(
                     interface=cfg.can_interface, channel=cfg.can_channel, bitrate=cfg.can_bitrate)
-            except Exception as exc:
-                raise BusError(f'open bus: {self.where}: {type(exc).__name__}: {exc}') from None
             network = canopen.Network(self._bus)
             network.NOTIFIER_CYCLE = 0.05                 # close() waits at most this long
             network.connect()
-            network.notifier.add_listener(self.receive_errors)
-            self.receive_errors.notifier = network.notifier
+            notifier = network.notifier
+            if notifier is None:                          # connect() always starts one
+                raise BusError(f'open bus: {self.where}: canopen started no notifier')
+            notifier.add_listener(self.receive_errors)
+            self.receive_errors.notifier = notifier
             self.network = network
             return network
 
@@ -105,9 +106,8 @@ class CanopenBus:
             raise NotConnectedError(f'CAN bus {self.where}: not open (no {what} sent)')
         try:
             network.send_message(cob_id, data)
-        except Exception as exc:            # python-can raises CanError, OSError, ValueError...
-            raise BusError(f'CAN send of {what} failed on {self.where}: '
-                           f'{type(exc).__name__}: {exc}') from None
+        except Exception as exc:            # (the text is made only on a failure: hot path)
+            raise bus_error(exc, f'CAN send of {what} failed on {self.where}') from None
 
     def send_heartbeat(self) -> None:
         """Our heartbeat frame (NMT state operational), for every drive's consumer.

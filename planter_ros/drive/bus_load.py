@@ -49,7 +49,7 @@ class BusLoad:
     bitrate: int              # bit/s
     frames_per_second: float
     bits_per_second: float
-    items: tuple              # (what, frames/s, bits/s) per kind of frame
+    items: tuple[tuple[str, float, float], ...]   # (what, frames/s, bits/s) per kind of frame
     sync_period: float = 0.0  # s, the SYNC period of drives in CSP (0: profile velocity)
 
     @property
@@ -68,7 +68,7 @@ class BusLoad:
 
     def values(self) -> list[tuple[str, str | int]]:
         """Key/value pairs for diagnostics and people."""
-        out = [('bus load', f'{100 * self.load:.1f} %'),
+        out: list[tuple[str, str | int]] = [('bus load', f'{100 * self.load:.1f} %'),
                ('bus load limit', f'{100 * LIMIT:.0f} %'),
                ('drives on the bus', self.rows), ('bit rate', f'{self.bitrate} bit/s'),
                ('frames per second', f'{self.frames_per_second:.0f}')]
@@ -84,7 +84,7 @@ def bus_load(rows: int, bitrate: int, control_period: float, ground_speed_rate: 
     the drives run cyclic synchronous position on a SYNC every `sync_period`."""
     if csp and not sync_period > 0:
         raise ValueError('bus_load: csp needs sync_period > 0 s')
-    items = []
+    items: list[tuple[str, float, float]] = []
 
     def add(what: str, frames: float, data_bytes: int) -> None:
 

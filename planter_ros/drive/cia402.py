@@ -37,6 +37,7 @@ import math
 import time
 
 import can
+from canopen import ObjectDictionary
 from canopen.profiles.p402 import BaseNode402
 
 from planter_ros.drive import objects as od
@@ -50,7 +51,7 @@ from planter_ros.drive.plan import DrivePlan
 from planter_ros.drive.rpdo import Commander
 from planter_ros.drive.sdo import Sdo
 from planter_ros.drive.setup import DriveSetup
-from planter_ros.drive.startup import StartUp
+from planter_ros.drive.startup import DriveLink, StartUp
 from planter_ros.drive.supervision import Supervisor
 from planter_ros.drive.states import (CYCLIC_SYNC_POSITION, FAULT, OPERATION_ENABLED,
                                       PROFILE_VELOCITY, READY_TO_SWITCH_ON, SWITCH_ON_DISABLED,
@@ -77,19 +78,24 @@ class Cia402Drive:
         self.setup = setup
         self._owns_canbus = canbus is None
         self.canbus = canbus if canbus is not None else CanopenBus(config, bus)
-        self._node: BaseNode402 | None = None
+        self._link: DriveLink | None = None          # while open
         self.feedback = Feedback(2.0 * math.pi / (config.counts_per_motor_rev
                                                   * config.motor_gear_ratio))
         self.supervisor = Supervisor(config, self.feedback, self._heartbeat_age)
         self.commander = Commander(config, self.feedback, self.supervisor)
-        self.sdo: Sdo | None = None
-        self.startup: StartUp | None = None
+        self.startup: StartUp | None = None          # made by open(), kept after shutdown
 
     # ---------------------------------------------------------------- what it is
     @property
     def node(self) -> BaseNode402 | None:
-        """The canopen node (diagnostics and benchmarks; its SDO calls block)."""
-        return self._node
+        """The canopen node while open (diagnostics and benchmarks; its SDO calls block)."""
+        return self._link.node if self._link is not None else None
+
+    @property
+    def dictionary(self) -> ObjectDictionary:
+        """The object dictionary read from the drive's EDS (after open(); NotConnectedError
+        before)."""
+        return self._opened().dictionary
 
     @property
     def mode(self) -> int:
@@ -118,7 +124,7 @@ class Cia402Drive:
         return self.startup is not None and self.startup.connected and self.commander.ready
 
     def _heartbeat_age(self) -> float:
-        stamp = self._node.nmt.timestamp if self._node is not None else None
+        stamp = self._link.node.nmt.timestamp if self._link is not None else None
         if stamp is None:
             return math.inf
         return max(0.0, time.time() - stamp)   # frame timestamps are wall-clock (python-can)
@@ -128,8 +134,12 @@ class Cia402Drive:
         """Open (or join) the bus and add this drive's node, its dictionary read from its EDS
         (no frame sent). Drives sharing a CanopenBus are opened one after the other, then
         enabled at once. DictionaryError for an EDS that cannot be read."""
-        if self._node is not None:
-            return
+        self._open()
+
+    def _open(self) -> StartUp:
+        """open(); the start-up of the drive, made with its node."""
+        if self._link is not None and self.startup is not None:
+            return self.startup
         cfg = self.config
         eds = (self.setup.eds if self.setup is not None and self.setup.eds else cfg.eds_path)
         dictionary = read_dictionary(eds or default_eds_path(), cfg.drive_node_id)
@@ -142,19 +152,25 @@ class Cia402Drive:
         node.emcy.add_callback(self.supervisor.on_emcy)
         node.nmt.add_heartbeat_callback(self.supervisor.on_nmt_state)
         node.emcy.add_callback(lambda entry: self.feedback.count_emcy(entry, node.emcy))
-        self._node, self.sdo = node, Sdo(node, cfg)
-        self.startup = StartUp(cfg, self.setup, self.canbus, node, dictionary, self.sdo,
-                               self.feedback, self.supervisor, self.commander)
+        self._link = link = DriveLink(self.canbus, node, dictionary, Sdo(node, cfg))
+        self.startup = startup = StartUp(cfg, self.setup, link, self.feedback, self.supervisor,
+                                         self.commander)
+        return startup
 
-    def _check_open(self) -> None:
-        if self._node is None:
+    def _opened(self) -> DriveLink:
+        """The drive's node on the bus; NotConnectedError before open() or after shutdown()."""
+        if self._link is None:
             raise NotConnectedError(f'drive node {self.config.drive_node_id}: not open '
                                     '(call open or connect_and_enable first)')
+        return self._link
 
-    def _check_connected(self) -> None:
-        if not self._connected:
+    def _check_connected(self) -> StartUp:
+        """The start-up of the connected drive; NotConnectedError when it is not."""
+        startup = self.startup
+        if startup is None or not self._connected:
             raise NotConnectedError(f'drive node {self.config.drive_node_id}: not connected '
                                     '(call connect_and_enable first)')
+        return startup
 
     # ---------------------------------------------------------------- blocking: start
     def connect_and_enable(self) -> None:
@@ -164,15 +180,15 @@ class Cia402Drive:
         command_timeout and the heartbeat every heartbeat_period."""
         if self.supervisor.enabled:
             return
-        self.open()
-        self.startup.run()
+        self._open().run()
 
     def reconfigure(self) -> None:
         """BLOCKING: configure and enable again a drive that restarted (`status().restarted`)
         through the one start-up path. Until it returns the drive is not enabled: send it
         nothing meanwhile. Raises DriveError (then call again)."""
         self.supervisor.configuring()
-        self.startup.connected = False
+        if self.startup is not None:
+            self.startup.connected = False
         self.connect_and_enable()
         with self.feedback.lock:
             self.supervisor.restarted = ''
@@ -181,12 +197,12 @@ class Cia402Drive:
         """BLOCKING (one SDO read, at most `timeout` s): whether a drive whose heartbeat is
         lost restarted with its boot-up message lost on the bus: its heartbeat producer 0x1017
         no longer reads what we wrote. Raises DriveError when it does not answer."""
-        self._check_open()
-        sdo = self._node.sdo
+        link = self._opened()
+        sdo = link.node.sdo
         kept = sdo.RESPONSE_TIMEOUT, sdo.MAX_RETRIES
         sdo.RESPONSE_TIMEOUT, sdo.MAX_RETRIES = timeout, 1
         try:
-            period = self.sdo.read('is the drive restarted? (0x1017 heartbeat producer)',
+            period = link.sdo.read('is the drive restarted? (0x1017 heartbeat producer)',
                                    od.HEARTBEAT_PRODUCER)
         finally:
             sdo.RESPONSE_TIMEOUT, sdo.MAX_RETRIES = kept
@@ -221,7 +237,7 @@ class Cia402Drive:
 
     def send_heartbeat(self) -> None:
         """Our heartbeat frame, for the drive's consumer (once per bus on a shared one)."""
-        if self._node is None:
+        if self._link is None:
             raise NotConnectedError(f'drive node {self.config.drive_node_id}: not connected '
                                     '(call connect_and_enable first)')
         try:
@@ -256,7 +272,8 @@ class Cia402Drive:
         """Target 0 (wait for standstill), disable (06h), stop consuming our heartbeat, NMT
         pre-operational, close. BLOCKING (about 2 x step_timeout at most), idempotent, never
         raises: a failing step is logged and the next one still runs."""
-        if self._node is None:
+        link = self._link
+        if link is None:
             return
         cfg = self.config
         with self.canbus.start_up_sync():
@@ -274,11 +291,11 @@ class Cia402Drive:
                 except DriveError as exc:
                     log.warning('%s', exc)
             try:
-                self._node.nmt.state = 'PRE-OPERATIONAL'
+                link.node.nmt.state = 'PRE-OPERATIONAL'
                 plan = self.plan
                 if self._heartbeat_age() < cfg.drive_heartbeat_timeout and (
                         plan is None or plan.heartbeat_consumer):
-                    self.sdo.write('shutdown', od.HEARTBEAT_CONSUMER, 0)
+                    link.sdo.write('shutdown', od.HEARTBEAT_CONSUMER, 0)
             except Exception as exc:                    # best effort: the bus may be gone
                 log.warning('drive node %d: shutdown: %s', cfg.drive_node_id, exc)
         with self.feedback.lock:
@@ -320,10 +337,11 @@ class Cia402Drive:
                 self.feedback.lock.wait(0.01)
 
     def _close(self) -> None:
-        node, self._node = self._node, None
+        link, self._link = self._link, None
         network = self.canbus.network
-        if network is not None and node is not None and node.id in network:
-            del network[node.id]
+        node_id = link.node.id if link is not None else None
+        if network is not None and node_id is not None and node_id in network:
+            del network[node_id]
         self.commander.close()
         if self._owns_canbus:
             self.canbus.close()
@@ -332,37 +350,33 @@ class Cia402Drive:
     def read_identity(self) -> dict[str, int | None]:
         """The drive's identity (0x1000, 0x1018:1..4) and supported modes (0x6502) by SDO
         (BLOCKING; after open()). A missing entry reads None."""
-        self._check_open()
+        sdo = self._opened().sdo
         step = 'identify (0x1000, 0x1018, 0x6502)'
-        return {name: self.sdo.read(step, obj, optional=True) for name, obj in (
+        return {name: sdo.read(step, obj, optional=True) for name, obj in (
             ('device_type', od.DEVICE_TYPE), ('vendor_id', od.VENDOR_ID),
             ('product_code', od.PRODUCT_CODE), ('revision', od.REVISION_NUMBER),
             ('serial', od.SERIAL_NUMBER), ('supported_modes', od.SUPPORTED_MODES))}
 
     def set_polarity(self, reversed_: bool) -> None:
         """0x607E: bits 7 and 6 (position and velocity inverted) or none (BLOCKING)."""
-        self._check_open()
-        self.sdo.write('polarity (0x607E)', od.POLARITY,
-                       od.POLARITY_REVERSED if reversed_ else 0)
+        self._opened().sdo.write('polarity (0x607E)', od.POLARITY,
+                                 od.POLARITY_REVERSED if reversed_ else 0)
 
     def read_inputs(self) -> int:
         """The drive's digital inputs 0x60FD (bit 2 home switch) by SDO (BLOCKING)."""
-        self._check_open()
-        return self.sdo.read('digital inputs (0x60FD)', od.DIGITAL_INPUTS)
+        return self._opened().sdo.read('digital inputs (0x60FD)', od.DIGITAL_INPUTS)
 
     def home(self, method: int, switch_speed: float, zero_speed: float,
              timeout: float = 60.0) -> None:
         """Home the enabled drive with `method` (drive.startup.StartUp.home), BLOCKING."""
-        self._check_connected()
-        self.startup.home(method, switch_speed, zero_speed, timeout)
+        self._check_connected().home(method, switch_speed, zero_speed, timeout)
 
     def jog(self, speed: float, until: Callable[[], bool] | None = None,
             timeout: float = 60.0) -> bool:
         """Turn at `speed` (mechanism rad/s, slow) in profile velocity until `until()` is true
         (called between frames; None: for `timeout` s), then stop (BLOCKING). Returns whether
         `until` was met. Our frames and SYNC keep the drive's watchdogs fed."""
-        self._check_connected()
-        self.startup.check_mode('jog', PROFILE_VELOCITY)
+        self._check_connected().check_mode('jog', PROFILE_VELOCITY)
         deadline = time.monotonic() + timeout
         met = False
         with self.canbus.start_up_sync():
@@ -397,8 +411,7 @@ class Cia402Drive:
         """CSP: move `angle` rad (mechanism) from where the drive is at `speed` rad/s, one
         target per SYNC (the start-up producer's), and hold (BLOCKING). The angle the drive
         reports it moved."""
-        self._check_connected()
-        self.startup.check_mode('move_by', CYCLIC_SYNC_POSITION)
+        self._check_connected().check_mode('move_by', CYCLIC_SYNC_POSITION)
         period = self.config.sync_period
         start = self.status().position
         steps = max(1, math.ceil(abs(angle) / (speed * period)))

@@ -17,12 +17,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .errors import DictionaryError
+from .errors import DictionaryError, DriveError
 
 if TYPE_CHECKING:
-    from canopen.objectdictionary import ObjectDictionary, ODVariable
+    from canopen.objectdictionary import ObjectDictionary, ODArray, ODRecord, ODVariable
+    from canopen.pdo import PdoBase, PdoMaps
 
-__all__ = ['Entry', 'entry', 'mapping_capacity', 'read_dictionary', 'device_name']
+__all__ = ['Entry', 'entry', 'mapping_capacity', 'pdo_maps', 'read_dictionary', 'device_name']
 
 MAX_EDS_BYTES = 4 << 20        # a vendor's EDS is a few hundred kB; anything larger is not one
 
@@ -30,6 +31,8 @@ MAX_EDS_BYTES = 4 << 20        # a vendor's EDS is a few hundred kB; anything la
 def read_dictionary(path: str | Path, node_id: int | None = None) -> ObjectDictionary:
     """The object dictionary of the EDS/DCF at `path` ($NODEID as `node_id`). DictionaryError
     (one line naming the file) when it is missing, not text, or not an EDS canopen reads."""
+    # lazy: canopen costs 70-120 ms (python -X importtime) and `planter commission --help` and
+    # `planter drive check --help` load this module (test_help_opens_nothing)
     import canopen
     path = Path(path)
     where = f'EDS {path}'
@@ -81,28 +84,34 @@ class Entry:
         return f'0x{self.index:04X}' + (f':{self.subindex}' if self.subindex else '')
 
 
-def _members(obj: object) -> dict[int, ODVariable]:
+def _kinds() -> tuple[type[ODVariable], type[ODArray]]:
+    """canopen's classes of a variable and an array entry."""
+    # lazy: as read_dictionary's (a dictionary to ask means canopen is loaded already)
+    from canopen.objectdictionary import ODArray, ODVariable
+    return ODVariable, ODArray
+
+
+def _members(obj: ODRecord | ODArray) -> dict[int, ODVariable]:
     """The sub-indices the file itself lists for a record or array."""
-    from canopen.objectdictionary import ODArray
-    if isinstance(obj, ODArray):
+    if isinstance(obj, _kinds()[1]):
         return dict(obj.subindices)
     return {sub: obj[sub] for sub in obj}          # an ODRecord lists only its own
 
 
 def entry(dictionary: ObjectDictionary, index: int, subindex: int = 0) -> Entry | None:
     """The entry `index`:`subindex` as the file lists it, or None when it does not."""
-    from canopen.objectdictionary import ODVariable
     obj = dictionary.get(index)
     if obj is None:
         return None
-    if isinstance(obj, ODVariable):
+    if isinstance(obj, _kinds()[0]):
         if subindex:
             return None
         var = obj
     else:
-        var = _members(obj).get(subindex)
-        if var is None:
+        member = _members(obj).get(subindex)
+        if member is None:
             return None
+        var = member
     value = var.value if var.value is not None else var.default
     if value is not None and not isinstance(value, int):
         value = None                              # strings and domains: not ours to use
@@ -115,9 +124,8 @@ def mapping_capacity(dictionary: ObjectDictionary, mapping_index: int) -> int:
     """How many entries the PDO mapping record `mapping_index` (1600h.., 1A00h..) takes: the
     mapping sub-indices the file lists (1, 2, ... without a gap), at most sub-index 0's high
     limit when it states one; 0 when the record is missing or its mapping is not writable."""
-    from canopen.objectdictionary import ODVariable
     obj = dictionary.get(mapping_index)
-    if obj is None or isinstance(obj, ODVariable):
+    if obj is None or isinstance(obj, _kinds()[0]):
         return 0
     count = entry(dictionary, mapping_index, 0)
     if count is None or not count.writable:
@@ -135,3 +143,11 @@ def device_name(dictionary: ObjectDictionary) -> str:
     """The file's vendor and product names ('' when it gives none)."""
     info = dictionary.device_information
     return ' '.join(part for part in (info.vendor_name, info.product_name) if part).strip()
+
+
+def pdo_maps(pdos: PdoBase) -> PdoMaps:
+    """The maps of a node's RPDOs or TPDOs (canopen's `RPDO` and `TPDO` make theirs when the
+    node is made; its base class types them optional)."""
+    if pdos.map is None:
+        raise DriveError(f'{type(pdos).__name__} of node {pdos.node.id}: no PDO maps')
+    return pdos.map

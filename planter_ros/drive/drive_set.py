@@ -43,15 +43,15 @@ class DriveSet:
         self.config = config
         self.canbus = CanopenBus(config, bus)
         setups = setups or {}
-        self.drives = {}
+        self.drives: dict[str, Cia402Drive] = {}
         for name, node_id in node_ids.items():
             setup = setups.get(name)
             drive_config = replace(config, drive_node_id=node_id)
             if setup is not None:
                 drive_config = setup.device(drive_config)
             self.drives[name] = Cia402Drive(drive_config, canbus=self.canbus, setup=setup)
-        self.enabled = {}             # name -> drive, the drives enable() brought up
-        self.failed = {}              # name -> DriveError, the drives left out
+        self.enabled: dict[str, Cia402Drive] = {}    # the drives enable() brought up
+        self.failed: dict[str, DriveError] = {}      # the drives left out, and why
 
     def enable(self, keep_alive: float = 0.02) -> dict[str, DriveError]:
         """Open the bus, enable every drive at once; returns {name: DriveError} of the drives
@@ -60,7 +60,7 @@ class DriveSet:
             return {}
         for drive in self.drives.values():
             drive.open()                          # one after the other: the Network's node dict
-        done = {}
+        done: dict[str, DriveError | None] = {}
         lock = threading.Lock()
 
         def enable_one(name: str, drive: Cia402Drive) -> None:
@@ -81,11 +81,12 @@ class DriveSet:
         for thread in threads:
             thread.join()
         for name, drive in self.drives.items():
-            if done.get(name) is None:
+            error = done.get(name)
+            if error is None:
                 self.enabled[name] = drive
             else:
-                self.failed[name] = done[name]
-                log.error('%s', done[name])
+                self.failed[name] = error
+                log.error('%s', error)
                 drive.shutdown()                  # leaves the bus: its node is removed
         return dict(self.failed)
 

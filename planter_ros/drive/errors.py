@@ -11,16 +11,23 @@ None when it does not apply.
   `DictionaryError` naming the object: the drive is not what its EDS describes;
 * any other abort (`SdoAbortedError`): `DriveRefusedError` with the abort's code and text;
 * anything else (python-can failing to send: CanError, OSError, ValueError ...): `BusError`.
+
+`bus_error` is the one place a python-can failure becomes a `BusError` (opening the bus, a frame
+sent, an NMT command, an SDO transfer's send); `can_calls` applies it to a block of python-can
+calls.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from planter_ros.config import ConfigError
 from planter_ros.errors import PlanterError
 
 __all__ = ['NO_SUCH_OBJECT', 'BusError', 'DictionaryError', 'DriveConfigError', 'DriveError',
-           'DriveRefusedError', 'DriveTimeoutError', 'NotConnectedError', 'sdo_error']
+           'DriveRefusedError', 'DriveTimeoutError', 'NotConnectedError', 'bus_error', 'can_calls',
+           'sdo_error']
 
 # CiA 301 SDO abort codes of an entry the drive does not have: object, sub-index
 NO_SUCH_OBJECT = (0x06020000, 0x06090011)
@@ -70,6 +77,23 @@ class DictionaryError(DriveConfigError):
     the object, what it is for and what to do (before anything moves)."""
 
 
+def bus_error(exc: BaseException, what: str, node: int | None = None,
+              **facts: Any) -> BusError:
+    """The BusError python-can's failure `exc` means (it raises CanError, OSError, ValueError
+    ...), one line: `<what>: <exception type>: <text>`."""
+    return BusError(f'{what}: {type(exc).__name__}: {exc}', node=node, **facts)
+
+
+@contextmanager
+def can_calls(what: str, node: int | None = None) -> Iterator[None]:
+    """Around python-can calls: any exception they raise leaves as `bus_error(exc, what,
+    node)`."""
+    try:
+        yield
+    except Exception as exc:
+        raise bus_error(exc, what, node) from None
+
+
 def sdo_error(exc: BaseException, *, node: int, step: str, verb: str, index: int,
               subindex: int = 0, name: str = '', waited: str = '', bus: str = '') -> DriveError:
     """The drive error an SDO transfer's exception `exc` means (module doc), one line:
@@ -93,4 +117,4 @@ def sdo_error(exc: BaseException, *, node: int, step: str, verb: str, index: int
                                    abort_code=exc.code, **facts)
         return DriveRefusedError(f'{head}drive refused {verb} {obj} ({exc})',
                                  abort_code=exc.code, **facts)
-    return BusError(f'{head}CAN send failed: {type(exc).__name__}: {exc}', **facts)
+    return bus_error(exc, f'{head}CAN send failed', **facts)

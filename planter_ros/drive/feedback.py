@@ -5,6 +5,7 @@ control loop reads. The callbacks run on the Network's notifier thread and never
 take `lock` (a Condition: waiting for the next TPDO)."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import math
 import threading
@@ -14,7 +15,7 @@ from typing import TYPE_CHECKING
 from . import objects as od
 
 if TYPE_CHECKING:
-    from canopen.emcy import EmcyError
+    from canopen.emcy import EmcyConsumer, EmcyError
     from canopen.pdo.base import PdoMap
 
 __all__ = ['DriveStatus', 'Feedback', 'EMCY_KEPT']
@@ -62,12 +63,13 @@ class Feedback:
         #: EMCY frames received (every one, warnings and error resets too) and the last code
         self.emcy_count = 0
         self.last_emcy_code = 0
-        self.on_statusword = None
+        self.on_statusword: Callable[[int], None] | None = None
 
     def on_tpdo(self, pdo_map: PdoMap) -> None:
         """A TPDO: whichever of our entries it carries (bus callback)."""
         now = time.monotonic()
-        values = {var.index: var.raw for var in pdo_map}
+        # every entry of ours is an integer (drive.objects); canopen types raw as any value
+        values = {var.index: raw for var in pdo_map if isinstance(raw := var.raw, int)}
         with self.lock:
             if od.STATUSWORD.index in values:
                 self.statusword = values[od.STATUSWORD.index]
@@ -90,7 +92,7 @@ class Feedback:
                 self.motion_stamp = now
             self.lock.notify_all()
 
-    def count_emcy(self, entry: EmcyError, emcy: object | None) -> None:
+    def count_emcy(self, entry: EmcyError, emcy: EmcyConsumer | None) -> None:
         """Count every EMCY; keep canopen's lists of them (`emcy`, the node's consumer)
         bounded: a drive in an EMCY storm sends hundreds a second."""
         self.emcy_count += 1

@@ -25,9 +25,10 @@ from typing import TYPE_CHECKING
 
 from . import objects as od
 from .config import interpolation_period
-from .dictionary import Entry, entry, mapping_capacity
+from .dictionary import Entry, entry, mapping_capacity, read_dictionary
 from .errors import DictionaryError
-from .setup import HOMING_ALLOWED, homing_method_ok, missing_modes, mode_bits
+from .setup import (HOMING_ALLOWED, HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED, homing_method_ok,
+                    missing_modes, mode_bits)
 from .states import ABORT_OPTION_QUICK_STOP, CSP_SUPPORTED, CYCLIC_SYNC_POSITION, \
     PROFILE_VELOCITY, PROFILE_VELOCITY_SUPPORTED
 
@@ -309,10 +310,9 @@ def plan_drive(dictionary: ObjectDictionary, config: DriveConfig, setup: DriveSe
         synchronous = csp or sync_feedback
         inhibit = 0 if _optional_sub(p, 'TPDO', number, 3, 0, 'inhibit time') else None
         timer = 0 if synchronous else feedback_ms
-        if not _optional_sub(p, 'TPDO', number, 5, timer, 'event timer'):
-            timer = None
+        event_timer = timer if _optional_sub(p, 'TPDO', number, 5, timer, 'event timer') else None
         tpdo_plans.append(PdoPlan('TPDO', number, tuple(entries),
-                                  SYNCHRONOUS if synchronous else EVENT, timer, inhibit))
+                                  SYNCHRONOUS if synchronous else EVENT, event_timer, inhibit))
     used = {('RPDO', n) for n, _ in rpdos} | {('TPDO', n) for n, _ in tpdos}
     off = _switch_off(p, used)
     for pdo in (*rpdo_plans, *tpdo_plans):
@@ -361,16 +361,17 @@ def _usable(p: _Planner, kind: str, number: int, trans_type: int) -> int:
     return mapping_capacity(p.od, comm + 0x200)
 
 
-def _pack(p: _Planner, kind: str, groups: list[list[od.Obj]]) -> list[tuple[int, list]]:
+def _pack(p: _Planner, kind: str,
+          groups: list[list[od.Obj]]) -> list[tuple[int, list[od.Obj]]]:
     """The groups' entries over the PDOs `kind` 1..4, in order: each group starts a PDO; a PDO
     takes entries up to its capacity and 64 bits, the rest go to the next (the error code, an
     extra, is left out rather than refused)."""
     csp = p.mode == CYCLIC_SYNC_POSITION
     trans = SYNCHRONOUS if csp else EVENT
     free = [(n, cap) for n in PDO_NUMBERS if (cap := _usable(p, kind, n, trans)) > 0]
-    out: list[tuple[int, list]] = []
+    out: list[tuple[int, list[od.Obj]]] = []
     for group in groups:
-        current = None
+        current: tuple[int, list[od.Obj], int] | None = None    # (number, entries, capacity)
         for obj in group:
             if current is None or len(current[1]) >= current[2] or (
                     sum(o.bits for o in current[1]) + obj.bits > MAX_PDO_BITS):
@@ -416,7 +417,8 @@ def _pdo_writes(p: _Planner, pdo: PdoPlan, node_id: int) -> None:
     step = f'configure {pdo.kind}{pdo.number} ({pdo.comm_index:04X}h, {pdo.map_index:04X}h)'
     cob = pdo.cob_id(node_id)
     writes = [Write(_comm_obj(pdo.kind, pdo.number, 1, 'COB-ID'), PDO_NOT_VALID | cob, step)]
-    if entry(p.od, pdo.comm_index, 2).writable:
+    trans_type = entry(p.od, pdo.comm_index, 2)
+    if trans_type is not None and trans_type.writable:
         writes.append(Write(_comm_obj(pdo.kind, pdo.number, 2, 'transmission type'),
                             pdo.trans_type, step))
     if pdo.inhibit_time is not None:
@@ -543,7 +545,6 @@ def homing_writes(p: _Planner | ObjectDictionary, method: int, config: DriveConf
     """The objects homing method `method` writes (6098h, 6099h:1/:2 unless the method
     homes on the current position, 607Ch = 0 where it can), speeds in counts/s from
     mechanism rad/s (default: the homing speeds of drive.setup)."""
-    from .setup import HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED
     if not isinstance(p, _Planner):
         p = _Planner(p, config, None, PROFILE_VELOCITY, f'drive node {config.drive_node_id}')
     before = len(p.writes)
@@ -570,7 +571,6 @@ def plan_for_file(path: str, config: DriveConfig, setup: DriveSetup | None,
     """The plan made from the EDS/DCF at `path` alone (no bus: the machine file's check and
     `planter drive check` before it starts): the modes as the machine file lists them, unless
     the file's own 6502h default says the drive lacks one (refused, naming 0x6502)."""
-    from .dictionary import read_dictionary
     who = who or f'drive node {config.drive_node_id}'
     dictionary = read_dictionary(path, config.drive_node_id)
     stated = entry(dictionary, od.SUPPORTED_MODES.index)

@@ -16,7 +16,7 @@ import time
 from typing import TYPE_CHECKING
 
 from . import objects as od
-from .errors import BusError, DriveError, NotConnectedError
+from .errors import DriveError, NotConnectedError, bus_error
 from .states import CYCLIC_SYNC_POSITION
 
 if TYPE_CHECKING:
@@ -109,12 +109,12 @@ class Commander:
             try:
                 for cob_id, layout, slots in self._frames:
                     network.send_message(cob_id, layout.pack(*(values[i] for i in slots)))
-            except Exception as exc:        # python-can raises CanError, OSError, ValueError...
+            except Exception as exc:        # (the text is made only on a failure: hot path)
                 cfg = self.config
-                raise BusError(f'drive node {cfg.drive_node_id}: CAN send of RPDO (controlword '
-                               f'0x{controlword:04X}, target {counts}) failed on '
-                               f'{cfg.can_interface}:{cfg.can_channel}: '
-                               f'{type(exc).__name__}: {exc}') from None
+                raise bus_error(exc, f'drive node {cfg.drive_node_id}: CAN send of RPDO '
+                                f'(controlword 0x{controlword:04X}, target {counts}) failed on '
+                                f'{cfg.can_interface}:{cfg.can_channel}',
+                                cfg.drive_node_id) from None
             self.supervisor.last_controlword = controlword
 
     def send_velocity(self, speed: float) -> None:

@@ -9,7 +9,7 @@ BLOCKING (each call waits for the drive's answer): never from a bus callback or 
 from __future__ import annotations
 
 import struct
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal, overload
 
 from canopen.sdo import SdoAbortedError
 
@@ -49,6 +49,12 @@ class Sdo:
                          subindex=obj.subindex, name=obj.name, waited=self._wait_text(),
                          bus=f'{cfg.can_interface}:{cfg.can_channel}')
 
+    @overload
+    def read(self, step: str, obj: od.Obj, optional: Literal[False] = False) -> int: ...
+
+    @overload
+    def read(self, step: str, obj: od.Obj, optional: bool) -> int | None: ...
+
     def read(self, step: str, obj: od.Obj, optional: bool = False) -> int | None:
         """The value of `obj`; None for an `optional` one the drive does not have."""
         try:
@@ -60,7 +66,8 @@ class Sdo:
         size = struct.calcsize('<' + obj.fmt)
         data = bytes(data[:size]).ljust(size, b'\xff' if data and data[-1] & 0x80
                                         and obj.fmt.islower() else b'\x00')
-        return struct.unpack('<' + obj.fmt, data)[0]
+        value: int = struct.unpack('<' + obj.fmt, data)[0]      # every fmt of od is an integer
+        return value
 
     def write(self, step: str, obj: od.Obj, value: int) -> None:
         """`obj` = `value` (expedited download of its declared type)."""

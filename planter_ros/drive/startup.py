@@ -16,15 +16,17 @@ power cycle, and homing. BLOCKING (SDO and state waits), never from a callback o
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 import logging
 import time
 from typing import TYPE_CHECKING
 
 from . import objects as od
-from .errors import (BusError, DriveConfigError, DriveError, DriveRefusedError,
-                     DriveTimeoutError)
-from .plan import MODE_NAMES, DrivePlan, choose_mode, homing_writes, plan_drive
+from .dictionary import pdo_maps
+from .errors import (DriveConfigError, DriveError, DriveRefusedError, DriveTimeoutError,
+                     can_calls)
+from .plan import MODE_NAMES, DrivePlan, Write, choose_mode, homing_writes, plan_drive
 from .setup import (HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED, homing_timeout, identity_mismatch,
                     missing_modes, pdo_mismatch)
 from .states import (CYCLIC_SYNC_POSITION, FAULT, FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
@@ -44,20 +46,31 @@ if TYPE_CHECKING:
     from .setup import DriveSetup
     from .supervision import Supervisor
 
-__all__ = ['StartUp', 'NMT_REPEAT']
+__all__ = ['DriveLink', 'StartUp', 'NMT_REPEAT']
 
 log = logging.getLogger(__name__)
 NMT_REPEAT = 0.1          # s between two NMT start commands while the drive has not answered
 
 
+@dataclass(frozen=True)
+class DriveLink:
+    """One drive's node on its bus, as `Cia402Drive.open()` made it: the bus, the canopen node
+    with the dictionary read from the drive's EDS, and SDO access to it."""
+
+    canbus: CanopenBus
+    node: BaseNode402
+    dictionary: ObjectDictionary
+    sdo: Sdo
+
+
 class StartUp:
     """The start-up of one drive and what it made: the plan, the mode, whether PDOs flow."""
 
-    def __init__(self, config: DriveConfig, setup: DriveSetup | None, canbus: CanopenBus,
-                 node: BaseNode402, dictionary: ObjectDictionary, sdo: Sdo, feedback: Feedback,
-                 supervisor: Supervisor, commander: Commander) -> None:
-        self.config, self.setup, self.canbus, self.node = config, setup, canbus, node
-        self.dictionary, self.sdo, self.feedback = dictionary, sdo, feedback
+    def __init__(self, config: DriveConfig, setup: DriveSetup | None, link: DriveLink,
+                 feedback: Feedback, supervisor: Supervisor, commander: Commander) -> None:
+        self.config, self.setup, self.link, self.feedback = config, setup, link, feedback
+        self.canbus, self.node, self.dictionary, self.sdo = (link.canbus, link.node,
+                                                              link.dictionary, link.sdo)
         self.supervisor, self.commander = supervisor, commander
         self.plan: DrivePlan | None = None
         self.connected = False            # PDOs configured, the drive operational
@@ -96,13 +109,10 @@ class StartUp:
                  1000 * self.enable_duration, MODE_NAMES[mode])
 
     def _send_nmt(self, state: str) -> None:
-        try:
+        node = self.config.drive_node_id
+        with can_calls(f'drive node {node}: CAN send of NMT {state.lower()} failed on '
+                       f'{self.canbus.where}', node):
             self.node.nmt.state = state
-        except Exception as exc:            # python-can raises CanError, OSError, ValueError...
-            cfg = self.config
-            raise BusError(f'drive node {cfg.drive_node_id}: CAN send of NMT '
-                           f'{state.lower()} failed on {cfg.can_interface}:{cfg.can_channel}: '
-                           f'{type(exc).__name__}: {exc}', node=cfg.drive_node_id) from None
 
     def _identify(self) -> int | None:
         """Refuse a node that is not a CiA 402 drive; its 6502h (None: it does not say)."""
@@ -151,7 +161,7 @@ class StartUp:
             self.sdo.write(write.step, write.obj, write.value)
         node = self.node
         used = {pdo.number for pdo in plan.tpdos}
-        for number, tpdo in node.tpdo.map.items():
+        for number, tpdo in pdo_maps(node.tpdo).items():
             if number not in used:
                 tpdo.enabled = False
                 if tpdo.cob_id:
@@ -275,7 +285,7 @@ class StartUp:
                         resend=lambda: self.commander.transmit(controlword))
 
     def home(self, method: int, switch_speed: float, zero_speed: float,
-             timeout: float = 60.0, writes: tuple = ()) -> None:
+             timeout: float = 60.0, writes: Sequence[Write] = ()) -> None:
         """Home the enabled drive: homing mode 6 with `method` (0x6098), speeds in mechanism
         rad/s (0x6099:1 search for the switch, :2 for zero), home offset 0 where it can;
         started with controlword bit 4, finished by statusword bits 12 (attained) and 10

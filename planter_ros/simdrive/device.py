@@ -79,7 +79,8 @@ class SimulatedDevice:
             return self.node.value(index, subindex, default)
         periods = value(0x60C2, 1)
         if periods is not None:
-            self.csp.period = periods * 10.0 ** value(0x60C2, 2, -3)
+            index = value(0x60C2, 2, -3)
+            self.csp.period = periods * 10.0 ** (index if index is not None else -3)
         else:
             self.csp.period = (value(0x1006, 0, 0) or 0) / 1e6
 

@@ -73,8 +73,8 @@ class SimulatedDrive(DriveViews):
         if not tick > 0:
             raise ValueError(f'tick = {tick!r} is out of range: allowed > 0')
         self._owns_bus = isinstance(bus_or_channel, str)
-        self._bus = (can.Bus(interface=interface, channel=bus_or_channel) if self._owns_bus
-                     else bus_or_channel)
+        self._bus: can.BusABC = (can.Bus(interface=interface, channel=bus_or_channel)
+                                 if isinstance(bus_or_channel, str) else bus_or_channel)
         self.node_id, self.tick = node_id, float(tick)
         self._lock = threading.RLock()
         self._tx_lock = threading.Lock()
@@ -95,12 +95,12 @@ class SimulatedDrive(DriveViews):
         self.network.subscribe(self.node.sdo.rx_cobid, self._on_sdo_request)
         self.network.subscribe(0, self._on_nmt_command)
         self.network.subscribe(objs.SYNC_COB, self._on_sync)
-        for pdo_map in self.node.rpdo.map.values():
-            pdo_map.add_callback(self._on_rpdo)
         self.mechanism = Mechanism(spec)
         self.faults = InjectedFaults(spec, node_id)
         self.watchdog = Watchdog()
         self.pdo = PdoTiming(self.node, self._act)
+        for pdo_map in self.pdo.rpdos.values():
+            pdo_map.add_callback(self._on_rpdo)
         self._hb_enabled = True
         self._last_hb_sent = -math.inf
         #: gaps between command frames, SYNCs and the master's heartbeats, on this drive's
@@ -223,6 +223,8 @@ class SimulatedDrive(DriveViews):
     def _on_write(self, index: int, subindex: int, od: ODVariable, data: bytes) -> None:
         """SDO downloads and the entries of RPDOs acted on land here before they are stored."""
         value = od.decode_raw(data)
+        if not isinstance(value, int):          # strings and domains: stored, nothing to act on
+            return
         with self._lock:
             done = self.device.write(index, subindex, value)
             if index == objs.HEARTBEAT_PRODUCER.index:
@@ -248,7 +250,7 @@ class SimulatedDrive(DriveViews):
             log.warning('simulated drive: RPDO entry refused: %s', exc)
 
     # ---------------------------------------------------------------- frames received
-    def _on_sdo_request(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_sdo_request(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """An SDO request: answered at once, or by a slow drive later, or never while off."""
         if not self.faults.powered:
             return
@@ -257,7 +259,7 @@ class SimulatedDrive(DriveViews):
         if now:
             self.node.sdo.on_request(can_id, data, timestamp)
 
-    def _on_nmt_command(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_nmt_command(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """An NMT command: LocalNode applies it to node.nmt, then the drive reacts."""
         if not self.faults.powered:
             return
@@ -287,12 +289,12 @@ class SimulatedDrive(DriveViews):
             self.watchdog.last_rpdo = stamp
         self.pdo.received(pdo_map)
 
-    def _on_consumed_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_consumed_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
         if self.faults.powered and (can_id & 0x7F) == self.watchdog.consumer_node:
             self.watchdog.heartbeat = wire_time(timestamp)
             self.heartbeat_gaps.event(self.watchdog.heartbeat)
 
-    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """SYNC (its time on the bus, as a drive's hardware sees it): the motor up to that
         instant; the synchronous TPDOs sampled and sent; the synchronous RPDOs received since
         the last SYNC acted on; in CSP the new segment to the target taken."""

@@ -53,7 +53,7 @@ class FaultBus(can.BusABC):
         self.counts = {'sent': 0, 'received': 0, 'lost_sent': 0, 'lost_received': 0,
                        'send_errors': 0, 'bus_off_sends': 0, 'bus_off_receives': 0}
         self.channel_info = f'faults on {getattr(bus, "channel_info", bus)}'
-        super().__init__(channel=getattr(bus, 'channel', None), **kwargs)
+        super().__init__(channel=bus.channel_info, **kwargs)      # (BusABC only names it)
 
     # ---------------------------------------------------------------- knobs
     def bus_off(self, seconds: float) -> None:

@@ -34,14 +34,16 @@ class InjectedFaults:
         self._sdo_queue.clear()
         self.power_cycles += 1
 
-    def sdo_request(self, now: float, can_id: int, data: bytes, stamp: float) -> bool:
+    def sdo_request(self, now: float, can_id: int, data: bytes | bytearray,
+                    stamp: float) -> bool:
         """An SDO request: True to answer it at once, else it is queued (a slow drive)."""
         self.sdo_requests += 1
-        slow = self.sdo_delay is not None and self._random.random() < self.sdo_slow_share
+        delay = self.sdo_delay
+        slow = delay is not None and self._random.random() < self.sdo_slow_share
         if not slow and now >= self._sdo_free_at:
             return True
-        at = max(now, self._sdo_free_at) + (self._random.uniform(*self.sdo_delay)
-                                            if slow else 0.0)
+        at = max(now, self._sdo_free_at) + (self._random.uniform(*delay)
+                                            if slow and delay is not None else 0.0)
         self.sdo_slow += slow
         self._sdo_free_at = at
         self._sdo_queue.append((at, can_id, bytes(data), stamp))

@@ -60,6 +60,8 @@ class Homing:
 
     def step(self, before: float, now: float, velocity: float) -> None:
         """After a motor sub-step from `before` to `now` counts: the switch and index edges."""
+        if self.phase is None:
+            return
         phase = self.phase[0]
         rev = self.counts_per_rev
         if phase == 'search' and self.switch_active(now):

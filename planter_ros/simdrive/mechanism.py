@@ -75,6 +75,8 @@ def simulated_mechanism(seed: int, node_id: int, power_up: int = 0) -> tuple[flo
     the power-up too (an incremental encoder counts from wherever the motor was at power-up):
     commissioning runs power-up 0, a later start another, and the homing must find the same
     bottom."""
+    # lazy: numpy costs 150 ms (python -X importtime) and the drives' own process
+    # (simdrive.process) never draws a mechanism: only the machine's side does
     import numpy as np
     wiring = np.random.default_rng([seed, node_id])
     offset = np.random.default_rng([seed, node_id, power_up])

@@ -82,11 +82,12 @@ class StrictNode(canopen.LocalNode):
                  check_writable: bool = False) -> None:
         if check_writable:              # an SDO download: the device's rules
             obj = self._find_object(index, subindex)
-            if obj.writable:
+            value = obj.decode_raw(data)
+            if obj.writable and isinstance(value, int):     # the PDO entries are UNSIGNEDs
                 if _is_mapping(index):
-                    self._check_mapping(index, subindex, obj.decode_raw(data))
+                    self._check_mapping(index, subindex, value)
                 elif _is_comm(index):
-                    self._check_comm(index, subindex, obj.decode_raw(data))
+                    self._check_comm(index, subindex, value)
         super().set_data(index, subindex, data, check_writable)
 
     def _valid(self, comm_index: int) -> bool:

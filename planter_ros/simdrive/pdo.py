@@ -19,6 +19,7 @@ import math
 from typing import TYPE_CHECKING
 
 from planter_ros.drive import objects as od
+from planter_ros.drive.dictionary import pdo_maps
 
 if TYPE_CHECKING:
     from canopen.pdo.base import PdoMap
@@ -39,6 +40,7 @@ class PdoTiming:
 
     def __init__(self, node: StrictNode, act: Callable[[Entries], None]) -> None:
         self.node = node
+        self.rpdos, self.tpdos = pdo_maps(node.rpdo), pdo_maps(node.tpdo)
         self.act = act
         self.operational = False
         self._buffered: dict[int, Entries] = {}      # synchronous RPDOs waiting for SYNC
@@ -64,12 +66,12 @@ class PdoTiming:
         self._syncs = 0
         self._sent_statusword = None
         deadline = 0.0
-        for number, pdo_map in node.rpdo.map.items():
+        for number, pdo_map in self.rpdos.items():
             timer = node.value(0x1400 + number - 1, 5, 0) if pdo_map.enabled else 0
             if timer and any(var.index == od.CONTROLWORD.index for var in pdo_map):
                 deadline = timer / 1000.0
         self.deadline = deadline
-        for number in node.tpdo.map:
+        for number in self.tpdos:
             comm = 0x1800 + number - 1
             self._timing[number] = (node.value(comm, 5, 0) / 1000.0,
                                     node.value(comm, 3, 0) / 10_000.0)
@@ -88,7 +90,7 @@ class PdoTiming:
         entries = [(var.index, var.subindex, bytes(var.get_data())) for var in pdo_map]
         entries.sort(key=lambda e: e[0] == od.CONTROLWORD.index)       # controlword last
         if synchronous(pdo_map.trans_type):
-            number = next(n for n, m in self.node.rpdo.map.items() if m is pdo_map)
+            number = next(n for n, m in self.rpdos.items() if m is pdo_map)
             self._buffered[number] = entries
         else:
             self.act(entries)
@@ -108,7 +110,7 @@ class PdoTiming:
         if not self.operational:
             return
         self._syncs += 1
-        for number, pdo_map in self.node.tpdo.map.items():
+        for number, pdo_map in self.tpdos.items():
             trans = pdo_map.trans_type
             if not pdo_map.enabled or not synchronous(trans):
                 continue
@@ -125,7 +127,7 @@ class PdoTiming:
         if not self.operational:
             return
         changed = statusword != self._sent_statusword
-        for number, pdo_map in self.node.tpdo.map.items():
+        for number, pdo_map in self.tpdos.items():
             if not pdo_map.enabled or pdo_map.trans_type not in (254, 255):
                 continue
             timer, inhibit = self._timing.get(number, (0.0, 0.0))
@@ -144,6 +146,8 @@ class PdoTiming:
         return bytes(pdo_map.data)
 
     def _send(self, number: int, pdo_map: PdoMap, now: float, data: bytes) -> None:
+        if pdo_map.cob_id is None:               # no COB-ID read from 18xxh:1: nothing to send
+            return
         self.node.network.send_message(pdo_map.cob_id, data)
         self._last_sent[number] = now
         self._last_data[number] = data

@@ -27,6 +27,10 @@ import sys
 import threading
 from typing import Any
 
+from planter_ros.drive.socket_bus import SocketPairBus
+
+from .bus import SimulatedBus
+
 __all__ = ['SimProcess', 'drives_report', 'end_states', 'main']
 
 
@@ -65,7 +69,10 @@ class SimProcess:
              '--nodes', ','.join(str(n) for n in node_ids), '--options', json.dumps(options),
              '--priority', str(priority)],
             pass_fds=(fd,), stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        line = self.process.stdout.readline()
+        if self.process.stdin is None or self.process.stdout is None:     # PIPE makes both
+            raise RuntimeError('the simulated drives\' process has no stdin/stdout pipe')
+        self._stdin, self._stdout = self.process.stdin, self.process.stdout
+        line = self._stdout.readline()
         if not line.startswith('ready'):
             self.process.kill()
             self.process.wait()
@@ -78,16 +85,16 @@ class SimProcess:
         """Inject `fault` ('power_cycle' off_s, 'emcy_storm' rate s) into drive `node_id`."""
         if fault not in self.FAULTS:
             raise ValueError(f'fault {fault!r}: allowed {", ".join(self.FAULTS)}')
-        self.process.stdin.write(json.dumps([fault, int(node_id), *args]) + '\n')
-        self.process.stdin.flush()
+        self._stdin.write(json.dumps([fault, int(node_id), *args]) + '\n')
+        self._stdin.flush()
 
     def stop(self, timeout: float = 10.0) -> dict:
         """Stop the drives; their report ({} if none came)."""
         if self.report is not None:
             return self.report
         try:
-            self.process.stdin.close()
-            out = self.process.stdout.read()
+            self._stdin.close()
+            out = self._stdout.read()
             self.process.wait(timeout)
         except (OSError, subprocess.TimeoutExpired):
             self.process.kill()
@@ -99,10 +106,6 @@ class SimProcess:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from planter_ros.drive.socket_bus import SocketPairBus
-
-    from .bus import SimulatedBus
-
     parser = argparse.ArgumentParser(prog='planter_ros.simdrive.process')
     parser.add_argument('--fd', type=int, required=True)
     parser.add_argument('--nodes', required=True)

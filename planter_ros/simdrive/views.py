@@ -4,8 +4,21 @@ must agree)."""
 from __future__ import annotations
 
 import math
+import threading
+from typing import TYPE_CHECKING
 
 from .mechanism import wrap_angle
+
+if TYPE_CHECKING:
+    from .clock import Gaps
+    from .device import SimulatedDevice
+    from .faults import InjectedFaults
+    from .mechanism import Mechanism
+    from .motor import Motor
+    from .node import StrictNode
+    from .pdo import PdoTiming
+    from .spec import SimSpec
+    from .watchdog import Watchdog
 
 __all__ = ['DriveViews']
 
@@ -13,7 +26,23 @@ TWO_PI = 2.0 * math.pi
 
 
 class DriveViews:
-    """Read-only views of a SimulatedDrive's parts (mixed into it)."""
+    """Read-only views of a SimulatedDrive's parts (mixed into it; the parts it reads, which
+    SimulatedDrive makes, are declared here)."""
+
+    spec: SimSpec
+    node: StrictNode
+    device: SimulatedDevice
+    mechanism: Mechanism
+    faults: InjectedFaults
+    watchdog: Watchdog
+    pdo: PdoTiming
+    sync_gaps: Gaps
+    sync_count: int
+    sync_late: int
+    sync_missing: int
+    following_error_faults: int
+    _lock: threading.RLock
+    _heartbeat_period: float
 
     @property
     def state(self) -> str:
@@ -41,7 +70,7 @@ class DriveViews:
         return self.device.supported_modes
 
     @property
-    def motor(self) -> object:
+    def motor(self) -> Motor:
         return self.device.motor
 
     @property
@@ -130,7 +159,7 @@ class DriveViews:
         """monotonic s at which the mechanism passed its bottom forwards (record_bottom)."""
         return self.mechanism.bottom_times
 
-    def sync_summary(self) -> dict:
+    def sync_summary(self) -> dict[str, object]:
         """SYNC timing as this drive saw it (its own clock)."""
         return {'syncs': self.sync_count, 'late': self.sync_late, 'missing': self.sync_missing,
                 'period': self.node.value(0x1006, 0, 0) / 1e6, 'gaps': self.sync_gaps.summary(),
