@@ -144,12 +144,12 @@ def _rows_of_a_machine(design, seed):
     with what real rows have: a joint gap, lost shaft speeds (the arcs go linear), NaN
     angles, a section break, a row whose feedback never came."""
     from planter_ros.prediction import RowInputs
-    from planter_ros.sim.runs import simulate_run
+    from planter_ros.sim.runs import RunOptions, simulate_run
     rng = np.random.default_rng(seed)
     rows = []
     for r in range(5):
-        run = simulate_run(design, duration=12.0, seed=seed * 10 + r,
-                           stall_at=4.0 if r == 1 else None)
+        run = simulate_run(design, RunOptions(duration=12.0, seed=seed * 10 + r,
+                                              stall_at=4.0 if r == 1 else None))
         st, sv = run.speed_t, run.speed_v
         jt, jp, jw = run.joint_t, run.joint_pos.copy(), run.joint_vel.copy()
         t = jt - jt[0]

@@ -152,9 +152,9 @@ def test_the_live_monitor_reads_the_seedling_sensor_as_replay_does(ros):
     from planter_ros.nodes.monitor_node import MonitorNode
     from planter_ros.prediction import (PredictionSettings, design_spacing_of,
                                         planting_model_from_design, predict_plants)
-    from planter_ros.sim.runs import five_bar_design_message, simulate_run
+    from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
     design = five_bar_design_message()
-    run = simulate_run(design, duration=24.0, seed=7)
+    run = simulate_run(design, RunOptions(duration=24.0, seed=7))
     model = planting_model_from_design(design)
     theta = np.maximum.accumulate(run.joint_pos)
     ks = np.arange(math.ceil((theta[0] - model.planting_phase) / (2 * math.pi)),

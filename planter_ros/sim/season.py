@@ -41,7 +41,8 @@ from planter_ros.design import Design, from_json, to_json
 from planter_ros.geo import AntennaSettings
 from planter_ros.rows import Row, implicit_row, rows_record
 
-from .closed_loop import DriveModel, RowRun, simulate_rows
+from .closed_loop import (
+    DriveModel, LoopTiming, MotionSensor, RowDesign, RowEvents, RowRun, SimMachine, simulate_rows)
 from .field import Curve, FieldProfile, Stop
 from .gnss import SimulatedGnss, fix_positions, navsatfix
 from .runs import SIM_EPOCH, five_bar_design_message
@@ -298,14 +299,15 @@ def simulate_plan(plan: RunPlan, design: Design | None = None,
                                                max_acceleration=acceleration,
                                                speed_scale=s.level)),
                    (s.start + s.length, s.row, nominal)]
-    runs = simulate_rows([row.lateral_offset for row in plan.rows], profile, plan.duration,
-                         design.plant_spacing, design.plants_per_revolution, config=law,
-                         drive=nominal, dt=STEP, sample_period=SAMPLE_PERIOD,
-                         feedback_period=FEEDBACK_PERIOD, sensor=sensor, drive_changes=changes,
-                         seed=plan.index, planting=planting_angles(design),
-                         cams=_row_cams(design, law, plan.rows),
-                         designs=[(t, d.plant_spacing, _row_cams(d, law, plan.rows))
-                                  for t, d in plan.designs])
+    machine = SimMachine([row.lateral_offset for row in plan.rows], law, drive=nominal,
+                         timing=LoopTiming(STEP, SAMPLE_PERIOD, FEEDBACK_PERIOD))
+    runs = simulate_rows(machine, profile, plan.duration,
+                         RowDesign(design.plant_spacing, design.plants_per_revolution,
+                                   planting_angles(design), _row_cams(design, law, plan.rows)),
+                         MotionSensor(seed=plan.index, read=sensor),
+                         RowEvents(drive_changes=changes,
+                                   designs=[(t, d.plant_spacing, _row_cams(d, law, plan.rows))
+                                            for t, d in plan.designs]))
     every = int(round(FEEDBACK_PERIOD / STEP))
     t = runs[0].t[::every]
     quantum = 2.0 * math.pi / ENCODER_COUNTS
