@@ -13,7 +13,7 @@ from planter_ros.control.phase_lock import PlantingAngles
 from planter_ros.prediction import SectionBreaks, planting_model_from_design
 from planter_ros.recording.replay import replay
 from planter_ros.rows import Row
-from planter_ros.sim.bags import write_machine_bag
+from planter_ros.sim.bags import MachineBagOptions, write_machine_bag
 from planter_ros.sim.closed_loop import (
     LoopTiming, MotionSensor, RowDesign, RowEvents, SimMachine, simulate_rows)
 from planter_ros.sim.field import field_profile
@@ -70,7 +70,7 @@ def machine(request):
 def left_spacings(tmp_path, machine, extra, name):
     design, profile, runs, _ = machine
     bag = tmp_path / name
-    write_machine_bag(ROWS, runs, profile, design, bag, epoch=EPOCH, extra=extra)
+    write_machine_bag(ROWS, runs, profile, design, bag, MachineBagOptions(EPOCH, extra=extra))
     result = replay(bag)
     left = result.plants.row == 0
     return result.plants.time[left] - EPOCH, result.plants.spacing[left]

@@ -55,7 +55,7 @@ from planter_ros.output_files import OutputError, atomic_output, check_directory
 from . import tables
 from .bags import fingerprint, identity
 from .engine import completed, worker_count
-from .task import analyze_bags
+from .task import BagTask, analyze_bags
 
 BAGS_DIR = 'bags'
 BAGS_FILE = f'{BAGS_DIR}/bags.parquet'
@@ -513,8 +513,8 @@ def run(season, client, keys, overrides, design, progress=None):
     report = Report(out=str(season.out))
     if design is not None:                   # one copy per worker, not one per task
         design = client.scatter(design, broadcast=True)
-    arguments = [(k.path or k.bag, k.bag, (k.file_size, k.file_mtime_ns, k.bag_id), k.options)
-                 for k in keys]
+    arguments = [BagTask(k.path or k.bag, k.bag, (k.file_size, k.file_mtime_ns, k.bag_id),
+                         k.options) for k in keys]
     options = {'overrides': overrides, 'design': design,
                'version': keys[0].model_version if keys else None}
     pending, last_write, write_cost = [], time.monotonic(), 0.0

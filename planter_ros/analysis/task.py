@@ -5,6 +5,7 @@ gets before the first bag). The bag is read from its path (shared storage): only
 the settings travel through the scheduler, and back only the bag's row and its plants table.
 """
 
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 import time
@@ -43,14 +44,27 @@ def warm_up():
     return model_version()
 
 
-def analyze_bag(path, key, identity, options, overrides, design, version):
-    """Replay the bag at `path` as `planter replay` would with the setting `overrides` (and the
+@dataclass(frozen=True)
+class BagTask:
+    """One bag for a worker: where it is read (`path`), the name it goes by (`key`: its path
+    relative to the analysed root), its `identity` (size, modification time ns, content id:
+    season.BagKey; without the id, the path stands for it) and the `options` key it is
+    analysed with (season.options_key)."""
+
+    path: str
+    key: str
+    identity: tuple[int, int] | tuple[int, int, str]
+    options: str
+
+
+def analyze_bag(bag, overrides, design, version):
+    """Replay `bag` (a BagTask) as `planter replay` would with the setting `overrides` (and the
     fallback `design`, or None): (its `bags` row, its `plants` table or None), both naming it
-    `key` (its name: its path relative to the analysed root) and keyed by its content id. A bag
-    replay cannot read is a row with status 'failed' and its one-line reason; any other
-    exception of the model on this bag is status 'error'. `identity` (size, modification time
-    ns, content id: season.BagKey; without the id, the path stands for it), `options` and
-    `version` are the re-run key the client decided on."""
+    `bag.key` and keyed by its content id. A bag replay cannot read is a row with status
+    'failed' and its one-line reason; any other exception of the model on this bag is status
+    'error'. `bag.identity`, `bag.options` and `version` are the re-run key the client decided
+    on."""
+    path, key, identity, options = bag.path, bag.key, bag.identity, bag.options
     started, cpu = time.perf_counter(), time.process_time()
     if model_version() != version:
         raise WorkerMismatch(f'worker runs planter_ros model version {model_version()}, the '
@@ -89,6 +103,6 @@ def _one_line(text):
 
 
 def analyze_bags(bags, overrides, design, version):
-    """`analyze_bag` of each (path, key, identity, options) in `bags`, in order: one task of
-    several bags (the scheduler's and client's cost per task shared among them)."""
-    return [analyze_bag(*bag, overrides, design, version) for bag in bags]
+    """`analyze_bag` of each BagTask in `bags`, in order: one task of several bags (the
+    scheduler's and client's cost per task shared among them)."""
+    return [analyze_bag(bag, overrides, design, version) for bag in bags]

@@ -5,6 +5,7 @@ time. Fast; for the replay benchmark and the recording tests."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -35,16 +36,28 @@ def write_input_bag(run: Run, path: str | Path, **recorder_options: Any) -> Reco
     return rec
 
 
+@dataclass(frozen=True)
+class MachineBagOptions:
+    """How write_machine_bag records: times on the simulated clock from `epoch` (s), ground
+    speed every `speed_period` s and joint states every `joint_period` s; `extra`: (t,
+    interfaces.Topic, message) written too, the message stamped at t if it has a header (e.g.
+    the sync node's section states)."""
+
+    epoch: float = 1_700_000_000.0
+    speed_period: float = 0.05
+    joint_period: float = 0.01
+    extra: Sequence[tuple[float, interfaces.Topic, Any]] = ()
+
+
 def write_machine_bag(rows: Sequence[Row], runs: Sequence[RowRun], profile: FieldProfile,
-                      design: Design, path: str | Path, epoch: float = 1_700_000_000.0,
-                      speed_period: float = 0.05, joint_period: float = 0.01,
-                      extra: Sequence[tuple[float, interfaces.Topic, Any]] = ()) -> Recorder:
+                      design: Design, path: str | Path,
+                      options: MachineBagOptions = MachineBagOptions()) -> Recorder:
     """Write a simulated machine (sim.closed_loop.simulate_rows: one RowRun per row of `rows`,
     planter_ros.rows.Row) as a monitor would record its inputs: the design, ground speed with
     the profile's true v and yaw rate, one JointState with every row's joint, and the rows
-    record. Times on the simulated clock from `epoch` (s). `extra`: (t, interfaces.Topic,
-    message) written too, the message stamped at t if it has a header (e.g. the sync node's
-    section states). Returns the closed Recorder."""
+    record, as `options` say (MachineBagOptions). Returns the closed Recorder."""
+    epoch, extra = options.epoch, options.extra
+    speed_period, joint_period = options.speed_period, options.joint_period
     import numpy as np
     from builtin_interfaces.msg import Time
     from geometry_msgs.msg import TwistStamped

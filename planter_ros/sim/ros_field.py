@@ -24,6 +24,7 @@ from planter_ros import interfaces
 from planter_ros.design import Design, from_json
 from planter_ros.kinematics.arrays import FloatArray
 
+from .closed_loop import MotionSensor
 from .field import FieldProfile
 from .gnss import SimulatedGnss, fix_positions, navsatfix
 from .spacing import plant_positions
@@ -38,17 +39,21 @@ if TYPE_CHECKING:
 
 
 class GroundSpeedSource(Node):
-    """Publishes `ground_speed` at `rate` Hz from `profile(t)` (t in s since start)."""
+    """Publishes `ground_speed` at `rate` Hz from `profile(t)` (t in s since start), read as
+    `sensor` says (a MotionSensor, default its defaults: Gaussian noise and its seed; the yaw
+    rate's noise a MEMS gyro's at 20 Hz), and at the `glitches` (t, value) that value instead
+    of the reading."""
 
-    def __init__(self, profile: FieldProfile, rate: float = 20.0, noise: float = 0.005,
-                 glitches: Sequence[tuple[float, float]] = (), seed: int = 0,
-                 yaw_noise: float = 0.005, **kwargs: Any) -> None:
+    def __init__(self, profile: FieldProfile, sensor: MotionSensor | None = None,
+                 rate: float = 20.0, glitches: Sequence[tuple[float, float]] = (),
+                 **kwargs: Any) -> None:
         super().__init__('ground_speed_source', **kwargs)
+        sensor = sensor or MotionSensor()
         self.profile = profile
-        self.noise = noise
-        self.yaw_noise = yaw_noise            # rad/s, a MEMS gyro's noise at 20 Hz
+        self.noise = sensor.noise
+        self.yaw_noise = sensor.yaw_noise     # rad/s, a MEMS gyro's noise at 20 Hz
         self.glitches = sorted(glitches)      # (t, value) published instead of the reading
-        self._rng = np.random.default_rng(seed)
+        self._rng = np.random.default_rng(sensor.seed)
         self._pub = interfaces.GROUND_SPEED.publisher(self)
         self.start = self.get_clock().now()
         self.samples = 0

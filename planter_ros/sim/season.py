@@ -46,6 +46,7 @@ from .closed_loop import (
 from .field import Curve, FieldProfile, Stop
 from .gnss import SimulatedGnss, fix_positions, navsatfix
 from .runs import SIM_EPOCH, five_bar_design_message
+from .tray import FULL_TRAY, TrayShares
 
 # The module stays light: `planter simulate --help` reads SeasonOptions from it, so the cam
 # law, prediction/, recording/ (mcap) and the ROS messages are imported where a run needs them.
@@ -169,11 +170,11 @@ SPEED_CHANGE_MIN, SPEED_CHANGE_MAX = 0.75, 1.35
 
 
 def draw_plan(seed: int, index: int, duration: float, rows: int | Iterable[Row],
-              cruise: tuple[float, float] = (0.15, 0.4), empty_rate: float = 0.0,
-              double_rate: float = 0.0) -> RunPlan:
+              cruise: tuple[float, float] = (0.15, 0.4), tray: TrayShares = FULL_TRAY
+              ) -> RunPlan:
     """Run `index` of the season of `seed`: the same arguments give the same run. `rows`: a
     count (machine_rows) or the machine's rows (a scene's); `cruise`: the range (m/s) its
-    cruise speed is drawn from."""
+    cruise speed is drawn from; `tray`: its tray's empty and double shares."""
     machine = machine_rows(rows) if isinstance(rows, int) else tuple(rows)
     count = len(machine)
     rng = np.random.default_rng([int(seed), int(index)])
@@ -207,7 +208,7 @@ def draw_plan(seed: int, index: int, duration: float, rows: int | Iterable[Row],
                    stops=tuple(sorted(stops, key=lambda s: s.start)), curves=tuple(curves),
                    glitches=tuple(sorted(glitches, key=lambda g: g.start)), stall=stall,
                    drive_lag=float(rng.uniform(0.03, 0.1)), gnss=gnss,
-                   empty_rate=float(empty_rate), double_rate=float(double_rate))
+                   empty_rate=float(tray.empty_rate), double_rate=float(tray.double_rate))
 
 
 @lru_cache(maxsize=1)
@@ -366,16 +367,14 @@ class BagSummary(TypedDict):
     events: dict[str, Any]           # RunPlan.events() (JSON-ready) + empty_cells, double_cells
 
 
-def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None = None,
-                      settings: PredictionSettings | None = None,
-                      acceptance: AcceptanceLimits | None = None,
-                      antenna: AntennaSettings | None = None,
+def write_monitor_bag(run: MachineRun, path: str | Path, machine: SceneMachine | None = None,
                       **recorder_options: Any) -> BagSummary:
     """Record `run` (a MachineRun) at `path` as monitor_node would have (see the module doc);
-    `settings`, `acceptance` and `antenna` the monitor's (a scene's; default the defaults);
-    `recorder_options` (split_size, split_duration) as the monitor's parameters. Every message
-    is written by recording.cdr.encode_message: the same run gives the same bytes. Returns a
-    summary dict (SI)."""
+    the design and the monitor's settings, acceptance limits and antenna those of `machine`
+    (a scene's SceneMachine; None: the season's design and the defaults); `recorder_options`
+    (split_size, split_duration) as the monitor's parameters. Every message is written by
+    recording.cdr.encode_message: the same run gives the same bytes. Returns a summary dict
+    (SI)."""
     # lazy: the module stays light (see its imports)
     from builtin_interfaces.msg import Time
     from geometry_msgs.msg import TwistStamped
@@ -390,8 +389,10 @@ def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None =
     from planter_ros.sensing.plant_map import MapSettings
 
 
-    design = design or season_design()
-    settings = settings or PredictionSettings()
+    design = season_design() if machine is None else machine.design
+    settings = PredictionSettings() if machine is None else machine.settings
+    acceptance = AcceptanceLimits() if machine is None else machine.acceptance
+    antenna = AntennaSettings() if machine is None else machine.antenna
     plan = run.plan
     rows = list(plan.rows)
     named = len(rows) > 1 or bool(rows[0].name)
@@ -435,8 +436,8 @@ def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None =
                      {k: repr(v) for k, v in as_dict(settings).items()})
     rec.add_metadata(interfaces.ROWS_RECORD, rows_record(rows))
     rec.add_metadata(interfaces.ACCEPTANCE_RECORD, {
-        k: repr(v) for k, v in as_dict(acceptance or AcceptanceLimits()).items()})
-    map_settings, antenna = MapSettings(), antenna or AntennaSettings()
+        k: repr(v) for k, v in as_dict(acceptance).items()})
+    map_settings = MapSettings()
     rec.add_metadata(interfaces.MAP_RECORD, map_record(map_settings, antenna))
     # the monitor's own pipeline, fed what it would have received, in its receive order
     monitor = MonitorPipeline(rows, settings, map_settings, antenna.antenna_position)
@@ -522,29 +523,25 @@ class SceneMachine:
                                                        # spacing schedule
 
 
-def simulate_bag(path: str | Path, seed: int, index: int, duration: float, rows: int,
-                 machine: SceneMachine | None = None, empty_rate: float = 0.0,
-                 double_rate: float = 0.0) -> BagSummary:
+def simulate_bag(path: str | Path, seed: int, index: int, duration: float,
+                 machine: int | SceneMachine, tray: TrayShares = FULL_TRAY) -> BagSummary:
     """Draw run `index` of the season of `seed`, simulate it and record it at `path` (a task
-    of `planter simulate`): a machine of `rows` rows with the season's design, or `machine` (a
-    SceneMachine: a scene's design, rows, monitor settings, limits and antenna), its tray with
-    `empty_rate` empty cells and `double_rate` doubles. Returns write_monitor_bag's summary; a
-    bag left unfinished by an error is removed."""
-    if machine is None:
-        plan = draw_plan(seed, index, duration, rows, empty_rate=empty_rate,
-                         double_rate=double_rate)
+    of `planter simulate`): `machine` a count of rows (a machine with the season's design) or a
+    SceneMachine (a scene's design, rows, monitor settings, limits and antenna), its `tray`'s
+    empty and double shares. Returns write_monitor_bag's summary; a bag left unfinished by an
+    error is removed."""
+    if isinstance(machine, int):
+        plan = draw_plan(seed, index, duration, machine, tray=tray)
     else:
-        plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise,
-                         empty_rate=empty_rate, double_rate=double_rate)
+        plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise, tray=tray)
         plan = replace(plan, designs=tuple((t, d) for t, d in machine.schedule
                                            if t < plan.duration))
     existed = Path(path).exists()          # the recorder refuses it: never removed here
     try:
-        if machine is None:
+        if isinstance(machine, int):
             return write_monitor_bag(simulate_plan(plan), path)
         return write_monitor_bag(simulate_plan(plan, machine.design, machine.law), path,
-                                 machine.design,
-                                 machine.settings, machine.acceptance, machine.antenna)
+                                 machine)
     except BaseException:
         if not existed:
             Path(path).unlink(missing_ok=True)
