@@ -90,7 +90,7 @@ def analyze_bag(bag, overrides, design, version):
             table = with_heading(plants_arrays_table(key, result.plants,
                                                      [(r.index, r.label) for r in result.rows],
                                                      bag_id),
-                                 None if result.placement is None else result.placement.heading)
+                                 result.placement.heading)
     row['analysis_seconds'] = time.perf_counter() - started
     # CPU time apart from wall time: on shared cores the difference is time spent waiting
     row['analysis_cpu_seconds'] = time.process_time() - cpu
