@@ -97,7 +97,8 @@ def cluster(workers=None, scheduler=None):
     else:
         import dask  # lazy: 100 ms, only for a local cluster
 
-        from .worker_plugin import DieWithParent  # a distributed plugin: lazy as distributed
+        # lazy: a distributed WorkerPlugin: loading it loads distributed (as above)
+        from .worker_plugin import DieWithParent
         scratch = scratch_directory()
         try:
             with dask.config.set({'temporary-directory': scratch, **{

@@ -10,7 +10,13 @@ from functools import lru_cache
 from pathlib import Path
 import time
 
+# what a replay imports only when it first reads a bag: loaded with this module, on every
+# worker before its first bag (warm_up), so no bag pays for it
+import mcap.records  # noqa: F401
+import zstandard  # noqa: F401
+
 from planter_ros.errors import PlanterError
+from planter_ros.recording import indexed  # noqa: F401
 from planter_ros.recording.errors import RecordingError
 from planter_ros.recording.replay import replay
 
@@ -31,15 +37,10 @@ def model_version():
 
 
 def warm_up():
-    """Run on every worker before the first bag: loads what a replay imports only when first
-    needed (the indexed reader, zstd, pyarrow and the pandas it loads with its first array: a
-    second or more), so no bag pays for it, and
-    returns the model version the worker runs."""
-    # the warm-up is these imports: loaded here, on the worker, before its first bag
-    import mcap.records  # noqa: F401
-    import zstandard  # noqa: F401
-
-    from planter_ros.recording import indexed  # noqa: F401
+    """Run on every worker before the first bag: loads what a replay loads only when first
+    needed (pyarrow and the pandas it loads with its first array: a second or more; the indexed
+    reader and zstd come with this module), so no bag pays for it, and returns the model
+    version the worker runs."""
     load_pyarrow()
     return model_version()
 

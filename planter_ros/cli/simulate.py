@@ -7,7 +7,7 @@ import json
 import sys
 
 from planter_ros.cli.options import add_engine_arguments, spec_option
-from planter_ros.sim.season import SeasonOptions
+from planter_ros.sim.options import SeasonOptions
 
 
 def add_arguments(parser):

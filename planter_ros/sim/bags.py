@@ -9,15 +9,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import TwistStamped
+import numpy as np
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+
 from planter_ros import interfaces
 from planter_ros.design import Design, to_json
 from planter_ros.recording.recorder import Recorder
+from planter_ros.rows import Row, rows_record
 
 if TYPE_CHECKING:
-    from builtin_interfaces.msg import Time
-
-    from planter_ros.rows import Row
-
     from .closed_loop import RowRun
     from .field import FieldProfile
     from .runs import Run
@@ -58,14 +61,6 @@ def write_machine_bag(rows: Sequence[Row], runs: Sequence[RowRun], profile: Fiel
     record, as `options` say (MachineBagOptions). Returns the closed Recorder."""
     epoch, extra = options.epoch, options.extra
     speed_period, joint_period = options.speed_period, options.joint_period
-    import numpy as np
-    from builtin_interfaces.msg import Time
-    from geometry_msgs.msg import TwistStamped
-    from sensor_msgs.msg import JointState
-    from std_msgs.msg import String
-
-    from planter_ros.rows import rows_record
-
     def stamp(t: float) -> Time:
         sec, nsec = divmod(int(round((epoch + t) * 1e9)), 1_000_000_000)
         return Time(sec=sec, nanosec=nsec)

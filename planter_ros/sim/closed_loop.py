@@ -14,6 +14,7 @@ row's own true travelled distance (FieldProfile.row_distance).
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 import math
@@ -24,6 +25,7 @@ from numpy.typing import NDArray
 
 from planter_ros.control.machine_law import Machine, TurnConfig
 from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
+from planter_ros.control.row_loop import cam_csp_target, csp_setpoint
 
 from .field import FieldProfile, demo_curves, field_profile
 from .spacing import SpacingStats, plant_positions, spacing_stats
@@ -193,7 +195,6 @@ class CspDrive:
 
     def send(self, law: PhaseLock, command: float, theta: float, t: float) -> None:
         """After the SYNC at `t`: the row's target for the next one (the shaft at `theta`)."""
-        from planter_ros.control.row_loop import cam_csp_target, csp_setpoint
         ahead = 0.0
         if self.target is None:
             self.target = theta
@@ -455,7 +456,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Print phase-locked vs speed-only spacing for the tomato scene (30 s field run:
     0.2 m/s, +50 % at 13.5 s, stop), noise-free and with 10 mm/s sensor noise; and the 4-row
     machine through turns."""
-    import argparse
     parser = argparse.ArgumentParser(description=main.__doc__, allow_abbrev=False)
     parser.add_argument('--markdown', action='store_true',
                         help="print only the spacing table of doc/node_graph.md")

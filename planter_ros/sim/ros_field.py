@@ -16,26 +16,26 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 from rclpy.time import Time
-from geometry_msgs.msg import TwistStamped
+from sensor_msgs.msg import JointState
 
 from planter_ros import interfaces
 from planter_ros.design import Design, from_json
 from planter_ros.kinematics.arrays import FloatArray
+from planter_ros.prediction import planting_model_from_design
 
 from .closed_loop import MotionSensor
 from .field import FieldProfile
 from .gnss import SimulatedGnss, fix_positions, navsatfix
 from .spacing import plant_positions
+from .tray import SensedCycles, Tray
 
 if TYPE_CHECKING:
-    from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64, String
 
     from planter_ros.rows import Row
-
-    from .tray import SensedCycles
 
 
 class GroundSpeedSource(Node):
@@ -121,10 +121,6 @@ class SeedlingSensor(Node):
     def __init__(self, design: Design, rows: Sequence[Row], empty_rate: float = 0.0,
                  double_rate: float = 0.0, seed: int = 0, **kwargs: Any) -> None:
         super().__init__('seedling_sensor', **kwargs)
-        from planter_ros.prediction import planting_model_from_design
-        from sensor_msgs.msg import JointState
-
-        from .tray import SensedCycles, Tray
         self._message = JointState
         model = planting_model_from_design(design, 0.0)      # its phase and cycle only
         self._rows: dict[str, SensedCycles] = {row.joint(design.mechanism): SensedCycles(

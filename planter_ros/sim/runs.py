@@ -9,7 +9,11 @@ from dataclasses import dataclass
 import math
 from typing import Any
 
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import TwistStamped
 import numpy as np
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, String
 
 from planter_ros import interfaces
 from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
@@ -37,11 +41,6 @@ class Run:
     def messages(self) -> Iterator[tuple[int, interfaces.Topic, Any]]:
         """The stream as ROS messages in time order: (time ns, Topic, message), the design first
         (1 ms before the first sample), then ground speed and joint state + speed command."""
-        from builtin_interfaces.msg import Time
-        from geometry_msgs.msg import TwistStamped
-        from sensor_msgs.msg import JointState
-        from std_msgs.msg import Float64, String
-
         joint = interfaces.MECHANISM_JOINT[self.design.mechanism]
         t0 = _ns(min(self.speed_t[0], self.joint_t[0])) - 1_000_000
         yield t0, interfaces.DESIGN, String(data=to_json(self.design))

@@ -29,32 +29,38 @@ from dataclasses import dataclass, field, replace
 from functools import lru_cache
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypedDict
+from typing import Any, TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import TwistStamped
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, String
+
 from planter_ros import interfaces
-from planter_ros.config import as_dict, check, setting
+from planter_ros.config import as_dict
+from planter_ros.control.cam_law import plan_row_cam
 from planter_ros.control.phase_lock import PhaseLockConfig, planting_angles
 from planter_ros.design import Design, from_json, to_json
 from planter_ros.geo import AntennaSettings
+from planter_ros.prediction import (
+    AcceptanceLimits, PredictionSettings, planting_model_from_design)
+from planter_ros.prediction.pipeline import MonitorPipeline, Placed
+from planter_ros.recording.monitor_topics import plants_message
+from planter_ros.recording.recorder import Recorder
+from planter_ros.recording.replay import map_record
 from planter_ros.rows import Row, implicit_row, rows_record
+from planter_ros.sensing.plant_map import MapSettings
 
 from .closed_loop import (
     DriveModel, LoopTiming, MotionSensor, RowDesign, RowEvents, RowRun, SimMachine, simulate_rows)
 from .field import Curve, FieldProfile, Stop
 from .gnss import SimulatedGnss, fix_positions, navsatfix
 from .runs import SIM_EPOCH, five_bar_design_message
-from .tray import FULL_TRAY, TrayShares
+from .tray import FULL_TRAY, Tray, TrayShares, sense_angle
 
-# The module stays light: `planter simulate --help` reads SeasonOptions from it, so the cam
-# law, prediction/, recording/ (mcap) and the ROS messages are imported where a run needs them.
-if TYPE_CHECKING:
-    from builtin_interfaces.msg import Time
-
-    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
-    from planter_ros.prediction.pipeline import Placed
 
 ROW_PITCH = 0.5            # m between neighbouring simulated rows
 SAMPLE_PERIOD = 0.05       # s, ground-speed sensor (20 Hz)
@@ -63,25 +69,6 @@ GNSS_PERIOD = 0.1          # s, GNSS fixes (10 Hz)
 STEP = 0.0025              # s, integration step of the closed loop
 ENCODER_COUNTS = 4096      # per mechanism revolution
 RUN_PERIOD = 3600.0        # s of simulated clock between the starts of two runs of a season
-
-
-@dataclass(frozen=True)
-class SeasonOptions:
-    """A simulated season (`planter simulate`'s options)."""
-
-    bags: int = setting(1, 'runs (bags) to simulate', range=(1, 100_000))
-    duration: float = setting(60.0, 'length of each run', unit='s', range=(10.0, 3600.0))
-    rows: int = setting(4, 'planting rows of the machine (1: a machine without rows)',
-                        range=(1, 16))
-    seed: int = setting(0, 'seed of the season: the same seed gives the same bags',
-                        range=(0, 2 ** 32 - 1))
-    empty_rate: float = setting(0.02, "share of the tray's cells that are empty (the seedling "
-                                'sensor reads 0)', range=(0.0, 1.0))
-    double_rate: float = setting(0.01, "share of the tray's cells holding two seedlings (the "
-                                 'sensor reads 2)', range=(0.0, 1.0))
-
-    def __post_init__(self) -> None:
-        check(self)
 
 
 def bag_name(seed: int, index: int) -> str:
@@ -241,7 +228,6 @@ class MachineRun:
 
 @lru_cache(maxsize=4)
 def _cam(design_json: str, rule: str) -> Any:        # a control.cam_law row cam
-    from planter_ros.control.cam_law import plan_row_cam  # lazy: the module stays light
     return plan_row_cam(from_json(design_json), rule)
 
 
@@ -331,9 +317,6 @@ def tray_readings(plan: RunPlan, design: Design,
     reading, half a planting cycle before the planting angle (the cup passing the sensor), of
     what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1.
     A row the scene declares without a seedling sensor (Row.seedling_sensor) reads nothing."""
-    from planter_ros.prediction import planting_model_from_design  # lazy (see its imports)
-
-    from .tray import Tray, sense_angle
     model = planting_model_from_design(design)
     n = model.plants_per_revolution
     tray = Tray(plan.empty_rate, plan.double_rate,
@@ -375,20 +358,6 @@ def write_monitor_bag(run: MachineRun, path: str | Path, machine: SceneMachine |
     (split_size, split_duration) as the monitor's parameters. Every message is written by
     recording.cdr.encode_message: the same run gives the same bytes. Returns a summary dict
     (SI)."""
-    # lazy: the module stays light (see its imports)
-    from builtin_interfaces.msg import Time
-    from geometry_msgs.msg import TwistStamped
-    from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64, String
-
-    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
-    from planter_ros.prediction.pipeline import MonitorPipeline
-    from planter_ros.recording.monitor_topics import plants_message
-    from planter_ros.recording.recorder import Recorder
-    from planter_ros.recording.replay import map_record
-    from planter_ros.sensing.plant_map import MapSettings
-
-
     design = season_design() if machine is None else machine.design
     settings = PredictionSettings() if machine is None else machine.settings
     acceptance = AcceptanceLimits() if machine is None else machine.acceptance
