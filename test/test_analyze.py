@@ -387,3 +387,48 @@ def test_the_season_report_per_field_day_and_row_and_its_html(season, local, tmp
     assert text.count('<img alt="figure" src="data:image/png;base64,') >= 3
     assert not re.search(r'(src|href)="(?!data:)', text)              # self-contained
     assert text.count('<tr class=') == len(groups)
+
+
+# A worker's close cuts its comms while a heartbeat to the scheduler may be on its way: the
+# heartbeat fails with "Stream is closed" and distributed logs it with its traceback (a race in
+# distributed's Worker.close). The script makes that race happen every time, at the moment it
+# does: the failing heartbeat's log record, written as the worker's comms are closed.
+CLOSE_RACE = '''
+import logging
+from distributed.comm.core import CommClosedError
+from planter_ros.analysis.engine import cluster
+
+
+def heartbeat_in_flight(dask_worker):
+    close = dask_worker.rpc.close
+
+    async def cut():
+        try:
+            raise CommClosedError('in <TCP (closed) ConnectionPool.heartbeat_worker>: '
+                                  'Stream is closed')
+        except CommClosedError:
+            logging.getLogger('distributed.worker').exception(
+                'Failed to communicate with scheduler during heartbeat.')
+        await close()
+    dask_worker.rpc.close = cut
+    return True
+
+
+if __name__ == '__main__':
+    with cluster(2) as client:
+        assert all(client.run(heartbeat_in_flight).values())
+    print('closed')
+'''
+
+
+def test_a_heartbeat_cut_by_the_local_clusters_close_leaves_no_traceback(tmp_path):
+    """What the user of `planter analyze` or `planter simulate` sees when the local cluster
+    closes while a worker's heartbeat is in flight: nothing (the workers share the command's
+    stderr)."""
+    script = tmp_path / 'close_race.py'
+    script.write_text(CLOSE_RACE)
+    env = {**os.environ, 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                       timeout=120, env=env, cwd=tmp_path)
+    assert r.returncode == 0 and r.stdout.strip() == 'closed', r.stderr[-3000:]
+    assert 'Traceback' not in r.stderr and 'Stream is closed' not in r.stderr, r.stderr[-3000:]

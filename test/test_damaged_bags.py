@@ -19,7 +19,7 @@ from planter_ros.recording.recorder import Recorder
 from planter_ros.recording.errors import BagUnreadableError
 from planter_ros.recording.replay import replay
 from planter_ros.sim.bags import write_input_bag
-from planter_ros.sim.runs import five_bar_design_message, simulate_run
+from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
 
 from cli_helpers import REPO
 
@@ -44,7 +44,7 @@ def flip(data, chunk):
 def chunked(tmp_path_factory):
     """A 20 s input bag written in small chunks, and its replay."""
     tmp = tmp_path_factory.mktemp('chunked')
-    run = simulate_run(five_bar_design_message(), duration=20.0, seed=8)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=20.0, seed=8))
     write_input_bag(run, tmp / 'ok.mcap', chunk_size=16_000)
     return run, tmp / 'ok.mcap', replay(tmp / 'ok.mcap')
 
@@ -157,7 +157,7 @@ def test_a_flipped_byte_in_the_first_chunk_keeps_the_other_fourteen(tmp_path):
 
 @pytest.mark.parametrize('with_metadata', [True, False])
 def test_a_missing_split_file_is_reported_and_not_bridged(tmp_path, with_metadata):
-    run = simulate_run(five_bar_design_message(), duration=12.0, seed=6)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=12.0, seed=6))
     write_input_bag(run, tmp_path / 'whole.mcap')
     rec = write_input_bag(run, tmp_path / 'split', split_duration=3.0)
     assert len(rec.files) >= 4
@@ -176,7 +176,7 @@ def test_a_missing_split_file_is_reported_and_not_bridged(tmp_path, with_metadat
 
 
 def test_undecodable_design_messages_are_skipped_and_counted(tmp_path):
-    run = simulate_run(five_bar_design_message(), duration=6.0, seed=2)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=6.0, seed=2))
     path = tmp_path / 'odd.mcap'
     with Recorder(path) as rec:
         topics = (interfaces.DESIGN, interfaces.GROUND_SPEED, interfaces.JOINT_STATES)

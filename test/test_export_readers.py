@@ -15,13 +15,14 @@ import pytest
 from planter_ros.cli.main import main
 from planter_ros.recording.replay import replay
 from planter_ros.sim.season import simulate_bag
+from planter_ros.sim.tray import TrayShares
 
 
 @pytest.fixture(scope='module')
 def bag(tmp_path_factory):
     """A 4-row season bag whose tray has many empty cells and doubles (20 s)."""
     path = tmp_path_factory.mktemp('readers') / 'gappy.mcap'
-    simulate_bag(path, 0, 0, 20.0, 4, empty_rate=0.15, double_rate=0.08)
+    simulate_bag(path, 0, 0, 20.0, 4, TrayShares(0.15, 0.08))
     return path
 
 

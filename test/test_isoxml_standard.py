@@ -41,13 +41,14 @@ EPOCH_1980 = datetime(1980, 1, 1, tzinfo=timezone.utc).timestamp()
 def bags(tmp_path_factory):
     """{name: path}: a cam-schedule run (the tomato cam scene, 30 s) and a 4-row run (20 s),
     each with many empty cells and doubles."""
-    from planter_ros.analysis.simulate import simulate_scene_bag
+    from planter_ros.analysis.simulate import SeasonRequest, simulate_scene_bag
     from planter_ros.sim.season import simulate_bag
+    from planter_ros.sim.tray import TrayShares
     folder = tmp_path_factory.mktemp('isoxml')
     cam, rows = folder / 'cam.mcap', folder / 'rows.mcap'
-    simulate_scene_bag(str(cam), 3, 0, 30.0, None, str(REPO / 'config' / 'tomato_cam.yaml'),
-                       0.1, 0.05)
-    simulate_bag(rows, 0, 0, 20.0, 4, empty_rate=0.15, double_rate=0.08)
+    simulate_scene_bag(str(cam), 0, SeasonRequest(
+        3, 30.0, None, str(REPO / 'config' / 'tomato_cam.yaml'), TrayShares(0.1, 0.05)))
+    simulate_bag(rows, 0, 0, 20.0, 4, TrayShares(0.15, 0.08))
     return {'cam': cam, 'rows': rows}
 
 

@@ -19,6 +19,7 @@ TYPE_CHECKED = (
     'planter_ros/bench',
     'planter_ros/command',
     'planter_ros/sim',
+    'planter_ros/analysis',
     'planter_ros/config.py',
     'planter_ros/host',
     'planter_ros/diagnostics.py',

@@ -8,7 +8,8 @@ import pytest
 
 from planter_ros.control.phase_lock import ControlConfigError, PhaseLock, PhaseLockConfig
 from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
-from planter_ros.sim.closed_loop import DriveModel, run_comparison, simulate
+from planter_ros.sim.closed_loop import (
+    DriveModel, DriveSchedule, SpeedSensor, run_comparison, simulate)
 from planter_ros.sim.field import field_profile
 from planter_ros.sim.spacing import plant_positions, spacing_stats
 
@@ -177,7 +178,8 @@ def test_spacing_bounded_through_speed_step_and_drive_lag_where_speed_only_drift
     """A speed change 0.2 -> 0.3 m/s, and half-way the drive gets four times slower (load)."""
     cfg = PhaseLockConfig()
     slow = DriveModel(time_constant=0.2, max_acceleration=15.0)
-    res = run_comparison(cfg, D, 1, 0.2, duration=30.0, drive_change=(12.0, slow), noise=0.0)
+    res = run_comparison(cfg, D, 1, field_profile(30.0, 0.2),
+                         DriveSchedule(changes=((12.0, slow),)), SpeedSensor())
     locked, speed_only = res['phase_locked'], res['speed_only']
     assert locked.plants >= 30
     # within 15 mm (7.5 % of d) of the grid throughout: a P phase loop keeps an error of about
@@ -189,8 +191,8 @@ def test_spacing_bounded_through_speed_step_and_drive_lag_where_speed_only_drift
 
 def test_speed_scale_error_accumulates_without_phase_lock_only():
     """A drive that turns 3 % slower than asked (gear-ratio parameter off, loaded speed loop)."""
-    res = run_comparison(PhaseLockConfig(), D, 1, 0.2, duration=30.0,
-                         drive=DriveModel(speed_scale=0.97), noise=0.0)
+    res = run_comparison(PhaseLockConfig(), D, 1, field_profile(30.0, 0.2),
+                         DriveModel(speed_scale=0.97), SpeedSensor())
     assert res['phase_locked'].max_abs_drift < 0.01
     assert res['speed_only'].max_abs_drift > 0.1       # > half a plant spacing lost
 
@@ -205,7 +207,7 @@ def test_simulated_run_survives_bad_and_missing_samples():
             return math.nan
         return 5.0 if int(t * 20) % 37 == 0 else v
 
-    sim = simulate(law, base, 20.0, sensor=sensor)
+    sim = simulate(law, base, 20.0, sensor=SpeedSensor(read=sensor))
     assert law.rejected['non_finite'] > 0 and law.rejected['too_fast'] > 0
     assert all(math.isfinite(x) for x in sim.command) and min(sim.command) >= 0.0
 

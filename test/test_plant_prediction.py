@@ -12,7 +12,7 @@ from planter_ros.kinematics.planting import FiveBarPlanting, PathPlanting
 from planter_ros.prediction import (
     PlantPredictor, Plants, PredictionSettings, plant_values, planting_model_from_design,
     predict_plants)
-from planter_ros.sim.runs import five_bar_design_message, simulate_run
+from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
 
 TOMATO = design_five_bar(0.045, 0.2, 0.05)
 
@@ -114,7 +114,7 @@ def test_rolling_uprightness_rate_counts_the_last_window_plants():
 
 
 def test_live_stream_gives_the_same_plants_as_the_batch_model():
-    run = simulate_run(five_bar_design_message(), duration=20.0, seed=3)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=20.0, seed=3))
     model = planting_model_from_design(run.design)
     rng = np.random.default_rng(7)
     # messy inputs: a NaN, a repeated stamp and an out-of-order sample in each stream
@@ -140,8 +140,8 @@ def test_live_stream_gives_the_same_plants_as_the_batch_model():
 
 def test_spacing_error_stays_bounded_through_a_speed_step_when_phase_locked():
     design = five_bar_design_message()
-    locked = simulate_run(design, duration=30.0, step=1.4, seed=4)
-    free = simulate_run(design, duration=30.0, step=1.4, seed=4, phase_gain=0.0)
+    locked = simulate_run(design, RunOptions(duration=30.0, step=1.4, seed=4))
+    free = simulate_run(design, RunOptions(duration=30.0, step=1.4, seed=4, phase_gain=0.0))
     model = planting_model_from_design(design)
 
     def drift(run):
@@ -287,7 +287,7 @@ def test_a_gap_in_the_inputs_reports_every_instant_inside_it_flagged_and_restart
     instant inside either gap is still reported (the shaft angle says how many), flagged
     `input_gap`, with no hole, tilt, upright or spacing; the first plant after each has no
     spacing; live and replay agree."""
-    run = simulate_run(five_bar_design_message(), duration=20.0, seed=3)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=20.0, seed=3))
     model = planting_model_from_design(run.design)
     settings = PredictionSettings()
     full = predict_plants(run.speed_t, run.speed_v, run.joint_t, run.joint_pos, run.joint_vel,
@@ -323,7 +323,7 @@ def test_a_gap_in_the_inputs_reports_every_instant_inside_it_flagged_and_restart
 
 
 def test_a_gap_shorter_than_the_setting_is_interpolated_as_before():
-    run = simulate_run(five_bar_design_message(), duration=10.0, seed=4)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=10.0, seed=4))
     model = planting_model_from_design(run.design)
     t = run.joint_t - run.joint_t[0]
     keep = (t < 4.0) | (t > 4.3)                               # 0.3 s without joint states
@@ -366,7 +366,7 @@ def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
     assert np.all(np.isnan(batch.hole_width[inside]))
 
 
-_GAP_RUN = simulate_run(five_bar_design_message(), duration=20.0, seed=5)
+_GAP_RUN = simulate_run(five_bar_design_message(), RunOptions(duration=20.0, seed=5))
 
 
 def test_a_new_design_scores_plants_from_the_next_planting_instant_live_and_batch_alike():
@@ -410,7 +410,7 @@ def test_a_section_switched_off_ends_the_spacing_sequence_live_and_in_replay():
 
     from planter_ros.diagnostics import SECTION, section_states
     from planter_ros.prediction import section_breaks
-    run = simulate_run(five_bar_design_message(), duration=20.0, seed=5)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=20.0, seed=5))
     model = planting_model_from_design(run.design)
     settings = PredictionSettings()
     t0 = run.joint_t[0]

@@ -11,7 +11,7 @@ from planter_ros.recording.recorder import DELIMITER, Recorder, message_definiti
 from planter_ros.recording.replay import replay
 from planter_ros.demo.samples import record_sample
 from planter_ros.sim.bags import write_input_bag
-from planter_ros.sim.runs import five_bar_design_message, simulate_run
+from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
 
 MONITOR_PARAMS = {'window': 5, 'max_fix_age': 1.5, 'antenna_position': [1.5, -0.2]}
 
@@ -19,8 +19,8 @@ MONITOR_PARAMS = {'window': 5, 'max_fix_age': 1.5, 'antenna_position': [1.5, -0.
 @pytest.fixture(scope='module')
 def live_bag(tmp_path_factory):
     """The real monitor node on a 7 s stream with a drive stall, recording its bag."""
-    run = simulate_run(five_bar_design_message(), duration=7.0, stall_at=2.3, stall_for=1.5,
-                       stall_level=0.05, seed=5)
+    run = simulate_run(five_bar_design_message(), RunOptions(
+        duration=7.0, stall_at=2.3, stall_for=1.5, stall_level=0.05, seed=5))
     path = tmp_path_factory.mktemp('live') / 'live.mcap'
     tables = record_sample(run, path, MONITOR_PARAMS)
     return run, np.vstack(tables), path
@@ -127,7 +127,7 @@ def test_replay_matches_the_live_monitor(live_bag):
 
 def test_split_files_are_named_readable_and_replay_as_one_bag(tmp_path):
     from rosbags.rosbag2 import Reader
-    run = simulate_run(five_bar_design_message(), duration=7.0, seed=6)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=7.0, seed=6))
     whole = write_input_bag(run, tmp_path / 'whole.mcap')
     split = write_input_bag(run, tmp_path / 'split', split_duration=2.0)
     names = [f.name for f in split.files]
@@ -148,7 +148,7 @@ def test_split_files_are_named_readable_and_replay_as_one_bag(tmp_path):
 
 
 def test_split_by_size(tmp_path):
-    run = simulate_run(five_bar_design_message(), duration=8.0, seed=6)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=8.0, seed=6))
     rec = write_input_bag(run, tmp_path / 'bysize', split_size=20_000, flush_period=0.001)
     assert len(rec.files) >= 3
     assert all(f.stat().st_size < 60_000 for f in rec.files)
@@ -178,7 +178,7 @@ def test_default_bag_path_is_timestamped_under_bags(tmp_path, monkeypatch):
 
 
 def test_truncated_bag_replays_up_to_its_last_intact_chunk(tmp_path):
-    run = simulate_run(five_bar_design_message(), duration=20.0, seed=8)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=20.0, seed=8))
     write_input_bag(run, tmp_path / 'full.mcap', chunk_size=16_000)
     full = replay(tmp_path / 'full.mcap')
     data = (tmp_path / 'full.mcap').read_bytes()

@@ -19,7 +19,7 @@ from planter_ros.recording.indexed import IndexedFile
 from planter_ros.recording.recorder import Recorder
 from planter_ros.recording.replay import replay
 from planter_ros.sim.bags import write_input_bag
-from planter_ros.sim.runs import five_bar_design_message, simulate_run
+from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
 
 KINDS = (BagDamagedError, BagUnreadableError, BagWriteError, DecodeError, ReplayError,
          TopicMissingError)
@@ -41,7 +41,7 @@ def bags(tmp_path_factory):
     with Recorder(tmp / 'foreign.mcap') as rec:              # valid, none of our topics
         rec.add_topic('/camera/rate', 'std_msgs/msg/Float64')
         rec.write_message('/camera/rate', Float64(data=1.0), 1)
-    run = simulate_run(five_bar_design_message(), duration=6.0, seed=3)
+    run = simulate_run(five_bar_design_message(), RunOptions(duration=6.0, seed=3))
     inputs = (interfaces.GROUND_SPEED, interfaces.JOINT_STATES)
     with Recorder(tmp / 'no_design.mcap') as rec:   # speed, joints, a design cut to nothing
         for topic in (*inputs, interfaces.DESIGN):

@@ -83,8 +83,9 @@ def test_packed_messages_decode_as_a_list_of_messages_does(tmp_path):
     from planter_ros.recording.bag_reader import read_recording
     from planter_ros.recording.cdr import Packed, decode_joints, decode_navsatfix, decode_twist
     from planter_ros.sim.season import simulate_bag
+    from planter_ros.sim.tray import TrayShares
     bag = tmp_path / 'run.mcap'
-    simulate_bag(str(bag), 2, 1, 10.0, 3, empty_rate=0.2, double_rate=0.1)
+    simulate_bag(str(bag), 2, 1, 10.0, 3, TrayShares(0.2, 0.1))
     rec = read_recording(bag, (interfaces.GROUND_SPEED, interfaces.JOINT_STATES,
                                interfaces.GNSS_FIX, interfaces.SEEDLINGS))
     joints = [f'row_{k}/sun_bar' for k in (1, 2, 3)] + ['none', None]
@@ -109,8 +110,9 @@ def test_a_bags_plants_table_from_the_arrays_is_the_one_from_the_json(tmp_path):
     from planter_ros.prediction import Plants
     from planter_ros.recording.replay import replay
     from planter_ros.sim.season import simulate_bag
+    from planter_ros.sim.tray import TrayShares
     bag = tmp_path / 'run.mcap'
-    simulate_bag(str(bag), 4, 2, 10.0, 2, empty_rate=0.2, double_rate=0.1)
+    simulate_bag(str(bag), 4, 2, 10.0, 2, TrayShares(0.2, 0.1))
     result = replay(bag)
     rows = [(r.index, r.label) for r in result.rows]
     plants = Plants.from_table(result.plants.table())
@@ -144,12 +146,12 @@ def _rows_of_a_machine(design, seed):
     with what real rows have: a joint gap, lost shaft speeds (the arcs go linear), NaN
     angles, a section break, a row whose feedback never came."""
     from planter_ros.prediction import RowInputs
-    from planter_ros.sim.runs import simulate_run
+    from planter_ros.sim.runs import RunOptions, simulate_run
     rng = np.random.default_rng(seed)
     rows = []
     for r in range(5):
-        run = simulate_run(design, duration=12.0, seed=seed * 10 + r,
-                           stall_at=4.0 if r == 1 else None)
+        run = simulate_run(design, RunOptions(duration=12.0, seed=seed * 10 + r,
+                                              stall_at=4.0 if r == 1 else None))
         st, sv = run.speed_t, run.speed_v
         jt, jp, jw = run.joint_t, run.joint_pos.copy(), run.joint_vel.copy()
         t = jt - jt[0]

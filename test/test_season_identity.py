@@ -26,17 +26,18 @@ from planter_ros.recording.replay import replay
 def season(tmp_path_factory):
     """season/day1: a 4-row and a 1-row run; season/day2: a cam-schedule run (tomato cam
     scene, 0.15 m then 0.25 m); all with a tray of 10 % empty and 5 % double cells."""
-    from planter_ros.analysis.simulate import simulate_scene_bag
+    from planter_ros.analysis.simulate import SeasonRequest, simulate_scene_bag
     from planter_ros.sim.season import simulate_bag
+    from planter_ros.sim.tray import TrayShares
     root = tmp_path_factory.mktemp('agronomist') / 'season'
     (root / 'day1').mkdir(parents=True)
     (root / 'day2').mkdir()
-    simulate_bag(root / 'day1' / 'a.mcap', 0, 0, 20.0, 4, empty_rate=0.1, double_rate=0.05)
-    simulate_bag(root / 'day1' / 'b.mcap', 0, 1, 16.0, 1, empty_rate=0.1, double_rate=0.05)
-    simulate_scene_bag(str(root / 'day2' / 'c.mcap'), 3, 0, 30.0, None,
-                       str(REPO / 'config' / 'tomato_cam.yaml'), 0.1, 0.05)
+    simulate_bag(root / 'day1' / 'a.mcap', 0, 0, 20.0, 4, TrayShares(0.1, 0.05))
+    simulate_bag(root / 'day1' / 'b.mcap', 0, 1, 16.0, 1, TrayShares(0.1, 0.05))
+    simulate_scene_bag(str(root / 'day2' / 'c.mcap'), 0, SeasonRequest(
+        3, 30.0, None, str(REPO / 'config' / 'tomato_cam.yaml'), TrayShares(0.1, 0.05)))
     # another recording, not in the season: what a bag's file is rewritten with
-    simulate_bag(root.parent / 'other.mcap', 0, 2, 16.0, 2, empty_rate=0.1, double_rate=0.05)
+    simulate_bag(root.parent / 'other.mcap', 0, 2, 16.0, 2, TrayShares(0.1, 0.05))
     return root
 
 

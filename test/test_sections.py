@@ -13,10 +13,14 @@ from planter_ros.control.phase_lock import PlantingAngles
 from planter_ros.prediction import SectionBreaks, planting_model_from_design
 from planter_ros.recording.replay import replay
 from planter_ros.rows import Row
-from planter_ros.sim.bags import write_machine_bag
-from planter_ros.sim.closed_loop import simulate_rows
+from planter_ros.sim.bags import MachineBagOptions, write_machine_bag
+from planter_ros.sim.closed_loop import (
+    LoopTiming, MotionSensor, RowDesign, RowEvents, SimMachine, simulate_rows)
 from planter_ros.sim.field import field_profile
 from planter_ros.sim.runs import five_bar_design_message
+
+FAST = LoopTiming(dt=0.002)          # s: a coarser integration step than the default
+EXACT = MotionSensor(noise=0.0, yaw_noise=0.0)   # the sensor reads the truth
 
 pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
@@ -57,16 +61,16 @@ def machine(request):
     angles = PlantingAngles(float(model.planting_phase), float(model.entry_angle),
                             float(model.exit_angle))
     profile = field_profile(20.0, 0.2)
-    runs = simulate_rows([r.lateral_offset for r in ROWS], profile, 18.0, D, dt=0.002,
-                         planting=angles, switches=[(t_off, 0, False), (t_off + OFF, 0, True)],
-                         noise=0.0, yaw_noise=0.0)
+    runs = simulate_rows(SimMachine([r.lateral_offset for r in ROWS], timing=FAST), profile,
+                         18.0, RowDesign(D, planting=angles), EXACT,
+                         RowEvents(switches=[(t_off, 0, False), (t_off + OFF, 0, True)]))
     return design, profile, runs, t_off
 
 
 def left_spacings(tmp_path, machine, extra, name):
     design, profile, runs, _ = machine
     bag = tmp_path / name
-    write_machine_bag(ROWS, runs, profile, design, bag, epoch=EPOCH, extra=extra)
+    write_machine_bag(ROWS, runs, profile, design, bag, MachineBagOptions(EPOCH, extra=extra))
     result = replay(bag)
     left = result.plants.row == 0
     return result.plants.time[left] - EPOCH, result.plants.spacing[left]

@@ -152,9 +152,9 @@ def test_the_live_monitor_reads_the_seedling_sensor_as_replay_does(ros):
     from planter_ros.nodes.monitor_node import MonitorNode
     from planter_ros.prediction import (PredictionSettings, design_spacing_of,
                                         planting_model_from_design, predict_plants)
-    from planter_ros.sim.runs import five_bar_design_message, simulate_run
+    from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
     design = five_bar_design_message()
-    run = simulate_run(design, duration=24.0, seed=7)
+    run = simulate_run(design, RunOptions(duration=24.0, seed=7))
     model = planting_model_from_design(design)
     theta = np.maximum.accumulate(run.joint_pos)
     ks = np.arange(math.ceil((theta[0] - model.planting_phase) / (2 * math.pi)),
@@ -213,21 +213,23 @@ def test_a_small_simulated_season_accounts_for_every_injected_cell(tmp_path):
 
     from planter_ros.analysis import losses
     from planter_ros.analysis.tables import plant_columns
-    from planter_ros.analysis.task import analyze_bag, model_version
+    from planter_ros.analysis.task import BagTask, analyze_bag, model_version
     from planter_ros.sim.season import draw_plan
+    from planter_ros.sim.tray import TrayShares
     total = losses.empty_account()
     misses = multiples = 0
     for k in range(3):
-        plan = draw_plan(7, k, 10.0, 2, empty_rate=0.15, double_rate=0.08)
+        plan = draw_plan(7, k, 10.0, 2, tray=TrayShares(0.15, 0.08))
         if k == 0:
             plan = RunPlan(**{**plan.__dict__, 'glitches': (Glitch('dropout', 5.0, length=1.3),)})
         path = tmp_path / f'run_{k}.mcap'
         summary = write_monitor_bag(simulate_plan(plan), path)
-        row, table = analyze_bag(str(path), path.name, (0, 0), '{}', {}, None, model_version())
+        row, table = analyze_bag(BagTask(str(path), path.name, (0, 0), '{}'), {}, None,
+                                 model_version())
         assert row['status'] == 'ok'
         readings = replay(path).seedling_readings
-        one = losses.account(readings, *plant_columns(table, (
-            'row', 'time', 'status', 'seedlings', 'input_gap', 'spacing', 'spacing_error')))
+        one = losses.account(readings, losses.Instants.of(
+            *plant_columns(table, losses.INSTANT_COLUMNS)))
         # the cup sensors read what the tray put in
         assert one['injected']['empty'] == summary['events']['empty_cells']
         assert one['injected']['double'] == summary['events']['double_cells']

@@ -10,7 +10,7 @@ import pytest
 from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
 from planter_ros.sensing.ground_speed_sources import (GroundSpeedSourceConfig, PulseSpeed,
                                                       SpeedSample, Standstill, gnss_speed)
-from planter_ros.sim.closed_loop import simulate
+from planter_ros.sim.closed_loop import LoopTiming, SpeedSensor, simulate
 
 D = 0.15                     # the tomato cam scene's spacing: the most turns per metre
 NOISE = 0.02                 # m/s per axis: a GNSS receiver's velocity at rest
@@ -29,8 +29,8 @@ def turned_at_rest(seed, threshold, seconds=60.0, rate=10.0):
 
     law = PhaseLock(PhaseLockConfig())
     law.set_design(D, 1, 0.0)
-    sim = simulate(law, lambda t: 0.0, seconds, dt=0.002, sample_period=1.0 / rate,
-                   sensor=sensor)
+    sim = simulate(law, lambda t: 0.0, seconds, sensor=SpeedSensor(read=sensor),
+                   timing=LoopTiming(dt=0.002, sample_period=1.0 / rate))
     return float(sim.angle[-1] - sim.angle[0])
 
 

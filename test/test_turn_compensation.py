@@ -12,10 +12,15 @@ from planter_ros.control.phase_lock import PlantingAngles, stop_angle
 from planter_ros.prediction import planting_model_from_design
 from planter_ros.rows import Row
 from planter_ros.sensing.row_speed import row_speed_samples
-from planter_ros.sim.closed_loop import curve_comparison, curve_figures, simulate_rows
+from planter_ros.sim.closed_loop import (
+    LoopTiming, MotionSensor, RowDesign, RowEvents, SimMachine, curve_comparison, curve_figures,
+    simulate_rows)
 from planter_ros.sim.field import Curve, demo_curves, field_profile
 from planter_ros.sim.runs import five_bar_design_message
 from planter_ros.sim.spacing import plant_positions
+
+FAST = LoopTiming(dt=0.002)          # s: a coarser integration step than the default
+EXACT = MotionSensor(noise=0.0, yaw_noise=0.0)   # the sensor reads the truth
 
 D = 0.2
 TWO_PI = 2 * math.pi
@@ -23,7 +28,7 @@ TWO_PI = 2 * math.pi
 
 @pytest.fixture(scope='module')
 def curves():
-    return curve_comparison(dt=0.002)
+    return curve_comparison(timing=FAST)
 
 
 def test_with_compensation_every_row_follows_its_own_speed_and_keeps_its_spacing(curves):
@@ -50,7 +55,8 @@ def test_two_rows_on_a_curve_land_on_their_own_grids():
     """A steady 10 m turn: each row's plants are d apart along the row's own travelled
     distance, so the outer row, travelling farther, plants more often."""
     profile = field_profile(24.0, 0.25, change=1.0, curves=[Curve(3.0, 20.0, 10.0)])
-    runs = simulate_rows([0.75, -0.75], profile, 21.0, D, dt=0.002, noise=0.0, yaw_noise=0.0)
+    runs = simulate_rows(SimMachine([0.75, -0.75], timing=FAST), profile, 21.0, RowDesign(D),
+                         EXACT)
     figures = [curve_figures(run, profile, D)['curves'][0] for run in runs]
     for f in figures:
         assert f['plants'] >= 15 and f['rms_spacing_error'] < 0.005 * D
@@ -139,9 +145,9 @@ def test_a_row_switched_off_stops_within_a_pitch_and_on_starts_a_new_grid(t_off)
     angles = _tomato_angles()
     profile = field_profile(30.0, 0.2)
     t_on = t_off + 3.0
-    runs = simulate_rows([0.5, -0.5], profile, 18.0, D, dt=0.002, planting=angles,
-                         switches=[(t_off, 0, False), (t_on, 0, True)], noise=0.0,
-                         yaw_noise=0.0)
+    runs = simulate_rows(SimMachine([0.5, -0.5], timing=FAST), profile, 18.0,
+                         RowDesign(D, planting=angles), EXACT,
+                         RowEvents(switches=[(t_off, 0, False), (t_on, 0, True)]))
     row, other = runs
     times = plant_positions(row.angle, row.t, TWO_PI, release=math.pi)
     where = plant_positions(row.angle, row.distance, TWO_PI, release=math.pi)
@@ -178,7 +184,7 @@ def test_a_three_arm_machine_with_rows_plants_three_per_turn_on_each_row():
     design = design_for_scene(scene)
     d, n = design.plant_spacing, design.plants_per_revolution
     profile = field_profile(30.0, 0.4, change=1.0, curves=demo_curves(30.0))
-    runs = simulate_rows([1.0, -1.0], profile, 28.0, d, plants_per_revolution=n, dt=0.002)
+    runs = simulate_rows(SimMachine([1.0, -1.0], timing=FAST), profile, 28.0, RowDesign(d, n))
     for run in runs:
         figures = curve_figures(run, profile, d, n)
         for c in figures['curves']:
@@ -194,8 +200,8 @@ def test_replay_predicts_a_machine_row_by_row_from_each_rows_own_distance(tmp_pa
     design = five_bar_design_message()
     profile = field_profile(20.0, 0.25, change=1.0, curves=[Curve(3.0, 17.0, 10.0)])
     rows = [Row(0, 'left', 0.75, 1), Row(1, 'right', -0.75, 2)]
-    runs = simulate_rows([r.lateral_offset for r in rows], profile, 18.0, D, dt=0.002,
-                         noise=0.0, yaw_noise=0.0, compensation=False)
+    runs = simulate_rows(SimMachine([r.lateral_offset for r in rows], compensation=False,
+                                    timing=FAST), profile, 18.0, RowDesign(D), EXACT)
     bag = tmp_path / 'machine.mcap'
     write_machine_bag(rows, runs, profile, design, bag)
     result = replay(bag)
@@ -248,8 +254,8 @@ def test_replay_of_a_three_arm_machine_reads_each_rows_carrier(tmp_path):
     d = design.plant_spacing
     profile = field_profile(16.0, 0.4, change=1.0, curves=[Curve(3.0, 13.0, -10.0)])
     rows = [Row(0, 'a', 1.0, 1), Row(1, 'b', -1.0, 2)]
-    runs = simulate_rows([1.0, -1.0], profile, 14.0, d, plants_per_revolution=3, dt=0.002,
-                         noise=0.0, yaw_noise=0.0)
+    runs = simulate_rows(SimMachine([1.0, -1.0], timing=FAST), profile, 14.0, RowDesign(d, 3),
+                         EXACT)
     write_machine_bag(rows, runs, profile, design, tmp_path / 'rice.mcap')
     result = replay(tmp_path / 'rice.mcap')
     for row, summary in zip(rows, result.row_summaries):

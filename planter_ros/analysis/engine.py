@@ -2,7 +2,8 @@
 
 `cluster()` gives a Client: of a local cluster of worker processes sized to the machine (one
 single-threaded worker process per usable core, or `workers`), scheduler and workers bound to
-127.0.0.1, no dashboard, each worker dying with this process (worker_plugin), its allocator
+127.0.0.1, no dashboard, each worker dying with this process and silent once it closes
+(worker_plugin: no shutdown race of distributed's on the user's terminal), its allocator
 keeping a bag's buffers (WORKER_MALLOC); or of an existing cluster (`scheduler` = its
 scheduler's address, `tcp://host:8786`).
 `check_workers` runs a warm-up on every worker (imports the code once, says
@@ -97,7 +98,8 @@ def cluster(workers=None, scheduler=None):
     else:
         import dask  # lazy: 100 ms, only for a local cluster
 
-        from .worker_plugin import DieWithParent  # a distributed plugin: lazy as distributed
+        # lazy: a distributed WorkerPlugin: loading it loads distributed (as above)
+        from .worker_plugin import DieWithParent, QuietClose
         scratch = scratch_directory()
         try:
             with dask.config.set({'temporary-directory': scratch, **{
@@ -110,7 +112,8 @@ def cluster(workers=None, scheduler=None):
                                      processes=True, host='127.0.0.1', scheduler_port=0,
                                      dashboard_address=None, worker_dashboard_address=None,
                                      scheduler_kwargs={'dashboard_address': '127.0.0.1:0'},
-                                     silence_logs=logging.ERROR, plugins={DieWithParent()},
+                                     silence_logs=logging.ERROR,
+                                     plugins={DieWithParent(), QuietClose()},
                                      local_directory=scratch)
         except Exception as exc:             # no free port, no processes, ...
             shutil.rmtree(scratch, ignore_errors=True)

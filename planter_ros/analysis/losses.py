@@ -23,6 +23,8 @@ double is one multiple. Misses and multiples the spacings show without an empty 
 double (a drive stall's phase slip) are the kinematic ones, listed apart. Pure numpy.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from planter_ros.prediction.seedlings import DOUBLE, EMPTY, PLANTED, UNKNOWN
@@ -35,21 +37,43 @@ def _kind(count):
     return 'empty' if count < 0.5 else 'double' if count >= 1.5 else 'single'
 
 
-def account(readings, row, time, status, seedlings, input_gap, spacing, spacing_error):
+# the plants table's columns an accounting reads, in Instants' order
+INSTANT_COLUMNS = ('row', 'time', 'status', 'seedlings', 'input_gap', 'spacing',
+                   'spacing_error')
+
+
+@dataclass(frozen=True)
+class Instants:
+    """The planting instants of one bag, column by column (arrays of one length: the plants
+    table's INSTANT_COLUMNS or replay's plants): each instant's row, time (s), status code,
+    seedlings, input_gap flag, spacing and spacing error (m)."""
+
+    row: np.ndarray
+    time: np.ndarray
+    status: np.ndarray
+    seedlings: np.ndarray
+    input_gap: np.ndarray
+    spacing: np.ndarray
+    spacing_error: np.ndarray
+
+    @classmethod
+    def of(cls, *columns):
+        """Instants of the columns in INSTANT_COLUMNS' order, as float arrays."""
+        return cls(*(np.asarray(a, dtype=float) for a in columns))
+
+
+def account(readings, instants):
     """The accounting of one bag (module doc): `readings` {row index: (times s, counts)} the cup
-    sensors read (replay's `seedling_readings`), then each planting instant's row, time (s),
-    status code, seedlings, input_gap flag, spacing and spacing error (arrays, the plants table
-    or replay's plants). Returns a dict of counts (see `add`); `mismatched` counts sensed
-    instants whose count is not their cycle's reading (0 when the pipeline is right)."""
+    sensors read (replay's `seedling_readings`), then its planting `instants` (Instants).
+    Returns a dict of counts (see `add`); `mismatched` counts sensed instants whose count is
+    not their cycle's reading (0 when the pipeline is right)."""
     out = empty_account()
-    row = np.asarray(row, dtype=float)
+    row = instants.row
     for r in np.unique(row[np.isfinite(row)]).tolist() + [
             r for r in readings if not np.any(row == r)]:
         mine = np.flatnonzero(row == r)
-        mine = mine[np.argsort(np.asarray(time, dtype=float)[mine], kind='stable')]
-        _row(out, readings.get(int(r), (np.zeros(0), np.zeros(0))), mine,
-             *(np.asarray(a, dtype=float) for a in (time, status, seedlings, input_gap,
-                                                     spacing, spacing_error)))
+        mine = mine[np.argsort(instants.time[mine], kind='stable')]
+        _row(out, readings.get(int(r), (np.zeros(0), np.zeros(0))), mine, instants)
     return out
 
 
@@ -80,7 +104,12 @@ def is_exact(acc):
         + acc['after_last'][k] + acc['superseded'][k] for k in KINDS)
 
 
-def _row(out, reading, mine, time, status, seedlings, input_gap, spacing, spacing_error):
+def _row(out, reading, mine, instants):
+    """Add the accounting of one row to `out`: its cup sensor's `reading` (times s, counts) and
+    its planting instants `instants` at the positions `mine` (in time order)."""
+    time, status, seedlings = instants.time, instants.status, instants.seedlings
+    input_gap, spacing, spacing_error = (instants.input_gap, instants.spacing,
+                                         instants.spacing_error)
     r_t, r_c = (np.asarray(a, dtype=float) for a in reading)
     for c in r_c.tolist():
         out['injected'][_kind(c)] += 1

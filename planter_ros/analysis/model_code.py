@@ -85,13 +85,18 @@ def without_docstrings(tree: ast.Module) -> ast.Module:
     """`tree` with every statement that is a string constant alone removed (the docstrings of
     the module, its classes and functions, and strings used as comments): they run as nothing."""
     for node in ast.walk(tree):
-        body = getattr(node, 'body', None)
-        if isinstance(body, list):
-            node.body = [statement for statement in body
+        if isinstance(node, _WITH_BODY):
+            node.body = [statement for statement in node.body
                          if not (isinstance(statement, ast.Expr)
                                  and isinstance(statement.value, ast.Constant)
                                  and isinstance(statement.value.value, str))]
     return tree
+
+
+# the nodes whose `body` is a list of statements
+_WITH_BODY = (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef, ast.For,
+              ast.AsyncFor, ast.While, ast.If, ast.With, ast.AsyncWith, ast.Try, ast.TryStar,
+              ast.ExceptHandler, ast.match_case)
 
 
 def code_digest(tree: ast.Module) -> bytes:

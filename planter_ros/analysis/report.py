@@ -18,6 +18,7 @@ prediction.acceptance).
 
 from pathlib import Path
 import posixpath
+from typing import Any
 
 import numpy as np
 
@@ -100,7 +101,7 @@ def group_figures(group):
 def season_groups(plants, bags):
     """One dict per (field, day, row), sorted: its figures (group_figures), the acceptance
     judgement and the flat values of COLUMNS."""
-    out = []
+    out: list[dict[str, Any]] = []
     if plants.empty:
         return out
     for (field, day, row), group in plants.groupby(['field', 'day', 'row_name'], sort=True):

@@ -44,6 +44,7 @@ import json
 import os
 from pathlib import Path
 import time
+from typing import Any
 
 import pyarrow as pa
 import pyarrow.compute as pc
@@ -55,7 +56,7 @@ from planter_ros.output_files import OutputError, atomic_output, check_directory
 from . import tables
 from .bags import fingerprint, identity
 from .engine import completed, worker_count
-from .task import analyze_bags
+from .task import BagTask, analyze_bags
 
 BAGS_DIR = 'bags'
 BAGS_FILE = f'{BAGS_DIR}/bags.parquet'
@@ -298,7 +299,7 @@ class Season:
         self.root = root
         self.created = not self.out.exists()
         self.out.mkdir(exist_ok=True)
-        self._lock = os.open(self.out, os.O_RDONLY | os.O_DIRECTORY)
+        self._lock: int | None = os.open(self.out, os.O_RDONLY | os.O_DIRECTORY)
         try:
             fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -365,7 +366,7 @@ class Season:
         known = {(row.get('path'), row.get('file_size'), row.get('file_mtime_ns')): bag_id
                  for bag_id, row in self.rows.items()}
         ids = fingerprints(sorted(bags), known)
-        found = {}
+        found: dict[str, list[Path]] = {}
         for path in sorted(bags):
             found.setdefault(ids[path][0], []).append(path)
         first = {}
@@ -404,9 +405,9 @@ class Season:
                 skipped += 1
                 if row['bag'] != name:
                     self.renamed[bag_id] = name
-                found = dict(bag=name, file_size=size, file_mtime_ns=mtime, path=str(path))
-                if any(row.get(k) != v for k, v in found.items()):
-                    row.update(found)
+                now = dict(bag=name, file_size=size, file_mtime_ns=mtime, path=str(path))
+                if any(row.get(k) != v for k, v in now.items()):
+                    row.update(now)
                     self.moved = True
             else:
                 todo.append(key)
@@ -444,7 +445,7 @@ class Season:
         """Remove the rows of the bags `keys` name from both tables, and plants rows no bag
         claims; write what changed."""
         dropped = [k.bag_id for k in keys if self.rows.pop(k.bag_id, None) is not None]
-        claimed = {}
+        claimed: dict[str, set[str]] = {}
         for bag_id, row in self.rows.items():
             if row.get('plants_file'):
                 claimed.setdefault(row['plants_file'], set()).add(bag_id)
@@ -513,11 +514,13 @@ def run(season, client, keys, overrides, design, progress=None):
     report = Report(out=str(season.out))
     if design is not None:                   # one copy per worker, not one per task
         design = client.scatter(design, broadcast=True)
-    arguments = [(k.path or k.bag, k.bag, (k.file_size, k.file_mtime_ns, k.bag_id), k.options)
-                 for k in keys]
+    arguments = [BagTask(k.path or k.bag, k.bag, (k.file_size, k.file_mtime_ns, k.bag_id),
+                         k.options) for k in keys]
     options = {'overrides': overrides, 'design': design,
                'version': keys[0].model_version if keys else None}
-    pending, last_write, write_cost = [], time.monotonic(), 0.0
+    # (a bag's row, its plants table or None) analysed and not yet written
+    pending: list[tuple[dict[str, Any], pa.Table | None]] = []
+    last_write, write_cost = time.monotonic(), 0.0
     started = time.monotonic()
     done = 0
 
@@ -563,7 +566,7 @@ def run(season, client, keys, overrides, design, progress=None):
                 write()
 
     try:
-        retry = []
+        retry: list[int] = []
         tasks(batches(len(keys), worker_count(client) if keys else 1), retry)
         if retry:
             tasks([[i] for i in sorted(retry)], None)

@@ -1,6 +1,7 @@
 """`planter simulate`'s engine: a season of simulated bags written on Dask (a local cluster or
 an existing one), with progress; and the check of where they go."""
 
+from dataclasses import dataclass
 from pathlib import Path
 import sys
 import time
@@ -16,13 +17,14 @@ from planter_ros.scene import SceneError, open_scene
 from planter_ros.scene.schedule import spacing_schedule
 from planter_ros.sim.season import (
     SPEED_CHANGE_MAX, SceneMachine, bag_name, machine_cam, simulate_bag)
+from planter_ros.sim.tray import TrayShares
 
 from .engine import check_workers, cluster, completed
 from .progress import Progress
 from .task import model_version, warm_up
 
-__all__ = ['check_path', 'check_tray', 'scene_machine', 'season_machine', 'simulate_scene_bag',
-           'simulate_season']
+__all__ = ['SeasonRequest', 'check_path', 'check_tray', 'scene_machine', 'season_machine',
+           'simulate_scene_bag', 'simulate_season']
 
 DEFAULT_ROWS = 4
 
@@ -88,12 +90,27 @@ def scene_machine(scene):
                         tuple(schedule))
 
 
-def simulate_scene_bag(path, seed, index, duration, rows, scene=None, empty_rate=0.0,
-                       double_rate=0.0):
-    """sim.season.simulate_bag with the machine of the scene file `scene` (None: `rows`
-    rows of the default machine): a task of `planter simulate` on a worker."""
-    return simulate_bag(path, seed, index, duration, rows,
-                        scene_machine(scene) if scene else None, empty_rate, double_rate)
+@dataclass(frozen=True)
+class SeasonRequest:
+    """The season `planter simulate` writes: runs of `duration` s drawn from the season of
+    `seed`, each of a machine of `rows` rows or of the machine of the scene file `scene`
+    (checked by the caller: season_machine; `rows` then its count), with a tray of `tray`'s
+    empty and double shares."""
+
+    seed: int
+    duration: float
+    rows: int | None
+    scene: str | None = None
+    tray: TrayShares = TrayShares()
+
+
+def simulate_scene_bag(path, index, season):
+    """sim.season.simulate_bag of run `index` of `season` (a SeasonRequest) at `path`, with the
+    machine of its scene file (or its rows of the default machine): a task of `planter
+    simulate` on a worker."""
+    return simulate_bag(path, season.seed, index, season.duration,
+                        scene_machine(season.scene) if season.scene else season.rows,
+                        season.tray)
 
 
 def check_path(path, names):
@@ -120,12 +137,12 @@ def check_path(path, names):
 
 
 
-def simulate_season(path: Path, names: list[str], seed: int, duration: float, rows: int,
-                    workers_wanted: int | None, scheduler: str | None, scene: str | None = None,
-                    tray: tuple = (0.0, 0.0)):
-    """Write the bags `names` under `path`: (report, the runs written, [(name, error)]), each
-    of a `rows`-row machine or of the machine of the scene file `scene` (checked by the
-    caller), its tray (empty rate, double rate). EngineError when the cluster cannot be had."""
+def simulate_season(path: Path, names: list[str], season: SeasonRequest,
+                    workers_wanted: int | None, scheduler: str | None):
+    """Write the bags `names` (runs 0, 1, ... of `season`) under `path`: (report, the runs
+    written, [(name, error)]). EngineError when the cluster cannot be had."""
+    seed, duration, rows, scene, tray = (season.seed, season.duration, season.rows,
+                                         season.scene, season.tray)
     version = model_version()
     where = scheduler or 'the local cluster'
     written, errors = [], []
@@ -135,7 +152,7 @@ def simulate_season(path: Path, names: list[str], seed: int, duration: float, ro
         progress = Progress(len(names), what='bags', label='planter simulate')
         started = time.monotonic()
         try:
-            arguments = [(str(path.resolve() / name), seed, k, duration, rows, scene, *tray)
+            arguments = [(str(path.resolve() / name), k, season)
                          for k, name in enumerate(names)]
             for i, result, error in completed(client, simulate_scene_bag, arguments):
                 if error is None:
@@ -152,7 +169,7 @@ def simulate_season(path: Path, names: list[str], seed: int, duration: float, ro
     size = sum((path / bag_name(seed, r['run'])).stat().st_size for r in written)
     report = {'path': str(path), 'bags': len(written), 'failed': len(errors),
               'seed': seed, 'duration': duration, 'rows': rows, 'scene': scene,
-              'empty_rate': tray[0], 'double_rate': tray[1],
+              'empty_rate': tray.empty_rate, 'double_rate': tray.double_rate,
               'workers': workers, 'seconds': seconds, 'bag_seconds': run_seconds,
               'times_real_time': run_seconds / seconds if seconds > 0 else None,
               'bytes': size, 'messages': sum(r['messages'] for r in written),

@@ -33,6 +33,7 @@ acceptance limits' units from their declarations. A column the table does not kn
 
 from functools import lru_cache
 import json
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -144,7 +145,7 @@ def _without_empty_objects(value):
 
 def unflatten(row):
     """The inverse of flatten (dotted names back to nested objects)."""
-    out = {}
+    out: dict[str, Any] = {}
     for name, value in row.items():
         parts = name.split('.')
         node = out
@@ -205,7 +206,7 @@ def column(values, name=''):
 
 def table_of(rows, kind, root=None):
     """An Arrow table of row dicts (columns in first-seen order), units in its metadata."""
-    names = {}
+    names: dict[str, None] = {}            # an ordered set
     for row in rows:
         for name in row:
             names.setdefault(name, None)
@@ -242,7 +243,7 @@ def plants_table(bag, plants, rows=()):
         arrays.append(array)
         columns.append(name)
         if key == 'row':
-            arrays.append(pa.array([names.get(None if v is None else int(v), '')
+            arrays.append(pa.array(['' if v is None else names.get(int(v), '')
                                     for v in values], type=pa.string()))
             columns.append('row_name')
     return with_units(pa.Table.from_arrays(arrays, names=columns), PLANTS)
@@ -373,7 +374,7 @@ def with_units(table, kind, root=None):
 def _schema_with_units(schema, kind, root):
     """`with_units`'s schema (made once per columns, kind and root: every bag's plants table
     has the same)."""
-    units = {}
+    units: dict[str, str] = {}
     fields = [_field_with_units(f, f.name, units) for f in schema]
     info = {'table': kind, 'units': units}
     if root is not None:

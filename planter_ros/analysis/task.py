@@ -5,11 +5,18 @@ gets before the first bag). The bag is read from its path (shared storage): only
 the settings travel through the scheduler, and back only the bag's row and its plants table.
 """
 
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 import time
 
+# what a replay imports only when it first reads a bag: loaded with this module, on every
+# worker before its first bag (warm_up), so no bag pays for it
+import mcap.records  # noqa: F401
+import zstandard  # noqa: F401
+
 from planter_ros.errors import PlanterError
+from planter_ros.recording import indexed  # noqa: F401
 from planter_ros.recording.errors import RecordingError
 from planter_ros.recording.replay import replay
 
@@ -30,27 +37,35 @@ def model_version():
 
 
 def warm_up():
-    """Run on every worker before the first bag: loads what a replay imports only when first
-    needed (the indexed reader, zstd, pyarrow and the pandas it loads with its first array: a
-    second or more), so no bag pays for it, and
-    returns the model version the worker runs."""
-    # the warm-up is these imports: loaded here, on the worker, before its first bag
-    import mcap.records  # noqa: F401
-    import zstandard  # noqa: F401
-
-    from planter_ros.recording import indexed  # noqa: F401
+    """Run on every worker before the first bag: loads what a replay loads only when first
+    needed (pyarrow and the pandas it loads with its first array: a second or more; the indexed
+    reader and zstd come with this module), so no bag pays for it, and returns the model
+    version the worker runs."""
     load_pyarrow()
     return model_version()
 
 
-def analyze_bag(path, key, identity, options, overrides, design, version):
-    """Replay the bag at `path` as `planter replay` would with the setting `overrides` (and the
+@dataclass(frozen=True)
+class BagTask:
+    """One bag for a worker: where it is read (`path`), the name it goes by (`key`: its path
+    relative to the analysed root), its `identity` (size, modification time ns, content id:
+    season.BagKey; without the id, the path stands for it) and the `options` key it is
+    analysed with (season.options_key)."""
+
+    path: str
+    key: str
+    identity: tuple[int, int] | tuple[int, int, str]
+    options: str
+
+
+def analyze_bag(bag, overrides, design, version):
+    """Replay `bag` (a BagTask) as `planter replay` would with the setting `overrides` (and the
     fallback `design`, or None): (its `bags` row, its `plants` table or None), both naming it
-    `key` (its name: its path relative to the analysed root) and keyed by its content id. A bag
-    replay cannot read is a row with status 'failed' and its one-line reason; any other
-    exception of the model on this bag is status 'error'. `identity` (size, modification time
-    ns, content id: season.BagKey; without the id, the path stands for it), `options` and
-    `version` are the re-run key the client decided on."""
+    `bag.key` and keyed by its content id. A bag replay cannot read is a row with status
+    'failed' and its one-line reason; any other exception of the model on this bag is status
+    'error'. `bag.identity`, `bag.options` and `version` are the re-run key the client decided
+    on."""
+    path, key, identity, options = bag.path, bag.key, bag.identity, bag.options
     started, cpu = time.perf_counter(), time.process_time()
     if model_version() != version:
         raise WorkerMismatch(f'worker runs planter_ros model version {model_version()}, the '
@@ -76,7 +91,7 @@ def analyze_bag(path, key, identity, options, overrides, design, version):
             table = with_heading(plants_arrays_table(key, result.plants,
                                                      [(r.index, r.label) for r in result.rows],
                                                      bag_id),
-                                 None if result.placement is None else result.placement.heading)
+                                 result.placement.heading)
     row['analysis_seconds'] = time.perf_counter() - started
     # CPU time apart from wall time: on shared cores the difference is time spent waiting
     row['analysis_cpu_seconds'] = time.process_time() - cpu
@@ -89,6 +104,6 @@ def _one_line(text):
 
 
 def analyze_bags(bags, overrides, design, version):
-    """`analyze_bag` of each (path, key, identity, options) in `bags`, in order: one task of
-    several bags (the scheduler's and client's cost per task shared among them)."""
-    return [analyze_bag(*bag, overrides, design, version) for bag in bags]
+    """`analyze_bag` of each BagTask in `bags`, in order: one task of several bags (the
+    scheduler's and client's cost per task shared among them)."""
+    return [analyze_bag(bag, overrides, design, version) for bag in bags]

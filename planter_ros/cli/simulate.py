@@ -7,7 +7,7 @@ import json
 import sys
 
 from planter_ros.cli.options import add_engine_arguments, spec_option
-from planter_ros.sim.season import SeasonOptions
+from planter_ros.sim.options import SeasonOptions
 
 
 def add_arguments(parser):
@@ -37,16 +37,17 @@ def add_arguments(parser):
 
 
 def run(args):
-    from planter_ros.analysis.simulate import (check_path, check_tray, season_machine,
-                                               simulate_season)
+    from planter_ros.analysis.simulate import (
+        SeasonRequest, check_path, check_tray, season_machine, simulate_season)
     from planter_ros.sim.season import bag_name
+    from planter_ros.sim.tray import TrayShares
     check_tray(args.empty_rate, args.double_rate)
     scene, rows = season_machine(args.scene, args.rows)     # a bad scene: one line, exit 2
     names = [bag_name(args.seed, k) for k in range(args.bags)]
     path = check_path(args.path, names)
-    report, written, errors = simulate_season(path, names, args.seed, args.duration, rows,
-                                              args.workers, args.scheduler, scene,
-                                              (args.empty_rate, args.double_rate))
+    season = SeasonRequest(args.seed, args.duration, rows, scene,
+                           TrayShares(args.empty_rate, args.double_rate))
+    report, written, errors = simulate_season(path, names, season, args.workers, args.scheduler)
     if args.json:
         print(json.dumps({**report, 'runs': written}, indent=1, allow_nan=False))
     else:

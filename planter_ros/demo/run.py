@@ -46,6 +46,7 @@ from planter_ros.recording.replay_text import format_summary
 from planter_ros.scene import SceneError, default_scene_path, open_scene
 from planter_ros.scene.machine_file import deployment_parameters, open_machine
 from planter_ros.scene.schedule import spacing_schedule
+from planter_ros.sim.closed_loop import MotionSensor
 from planter_ros.sim.gnss import SimulatedGnss
 from planter_ros.sim.ros_field import GnssSource, GroundSpeedSource, Observer, SeedlingSensor
 
@@ -343,8 +344,9 @@ class _Run:
         monitor subscribe the ground speed, the sync node has the design): t = 0 then."""
 
         options, ns = self.demo.options, interfaces.NAMESPACE
-        self.source = GroundSpeedSource(profile, glitches=glitches(options.duration),
-                                        seed=options.seed, context=self.context, namespace=ns)
+        self.source = GroundSpeedSource(profile, MotionSensor(seed=options.seed),
+                                        glitches=glitches(options.duration),
+                                        context=self.context, namespace=ns)
         deadline = time.monotonic() + self.MATCH_TIMEOUT
         while time.monotonic() < deadline and not self._stopped():
             self.sync.poll(0.05)

@@ -61,13 +61,13 @@ def main(argv=None):
     """Regenerate bags/sample_<name>.mcap (refuses to overwrite: delete them first)."""
     import argparse
 
-    from planter_ros.sim.runs import five_bar_design_message, simulate_run
+    from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
     parser = argparse.ArgumentParser(description=main.__doc__, allow_abbrev=False)
     parser.add_argument('--out', default='bags', help='directory for the sample bags')
     args = parser.parse_args(argv)
     for name, (design_kw, run_kw) in SAMPLES.items():
         path = Path(args.out) / f'sample_{name}.mcap'
-        run = simulate_run(five_bar_design_message(**design_kw), **run_kw)
+        run = simulate_run(five_bar_design_message(**design_kw), RunOptions(**run_kw))
         tables = record_sample(run, path)
         print(f'{path}: {sum(len(t) for t in tables)} plants, {path.stat().st_size} bytes')
     return 0

@@ -5,5 +5,5 @@ writes those as recordings; `lockstep` feeds them to real nodes on a simulated c
 planter_ros.nodes: callers hand in the nodes to feed."""
 
 # the submodules (imported by name, never here)
-__all__ = ['bags', 'closed_loop', 'field', 'gnss', 'lockstep', 'ros_field', 'runs', 'season',
-           'spacing']
+__all__ = ['bags', 'closed_loop', 'field', 'gnss', 'lockstep', 'options', 'ros_field', 'runs',
+           'season', 'spacing']

@@ -5,18 +5,22 @@ time. Fast; for the replay benchmark and the recording tests."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import TwistStamped
+import numpy as np
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
 from planter_ros import interfaces
 from planter_ros.design import Design, to_json
 from planter_ros.recording.recorder import Recorder
+from planter_ros.rows import Row, rows_record
 
 if TYPE_CHECKING:
-    from builtin_interfaces.msg import Time
-
-    from planter_ros.rows import Row
-
     from .closed_loop import RowRun
     from .field import FieldProfile
     from .runs import Run
@@ -35,24 +39,28 @@ def write_input_bag(run: Run, path: str | Path, **recorder_options: Any) -> Reco
     return rec
 
 
+@dataclass(frozen=True)
+class MachineBagOptions:
+    """How write_machine_bag records: times on the simulated clock from `epoch` (s), ground
+    speed every `speed_period` s and joint states every `joint_period` s; `extra`: (t,
+    interfaces.Topic, message) written too, the message stamped at t if it has a header (e.g.
+    the sync node's section states)."""
+
+    epoch: float = 1_700_000_000.0
+    speed_period: float = 0.05
+    joint_period: float = 0.01
+    extra: Sequence[tuple[float, interfaces.Topic, Any]] = ()
+
+
 def write_machine_bag(rows: Sequence[Row], runs: Sequence[RowRun], profile: FieldProfile,
-                      design: Design, path: str | Path, epoch: float = 1_700_000_000.0,
-                      speed_period: float = 0.05, joint_period: float = 0.01,
-                      extra: Sequence[tuple[float, interfaces.Topic, Any]] = ()) -> Recorder:
+                      design: Design, path: str | Path,
+                      options: MachineBagOptions = MachineBagOptions()) -> Recorder:
     """Write a simulated machine (sim.closed_loop.simulate_rows: one RowRun per row of `rows`,
     planter_ros.rows.Row) as a monitor would record its inputs: the design, ground speed with
     the profile's true v and yaw rate, one JointState with every row's joint, and the rows
-    record. Times on the simulated clock from `epoch` (s). `extra`: (t, interfaces.Topic,
-    message) written too, the message stamped at t if it has a header (e.g. the sync node's
-    section states). Returns the closed Recorder."""
-    import numpy as np
-    from builtin_interfaces.msg import Time
-    from geometry_msgs.msg import TwistStamped
-    from sensor_msgs.msg import JointState
-    from std_msgs.msg import String
-
-    from planter_ros.rows import rows_record
-
+    record, as `options` say (MachineBagOptions). Returns the closed Recorder."""
+    epoch, extra = options.epoch, options.extra
+    speed_period, joint_period = options.speed_period, options.joint_period
     def stamp(t: float) -> Time:
         sec, nsec = divmod(int(round((epoch + t) * 1e9)), 1_000_000_000)
         return Time(sec=sec, nanosec=nsec)

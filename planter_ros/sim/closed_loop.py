@@ -14,8 +14,9 @@ row's own true travelled distance (FieldProfile.row_distance).
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from typing import TYPE_CHECKING, Any, TypedDict
 
@@ -24,13 +25,12 @@ from numpy.typing import NDArray
 
 from planter_ros.control.machine_law import Machine, TurnConfig
 from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
+from planter_ros.control.row_loop import cam_csp_target, csp_setpoint
 
 from .field import FieldProfile, demo_curves, field_profile
 from .spacing import SpacingStats, plant_positions, spacing_stats
 
 if TYPE_CHECKING:
-    from typing_extensions import TypeIs
-
     from planter_ros.control.phase_lock import PlantingAngles
 
 TWO_PI = 2.0 * math.pi
@@ -47,8 +47,49 @@ class DriveModel:
 DriveChange = tuple[float, 'DriveModel']
 
 
-def _one_change(change: DriveChange | Sequence[DriveChange]) -> TypeIs[DriveChange]:
-    return isinstance(change[0], (int, float))
+@dataclass(frozen=True)
+class DriveSchedule:
+    """A drive that changes mid-run: `first` from the start, then each change's DriveModel
+    from its time on (in time order; a drive that gets slower under load, a stall and its
+    end)."""
+
+    first: DriveModel = DriveModel()
+    changes: tuple[DriveChange, ...] = ()
+
+
+@dataclass(frozen=True)
+class LoopTiming:
+    """The clock of a closed-loop simulation (s): the integration step, the ground-speed
+    sensor's sample period, and the drive feedback period (a speed command on each, as the
+    sync node computes one on every sample and every feedback)."""
+
+    dt: float = 0.001
+    sample_period: float = 0.05
+    feedback_period: float = 0.01
+
+
+@dataclass(frozen=True)
+class SpeedSensor:
+    """How `simulate`'s law reads the ground speed: the truth plus Gaussian `noise` (m/s,
+    drawn from `seed`), or `read(t, v)`, if given, turns the true speed into the reading
+    (drop-outs, spikes) instead."""
+
+    noise: float = 0.0
+    seed: int = 0
+    read: Callable[[float, float], float] | None = None
+
+
+@dataclass(frozen=True)
+class MotionSensor:
+    """How `simulate_rows`' machine reads its motion: the truth plus Gaussian `noise` (m/s; a
+    standing wheel reads 0) and `yaw_noise` (rad/s), drawn from `seed`; or `read(t, v, ω_z)`,
+    if given, turns the true speed and yaw rate into the reading (v, ω_z), or None for a
+    sample that never arrives, instead."""
+
+    noise: float = 0.005
+    yaw_noise: float = 0.005
+    seed: int = 0
+    read: Callable[[float, float, float], tuple[float, float] | None] | None = None
 
 
 @dataclass
@@ -61,23 +102,21 @@ class SimResult:
 
 
 def simulate(law: PhaseLock, profile: Callable[[float], float], duration: float,
-             drive: DriveModel = DriveModel(), dt: float = 0.001, sample_period: float = 0.05,
-             feedback_period: float = 0.01, noise: float = 0.0, seed: int = 0,
-             drive_change: DriveChange | Sequence[DriveChange] | None = None,
-             sensor: Callable[[float, float], float] | None = None) -> SimResult:
+             drive: DriveModel | DriveSchedule = DriveModel(),
+             sensor: SpeedSensor = SpeedSensor(), timing: LoopTiming = LoopTiming()
+             ) -> SimResult:
     """Run `law` (a PhaseLock with its design set) against `drive` for `duration` s.
 
-    `profile(t)` is the true ground speed; the law sees it every `sample_period` with Gaussian
-    `noise` (m/s). `drive_change = (t, DriveModel)` swaps the drive model mid-run (a drive that
-    gets slower under load); a list of such pairs, in time order, swaps it several times.
+    `profile(t)` is the true ground speed; the law reads it every `timing.sample_period` as
+    `sensor` says (SpeedSensor). A DriveSchedule swaps the drive model mid-run.
     Commands are computed on every sample and every feedback period, as the sync node does.
-    `sensor(t, v)`, if given, turns the true speed into the reading (drop-outs, spikes)
-    instead of the Gaussian noise.
     """
-    rng = np.random.default_rng(seed)
-    changes: list[DriveChange] = []
-    if drive_change:
-        changes = [drive_change] if _one_change(drive_change) else list(drive_change)
+    dt, sample_period, feedback_period = timing.dt, timing.sample_period, timing.feedback_period
+    schedule = drive if isinstance(drive, DriveSchedule) else DriveSchedule(drive)
+    drive = schedule.first
+    noise, read = sensor.noise, sensor.read
+    rng = np.random.default_rng(sensor.seed)
+    changes = list(schedule.changes)
     steps = int(round(duration / dt))
     out = {k: np.empty(steps + 1) for k in ('t', 'distance', 'angle', 'command', 'speed')}
     s = theta = omega = cmd = 0.0
@@ -92,8 +131,8 @@ def simulate(law: PhaseLock, profile: Callable[[float], float], duration: float,
             next_feedback += feedback_period
         if t >= next_sample - 1e-12:
             v = profile(t)
-            if sensor is not None:
-                v = sensor(t, v)
+            if read is not None:
+                v = read(t, v)
             elif noise:
                 v += rng.normal(0.0, noise)
             law.ground_speed(v, t)
@@ -112,17 +151,15 @@ def simulate(law: PhaseLock, profile: Callable[[float], float], duration: float,
 
 
 def run_comparison(config: PhaseLockConfig, spacing: float, plants_per_revolution: int,
-                   cruise: float, duration: float = 30.0, drive: DriveModel = DriveModel(),
-                   drive_change: DriveChange | None = None, noise: float = 0.01,
-                   seed: int = 0) -> dict[str, SpacingStats]:
-    """Spacing statistics of the same run with phase lock on and off (speed-only)."""
-    from dataclasses import replace
+                   profile: FieldProfile, drive: DriveModel | DriveSchedule = DriveModel(),
+                   sensor: SpeedSensor = SpeedSensor(noise=0.01)) -> dict[str, SpacingStats]:
+    """Spacing statistics of the same run along `profile` (its whole duration) with phase
+    lock on and off (speed-only)."""
     result: dict[str, SpacingStats] = {}
     for mode, lock in (('phase_locked', True), ('speed_only', False)):
         law = PhaseLock(replace(config, phase_lock=lock))
         law.set_design(spacing, plants_per_revolution, 0.0)
-        sim = simulate(law, field_profile(duration, cruise), duration, drive=drive,
-                       noise=noise, seed=seed, drive_change=drive_change)
+        sim = simulate(law, profile, profile.duration, drive=drive, sensor=sensor)
         pos = plant_positions(sim.angle, sim.distance, TWO_PI / plants_per_revolution)
         result[mode] = spacing_stats(pos, spacing)
     return result
@@ -158,7 +195,6 @@ class CspDrive:
 
     def send(self, law: PhaseLock, command: float, theta: float, t: float) -> None:
         """After the SYNC at `t`: the row's target for the next one (the shaft at `theta`)."""
-        from planter_ros.control.row_loop import cam_csp_target, csp_setpoint
         ahead = 0.0
         if self.target is None:
             self.target = theta
@@ -191,43 +227,69 @@ class RowRun:
     speed: np.ndarray        # mechanism speed (rad/s)
 
 
-def simulate_rows(offsets: Sequence[float], profile: FieldProfile, duration: float,
-                  spacing: float, plants_per_revolution: int = 1,
-                  config: PhaseLockConfig | None = None, compensation: bool = True,
-                  drive: DriveModel = DriveModel(), dt: float = 0.001,
-                  sample_period: float = 0.05, feedback_period: float = 0.01,
-                  noise: float = 0.005, yaw_noise: float = 0.005, seed: int = 0,
-                  switches: Sequence[tuple[float, int, bool]] = (),
-                  planting: PlantingAngles | None = None,
-                  sensor: Callable[[float, float, float], tuple[float, float] | None] | None
-                  = None,
-                  drive_changes: Sequence[tuple[float, int, DriveModel]] = (),
-                  cams: Sequence[Any] | None = None,
-                  designs: Sequence[tuple[float, float, Sequence[Any] | None]] = ()
-                  ) -> list[RowRun]:
-    """Run a machine with rows at `offsets` (m) along `profile` (a FieldProfile: speed and yaw
-    rate) for `duration` s; the sensor adds Gaussian `noise` (m/s) and `yaw_noise` (rad/s).
-    Commands are computed on every sample and every feedback period, as the sync node does.
-    `switches`: (t, row index, on) section-control events; `planting`: the mechanism's
-    PlantingAngles (where it plants, for the section stops). `sensor(t, v, ω_z)`, if given,
-    turns the true speed and yaw rate into the reading (v, ω_z), or None for a sample that
-    never arrives, instead of the Gaussian noise. `drive_changes`: (t, row index, DriveModel)
-    events, that row's drive from t on (a stall and its end). `cams`: each row's cam profile
-    (`speed_profile: cam`, control.cam_law.plan_row_cam; None: constant speed), or None: a cam
-    row runs a CSP drive as the command process drives it (`CspDrive`). `designs`: (t, spacing,
-    cams) events, a design arriving at t (each row takes it at its next planting instant).
-    Returns one RowRun per row."""
-    rng = np.random.default_rng(seed)
-    machine = Machine(offsets, config or PhaseLockConfig(),
-                      turn=TurnConfig(turn_compensation=compensation))
-    machine.set_design(spacing, plants_per_revolution, 0.0, planting, cams)
+@dataclass(frozen=True)
+class SimMachine:
+    """The machine `simulate_rows` runs: rows at `offsets` (m, + left), the sync law's
+    `config` (None: the defaults), turn `compensation` on or off, every row's `drive` model
+    and the loop's `timing`."""
+
+    offsets: Sequence[float]
+    config: PhaseLockConfig | None = None
+    compensation: bool = True
+    drive: DriveModel = DriveModel()
+    timing: LoopTiming = LoopTiming()
+
+
+@dataclass(frozen=True)
+class RowDesign:
+    """The design every row runs from the start: plant `spacing` (m), `plants_per_revolution`,
+    the mechanism's PlantingAngles (where it plants, for the section stops; None: none) and
+    each row's cam profile (`speed_profile: cam`, control.cam_law.plan_row_cam; None: constant
+    speed), or None: a cam row runs a CSP drive as the command process drives it
+    (`CspDrive`)."""
+
+    spacing: float
+    plants_per_revolution: int = 1
+    planting: PlantingAngles | None = None
+    cams: Sequence[Any] | None = None
+
+
+@dataclass(frozen=True)
+class RowEvents:
+    """What happens to a simulated machine on the way: `switches` (t, row index, on) section
+    control; `drive_changes` (t, row index, DriveModel), that row's drive from t on (a stall
+    and its end); `designs` (t, spacing, cams), a design arriving at t (each row takes it at
+    its next planting instant)."""
+
+    switches: Sequence[tuple[float, int, bool]] = ()
+    drive_changes: Sequence[tuple[float, int, DriveModel]] = ()
+    designs: Sequence[tuple[float, float, Sequence[Any] | None]] = ()
+
+
+def simulate_rows(machine: SimMachine, profile: FieldProfile, duration: float,
+                  design: RowDesign, sensor: MotionSensor = MotionSensor(),
+                  events: RowEvents = RowEvents()) -> list[RowRun]:
+    """Run `machine` (rows, law, drives, timing) with `design` along `profile` (a FieldProfile:
+    speed and yaw rate) for `duration` s; the rows read their motion as `sensor` says and
+    `events` happen on the way. Commands are computed on every sample and every feedback
+    period, as the sync node does. Returns one RowRun per row."""
+    timing = machine.timing
+    dt, sample_period, feedback_period = timing.dt, timing.sample_period, timing.feedback_period
+    spacing, plants_per_revolution = design.spacing, design.plants_per_revolution
+    planting, cams = design.planting, design.cams
+    noise, yaw_noise, read = sensor.noise, sensor.yaw_noise, sensor.read
+    drive = machine.drive
+    rng = np.random.default_rng(sensor.seed)
+    law_machine = Machine(machine.offsets, machine.config or PhaseLockConfig(),
+                          turn=TurnConfig(turn_compensation=machine.compensation))
+    law_machine.set_design(spacing, plants_per_revolution, 0.0, planting, cams)
     csp = [CspDrive(feedback_period) if cam is not None else None
-           for cam in (cams or [None] * len(machine.laws))]
+           for cam in (cams or [None] * len(law_machine.laws))]
     positioned = {r: drive for r, drive in enumerate(csp) if drive is not None}
-    switches = sorted(switches)
-    changes = sorted(drive_changes, key=lambda c: (c[0], c[1]))
-    designs = sorted(designs, key=lambda c: c[0])
-    rows = len(machine.laws)
+    switches = sorted(events.switches)
+    changes = sorted(events.drive_changes, key=lambda c: (c[0], c[1]))
+    designs = sorted(events.designs, key=lambda c: c[0])
+    rows = len(law_machine.laws)
     tau, amax, scale = (np.full(rows, float(getattr(drive, k))) for k in
                         ('time_constant', 'max_acceleration', 'speed_scale'))
     steps = int(round(duration / dt))
@@ -242,10 +304,10 @@ def simulate_rows(offsets: Sequence[float], profile: FieldProfile, duration: flo
         fresh = False
         while switches and t >= switches[0][0]:
             _, row, on = switches.pop(0)
-            machine.laws[row].switch(on, t)
+            law_machine.laws[row].switch(on, t)
         while designs and t >= designs[0][0]:
             _, d, row_cams = designs.pop(0)
-            machine.set_design(d, plants_per_revolution, t, planting, row_cams, since=t)
+            law_machine.set_design(d, plants_per_revolution, t, planting, row_cams, since=t)
         while changes and t >= changes[0][0]:
             _, row, model = changes.pop(0)
             tau[row], amax[row], scale[row] = (model.time_constant, model.max_acceleration,
@@ -254,26 +316,26 @@ def simulate_rows(offsets: Sequence[float], profile: FieldProfile, duration: flo
         if sync:
             for csp_drive in positioned.values():
                 csp_drive.sync(t)
-            for r, law in enumerate(machine.laws):
+            for r, law in enumerate(law_machine.laws):
                 law.feedback(theta[r], omega[r], t)
             fresh = True
             next_feedback += feedback_period
         if t >= next_sample - 1e-12:
             v = profile(t)
-            if sensor is not None:
-                reading = sensor(t, v, profile.yaw_rate(t))
+            if read is not None:
+                reading = read(t, v, profile.yaw_rate(t))
             else:
                 reading = (v + rng.normal(0.0, noise) if v > 0.0 else 0.0,
                            profile.yaw_rate(t) + rng.normal(0.0, yaw_noise))
             if reading is not None:
-                machine.sample(reading[0], reading[1], t)
+                law_machine.sample(reading[0], reading[1], t)
                 fresh = True
             next_sample += sample_period
         if fresh:
-            for r, law in enumerate(machine.laws):
+            for r, law in enumerate(law_machine.laws):
                 cmd[r] = law.command(t)
             for r, csp_drive in positioned.items() if sync else ():
-                csp_drive.send(machine.laws[r], cmd[r], theta[r], t)
+                csp_drive.send(law_machine.laws[r], cmd[r], theta[r], t)
         angle[:, i], command[:, i], speed[:, i] = theta, cmd, omega
         step = (scale * cmd - omega) * np.minimum(dt / tau, 1.0)
         for r, csp_drive in positioned.items():
@@ -284,7 +346,7 @@ def simulate_rows(offsets: Sequence[float], profile: FieldProfile, duration: flo
         theta = theta + omega * dt
     return [RowRun(y, t_out, np.asarray(profile.row_distance(t_out, y)), angle[r], command[r],
                    speed[r])
-            for r, y in enumerate(machine.offsets)]
+            for r, y in enumerate(law_machine.offsets)]
 
 
 class CurveFigure(TypedDict):
@@ -343,30 +405,24 @@ MACHINE_ROWS = (0.75, 0.25, -0.25, -0.75)       # the 4-row scene's lateral offs
 
 def curve_comparison(offsets: Sequence[float] = MACHINE_ROWS, spacing: float = 0.2,
                      cruise: float = 0.2, duration: float = 30.0, radius: float = 10.0,
-                     seed: int = 0, dt: float = 0.001) -> dict[str, list[RowCurveFigures]]:
+                     timing: LoopTiming = LoopTiming()) -> dict[str, list[RowCurveFigures]]:
     """`curve_figures` of every row, with and without turn compensation (tomato, the demo's
-    30 s run with a left and a right turn of `radius`)."""
+    30 s run with a left and a right turn of `radius`; the sensor's noise drawn from seed 0)."""
     profile = field_profile(duration, cruise, curves=demo_curves(duration, radius))
     out: dict[str, list[RowCurveFigures]] = {}
     for mode, on in (('compensated', True), ('uncompensated', False)):
-        runs = simulate_rows(offsets, profile, duration, spacing, compensation=on, seed=seed,
-                             dt=dt)
+        runs = simulate_rows(SimMachine(offsets, compensation=on, timing=timing), profile,
+                             duration, RowDesign(spacing))
         out[mode] = [curve_figures(run, profile, spacing) for run in runs]
     return out
 
 
-class _Scenario(TypedDict, total=False):
-    """run_comparison's drive arguments of a scenario."""
-
-    drive: DriveModel
-    drive_change: tuple[float, DriveModel]
-
-
-SCENARIOS: dict[str, _Scenario] = {
-    'nominal drive (lag 0.05 s)': dict(drive=DriveModel()),
-    'drive lag 0.05 -> 0.2 s at 12 s': dict(drive_change=(12.0, DriveModel(
-        time_constant=0.2, max_acceleration=15.0))),
-    'drive 3 % slow (speed scale 0.97)': dict(drive=DriveModel(speed_scale=0.97)),
+# run_comparison's drive of each scenario
+SCENARIOS: dict[str, DriveModel | DriveSchedule] = {
+    'nominal drive (lag 0.05 s)': DriveModel(),
+    'drive lag 0.05 -> 0.2 s at 12 s': DriveSchedule(changes=((12.0, DriveModel(
+        time_constant=0.2, max_acceleration=15.0)),)),
+    'drive 3 % slow (speed scale 0.97)': DriveModel(speed_scale=0.97),
 }
 
 
@@ -378,8 +434,9 @@ def spacing_rows() -> list[tuple[float, str, SpacingStats, SpacingStats]]:
     tomato scene (30 s field run: 0.2 m/s, +50 % at 13.5 s, stop); deterministic."""
     out: list[tuple[float, str, SpacingStats, SpacingStats]] = []
     for noise in NOISES:
-        for name, kwargs in SCENARIOS.items():
-            r = run_comparison(PhaseLockConfig(), 0.2, 1, 0.2, noise=noise, **kwargs)
+        for name, drive in SCENARIOS.items():
+            r = run_comparison(PhaseLockConfig(), 0.2, 1, field_profile(30.0, 0.2), drive,
+                               SpeedSensor(noise=noise))
             out.append((noise, name, r['phase_locked'], r['speed_only']))
     return out
 
@@ -399,7 +456,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Print phase-locked vs speed-only spacing for the tomato scene (30 s field run:
     0.2 m/s, +50 % at 13.5 s, stop), noise-free and with 10 mm/s sensor noise; and the 4-row
     machine through turns."""
-    import argparse
     parser = argparse.ArgumentParser(description=main.__doc__, allow_abbrev=False)
     parser.add_argument('--markdown', action='store_true',
                         help="print only the spacing table of doc/node_graph.md")

@@ -57,6 +57,15 @@ class Stop:
         return (t - up) / self.ramp
 
 
+@dataclass(frozen=True)
+class Ramps:
+    """How a run starts and ends: the speed ramps up from 0 over `start` s and down to a stop
+    over `stop` s."""
+
+    start: float = 2.0
+    stop: float = 2.0
+
+
 def demo_curves(duration: float, radius: float = 10.0,
                 length: float = 8.0) -> tuple[Curve, Curve]:
     """A left and a right turn of `radius` (m), each `length` s (a quarter of the run in a run
@@ -70,19 +79,20 @@ def demo_curves(duration: float, radius: float = 10.0,
 class FieldProfile:
     """A transplanter run, callable t -> v (m/s): ramp up over `start` s, cruise, a speed change
     to `change`·cruise at 45 % of the run (over 1 s), and a ramp to a stop (over `stop` s)
-    ending 1 s before `duration`. The phase boundaries are attributes (s). `curves`: `Curve`s
-    (not overlapping) the path makes meanwhile; none = a straight run. `stops`: `Stop`s on the
-    way (the yaw rate is v·κ, so the machine does not turn while it stands)."""
+    ending 1 s before `duration` (`ramps`: Ramps, the start and stop ramps' lengths). The phase
+    boundaries are attributes (s). `curves`: `Curve`s (not overlapping) the path makes
+    meanwhile; none = a straight run. `stops`: `Stop`s on the way (the yaw rate is v·κ, so the
+    machine does not turn while it stands)."""
 
-    def __init__(self, duration: float, cruise: float, change: float = 1.5, start: float = 2.0,
-                 stop: float = 2.0, curves: Iterable[Curve] = (),
-                 stops: Iterable[Stop] = ()) -> None:
+    def __init__(self, duration: float, cruise: float, change: float = 1.5,
+                 curves: Iterable[Curve] = (), stops: Iterable[Stop] = (),
+                 ramps: Ramps = Ramps()) -> None:
         self.duration, self.cruise, self.change = duration, cruise, change
         self.stops = tuple(stops)
-        self.start, self.stop = start, stop
+        self.start, self.stop = ramps.start, ramps.stop
         self.t_change = 0.45 * duration
         self.t_stop_end = duration - 1.0
-        self.t_stop = self.t_stop_end - stop
+        self.t_stop = self.t_stop_end - ramps.stop
         self.curves = tuple(sorted(curves, key=lambda c: c.start))
         times, kappas = [0.0], [0.0]
         for curve in self.curves:
@@ -155,10 +165,10 @@ class FieldProfile:
         return distance
 
 
-def field_profile(duration: float, cruise: float, change: float = 1.5, start: float = 2.0,
-                  stop: float = 2.0, curves: Iterable[Curve] = (),
-                  stops: Iterable[Stop] = ()) -> FieldProfile:
-    return FieldProfile(duration, cruise, change, start, stop, curves, stops)
+def field_profile(duration: float, cruise: float, change: float = 1.5,
+                  curves: Iterable[Curve] = (), stops: Iterable[Stop] = (),
+                  ramps: Ramps = Ramps()) -> FieldProfile:
+    return FieldProfile(duration, cruise, change, curves, stops, ramps)
 
 
 def speed_profile(t: Floats, cruise: float, duration: float, step_at: float | None = None,

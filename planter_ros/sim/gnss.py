@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
+from sensor_msgs.msg import NavSatFix, NavSatStatus
 
 from planter_ros.config import check, setting
 from planter_ros.geo import LocalFrame, on_machine
@@ -23,7 +24,6 @@ from planter_ros.kinematics.arrays import FloatArray
 
 if TYPE_CHECKING:
     from builtin_interfaces.msg import Time
-    from sensor_msgs.msg import NavSatFix
 
     from .field import FieldProfile
 
@@ -75,7 +75,6 @@ def _frame(latitude: float, longitude: float) -> LocalFrame:
 def navsatfix(stamp: Time, latitude: float, longitude: float, altitude: float, noise: float,
               frame_id: str = 'gnss') -> NavSatFix:
     """A sensor_msgs/NavSatFix of one fix (status FIX, GPS service), covariance σ² diagonal."""
-    from sensor_msgs.msg import NavSatFix, NavSatStatus
     msg = NavSatFix()
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id

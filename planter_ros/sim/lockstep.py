@@ -13,6 +13,10 @@ from collections.abc import Callable
 import time
 from typing import TYPE_CHECKING
 
+from builtin_interfaces.msg import Time
+import rclpy
+from rosgraph_msgs.msg import Clock as ClockMessage
+
 from planter_ros import interfaces
 
 if TYPE_CHECKING:
@@ -32,7 +36,6 @@ class LockStepFeeder:
 
     def __init__(self, context: Context, executor: Executor, taken: Callable[[], int],
                  has_design: Callable[[], bool], timeout: float = 60.0) -> None:
-        import rclpy
         self.executor = executor
         self.taken = taken
         self.has_design = has_design
@@ -55,10 +58,8 @@ class LockStepFeeder:
 
     def set_clock(self, stamp: int, clock_of: Callable[[], Clock]) -> None:
         """Publish simulated time `stamp` (ns) and wait until `clock_of()` reads it."""
-        from builtin_interfaces.msg import Time
-        from rosgraph_msgs.msg import Clock
         sec, nsec = divmod(stamp, 1_000_000_000)
-        self._clock.publish(Clock(clock=Time(sec=sec, nanosec=nsec)))
+        self._clock.publish(ClockMessage(clock=Time(sec=sec, nanosec=nsec)))
         self.spin_until(lambda: clock_of().now().nanoseconds == stamp)
 
     def feed(self, run: Run, clock_of: Callable[[], Clock]) -> None:

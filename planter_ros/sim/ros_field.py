@@ -16,39 +16,44 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 from rclpy.time import Time
-from geometry_msgs.msg import TwistStamped
+from sensor_msgs.msg import JointState
 
 from planter_ros import interfaces
 from planter_ros.design import Design, from_json
 from planter_ros.kinematics.arrays import FloatArray
+from planter_ros.prediction import planting_model_from_design
 
+from .closed_loop import MotionSensor
 from .field import FieldProfile
 from .gnss import SimulatedGnss, fix_positions, navsatfix
 from .spacing import plant_positions
+from .tray import SensedCycles, Tray
 
 if TYPE_CHECKING:
-    from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64, String
 
     from planter_ros.rows import Row
 
-    from .tray import SensedCycles
-
 
 class GroundSpeedSource(Node):
-    """Publishes `ground_speed` at `rate` Hz from `profile(t)` (t in s since start)."""
+    """Publishes `ground_speed` at `rate` Hz from `profile(t)` (t in s since start), read as
+    `sensor` says (a MotionSensor, default its defaults: Gaussian noise and its seed; the yaw
+    rate's noise a MEMS gyro's at 20 Hz), and at the `glitches` (t, value) that value instead
+    of the reading."""
 
-    def __init__(self, profile: FieldProfile, rate: float = 20.0, noise: float = 0.005,
-                 glitches: Sequence[tuple[float, float]] = (), seed: int = 0,
-                 yaw_noise: float = 0.005, **kwargs: Any) -> None:
+    def __init__(self, profile: FieldProfile, sensor: MotionSensor | None = None,
+                 rate: float = 20.0, glitches: Sequence[tuple[float, float]] = (),
+                 **kwargs: Any) -> None:
         super().__init__('ground_speed_source', **kwargs)
+        sensor = sensor or MotionSensor()
         self.profile = profile
-        self.noise = noise
-        self.yaw_noise = yaw_noise            # rad/s, a MEMS gyro's noise at 20 Hz
+        self.noise = sensor.noise
+        self.yaw_noise = sensor.yaw_noise     # rad/s, a MEMS gyro's noise at 20 Hz
         self.glitches = sorted(glitches)      # (t, value) published instead of the reading
-        self._rng = np.random.default_rng(seed)
+        self._rng = np.random.default_rng(sensor.seed)
         self._pub = interfaces.GROUND_SPEED.publisher(self)
         self.start = self.get_clock().now()
         self.samples = 0
@@ -116,10 +121,6 @@ class SeedlingSensor(Node):
     def __init__(self, design: Design, rows: Sequence[Row], empty_rate: float = 0.0,
                  double_rate: float = 0.0, seed: int = 0, **kwargs: Any) -> None:
         super().__init__('seedling_sensor', **kwargs)
-        from planter_ros.prediction import planting_model_from_design
-        from sensor_msgs.msg import JointState
-
-        from .tray import SensedCycles, Tray
         self._message = JointState
         model = planting_model_from_design(design, 0.0)      # its phase and cycle only
         self._rows: dict[str, SensedCycles] = {row.joint(design.mechanism): SensedCycles(

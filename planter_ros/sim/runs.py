@@ -9,13 +9,18 @@ from dataclasses import dataclass
 import math
 from typing import Any
 
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import TwistStamped
 import numpy as np
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, String
 
 from planter_ros import interfaces
 from planter_ros.control.phase_lock import PhaseLock, PhaseLockConfig
 from planter_ros.design import Design, design_for_scene, to_json
 
-from .closed_loop import DriveModel, simulate
+from .closed_loop import (
+    DriveChange, DriveModel, DriveSchedule, LoopTiming, SpeedSensor, simulate)
 from .field import speed_profile
 
 SIM_EPOCH = 1_700_000_000.0      # s: fixed start of simulated time (deterministic bags)
@@ -36,11 +41,6 @@ class Run:
     def messages(self) -> Iterator[tuple[int, interfaces.Topic, Any]]:
         """The stream as ROS messages in time order: (time ns, Topic, message), the design first
         (1 ms before the first sample), then ground speed and joint state + speed command."""
-        from builtin_interfaces.msg import Time
-        from geometry_msgs.msg import TwistStamped
-        from sensor_msgs.msg import JointState
-        from std_msgs.msg import Float64, String
-
         joint = interfaces.MECHANISM_JOINT[self.design.mechanism]
         t0 = _ns(min(self.speed_t[0], self.joint_t[0])) - 1_000_000
         yield t0, interfaces.DESIGN, String(data=to_json(self.design))
@@ -75,12 +75,33 @@ def five_bar_design_message(depth: float = 0.045, spacing: float = 0.2,
                              'nozzle_width': nozzle_width})
 
 
-def simulate_run(design: Design, duration: float = 30.0, cruise: float = 0.2,
-                 speed_rate: float = 20.0, joint_rate: float = 100.0, drive_lag: float = 0.08,
-                 phase_gain: float = 4.0, speed_noise: float = 0.02, encoder_counts: int = 4096,
-                 step: float = 1.25, stall_at: float | None = None, stall_for: float = 0.8,
-                 stall_level: float = 0.2, seed: int = 1) -> Run:
-    """Measured stream of a planting run (see module doc). Deterministic for a given seed.
+@dataclass(frozen=True)
+class RunOptions:
+    """A simulated planting run (`simulate_run`): its `duration` (s) along the speed profile of
+    `cruise` (m/s) with a `step` to step·cruise half-way; the ground-speed sensor at
+    `speed_rate` (Hz) with relative noise `speed_noise`; joint states at `joint_rate` (Hz) from
+    an encoder of `encoder_counts` per revolution; the drive's lag `drive_lag` (s) and the
+    law's `phase_gain` (0: speed-only); `stall_at` (s; None: no stall) makes the drive reach
+    only `stall_level` of its command for `stall_for` s; the noise drawn from `seed`."""
+
+    duration: float = 30.0
+    cruise: float = 0.2
+    speed_rate: float = 20.0
+    joint_rate: float = 100.0
+    drive_lag: float = 0.08
+    phase_gain: float = 4.0
+    speed_noise: float = 0.02
+    encoder_counts: int = 4096
+    step: float = 1.25
+    stall_at: float | None = None
+    stall_for: float = 0.8
+    stall_level: float = 0.2
+    seed: int = 1
+
+
+def simulate_run(design: Design, options: RunOptions = RunOptions()) -> Run:
+    """Measured stream of a planting run (see module doc and RunOptions). Deterministic for a
+    given seed.
 
     The machine is the sync node's own law (control.phase_lock; `phase_gain` = 0 is speed-only)
     against the drive model of sim.closed_loop, sampled as the drive and sensor would:
@@ -89,7 +110,12 @@ def simulate_run(design: Design, duration: float = 30.0, cruise: float = 0.2,
     its torque for `stall_for` s (it reaches `stall_level` of what is commanded): the shaft
     drags behind the ground, then the phase lock catches up.
     """
-    rng = np.random.default_rng(seed)
+    o = options
+    duration, cruise, step, speed_noise, drive_lag = (o.duration, o.cruise, o.step,
+                                                      o.speed_noise, o.drive_lag)
+    phase_gain, stall_at, stall_for, stall_level = (o.phase_gain, o.stall_at, o.stall_for,
+                                                    o.stall_level)
+    rng = np.random.default_rng(o.seed)
     n = design.plants_per_revolution
     spacing = design.plant_spacing
     law = PhaseLock(PhaseLockConfig(phase_gain=phase_gain, phase_lock=phase_gain > 0,
@@ -110,16 +136,16 @@ def simulate_run(design: Design, duration: float = 30.0, cruise: float = 0.2,
         return reading
 
     nominal = DriveModel(time_constant=drive_lag, max_acceleration=1e3)
-    changes = [] if stall_at is None else [
+    changes: tuple[DriveChange, ...] = () if stall_at is None else (
         (stall_at, DriveModel(time_constant=drive_lag, max_acceleration=1e3,
                               speed_scale=stall_level)),
-        (stall_at + stall_for, nominal)]
-    dt = 1.0 / joint_rate
-    sim = simulate(law, true_speed, duration, drive=nominal, dt=dt / 4, sample_period=1.0 /
-                   speed_rate, feedback_period=dt, sensor=sensor, drive_change=changes)
+        (stall_at + stall_for, nominal))
+    dt = 1.0 / o.joint_rate
+    sim = simulate(law, true_speed, duration, DriveSchedule(nominal, changes),
+                   SpeedSensor(read=sensor), LoopTiming(dt / 4, 1.0 / o.speed_rate, dt))
     every = 4                                    # feedback samples on the integration grid
     t = sim.t[::every]
-    quantum = 2 * math.pi / encoder_counts
+    quantum = 2 * math.pi / o.encoder_counts
     joint_pos = np.round(sim.angle[::every] / quantum) * quantum
     joint_vel = sim.speed[::every] + rng.normal(0.0, 0.01 * 2 * math.pi * cruise /
                                                 (n * spacing), t.size)

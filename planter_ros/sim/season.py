@@ -29,30 +29,38 @@ from dataclasses import dataclass, field, replace
 from functools import lru_cache
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypedDict
+from typing import Any, TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import TwistStamped
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, String
+
 from planter_ros import interfaces
-from planter_ros.config import as_dict, check, setting
+from planter_ros.config import as_dict
+from planter_ros.control.cam_law import plan_row_cam
 from planter_ros.control.phase_lock import PhaseLockConfig, planting_angles
 from planter_ros.design import Design, from_json, to_json
 from planter_ros.geo import AntennaSettings
+from planter_ros.prediction import (
+    AcceptanceLimits, PredictionSettings, planting_model_from_design)
+from planter_ros.prediction.pipeline import MonitorPipeline, Placed
+from planter_ros.recording.monitor_topics import plants_message
+from planter_ros.recording.recorder import Recorder
+from planter_ros.recording.replay import map_record
 from planter_ros.rows import Row, implicit_row, rows_record
+from planter_ros.sensing.plant_map import MapSettings
 
-from .closed_loop import DriveModel, RowRun, simulate_rows
+from .closed_loop import (
+    DriveModel, LoopTiming, MotionSensor, RowDesign, RowEvents, RowRun, SimMachine, simulate_rows)
 from .field import Curve, FieldProfile, Stop
 from .gnss import SimulatedGnss, fix_positions, navsatfix
 from .runs import SIM_EPOCH, five_bar_design_message
+from .tray import FULL_TRAY, Tray, TrayShares, sense_angle
 
-# The module stays light: `planter simulate --help` reads SeasonOptions from it, so the cam
-# law, prediction/, recording/ (mcap) and the ROS messages are imported where a run needs them.
-if TYPE_CHECKING:
-    from builtin_interfaces.msg import Time
-
-    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
-    from planter_ros.prediction.pipeline import Placed
 
 ROW_PITCH = 0.5            # m between neighbouring simulated rows
 SAMPLE_PERIOD = 0.05       # s, ground-speed sensor (20 Hz)
@@ -61,25 +69,6 @@ GNSS_PERIOD = 0.1          # s, GNSS fixes (10 Hz)
 STEP = 0.0025              # s, integration step of the closed loop
 ENCODER_COUNTS = 4096      # per mechanism revolution
 RUN_PERIOD = 3600.0        # s of simulated clock between the starts of two runs of a season
-
-
-@dataclass(frozen=True)
-class SeasonOptions:
-    """A simulated season (`planter simulate`'s options)."""
-
-    bags: int = setting(1, 'runs (bags) to simulate', range=(1, 100_000))
-    duration: float = setting(60.0, 'length of each run', unit='s', range=(10.0, 3600.0))
-    rows: int = setting(4, 'planting rows of the machine (1: a machine without rows)',
-                        range=(1, 16))
-    seed: int = setting(0, 'seed of the season: the same seed gives the same bags',
-                        range=(0, 2 ** 32 - 1))
-    empty_rate: float = setting(0.02, "share of the tray's cells that are empty (the seedling "
-                                'sensor reads 0)', range=(0.0, 1.0))
-    double_rate: float = setting(0.01, "share of the tray's cells holding two seedlings (the "
-                                 'sensor reads 2)', range=(0.0, 1.0))
-
-    def __post_init__(self) -> None:
-        check(self)
 
 
 def bag_name(seed: int, index: int) -> str:
@@ -168,11 +157,11 @@ SPEED_CHANGE_MIN, SPEED_CHANGE_MAX = 0.75, 1.35
 
 
 def draw_plan(seed: int, index: int, duration: float, rows: int | Iterable[Row],
-              cruise: tuple[float, float] = (0.15, 0.4), empty_rate: float = 0.0,
-              double_rate: float = 0.0) -> RunPlan:
+              cruise: tuple[float, float] = (0.15, 0.4), tray: TrayShares = FULL_TRAY
+              ) -> RunPlan:
     """Run `index` of the season of `seed`: the same arguments give the same run. `rows`: a
     count (machine_rows) or the machine's rows (a scene's); `cruise`: the range (m/s) its
-    cruise speed is drawn from."""
+    cruise speed is drawn from; `tray`: its tray's empty and double shares."""
     machine = machine_rows(rows) if isinstance(rows, int) else tuple(rows)
     count = len(machine)
     rng = np.random.default_rng([int(seed), int(index)])
@@ -206,7 +195,7 @@ def draw_plan(seed: int, index: int, duration: float, rows: int | Iterable[Row],
                    stops=tuple(sorted(stops, key=lambda s: s.start)), curves=tuple(curves),
                    glitches=tuple(sorted(glitches, key=lambda g: g.start)), stall=stall,
                    drive_lag=float(rng.uniform(0.03, 0.1)), gnss=gnss,
-                   empty_rate=float(empty_rate), double_rate=float(double_rate))
+                   empty_rate=float(tray.empty_rate), double_rate=float(tray.double_rate))
 
 
 @lru_cache(maxsize=1)
@@ -239,7 +228,6 @@ class MachineRun:
 
 @lru_cache(maxsize=4)
 def _cam(design_json: str, rule: str) -> Any:        # a control.cam_law row cam
-    from planter_ros.control.cam_law import plan_row_cam  # lazy: the module stays light
     return plan_row_cam(from_json(design_json), rule)
 
 
@@ -298,14 +286,15 @@ def simulate_plan(plan: RunPlan, design: Design | None = None,
                                                max_acceleration=acceleration,
                                                speed_scale=s.level)),
                    (s.start + s.length, s.row, nominal)]
-    runs = simulate_rows([row.lateral_offset for row in plan.rows], profile, plan.duration,
-                         design.plant_spacing, design.plants_per_revolution, config=law,
-                         drive=nominal, dt=STEP, sample_period=SAMPLE_PERIOD,
-                         feedback_period=FEEDBACK_PERIOD, sensor=sensor, drive_changes=changes,
-                         seed=plan.index, planting=planting_angles(design),
-                         cams=_row_cams(design, law, plan.rows),
-                         designs=[(t, d.plant_spacing, _row_cams(d, law, plan.rows))
-                                  for t, d in plan.designs])
+    machine = SimMachine([row.lateral_offset for row in plan.rows], law, drive=nominal,
+                         timing=LoopTiming(STEP, SAMPLE_PERIOD, FEEDBACK_PERIOD))
+    runs = simulate_rows(machine, profile, plan.duration,
+                         RowDesign(design.plant_spacing, design.plants_per_revolution,
+                                   planting_angles(design), _row_cams(design, law, plan.rows)),
+                         MotionSensor(seed=plan.index, read=sensor),
+                         RowEvents(drive_changes=changes,
+                                   designs=[(t, d.plant_spacing, _row_cams(d, law, plan.rows))
+                                            for t, d in plan.designs]))
     every = int(round(FEEDBACK_PERIOD / STEP))
     t = runs[0].t[::every]
     quantum = 2.0 * math.pi / ENCODER_COUNTS
@@ -328,9 +317,6 @@ def tray_readings(plan: RunPlan, design: Design,
     reading, half a planting cycle before the planting angle (the cup passing the sensor), of
     what the tray put in the cup: 0 with plan.empty_rate, 2 with plan.double_rate, else 1.
     A row the scene declares without a seedling sensor (Row.seedling_sensor) reads nothing."""
-    from planter_ros.prediction import planting_model_from_design  # lazy (see its imports)
-
-    from .tray import Tray, sense_angle
     model = planting_model_from_design(design)
     n = model.plants_per_revolution
     tray = Tray(plan.empty_rate, plan.double_rate,
@@ -364,32 +350,18 @@ class BagSummary(TypedDict):
     events: dict[str, Any]           # RunPlan.events() (JSON-ready) + empty_cells, double_cells
 
 
-def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None = None,
-                      settings: PredictionSettings | None = None,
-                      acceptance: AcceptanceLimits | None = None,
-                      antenna: AntennaSettings | None = None,
+def write_monitor_bag(run: MachineRun, path: str | Path, machine: SceneMachine | None = None,
                       **recorder_options: Any) -> BagSummary:
     """Record `run` (a MachineRun) at `path` as monitor_node would have (see the module doc);
-    `settings`, `acceptance` and `antenna` the monitor's (a scene's; default the defaults);
-    `recorder_options` (split_size, split_duration) as the monitor's parameters. Every message
-    is written by recording.cdr.encode_message: the same run gives the same bytes. Returns a
-    summary dict (SI)."""
-    # lazy: the module stays light (see its imports)
-    from builtin_interfaces.msg import Time
-    from geometry_msgs.msg import TwistStamped
-    from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64, String
-
-    from planter_ros.prediction import AcceptanceLimits, PredictionSettings
-    from planter_ros.prediction.pipeline import MonitorPipeline
-    from planter_ros.recording.monitor_topics import plants_message
-    from planter_ros.recording.recorder import Recorder
-    from planter_ros.recording.replay import map_record
-    from planter_ros.sensing.plant_map import MapSettings
-
-
-    design = design or season_design()
-    settings = settings or PredictionSettings()
+    the design and the monitor's settings, acceptance limits and antenna those of `machine`
+    (a scene's SceneMachine; None: the season's design and the defaults); `recorder_options`
+    (split_size, split_duration) as the monitor's parameters. Every message is written by
+    recording.cdr.encode_message: the same run gives the same bytes. Returns a summary dict
+    (SI)."""
+    design = season_design() if machine is None else machine.design
+    settings = PredictionSettings() if machine is None else machine.settings
+    acceptance = AcceptanceLimits() if machine is None else machine.acceptance
+    antenna = AntennaSettings() if machine is None else machine.antenna
     plan = run.plan
     rows = list(plan.rows)
     named = len(rows) > 1 or bool(rows[0].name)
@@ -433,8 +405,8 @@ def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None =
                      {k: repr(v) for k, v in as_dict(settings).items()})
     rec.add_metadata(interfaces.ROWS_RECORD, rows_record(rows))
     rec.add_metadata(interfaces.ACCEPTANCE_RECORD, {
-        k: repr(v) for k, v in as_dict(acceptance or AcceptanceLimits()).items()})
-    map_settings, antenna = MapSettings(), antenna or AntennaSettings()
+        k: repr(v) for k, v in as_dict(acceptance).items()})
+    map_settings = MapSettings()
     rec.add_metadata(interfaces.MAP_RECORD, map_record(map_settings, antenna))
     # the monitor's own pipeline, fed what it would have received, in its receive order
     monitor = MonitorPipeline(rows, settings, map_settings, antenna.antenna_position)
@@ -520,29 +492,25 @@ class SceneMachine:
                                                        # spacing schedule
 
 
-def simulate_bag(path: str | Path, seed: int, index: int, duration: float, rows: int,
-                 machine: SceneMachine | None = None, empty_rate: float = 0.0,
-                 double_rate: float = 0.0) -> BagSummary:
+def simulate_bag(path: str | Path, seed: int, index: int, duration: float,
+                 machine: int | SceneMachine, tray: TrayShares = FULL_TRAY) -> BagSummary:
     """Draw run `index` of the season of `seed`, simulate it and record it at `path` (a task
-    of `planter simulate`): a machine of `rows` rows with the season's design, or `machine` (a
-    SceneMachine: a scene's design, rows, monitor settings, limits and antenna), its tray with
-    `empty_rate` empty cells and `double_rate` doubles. Returns write_monitor_bag's summary; a
-    bag left unfinished by an error is removed."""
-    if machine is None:
-        plan = draw_plan(seed, index, duration, rows, empty_rate=empty_rate,
-                         double_rate=double_rate)
+    of `planter simulate`): `machine` a count of rows (a machine with the season's design) or a
+    SceneMachine (a scene's design, rows, monitor settings, limits and antenna), its `tray`'s
+    empty and double shares. Returns write_monitor_bag's summary; a bag left unfinished by an
+    error is removed."""
+    if isinstance(machine, int):
+        plan = draw_plan(seed, index, duration, machine, tray=tray)
     else:
-        plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise,
-                         empty_rate=empty_rate, double_rate=double_rate)
+        plan = draw_plan(seed, index, duration, machine.rows, cruise=machine.cruise, tray=tray)
         plan = replace(plan, designs=tuple((t, d) for t, d in machine.schedule
                                            if t < plan.duration))
     existed = Path(path).exists()          # the recorder refuses it: never removed here
     try:
-        if machine is None:
+        if isinstance(machine, int):
             return write_monitor_bag(simulate_plan(plan), path)
         return write_monitor_bag(simulate_plan(plan, machine.design, machine.law), path,
-                                 machine.design,
-                                 machine.settings, machine.acceptance, machine.antenna)
+                                 machine)
     except BaseException:
         if not existed:
             Path(path).unlink(missing_ok=True)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 import math
 from typing import TYPE_CHECKING, Any
 
@@ -23,6 +24,18 @@ if TYPE_CHECKING:
     from planter_ros.kinematics.planting import Planting
 
 TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class TrayShares:
+    """A simulated tray: the share of its cells that are empty (the cup sensor reads 0) and of
+    those holding two seedlings (it reads 2)."""
+
+    empty_rate: float = 0.0
+    double_rate: float = 0.0
+
+
+FULL_TRAY = TrayShares()        # every cell holds one seedling
 
 
 class Tray:

@@ -267,11 +267,12 @@ def _simulate_season(directory: Path, count: int, duration: float, rows: int,
     from planter_ros.analysis.engine import check_workers, cluster, completed
     from planter_ros.analysis.task import model_version, warm_up
     from planter_ros.sim.season import bag_name, simulate_bag
+    from planter_ros.sim.tray import TrayShares
     names = [bag_name(1, k) for k in range(count)]
     out: dict[str, BagSummary] = {}
     with cluster() as client:
         check_workers(client, warm_up, model_version(), 'the local cluster')
-        arguments = [(str(directory / name), 1, k, duration, rows, None, *tray)
+        arguments = [(str(directory / name), 1, k, duration, rows, TrayShares(*tray))
                      for k, name in enumerate(names)]
         for i, summary, error in completed(client, simulate_bag, arguments):
             if error is not None:
@@ -313,12 +314,12 @@ def injected_losses(ctx: BenchContext) -> Iterator[Row]:
             'bag', 'summary.spacing_quality.miss_index',
             'summary.spacing_quality.multiple_index',
             'summary.spacing_quality.spacings']).to_pylist()
-        fields = ('row', 'time', 'status', 'seedlings', 'input_gap', 'spacing', 'spacing_error')
         total, misses, multiples, dropouts, sensor = losses.empty_account(), 0, 0, 0, True
         for entry in table:
             mine = plants.filter(pads.field('bag') == entry['bag'])
             readings = replay(season_dir / entry['bag']).seedling_readings
-            one = losses.account(readings, *plant_columns(mine, fields))
+            one = losses.account(readings, losses.Instants.of(
+                *plant_columns(mine, losses.INSTANT_COLUMNS)))
             losses.add(total, one)
             n = entry['summary.spacing_quality.spacings'] or 0
             misses += round((entry['summary.spacing_quality.miss_index'] or 0.0) * n)

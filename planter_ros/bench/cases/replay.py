@@ -130,13 +130,13 @@ def replay_throughput(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     from planter_ros.recording.replay import replay
     from planter_ros.sim.bags import write_input_bag
-    from planter_ros.sim.runs import five_bar_design_message, simulate_run
+    from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
 
     duration = ctx.n(600.0, 20.0)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / 'bench.mcap'
         ctx.progress(f'  generating a {duration:.0f} s input bag ...')
-        run = simulate_run(five_bar_design_message(), duration=duration)
+        run = simulate_run(five_bar_design_message(), RunOptions(duration=duration))
         rec = write_input_bag(run, path)
         result = replay(path)
         yield _replay_row(ctx, path, f'generated {duration:.0f} s input bag', result,

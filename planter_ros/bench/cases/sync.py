@@ -226,9 +226,10 @@ def sync_latency_rows(ctx: BenchContext) -> Iterator[Row]:
 
 @bench_case('closed loop through curves', requires=('planter_ros.control.machine_law',))
 def closed_loop_curves(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.sim.closed_loop import RowCurveFigures, curve_comparison
+    from planter_ros.sim.closed_loop import LoopTiming, RowCurveFigures, curve_comparison
     result: dict[str, list[RowCurveFigures]] = {}
-    t = ctx.measure(lambda: result.update(curve_comparison(dt=ctx.n(0.001, 0.002))),
+    timing = LoopTiming(dt=ctx.n(0.001, 0.002))
+    t = ctx.measure(lambda: result.update(curve_comparison(timing=timing)),
                     repeats=1, min_time=0.0)
     d = 0.2
 
