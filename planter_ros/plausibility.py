@@ -112,6 +112,42 @@ def _g(x: float) -> str:
     return f'{x:.3g}'
 
 
+@dataclass(frozen=True)
+class _Limits:
+    """What the rows must keep within while following the tractor: the sync law's limits
+    (a PhaseLockConfig), the ground speeds it accepts (GroundSpeedLimits), a machine file's
+    row limits and the tractor's acceleration to follow."""
+
+    law: Any
+    ground: Any
+    rows: Sequence[RowLimits] = ()
+    tractor_acceleration: float = TRACTOR_ACCELERATION
+
+
+@dataclass(frozen=True)
+class _Shaft:
+    """The shaft a speed check is about: its name, its rad per metre travelled (2π/(n·d)) and
+    the plant spacing d (m)."""
+
+    name: str
+    per_metre: float
+    spacing: float
+
+
+@dataclass(frozen=True)
+class _Limit:
+    """One limit checked: its value, its name and where it is set."""
+
+    value: float
+    name: str
+    where: str
+
+
+def _shaft(mechanism: str, n: int, d: float) -> _Shaft:
+    return _Shaft('sun bar' if mechanism == 'five_bar' else 'carrier', 2.0 * math.pi / (n * d),
+                  d)
+
+
 def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
           tractor_acceleration: float = TRACTOR_ACCELERATION, motion: bool = True,
           machine: bool = True, design: bool = True) -> Verdict:
@@ -136,7 +172,8 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
             if not out.refused and law.speed_profile == 'cam':
                 _cam(params, law, out)
         if motion:
-            _motion(out, params, scene, law, ground, row_limits, tractor_acceleration)
+            _motion(out, params, scene,
+                    _Limits(law, ground, row_limits, tractor_acceleration))
         if machine:
             _machine(out, params)
     except ConfigError as exc:             # a value outside its own range: the range says it
@@ -177,18 +214,17 @@ def unusual(scene) -> list[str]:
     return out
 
 
-def _motion(out, params, scene, law, ground, row_limits, tractor_acceleration):
+def _motion(out, params, scene, limits):
     n = PLANTS_PER_REVOLUTION[scene.mechanism]
-    _motion_of(out, scene.mechanism, n, scene.plant_spacing, scene.nominal_ground_speed, law,
-               ground, row_limits, tractor_acceleration, 'max_ground_speed' in params)
+    shaft = _shaft(scene.mechanism, n, scene.plant_spacing)
+    _motion_of(out, limits, shaft, scene.nominal_ground_speed, 'max_ground_speed' in params)
     top = top_ground_speed(scene.nominal_ground_speed, scene.top_ground_speed)
     if not out.refused and top > scene.nominal_ground_speed:
         # the highest speed the scene plants at, through the same limits
         name = 'top_ground_speed' if scene.top_ground_speed else \
             'top_ground_speed (0: 1.5 × nominal_ground_speed)'
-        _motion_of(out, scene.mechanism, n, scene.plant_spacing, top, law, ground,
-                   row_limits, tractor_acceleration, False, speed_name=name)
-    _resolution(out, scene, n, row_limits)
+        _motion_of(out, limits, shaft, top, False, speed_name=name)
+    _resolution(out, scene, n, limits.rows)
 
 
 def _resolution(out, scene, n, row_limits):
@@ -217,39 +253,40 @@ def check_law(design, law, ground, row_limits: Sequence[RowLimits] = (),
     same speed and acceleration checks as a scene's. PlausibilityError (the reason and the
     limit) for a refusal; the warnings."""
     out = Verdict()
-    _motion_of(out, design.mechanism, design.plants_per_revolution, design.plant_spacing,
-               design.nominal_ground_speed, law, ground, row_limits, tractor_acceleration,
-               True)
+    _motion_of(out, _Limits(law, ground, row_limits, tractor_acceleration),
+               _shaft(design.mechanism, design.plants_per_revolution, design.plant_spacing),
+               design.nominal_ground_speed, True)
     if out.refused:
         raise PlausibilityError(out.refused[0])
     return out.warnings
 
 
-def _motion_of(out, mechanism, n, d, v, law, ground, row_limits, tractor_acceleration,
-               ground_limit_given, speed_name='nominal_ground_speed'):
-    shaft = 'sun bar' if mechanism == 'five_bar' else 'carrier'
-    per_metre = 2.0 * math.pi / (n * d)   # shaft rad per metre travelled
+def _motion_of(out, limits, shaft, v, ground_limit_given, speed_name='nominal_ground_speed'):
+    """The speed and acceleration checks of `shaft` (_Shaft) at ground speed `v` (m/s, its
+    name `speed_name`) against `limits` (_Limits)."""
+    law, ground, tractor = limits.law, limits.ground, limits.tractor_acceleration
+    per_metre, d = shaft.per_metre, shaft.spacing    # shaft rad per metre travelled
     if v is None:                          # a design without a nominal speed: no speed check
         v = 0.0
-    _speed(out, shaft, per_metre, d, v, law.max_speed, 'max_speed', 'the sync law',
-           speed_name)
-    _acceleration(out, shaft, per_metre, d, tractor_acceleration, law.max_acceleration,
-                  'max_acceleration', 'the sync law')
-    for row in row_limits:
+    _speed(out, shaft, v, _Limit(law.max_speed, 'max_speed', 'the sync law'), speed_name)
+    _acceleration(out, shaft, tractor,
+                  _Limit(law.max_acceleration, 'max_acceleration', 'the sync law'))
+    for row in limits.rows:
         where = f'row {row.name or "(implicit)"} of the machine file'
         if row.max_speed:
-            _speed(out, shaft, per_metre, d, v, row.max_speed, 'max_speed', where, speed_name)
+            _speed(out, shaft, v, _Limit(row.max_speed, 'max_speed', where), speed_name)
         if row.motor_max_speed:
-            _speed(out, f'motor ({row.gear_ratio:g} turns per {shaft} turn)',
-                   per_metre * row.gear_ratio, d, v, row.motor_max_speed, 'motor_max_speed',
-                   where, speed_name)
+            motor = _Shaft(f'motor ({row.gear_ratio:g} turns per {shaft.name} turn)',
+                           per_metre * row.gear_ratio, d)
+            _speed(out, motor, v, _Limit(row.motor_max_speed, 'motor_max_speed', where),
+                   speed_name)
         if row.max_acceleration:
-            _acceleration(out, shaft, per_metre, d, tractor_acceleration, row.max_acceleration,
-                          'max_acceleration', where)
+            _acceleration(out, shaft, tractor,
+                          _Limit(row.max_acceleration, 'max_acceleration', where))
     if ground_limit_given and per_metre * ground.max_ground_speed > law.max_speed:
         out.warnings.append(
             f'max_ground_speed = {_g(ground.max_ground_speed)} m/s is accepted, but above '
-            f'{_g(law.max_speed / per_metre)} m/s the {shaft} is held at max_speed = '
+            f'{_g(law.max_speed / per_metre)} m/s the {shaft.name} is held at max_speed = '
             f'{_g(law.max_speed)} rad/s and plants land farther apart than {_g(d)} m')
 
 
@@ -376,26 +413,31 @@ def _cam(params, law, out):
         previous = profile
 
 
-def _speed(out, shaft, per_metre, d, v, limit, limit_name, where,
-           speed_name='nominal_ground_speed'):
+def _speed(out: Verdict, shaft: _Shaft, v: float, limit: _Limit,
+           speed_name: str = 'nominal_ground_speed') -> None:
+    """`shaft` at ground speed `v` (m/s) against a speed `limit` (rad/s)."""
+    per_metre, top = shaft.per_metre, limit.value
     omega = per_metre * v
-    if omega > limit:
+    if omega > top:
         short = speed_name.split(' ')[0]
         out.refused.append(
-            f'{speed_name} = {_g(v)} m/s needs the {shaft} at {_g(omega)} rad/s '
-            f'({omega * RPM:.0f} r/min) for plant_spacing = {_g(d)} m: over {limit_name} = '
-            f'{_g(limit)} rad/s ({limit * RPM:.0f} r/min) of {where}; allowed '
-            f'{short} <= {_g(limit / per_metre)} m/s at this spacing')
+            f'{speed_name} = {_g(v)} m/s needs the {shaft.name} at {_g(omega)} rad/s '
+            f'({omega * RPM:.0f} r/min) for plant_spacing = {_g(shaft.spacing)} m: over '
+            f'{limit.name} = {_g(top)} rad/s ({top * RPM:.0f} r/min) of {limit.where}; '
+            f'allowed {short} <= {_g(top / per_metre)} m/s at this spacing')
 
 
-def _acceleration(out, shaft, per_metre, d, tractor, limit, limit_name, where):
+def _acceleration(out: Verdict, shaft: _Shaft, tractor: float, limit: _Limit) -> None:
+    """`shaft` following a tractor speeding up at `tractor` (m/s²) against an acceleration
+    `limit` (rad/s²)."""
+    per_metre, top = shaft.per_metre, limit.value
     alpha = per_metre * tractor
-    if alpha > limit:
-        shortest = per_metre * d * tractor / limit       # α = 2πa/(n·d) <= limit
+    if alpha > top:
+        shortest = per_metre * shaft.spacing * tractor / top     # α = 2πa/(n·d) <= limit
         out.refused.append(
-            f'following a tractor speeding up at {_g(tractor)} m/s² needs the {shaft} to '
-            f'accelerate at {_g(alpha)} rad/s²: over {limit_name} = {_g(limit)} rad/s² of '
-            f'{where}; allowed plant_spacing >= {_g(shortest)} m at this limit')
+            f'following a tractor speeding up at {_g(tractor)} m/s² needs the {shaft.name} to '
+            f'accelerate at {_g(alpha)} rad/s²: over {limit.name} = {_g(top)} rad/s² of '
+            f'{limit.where}; allowed plant_spacing >= {_g(shortest)} m at this limit')
 
 
 def _bus(out, rows, drive, loop):

@@ -385,7 +385,7 @@ def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None =
     from planter_ros.recording.monitor_topics import plants_message
     from planter_ros.recording.recorder import Recorder
     from planter_ros.recording.replay import map_record
-    from planter_ros.sensing.plant_map import MapSettings
+    from planter_ros.sensing.plant_map import GnssFix, MapSettings
 
 
     design = design or season_design()
@@ -492,8 +492,9 @@ def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None =
             msg = navsatfix(stamp(gnss_stamp[i]), lat[i], lon[i], alt[i], plan.gnss.noise)
             rec.write_message(names[interfaces.GNSS_FIX], msg, now, int(gnss_stamp[i]))
             cov = msg.position_covariance
-            publish(monitor.fix(int(gnss_stamp[i]) * 1e-9, msg.status.status, lat[i], lon[i],
-                                cov[0], cov[4], msg.position_covariance_type), now)
+            publish(monitor.fix(GnssFix(int(gnss_stamp[i]) * 1e-9, msg.status.status, lat[i],
+                                        lon[i], cov[0], cov[4],
+                                        msg.position_covariance_type)), now)
     publish(monitor.finish(), int(log.max()) if log.size else start)
     rec.close()
     counts = [c for _, _, c in run.seedlings]
