@@ -132,7 +132,7 @@ def test_the_lever_arms_place_each_plant_within_5_mm(curves):
     assert (row.lateral_offset, row.longitudinal_offset) == (0.8, -2.5)
     motion, fixes, tp, true_lat, true_lon = simulated_plants(
         math.radians(10.0), (row.longitudinal_offset, row.lateral_offset), curves=curves)
-    mt = motion_samples(*motion, [row.lateral_offset], yaw=True)
+    mt = motion_samples(motion, [row.lateral_offset], yaw=True)
     n = tp.size
 
     def place(forward):

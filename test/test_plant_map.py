@@ -55,7 +55,7 @@ def as_plants(times, rows):
 
 def placed(motion, fixes, plants, settings=MAP, antenna=(2.5, 0.3)):
     offsets = [y for _, y, _, _, _ in plants]
-    mt = motion_samples(*motion, offsets, yaw=True)
+    mt = motion_samples(motion, offsets, yaw=True)
     t = np.concatenate([tp for _, _, tp, _, _ in plants])
     y = np.concatenate([np.full(tp.size, y) for _, y, tp, _, _ in plants])
     return place_plants(PlantSpots(t, y), mt, fixes, settings, antenna)
@@ -163,7 +163,7 @@ def test_standing_still_keeps_the_heading_and_the_yaw_rate_turns_it():
     # 8 s of fixes span 2 m at 0.25 m/s: a heading; the stop outlasts them
     settings = MapSettings(fix_window=8.0)
     result = place_plants(PlantSpots(tp, np.zeros(tp.size)),
-                          motion_samples(*motion, [0.0], yaw=True), fixes, settings, (2.0, 0.0))
+                          motion_samples(motion, [0.0], yaw=True), fixes, settings, (2.0, 0.0))
     true_lat, true_lon, _ = fix_positions(path, tp, EXACT)
     off = geodesic_distance(result.longitude, result.latitude, true_lon, true_lat)
     after = tp > 30.0
@@ -175,7 +175,7 @@ def test_live_placement_equals_replay_in_any_arrival_order():
     """The monitor gets motion, fixes and plants interleaved (plants of a row in bursts, fixes
     at their own rate): what it publishes equals replay's map of the same recording."""
     motion, fixes, plants = field_run(duration=25.0, offsets=(0.5, -0.5), seed=7)
-    mt, mv, mw = motion_samples(*motion, [0.5, -0.5], yaw=True)
+    mt, mv, mw = motion_samples(motion, [0.5, -0.5], yaw=True)
     events = [(t, 0, i) for i, t in enumerate(mt)] + \
         [(t + 0.03, 1, i) for i, t in enumerate(fixes[0])]       # fixes arrive 30 ms late
     # each plant is predicted when the first motion sample after it has come

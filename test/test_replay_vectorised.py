@@ -37,7 +37,7 @@ def test_the_filters_over_a_recording_keep_what_the_live_stream_keeps(seed):
             v[rng.integers(n):] *= rng.uniform(0, 4)          # a step
         offsets = [0.0] if rng.random() < 0.3 else [0.5, -0.5]
         yaw = (None, True, False)[trial % 3]
-        got = motion_samples(t, v, w, offsets, yaw=yaw)
+        got = motion_samples((t, v, w), offsets, yaw=yaw)
         want = one_by_one(t, v, w, offsets, yaw)
         for a, b in zip(got, want):
             assert a.shape == b.shape and np.array_equal(a, b, equal_nan=True)

@@ -256,11 +256,11 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         st = np.where(s_stamp[s_sel] != 0, s_stamp[s_sel], s_log[s_sel]) * 1e-9
         # the machine's motion as the rows use it, and each row's own speed v − ω_z·y,
         # filtered as the sync node and the monitor do
-        motion = motion_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits,
+        twist = (st, s_v[s_sel], s_w[s_sel])
+        motion = motion_samples(twist, offsets, settings.speed_limits,
                                 yaw=True if fixes[0].size else None)
         motions.append(motion)
-        rt, rv = row_speed_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits,
-                                   motion=motion)
+        rt, rv = row_speed_samples(twist, offsets, settings.speed_limits, motion=motion)
         raws = take(joint.raw, j_order[j_idx])
         j_stamp, j_positions, j_velocities = decode_joints(
             raws, [row.joint(mechanism) for row in planting])

@@ -28,7 +28,7 @@ import numpy as np
 from planter_ros.config import check, setting
 
 from .ground_speed_filter import (
-    GroundSpeedFilter, GroundSpeedLimits, implausible, plausible_run)
+    GroundSpeedFilter, GroundSpeedLimits, PlausibleRule, implausible, plausible_run)
 
 YAW_REJECT_REASONS = ('non_finite', 'too_fast', 'spike')
 
@@ -52,6 +52,11 @@ class YawRateLimits:
     def __post_init__(self):
         check(self)
 
+    @property
+    def rule(self) -> PlausibleRule:
+        return PlausibleRule(self.max_yaw_rate, self.max_yaw_acceleration,
+                             self.yaw_rate_tolerance)
+
 
 class YawRateFilter:
     """Stateful yaw-rate check; `rejected` counts by reason, `accepted` counts the rest."""
@@ -65,9 +70,8 @@ class YawRateFilter:
 
     def check(self, w, t):
         """(yaw rate to use or None, rejection reason or None) for sample w (rad/s) at t (s)."""
-        lim = self.limits
-        reason = implausible(w, t, self._ref_w, self._ref_t, lim.max_yaw_rate,
-                             lim.max_yaw_acceleration, lim.yaw_rate_tolerance)
+        last = None if self._ref_w is None else (self._ref_w, self._ref_t)
+        reason = implausible(w, t, last, self.limits.rule)
         if reason is not None:
             self.rejected[reason] += 1
             return None, reason
@@ -157,11 +161,12 @@ def _row_speeds(v, yaw_rate, offsets):
     return np.where(v > 0.0, np.maximum(v - yaw_rate * offsets, 0.0), 0.0)
 
 
-def motion_samples(t, v, w, offsets, limits=None, yaw_limits=None, yaw=None):
+def motion_samples(samples, offsets, limits=None, yaw_limits=None, yaw=None):
     """The machine's motion over a whole recording as the rows use it: (times, v, ω_z), each
-    (n,), of the samples `RowSpeedStream.motion` keeps, in order, with its arithmetic
-    (vectorised: ground_speed_filter.plausible_run). `w` may be None (no yaw rate recorded:
-    straight); `yaw` as for RowSpeedStream."""
+    (n,), of the `samples` (t, v, ω_z) `RowSpeedStream.motion` keeps, in order, with its
+    arithmetic (vectorised: ground_speed_filter.plausible_run). ω_z may be None (no yaw rate
+    recorded: straight); `yaw` as for RowSpeedStream."""
+    t, v, w = samples
     t = np.asarray(t, dtype=float)
     v = np.asarray(v, dtype=float)
     w = np.zeros_like(v) if w is None else np.asarray(w, dtype=float)
@@ -173,14 +178,12 @@ def motion_samples(t, v, w, offsets, limits=None, yaw_limits=None, yaw=None):
     seen = np.maximum.accumulate(np.where(finite, t, -np.inf))
     gate = finite & (t > np.concatenate(([-np.inf], seen[:-1])))
     t, v, w = t[gate], v[gate], w[gate]
-    kept = plausible_run(v, t, limits.max_ground_speed, limits.max_ground_acceleration,
-                         limits.ground_speed_tolerance)
+    kept = plausible_run(v, t, limits.rule)
     if not kept.any():
         return np.zeros(0), np.zeros(0), np.zeros(0)
     if use_yaw:
         # the yaw rate in use: the last accepted one (this sample's own included), while fresh
-        taken = plausible_run(w, t, yaw_limits.max_yaw_rate, yaw_limits.max_yaw_acceleration,
-                              yaw_limits.yaw_rate_tolerance)
+        taken = plausible_run(w, t, yaw_limits.rule)
         last = np.maximum.accumulate(np.where(taken, np.arange(t.size), -1))
         at = np.maximum(last, 0)
         fresh = (last >= 0) & (t - t[at] <= yaw_limits.yaw_rate_timeout)
@@ -190,11 +193,11 @@ def motion_samples(t, v, w, offsets, limits=None, yaw_limits=None, yaw=None):
     return t[kept], v[kept], used[kept]
 
 
-def row_speed_samples(t, v, w, offsets, limits=None, yaw_limits=None, motion=None):
-    """Each row's speed over a whole recording: (times (n,), speeds (rows, n)) of the samples
-    the rows use, in order. `w` may be None (no yaw rate recorded: straight); `motion`: the
-    samples' `motion_samples`, if already known."""
-    kept_t, kept_v, kept_w = motion or motion_samples(t, v, w, offsets, limits, yaw_limits)
+def row_speed_samples(samples, offsets, limits=None, yaw_limits=None, motion=None):
+    """Each row's speed over a whole recording: (times (n,), speeds (rows, n)) of the
+    `samples` (t, v, ω_z) the rows use, in order. ω_z may be None (no yaw rate recorded:
+    straight); `motion`: the samples' `motion_samples`, if already known."""
+    kept_t, kept_v, kept_w = motion or motion_samples(samples, offsets, limits, yaw_limits)
     offsets = np.asarray(offsets, dtype=float)
     if not kept_t.size:
         return np.zeros(0), np.zeros((len(offsets), 0))
