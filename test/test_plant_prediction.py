@@ -163,7 +163,7 @@ def test_three_plants_per_revolution_are_set_at_each_arms_planting_angle():
     reproduces the five-bar's closed form when given the five-bar's own path."""
     a, b = TOMATO.l2 - TOMATO.l1, TOMATO.l1 + TOMATO.l2
     phi = np.linspace(0.0, 2 * math.pi, 720, endpoint=False)
-    path = PathPlanting(phi, a * np.sin(phi), b * np.cos(phi), 1, 0.045, 0.2)
+    path = PathPlanting((phi, a * np.sin(phi), b * np.cos(phi)), 1, 0.045, 0.2)
     closed = tomato_model()
     assert path.planting_phase == pytest.approx(math.pi, abs=1e-9)
     assert path.exit_angle == pytest.approx(closed.exit_angle, rel=1e-9)

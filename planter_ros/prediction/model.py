@@ -96,7 +96,7 @@ def planting_model_from_design(design: Design, nozzle_width: float | None = None
     if not isinstance(design, ThreeArm):
         raise DesignError('mechanism', design.mechanism, 'five_bar or three_arm')
     path = design.tip_path
-    return PathPlanting(path.angle, path.x, path.y, design.plants_per_revolution,
+    return PathPlanting((path.angle, path.x, path.y), design.plants_per_revolution,
                         design.planting_depth, design.plant_spacing, phase,
                         nozzle_width=nozzle_width)
 
