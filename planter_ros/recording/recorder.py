@@ -227,19 +227,30 @@ class _OpenFile:
     end: int | None = None
 
 
-class Recorder:
-    """Write CDR messages into an MCAP bag in rosbag2's layout.
+@dataclass(frozen=True)
+class BagLayout:
+    """How a bag is cut into files and chunks (SI): `split_size` bytes per file (0 = no size
+    split), `split_duration` seconds of log time per file (0 = none), `flush_period` seconds
+    between chunk flushes (the most a SIGKILL can lose), `chunk_size` bytes of uncompressed
+    chunk that force an earlier flush. The Recorder checks the first three as RecorderConfig
+    does."""
 
-    Parameters (SI): `split_size` bytes per file (0 = no size split), `split_duration` seconds
-    of log time per file (0 = none), `flush_period` seconds between chunk flushes (the most a
-    SIGKILL can lose), `chunk_size` bytes of uncompressed chunk that force an earlier flush.
-    Times passed to `write` are integer nanoseconds.
+    split_size: int = 0
+    split_duration: float = 0.0
+    flush_period: float = 1.0
+    chunk_size: int = 1 << 20
+
+
+class Recorder:
+    """Write CDR messages into an MCAP bag in rosbag2's layout, cut as `layout` (BagLayout)
+    says. Times passed to `write` are integer nanoseconds.
     """
 
-    def __init__(self, path: str | Path | None = None, *, split_size: int = 0,
-                 split_duration: float = 0.0, flush_period: float = 1.0,
-                 chunk_size: int = 1 << 20, bags_dir: str | Path = 'bags',
+    def __init__(self, path: str | Path | None = None, layout: BagLayout = BagLayout(), *,
+                 bags_dir: str | Path = 'bags',
                  monotonic: Callable[[], float] = time.monotonic) -> None:
+        split_size, split_duration = layout.split_size, layout.split_duration
+        flush_period, chunk_size = layout.flush_period, layout.chunk_size
         RecorderConfig(split_size=split_size, split_duration=split_duration,
                        flush_period=flush_period)          # BagWriteError if out of range
         path = default_bag_path(bags_dir) if path in (None, '') else Path(path)

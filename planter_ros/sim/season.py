@@ -383,7 +383,7 @@ def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None =
     from planter_ros.prediction import AcceptanceLimits, PredictionSettings
     from planter_ros.prediction.pipeline import MonitorPipeline
     from planter_ros.recording.monitor_topics import plants_message
-    from planter_ros.recording.recorder import Recorder
+    from planter_ros.recording.recorder import BagLayout, Recorder
     from planter_ros.recording.replay import map_record
     from planter_ros.sensing.plant_map import GnssFix, MapSettings
 
@@ -425,7 +425,8 @@ def write_monitor_bag(run: MachineRun, path: str | Path, design: Design | None =
     order = np.lexsort((index, kinds, log))
 
     clock = [0.0]                      # the recorder's flush clock: simulated log time
-    rec = Recorder(path, flush_period=1.0, monotonic=lambda: clock[0], **recorder_options)
+    rec = Recorder(path, BagLayout(flush_period=1.0, **recorder_options),
+                   monotonic=lambda: clock[0])
     names = {topic: topic.resolved() for topic in interfaces.RECORDED}
     for topic in interfaces.RECORDED:
         rec.add_topic(names[topic], topic.type_name, topic.recording_qos())
