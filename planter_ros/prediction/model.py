@@ -583,9 +583,10 @@ class PlantPredictor:
             return self._nothing()
         self._speed_seen = t
         if self._speed_filter is not None:
-            v, _ = self._speed_filter.check(v, t)
-        if v is None:
-            return self._nothing()
+            used, _ = self._speed_filter.check(v, t)
+            if used is None:
+                return self._nothing()
+            v = used
         if self._speed:
             t0, v0, s0 = self._speed[-1]
             s = s0 + 0.5 * (v0 + v) * (t - t0)

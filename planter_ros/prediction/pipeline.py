@@ -110,7 +110,7 @@ class MonitorPipeline:
         self.upright_rate: float | None = None    # the rate after it
 
     # -- configuration -------------------------------------------------------------------
-    def _new_placer(self, settings: MapSettings) -> PlantPlacer:
+    def _new_placer(self, settings: MapSettings) -> PlantPlacer[Plants]:
         return PlantPlacer(settings, self._antenna,
                            {row.index: row.lateral_offset for row in self.rows},
                            {row.index: row.longitudinal_offset for row in self.rows})

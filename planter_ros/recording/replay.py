@@ -28,7 +28,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import json
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 from pathlib import Path
 import struct
 
@@ -43,9 +43,9 @@ from planter_ros.kinematics.arrays import FloatArray
 from planter_ros.kinematics.planting import Planting
 from planter_ros.kinematics.design_inputs import DesignInputs
 from planter_ros.prediction import (
-    PLANT_FIELDS, AcceptanceLimits, Plants, PredictionSettings, RowInputs, SeedlingAccount,
-    design_spacing_of, judge_acceptance, planting_model_from_design, predict_rows,
-    prediction_notes, section_breaks, summarize)
+    PLANT_FIELDS, Acceptance, AcceptanceLimits, Plants, PredictionSettings, RowInputs,
+    SeedlingAccount, design_spacing_of, judge_acceptance, planting_model_from_design,
+    predict_rows, prediction_notes, section_breaks, summarize)
 from planter_ros.rows import Row, implicit_row, rows_from_record
 from planter_ros.sensing.plant_map import (
     GnssFix, MapSettings, Placement, PlantSpots, fix_sigma, place_plants)
@@ -91,7 +91,7 @@ class ReplayResult:
     fixes: int                    # usable GNSS fixes in the bag
     nozzle_width: float           # m, of the last design's predictions
     recorded_fields: tuple[str, ...]  # the PLANT_FIELDS the live recording has (older: fewer)
-    acceptance: dict[str, Any]    # the run judged by the crop's limits (judge_acceptance)
+    acceptance: Acceptance        # the run judged by the crop's limits (judge_acceptance)
     acceptance_source: str        # whose limits: the bag's, a scene's, the defaults
     seedling_readings: dict[int, tuple[FloatArray, FloatArray]]  # {row: (times s, counts)}
 

@@ -8,11 +8,13 @@ growing with the time since the last sample taken, covers it. A plausible negati
 forward, and nothing integrates distance backwards. Pure Python, no ROS.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from planter_ros.config import check, setting
 
@@ -41,7 +43,7 @@ class GroundSpeedLimits:
     ground_speed_tolerance: float = setting(
         0.05, 'sensor noise allowed on top of the spike limit', unit='m/s', range=(0.0, 1.0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self)
 
     @property
@@ -50,7 +52,8 @@ class GroundSpeedLimits:
                              self.ground_speed_tolerance)
 
 
-def implausible(x, t, last, rule):
+def implausible(x: object, t: float, last: tuple[float, float] | None,
+                rule: PlausibleRule) -> str | None:
     """Why sample x at time t is not believable under `rule` (PlausibleRule), or None:
     'non_finite', 'too_fast' (|x| above max_abs) or 'spike' (further from the last sample
     taken, `last` = (value, time) or None, than max_rate allows over the time between them,
@@ -67,14 +70,14 @@ def implausible(x, t, last, rule):
 class GroundSpeedFilter:
     """Stateful sample check; `rejected` counts by reason, `accepted` counts the rest."""
 
-    def __init__(self, limits=GroundSpeedLimits()):
+    def __init__(self, limits: GroundSpeedLimits = GroundSpeedLimits()) -> None:
         self.limits = limits
         self.rejected = {r: 0 for r in REJECT_REASONS}
         self.accepted = 0
-        self._ref_v = None
-        self._ref_t = None
+        self._ref_v: float | None = None
+        self._ref_t = 0.0
 
-    def check(self, v, t):
+    def check(self, v: float, t: float) -> tuple[float | None, str | None]:
         """(speed to use or None, rejection reason or None) for sample v (m/s) at time t (s)."""
         last = None if self._ref_v is None else (self._ref_v, self._ref_t)
         reason = implausible(v, t, last, self.limits.rule)
@@ -90,10 +93,14 @@ class GroundSpeedFilter:
         return max(float(v), 0.0), reason
 
 
-def filter_ground_speed(t, v, limits=GroundSpeedLimits()):
+def filter_ground_speed(t: Sequence[float] | NDArray[np.float64],
+                        v: Sequence[float] | NDArray[np.float64],
+                        limits: GroundSpeedLimits = GroundSpeedLimits()
+                        ) -> tuple[list[float], list[float]]:
     """The samples of a whole recording the filter keeps, in order: (times, speeds) lists."""
     check = GroundSpeedFilter(limits).check
-    kept_t, kept_v = [], []
+    kept_t: list[float] = []
+    kept_v: list[float] = []
     for ti, vi in zip(t, v):
         used, _ = check(float(vi), float(ti))
         if used is not None:
@@ -105,7 +112,7 @@ def filter_ground_speed(t, v, limits=GroundSpeedLimits()):
 _WINDOW = 256        # samples checked at once against their predecessor (plausible_run)
 
 
-def plausible_run(x, t, rule):
+def plausible_run(x: ArrayLike, t: ArrayLike, rule: PlausibleRule) -> NDArray[np.bool_]:
     """Which samples x (at increasing times t, arrays) a filter applying `implausible` with
     `rule` (PlausibleRule) one by one would take: a boolean array. Each sample is judged
     against the last one taken, as the stateful filters do, with the same arithmetic; a run

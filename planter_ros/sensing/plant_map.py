@@ -32,10 +32,11 @@ which holds a plant until a fix stamped after it has arrived, or the first headi
 """
 
 from bisect import bisect_right
+from collections.abc import Mapping, Sequence
 from collections import deque
 from dataclasses import dataclass
 import math
-from typing import Any, NamedTuple
+from typing import Any, Generic, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 
@@ -80,6 +81,21 @@ class GnssFix(NamedTuple):
     var_east: Any           # m², position_covariance[0]
     var_north: Any          # m², position_covariance[4]
     cov_type: Any           # position_covariance_type
+
+
+class PlantBatch(Protocol):
+    """What the placer needs of a batch of plants (prediction.Plants, a layer above): each
+    plant's instant (s) and row index, and its latitude and longitude to set (deg)."""
+
+    time: np.ndarray
+    row: np.ndarray
+    latitude: np.ndarray
+    longitude: np.ndarray
+
+    def __len__(self) -> int: ...
+
+
+_P = TypeVar('_P', bound=PlantBatch)
 
 
 class PlantSpots(NamedTuple):
@@ -512,13 +528,15 @@ def _pose_inside(t_dr, x, y, psi, t):
     return tuple(np.where(inside, p, np.nan) for p in _pose(t_dr, x, y, psi, t))
 
 
-class PlantPlacer:
+class PlantPlacer(Generic[_P]):
     """The live monitor's map: motion samples, fixes and plants in as they arrive; plants out,
     placed, once the fixes that place them are in (see the module doc). Every `add_*` returns
     the plants released by that input as a list of (plants, Placement), in the order the
     plants came in."""
 
-    def __init__(self, settings, antenna, lateral_offsets, forward_offsets=None):
+    def __init__(self, settings: MapSettings, antenna: Sequence[float],
+                 lateral_offsets: Mapping[int, float],
+                 forward_offsets: Mapping[int, float] | None = None) -> None:
         import pyproj  # noqa: F401  (loaded now, not in the callback of the first fix)
         self.settings = settings
         self.offsets = dict(lateral_offsets)          # row index -> lateral offset (m)
@@ -529,15 +547,15 @@ class PlantPlacer:
         self._fixes: deque[tuple[float, float, float, float]] = deque()
         self._fix_seen = -math.inf                    # newest fix stamp received (any status)
         self._motion_seen = -math.inf
-        self._pending = deque()                       # Plants not released yet
+        self._pending: deque[_P] = deque()           # plants not released yet
 
-    def add_motion(self, t, v, w):
+    def add_motion(self, t: float, v: float, w: float) -> list[tuple[_P, Placement]]:
         self.dr.add(t, v, w)
         self._motion_seen = max(self._motion_seen, float(t))
         self._take_fixes()
         return self._release()
 
-    def add_fix(self, fix):
+    def add_fix(self, fix: GnssFix) -> list[tuple[_P, Placement]]:
         """One GNSS fix (GnssFix of numbers)."""
         t = float(fix.t)
         if not (math.isfinite(t) and t > self._fix_seen):
@@ -551,12 +569,12 @@ class PlantPlacer:
             self._take_fixes()
         return self._release()
 
-    def add_plants(self, plants):
+    def add_plants(self, plants: _P) -> list[tuple[_P, Placement]]:
         if len(plants):
             self._pending.append(plants)
         return self._release()
 
-    def flush(self):
+    def flush(self) -> list[tuple[_P, Placement]]:
         """Release every plant held, placed with the fixes there are (the monitor's end)."""
         return self._release(everything=True)
 
@@ -571,8 +589,8 @@ class PlantPlacer:
             else:
                 break
 
-    def _release(self, everything=False):
-        out = []
+    def _release(self, everything: bool = False) -> list[tuple[_P, Placement]]:
+        out: list[tuple[_P, Placement]] = []
         while self._pending and (everything or all(
                 self.track.decided(t, self._fix_seen, self._motion_seen)
                 for t in self._pending[0].time.tolist())):
