@@ -132,9 +132,10 @@ class PathPlanting(Planting):
                  plants_per_revolution: int, depth: float, spacing: float,
                  planting_phase: float | None = None, nozzle_width: float = 0.0) -> None:
         """`tip_path`: (shaft angle rad, x m, y m) samples of one tip over one revolution."""
-        from scipy.interpolate import CubicSpline  # lazy: scipy 440 ms, skipped until a
-        # planting arc is built (importing kinematics loads no scipy)
-        from scipy.optimize import brentq, minimize_scalar
+        # lazy: scipy.interpolate costs 440 ms, scipy.optimize 300 ms: loaded when a planting
+        # arc is built, never by importing kinematics (test_skip_what_a_scene_does_not_need)
+        from scipy.interpolate import CubicSpline
+        from scipy.optimize import brentq, minimize_scalar  # lazy: as the line above
 
         _require_positive('planting_depth', depth)
         _require_positive('plant_spacing', spacing)

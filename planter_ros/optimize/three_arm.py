@@ -21,12 +21,14 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 import math
+import multiprocessing
 import time
 from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planter_ros.host.processes import die_with_parent
 from planter_ros.kinematics.arrays import FloatArray
 
 from planter_ros.kinematics.errors import DesignError
@@ -133,9 +135,6 @@ _WORKER: dict[str, BatchScorer] = {}       # a pool worker's scorer
 
 
 def _worker_init(base: SceneParams, margin: float, samples: int) -> None:
-    import multiprocessing
-
-    from planter_ros.host.processes import die_with_parent
     parent = multiprocessing.parent_process()
     if parent is not None and parent.pid is not None:     # (a pool worker has one)
         die_with_parent(parent.pid)          # no orphan when the search dies
@@ -159,7 +158,6 @@ class PopulationScorer:
         self.workers = workers
         self._pool: Pool | None = None
         if workers > 1:
-            import multiprocessing
             self._pool = multiprocessing.get_context('fork').Pool(
                 workers, initializer=_worker_init, initargs=(base, margin, samples))
 
@@ -257,6 +255,8 @@ def optimize(base: SceneParams, options: SearchOptions = SearchOptions(),
              ) -> tuple[dict[str, Any], list[Goal] | None, SearchInfo]:
     """Run differential evolution from the scene `base` as `options` say; returns (params,
     goals, info). `progress(SearchProgress)` is called after every generation."""
+    # lazy: scipy.optimize costs 300 ms and only a search needs it; scoring designs (BatchScorer,
+    # score, the bench's batch case) does not
     from scipy.optimize import differential_evolution
     seed, max_time, popsize = options.seed, options.max_time, options.popsize
     max_generations, workers = options.max_generations, options.workers

@@ -66,6 +66,7 @@ from planter_ros.sensing.ground_speed_filter import (
 
 from .motion import Motion, arc_figures
 from .plants import PLANT_FIELDS, Plants
+from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
 
 __all__ = ['planting_model_from_design', 'prediction_notes', 'PredictionSettings',
            'clean_samples', 'travelled_distance', 'plant_values', 'predict_plants',
@@ -510,7 +511,6 @@ def _assemble(located: _Located, settings: PredictionSettings, before: _Before,
     with np.errstate(invalid='ignore', divide='ignore'):
         rate = np.where(counted > 0, (csum[end] - csum[start]) / np.maximum(counted, 1),
                         np.nan) if n else np.zeros(0)
-    from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
     return Plants(index=(np.arange(n) - np.repeat(first, counts) + index0).astype(float),
                   time=t_e, position=s_e, spacing=spacing, spacing_error=spacing - d,
                   speed_ratio=ratio, ground_speed=v_e, shaft_speed=omega, hole_width=hole,

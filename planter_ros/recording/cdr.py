@@ -44,6 +44,7 @@ import struct
 from typing import Any, Protocol, overload
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
 from planter_ros.kinematics.arrays import FloatArray
@@ -99,7 +100,6 @@ class Packed(Sequence[memoryview]):
     def block(self, idx: NDArray[np.intp], size: int) -> NDArray[np.uint8]:
         """(len(idx), size) bytes: the first `size` bytes of the messages `idx` (each at least
         that long), one row each."""
-        from numpy.lib.stride_tricks import sliding_window_view
         head = np.frombuffer(self.data, dtype=np.uint8)
         return sliding_window_view(head, size)[self.start[idx]]
 

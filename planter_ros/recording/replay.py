@@ -546,8 +546,10 @@ def _recorded_plants(topic: TopicMessages) -> tuple[FloatArray, tuple[str, ...]]
     message (a field the recording lacks is NaN, e.g. tip_sweep and the map position in a
     recording made before them; `row` is 0 in a recording made before rows existed), and the
     fields it has."""
+    # lazy: rclpy costs 64 ms and only the comparison with the plants the live monitor
+    # recorded (with_recorded) reads them; replay itself imports no rclpy (test_offline_imports)
     from rclpy.serialization import deserialize_message
-    from std_msgs.msg import Float64MultiArray
+    from std_msgs.msg import Float64MultiArray  # lazy: as rclpy above
     tables, seen = [], set()
     for _, raw in sorted(zip(topic.log, topic.raw), key=lambda x: x[0]):
         try:

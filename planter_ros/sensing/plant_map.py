@@ -537,7 +537,9 @@ class PlantPlacer(Generic[_P]):
     def __init__(self, settings: MapSettings, antenna: Sequence[float],
                  lateral_offsets: Mapping[int, float],
                  forward_offsets: Mapping[int, float] | None = None) -> None:
-        import pyproj  # noqa: F401  (loaded now, not in the callback of the first fix)
+        # lazy: pyproj costs 60 ms, loaded with a placer (the monitor's start) rather than in
+        # the callback of the first fix, and not by importing this module (replay, the sync node)
+        import pyproj  # noqa: F401
         self.settings = settings
         self.offsets = dict(lateral_offsets)          # row index -> lateral offset (m)
         self.forward = dict(forward_offsets or {})    # row index -> forward offset (m)

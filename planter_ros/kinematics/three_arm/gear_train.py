@@ -324,6 +324,8 @@ def quintic_hermite(x: FloatArray, y: FloatArray, dy: FloatArray, d2y: FloatArra
     The vectorised twin of scipy's BPoly.from_derivatives for this one case, which builds a
     polynomial per interval in Python and would dominate the build time.
     """
+    # lazy: scipy.interpolate costs 440 ms: only a built three-arm loads it, never an import
+    # of kinematics (test_skip_what_a_scene_does_not_need)
     from scipy.interpolate import PPoly
     return PPoly(np.moveaxis(quintic_coefficients(x, y, dy, d2y), -1, 0), x, extrapolate=True)
 
