@@ -79,6 +79,8 @@ def task_of(name: str) -> str:
 
 def status(report: Report, node_name: str, hardware_id: str) -> Any:
     """The diagnostic_msgs/DiagnosticStatus of a report."""
+    # lazy: diagnostic_msgs costs 15 ms (rosidl_parser) and only a node builds a message;
+    # replay and analyze decode recorded ones with rosbags (`decode`)
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
     return DiagnosticStatus(level=bytes((report.level,)), name=status_name(node_name,
                                                                            report.task),
@@ -90,7 +92,7 @@ def status(report: Report, node_name: str, hardware_id: str) -> Any:
 def array(reports: Iterable[tuple[Report, str]], node_name: str, stamp: Any = None) -> Any:
     """The diagnostic_msgs/DiagnosticArray of a node's reports, each with its hardware id;
     `stamp` (builtin_interfaces/Time) in its header."""
-    from diagnostic_msgs.msg import DiagnosticArray
+    from diagnostic_msgs.msg import DiagnosticArray  # lazy: 15 ms, as in `status`
     msg = DiagnosticArray(status=[status(r, node_name, hardware_id)
                                   for r, hardware_id in reports])
     if stamp is not None:
@@ -110,6 +112,8 @@ def decode(raw: bytes | bytearray | memoryview) -> Any:
 
 @lru_cache(maxsize=1)
 def _typestore() -> Any:
+    # lazy: rosbags costs 16 ms and only a recorded message is decoded; the nodes and the
+    # command process, which build theirs, load this module and never decode
     from rosbags.typesys import Stores, get_typestore
     return get_typestore(Stores.ROS2_JAZZY)
 

@@ -70,6 +70,8 @@ class Qos:
         return replace(self, depth=depth)
 
     def profile(self) -> QoSProfile:
+        # lazy: rclpy.qos costs 70 ms, and replay and analyze read the topic names here
+        # without rclpy (test_offline_imports)
         from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile,
                                ReliabilityPolicy)
         return QoSProfile(depth=self.depth, history=HistoryPolicy.KEEP_LAST,

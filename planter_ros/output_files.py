@@ -13,6 +13,7 @@ from contextlib import contextmanager
 import math
 import os
 from pathlib import Path
+import shutil
 import stat
 import tempfile
 from typing import TypeVar
@@ -142,7 +143,6 @@ def atomic_directory(path: PathLike) -> Iterator[Path]:
     """Yield a new temporary directory next to `path`; on success it takes the place of `path`
     (an existing directory there is moved aside, then removed: a reader sees the old or the
     new one, never a half-written one); on an exception it is removed and `path` untouched."""
-    import shutil
     path = Path(path)
     tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f'.{path.name}.', suffix='.tmp'))
     try:

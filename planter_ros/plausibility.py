@@ -47,11 +47,17 @@ import math
 import sys
 from typing import Any
 
-# The design command loads this module but none of the drive, cam, control, design, sensing
-# or rows modules of the checks it does not run: those are imported inside their checks.
 from planter_ros.config import ConfigError, from_mapping, spec_of
+from planter_ros.control.phase_lock import PhaseLockConfig
 from planter_ros.kinematics.design_inputs import DesignInputs, top_ground_speed
 from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
+from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
+
+# The design command (`planter design five-bar --speed`) loads this module for its speed checks
+# but none of the drive, rows, design or cam modules of the checks it does not run (the bus,
+# the rows, a scene's design, the cam: drive.config 29 ms, drive.bus_load 26 ms, rows 8 ms,
+# cam 69 ms measured with python -X importtime; test_skip_what_a_scene_does_not_need holds
+# the design command to its modules): those are imported inside their checks, `# lazy:`.
 
 __all__ = ['PlausibilityError', 'RowLimits', 'TYPICAL', 'TRACTOR_ACCELERATION', 'Verdict',
            'bus_rows', 'check', 'check_law', 'judge', 'unusual']
@@ -112,6 +118,42 @@ def _g(x: float) -> str:
     return f'{x:.3g}'
 
 
+@dataclass(frozen=True)
+class _Limits:
+    """What the rows must keep within while following the tractor: the sync law's limits
+    (a PhaseLockConfig), the ground speeds it accepts (GroundSpeedLimits), a machine file's
+    row limits and the tractor's acceleration to follow."""
+
+    law: Any
+    ground: Any
+    rows: Sequence[RowLimits] = ()
+    tractor_acceleration: float = TRACTOR_ACCELERATION
+
+
+@dataclass(frozen=True)
+class _Shaft:
+    """The shaft a speed check is about: its name, its rad per metre travelled (2π/(n·d)) and
+    the plant spacing d (m)."""
+
+    name: str
+    per_metre: float
+    spacing: float
+
+
+@dataclass(frozen=True)
+class _Limit:
+    """One limit checked: its value, its name and where it is set."""
+
+    value: float
+    name: str
+    where: str
+
+
+def _shaft(mechanism: str, n: int, d: float) -> _Shaft:
+    return _Shaft('sun bar' if mechanism == 'five_bar' else 'carrier', 2.0 * math.pi / (n * d),
+                  d)
+
+
 def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
           tractor_acceleration: float = TRACTOR_ACCELERATION, motion: bool = True,
           machine: bool = True, design: bool = True) -> Verdict:
@@ -120,10 +162,6 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
     False: the mechanism alone (no speed or acceleration check), for a design asked without a
     ground speed; `machine` False: no bus, rows or bit-rate check (a design at the command
     line); `design` False: the caller builds the design itself."""
-    # lazy: only the checks a scene asks for load their layers (see the imports)
-    from planter_ros.control.phase_lock import PhaseLockConfig
-    from planter_ros.sensing.ground_speed_filter import GroundSpeedLimits
-
     out = Verdict()
     try:
         scene = from_mapping(DesignInputs, {**params, 'nozzle_width': params.get(
@@ -136,7 +174,8 @@ def judge(params: Mapping[str, Any], row_limits: Sequence[RowLimits] = (),
             if not out.refused and law.speed_profile == 'cam':
                 _cam(params, law, out)
         if motion:
-            _motion(out, params, scene, law, ground, row_limits, tractor_acceleration)
+            _motion(out, params, scene,
+                    _Limits(law, ground, row_limits, tractor_acceleration))
         if machine:
             _machine(out, params)
     except ConfigError as exc:             # a value outside its own range: the range says it
@@ -177,18 +216,17 @@ def unusual(scene) -> list[str]:
     return out
 
 
-def _motion(out, params, scene, law, ground, row_limits, tractor_acceleration):
+def _motion(out, params, scene, limits):
     n = PLANTS_PER_REVOLUTION[scene.mechanism]
-    _motion_of(out, scene.mechanism, n, scene.plant_spacing, scene.nominal_ground_speed, law,
-               ground, row_limits, tractor_acceleration, 'max_ground_speed' in params)
+    shaft = _shaft(scene.mechanism, n, scene.plant_spacing)
+    _motion_of(out, limits, shaft, scene.nominal_ground_speed, 'max_ground_speed' in params)
     top = top_ground_speed(scene.nominal_ground_speed, scene.top_ground_speed)
     if not out.refused and top > scene.nominal_ground_speed:
         # the highest speed the scene plants at, through the same limits
         name = 'top_ground_speed' if scene.top_ground_speed else \
             'top_ground_speed (0: 1.5 × nominal_ground_speed)'
-        _motion_of(out, scene.mechanism, n, scene.plant_spacing, top, law, ground,
-                   row_limits, tractor_acceleration, False, speed_name=name)
-    _resolution(out, scene, n, row_limits)
+        _motion_of(out, limits, shaft, top, False, speed_name=name)
+    _resolution(out, scene, n, limits.rows)
 
 
 def _resolution(out, scene, n, row_limits):
@@ -217,48 +255,48 @@ def check_law(design, law, ground, row_limits: Sequence[RowLimits] = (),
     same speed and acceleration checks as a scene's. PlausibilityError (the reason and the
     limit) for a refusal; the warnings."""
     out = Verdict()
-    _motion_of(out, design.mechanism, design.plants_per_revolution, design.plant_spacing,
-               design.nominal_ground_speed, law, ground, row_limits, tractor_acceleration,
-               True)
+    _motion_of(out, _Limits(law, ground, row_limits, tractor_acceleration),
+               _shaft(design.mechanism, design.plants_per_revolution, design.plant_spacing),
+               design.nominal_ground_speed, True)
     if out.refused:
         raise PlausibilityError(out.refused[0])
     return out.warnings
 
 
-def _motion_of(out, mechanism, n, d, v, law, ground, row_limits, tractor_acceleration,
-               ground_limit_given, speed_name='nominal_ground_speed'):
-    shaft = 'sun bar' if mechanism == 'five_bar' else 'carrier'
-    per_metre = 2.0 * math.pi / (n * d)   # shaft rad per metre travelled
+def _motion_of(out, limits, shaft, v, ground_limit_given, speed_name='nominal_ground_speed'):
+    """The speed and acceleration checks of `shaft` (_Shaft) at ground speed `v` (m/s, its
+    name `speed_name`) against `limits` (_Limits)."""
+    law, ground, tractor = limits.law, limits.ground, limits.tractor_acceleration
+    per_metre, d = shaft.per_metre, shaft.spacing    # shaft rad per metre travelled
     if v is None:                          # a design without a nominal speed: no speed check
         v = 0.0
-    _speed(out, shaft, per_metre, d, v, law.max_speed, 'max_speed', 'the sync law',
-           speed_name)
-    _acceleration(out, shaft, per_metre, d, tractor_acceleration, law.max_acceleration,
-                  'max_acceleration', 'the sync law')
-    for row in row_limits:
+    _speed(out, shaft, v, _Limit(law.max_speed, 'max_speed', 'the sync law'), speed_name)
+    _acceleration(out, shaft, tractor,
+                  _Limit(law.max_acceleration, 'max_acceleration', 'the sync law'))
+    for row in limits.rows:
         where = f'row {row.name or "(implicit)"} of the machine file'
         if row.max_speed:
-            _speed(out, shaft, per_metre, d, v, row.max_speed, 'max_speed', where, speed_name)
+            _speed(out, shaft, v, _Limit(row.max_speed, 'max_speed', where), speed_name)
         if row.motor_max_speed:
-            _speed(out, f'motor ({row.gear_ratio:g} turns per {shaft} turn)',
-                   per_metre * row.gear_ratio, d, v, row.motor_max_speed, 'motor_max_speed',
-                   where, speed_name)
+            motor = _Shaft(f'motor ({row.gear_ratio:g} turns per {shaft.name} turn)',
+                           per_metre * row.gear_ratio, d)
+            _speed(out, motor, v, _Limit(row.motor_max_speed, 'motor_max_speed', where),
+                   speed_name)
         if row.max_acceleration:
-            _acceleration(out, shaft, per_metre, d, tractor_acceleration, row.max_acceleration,
-                          'max_acceleration', where)
+            _acceleration(out, shaft, tractor,
+                          _Limit(row.max_acceleration, 'max_acceleration', where))
     if ground_limit_given and per_metre * ground.max_ground_speed > law.max_speed:
         out.warnings.append(
             f'max_ground_speed = {_g(ground.max_ground_speed)} m/s is accepted, but above '
-            f'{_g(law.max_speed / per_metre)} m/s the {shaft} is held at max_speed = '
+            f'{_g(law.max_speed / per_metre)} m/s the {shaft.name} is held at max_speed = '
             f'{_g(law.max_speed)} rad/s and plants land farther apart than {_g(d)} m')
 
 
 def _machine(out, params):
     """The bus, the rows and the bit rate (ConfigError for a value out of its range)."""
-    # lazy: only the checks a scene asks for load their layers (see the imports)
-    from planter_ros.control.loop_timing import SyncLoopConfig
-    from planter_ros.drive.config import DriveConfig
-    from planter_ros.rows import rows_from_scene
+    from planter_ros.control.loop_timing import SyncLoopConfig  # lazy: bus checks only
+    from planter_ros.drive.config import DriveConfig  # lazy: bus checks only (29 ms)
+    from planter_ros.rows import rows_from_scene  # lazy: row checks only (8 ms)
     drive = from_mapping(DriveConfig, params)
     loop = from_mapping(SyncLoopConfig, params)
     rows = rows_from_scene(params, drive.drive_node_id)
@@ -302,11 +340,10 @@ def bus_rows(count, params=None):
     """The refusal (one line) of `count` rows on the bus `params` set (defaults: the sync
     node's: 500 kbit/s, ...), or '' when they fit: a command that builds rows checks them as
     the sync node would."""
-    # lazy: only the checks a scene asks for load their layers (see the imports)
-    from planter_ros.control.loop_timing import SyncLoopConfig
-    from planter_ros.drive.bus_load import bus_load, check_bus_load
-    from planter_ros.drive.config import DriveConfig
-    from planter_ros.drive.errors import DriveConfigError
+    from planter_ros.control.loop_timing import SyncLoopConfig  # lazy: bus checks only
+    from planter_ros.drive.bus_load import bus_load, check_bus_load  # lazy: bus only (26 ms)
+    from planter_ros.drive.config import DriveConfig  # lazy: bus checks only (29 ms)
+    from planter_ros.drive.errors import DriveConfigError  # lazy: bus checks only
     params = params or {}
     drive = from_mapping(DriveConfig, params)
     loop = from_mapping(SyncLoopConfig, params)
@@ -320,8 +357,7 @@ def bus_rows(count, params=None):
 
 
 def _design(params, out):
-    # lazy: only the checks a scene asks for load their layers (see the imports)
-    from planter_ros.design import design_for_scene
+    from planter_ros.design import design_for_scene  # lazy: a scene's design check only
     try:
         design = design_for_scene({**params, 'nozzle_width': params.get('nozzle_width', 0.0)})
     except ConfigError as exc:
@@ -349,10 +385,9 @@ def _cam(params, law, out):
     (control.cam_law, at the scene's top ground speed) for its plant_spacing and every
     spacing of its spacing_schedule in turn, each change checked as the rows would make it:
     a plan or change over the drive's limits, or a design the cam cannot run, refused."""
-    # lazy: only the checks a scene asks for load their layers (see the imports)
-    from planter_ros.cam import CamError
-    from planter_ros.control.cam_law import plan_for_design
-    from planter_ros.design import design_for_scene
+    from planter_ros.cam import CamError  # lazy: a cam scene's check only (69 ms)
+    from planter_ros.control.cam_law import plan_for_design  # lazy: a cam scene's check only
+    from planter_ros.design import design_for_scene  # lazy: a scene's design check only
     flat = params.get('spacing_schedule') or []
     spacings = [params.get('plant_spacing')] + list(flat[1::2])
     previous, last = None, None
@@ -376,32 +411,36 @@ def _cam(params, law, out):
         previous = profile
 
 
-def _speed(out, shaft, per_metre, d, v, limit, limit_name, where,
-           speed_name='nominal_ground_speed'):
+def _speed(out: Verdict, shaft: _Shaft, v: float, limit: _Limit,
+           speed_name: str = 'nominal_ground_speed') -> None:
+    """`shaft` at ground speed `v` (m/s) against a speed `limit` (rad/s)."""
+    per_metre, top = shaft.per_metre, limit.value
     omega = per_metre * v
-    if omega > limit:
+    if omega > top:
         short = speed_name.split(' ')[0]
         out.refused.append(
-            f'{speed_name} = {_g(v)} m/s needs the {shaft} at {_g(omega)} rad/s '
-            f'({omega * RPM:.0f} r/min) for plant_spacing = {_g(d)} m: over {limit_name} = '
-            f'{_g(limit)} rad/s ({limit * RPM:.0f} r/min) of {where}; allowed '
-            f'{short} <= {_g(limit / per_metre)} m/s at this spacing')
+            f'{speed_name} = {_g(v)} m/s needs the {shaft.name} at {_g(omega)} rad/s '
+            f'({omega * RPM:.0f} r/min) for plant_spacing = {_g(shaft.spacing)} m: over '
+            f'{limit.name} = {_g(top)} rad/s ({top * RPM:.0f} r/min) of {limit.where}; '
+            f'allowed {short} <= {_g(top / per_metre)} m/s at this spacing')
 
 
-def _acceleration(out, shaft, per_metre, d, tractor, limit, limit_name, where):
+def _acceleration(out: Verdict, shaft: _Shaft, tractor: float, limit: _Limit) -> None:
+    """`shaft` following a tractor speeding up at `tractor` (m/s²) against an acceleration
+    `limit` (rad/s²)."""
+    per_metre, top = shaft.per_metre, limit.value
     alpha = per_metre * tractor
-    if alpha > limit:
-        shortest = per_metre * d * tractor / limit       # α = 2πa/(n·d) <= limit
+    if alpha > top:
+        shortest = per_metre * shaft.spacing * tractor / top     # α = 2πa/(n·d) <= limit
         out.refused.append(
-            f'following a tractor speeding up at {_g(tractor)} m/s² needs the {shaft} to '
-            f'accelerate at {_g(alpha)} rad/s²: over {limit_name} = {_g(limit)} rad/s² of '
-            f'{where}; allowed plant_spacing >= {_g(shortest)} m at this limit')
+            f'following a tractor speeding up at {_g(tractor)} m/s² needs the {shaft.name} to '
+            f'accelerate at {_g(alpha)} rad/s²: over {limit.name} = {_g(top)} rad/s² of '
+            f'{limit.where}; allowed plant_spacing >= {_g(shortest)} m at this limit')
 
 
 def _bus(out, rows, drive, loop):
-    # lazy: only the checks a scene asks for load their layers (see the imports)
-    from planter_ros.drive.bus_load import bus_load, check_bus_load
-    from planter_ros.drive.errors import DriveConfigError
+    from planter_ros.drive.bus_load import bus_load, check_bus_load  # lazy: bus only (26 ms)
+    from planter_ros.drive.errors import DriveConfigError  # lazy: bus checks only
     enabled = [row for row in rows if row.enabled]
     load = bus_load(len(enabled), drive.can_bitrate, loop.control_period, loop.ground_speed_rate,
                     drive.feedback_period, drive.drive_heartbeat_period, drive.heartbeat_period)

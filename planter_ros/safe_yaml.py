@@ -3,15 +3,15 @@ bomb") costs neither memory nor a giant error message, and a key given twice in 
 refused (PyYAML would keep the last silently). A plain number with an exponent (`1e9`,
 `1.0e5`, `-2E3`) is a number, as ROS reads a parameter file (PyYAML's YAML 1.1 rules make it
 text), so a quoted `"0.3"` is the only text that looks like a number. Used for scene files
-and a bag's metadata. PyYAML is imported only when a text is read."""
+and a bag's metadata (imported by those that read one: PyYAML with it)."""
 
 from __future__ import annotations
 
 from collections.abc import Hashable
-from typing import TYPE_CHECKING, Any
+import re
+from typing import Any
 
-if TYPE_CHECKING:
-    import yaml
+import yaml
 
 from planter_ros.errors import PlanterError
 
@@ -26,7 +26,6 @@ class YamlError(PlanterError, ValueError):
 
 def load_yaml(text: str, what: str) -> Any:
     """safe_load with alias expansion bounded (YamlError naming `what` if it is not)."""
-    import yaml
     try:
         return yaml.load(text, Loader=_bounded_loader())
     except _Refused as exc:
@@ -51,9 +50,6 @@ def _bounded_loader() -> type[yaml.SafeLoader]:
     global _LOADER
     if _LOADER is not None:
         return _LOADER
-    import yaml
-
-    import re
 
     class BoundedLoader(yaml.SafeLoader):
         _open_anchors: set[str]

@@ -17,6 +17,7 @@ import pytest
 
 from drive_helpers import run_engine
 from planter_ros.command.engine import CommandEngine
+from planter_ros.command.settings import CommandSettings
 from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
@@ -55,7 +56,8 @@ class Rig:
         config = DriveConfig(can_interface='virtual', can_channel=self.channel, **drive)
         law = (PhaseLockConfig(), GroundSpeedLimits(), YawRateLimits(), TurnConfig())
         self.lines = []
-        self.engine = CommandEngine(config, SyncLoopConfig(), list(ROWS), law, bus=self.bus,
+        self.engine = CommandEngine(CommandSettings(config, SyncLoopConfig(), list(ROWS), law),
+                                    bus=self.bus,
                                     log=lambda level, text: self.lines.append((level, text)))
         self.trace = []                 # (time, [(s, θ) per row])
 

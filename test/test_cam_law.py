@@ -156,6 +156,7 @@ def test_a_spacing_change_is_continuous_and_at_the_next_plant(profiles):
 
 def cam_engine(channel, **drive):
     from planter_ros.command.engine import CommandEngine
+    from planter_ros.command.settings import CommandSettings
     from planter_ros.control.loop_timing import SyncLoopConfig
     from planter_ros.control.machine_law import TurnConfig
     from planter_ros.drive.cia402 import DriveConfig
@@ -166,7 +167,7 @@ def cam_engine(channel, **drive):
                          **drive)
     law = (config_for_engine(), GroundSpeedLimits(), YawRateLimits(), TurnConfig())
     logs = []
-    engine = CommandEngine(config, SyncLoopConfig(), [Row(0, 'a', 0.0, 1)], law,
+    engine = CommandEngine(CommandSettings(config, SyncLoopConfig(), [Row(0, 'a', 0.0, 1)], law),
                            log=lambda level, text: logs.append((level, text)))
     return engine, logs
 

@@ -11,6 +11,7 @@ import pytest
 import drive_helpers
 from drive_helpers import wait_until
 from planter_ros.command.engine import CommandEngine
+from planter_ros.command.settings import CommandSettings
 from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
@@ -113,7 +114,7 @@ def engine_on(channel, rows=ROWS, **drive):
     config = DriveConfig(can_interface='virtual', can_channel=channel, step_timeout=0.5,
                          **drive)
     law = (PhaseLockConfig(), GroundSpeedLimits(), YawRateLimits(), TurnConfig())
-    return CommandEngine(config, SyncLoopConfig(), list(rows), law)
+    return CommandEngine(CommandSettings(config, SyncLoopConfig(), list(rows), law))
 
 
 def run_engine(engine, seconds, v, w=0.0):

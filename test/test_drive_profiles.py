@@ -18,6 +18,7 @@ import pytest
 from cli_helpers import REPO
 from drive_helpers import run_engine
 from planter_ros.command.engine import CommandEngine
+from planter_ros.command.settings import CommandSettings
 from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
@@ -59,8 +60,8 @@ def test_every_profile_runs_start_up_csp_homing_and_a_power_cycle_or_is_refused_
                          can_bitrate=1_000_000, step_timeout=0.5)
     law = (PhaseLockConfig(), GroundSpeedLimits(), YawRateLimits(), TurnConfig())
     bus = SocketPairBus(theirs)
-    engine = CommandEngine(config, SyncLoopConfig(), rows, law, bus=bus, setups=setups,
-                           log=lambda level, text: lines.append((level, text)))
+    engine = CommandEngine(CommandSettings(config, SyncLoopConfig(), rows, law, setups=setups),
+                           bus=bus, log=lambda level, text: lines.append((level, text)))
     try:
         engine.enable()
         units = {unit.label: unit for unit in engine.units}

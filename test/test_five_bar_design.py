@@ -7,7 +7,7 @@ import pytest
 
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.five_bar import (
-    chain_kinematics, design_five_bar, dyad_closure, dyad_positions, hole_geometry,
+    GearedChain, chain_kinematics, design_five_bar, dyad_closure, dyad_positions, hole_geometry,
     hole_ratio_limit, psi_minus_sin, soil_trajectory, soil_velocity, solve_psi,
     static_trajectory, sun_bar_speed)
 
@@ -108,7 +108,7 @@ def test_designed_trajectory_has_zero_horizontal_speed_at_the_bottom():
 def test_general_chain_reduces_to_the_static_ellipse_and_derivatives_are_consistent():
     d = design_five_bar(**TOMATO)
     alpha = np.linspace(0, 2 * math.pi, 50)
-    (x, y), (vx, vy), (ax, ay) = chain_kinematics(alpha, 3.0, d.l1, d.l2)
+    (x, y), (vx, vy), (ax, ay) = chain_kinematics(alpha, 3.0, GearedChain(d.l1, d.l2))
     sx, sy = static_trajectory(d.l1, d.l2, alpha)
     np.testing.assert_allclose(x, sx, atol=1e-15)
     np.testing.assert_allclose(y, sy, atol=1e-15)
@@ -116,9 +116,10 @@ def test_general_chain_reduces_to_the_static_ellipse_and_derivatives_are_consist
     h = 1e-6
     omega = 2.5
     for ratio in (-2.0, 1.5):
-        p0 = chain_kinematics(alpha, omega, d.l1, d.l2, ratio, 0.3, -0.2)
-        pp = chain_kinematics(alpha + omega * h, omega, d.l1, d.l2, ratio, 0.3, -0.2)
-        pm = chain_kinematics(alpha - omega * h, omega, d.l1, d.l2, ratio, 0.3, -0.2)
+        chain = GearedChain(d.l1, d.l2, ratio, 0.3, -0.2)
+        p0 = chain_kinematics(alpha, omega, chain)
+        pp = chain_kinematics(alpha + omega * h, omega, chain)
+        pm = chain_kinematics(alpha - omega * h, omega, chain)
         for i in range(2):
             np.testing.assert_allclose((pp[0][i] - pm[0][i]) / (2 * h), p0[1][i], atol=1e-6)
             np.testing.assert_allclose((pp[1][i] - pm[1][i]) / (2 * h), p0[2][i], atol=1e-5)

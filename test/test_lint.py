@@ -36,11 +36,11 @@ TYPE_CHECKED = (
     'planter_ros/scene',
     'planter_ros/drive',
     'planter_ros/simdrive',
+    'planter_ros/plausibility.py',
+    'planter_ros/sensing',
 )
 # Files inside a listed package that have not joined yet (each is being rewritten elsewhere).
-NOT_YET_TYPE_CHECKED = (
-    'planter_ros/prediction/acceptance.py',
-)
+NOT_YET_TYPE_CHECKED: tuple[str, ...] = ()
 
 
 def test_ruff_finds_nothing():

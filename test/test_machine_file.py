@@ -10,7 +10,7 @@ from planter_ros.geo import LocalFrame, geodesic_distance
 from planter_ros.rows import rows_from_scene
 from planter_ros.scene import load_scene
 from planter_ros.scene.machine_file import MachineFileError, open_machine, parse_machine
-from planter_ros.sensing.plant_map import MapSettings, place_plants
+from planter_ros.sensing.plant_map import MapSettings, PlantSpots, place_plants
 from planter_ros.sensing.row_speed import motion_samples
 from planter_ros.sim.field import FieldProfile, demo_curves
 from planter_ros.sim.gnss import SimulatedGnss, fix_positions
@@ -132,12 +132,12 @@ def test_the_lever_arms_place_each_plant_within_5_mm(curves):
     assert (row.lateral_offset, row.longitudinal_offset) == (0.8, -2.5)
     motion, fixes, tp, true_lat, true_lon = simulated_plants(
         math.radians(10.0), (row.longitudinal_offset, row.lateral_offset), curves=curves)
-    mt = motion_samples(*motion, [row.lateral_offset], yaw=True)
+    mt = motion_samples(motion, [row.lateral_offset], yaw=True)
     n = tp.size
 
     def place(forward):
-        return place_plants(tp, np.full(n, row.lateral_offset), mt, fixes, MapSettings(),
-                            params['antenna_position'], forward)
+        return place_plants(PlantSpots(tp, np.full(n, row.lateral_offset), forward), mt, fixes,
+                            MapSettings(), params['antenna_position'])
     placed = place(np.full(n, row.longitudinal_offset))
     off = geodesic_distance(placed.longitude, placed.latitude, true_lon, true_lat)
     assert np.all(np.isfinite(off)) and n > 50

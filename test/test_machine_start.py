@@ -20,6 +20,7 @@ from cli_helpers import REPO, run_planter
 
 from planter_ros import diagnostics
 from planter_ros.command.engine import CommandEngine
+from planter_ros.command.settings import CommandSettings
 from planter_ros.commission import SimulatedObserver, commission_machine, updated_machine
 from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine_law import TurnConfig
@@ -149,12 +150,11 @@ def test_a_refused_row_is_left_out_with_an_error_naming_row_node_and_object(benc
     lines = []
     law = (PhaseLockConfig(), GroundSpeedLimits(), YawRateLimits(), TurnConfig())
     rows = [Row(0, 'a', 0.0, 1), Row(1, 'b', 0.5, 2)]
-    engine = CommandEngine(DriveConfig(can_interface='virtual', can_channel='vcan0',
-                                       step_timeout=0.3, motor_gear_ratio=GEAR,
-                                       counts_per_motor_rev=COUNTS), SyncLoopConfig(), rows,
-                           law, bus=bus, log=lambda level, text: lines.append((level, text)),
-                           setups={'a': DriveSetup(modes=('csp',), revision=1),
-                                   'b': DriveSetup(modes=('csp',))})
+    config = DriveConfig(can_interface='virtual', can_channel='vcan0', step_timeout=0.3,
+                         motor_gear_ratio=GEAR, counts_per_motor_rev=COUNTS)
+    setups = {'a': DriveSetup(modes=('csp',), revision=1), 'b': DriveSetup(modes=('csp',))}
+    engine = CommandEngine(CommandSettings(config, SyncLoopConfig(), rows, law, setups=setups),
+                           bus=bus, log=lambda level, text: lines.append((level, text)))
     try:
         engine.enable()
         errors = [text for level, text in lines if level == logging.ERROR]

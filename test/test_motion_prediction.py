@@ -12,7 +12,8 @@ import pytest
 from planter_ros.cam import CamMechanism, plan_cam
 from planter_ros.kinematics.five_bar import design_five_bar
 from planter_ros.kinematics.planting import FiveBarPlanting
-from planter_ros.prediction import PlantPredictor, Plants, PredictionSettings, predict_plants
+from planter_ros.prediction import (PlantPredictor, Plants, PredictionSettings, RowInputs,
+                                    predict_plants)
 
 DESIGN = design_five_bar(0.045, 0.15, 0.05)        # a tomato mechanism built for 0.15 m
 SPEED = 0.3                                        # m/s
@@ -62,8 +63,8 @@ def test_a_constant_speed_recording_predicts_the_constant_ratio_figures(mech):
         model = model_for(d)
         omega = 2 * math.pi * SPEED / d
         jt, st = stamps(6.0, 100.0), stamps(6.5, 20.0)
-        plants = predict_plants(st, np.full(st.size, SPEED), jt, omega * (jt - EPOCH),
-                                np.full(jt.size, omega), model)
+        plants = predict_plants(RowInputs(st, np.full(st.size, SPEED), jt, omega * (jt - EPOCH),
+                                          np.full(jt.size, omega)), model)
         advance = np.full(len(plants), SPEED / omega)
         assert len(plants) >= 5
         np.testing.assert_allclose(plants.tip_sweep, model.tip_sweep(advance), atol=2e-7)
@@ -79,7 +80,7 @@ def test_a_cam_recording_predicts_the_cams_own_hole_and_tilt(mech, rule):
         plan = plan_cam(mech, d, SPEED, rule=rule, top_speeds=False)
         profile = plan.profile
         model = model_for(d)
-        plants = predict_plants(*recording(profile, d), model)
+        plants = predict_plants(RowInputs(*recording(profile, d)), model)
         assert len(plants) >= 5
         # Hermite between 100 Hz feedback samples: a few µm on the cam's in-soil curve
         np.testing.assert_allclose(plants.tip_sweep, profile.tip_sweep, atol=1e-5)
@@ -100,8 +101,8 @@ def test_a_drive_lagging_the_cam_shows_in_the_holes_as_the_tip_really_moved(mech
     d, tau = 0.4, 0.05
     profile = plan_cam(mech, d, SPEED, rule='design_speed', top_speeds=False).profile
     model = model_for(d)
-    on_time = predict_plants(*recording(profile, d), model)
-    late = predict_plants(*recording(profile, d, tau=tau), model)
+    on_time = predict_plants(RowInputs(*recording(profile, d)), model)
+    late = predict_plants(RowInputs(*recording(profile, d, tau=tau)), model)
     true = true_sweeps(mech, profile, tau)[2:]           # after the start-up transient
     predicted = late.tip_sweep[1:]
     instant = model.tip_sweep(late.ground_speed / late.shaft_speed)[1:]
@@ -141,7 +142,7 @@ def test_the_live_monitor_gives_the_same_cam_plants_as_replay(mech):
     profile = plan_cam(mech, d, SPEED, rule='zero_slip', top_speeds=False).profile
     st, sv, jt, theta, omega = recording(profile, d)
     model = model_for(d)
-    batch = predict_plants(st, sv, jt, theta, omega, model)
+    batch = predict_plants(RowInputs(st, sv, jt, theta, omega), model)
     rng = np.random.default_rng(4)
     late = np.maximum.accumulate(jt + rng.uniform(0.0, 0.03, jt.size))
     arrivals = sorted([(t, 0, i) for i, t in enumerate(st)]
@@ -162,11 +163,11 @@ def test_an_arc_the_recording_does_not_cover_keeps_the_figures_at_the_instant(me
     profile = plan_cam(mech, d, SPEED, rule='zero_slip', top_speeds=False).profile
     st, sv, jt, theta, omega = recording(profile, d)
     model = model_for(d)
-    full = predict_plants(st, sv, jt, theta, omega, model)
+    full = predict_plants(RowInputs(st, sv, jt, theta, omega), model)
     # cut the joints just after the third plant's instant (its exit not yet reached)
     cut_t = full.time[2] + 0.01
     keep = jt <= cut_t
-    cut = predict_plants(st, sv, jt[keep], theta[keep], omega[keep], model)
+    cut = predict_plants(RowInputs(st, sv, jt[keep], theta[keep], omega[keep]), model)
     assert len(cut) == 3
     np.testing.assert_allclose(cut.tip_sweep[:2], full.tip_sweep[:2], atol=1e-12)
     at_instant = model.tip_sweep(SPEED / cut.shaft_speed[2])

@@ -8,7 +8,7 @@ import pytest
 from planter_ros.geo import geodesic_distance
 from planter_ros.prediction import PLANT_FIELDS, Plants
 from planter_ros.sensing.plant_map import (
-    MapSettings, PlantPlacer, fix_sigma, place_plants)
+    GnssFix, MapSettings, PlantPlacer, PlantSpots, fix_sigma, place_plants)
 from planter_ros.sensing.row_speed import motion_samples
 from planter_ros.sim.field import FieldProfile, demo_curves
 from planter_ros.sim.gnss import SimulatedGnss, fix_positions
@@ -55,10 +55,10 @@ def as_plants(times, rows):
 
 def placed(motion, fixes, plants, settings=MAP, antenna=(2.5, 0.3)):
     offsets = [y for _, y, _, _, _ in plants]
-    mt = motion_samples(*motion, offsets, yaw=True)
+    mt = motion_samples(motion, offsets, yaw=True)
     t = np.concatenate([tp for _, _, tp, _, _ in plants])
     y = np.concatenate([np.full(tp.size, y) for _, y, tp, _, _ in plants])
-    return place_plants(t, y, mt, fixes, settings, antenna)
+    return place_plants(PlantSpots(t, y), mt, fixes, settings, antenna)
 
 
 def test_plants_land_where_the_simulated_machine_set_them_and_d_apart():
@@ -94,9 +94,10 @@ def test_the_antenna_anywhere_on_the_machine_gives_the_same_map():
 
 def test_unusable_fixes_are_not_used_and_without_fixes_there_is_no_map():
     nan = math.nan
-    sigma = fix_sigma([-1, 0, 0, 0, 0, 1, nan], [52, 52, nan, 52, 52, 52, 52],
-                      [5, 5, 5, 5, 5, 5, 5], [0, 1e-4, 0, 4.0, 0, 0, 0],
-                      [0, 1e-4, 0, 4.0, 0, 0, 0], [2, 2, 2, 2, 0, 1, 2], 0.5)
+    sigma = fix_sigma(GnssFix(np.arange(7.0), [-1, 0, 0, 0, 0, 1, nan],
+                              [52, 52, nan, 52, 52, 52, 52], [5, 5, 5, 5, 5, 5, 5],
+                              [0, 1e-4, 0, 4.0, 0, 0, 0], [0, 1e-4, 0, 4.0, 0, 0, 0],
+                              [2, 2, 2, 2, 0, 1, 2]), 0.5)
     # no fix; 1 cm; no position; σ 2 m > 0.5 m; unknown covariance: weighted as 0.5 m;
     # SBAS fix with a 0 covariance: 1 mm; NaN status
     assert np.isnan(sigma[[0, 2, 3, 6]]).all()
@@ -161,8 +162,8 @@ def test_standing_still_keeps_the_heading_and_the_yaw_rate_turns_it():
     tp = np.interp(np.arange(0.1, path.s[-1], D), path.s, path.grid)
     # 8 s of fixes span 2 m at 0.25 m/s: a heading; the stop outlasts them
     settings = MapSettings(fix_window=8.0)
-    result = place_plants(tp, np.zeros(tp.size), motion_samples(*motion, [0.0], yaw=True),
-                          fixes, settings, (2.0, 0.0))
+    result = place_plants(PlantSpots(tp, np.zeros(tp.size)),
+                          motion_samples(motion, [0.0], yaw=True), fixes, settings, (2.0, 0.0))
     true_lat, true_lon, _ = fix_positions(path, tp, EXACT)
     off = geodesic_distance(result.longitude, result.latitude, true_lon, true_lat)
     after = tp > 30.0
@@ -174,7 +175,7 @@ def test_live_placement_equals_replay_in_any_arrival_order():
     """The monitor gets motion, fixes and plants interleaved (plants of a row in bursts, fixes
     at their own rate): what it publishes equals replay's map of the same recording."""
     motion, fixes, plants = field_run(duration=25.0, offsets=(0.5, -0.5), seed=7)
-    mt, mv, mw = motion_samples(*motion, [0.5, -0.5], yaw=True)
+    mt, mv, mw = motion_samples(motion, [0.5, -0.5], yaw=True)
     events = [(t, 0, i) for i, t in enumerate(mt)] + \
         [(t + 0.03, 1, i) for i, t in enumerate(fixes[0])]       # fixes arrive 30 ms late
     # each plant is predicted when the first motion sample after it has come
@@ -188,15 +189,15 @@ def test_live_placement_equals_replay_in_any_arrival_order():
         if kind == 0:
             out += placer.add_motion(mt[item], mv[item], mw[item])
         elif kind == 1:
-            out += placer.add_fix(*(a[item] for a in fixes))
+            out += placer.add_fix(GnssFix(*(a[item] for a in fixes)))
         else:
             out += placer.add_plants(as_plants([item[1]], [item[0]]))
     out += placer.flush()
     live = Plants.concatenate([p for p, _ in out])
     total = sum(tp.size for _, _, tp, _, _ in plants)
     assert len(live) == total
-    replayed = place_plants(live.time, np.where(live.row == 0, 0.5, -0.5), (mt, mv, mw),
-                            fixes, MapSettings(), (2.5, 0.3))
+    replayed = place_plants(PlantSpots(live.time, np.where(live.row == 0, 0.5, -0.5)),
+                            (mt, mv, mw), fixes, MapSettings(), (2.5, 0.3))
     assert np.all(np.isfinite(live.latitude))
     np.testing.assert_allclose(live.latitude, replayed.latitude, rtol=0, atol=1e-13)
     np.testing.assert_allclose(live.longitude, replayed.longitude, rtol=0, atol=1e-13)

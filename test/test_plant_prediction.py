@@ -10,8 +10,8 @@ from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.five_bar import design_five_bar
 from planter_ros.kinematics.planting import FiveBarPlanting, PathPlanting
 from planter_ros.prediction import (
-    PlantPredictor, Plants, PredictionSettings, plant_values, planting_model_from_design,
-    predict_plants)
+    PlantPredictor, Plants, PredictionSettings, RowInputs, plant_values,
+    planting_model_from_design, predict_plants)
 from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
 
 TOMATO = design_five_bar(0.045, 0.2, 0.05)
@@ -31,7 +31,7 @@ def constant_run(lam, v=0.2, duration=5.0, rate=100.0, theta0=0.3):
 
 def test_perfect_sync_gives_the_designed_hole_zero_tilt_and_exact_spacing():
     model = tomato_model(nozzle_width=0.03)
-    plants = predict_plants(*constant_run(1.0), model, PredictionSettings())
+    plants = predict_plants(RowInputs(*constant_run(1.0)), model, PredictionSettings())
     assert len(plants) == 5
     assert np.allclose(plants.speed_ratio, 1.0, rtol=1e-12)
     # the tip (a point) sweeps the designed hole; the soil sees it widened by the nozzle
@@ -103,7 +103,7 @@ def test_rolling_uprightness_rate_counts_the_last_window_plants():
     t = np.arange(0.0, 12.0, 0.01)
     omega = np.where((t > 2.4) & (t < 6.0), 0.05, 1.0) * 0.2 / model.sync_advance
     theta = 0.3 + np.concatenate(([0.0], np.cumsum(0.5 * (omega[1:] + omega[:-1]) * 0.01)))
-    plants = predict_plants(t, np.full_like(t, 0.2), t, theta, omega, model,
+    plants = predict_plants(RowInputs(t, np.full_like(t, 0.2), t, theta, omega), model,
                             PredictionSettings(window=3))
     fallen = np.nonzero(plants.upright == 0)[0]
     assert fallen.size == 1
@@ -124,7 +124,7 @@ def test_live_stream_gives_the_same_plants_as_the_batch_model():
     st[60] = st[59]
     jt[300] = jt[290]
     jw[400] = np.nan
-    batch = predict_plants(st, sv, jt, jp, jw, model)
+    batch = predict_plants(RowInputs(st, sv, jt, jp, jw), model)
     # delivery: joint feedback arrives 0-30 ms late (in its own order), interleaved with the
     # speed samples
     late = np.maximum.accumulate(run.joint_t + rng.uniform(0, 0.03, jt.size))
@@ -145,8 +145,8 @@ def test_spacing_error_stays_bounded_through_a_speed_step_when_phase_locked():
     model = planting_model_from_design(design)
 
     def drift(run):
-        p = predict_plants(run.speed_t, run.speed_v, run.joint_t, run.joint_pos, run.joint_vel,
-                           model)
+        p = predict_plants(RowInputs(run.speed_t, run.speed_v, run.joint_t, run.joint_pos,
+                                     run.joint_vel), model)
         k = np.round((p.position - 0.1) / 0.2)
         return p, np.abs(p.position - (0.1 + 0.2 * k))
 
@@ -163,7 +163,7 @@ def test_three_plants_per_revolution_are_set_at_each_arms_planting_angle():
     reproduces the five-bar's closed form when given the five-bar's own path."""
     a, b = TOMATO.l2 - TOMATO.l1, TOMATO.l1 + TOMATO.l2
     phi = np.linspace(0.0, 2 * math.pi, 720, endpoint=False)
-    path = PathPlanting(phi, a * np.sin(phi), b * np.cos(phi), 1, 0.045, 0.2)
+    path = PathPlanting((phi, a * np.sin(phi), b * np.cos(phi)), 1, 0.045, 0.2)
     closed = tomato_model()
     assert path.planting_phase == pytest.approx(math.pi, abs=1e-9)
     assert path.exit_angle == pytest.approx(closed.exit_angle, rel=1e-9)
@@ -183,8 +183,8 @@ def test_three_plants_per_revolution_are_set_at_each_arms_planting_angle():
                      'y': (0.2 * np.cos(phi)).tolist()}}))
     t = np.arange(0.0, 3.0, 0.01)
     omega = 2 * math.pi / 3 * 0.2 / 0.2          # in sync: ω = 2π v / (3 d)
-    plants = predict_plants(t, np.full_like(t, 0.2), t, omega * t, np.full_like(t, omega),
-                            three)
+    plants = predict_plants(RowInputs(t, np.full_like(t, 0.2), t, omega * t,
+                                      np.full_like(t, omega)), three)
     assert np.allclose(np.diff(plants.time), 1.0, rtol=1e-9)   # one plant per 1/3 rev
     assert np.allclose(plants.spacing[1:], 0.2, rtol=1e-9)
     assert np.allclose(plants.speed_ratio, 1.0)
@@ -235,8 +235,8 @@ def test_implausible_ground_speed_samples_do_not_move_plants_live_or_in_replay()
     speed_v[150] = 25.0           # a spike
     speed_v[300] = math.nan       # a dropout
     speed_v[450] = 3.5            # faster than any transplanter
-    batch_clean = predict_plants(*clean, model)
-    batch = predict_plants(speed_t, speed_v, *clean[2:], model)
+    batch_clean = predict_plants(RowInputs(*clean), model)
+    batch = predict_plants(RowInputs(speed_t, speed_v, *clean[2:]), model)
     assert len(batch) == len(batch_clean) == 6
     np.testing.assert_allclose(batch.position, batch_clean.position, atol=0.002)
     assert np.max(np.abs(batch.spacing_error[1:])) < 0.002
@@ -267,7 +267,8 @@ def test_three_arm_design_topic_carries_what_the_monitor_needs():
     omega = 2 * math.pi
     v = model.sync_advance * omega
     t = np.arange(0.0, 1.5, 0.005)
-    plants = predict_plants(t, np.full_like(t, v), t, omega * t, np.full_like(t, omega), model)
+    plants = predict_plants(RowInputs(t, np.full_like(t, v), t, omega * t, np.full_like(t, omega)),
+                            model)
     assert len(plants) == 4
     np.testing.assert_allclose(plants.spacing[1:], design.plant_spacing, rtol=1e-6)
     assert np.all(np.isfinite(plants.hole_width)) and np.all(np.isfinite(plants.tilt))
@@ -290,15 +291,15 @@ def test_a_gap_in_the_inputs_reports_every_instant_inside_it_flagged_and_restart
     run = simulate_run(five_bar_design_message(), RunOptions(duration=20.0, seed=3))
     model = planting_model_from_design(run.design)
     settings = PredictionSettings()
-    full = predict_plants(run.speed_t, run.speed_v, run.joint_t, run.joint_pos, run.joint_vel,
-                          model, settings)
+    full = predict_plants(RowInputs(run.speed_t, run.speed_v, run.joint_t, run.joint_pos,
+                                    run.joint_vel), model, settings)
     t0 = run.speed_t[0]
     j_gap, s_gap = (t0 + 6.0, t0 + 7.4), (t0 + 12.0, t0 + 13.2)
     jk = (run.joint_t < j_gap[0]) | (run.joint_t > j_gap[1])
     sk = (run.speed_t < s_gap[0]) | (run.speed_t > s_gap[1])
     inputs = (run.speed_t[sk], run.speed_v[sk], run.joint_t[jk], run.joint_pos[jk],
               run.joint_vel[jk])
-    cut = predict_plants(*inputs, model, settings)
+    cut = predict_plants(RowInputs(*inputs), model, settings)
     assert len(cut) == len(full) and not np.any(full.input_gap)       # none lost
     flagged = cut.input_gap == 1
     inside = np.zeros(len(full), dtype=bool)
@@ -329,9 +330,9 @@ def test_a_gap_shorter_than_the_setting_is_interpolated_as_before():
     keep = (t < 4.0) | (t > 4.3)                               # 0.3 s without joint states
     inputs = (run.speed_t, run.speed_v, run.joint_t[keep], run.joint_pos[keep],
               run.joint_vel[keep])
-    plants = predict_plants(*inputs, model, PredictionSettings(max_input_gap=0.5))
+    plants = predict_plants(RowInputs(*inputs), model, PredictionSettings(max_input_gap=0.5))
     assert np.isnan(plants.spacing).sum() == 1
-    strict = predict_plants(*inputs, model, PredictionSettings(max_input_gap=0.2))
+    strict = predict_plants(RowInputs(*inputs), model, PredictionSettings(max_input_gap=0.2))
     assert np.isnan(strict.spacing).sum() >= 2 or len(strict) < len(plants)
 
 
@@ -353,7 +354,7 @@ def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
         keep &= ~((t > start) & (t < start + length))
     inputs = (run.speed_t[sk], run.speed_v[sk], run.joint_t[jk], run.joint_pos[jk],
               run.joint_vel[jk])
-    batch = predict_plants(*inputs, model, prediction)
+    batch = predict_plants(RowInputs(*inputs), model, prediction)
     np.testing.assert_allclose(_live(model, prediction, *inputs).table(), batch.table(),
                                rtol=0, atol=1e-12, equal_nan=True)
     # a plant inside a gap longer than the setting is flagged and has no figures, none other
@@ -382,7 +383,7 @@ def test_a_new_design_scores_plants_from_the_next_planting_instant_live_and_batc
     t_msg = 0.62 / v
     stray = FiveBarPlanting(TOMATO.l1 * 2, TOMATO.l2 * 2, 0.045, 0.4)    # overtaken at once
     changes = [(t_msg - 0.05, stray), (t_msg, new)]
-    batch = predict_plants(t, np.full_like(t, v), t, theta, omega, tomato_model(),
+    batch = predict_plants(RowInputs(t, np.full_like(t, v), t, theta, omega), tomato_model(),
                            changes=changes)
     assert np.allclose(batch.position, [0.1, 0.3, 0.5, 0.7, 1.0, 1.3, 1.6, 1.9, 2.2],
                        atol=1e-9)
@@ -422,7 +423,7 @@ def test_a_section_switched_off_ends_the_spacing_sequence_live_and_in_replay():
     vel = np.where((run.joint_t >= off) & (run.joint_t <= on), 0.0, run.joint_vel)
     inputs = (run.speed_t, run.speed_v, run.joint_t, pos, vel)
 
-    blind = predict_plants(*inputs, model, settings)
+    blind = predict_plants(RowInputs(*inputs), model, settings)
     assert np.nanmax(blind.spacing) > 2.5 * model.spacing           # a miss that was no miss
 
     def report(name, state):
@@ -435,7 +436,7 @@ def test_a_section_switched_off_ends_the_spacing_sequence_live_and_in_replay():
                (on, section_states(report('left', 'on')))]
     breaks = section_breaks(reports)
     assert breaks == {'left': [(on, on)]}
-    plants = predict_plants(*inputs, model, settings, breaks=breaks['left'])
+    plants = predict_plants(RowInputs(*inputs, breaks=breaks['left']), model, settings)
     first = int(np.argmax(plants.time > on))
     assert np.isnan(plants.spacing[first]) and np.isnan(plants.spacing).sum() == 2
     assert np.nanmax(np.abs(plants.spacing_error)) < 0.1 * model.spacing

@@ -24,8 +24,8 @@ RATE = 500.0          # messages per second written by the child
 WRITER = r'''
 import sys, time
 from geometry_msgs.msg import TwistStamped
-from planter_ros.recording.recorder import Recorder
-rec = Recorder(sys.argv[1], flush_period=1.0)
+from planter_ros.recording.recorder import BagLayout, Recorder
+rec = Recorder(sys.argv[1], BagLayout(flush_period=1.0))
 rec.add_topic('/planter/ground_speed', 'geometry_msgs/msg/TwistStamped')
 msg = TwistStamped()
 start = time.monotonic()

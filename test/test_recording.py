@@ -7,7 +7,7 @@ import yaml
 
 from planter_ros.prediction import PLANT_FIELDS
 from planter_ros.recording.errors import BagWriteError
-from planter_ros.recording.recorder import DELIMITER, Recorder, message_definition
+from planter_ros.recording.recorder import BagLayout, DELIMITER, Recorder, message_definition
 from planter_ros.recording.replay import replay
 from planter_ros.demo.samples import record_sample
 from planter_ros.sim.bags import write_input_bag
@@ -164,7 +164,7 @@ def test_an_existing_bag_is_never_overwritten(tmp_path):
     with pytest.raises(BagWriteError, match='already exists'):
         Recorder(tmp_path / 'dir')
     with pytest.raises(BagWriteError, match='bag directory'):
-        Recorder(tmp_path / 'y.mcap', split_size=1000)
+        Recorder(tmp_path / 'y.mcap', BagLayout(split_size=1000))
 
 
 def test_default_bag_path_is_timestamped_under_bags(tmp_path, monkeypatch):

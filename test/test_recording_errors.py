@@ -16,7 +16,7 @@ from planter_ros.recording.errors import (
     BagDamagedError, BagUnreadableError, BagWriteError, DecodeError, RecordingError,
     ReplayError, TopicMissingError)
 from planter_ros.recording.indexed import IndexedFile
-from planter_ros.recording.recorder import Recorder
+from planter_ros.recording.recorder import BagLayout, Recorder
 from planter_ros.recording.replay import replay
 from planter_ros.sim.bags import write_input_bag
 from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
@@ -75,9 +75,11 @@ def test_each_refusal_is_the_one_kind_a_user_acts_on_and_one_line_exit_2(bags, n
 
 def test_a_bag_that_cannot_be_written_is_a_bag_write_error(bags, tmp_path):
     for refused, words in ((lambda: Recorder(bags / 'whole.mcap'), 'already exists'),
-                           (lambda: Recorder(tmp_path / 'a.mcap', flush_period=0.0),
+                           (lambda: Recorder(tmp_path / 'a.mcap',
+                                             BagLayout(flush_period=0.0)),
                             'flush_period'),
-                           (lambda: Recorder(tmp_path / 'b', split_size=-1), 'split_size')):
+                           (lambda: Recorder(tmp_path / 'b', BagLayout(split_size=-1)),
+                            'split_size')):
         with pytest.raises(BagWriteError, match=words) as info:
             refused()
         assert '\n' not in str(info.value)

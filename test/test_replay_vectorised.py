@@ -37,7 +37,7 @@ def test_the_filters_over_a_recording_keep_what_the_live_stream_keeps(seed):
             v[rng.integers(n):] *= rng.uniform(0, 4)          # a step
         offsets = [0.0] if rng.random() < 0.3 else [0.5, -0.5]
         yaw = (None, True, False)[trial % 3]
-        got = motion_samples(t, v, w, offsets, yaw=yaw)
+        got = motion_samples((t, v, w), offsets, yaw=yaw)
         want = one_by_one(t, v, w, offsets, yaw)
         for a, b in zip(got, want):
             assert a.shape == b.shape and np.array_equal(a, b, equal_nan=True)
@@ -65,7 +65,7 @@ def test_the_fix_track_fed_every_fix_at_once_is_the_live_track():
             live.add(t[k], 52.0, 5.0, sigma[k], (x[k], y[k], psi[k]), (e[k], n[k]))
         batch = FixTrack(settings, antenna, keep_all=True)
         batch.anchor(52.0, 5.0)
-        batch.add_all(t, np.full(m, 52.0), np.full(m, 5.0), sigma, (x, y, psi), e, n)
+        batch.add_all(t, sigma, (x, y, psi), (e, n))
         assert batch.times == live.times and batch.transforms == live.transforms
         assert batch.first_heading == live.first_heading and batch.fixes == live.fixes
         assert (batch._t, batch._path, batch._sums, batch._first, batch._phi) == \
@@ -73,7 +73,7 @@ def test_the_fix_track_fed_every_fix_at_once_is_the_live_track():
         rebases += live._path[0] > 0.0 if live._path else 0
     assert rebases > 0                    # the rebase was exercised
     with pytest.raises(ValueError):
-        FixTrack(MapSettings(), (0.0, 0.0)).add_all(t, t, t, t, (t, t, t), t, t)
+        FixTrack(MapSettings(), (0.0, 0.0)).add_all(t, t, (t, t, t), (t, t))
 
 
 def test_packed_messages_decode_as_a_list_of_messages_does(tmp_path):
@@ -203,9 +203,8 @@ def test_every_row_in_one_pass_predicts_what_each_row_alone_does(mechanism):
                              PredictionSettings(max_input_gap=0.3)):
                 together = predict_rows(rows, model, settings, speed_filter=False,
                                         changes=changes)
-                alone = [predict_plants(*inputs[:5], model, settings, row=inputs.row,
-                                        speed_filter=False, changes=changes,
-                                        breaks=inputs.breaks) for inputs in rows]
+                alone = [predict_plants(inputs, model, settings, speed_filter=False,
+                                        changes=changes) for inputs in rows]
                 assert len(alone[4]) == 0
                 # the rows one after the other, each as predicted alone
                 np.testing.assert_allclose(together.table(), Plants.concatenate(alone).table(),

@@ -150,7 +150,7 @@ def test_the_live_monitor_reads_the_seedling_sensor_as_replay_does(ros):
 
     from planter_ros.design import to_json
     from planter_ros.nodes.monitor_node import MonitorNode
-    from planter_ros.prediction import (PredictionSettings, design_spacing_of,
+    from planter_ros.prediction import (PredictionSettings, RowInputs, design_spacing_of,
                                         planting_model_from_design, predict_plants)
     from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
     design = five_bar_design_message()
@@ -183,8 +183,8 @@ def test_the_live_monitor_reads_the_seedling_sensor_as_replay_does(ros):
         quality = node.spacing_quality()
     finally:
         node.destroy_node()
-    offline = predict_plants(run.speed_t, run.speed_v, run.joint_t, run.joint_pos,
-                             run.joint_vel, model, PredictionSettings())
+    offline = predict_plants(RowInputs(run.speed_t, run.speed_v, run.joint_t, run.joint_pos,
+                                       run.joint_vel), model, PredictionSettings())
     account = SeedlingAccount()
     for t, c in zip(read_t, counts):
         account.add_reading(0, t, c)

@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from planter_ros.kinematics.errors import DesignError
-from planter_ros.kinematics.three_arm import ThreeArmMechanism
+from planter_ros.kinematics.three_arm import Installation, ThreeArmMechanism
 from planter_ros.kinematics.three_arm.batch import CurveBasis, MechanismBatch
 from planter_ros.kinematics.three_arm.goals import GOAL_NAMES, goal_settings, goal_values
-from planter_ros.optimize.three_arm import (INSTALL_BOUNDS, RADIUS_BOUNDS, BatchScorer, optimize,
-                                            parameters_from_vector, score)
+from planter_ros.optimize.three_arm import (INSTALL_BOUNDS, RADIUS_BOUNDS, BatchScorer,
+                                            SearchOptions, optimize, parameters_from_vector,
+                                            score)
 
 
 NAMES = tuple(INSTALL_BOUNDS)
@@ -31,7 +32,8 @@ def random_designs(params, count, seed):
 def test_batch_goals_equal_single_design_goals(params, interpolant):
     radii, install = random_designs(params, 24, seed=7)
     cfg = goal_settings(params)
-    batch = MechanismBatch(CurveBasis(params['control_angles'], interpolant), radii, *install.T)
+    batch = MechanismBatch(CurveBasis(params['control_angles'], interpolant), radii,
+                           Installation(*install.T))
     assert batch.valid.all()
     got = goal_values(batch, cfg, samples=360)
     compared = 0
@@ -57,7 +59,7 @@ def test_batch_marks_designs_the_core_refuses_and_stays_finite(params):
     radii[1, 3] = -0.01             # a negative control radius
     install[2, 3] = 0.5             # pusher offset H1 beyond the arm length S
     radii[3] = [0.065, 0.065, 0.001, 0.001] * 3    # dips to ρ < 0 between the points
-    batch = MechanismBatch(CurveBasis(params['control_angles']), radii, *install.T)
+    batch = MechanismBatch(CurveBasis(params['control_angles']), radii, Installation(*install.T))
     assert batch.valid.tolist() == [True, False, False, False]
     values = goal_values(batch, goal_settings(params), samples=180)
     assert all(np.all(np.isfinite(values[name])) for name in GOAL_NAMES)
@@ -96,9 +98,10 @@ def test_tip_velocity_is_the_derivative_of_the_tip(params):
 
 
 def test_optimiser_is_deterministic_and_the_same_on_two_workers(params):
-    one = optimize(params, seed=5, max_time=1e9, max_generations=3, popsize=4)
-    again = optimize(params, seed=5, max_time=1e9, max_generations=3, popsize=4)
-    two = optimize(params, seed=5, max_time=1e9, max_generations=3, popsize=4, workers=2)
+    one = optimize(params, SearchOptions(seed=5, max_time=1e9, max_generations=3, popsize=4))
+    again = optimize(params, SearchOptions(seed=5, max_time=1e9, max_generations=3, popsize=4))
+    two = optimize(params, SearchOptions(seed=5, max_time=1e9, max_generations=3, popsize=4,
+                                          workers=2))
     assert one[0] == again[0] == two[0]
     # scipy rounds a Sobol population up to a power of two: 4·17 -> 128, four batches
     assert one[2]['evaluations'] == two[2]['evaluations'] == 128 * 4
@@ -107,8 +110,8 @@ def test_optimiser_is_deterministic_and_the_same_on_two_workers(params):
 
 def test_progress_reports_the_best_design_so_far(params):
     seen = []
-    params_out, goals, info = optimize(params, seed=2, max_time=1e9, max_generations=6,
-                                       popsize=4, progress=seen.append)
+    options = SearchOptions(seed=2, max_time=1e9, max_generations=6, popsize=4)
+    params_out, goals, info = optimize(params, options, progress=seen.append)
     assert [s.generation for s in seen] == list(range(1, 7))
     bests = [s.best_score for s in seen]
     assert bests == sorted(bests, reverse=True)            # never worse than before
@@ -124,7 +127,8 @@ def test_the_progress_line_never_shows_a_best_getting_worse(params):
     included: the lowest score's design may meet fewer); the generation's own best may, and is
     shown apart."""
     seen = []
-    optimize(params, seed=1, max_time=1e9, max_generations=12, progress=seen.append)
+    optimize(params, SearchOptions(seed=1, max_time=1e9, max_generations=12),
+             progress=seen.append)
     best = [s.best_score for s in seen]
     most = [s.most_goals for s in seen]
     assert best == sorted(best, reverse=True) and most == sorted(most)

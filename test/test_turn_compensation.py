@@ -235,11 +235,11 @@ def test_row_speeds_of_a_recording_follow_the_monitor_rule():
     v[8] = 3.5                                      # too fast: rejected
     w = np.full(t.size, 0.02)
     w[10] = math.nan                                # held
-    kept, speeds = row_speed_samples(t, v, w, [0.75, -0.75, 20.0])
+    kept, speeds = row_speed_samples((t, v, w), [0.75, -0.75, 20.0])
     assert kept.size == t.size - 2
     assert np.allclose(speeds[0], 0.2 - 0.015) and np.allclose(speeds[1], 0.2 + 0.015)
     assert np.all(speeds[2] == 0.0)                 # that row would go backwards: holds
-    kept, speeds = row_speed_samples(t, -v, w, [-20.0])
+    kept, speeds = row_speed_samples((t, -v, w), [-20.0])
     assert np.all(speeds == 0.0)                    # a machine reversing moves no row
 
 

@@ -53,16 +53,17 @@ def run(args):
     from planter_ros.cli.main import BadInput
     from planter_ros.kinematics.errors import DesignError
     from planter_ros.kinematics.three_arm import ThreeArmMechanism, design_summary
-    from planter_ros.optimize.three_arm import optimize
+    from planter_ros.optimize.three_arm import SearchOptions, optimize
     from planter_ros.output_files import atomic_output
     from planter_ros.scene import default_scene_path, write_scene
 
     base_path = args.base or default_scene_path('rice_three_arm.yaml')
     base = load_params(base_path, '--base')
     _check_control_angles(base, base_path)
-    params, goals, info = optimize(base, seed=args.seed, max_time=args.max_time,
-                                   workers=args.workers, progress=lambda status: print(
-                                       '\r' + status.line(), end='', file=sys.stderr, flush=True))
+    params, goals, info = optimize(
+        base, SearchOptions(seed=args.seed, max_time=args.max_time, workers=args.workers),
+        progress=lambda status: print('\r' + status.line(), end='', file=sys.stderr,
+                                      flush=True))
     sys.stderr.write('\n')
     try:           # the result must be a design before it may replace anything
         summary = design_summary(params, ThreeArmMechanism.from_parameters(params))

@@ -31,14 +31,13 @@ from planter_ros.design import Design
 from planter_ros.drive.bus_load import BusLoad
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.drive_set import DriveSet
-from planter_ros.drive.setup import DriveSetup
 from planter_ros.drive.states import FAULT
-from planter_ros.rows import Row
 
 from .control_step import ControlStep
 from .design_change import DesignChange
 from .lifecycle import Lifecycle, checked_bus_load
 from .reports import CommandReport, Reply, Snapshot
+from .settings import CommandSettings
 from .state import EngineState, Feedback, Log, RowUnit
 from .status import EngineStatus
 from .watch import RowWatch
@@ -53,21 +52,20 @@ def _print_log(level: int, text: str) -> None:
 class CommandEngine:
     """The rows, their drives and the row loop (see the module doc)."""
 
-    def __init__(self, drive_config: DriveConfig, loop_config: SyncLoopConfig,
-                 rows: Sequence[Row], law_values: Sequence[Any], bus: can.BusABC | None = None,
-                 log: Log | None = None, setups: dict[str, DriveSetup] | None = None) -> None:
-        """`setups`: row name -> what the machine file says of its drive (checked, applied
-        at enable; its phase offset places the joint angle), none without a machine file."""
-        rows = list(rows)
-        machine = Machine([row.lateral_offset for row in rows], *law_values)
+    def __init__(self, settings: CommandSettings, bus: can.BusABC | None = None,
+                 log: Log | None = None) -> None:
+        """`settings`: the drive, loop, rows, law and drive setups (its log level and hold are
+        the command process's)."""
+        drive_config, loop_config = settings.drive, settings.loop
+        rows, setups = settings.rows, settings.setups
+        machine = Machine([row.lateral_offset for row in rows], *settings.law)
         enabled = [row for row in rows if row.enabled]
         load = checked_bus_load(drive_config, loop_config, enabled)
         # a row without a node id of its own: the drive configuration's (rows)
         node_ids = {row.name: row.drive_node_id if row.drive_node_id is not None
                     else drive_config.drive_node_id for row in enabled}
         drives = DriveSet(drive_config, node_ids, bus=bus, setups=setups)
-        self.state = EngineState(drive_config, loop_config, rows, machine, drives, load,
-                                 log or _print_log)
+        self.state = EngineState(settings, machine, drives, load, log or _print_log)
         self.lifecycle = Lifecycle(self.state)
         self.design = DesignChange(self.state)
         self.watch = RowWatch(self.state)

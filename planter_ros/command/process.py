@@ -162,8 +162,7 @@ def run(channel: Channel, terminated: _Terminated, death: str = '') -> int:
     engine = None
     try:
         bus = SocketPairBus(cfg.can_channel) if cfg.can_interface == INTERFACE else None
-        engine = CommandEngine(cfg, settings.loop, settings.rows, settings.law, bus=bus, log=log,
-                               setups=settings.setups)
+        engine = CommandEngine(settings, bus=bus, log=log)
         channel.send('built', {'bus_load': engine.bus_load.load,
                                'bitrate': engine.bus_load.bitrate, 'pid': os.getpid()})
         if any(kind == 'stop' for kind, _ in early):

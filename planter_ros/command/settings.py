@@ -2,7 +2,7 @@
 back into the typed configuration classes."""
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 from planter_ros.control.loop_timing import SyncLoopConfig
@@ -28,18 +28,27 @@ def law_from_data(data: list[dict[str, Any]]) -> tuple:
     return tuple(cls(**values) for cls, values in zip(LAW_CLASSES, data))
 
 
+@dataclass(frozen=True)
 class CommandSettings:
-    """The command process's settings: drive, loop, rows, law; `data()` / `from_data()`.
-    `hold`: build and check, but enable no drive until an operator's `enable` (a restart after
-    a crash: doc/command.md)."""
+    """The command engine's settings: drive, loop, rows, law (the values of LAW_CLASSES);
+    `data()` / `from_data()` for the command process. `setups`: row name -> what the machine
+    file says of its drive (checked, applied at enable; its phase offset places the joint
+    angle), none without a machine file. `hold`: build and check, but enable no drive until
+    an operator's `enable` (a restart after a crash: doc/command.md)."""
 
-    def __init__(self, drive: DriveConfig, loop: SyncLoopConfig, rows: list[Row], law: tuple,
-                 log_level: str = 'info', setups: dict[str, DriveSetup] | None = None,
-                 hold: bool = False) -> None:
-        self.drive, self.loop, self.rows, self.law = drive, loop, list(rows), tuple(law)
-        self.log_level = log_level
-        self.setups = dict(setups or {})     # row name -> its drive per the machine file
-        self.hold = bool(hold)
+    drive: DriveConfig
+    loop: SyncLoopConfig
+    rows: list[Row]
+    law: tuple[Any, ...]
+    log_level: str = 'info'
+    setups: dict[str, DriveSetup] = field(default_factory=dict)
+    hold: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, 'rows', list(self.rows))
+        object.__setattr__(self, 'law', tuple(self.law))
+        object.__setattr__(self, 'setups', dict(self.setups or {}))
+        object.__setattr__(self, 'hold', bool(self.hold))
 
     def data(self) -> dict[str, Any]:
         return {'drive': asdict(self.drive), 'loop': asdict(self.loop),
@@ -61,5 +70,4 @@ class CommandSettings:
 
     def held(self, hold: bool = True) -> 'CommandSettings':
         """The same settings, held (or not)."""
-        return CommandSettings(self.drive, self.loop, self.rows, self.law, self.log_level,
-                               self.setups, hold)
+        return replace(self, hold=hold)

@@ -15,18 +15,18 @@ import threading
 from typing import TYPE_CHECKING
 
 from planter_ros.control import sync_status
-from planter_ros.control.loop_timing import PeriodStats, SyncLoopConfig
+from planter_ros.control.loop_timing import PeriodStats
 from planter_ros.control.machine_law import Machine
 from planter_ros.control.phase_lock import PhaseLock
 from planter_ros.control.row_loop import RowLoop
 from planter_ros.control.sync_status import Halt
 from planter_ros.drive.bus_load import BusLoad
-from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.errors import DriveError
 from planter_ros.drive.states import CYCLIC_SYNC_POSITION
 from planter_ros.rows import IMPLICIT, Row
 
 from .recovery import RowRecovery
+from .settings import CommandSettings
 
 if TYPE_CHECKING:
     from planter_ros.drive.cia402 import Cia402Drive, DriveStatus
@@ -112,10 +112,11 @@ class EngineState:
     """What the engine's parts share: the configuration, the rows (`units`), the laws, the
     drives and the run's flags. Every read and write holds `lock`."""
 
-    def __init__(self, drive_config: DriveConfig, loop: SyncLoopConfig, rows: list[Row],
-                 machine: Machine, drives: DriveSet, bus_load: BusLoad, log: Log) -> None:
+    def __init__(self, settings: CommandSettings, machine: Machine, drives: DriveSet,
+                 bus_load: BusLoad, log: Log) -> None:
+        drive_config, rows = settings.drive, settings.rows
         self.drive_config = drive_config
-        self.loop = loop
+        self.loop = settings.loop
         self.log = log
         self.rows = rows
         self.implicit = len(rows) == 1 and rows[0].name == IMPLICIT

@@ -10,8 +10,11 @@ ranges (kinematics.design_inputs) before any model runs.
 import math
 from typing import Any, Mapping
 
+import numpy as np
+
 from planter_ros.config import as_dict, from_mapping
 from planter_ros.kinematics.errors import DesignError
+from planter_ros.kinematics.five_bar import design_five_bar
 from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
 from planter_ros.kinematics.design_inputs import (DesignInputs, ThreeArmInputs,
                                                    top_ground_speed)
@@ -48,7 +51,6 @@ def design_for_scene(params: Mapping[str, Any]) -> Design:
 
 
 def _five_bar(scene: DesignInputs) -> dict[str, Any]:
-    from planter_ros.kinematics.five_bar import design_five_bar
     if len(scene.dyad_ratios) != 3:
         raise DesignError('dyad_ratios', scene.dyad_ratios, 'three ratios (l3, l4, l5)/(l1+l2)')
     built_for = scene.design_spacing or scene.plant_spacing
@@ -62,8 +64,8 @@ def _five_bar(scene: DesignInputs) -> dict[str, Any]:
 
 
 def _three_arm(params: dict[str, Any]) -> dict[str, Any]:
-    import numpy as np
-
+    # lazy: a five-bar scene never loads the gear train (17 ms, its scipy on use;
+    # test_design_node's test_five_bar_scene_never_imports_the_gear_train)
     from planter_ros.kinematics import three_arm
     mech = three_arm.ThreeArmMechanism.from_parameters(params)
     out = three_arm.design_summary(params, mech)

@@ -18,6 +18,7 @@ from typing import Any
 from planter_ros.config import ConfigError, coerce, spec_of
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.design_inputs import DesignInputs
+from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
 
 from .model import Design, FiveBar, GoalResult, ThreeArm, TipPath
 
@@ -90,7 +91,6 @@ def from_dict(data: Any) -> Design:
         if value is not None:
             values[f.name] = value
     if 'plants_per_revolution' not in values:
-        from planter_ros.kinematics.mechanisms import PLANTS_PER_REVOLUTION
         values['plants_per_revolution'] = PLANTS_PER_REVOLUTION[mechanism]
     required = [f.name for f in fields(cls)
                 if f.default is MISSING and f.default_factory is MISSING]

@@ -511,15 +511,28 @@ def dyad_positions(design: FiveBarDesign, theta: Floats,
 
 # --- forward kinematics -----------------------------------------------------------------------
 
-def chain_kinematics(alpha: Floats, omega1: float, l1: float, l2: float,
-                     gear_ratio: float = -2.0, theta1: float = 0.5 * math.pi,
-                     theta2: float = 0.0) -> tuple[tuple[Floats, Floats], ...]:
-    """The paper's formula (3): a 2R chain with α2 = gear_ratio·α1 + θ2 (general case).
+@dataclass(frozen=True)
+class GearedChain:
+    """The paper's 2R chain: bars l1, l2 (m), the second turning at α2 = gear_ratio·α1 + θ2
+    relative to the first, the first at θ1 when α1 = 0 (rad). The defaults (ratio -2,
+    θ1 = π/2, θ2 = 0) trace the static ellipse of static_trajectory."""
+
+    l1: float
+    l2: float
+    gear_ratio: float = -2.0
+    theta1: float = 0.5 * math.pi
+    theta2: float = 0.0
+
+
+def chain_kinematics(alpha: Floats, omega1: float,
+                     chain: GearedChain) -> tuple[tuple[Floats, Floats], ...]:
+    """The paper's formula (3) of a GearedChain (general case).
 
     alpha: sun-bar rotation ω1 t (rad, array). Returns (position, velocity, acceleration), each
-    (x, y) in the frame of A, for constant ω1 (rad/s). With the defaults (ratio -2, θ1 = π/2,
-    θ2 = 0) this is the static ellipse of static_trajectory.
+    (x, y) in the frame of A, for constant ω1 (rad/s).
     """
+    l1, l2, gear_ratio, theta1, theta2 = (chain.l1, chain.l2, chain.gear_ratio, chain.theta1,
+                                          chain.theta2)
     alpha = np.asarray(alpha, dtype=float)
     a1 = alpha + theta1
     a12 = (1.0 + gear_ratio) * alpha + theta1 + theta2

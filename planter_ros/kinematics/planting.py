@@ -122,17 +122,20 @@ class PathPlanting(Planting):
 
     The samples are joined by a periodic cubic spline; the planting instant is the lowest point
     (or `planting_phase` if given); the hole is the tip's swept extent in the soil frame between
-    the surface crossings around it, taken on `samples` points of that arc.
+    the surface crossings around it, taken on `ARC_SAMPLES` points of that arc.
     """
 
-    def __init__(self, angle: Sequence[float] | FloatArray, x: Sequence[float] | FloatArray,
-                 y: Sequence[float] | FloatArray,
+    ARC_SAMPLES = 2048
+
+    def __init__(self, tip_path: tuple[Sequence[float] | FloatArray, Sequence[float] | FloatArray,
+                                       Sequence[float] | FloatArray],
                  plants_per_revolution: int, depth: float, spacing: float,
-                 planting_phase: float | None = None, samples: int = 2048,
-                 nozzle_width: float = 0.0) -> None:
-        from scipy.interpolate import CubicSpline  # lazy: scipy 440 ms, skipped until a
-        # planting arc is built (importing kinematics loads no scipy)
-        from scipy.optimize import brentq, minimize_scalar
+                 planting_phase: float | None = None, nozzle_width: float = 0.0) -> None:
+        """`tip_path`: (shaft angle rad, x m, y m) samples of one tip over one revolution."""
+        # lazy: scipy.interpolate costs 440 ms, scipy.optimize 300 ms: loaded when a planting
+        # arc is built, never by importing kinematics (test_skip_what_a_scene_does_not_need)
+        from scipy.interpolate import CubicSpline
+        from scipy.optimize import brentq, minimize_scalar  # lazy: as the line above
 
         _require_positive('planting_depth', depth)
         _require_positive('plant_spacing', spacing)
@@ -140,9 +143,7 @@ class PathPlanting(Planting):
         n = int(plants_per_revolution)
         if n < 1 or n != plants_per_revolution:
             raise DesignError('plants_per_revolution', plants_per_revolution, 'integer >= 1')
-        angle = np.asarray(angle, dtype=float)
-        x = np.asarray(x, dtype=float)
-        y = np.asarray(y, dtype=float)
+        angle, x, y = (np.asarray(a, dtype=float) for a in tip_path)
         if not (angle.ndim == 1 and angle.shape == x.shape == y.shape and angle.size >= 8):
             raise DesignError('tip_path', f'{angle.size} samples', '>= 8 samples of equal length '
                               'angle, x, y')
@@ -190,7 +191,7 @@ class PathPlanting(Planting):
         phi_in, phi_out = crossing(-1.0), crossing(+1.0)
         self.exit_angle = phi_out - phi_p
         self.entry_angle = phi_p - phi_in
-        self._arc = np.linspace(phi_in, phi_out, int(samples)) - phi_p
+        self._arc = np.linspace(phi_in, phi_out, self.ARC_SAMPLES) - phi_p
         self._arc_x = self._x(self._arc + phi_p)
         # frame velocity of the tip along x at release: zero slip when v/ω = -dx/dφ
         self.release_advance = -float(self._x(phi_p, 1))

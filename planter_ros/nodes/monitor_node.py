@@ -49,10 +49,10 @@ from planter_ros.nodes.parameters import ParameterGroup, declare_rows, refuse_un
 from planter_ros.nodes.run import run_node
 from planter_ros.recording.errors import BagWriteError
 from planter_ros.recording.monitor_topics import plants_message, quality_message
-from planter_ros.recording.recorder import Recorder, RecorderConfig
+from planter_ros.recording.recorder import BagLayout, Recorder, RecorderConfig
 from planter_ros.recording.replay import map_record
 from planter_ros.rows import rows_record
-from planter_ros.sensing.plant_map import MapSettings
+from planter_ros.sensing.plant_map import GnssFix, MapSettings
 
 STALE_AFTER = 2.0          # s without input samples before the status says STALE
 HARDWARE_ID = 'planter'    # the hardware_id of the monitor's statuses
@@ -136,10 +136,9 @@ class MonitorNode(Node):
     # -- recording -----------------------------------------------------------------------
     def _start_recorder(self, recording):
         try:
-            self.recorder = Recorder(recording.bag_path or None,
-                                     split_size=recording.split_size,
-                                     split_duration=recording.split_duration,
-                                     flush_period=recording.flush_period)
+            self.recorder = Recorder(recording.bag_path or None, BagLayout(
+                split_size=recording.split_size, split_duration=recording.split_duration,
+                flush_period=recording.flush_period))
         except BagWriteError as exc:
             self.record_error = str(exc)
             self.get_logger().error(f'not recording: {exc}')
@@ -232,8 +231,9 @@ class MonitorNode(Node):
         """A GNSS fix: it may place the plants held for it."""
         self.samples_taken += 1
         cov = msg.position_covariance
-        self._publish(self.pipeline.fix(t, msg.status.status, msg.latitude, msg.longitude,
-                                        cov[0], cov[4], msg.position_covariance_type), now)
+        self._publish(self.pipeline.fix(GnssFix(t, msg.status.status, msg.latitude,
+                                                msg.longitude, cov[0], cov[4],
+                                                msg.position_covariance_type)), now)
 
     def _on_command(self, _msg, _t, _now):
         """Speed commands: recorded; counted, since the lock-step feeder waits on every message

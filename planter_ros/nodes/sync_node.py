@@ -111,12 +111,12 @@ class SyncNode(Node):
         self._ready = False
         self.hold_reason = restart_hold_reason(self.loop)   # the rows wait for an operator
         self._in_process_held = False
+        settings = CommandSettings(cfg, self.loop, self.rows, law.value, setups=setups)
         if self.in_process:
-            self.engine = CommandEngine(cfg, self.loop, self.rows, law.value, bus=bus,
-                                        log=self._log, setups=setups)
+            self.engine = CommandEngine(settings, bus=bus, log=self._log)
         else:
             self.engine = CommandClient(
-                CommandSettings(cfg, self.loop, self.rows, law.value, setups=setups),
+                settings,
                 log=self._log, stop_asked=self._stop_asked, on_exit=self._command_stopped,
                 enable_service=self.resolve_service_name(interfaces.ENABLE_ROWS.name))
         self.bus_load = self.engine.bus_load

@@ -21,17 +21,19 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 import math
+import multiprocessing
 import time
 from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planter_ros.host.processes import die_with_parent
 from planter_ros.kinematics.arrays import FloatArray
 
 from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.three_arm.batch import CurveBasis, MechanismBatch
-from planter_ros.kinematics.three_arm.gear_train import ThreeArmMechanism
+from planter_ros.kinematics.three_arm.gear_train import Installation, ThreeArmMechanism
 from planter_ros.kinematics.three_arm.goals import (GOAL_NAMES, Goal, evaluate_goals,
                                                     goal_bounds, goal_settings, goal_values,
                                                     violation)
@@ -109,7 +111,8 @@ class BatchScorer:
         vectors = np.atleast_2d(np.asarray(vectors, dtype=float))
         n = self.n
         with np.errstate(all='ignore'):
-            mech = MechanismBatch(self.basis, vectors[:, :n], *vectors[:, n:n + 5].T)
+            mech = MechanismBatch(self.basis, vectors[:, :n],
+                                  Installation(*vectors[:, n:n + 5].T))
             values = goal_values(mech, self.cfg, self.samples)
             total = np.zeros(len(vectors))
             passing = np.zeros(len(vectors), dtype=int)
@@ -132,9 +135,6 @@ _WORKER: dict[str, BatchScorer] = {}       # a pool worker's scorer
 
 
 def _worker_init(base: SceneParams, margin: float, samples: int) -> None:
-    import multiprocessing
-
-    from planter_ros.host.processes import die_with_parent
     parent = multiprocessing.parent_process()
     if parent is not None and parent.pid is not None:     # (a pool worker has one)
         die_with_parent(parent.pid)          # no orphan when the search dies
@@ -158,7 +158,6 @@ class PopulationScorer:
         self.workers = workers
         self._pool: Pool | None = None
         if workers > 1:
-            import multiprocessing
             self._pool = multiprocessing.get_context('fork').Pool(
                 workers, initializer=_worker_init, initargs=(base, margin, samples))
 
@@ -236,17 +235,31 @@ class _SearchState:
     latest: tuple[float, int] = (math.inf, 0)        # this generation's best (score, goals)
 
 
-def optimize(base: SceneParams, seed: int = 1, max_time: float = 60.0, popsize: int = POPSIZE,
-             progress: Callable[[SearchProgress], object] | None = None,
-             max_generations: int | None = None, workers: int = 1
-             ) -> tuple[dict[str, Any], list[Goal] | None, SearchInfo]:
-    """Run differential evolution from the scene `base`; returns (params, goals, info).
-    `progress(SearchProgress)` is called after every generation.
+@dataclass(frozen=True)
+class SearchOptions:
+    """How a search runs: the random seed, when it stops (seconds, or generations: None for
+    no limit), the population per dimension and the processes sharing each generation.
 
     Stopping on `max_generations` (not on time) makes a run reproducible to the bit; `workers`
-    processes share each generation's batch without changing the result.
-    """
+    processes share each generation's batch without changing the result."""
+
+    seed: int = 1
+    max_time: float = 60.0
+    popsize: int = POPSIZE
+    max_generations: int | None = None
+    workers: int = 1
+
+
+def optimize(base: SceneParams, options: SearchOptions = SearchOptions(),
+             progress: Callable[[SearchProgress], object] | None = None
+             ) -> tuple[dict[str, Any], list[Goal] | None, SearchInfo]:
+    """Run differential evolution from the scene `base` as `options` say; returns (params,
+    goals, info). `progress(SearchProgress)` is called after every generation."""
+    # lazy: scipy.optimize costs 300 ms and only a search needs it; scoring designs (BatchScorer,
+    # score, the bench's batch case) does not
     from scipy.optimize import differential_evolution
+    seed, max_time, popsize = options.seed, options.max_time, options.popsize
+    max_generations, workers = options.max_generations, options.workers
     n = len(base['control_angles'])
     bounds = [RADIUS_BOUNDS] * n + list(INSTALL_BOUNDS.values())
     state = _SearchState()

@@ -12,8 +12,8 @@ mechanism's planting geometry they use is kinematics.planting. Pure numpy/scipy,
 depends downward only (kinematics, sensing, design, config).
 """
 
-from .acceptance import (AcceptanceLimits, acceptance_failures, format_acceptance,
-                         judge_acceptance)
+from .acceptance import (Acceptance, AcceptanceLimits, acceptance_failures,
+                         format_acceptance, judge_acceptance)
 from .model import (PlantPredictor, PredictionSettings, RowInputs, clean_samples,
                     plant_values, planting_model_from_design, predict_plants, predict_rows,
                     prediction_notes, travelled_distance)
@@ -25,7 +25,8 @@ from .summary import summarize
 from .seedlings import (REASONS, STATUSES, SeedlingAccount, design_spacing_of, reason_name,
                         seedling_spacings, status_counts, status_name)
 
-__all__ = ['AcceptanceLimits', 'acceptance_failures', 'format_acceptance', 'judge_acceptance',
+__all__ = ['Acceptance', 'AcceptanceLimits', 'acceptance_failures', 'format_acceptance',
+           'judge_acceptance',
            'PLANT_FIELDS', 'Plants', 'summarize', 'PredictionSettings', 'PlantPredictor',
            'predict_plants', 'predict_rows', 'RowInputs', 'plant_values',
            'planting_model_from_design', 'prediction_notes',

@@ -29,14 +29,15 @@ passes. An index a row that planted cannot give (no spacings, fewer than two sin
 for the CV) is listed as not judged, never as passed or failed. Pure: no ROS, no numpy.
 """
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import math
-from typing import Any
+from typing import Any, TypedDict
 
-from planter_ros.config import check, setting
+from planter_ros.config import as_dict, check, setting
 from planter_ros.kinematics.errors import DesignError
 
-__all__ = ['ACCEPTANCE_SOURCE', 'AcceptanceLimits', 'LIMITS', 'judge_acceptance',
+__all__ = ['ACCEPTANCE_SOURCE', 'AcceptanceLimits', 'Acceptance', 'LIMITS', 'judge_acceptance',
            'format_acceptance', 'acceptance_failures']
 
 ACCEPTANCE_SOURCE = ('spacing limits: DB32/T 1023-2007 (a provincial seeder standard, a '
@@ -71,8 +72,35 @@ class AcceptanceLimits:
         check(self, DesignError.from_message)
 
 
+class Failure(TypedDict):
+    """An index a row failed: its value against the limit, and the line for people."""
+
+    row: str
+    index: str
+    value: float
+    limit: float
+    text: str
+
+
+class NotJudged(TypedDict):
+    """An index a row cannot give (no value), and the line for people."""
+
+    row: str
+    index: str
+    text: str
+
+
+class Acceptance(TypedDict):
+    """A run judged against a crop's limits (judge_acceptance): JSON-ready."""
+
+    passed: bool
+    failed: list[Failure]
+    not_judged: list[NotJudged]
+    limits: dict[str, Any]
+
+
 # (limit field, figure name for people, where the figure is in a summary, sense, percent?)
-LIMITS = (
+LIMITS: tuple[tuple[str, str, tuple[str, ...], str, bool], ...] = (
     ('min_quality_of_feed', 'quality of feed', ('spacing_quality', 'quality_of_feed_index'),
      '>=', True),
     ('max_multiple_index', 'multiple index', ('spacing_quality', 'multiple_index'), '<=', True),
@@ -83,8 +111,8 @@ LIMITS = (
 )
 
 
-def _figure(summary: dict, path: tuple) -> Any:
-    value = summary
+def _figure(summary: Mapping[str, Any], path: tuple[str, ...]) -> Any:
+    value: Any = summary
     for key in path:
         if not isinstance(value, dict):
             return None
@@ -96,12 +124,14 @@ def _text(value: float, percent: bool) -> str:
     return f'{100 * value:.1f} %' if percent else f'{1e3 * value:.1f} mm'
 
 
-def judge_acceptance(limits: AcceptanceLimits, judged: list[tuple[str, dict]]) -> dict:
+def judge_acceptance(limits: AcceptanceLimits,
+                     judged: Sequence[tuple[str, Mapping[str, Any]]]) -> Acceptance:
     """Judge each (row label, summary) of `judged` (summaries as prediction.summarize gives
     them; label '' for a machine judged as a whole) against `limits`: {'passed': bool,
     'failed': [{row, index, value, limit, text}], 'not_judged': [{row, index, text}],
     'limits': {field: value}}. JSON-ready."""
-    failed, not_judged = [], []
+    failed: list[Failure] = []
+    not_judged: list[NotJudged] = []
     for label, summary in judged:
         where = f'row {label}: ' if label else ''
         instants = summary.get('plants')               # (None: a summary that does not say)
@@ -127,17 +157,18 @@ def judge_acceptance(limits: AcceptanceLimits, judged: list[tuple[str, dict]]) -
                                'text': f'{where}{words} {_text(value, percent)} '
                                        f'{"<" if sense == ">=" else ">"} {_text(limit, percent)}'
                                        f' ({name})'})
-    from planter_ros.config import as_dict
     return {'passed': not failed, 'failed': failed, 'not_judged': not_judged,
             'limits': as_dict(limits)}
 
 
-def acceptance_failures(acceptance: dict | None) -> list[str]:
-    """The one-line texts of what failed (empty when it passed or was not judged)."""
-    return [item['text'] for item in (acceptance or {}).get('failed', [])]
+def acceptance_failures(acceptance: Mapping[str, Any] | None) -> list[str]:
+    """The one-line texts of what failed (empty when it passed or was not judged); an
+    Acceptance, or one read back from JSON."""
+    failed = (acceptance or {}).get('failed', [])
+    return [str(item['text']) for item in failed]
 
 
-def format_acceptance(acceptance: dict, source: str = '') -> str:
+def format_acceptance(acceptance: Mapping[str, Any], source: str = '') -> str:
     """One line for people: PASS, or FAIL and what failed."""
     head = 'acceptance' + (f' ({source})' if source else '')
     if acceptance['passed']:

@@ -66,6 +66,7 @@ from planter_ros.sensing.ground_speed_filter import (
 
 from .motion import Motion, arc_figures
 from .plants import PLANT_FIELDS, Plants
+from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
 
 __all__ = ['planting_model_from_design', 'prediction_notes', 'PredictionSettings',
            'clean_samples', 'travelled_distance', 'plant_values', 'predict_plants',
@@ -96,7 +97,7 @@ def planting_model_from_design(design: Design, nozzle_width: float | None = None
     if not isinstance(design, ThreeArm):
         raise DesignError('mechanism', design.mechanism, 'five_bar or three_arm')
     path = design.tip_path
-    return PathPlanting(path.angle, path.x, path.y, design.plants_per_revolution,
+    return PathPlanting((path.angle, path.x, path.y), design.plants_per_revolution,
                         design.planting_depth, design.plant_spacing, phase,
                         nozzle_width=nozzle_width)
 
@@ -203,9 +204,11 @@ def _first_k(model: Planting, theta0: float) -> int:
     return k
 
 
-def _crossing(theta_k: Floats, t0: Floats, t1: Floats, th0: Floats, th1: Floats, w0: Floats,
-              w1: Floats) -> tuple[Floats, Floats]:
-    """Instant and shaft speed where the running-maximum shaft angle reaches theta_k."""
+def _crossing(theta_k: Floats, before: tuple[Floats, Floats, Floats],
+              after: tuple[Floats, Floats, Floats]) -> tuple[Floats, Floats]:
+    """Instant and shaft speed where the running-maximum shaft angle reaches theta_k between
+    two joint samples `before` and `after` (t s, running-maximum angle rad, speed rad/s)."""
+    (t0, th0, w0), (t1, th1, w1) = before, after
     frac = (theta_k - th0) / (th1 - th0)
     t_e = t0 + frac * (t1 - t0)
     slope = (th1 - th0) / (t1 - t0)
@@ -263,22 +266,19 @@ class RowInputs(NamedTuple):
     breaks: Sequence[tuple[float, float]] = ()
 
 
-def predict_plants(speed_t: ArrayLike, speed_v: ArrayLike, joint_t: ArrayLike,
-                   joint_pos: ArrayLike, joint_vel: ArrayLike, model: Planting,
-                   settings: PredictionSettings = PredictionSettings(), row: int = 0,
+def predict_plants(inputs: RowInputs, model: Planting,
+                   settings: PredictionSettings = PredictionSettings(),
                    speed_filter: bool = True,
-                   changes: Sequence[tuple[float, Planting]] = (),
-                   breaks: Sequence[tuple[float, float]] = ()) -> Plants:
-    """All plants of a recording at once (vectorised): `predict_rows` of one row. Times in s
-    (same clock for both inputs), speeds m/s, shaft angle rad (unwrapped), shaft speed rad/s
-    (NaN or empty = not measured). `row` goes into every plant's row field; `speed_filter`
-    False takes speeds that already passed the plausibility rule (a row's speed from
-    sensing.row_speed). `changes`: (time s, model) of each later design, in time order, each in
-    force from the next planting instant after its time (module doc). `breaks`: (start, end)
-    times across which the row's section was off: the first plant after one has no spacing,
-    like after a gap in the inputs."""
-    return predict_rows([RowInputs(speed_t, speed_v, joint_t, joint_pos, joint_vel, row,
-                                   breaks)], model, settings, speed_filter, changes)
+                   changes: Sequence[tuple[float, Planting]] = ()) -> Plants:
+    """All plants of one row's recording at once (vectorised): `predict_rows` of one row.
+    `inputs`: times in s (same clock for both inputs), speeds m/s, shaft angle rad
+    (unwrapped), shaft speed rad/s (NaN or empty = not measured), the row field of every plant
+    and the (start, end) times across which the row's section was off (the first plant after
+    one has no spacing, like after a gap in the inputs). `speed_filter` False takes speeds that
+    already passed the plausibility rule (a row's speed from sensing.row_speed). `changes`:
+    (time s, model) of each later design, in time order, each in force from the next planting
+    instant after its time (module doc)."""
+    return predict_rows([inputs], model, settings, speed_filter, changes)
 
 
 def predict_rows(rows: Sequence[RowInputs], model: Planting,
@@ -301,19 +301,18 @@ def predict_rows(rows: Sequence[RowInputs], model: Planting,
     arcs = (_measured_arcs([(one.motion, one.which, one.theta_k) for one in parts], models,
                            settings.max_input_gap)
             if settings.measured_arc else None)
-    return _assemble([models[w] for one in parts for w in one.which], settings,
-                     np.concatenate([one.t_e for one in parts]),
-                     np.concatenate([one.omega for one in parts]),
-                     np.concatenate([one.v_e for one in parts]),
-                     np.concatenate([one.s_e for one in parts]),
-                     index0=0, prev_position=np.nan,
-                     recent=(), new_sequence=np.concatenate(
-                         [_after_gap(one.t_e, -np.inf, one.breaks) for one in parts]),
-                     row=[row for row, _ in found],
-                     arcs=None if arcs is None else (np.concatenate([a[0] for a in arcs]),
-                                                     np.concatenate([a[1] for a in arcs])),
-                     in_gap=np.concatenate([one.in_gap for one in parts]),
-                     sizes=[one.t_e.size for one in parts])
+    located = _Located([models[w] for one in parts for w in one.which],
+                       np.concatenate([one.t_e for one in parts]),
+                       np.concatenate([one.omega for one in parts]),
+                       np.concatenate([one.v_e for one in parts]),
+                       np.concatenate([one.s_e for one in parts]),
+                       np.concatenate([one.in_gap for one in parts]),
+                       np.concatenate([_after_gap(one.t_e, -np.inf, one.breaks)
+                                       for one in parts]),
+                       None if arcs is None else (np.concatenate([a[0] for a in arcs]),
+                                                  np.concatenate([a[1] for a in arcs])))
+    return _assemble(located, settings, _FIRST,
+                     [(row, one.t_e.size) for row, one in found])
 
 
 class _RowInstants(NamedTuple):
@@ -404,8 +403,8 @@ def _crossings(models: Sequence[Planting], change_times: Sequence[float], jt: Fl
             break
         theta_k = _threshold(model, ks.astype(float))
         i = np.searchsorted(theta, theta_k, side='left')
-        t_e, omega = (np.asarray(v) for v in _crossing(theta_k, jt[i - 1], jt[i], theta[i - 1],
-                                                       theta[i], jw[i - 1], jw[i]))
+        t_e, omega = (np.asarray(v) for v in _crossing(
+            theta_k, (jt[i - 1], theta[i - 1], jw[i - 1]), (jt[i], theta[i], jw[i])))
         # models[current + 1] comes with change_times[current]
         later = (np.nonzero(t_e > change_times[current])[0] if current < len(change_times)
                  else np.zeros(0, dtype=np.intp))
@@ -444,26 +443,45 @@ def _after_gap(t_e: FloatArray, t_before: float, gaps: FloatArray) -> NDArray[np
     return (n > 0) & (latest_end[np.maximum(n - 1, 0)] > before)
 
 
-def _assemble(models: Planting | Sequence[Planting], settings: PredictionSettings,
-              t_e: FloatArray, omega: FloatArray, v_e: FloatArray, s_e: FloatArray,
-              index0: int, prev_position: float, recent: Sequence[float],
-              new_sequence: NDArray[np.bool_], row: int | Sequence[int] = 0,
-              arcs: tuple[FloatArray, FloatArray] | None = None,
-              in_gap: NDArray[np.bool_] | None = None,
-              sizes: Sequence[int] | None = None) -> Plants:
-    """Plants from their instants, speeds and positions; `models[p]` is the design in force
-    for plant p (one model: for all of them); `arcs`: (sweep, tilt) of the measured arcs;
-    `in_gap`: the plants inside an input gap. `sizes`: the plants are several rows' one after
-    the other, sizes[r] plants of row[r] each, every row numbered from `index0`, its first
-    spacing from `prev_position` and its rolling rate on its own plants (`recent`: the flags
-    before the first row's); None: all of row `row`."""
+class _Located(NamedTuple):
+    """Plants' planting instants located in the inputs, one entry per plant."""
+
+    models: Sequence[Planting]       # the design in force
+    t_e: FloatArray                  # instant (s)
+    omega: FloatArray                # shaft speed (rad/s)
+    v_e: FloatArray                  # ground speed (m/s)
+    s_e: FloatArray                  # travelled distance (m)
+    in_gap: NDArray[np.bool_]        # inside an input gap
+    new_sequence: NDArray[np.bool_]  # an input gap or a break since the plant before
+    arcs: tuple[FloatArray, FloatArray] | None    # (sweep, tilt) of the measured arcs
+
+
+class _Before(NamedTuple):
+    """Where a row's plants go on from: the index of the next plant, the position of the last
+    one (m; NaN: none) and the upright flags of the last ones (the rolling rate's)."""
+
+    index0: int
+    prev_position: float
+    recent: Sequence[float]
+
+
+_FIRST = _Before(0, math.nan, ())
+
+
+def _assemble(located: _Located, settings: PredictionSettings, before: _Before,
+              sizes: Sequence[tuple[int, int]]) -> Plants:
+    """Plants from their located instants (`located.models[p]` the design in force for plant
+    p). `sizes`: (row, count) of each row, the plants being the rows' one after the other,
+    every row numbered from `before.index0`, its first spacing from `before.prev_position`
+    and its rolling rate on its own plants (`before.recent`: the flags before the first
+    row's)."""
+    models, t_e, omega, v_e, s_e, in_gap, new_sequence, arcs = located
+    index0, prev_position, recent = before
     n = t_e.size
-    rows = np.asarray([row] if sizes is None else row, dtype=float)
-    counts = np.asarray([n] if sizes is None else sizes, dtype=np.intp)
+    rows = np.asarray([row for row, _ in sizes], dtype=float)
+    counts = np.asarray([count for _, count in sizes], dtype=np.intp)
     first = np.cumsum(counts) - counts                   # each row's first plant
-    in_gap = np.zeros(n, dtype=bool) if in_gap is None else np.asarray(in_gap, dtype=bool)
-    if isinstance(models, Planting):
-        models = [models] * n
+    in_gap = np.asarray(in_gap, dtype=bool)
     if arcs is None:
         arcs = (np.full(n, np.nan), np.full(n, np.nan))
     ratio, sweep, hole, tilt, upright = (np.zeros(n) for _ in range(5))
@@ -493,7 +511,6 @@ def _assemble(models: Planting | Sequence[Planting], settings: PredictionSetting
     with np.errstate(invalid='ignore', divide='ignore'):
         rate = np.where(counted > 0, (csum[end] - csum[start]) / np.maximum(counted, 1),
                         np.nan) if n else np.zeros(0)
-    from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
     return Plants(index=(np.arange(n) - np.repeat(first, counts) + index0).astype(float),
                   time=t_e, position=s_e, spacing=spacing, spacing_error=spacing - d,
                   speed_ratio=ratio, ground_speed=v_e, shaft_speed=omega, hole_width=hole,
@@ -566,9 +583,10 @@ class PlantPredictor:
             return self._nothing()
         self._speed_seen = t
         if self._speed_filter is not None:
-            v, _ = self._speed_filter.check(v, t)
-        if v is None:
-            return self._nothing()
+            used, _ = self._speed_filter.check(v, t)
+            if used is None:
+                return self._nothing()
+            v = used
         if self._speed:
             t0, v0, s0 = self._speed[-1]
             s = s0 + 0.5 * (v0 + v) * (t - t0)
@@ -604,7 +622,7 @@ class PlantPredictor:
             self._gaps.append((t0, t))
         while _threshold(self.model, float(self._next_k)) <= th1:
             theta_k = _threshold(self.model, float(self._next_k))
-            t_e, omega = _crossing(theta_k, t0, t, th0, th1, w0, velocity)
+            t_e, omega = _crossing(theta_k, (t0, th0, w0), (t, th1, velocity))
             # a crossing inside a gap: reported, interpolated and flagged (module doc)
             self._pending.append(_Pending(float(t_e), float(omega), self.model, theta_k,
                                           in_gap))
@@ -681,9 +699,10 @@ class PlantPredictor:
         arcs = self._arcs(models, angles) if self.settings.measured_arc else None
         new_sequence = _after_gap(instants, self._prev_time,
                                   np.array(self._gaps).reshape(-1, 2))
-        plants = _assemble(models, self.settings, instants, omegas, speeds, places, self._count,
-                           self._prev_position, tuple(self._recent), new_sequence, self.row,
-                           arcs, in_gap=gaps.astype(bool))
+        plants = _assemble(_Located(models, instants, omegas, speeds, places,
+                                    gaps.astype(bool), new_sequence, arcs), self.settings,
+                           _Before(self._count, self._prev_position, tuple(self._recent)),
+                           [(self.row, instants.size)])
         self._count += len(plants)
         self._prev_position = float(plants.position[-1])
         self._prev_time = float(plants.time[-1])

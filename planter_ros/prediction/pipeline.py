@@ -32,7 +32,7 @@ import math
 
 from planter_ros.design import Design
 from planter_ros.rows import Row
-from planter_ros.sensing.plant_map import MapSettings, Placement, PlantPlacer
+from planter_ros.sensing.plant_map import GnssFix, MapSettings, Placement, PlantPlacer
 from planter_ros.sensing.row_speed import RowSpeedStream
 
 from planter_ros.kinematics.planting import Planting
@@ -110,7 +110,7 @@ class MonitorPipeline:
         self.upright_rate: float | None = None    # the rate after it
 
     # -- configuration -------------------------------------------------------------------
-    def _new_placer(self, settings: MapSettings) -> PlantPlacer:
+    def _new_placer(self, settings: MapSettings) -> PlantPlacer[Plants]:
         return PlantPlacer(settings, self._antenna,
                            {row.index: row.lateral_offset for row in self.rows},
                            {row.index: row.longitudinal_offset for row in self.rows})
@@ -193,11 +193,9 @@ class MonitorPipeline:
             out += self._predicted(on, predictor.add_joint(t, positions[i], velocity))
         return out
 
-    def fix(self, t: float, status: int, latitude: float, longitude: float, cov_east: float,
-            cov_north: float, cov_type: int) -> list[Placed]:
-        """A GNSS fix stamped `t` (sensor_msgs/NavSatFix's fields): it may place plants held."""
-        return self._released(self._placer.add_fix(t, status, latitude, longitude, cov_east,
-                                                   cov_north, cov_type))
+    def fix(self, fix: GnssFix) -> list[Placed]:
+        """A GNSS fix (sensor_msgs/NavSatFix's fields): it may place plants held."""
+        return self._released(self._placer.add_fix(fix))
 
     def sections(self, t: float, states: Mapping[str, bool]) -> None:
         """The rows' section states {row name: on} at `t`: a row switched off and on again

@@ -6,8 +6,8 @@ the switch-on point anyway). The sync node publishes every row's section state (
 topic, interfaces.SECTIONS); from those states in time order `SectionBreaks` finds each instant
 a row was switched on again after being off: a break (start = end = that instant). The
 prediction treats it like a gap in its inputs: the first plant after it has no spacing
-(`PlantPredictor.add_break`, `predict_plants(breaks=...)`), while a plant the mechanism could no
-longer stop in front of the soil after the switch-off keeps its own.
+(`PlantPredictor.add_break`, `RowInputs.breaks` of `predict_plants`), while a plant the
+mechanism could no longer stop in front of the soil after the switch-off keeps its own.
 The live monitor feeds the states as they come, replay all at once (`section_breaks`); both
 through the same class. Pure Python, no ROS.
 """

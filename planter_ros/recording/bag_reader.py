@@ -24,6 +24,7 @@ from planter_ros import interfaces
 
 from .cdr import Raw
 from .errors import BagUnreadableError
+from .indexed import IndexedFile
 from .recovery import Loss, one_line, read_records
 
 MAGIC = b'\x89MCAP0\r\n'
@@ -78,6 +79,8 @@ def _bag_parts(path: str | Path) -> tuple[list[Path], list[tuple[int, Loss]]]:
 
 def _listed_files(directory: Path) -> list[tuple[str, int | None, int | None]]:
     """[(file name, start ns, end ns)] from a rosbag2 metadata.yaml, or [] (none, unreadable)."""
+    # lazy: PyYAML costs 18 ms and only a bag directory has a metadata.yaml; a single .mcap
+    # file is read without it
     from planter_ros.safe_yaml import YamlError, load_yaml
     meta = directory / 'metadata.yaml'
     try:
@@ -259,7 +262,6 @@ def _read_fast(file: Path, wanted: Iterable[interfaces.Topic]
                ) -> tuple[dict[int, tuple[str, str]], Blocks, dict[str, dict[str, str]]]:
     """A finalised file through its indexes: (channels {id: (topic, type)}, {id: (log times,
     raw CDR)} of the wanted topics' channels, metadata records). Raises on anything damaged."""
-    from .indexed import IndexedFile
     with IndexedFile(file) as indexed:
         ids = {cid for cid, _ in pick_topics(indexed.channels, wanted).values()}
         blocks: Blocks = dict(indexed.messages(ids))

@@ -44,6 +44,7 @@ import struct
 from typing import Any, Protocol, overload
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
 from planter_ros.kinematics.arrays import FloatArray
@@ -99,7 +100,6 @@ class Packed(Sequence[memoryview]):
     def block(self, idx: NDArray[np.intp], size: int) -> NDArray[np.uint8]:
         """(len(idx), size) bytes: the first `size` bytes of the messages `idx` (each at least
         that long), one row each."""
-        from numpy.lib.stride_tricks import sliding_window_view
         head = np.frombuffer(self.data, dtype=np.uint8)
         return sliding_window_view(head, size)[self.start[idx]]
 
@@ -299,7 +299,7 @@ def _bulk(raws: Sequence[Raw],
                 pending = pending[~match]
             # every message at once in order (one length, one layout): no row gathered
             everything = idx.size == count and rows.size == count
-            _read(block, idx, None if everything else rows, e, offsets, stamps, values)
+            _read(block, idx, None if everything else rows, (e, offsets), (stamps, values))
     return stamps, values
 
 
@@ -330,10 +330,13 @@ def _field(block: NDArray[np.uint8], rows: NDArray[np.intp] | None, offset: int,
 
 
 def _read(block: NDArray[np.uint8], idx: NDArray[np.intp], rows: NDArray[np.intp] | None,
-          e: str, offsets: tuple[tuple[int, str] | int | None, ...],
-          stamps: NDArray[np.int64], values: FloatArray) -> None:
-    """Stamps and values of `rows` (all of one layout) into the outputs at idx[rows]; rows
-    None: every message, block row i being message i."""
+          layout: tuple[str, tuple[tuple[int, str] | int | None, ...]],
+          out_columns: tuple[NDArray[np.int64], FloatArray]) -> None:
+    """Stamps and values of `rows` (all of one `layout`: byte order, offsets) into the
+    outputs `out_columns` (stamps, values) at idx[rows]; rows None: every message, block row i
+    being message i."""
+    e, offsets = layout
+    stamps, values = out_columns
     out = slice(None) if rows is None else idx[rows]
     sec = _field(block, rows, STAMP, e + 'i4').astype(np.int64)
     nsec = _field(block, rows, STAMP + 4, e + 'u4').astype(np.int64)

@@ -25,19 +25,16 @@ from collections.abc import Collection, Sequence
 import mmap
 from pathlib import Path
 import struct
-from typing import TYPE_CHECKING
 
 from isal.isal_zlib import crc32
+from mcap.records import ChunkIndex, Message, Metadata
 import numpy as np
 from numpy.typing import NDArray
+import zstandard
 
 from .cdr import Packed, Raw
 from .errors import BagDamagedError
 from .recovery import OpenedChunk, check_chunk_header, read_summary, record_at
-
-if TYPE_CHECKING:
-    from mcap.records import ChunkIndex
-    import zstandard
 
 _MESSAGE = 0x05
 _MESSAGE_INDEX = 0x07
@@ -80,7 +77,6 @@ class IndexedFile:
 
     def metadata(self) -> dict[str, dict[str, str]]:
         """{record name: {key: value}} of the metadata records the summary indexes."""
-        from mcap.records import Metadata
         out = {}
         for index in self._summary['metadata']:
             _, record, _ = record_at(self._data, index.offset)
@@ -180,10 +176,10 @@ class IndexedFile:
         raw = data[body + 40 + n:body + 40 + n + stored]
         if compression == 'zstd':
             if self._zstd is None:            # one per file: a context costs as much as a chunk
-                import zstandard
                 self._zstd = zstandard.ZstdDecompressor()
             records = self._zstd.decompress(raw, max_output_size=size)
         elif compression == 'lz4':
+            # lazy: lz4 is optional (requirements: only for bags with lz4 chunks)
             import lz4.frame
             records = lz4.frame.decompress(raw)
         else:
@@ -207,7 +203,6 @@ class IndexedFile:
 
     def _whole_chunk(self, index: ChunkIndex,
                      out: dict[int, tuple[list[int], list[Raw]]]) -> None:
-        from mcap.records import Message
         _, chunk, _ = record_at(self._data, index.chunk_start_offset)
         if not isinstance(chunk, OpenedChunk):
             raise BagDamagedError(f'chunk index points at byte {index.chunk_start_offset}, not at '

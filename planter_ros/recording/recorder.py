@@ -33,10 +33,13 @@ import sys
 import time
 from typing import TYPE_CHECKING, BinaryIO
 
+from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 import yaml
 
 from planter_ros.config import check, setting
+from planter_ros.interfaces import Qos
 
+from .cdr import encode_message
 from .errors import BagWriteError
 
 if TYPE_CHECKING:               # rclpy only where a message is serialised: replay needs none
@@ -87,7 +90,6 @@ class RecorderConfig:
 
 def _share_dir(package: str) -> Path:
     os.environ.setdefault('AMENT_PREFIX_PATH', sys.prefix)
-    from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
     try:
         return Path(get_package_share_directory(package))
     except PackageNotFoundError:
@@ -150,7 +152,6 @@ def type_hash(type_name: str) -> str:
 def qos_yaml(qos: Qos | QoSProfile | dict[str, object] | None) -> str:
     """offered_qos_profiles YAML (rosbag2 v9 style) of an interfaces.Qos, an rclpy QoSProfile
     or a ready dict."""
-    from planter_ros.interfaces import Qos
     if isinstance(qos, Qos):
         qos = qos.profile()
     profiles: list[dict[str, object]]
@@ -227,19 +228,30 @@ class _OpenFile:
     end: int | None = None
 
 
-class Recorder:
-    """Write CDR messages into an MCAP bag in rosbag2's layout.
+@dataclass(frozen=True)
+class BagLayout:
+    """How a bag is cut into files and chunks (SI): `split_size` bytes per file (0 = no size
+    split), `split_duration` seconds of log time per file (0 = none), `flush_period` seconds
+    between chunk flushes (the most a SIGKILL can lose), `chunk_size` bytes of uncompressed
+    chunk that force an earlier flush. The Recorder checks the first three as RecorderConfig
+    does."""
 
-    Parameters (SI): `split_size` bytes per file (0 = no size split), `split_duration` seconds
-    of log time per file (0 = none), `flush_period` seconds between chunk flushes (the most a
-    SIGKILL can lose), `chunk_size` bytes of uncompressed chunk that force an earlier flush.
-    Times passed to `write` are integer nanoseconds.
+    split_size: int = 0
+    split_duration: float = 0.0
+    flush_period: float = 1.0
+    chunk_size: int = 1 << 20
+
+
+class Recorder:
+    """Write CDR messages into an MCAP bag in rosbag2's layout, cut as `layout` (BagLayout)
+    says. Times passed to `write` are integer nanoseconds.
     """
 
-    def __init__(self, path: str | Path | None = None, *, split_size: int = 0,
-                 split_duration: float = 0.0, flush_period: float = 1.0,
-                 chunk_size: int = 1 << 20, bags_dir: str | Path = 'bags',
+    def __init__(self, path: str | Path | None = None, layout: BagLayout = BagLayout(), *,
+                 bags_dir: str | Path = 'bags',
                  monotonic: Callable[[], float] = time.monotonic) -> None:
+        split_size, split_duration = layout.split_size, layout.split_duration
+        flush_period, chunk_size = layout.flush_period, layout.chunk_size
         RecorderConfig(split_size=split_size, split_duration=split_duration,
                        flush_period=flush_period)          # BagWriteError if out of range
         path = default_bag_path(bags_dir) if path in (None, '') else Path(path)
@@ -321,7 +333,6 @@ class Recorder:
         deterministically (recording.cdr.encode_message: padding zeroed, no bytes after the
         last field, unlike rclpy's serialize_message), so the same messages give the same
         bytes and every reader decodes them without a size mismatch."""
-        from .cdr import encode_message
         self.write(topic, encode_message(msg), log_time, publish_time)
 
     def tick(self) -> None:
@@ -400,6 +411,8 @@ class Recorder:
 
     def _open_file(self) -> _OpenFile:
         """Start the next file: every topic and metadata record declared again."""
+        # lazy: mcap.writer costs 35 ms and only a bag written needs it (a monitor with
+        # record: false imports this module and writes none)
         from mcap.writer import CompressionType, Writer
         path = self._file_path(len(self.files))
         try:

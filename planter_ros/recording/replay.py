@@ -28,7 +28,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import json
-from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 from pathlib import Path
 import struct
 
@@ -43,11 +43,12 @@ from planter_ros.kinematics.arrays import FloatArray
 from planter_ros.kinematics.planting import Planting
 from planter_ros.kinematics.design_inputs import DesignInputs
 from planter_ros.prediction import (
-    PLANT_FIELDS, AcceptanceLimits, Plants, PredictionSettings, RowInputs, SeedlingAccount,
-    design_spacing_of, judge_acceptance, planting_model_from_design, predict_rows,
-    prediction_notes, section_breaks, summarize)
+    PLANT_FIELDS, Acceptance, AcceptanceLimits, Plants, PredictionSettings, RowInputs,
+    SeedlingAccount, design_spacing_of, judge_acceptance, planting_model_from_design,
+    predict_rows, prediction_notes, section_breaks, summarize)
 from planter_ros.rows import Row, implicit_row, rows_from_record
-from planter_ros.sensing.plant_map import MapSettings, Placement, fix_sigma, place_plants
+from planter_ros.sensing.plant_map import (
+    GnssFix, MapSettings, Placement, PlantSpots, fix_sigma, place_plants)
 from planter_ros.sensing.row_speed import motion_samples, row_speed_samples
 
 from .bag_reader import Recording, TopicMessages, read_recording
@@ -90,7 +91,7 @@ class ReplayResult:
     fixes: int                    # usable GNSS fixes in the bag
     nozzle_width: float           # m, of the last design's predictions
     recorded_fields: tuple[str, ...]  # the PLANT_FIELDS the live recording has (older: fewer)
-    acceptance: dict[str, Any]    # the run judged by the crop's limits (judge_acceptance)
+    acceptance: Acceptance        # the run judged by the crop's limits (judge_acceptance)
     acceptance_source: str        # whose limits: the bag's, a scene's, the defaults
     seedling_readings: dict[int, tuple[FloatArray, FloatArray]]  # {row: (times s, counts)}
 
@@ -255,11 +256,11 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
         st = np.where(s_stamp[s_sel] != 0, s_stamp[s_sel], s_log[s_sel]) * 1e-9
         # the machine's motion as the rows use it, and each row's own speed v − ω_z·y,
         # filtered as the sync node and the monitor do
-        motion = motion_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits,
+        twist = (st, s_v[s_sel], s_w[s_sel])
+        motion = motion_samples(twist, offsets, settings.speed_limits,
                                 yaw=True if fixes[0].size else None)
         motions.append(motion)
-        rt, rv = row_speed_samples(st, s_v[s_sel], s_w[s_sel], offsets, settings.speed_limits,
-                                   motion=motion)
+        rt, rv = row_speed_samples(twist, offsets, settings.speed_limits, motion=motion)
         raws = take(joint.raw, j_order[j_idx])
         j_stamp, j_positions, j_velocities = decode_joints(
             raws, [row.joint(mechanism) for row in planting])
@@ -289,12 +290,12 @@ def replay(path: str | Path, settings_overrides: Mapping[str, object] | None = N
     plants = account.apply(plants, design_spacing)
     offset_of = {row.index: row.lateral_offset for row in rows}
     forward_of = {row.index: row.longitudinal_offset for row in rows}
-    placement = place_plants(plants.time, [offset_of.get(int(r), 0.0) for r in plants.row],
-                             tuple(np.concatenate(c) for c in zip(*motions)), fixes,
-                             map_settings, antenna.antenna_position,
-                             [forward_of.get(int(r), 0.0) for r in plants.row])
+    spots = PlantSpots(plants.time, [offset_of.get(int(r), 0.0) for r in plants.row],
+                       [forward_of.get(int(r), 0.0) for r in plants.row])
+    placement = place_plants(spots, tuple(np.concatenate(c) for c in zip(*motions)), fixes,
+                             map_settings, antenna.antenna_position)
     plants.latitude, plants.longitude = placement.latitude, placement.longitude
-    usable_fixes = int(np.count_nonzero(np.isfinite(fix_sigma(*fixes[1:],
+    usable_fixes = int(np.count_nonzero(np.isfinite(fix_sigma(fixes,
                                                               map_settings.max_fix_sigma))))
     last_design, last_model = designs[-1][2], designs[-1][3]
     logs = np.concatenate((s_log, j_log))
@@ -443,28 +444,17 @@ def map_record(map_settings: MapSettings, antenna: AntennaSettings) -> dict[str,
                                           **config.as_dict(antenna)}.items()}
 
 
-class _Fixes(NamedTuple):
-    """The recorded GNSS fixes in log order (sensing.plant_map's `fixes`)."""
-
-    t: FloatArray                 # s, header stamp (receive time if 0)
-    status: FloatArray
-    latitude: FloatArray          # deg
-    longitude: FloatArray         # deg
-    var_east: FloatArray          # m², east and north variance
-    var_north: FloatArray
-    cov_type: FloatArray
-
-
-def _fixes(topic: TopicMessages | None) -> _Fixes:
-    """The recorded fixes of `topic` (none without it)."""
+def _fixes(topic: TopicMessages | None) -> GnssFix:
+    """The recorded fixes of `topic` in log order, arrays (none without it); t: the header
+    stamp (the receive time if 0)."""
     if topic is None or not topic.raw:
-        return _Fixes(*(np.zeros(0) for _ in range(7)))
+        return GnssFix(*(np.zeros(0) for _ in range(7)))
     log = np.asarray(topic.log, dtype=np.int64)
     order = np.argsort(log, kind='stable')
     stamp, status, latitude, longitude, var_east, var_north, cov_type = decode_navsatfix(
         take(topic.raw, order))
     t = np.where(stamp != 0, stamp, log[order]) * 1e-9
-    return _Fixes(t, status, latitude, longitude, var_east, var_north, cov_type)
+    return GnssFix(t, status, latitude, longitude, var_east, var_north, cov_type)
 
 
 def _section_breaks(rec: Recording,
@@ -556,8 +546,10 @@ def _recorded_plants(topic: TopicMessages) -> tuple[FloatArray, tuple[str, ...]]
     message (a field the recording lacks is NaN, e.g. tip_sweep and the map position in a
     recording made before them; `row` is 0 in a recording made before rows existed), and the
     fields it has."""
+    # lazy: rclpy costs 64 ms and only the comparison with the plants the live monitor
+    # recorded (with_recorded) reads them; replay itself imports no rclpy (test_offline_imports)
     from rclpy.serialization import deserialize_message
-    from std_msgs.msg import Float64MultiArray
+    from std_msgs.msg import Float64MultiArray  # lazy: as rclpy above
     tables, seen = [], set()
     for _, raw in sorted(zip(topic.log, topic.raw), key=lambda x: x[0]):
         try:

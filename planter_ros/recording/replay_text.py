@@ -8,7 +8,7 @@ import math
 from typing import TYPE_CHECKING
 
 from planter_ros import interfaces
-from planter_ros.prediction import format_acceptance, format_quality
+from planter_ros.prediction import format_acceptance, format_quality, reason_name, status_name
 
 if TYPE_CHECKING:
     from planter_ros.prediction import Plants
@@ -54,7 +54,6 @@ def _upright(value: float) -> str:
 
 
 def _status(p: Plants, i: int) -> str:
-    from planter_ros.prediction import reason_name, status_name
     return f'{status_name(p.status[i])} ({reason_name(p.reason[i])})'
 
 

@@ -8,14 +8,26 @@ growing with the time since the last sample taken, covers it. A plausible negati
 forward, and nothing integrates distance backwards. Pure Python, no ROS.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
+from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from planter_ros.config import check, setting
 
 REJECT_REASONS = ('non_finite', 'too_fast', 'spike', 'negative')
+
+
+class PlausibleRule(NamedTuple):
+    """The rule of one sensor's samples: at most `max_abs` in size, changing at most
+    `max_rate` per second from the last sample taken plus a noise `tolerance`."""
+
+    max_abs: float
+    max_rate: float
+    tolerance: float
 
 
 @dataclass(frozen=True)
@@ -31,19 +43,26 @@ class GroundSpeedLimits:
     ground_speed_tolerance: float = setting(
         0.05, 'sensor noise allowed on top of the spike limit', unit='m/s', range=(0.0, 1.0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self)
 
+    @property
+    def rule(self) -> PlausibleRule:
+        return PlausibleRule(self.max_ground_speed, self.max_ground_acceleration,
+                             self.ground_speed_tolerance)
 
-def implausible(x, t, ref_x, ref_t, max_abs, max_rate, tolerance):
-    """Why sample x at time t is not believable, or None: 'non_finite', 'too_fast' (|x| above
-    max_abs) or 'spike' (further from the last sample taken, ref_x at ref_t, than max_rate
-    allows over the time between them, plus the noise tolerance). The rule of every sensor."""
+
+def implausible(x: object, t: float, last: tuple[float, float] | None,
+                rule: PlausibleRule) -> str | None:
+    """Why sample x at time t is not believable under `rule` (PlausibleRule), or None:
+    'non_finite', 'too_fast' (|x| above max_abs) or 'spike' (further from the last sample
+    taken, `last` = (value, time) or None, than max_rate allows over the time between them,
+    plus the noise tolerance). The rule of every sensor."""
     if not isinstance(x, (int, float)) or not math.isfinite(x):
         return 'non_finite'
-    if abs(x) > max_abs:
+    if abs(x) > rule.max_abs:
         return 'too_fast'
-    if ref_x is not None and abs(x - ref_x) > tolerance + max_rate * (t - ref_t):
+    if last is not None and abs(x - last[0]) > rule.tolerance + rule.max_rate * (t - last[1]):
         return 'spike'
     return None
 
@@ -51,18 +70,17 @@ def implausible(x, t, ref_x, ref_t, max_abs, max_rate, tolerance):
 class GroundSpeedFilter:
     """Stateful sample check; `rejected` counts by reason, `accepted` counts the rest."""
 
-    def __init__(self, limits=GroundSpeedLimits()):
+    def __init__(self, limits: GroundSpeedLimits = GroundSpeedLimits()) -> None:
         self.limits = limits
         self.rejected = {r: 0 for r in REJECT_REASONS}
         self.accepted = 0
-        self._ref_v = None
-        self._ref_t = None
+        self._ref_v: float | None = None
+        self._ref_t = 0.0
 
-    def check(self, v, t):
+    def check(self, v: float, t: float) -> tuple[float | None, str | None]:
         """(speed to use or None, rejection reason or None) for sample v (m/s) at time t (s)."""
-        lim = self.limits
-        reason = implausible(v, t, self._ref_v, self._ref_t, lim.max_ground_speed,
-                             lim.max_ground_acceleration, lim.ground_speed_tolerance)
+        last = None if self._ref_v is None else (self._ref_v, self._ref_t)
+        reason = implausible(v, t, last, self.limits.rule)
         if reason is None and v < 0.0:
             reason = 'negative'
         if reason is not None:
@@ -75,10 +93,14 @@ class GroundSpeedFilter:
         return max(float(v), 0.0), reason
 
 
-def filter_ground_speed(t, v, limits=GroundSpeedLimits()):
+def filter_ground_speed(t: Sequence[float] | NDArray[np.float64],
+                        v: Sequence[float] | NDArray[np.float64],
+                        limits: GroundSpeedLimits = GroundSpeedLimits()
+                        ) -> tuple[list[float], list[float]]:
     """The samples of a whole recording the filter keeps, in order: (times, speeds) lists."""
     check = GroundSpeedFilter(limits).check
-    kept_t, kept_v = [], []
+    kept_t: list[float] = []
+    kept_v: list[float] = []
     for ti, vi in zip(t, v):
         used, _ = check(float(vi), float(ti))
         if used is not None:
@@ -90,12 +112,13 @@ def filter_ground_speed(t, v, limits=GroundSpeedLimits()):
 _WINDOW = 256        # samples checked at once against their predecessor (plausible_run)
 
 
-def plausible_run(x, t, max_abs, max_rate, tolerance):
-    """Which samples x (at increasing times t, arrays) a filter applying `implausible` one by
-    one would take: a boolean array. Each sample is judged against the last one taken, as the
-    stateful filters do, with the same arithmetic; a run of samples that are all taken is
-    judged at once (each against its predecessor), only the samples after a rejection one by
-    one until the next one is taken."""
+def plausible_run(x: ArrayLike, t: ArrayLike, rule: PlausibleRule) -> NDArray[np.bool_]:
+    """Which samples x (at increasing times t, arrays) a filter applying `implausible` with
+    `rule` (PlausibleRule) one by one would take: a boolean array. Each sample is judged
+    against the last one taken, as the stateful filters do, with the same arithmetic; a run
+    of samples that are all taken is judged at once (each against its predecessor), only the
+    samples after a rejection one by one until the next one is taken."""
+    max_abs, max_rate, tolerance = rule
     x = np.asarray(x, dtype=float)
     t = np.asarray(t, dtype=float)
     taken = np.zeros(x.size, dtype=bool)

@@ -49,6 +49,7 @@ from functools import lru_cache
 import math
 
 from planter_ros.config import ConfigError, check, setting
+from planter_ros.shipped import shipped_file
 
 __all__ = ['CourseYawRate', 'GroundSpeedSourceConfig', 'IsobusSpeedDecoder', 'PGNS',
            'PulseSpeed', 'SOURCES', 'SourceSelector', 'SpeedSample', 'Standstill', 'gnss_speed',
@@ -165,12 +166,13 @@ def imu_yaw_rate(angular_velocity_z, covariance0=0.0):
 
 @lru_cache(maxsize=4)
 def _database(path):
+    # lazy: cantools costs 93 ms and only an ISOBUS speed source decodes frames (the twist
+    # and odometry sources do not)
     import cantools
     return cantools.database.load_file(path)
 
 
 def default_dbc():
-    from planter_ros.shipped import shipped_file
     return str(shipped_file('isobus_speed.dbc'))
 
 
@@ -180,7 +182,7 @@ class IsobusSpeedDecoder:
     tractor marks as an error or not available (`rejected`, counted by reason)."""
 
     def __init__(self, dbc_path=None):
-        import cantools.j1939
+        import cantools.j1939  # lazy: cantools, as in _database
         self._j1939 = cantools.j1939
         db = _database(dbc_path or default_dbc())
         self._messages = {pgn: db.get_message_by_name(name)

@@ -32,9 +32,11 @@ which holds a plant until a fix stamped after it has arrived, or the first headi
 """
 
 from bisect import bisect_right
+from collections.abc import Mapping, Sequence
 from collections import deque
 from dataclasses import dataclass
 import math
+from typing import Any, Generic, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 
@@ -68,12 +70,49 @@ class MapSettings:
         check(self)
 
 
-def fix_sigma(status, latitude, longitude, cov_east, cov_north, cov_type, max_sigma):
-    """Horizontal σ (m) of each fix (arrays), NaN where the fix is not usable: no position
-    (status below STATUS_FIX or NaN, latitude or longitude not finite or out of range) or a
-    known covariance with σ above `max_sigma`. Unknown covariance: `max_sigma`."""
-    status, lat, lon, ce, cn, kind = (np.asarray(a, dtype=float) for a in (
-        status, latitude, longitude, cov_east, cov_north, cov_type))
+class GnssFix(NamedTuple):
+    """GNSS fixes as sensor_msgs/NavSatFix gives them: one fix (numbers) or a recording's in
+    arrival order (arrays)."""
+
+    t: Any                  # s, the stamp
+    status: Any             # NavSatStatus.status (STATUS_FIX and above: a position)
+    latitude: Any           # deg
+    longitude: Any          # deg
+    var_east: Any           # m², position_covariance[0]
+    var_north: Any          # m², position_covariance[4]
+    cov_type: Any           # position_covariance_type
+
+
+class PlantBatch(Protocol):
+    """What the placer needs of a batch of plants (prediction.Plants, a layer above): each
+    plant's instant (s) and row index, and its latitude and longitude to set (deg)."""
+
+    time: np.ndarray
+    row: np.ndarray
+    latitude: np.ndarray
+    longitude: np.ndarray
+
+    def __len__(self) -> int: ...
+
+
+_P = TypeVar('_P', bound=PlantBatch)
+
+
+class PlantSpots(NamedTuple):
+    """Plants to place: each one's instant (s) and its row's lever arms from the machine's
+    reference point (m; `forward` None: 0, on its line)."""
+
+    t: Any
+    lateral: Any
+    forward: Any = None
+
+
+def fix_sigma(fixes, max_sigma):
+    """Horizontal σ (m) of each fix of `fixes` (GnssFix of arrays), NaN where the fix is not
+    usable: no position (status below STATUS_FIX or NaN, latitude or longitude not finite or
+    out of range) or a known covariance with σ above `max_sigma`. Unknown covariance:
+    `max_sigma`."""
+    status, lat, lon, ce, cn, kind = (np.asarray(a, dtype=float) for a in fixes[1:])
     with np.errstate(invalid='ignore'):
         usable = ((status >= STATUS_FIX) & np.isfinite(lat) & np.isfinite(lon)
                   & (np.abs(lat) <= 90.0) & (np.abs(lon) <= 180.0))
@@ -230,26 +269,27 @@ class FixTrack:
             cut = bisect_right(self.times, horizon) - 1
             del self.times[:cut], self.transforms[:cut]
 
-    def add_all(self, t, latitude, longitude, sigma, pose, east, north):
+    def add_all(self, t, sigma, pose, east_north):
         """`add` of every usable fix of a recording at once, on a new track that keeps every
-        transform (replay): arrays of the fixes' instants (increasing), positions, σ, the
-        dead-reckoned poses (x, y, ψ arrays) and the fixes in the local frame. The same
+        transform (replay), anchored (`anchor`): arrays of the fixes' instants (increasing), σ,
+        the dead-reckoned poses (x, y, ψ arrays) and the fixes in the local frame (east,
+        north arrays). The same
         arithmetic as one `add` after the other, sum for sum and rebase for rebase: the
         running sums are accumulated in order (numpy's accumulate adds one after the other),
         the windows found with searchsorted (path and time only grow), and the angles, the
         path steps and the weights taken from `math` and Python floats as `add` takes them."""
-        if not self.keep_all or self._t:
-            raise ValueError('FixTrack.add_all: only on a new track keeping every transform')
+        if not self.keep_all or self._t or self.frame is None:
+            raise ValueError('FixTrack.add_all: only on a new anchored track keeping every '
+                             'transform')
         t = np.asarray(t, dtype=float)
         m = t.size
         if not m:
             return
         settings = self.settings
-        self.anchor(latitude[0], longitude[0])
         ax, ay = on_machine(np.asarray(pose[0], dtype=float), np.asarray(pose[1], dtype=float),
                             np.asarray(pose[2], dtype=float), *self.antenna)
         ax, ay = np.asarray(ax, dtype=float), np.asarray(ay, dtype=float)
-        e, n = np.asarray(east, dtype=float), np.asarray(north, dtype=float)
+        e, n = (np.asarray(a, dtype=float) for a in east_north)
         xs, ys = ax.tolist(), ay.tolist()
         steps = [math.hypot(xs[k] - xs[k - 1], ys[k] - ys[k - 1]) for k in range(1, m)]
         path = np.add.accumulate(np.concatenate(([0.0], steps)))
@@ -448,18 +488,18 @@ def _placement(track, t, offsets, pose, forward=None):
     return Placement(east, north, heading, lat, lon, origin)
 
 
-def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna, plant_forward=None):
-    """Replay's map: where each plant is (Placement), from all the recording's motion samples
-    `motion` = (t, v, ω_z) as the rows used them and `fixes` = (t, status, latitude, longitude,
-    east variance, north variance, covariance type) in arrival order, stamps in s. Each plant's
-    row sits `plant_offset` left and `plant_forward` forward (None: 0) of the machine's
-    reference point (a machine file's lever arms: the antenna is the reference point)."""
-    plant_t = np.asarray(plant_t, dtype=float)
+def place_plants(plants, motion, fixes, settings, antenna):
+    """Replay's map: where each plant of `plants` (PlantSpots: its row's lever arms from the
+    machine's reference point, a machine file's; the antenna is the reference point) is
+    (Placement), from all the recording's motion samples `motion` = (t, v, ω_z) as the rows
+    used them and `fixes` (GnssFix of arrays, in arrival order), stamps in s."""
+    plant_t = np.asarray(plants.t, dtype=float)
     track = FixTrack(settings, antenna, keep_all=True)
     mt, mv, mw = (np.asarray(a, dtype=float) for a in motion)
     x, y, psi = dead_reckoning(mt, mv, mw)
-    ft, status, lat, lon, ce, cn, kind = (np.asarray(a, dtype=float) for a in fixes)
-    sigma = fix_sigma(status, lat, lon, ce, cn, kind, settings.max_fix_sigma)
+    fixes = GnssFix(*(np.asarray(a, dtype=float) for a in fixes))
+    ft, lat, lon = fixes.t, fixes.latitude, fixes.longitude
+    sigma = fix_sigma(fixes, settings.max_fix_sigma)
     # out of order or repeated stamps are dropped, as live: each fix must come after every
     # finite stamp before it
     finite = np.isfinite(ft)
@@ -473,10 +513,9 @@ def place_plants(plant_t, plant_offset, motion, fixes, settings, antenna, plant_
         # the poses and the local frame of all fixes at once; each fix then as live
         px, py, ppsi = _pose(mt, x, y, psi, ft[taken])
         east, north = frame.to_east_north(lon[taken], lat[taken])
-        track.add_all(ft[taken], lat[taken], lon[taken], sigma[taken], (px, py, ppsi), east,
-                      north)
-    forward = None if plant_forward is None else np.asarray(plant_forward, dtype=float)
-    return _placement(track, plant_t, np.asarray(plant_offset, dtype=float),
+        track.add_all(ft[taken], sigma[taken], (px, py, ppsi), (east, north))
+    forward = None if plants.forward is None else np.asarray(plants.forward, dtype=float)
+    return _placement(track, plant_t, np.asarray(plants.lateral, dtype=float),
                       _pose_inside(mt, x, y, psi, plant_t), forward)
 
 
@@ -489,14 +528,18 @@ def _pose_inside(t_dr, x, y, psi, t):
     return tuple(np.where(inside, p, np.nan) for p in _pose(t_dr, x, y, psi, t))
 
 
-class PlantPlacer:
+class PlantPlacer(Generic[_P]):
     """The live monitor's map: motion samples, fixes and plants in as they arrive; plants out,
     placed, once the fixes that place them are in (see the module doc). Every `add_*` returns
     the plants released by that input as a list of (plants, Placement), in the order the
     plants came in."""
 
-    def __init__(self, settings, antenna, lateral_offsets, forward_offsets=None):
-        import pyproj  # noqa: F401  (loaded now, not in the callback of the first fix)
+    def __init__(self, settings: MapSettings, antenna: Sequence[float],
+                 lateral_offsets: Mapping[int, float],
+                 forward_offsets: Mapping[int, float] | None = None) -> None:
+        # lazy: pyproj costs 60 ms, loaded with a placer (the monitor's start) rather than in
+        # the callback of the first fix, and not by importing this module (replay, the sync node)
+        import pyproj  # noqa: F401
         self.settings = settings
         self.offsets = dict(lateral_offsets)          # row index -> lateral offset (m)
         self.forward = dict(forward_offsets or {})    # row index -> forward offset (m)
@@ -506,33 +549,34 @@ class PlantPlacer:
         self._fixes: deque[tuple[float, float, float, float]] = deque()
         self._fix_seen = -math.inf                    # newest fix stamp received (any status)
         self._motion_seen = -math.inf
-        self._pending = deque()                       # Plants not released yet
+        self._pending: deque[_P] = deque()           # plants not released yet
 
-    def add_motion(self, t, v, w):
+    def add_motion(self, t: float, v: float, w: float) -> list[tuple[_P, Placement]]:
         self.dr.add(t, v, w)
         self._motion_seen = max(self._motion_seen, float(t))
         self._take_fixes()
         return self._release()
 
-    def add_fix(self, t, status, latitude, longitude, cov_east, cov_north, cov_type):
-        t = float(t)
+    def add_fix(self, fix: GnssFix) -> list[tuple[_P, Placement]]:
+        """One GNSS fix (GnssFix of numbers)."""
+        t = float(fix.t)
         if not (math.isfinite(t) and t > self._fix_seen):
             return self._release()
         self._fix_seen = t
-        sigma = float(fix_sigma(status, latitude, longitude, cov_east, cov_north, cov_type,
-                                self.settings.max_fix_sigma))
+        sigma = float(fix_sigma(fix, self.settings.max_fix_sigma))
+        latitude, longitude = fix.latitude, fix.longitude
         if math.isfinite(sigma):
             self.track.anchor(latitude, longitude)
             self._fixes.append((t, float(latitude), float(longitude), sigma))
             self._take_fixes()
         return self._release()
 
-    def add_plants(self, plants):
+    def add_plants(self, plants: _P) -> list[tuple[_P, Placement]]:
         if len(plants):
             self._pending.append(plants)
         return self._release()
 
-    def flush(self):
+    def flush(self) -> list[tuple[_P, Placement]]:
         """Release every plant held, placed with the fixes there are (the monitor's end)."""
         return self._release(everything=True)
 
@@ -547,8 +591,8 @@ class PlantPlacer:
             else:
                 break
 
-    def _release(self, everything=False):
-        out = []
+    def _release(self, everything: bool = False) -> list[tuple[_P, Placement]]:
+        out: list[tuple[_P, Placement]] = []
         while self._pending and (everything or all(
                 self.track.decided(t, self._fix_seen, self._motion_seen)
                 for t in self._pending[0].time.tolist())):

@@ -20,17 +20,23 @@ rows are the inner ones and slower. One rule for the sync law, the monitor and r
 Pure Python and numpy, no ROS.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from planter_ros.config import check, setting
 
 from .ground_speed_filter import (
-    GroundSpeedFilter, GroundSpeedLimits, implausible, plausible_run)
+    GroundSpeedFilter, GroundSpeedLimits, PlausibleRule, implausible, plausible_run)
 
 YAW_REJECT_REASONS = ('non_finite', 'too_fast', 'spike')
+
+FloatArray = NDArray[np.float64]
+# (t s, v m/s, ω_z rad/s or None: no yaw rate recorded) of a recording's ground-speed messages
+TwistSamples = tuple[ArrayLike, ArrayLike, ArrayLike | None]
 
 
 @dataclass(frozen=True)
@@ -49,25 +55,29 @@ class YawRateLimits:
                                       'driven as on a straight line (ω_z = 0)', unit='s',
                                       range=(0.05, 10.0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(self)
+
+    @property
+    def rule(self) -> PlausibleRule:
+        return PlausibleRule(self.max_yaw_rate, self.max_yaw_acceleration,
+                             self.yaw_rate_tolerance)
 
 
 class YawRateFilter:
     """Stateful yaw-rate check; `rejected` counts by reason, `accepted` counts the rest."""
 
-    def __init__(self, limits=YawRateLimits()):
+    def __init__(self, limits: YawRateLimits = YawRateLimits()) -> None:
         self.limits = limits
         self.rejected = {r: 0 for r in YAW_REJECT_REASONS}
         self.accepted = 0
-        self._ref_w = None
-        self._ref_t = None
+        self._ref_w: float | None = None
+        self._ref_t = 0.0
 
-    def check(self, w, t):
+    def check(self, w: float, t: float) -> tuple[float | None, str | None]:
         """(yaw rate to use or None, rejection reason or None) for sample w (rad/s) at t (s)."""
-        lim = self.limits
-        reason = implausible(w, t, self._ref_w, self._ref_t, lim.max_yaw_rate,
-                             lim.max_yaw_acceleration, lim.yaw_rate_tolerance)
+        last = None if self._ref_w is None else (self._ref_w, self._ref_t)
+        reason = implausible(w, t, last, self.limits.rule)
         if reason is not None:
             self.rejected[reason] += 1
             return None, reason
@@ -79,17 +89,19 @@ class YawRateFilter:
 class MotionFilter:
     """The machine's motion samples worth believing: speed and yaw rate (see the module doc)."""
 
-    def __init__(self, limits=None, yaw_limits=None):
+    def __init__(self, limits: GroundSpeedLimits | None = None,
+                 yaw_limits: YawRateLimits | None = None) -> None:
         self.speed = GroundSpeedFilter(limits or GroundSpeedLimits())
         self.yaw = YawRateFilter(yaw_limits or YawRateLimits())
         self._w = 0.0
-        self._t_w = None                  # time of the last accepted yaw rate
+        self._t_w: float | None = None    # time of the last accepted yaw rate
 
-    def configure(self, limits, yaw_limits):
+    def configure(self, limits: GroundSpeedLimits, yaw_limits: YawRateLimits) -> None:
         self.speed.limits = limits
         self.yaw.limits = yaw_limits
 
-    def check(self, v, w, t, yaw=True):
+    def check(self, v: float, w: float, t: float,
+              yaw: bool = True) -> tuple[float, float] | None:
         """(v, ω_z) to move the rows with, or None when the speed sample is rejected. v is the
         plausible speed as measured (negative when reversing), ω_z the accepted or held yaw
         rate (0 once it is older than yaw_rate_timeout). `yaw` False: the yaw rate is not
@@ -103,15 +115,15 @@ class MotionFilter:
             return None
         return (float(v) if reason == 'negative' else used), (self.yaw_rate(t) if yaw else 0.0)
 
-    def yaw_rate(self, t):
+    def yaw_rate(self, t: float) -> float:
         """The yaw rate in use at time t (rad/s)."""
         return self._w if self.yaw_fresh(t) else 0.0
 
-    def yaw_fresh(self, t):
+    def yaw_fresh(self, t: float) -> bool:
         return self._t_w is not None and t - self._t_w <= self.yaw.limits.yaw_rate_timeout
 
 
-def row_speed(v, yaw_rate, lateral_offset):
+def row_speed(v: float, yaw_rate: float, lateral_offset: float) -> float:
     """A row's forward speed (m/s, ≥ 0): v − ω_z·y, 0 when that is not forward or the machine
     is not moving forward."""
     return max(v - yaw_rate * lateral_offset, 0.0) if v > 0.0 else 0.0
@@ -122,7 +134,9 @@ class RowSpeedStream:
     same through `row_speed_samples`). Samples with a non-finite time or speed, or a time not
     after the last such sample, are dropped before the filter (the prediction model's rule)."""
 
-    def __init__(self, offsets, limits=None, yaw_limits=None, yaw=None):
+    def __init__(self, offsets: Sequence[float] | FloatArray,
+                 limits: GroundSpeedLimits | None = None,
+                 yaw_limits: YawRateLimits | None = None, yaw: bool | None = None) -> None:
         """`yaw`: look at the yaw rate; default only if a row is off the centre line (rows at
         y = 0 do not turn with it); the as-planted map needs it always."""
         self.offsets = np.asarray(offsets, dtype=float)
@@ -130,7 +144,7 @@ class RowSpeedStream:
         self._yaw = bool(np.any(self.offsets)) if yaw is None else bool(yaw)
         self._seen = -math.inf
 
-    def motion(self, t, v, w):
+    def motion(self, t: float, v: float, w: float) -> tuple[float, float, float] | None:
         """(t, v, ω_z) the rows move with, or None for a sample they do not use."""
         t, v = float(t), float(v)
         if not (math.isfinite(t) and math.isfinite(v)) or not t > self._seen:
@@ -139,29 +153,34 @@ class RowSpeedStream:
         motion = self.filter.check(v, float(w), t, self._yaw)
         return None if motion is None else (t, *motion)
 
-    def add(self, t, v, w):
+    def add(self, t: float, v: float, w: float) -> tuple[float, FloatArray] | None:
         """(t, speeds per row as an array) or None for a sample the rows do not use."""
         sample = self.motion(t, v, w)
         if sample is None:
             return None
         return sample[0], self.speeds(sample[1], sample[2])
 
-    def speeds(self, v, yaw_rate):
+    def speeds(self, v: float, yaw_rate: float) -> FloatArray:
         """Each row's speed (array) for the machine's motion (v, ω_z) from `motion`."""
         return _row_speeds(np.float64(v), np.float64(yaw_rate), self.offsets)
 
 
-def _row_speeds(v, yaw_rate, offsets):
+def _row_speeds(v: float | FloatArray, yaw_rate: float | FloatArray,
+                offsets: FloatArray) -> FloatArray:
     """v − ω_z·y for every row (offsets as a column against arrays of samples), 0 where that
     is not forward or the machine is not moving forward."""
     return np.where(v > 0.0, np.maximum(v - yaw_rate * offsets, 0.0), 0.0)
 
 
-def motion_samples(t, v, w, offsets, limits=None, yaw_limits=None, yaw=None):
+def motion_samples(samples: TwistSamples, offsets: Sequence[float] | FloatArray,
+                   limits: GroundSpeedLimits | None = None,
+                   yaw_limits: YawRateLimits | None = None,
+                   yaw: bool | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
     """The machine's motion over a whole recording as the rows use it: (times, v, ω_z), each
-    (n,), of the samples `RowSpeedStream.motion` keeps, in order, with its arithmetic
-    (vectorised: ground_speed_filter.plausible_run). `w` may be None (no yaw rate recorded:
-    straight); `yaw` as for RowSpeedStream."""
+    (n,), of the `samples` (t, v, ω_z) `RowSpeedStream.motion` keeps, in order, with its
+    arithmetic (vectorised: ground_speed_filter.plausible_run). ω_z may be None (no yaw rate
+    recorded: straight); `yaw` as for RowSpeedStream."""
+    t, v, w = samples
     t = np.asarray(t, dtype=float)
     v = np.asarray(v, dtype=float)
     w = np.zeros_like(v) if w is None else np.asarray(w, dtype=float)
@@ -173,14 +192,12 @@ def motion_samples(t, v, w, offsets, limits=None, yaw_limits=None, yaw=None):
     seen = np.maximum.accumulate(np.where(finite, t, -np.inf))
     gate = finite & (t > np.concatenate(([-np.inf], seen[:-1])))
     t, v, w = t[gate], v[gate], w[gate]
-    kept = plausible_run(v, t, limits.max_ground_speed, limits.max_ground_acceleration,
-                         limits.ground_speed_tolerance)
+    kept = plausible_run(v, t, limits.rule)
     if not kept.any():
         return np.zeros(0), np.zeros(0), np.zeros(0)
     if use_yaw:
         # the yaw rate in use: the last accepted one (this sample's own included), while fresh
-        taken = plausible_run(w, t, yaw_limits.max_yaw_rate, yaw_limits.max_yaw_acceleration,
-                              yaw_limits.yaw_rate_tolerance)
+        taken = plausible_run(w, t, yaw_limits.rule)
         last = np.maximum.accumulate(np.where(taken, np.arange(t.size), -1))
         at = np.maximum(last, 0)
         fresh = (last >= 0) & (t - t[at] <= yaw_limits.yaw_rate_timeout)
@@ -190,11 +207,15 @@ def motion_samples(t, v, w, offsets, limits=None, yaw_limits=None, yaw=None):
     return t[kept], v[kept], used[kept]
 
 
-def row_speed_samples(t, v, w, offsets, limits=None, yaw_limits=None, motion=None):
-    """Each row's speed over a whole recording: (times (n,), speeds (rows, n)) of the samples
-    the rows use, in order. `w` may be None (no yaw rate recorded: straight); `motion`: the
-    samples' `motion_samples`, if already known."""
-    kept_t, kept_v, kept_w = motion or motion_samples(t, v, w, offsets, limits, yaw_limits)
+def row_speed_samples(samples: TwistSamples, offsets: Sequence[float] | FloatArray,
+                      limits: GroundSpeedLimits | None = None,
+                      yaw_limits: YawRateLimits | None = None,
+                      motion: tuple[FloatArray, FloatArray, FloatArray] | None = None
+                      ) -> tuple[FloatArray, FloatArray]:
+    """Each row's speed over a whole recording: (times (n,), speeds (rows, n)) of the
+    `samples` (t, v, ω_z) the rows use, in order. ω_z may be None (no yaw rate recorded:
+    straight); `motion`: the samples' `motion_samples`, if already known."""
+    kept_t, kept_v, kept_w = motion or motion_samples(samples, offsets, limits, yaw_limits)
     offsets = np.asarray(offsets, dtype=float)
     if not kept_t.size:
         return np.zeros(0), np.zeros((len(offsets), 0))

@@ -17,7 +17,7 @@ from std_msgs.msg import String
 
 from planter_ros import interfaces
 from planter_ros.design import Design, to_json
-from planter_ros.recording.recorder import Recorder
+from planter_ros.recording.recorder import BagLayout, Recorder
 from planter_ros.rows import Row, rows_record
 
 if TYPE_CHECKING:
@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 def write_input_bag(run: Run, path: str | Path, **recorder_options: Any) -> Recorder:
     """Write a run's measured inputs (design, ground_speed, joint_states, speed_command) into a
     bag at `path`. Returns the closed Recorder."""
-    rec = Recorder(path, **recorder_options)
+    rec = Recorder(path, BagLayout(**recorder_options))
     for topic in (interfaces.DESIGN, interfaces.GROUND_SPEED, interfaces.JOINT_STATES,
                   interfaces.SPEED_COMMAND):
         rec.add_topic(topic.resolved(), topic.type_name, topic.recording_qos())

@@ -49,10 +49,10 @@ from planter_ros.prediction import (
     AcceptanceLimits, PredictionSettings, planting_model_from_design)
 from planter_ros.prediction.pipeline import MonitorPipeline, Placed
 from planter_ros.recording.monitor_topics import plants_message
-from planter_ros.recording.recorder import Recorder
+from planter_ros.recording.recorder import BagLayout, Recorder
 from planter_ros.recording.replay import map_record
 from planter_ros.rows import Row, implicit_row, rows_record
-from planter_ros.sensing.plant_map import MapSettings
+from planter_ros.sensing.plant_map import GnssFix, MapSettings
 
 from .closed_loop import (
     DriveModel, LoopTiming, MotionSensor, RowDesign, RowEvents, RowRun, SimMachine, simulate_rows)
@@ -397,7 +397,8 @@ def write_monitor_bag(run: MachineRun, path: str | Path, machine: SceneMachine |
     order = np.lexsort((index, kinds, log))
 
     clock = [0.0]                      # the recorder's flush clock: simulated log time
-    rec = Recorder(path, flush_period=1.0, monotonic=lambda: clock[0], **recorder_options)
+    rec = Recorder(path, BagLayout(flush_period=1.0, **recorder_options),
+                   monotonic=lambda: clock[0])
     names = {topic: topic.resolved() for topic in interfaces.RECORDED}
     for topic in interfaces.RECORDED:
         rec.add_topic(names[topic], topic.type_name, topic.recording_qos())
@@ -464,8 +465,9 @@ def write_monitor_bag(run: MachineRun, path: str | Path, machine: SceneMachine |
             msg = navsatfix(stamp(gnss_stamp[i]), lat[i], lon[i], alt[i], plan.gnss.noise)
             rec.write_message(names[interfaces.GNSS_FIX], msg, now, int(gnss_stamp[i]))
             cov = msg.position_covariance
-            publish(monitor.fix(int(gnss_stamp[i]) * 1e-9, msg.status.status, lat[i], lon[i],
-                                cov[0], cov[4], msg.position_covariance_type), now)
+            publish(monitor.fix(GnssFix(int(gnss_stamp[i]) * 1e-9, msg.status.status, lat[i],
+                                        lon[i], cov[0], cov[4],
+                                        msg.position_covariance_type)), now)
     publish(monitor.finish(), int(log.max()) if log.size else start)
     rec.close()
     counts = [c for _, _, c in run.seedlings]

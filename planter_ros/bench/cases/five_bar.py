@@ -234,7 +234,8 @@ def hole_width_tolerance(ctx: BenchContext) -> Iterator[Row]:
 
 @bench_case('trajectory evaluation')
 def trajectory(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.five_bar import chain_kinematics, design_five_bar, soil_trajectory
+    from planter_ros.kinematics.five_bar import (
+        GearedChain, chain_kinematics, design_five_bar, soil_trajectory)
     from ..reference import chain_reference, soil_point_reference
 
     design = design_five_bar(*TOMATO)
@@ -259,9 +260,9 @@ def trajectory(ctx: BenchContext) -> Iterator[Row]:
     omega = 2.0 * math.pi
     n = ctx.n(1_000_000, 100)
     alpha = np.sort(rng.uniform(0.0, 6.0 * math.pi, n))
-    t = ctx.measure(lambda: chain_kinematics(alpha, omega, l1, l2),
+    t = ctx.measure(lambda: chain_kinematics(alpha, omega, GearedChain(l1, l2)),
                     repeats=5 if n > 1000 else None)
-    pos, vel, acc = chain_kinematics(alpha, omega, l1, l2)
+    pos, vel, acc = chain_kinematics(alpha, omega, GearedChain(l1, l2))
     err = 0.0
     for i in rng.choice(n, min(n, n_ref), replace=False):
         rp, rv, ra = chain_reference(alpha[i], omega, l1, l2, -2.0, 0.5 * math.pi, 0.0)

@@ -109,7 +109,7 @@ def _search_box(rng: np.random.Generator, count: int) -> FloatArray:
 
 @bench_case('three-arm optimiser', requires=('planter_ros.optimize.three_arm',))
 def three_arm_optimiser(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.optimize.three_arm import PopulationScorer, optimize, score
+    from planter_ros.optimize.three_arm import PopulationScorer, SearchOptions, optimize, score
     from ..timing import from_samples
 
     params = _paper_scene()
@@ -135,14 +135,14 @@ def three_arm_optimiser(ctx: BenchContext) -> Iterator[Row]:
                   note='the optimiser scores one such batch per generation')
     for workers in (1, 2):
         if ctx.quick:       # a whole search is too long for the smoke run: two generations
-            _, goals, info = optimize(params, seed=OPTIMISER_SEED, max_generations=2,
-                                      max_time=60, workers=workers)
+            _, goals, info = optimize(params, SearchOptions(
+                seed=OPTIMISER_SEED, max_generations=2, max_time=60, workers=workers))
             targets = []
         else:
             ctx.progress(f'  planter optimize three-arm --seed {OPTIMISER_SEED} --workers '
                          f'{workers} ...')
-            _, goals, info = optimize(params, seed=OPTIMISER_SEED, max_time=120,
-                                      workers=workers)
+            _, goals, info = optimize(params, SearchOptions(
+                seed=OPTIMISER_SEED, max_time=120, workers=workers))
             met = goals is not None and sum(g.passed for g in goals) == len(goals) and \
                 info['seconds'] <= OPTIMISER_TARGET
             # the target is the command's default, both cores

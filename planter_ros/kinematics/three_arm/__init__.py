@@ -16,9 +16,10 @@ Stable API for the nodes, the monitor and the command line (pure numpy/scipy, SI
 Bad input raises planter_ros.kinematics.errors.DesignError with a one-line message.
 """
 
-from .gear_train import ARMS, PARAMETER_NAMES, GearTrain, ThreeArmMechanism
+from .gear_train import ARMS, PARAMETER_NAMES, GearTrain, Installation, ThreeArmMechanism
 from .goals import Goal, design_summary, evaluate_goals
 from .pitch_curve import INTERPOLANTS, PitchCurve, solve_centre_distance
 
-__all__ = ['ARMS', 'INTERPOLANTS', 'PARAMETER_NAMES', 'GearTrain', 'Goal', 'PitchCurve',
-           'ThreeArmMechanism', 'design_summary', 'evaluate_goals', 'solve_centre_distance']
+__all__ = ['ARMS', 'INTERPOLANTS', 'PARAMETER_NAMES', 'GearTrain', 'Goal', 'Installation',
+           'PitchCurve', 'ThreeArmMechanism', 'design_summary', 'evaluate_goals',
+           'solve_centre_distance']

@@ -32,7 +32,8 @@ from numpy.typing import ArrayLike
 
 from ..arrays import FloatArray
 from ..errors import DesignError
-from .gear_train import ARM_PHASE, ARMS, TABLE_SPLITS, ThreeArmMechanism, quintic_coefficients
+from .gear_train import (ARM_PHASE, ARMS, TABLE_SPLITS, Installation, ThreeArmMechanism,
+                         quintic_coefficients)
 from .goals import MODULE_SAMPLES
 from .pitch_curve import (INTERPOLANTS, LENGTH_SPLITS, TWO_PI, _check_control_points,
                           analytic_pieces, gauss_nodes, subdivide)
@@ -251,14 +252,15 @@ def _solve_centre_distance(rho: FloatArray, w: FloatArray, rho_max: FloatArray) 
 class MechanismBatch(ThreeArmMechanism):
     """P designs sharing control angles and interpolant (see the module doc).
 
-    radii (P, n); the five installation values (P,). The pose methods of ThreeArmMechanism
+    radii (P, n); the installation's five values (P,) each. The pose methods of ThreeArmMechanism
     apply unchanged and return arrays with a leading axis of P; carrier angles may be given as
     (m,) (the same for every design), (P, 1) or (P, m).
     """
 
-    def __init__(self, basis: CurveBasis, radii: ArrayLike, carrier_initial_angle: ArrayLike,
-                 arm_initial_angle: ArrayLike, arm_length: ArrayLike, pusher_offset: ArrayLike,
-                 planet_carrier_angle: ArrayLike) -> None:
+    def __init__(self, basis: CurveBasis, radii: ArrayLike,
+                 installation: Installation[ArrayLike]) -> None:
+        (carrier_initial_angle, arm_initial_angle, arm_length, pusher_offset,
+         planet_carrier_angle) = installation
         radii = np.atleast_2d(np.asarray(radii, dtype=float))
         rows = len(radii)
         col = {name: np.broadcast_to(np.asarray(v, dtype=float), (rows,)).copy() for name, v in

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 import math
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Generic, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -146,8 +146,22 @@ class MeshMaps(Protocol):
     def theta(self, p: ArrayLike, nu: int = 0) -> FloatArray: ...
 
 
+_V = TypeVar('_V')
+
+
+class Installation(NamedTuple, Generic[_V]):
+    """How a three-arm's gear train is installed (SI): floats for one design, arrays (P,) for
+    a batch of P (three_arm.batch.MechanismBatch)."""
+
+    carrier_initial_angle: _V        # Φ0 (rad)
+    arm_initial_angle: _V            # β0 (rad)
+    arm_length: _V                   # S (m)
+    pusher_offset: _V                # H1 (m), 0 ≤ H1 < S
+    planet_carrier_angle: _V         # γ0 (rad)
+
+
 class ThreeArmMechanism:
-    """A built three-arm mechanism: gear train plus installation parameters (SI units).
+    """A built three-arm mechanism: gear train plus installation (SI units).
 
     Build once (`from_parameters`), then evaluate any number of carrier angles; all methods take
     numpy arrays of carrier angles θ (rad) and an arm index 0, 1, 2.
@@ -170,12 +184,11 @@ class ThreeArmMechanism:
     _c: Floats
     _w0: list[Floats]
 
-    def __init__(self, curve: PitchCurve, carrier_initial_angle: float,
-                 arm_initial_angle: float, arm_length: float, pusher_offset: float,
-                 planet_carrier_angle: float, closure_method: str = 'gauss') -> None:
-        values: dict[str, object] = dict(carrier_initial_angle=carrier_initial_angle,
-                      arm_initial_angle=arm_initial_angle, arm_length=arm_length,
-                      pusher_offset=pusher_offset, planet_carrier_angle=planet_carrier_angle)
+    def __init__(self, curve: PitchCurve, installation: Installation[float],
+                 closure_method: str = 'gauss') -> None:
+        (carrier_initial_angle, arm_initial_angle, arm_length, pusher_offset,
+         planet_carrier_angle) = installation
+        values: dict[str, object] = installation._asdict()
         for name, value in values.items():
             if not (isinstance(value, (int, float)) and math.isfinite(value)):
                 raise DesignError(name, value, 'a finite number')
@@ -206,11 +219,12 @@ class ThreeArmMechanism:
             raise DesignError('interpolant', interpolant, ' | '.join(INTERPOLANTS))
         curve = PitchCurve(_floats(params, 'control_radii'), _floats(params, 'control_angles'),
                            interpolant)
-        return cls(curve, carrier_initial_angle=_float(params, 'carrier_initial_angle'),
-                   arm_initial_angle=_float(params, 'arm_initial_angle'),
-                   arm_length=_float(params, 'arm_length'),
-                   pusher_offset=_float(params, 'pusher_offset'),
-                   planet_carrier_angle=_float(params, 'planet_carrier_angle'))
+        return cls(curve, Installation(
+            carrier_initial_angle=_float(params, 'carrier_initial_angle'),
+            arm_initial_angle=_float(params, 'arm_initial_angle'),
+            arm_length=_float(params, 'arm_length'),
+            pusher_offset=_float(params, 'pusher_offset'),
+            planet_carrier_angle=_float(params, 'planet_carrier_angle')))
 
     # --- angles --------------------------------------------------------------------------
     def carrier_angle(self, theta: ArrayLike, arm: int = 0) -> Floats:
@@ -310,6 +324,8 @@ def quintic_hermite(x: FloatArray, y: FloatArray, dy: FloatArray, d2y: FloatArra
     The vectorised twin of scipy's BPoly.from_derivatives for this one case, which builds a
     polynomial per interval in Python and would dominate the build time.
     """
+    # lazy: scipy.interpolate costs 440 ms: only a built three-arm loads it, never an import
+    # of kinematics (test_skip_what_a_scene_does_not_need)
     from scipy.interpolate import PPoly
     return PPoly(np.moveaxis(quintic_coefficients(x, y, dy, d2y), -1, 0), x, extrapolate=True)
 

@@ -101,7 +101,7 @@ class _PeriodicCubic(_PiecewisePolynomial):
     name = 'periodic_cubic'
 
     def __init__(self, radii: FloatArray, angles: FloatArray) -> None:
-        from scipy.interpolate import CubicSpline
+        from scipy.interpolate import CubicSpline  # lazy: 440 ms, only a built curve needs it
         x = np.r_[angles, angles[0] + TWO_PI]
         y = np.r_[radii, radii[0]]
         self._init_ppoly(CubicSpline(x, y, bc_type='periodic'), angles[0], angles)
@@ -117,7 +117,7 @@ class _PolarBSpline(_PiecewisePolynomial):
     name = 'bspline_polar'
 
     def __init__(self, radii: FloatArray, angles: FloatArray) -> None:
-        from scipy.interpolate import BSpline, PPoly
+        from scipy.interpolate import BSpline, PPoly  # lazy: 440 ms, only a built curve
         n = len(radii)
         knots = np.r_[angles[n - 3:] - TWO_PI, angles, angles[:4] + TWO_PI]
         coef = np.r_[radii[n - 1], radii, radii[0], radii[1]]
@@ -444,7 +444,7 @@ def solve_centre_distance(curve: PitchCurve, method: str = 'gauss',
     points (default 360); 'paper' is the paper's 1° sum. The residual is always measured with
     the converged Gauss rule, so the methods are compared on the same footing.
     """
-    from scipy.optimize import brentq
+    from scipy.optimize import brentq  # lazy: 300 ms, only a closure solved needs it
     if method not in CLOSURE_METHODS:
         raise DesignError('closure method', method, ' | '.join(CLOSURE_METHODS))
     rmax = curve.rho_max
