@@ -31,6 +31,7 @@ TYPE_CHECKED = (
     'planter_ros/dependencies.py',
     'planter_ros/cli',
     'planter_ros/commission',
+    'planter_ros/control',
     'planter_ros/scene',
 )
 # Files inside a listed package that have not joined yet (each is being rewritten elsewhere).
