@@ -32,6 +32,7 @@ TYPE_CHECKED = (
     'planter_ros/cli',
     'planter_ros/commission',
     'planter_ros/control',
+    'planter_ros/demo',
     'planter_ros/scene',
 )
 # Files inside a listed package that have not joined yet (each is being rewritten elsewhere).

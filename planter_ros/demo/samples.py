@@ -3,16 +3,23 @@
 records the other samples). Refuses to overwrite: delete a bag first to make it anew.
 """
 
+from collections.abc import Callable
 from pathlib import Path
+
+from planter_ros.sim.runs import Run, five_bar_design_message, simulate_run
 
 __all__ = ['SAMPLES', 'main', 'record_sample']
 
-SAMPLES = {
-    # name: (design kwargs, simulate_run kwargs)
-    'pepper_stall': (dict(depth=0.06, spacing=0.3, hole_ratio=0.05, ground_speed=0.3),
-                     dict(duration=20.0, cruise=0.3, step=1.6, drive_lag=0.25, phase_gain=1.0,
-                          stall_at=7.0, stall_for=3.5, stall_level=0.1, seed=2)),
-}
+
+def _pepper_stall() -> Run:
+    """A pepper five-bar whose drive stalls at 7 s for 3.5 s (10 % of its speed)."""
+    design = five_bar_design_message(depth=0.06, spacing=0.3, hole_ratio=0.05, ground_speed=0.3)
+    return simulate_run(design, duration=20.0, cruise=0.3, step=1.6, drive_lag=0.25,
+                        phase_gain=1.0, stall_at=7.0, stall_for=3.5, stall_level=0.1, seed=2)
+
+
+# name: the simulated run its bag records
+SAMPLES: dict[str, Callable[[], Run]] = {'pepper_stall': _pepper_stall}
 
 
 def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
@@ -61,13 +68,12 @@ def main(argv=None):
     """Regenerate bags/sample_<name>.mcap (refuses to overwrite: delete them first)."""
     import argparse
 
-    from planter_ros.sim.runs import five_bar_design_message, simulate_run
     parser = argparse.ArgumentParser(description=main.__doc__, allow_abbrev=False)
     parser.add_argument('--out', default='bags', help='directory for the sample bags')
     args = parser.parse_args(argv)
-    for name, (design_kw, run_kw) in SAMPLES.items():
+    for name, simulated in SAMPLES.items():
         path = Path(args.out) / f'sample_{name}.mcap'
-        run = simulate_run(five_bar_design_message(**design_kw), **run_kw)
+        run = simulated()
         tables = record_sample(run, path)
         print(f'{path}: {sum(len(t) for t in tables)} plants, {path.stat().st_size} bytes')
     return 0

@@ -256,7 +256,10 @@ def child_main(conn, settings):
     # a demo killed outright (SIGKILL): the broken pipe below is the clean way out (drives shut
     # down), but it is only read between status snapshots; the kernel's signal ends this
     # process PARENT_GONE_GRACE s after the demo however stuck it is
-    die_with_parent(multiprocessing.parent_process().pid, grace=PARENT_GONE_GRACE)
+    parent = multiprocessing.parent_process()
+    if parent is None or parent.pid is None:
+        raise RuntimeError('child_main is the sync process a SyncProcess starts: no parent')
+    die_with_parent(parent.pid, grace=PARENT_GONE_GRACE)
     # a stop signal here (or one its command process received) is passed on to the demo
     stop = stop_signals.install('planter demo: sync process')
     import rclpy
@@ -283,6 +286,7 @@ def child_main(conn, settings):
             return False
 
     parameters = list(settings.parameters)
+    sims: SimProcess | SimulatedBus
     if settings.command_process:
         # drives | CAN socket pair | command process | channel | this shell (the sync node)
         ours, theirs = socket_pair()
@@ -352,7 +356,7 @@ def child_main(conn, settings):
         if sync is not None:
             sync.destroy_node()                    # every row: 0x60FF = 0, disable
         context.try_shutdown()
-        if settings.command_process:
+        if isinstance(sims, SimProcess):      # settings.command_process
             drive_report = sims.stop()
         else:                       # the drives in this process, measured the same way
             sims.stop()
