@@ -33,6 +33,7 @@ TYPE_CHECKED = (
     'planter_ros/commission',
     'planter_ros/control',
     'planter_ros/demo',
+    'planter_ros/nodes',
     'planter_ros/scene',
 )
 # Files inside a listed package that have not joined yet (each is being rewritten elsewhere).

@@ -12,12 +12,14 @@ over at its next sample, and the switch is logged and shown in /diagnostics (sta
 sensing.ground_speed_sources.Standstill).
 """
 
+import functools
 import math
 import sys
 import threading
 import time
 
 from rclpy.node import Node
+from std_msgs.msg import UInt32
 
 from planter_ros import diagnostics, interfaces
 from planter_ros.nodes.parameters import ParameterGroup, refuse_undeclared
@@ -54,8 +56,8 @@ class GroundSpeedNode(Node):
             interfaces.IMU.subscribe(self, self._on_imu)
         self.pulses = None
         if 'pulses' in cfg.sources:
-            self.pulses = PulseSpeed(cfg.pulses_per_metre)
-            interfaces.WHEEL_PULSES.subscribe(self, self._on_pulses)
+            self.pulses = pulses = PulseSpeed(cfg.pulses_per_metre)
+            interfaces.WHEEL_PULSES.subscribe(self, functools.partial(self._on_pulses, pulses))
         self._bus, self._own_bus, self._notifier = bus, False, None
         if any(s.startswith('isobus') for s in cfg.sources) and (bus or cfg.isobus_channel):
             self._open_isobus()
@@ -101,8 +103,8 @@ class GroundSpeedNode(Node):
         with self._lock:
             self.yaw_rate = 0.0 if math.isnan(rate) else rate
 
-    def _on_pulses(self, msg):
-        sample = self.pulses.update(self._now(), msg.data)
+    def _on_pulses(self, pulses: PulseSpeed, msg: UInt32) -> None:
+        sample = pulses.update(self._now(), msg.data)
         if sample is not None:
             self._offer(sample)
 
