@@ -33,6 +33,7 @@ TYPE_CHECKED = (
     'planter_ros/commission',
     'planter_ros/control',
     'planter_ros/demo',
+    'planter_ros/export',
     'planter_ros/nodes',
     'planter_ros/scene',
 )
