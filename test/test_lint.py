@@ -35,6 +35,7 @@ TYPE_CHECKED = (
     'planter_ros/demo',
     'planter_ros/export',
     'planter_ros/nodes',
+    'planter_ros/plots',
     'planter_ros/scene',
 )
 # Files inside a listed package that have not joined yet (each is being rewritten elsewhere).

@@ -24,7 +24,7 @@ def plot_design(design, path, ground_speed=None):
         ground_speed = design.spacing * omega / (2.0 * math.pi)
         speed_note = f'ω1 = 60 r/min ⇒ v = {ground_speed:.3g} m/s'
     else:
-        omega = sun_bar_speed(ground_speed, design.spacing)
+        omega = float(sun_bar_speed(ground_speed, design.spacing))
         speed_note = f'v = {ground_speed:.3g} m/s ⇒ ω1 = {omega:.3g} rad/s'
     theta = np.linspace(0.0, 2.0 * math.pi, 721)
     fig = plt.figure(figsize=(15, 9))
@@ -92,7 +92,7 @@ def _hole_panel(ax, design, mm):
     """The first plant's hole, zoomed: the tip below the soil and the hole it cuts (entry to
     exit at the surface) against the hole the design asks for, k·D."""
     theta = np.linspace(0.5 * math.pi, 1.5 * math.pi, 4001)     # around the bottom (θ = π)
-    sx, sy = soil_trajectory(design.l1, design.l2, theta, design.advance)
+    sx, sy = map(np.asarray, soil_trajectory(design.l1, design.l2, theta, design.advance))
     below = sy <= design.depth
     x0 = float(np.interp(math.pi, theta, sx))
     target = design.hole_ratio * design.depth

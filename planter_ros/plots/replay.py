@@ -71,9 +71,9 @@ def plot_replay(result, path):
     twin.axhline(1.0, color='tab:green', lw=0.5, ls=':')
     _headroom(ax, bottom=0.0)
     _headroom(twin)
-    labelled = [h for h in handles if not h.get_label().startswith('_')]
+    labelled = [h for h in handles if not str(h.get_label()).startswith('_')]
     if labelled:
-        ax.legend(labelled, [h.get_label() for h in labelled], fontsize='small',
+        ax.legend(labelled, [str(h.get_label()) for h in labelled], fontsize='small',
                   loc='upper center', ncol=len(labelled))
 
     ax = axes[2]
@@ -89,8 +89,8 @@ def plot_replay(result, path):
         width = max((hi - lo) / 30.0, span / 50.0)
         count = max(int(math.ceil((hi - lo) / width)), 1)
         mid = 0.5 * (lo + hi)
-        ax.hist(tilt, bins=np.linspace(mid - 0.5 * count * width, mid + 0.5 * count * width,
-                                       count + 1), color='tab:blue', alpha=0.8)
+        edges = np.linspace(mid - 0.5 * count * width, mid + 0.5 * count * width, count + 1)
+        ax.hist(tilt, bins=edges.tolist(), color='tab:blue', alpha=0.8)
     ax.set_xlim(-span, span)
     for sign in (-1, 1):
         ax.axvline(sign * limit, color='tab:red', ls='--', lw=1)
@@ -129,7 +129,7 @@ def _map_panel(fig, ax, result, labels, named):
     north = placement.north if placement is not None else np.full(len(p), np.nan)
     ok = np.isfinite(east) & np.isfinite(north)
     ax.set_title('as-planted map (colour: spacing error)')
-    if not ok.any():
+    if placement is None or not ok.any():
         ax.text(0.5, 0.5, 'no GNSS fixes in the bag:\nno plant has a map position',
                 ha='center', va='center', transform=ax.transAxes)
         ax.set_axis_off()
