@@ -103,10 +103,10 @@ def run(args):
                    args.hole_ratio)
     require_finite(result, 'cam')
     if args.plot:
-        from planter_ros.plots.cam import plot_cam
+        from planter_ros.plots.cam import CamStudyInputs, plot_cam
+        asked = CamStudyInputs(mech, drive, args.rule, tuple(args.spacing), tuple(args.speed))
         with atomic_output(args.plot) as tmp:
-            plot_cam(mech, drive, args.rule, args.spacing, args.speed, result['cases'],
-                     result['top_speeds'], tmp)
+            plot_cam(asked, result['cases'], result['top_speeds'], tmp)
         result['plot'] = args.plot
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))

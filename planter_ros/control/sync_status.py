@@ -20,7 +20,7 @@ from .machine_law import Machine
 from .phase_lock import PhaseLock
 
 __all__ = ['SEND_ERROR_HOLD', 'RESTARTED', 'FAULTED', 'HEARTBEAT_LOST', 'NOT_ENABLED', 'Halt',
-           'NEVER_ENABLED', 'at_sync', 'has_feedback', 'halt_reason', 'drive_report',
+           'NEVER_ENABLED', 'DriveSide', 'at_sync', 'has_feedback', 'halt_reason', 'drive_report',
            'ground_report', 'phase_report', 'row_report', 'idle_row_report', 'bus_report',
            'LOOP_MARGIN', 'loop_report']
 
@@ -75,11 +75,26 @@ def halt_reason(status: Any, heartbeat_timeout: float) -> Halt | None:
     return None
 
 
-def drive_report(status: Any, enabled: bool, shut_down: bool, halt: Halt | None,
-                 send_errors: int, last_send_error: tuple[float, str] | None, command: float,
-                 now: float) -> Report:
-    """The drive's status. `last_send_error` = (monotonic time, text) or None."""
-    values: list[tuple[str, object]] = [('enabled', enabled), ('send errors', send_errors)]
+@dataclass(frozen=True)
+class DriveSide:
+    """What the loop knows of one row's drive at a moment: its last status snapshot (a
+    DriveStatus; None before the first), whether it runs (enabled at start-up, not shut down),
+    why the law is not driving it (None: it is), its CAN send errors (how many, and the last:
+    (monotonic s, text)) and the speed it was last commanded (rad/s)."""
+
+    status: Any
+    enabled: bool
+    halt: Halt | None
+    send_errors: int
+    last_send_error: tuple[float, str] | None
+    command: float
+
+
+def drive_report(drive: DriveSide, shut_down: bool, now: float) -> Report:
+    """The drive's status (`shut_down`: the loop shut the drives down)."""
+    status, halt, last_send_error = drive.status, drive.halt, drive.last_send_error
+    values: list[tuple[str, object]] = [('enabled', drive.enabled),
+                                        ('send errors', drive.send_errors)]
     if status is None:
         return Report(DRIVE, STALE if shut_down else ERROR,
                       halt.text if halt else 'not enabled', tuple(values))
@@ -88,7 +103,7 @@ def drive_report(status: Any, enabled: bool, shut_down: bool, halt: Halt | None,
               ('heartbeat age', f'{status.heartbeat_age:.3f} s'),
               ('position', f'{status.position:.4f} rad'),
               ('velocity', f'{status.velocity:.4f} rad/s'),
-              ('command', f'{command:.4f} rad/s')] + values
+              ('command', f'{drive.command:.4f} rad/s')] + values
     if last_send_error is not None and now - last_send_error[0] <= SEND_ERROR_HOLD:
         values.append(('last send error', last_send_error[1]))
         return Report(DRIVE, ERROR, f'CAN send error: {last_send_error[1]}', tuple(values))

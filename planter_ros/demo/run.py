@@ -59,7 +59,7 @@ from .commissioned import (
 from .options import DemoOptions, check_bag_path
 from .report import command_path_lines, progress_line, row_summary
 from .sync_process import SyncProcess, SyncProcessError, SyncProcessSettings
-from .verdict import RowResult, judge
+from .verdict import RowResult, RunOutcome, judge
 
 __all__ = ['Demo', 'DemoResult', 'prepare']
 
@@ -206,9 +206,9 @@ class Demo:
                                               *run.field_start)
             self._print('\n'.join(first_plant_lines(first_plants)))
         field_run = run.observer is not None and run.observer.start is not None
-        verdict = judge(rows, report, run.start_error, bag_error, monitor_changes,
-                        acceptance if field_run else None,
-                        scheduled_changes=run.scheduled_changes, field_run=field_run)
+        outcome = RunOutcome(run.start_error, bag_error, monitor_changes, run.scheduled_changes,
+                             field_run)
+        verdict = judge(rows, report, outcome, acceptance if field_run else None)
         if first_plants:
             verdict.reasons += first_plant_reasons(first_plants)
         verdict.stopped_by, verdict.elapsed = run.stopped_by, run.elapsed

@@ -3,9 +3,12 @@ constant speed and the cam; tip sweep and tilt against spacing with the region w
 rule exceeds a limit shaded; the feasibility map (up to what ground speed each law holds); the
 cam's loads against the limits."""
 
+from dataclasses import dataclass
 import math
 
 import numpy as np
+
+from planter_ros.cam import CamMechanism, DriveLimits
 
 GRID = 9                 # spacings planned between the smallest and the largest asked
 
@@ -18,9 +21,23 @@ def _grid(mech, spacings):
     return sorted(set(np.linspace(lo, hi, GRID).tolist()) | set(spacings))
 
 
-def plot_cam(mech, drive, rule, spacings, speeds, cases, tops, path):
-    """Six labelled panels (mm and degrees for people) for the command's inputs and results;
-    `cases` and `tops` as in `planter cam --json`."""
+@dataclass(frozen=True)
+class CamStudyInputs:
+    """What `planter cam` studies: the mechanism, the drive's limits, the cam rule
+    (design_speed | zero_slip), the plant spacings (m) and the top ground speeds (m/s) asked."""
+
+    mech: CamMechanism
+    drive: DriveLimits
+    rule: str
+    spacings: tuple[float, ...]
+    speeds: tuple[float, ...]
+
+
+def plot_cam(asked, cases, tops, path):
+    """Six labelled panels (mm and degrees for people) for the command's inputs (`asked`:
+    CamStudyInputs) and results; `cases` and `tops` as in `planter cam --json`."""
+    mech, drive, rule = asked.mech, asked.drive, asked.rule
+    spacings, speeds = asked.spacings, asked.speeds
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
