@@ -121,6 +121,8 @@ class PlantingAngles:
 def planting_angles(design: Any) -> PlantingAngles | None:
     """Where a design's mechanism plants on its shaft (its planting model's phase, soil entry
     and exit: section stops and design changes), or None when it has no planting model."""
+    # lazy: `planter design` loads this module for the speed limits and not the prediction
+    # package (11 modules, 31 ms: test_skip_what_a_scene_does_not_need's list)
     from planter_ros.prediction import planting_model_from_design
     try:
         model = planting_model_from_design(design)
@@ -544,6 +546,8 @@ class PhaseLock:
                 and measured is not None):
             self._anchor = (measured, self.travelled(now))
             if self.cam is not None:
+                # lazy: only a cam row needs the cam package (32 ms); `planter design`
+                # loads this module (test_skip_what_a_scene_does_not_need's list)
                 from .cam_law import anchored_track
                 self._track = anchored_track(self.cam, measured, self._anchor[1])
                 self._cam_offset = 0.0

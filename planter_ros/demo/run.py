@@ -59,7 +59,7 @@ from .commissioned import (
 from .options import DemoOptions, check_bag_path
 from .report import command_path_lines, progress_line, row_summary
 from .sync_process import SyncProcess, SyncProcessError, SyncProcessSettings
-from .verdict import RowResult, RunOutcome, judge
+from .verdict import RowResult, RunOutcome, Verdict, judge
 
 __all__ = ['Demo', 'DemoResult', 'prepare']
 
@@ -165,7 +165,6 @@ class Demo:
 
     def stopped_before_start(self, stop) -> int:
         """A stop that came before the graph started: nothing ran, nothing to shut down."""
-        from .verdict import Verdict
         self._print(f'interrupted by {stop.description} before the graph started: nothing ran')
         self._print('\nsummary\n  no field run, no drive enabled, no bag')
         verdict = Verdict(['stopped before the graph started: no bag'], stop.description)

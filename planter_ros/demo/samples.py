@@ -3,9 +3,18 @@
 records the other samples). Refuses to overwrite: delete a bag first to make it anew.
 """
 
+import argparse
 from collections.abc import Callable
 from pathlib import Path
 
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+
+from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
+from planter_ros.nodes.monitor_node import MonitorNode
+from planter_ros.recording.errors import BagWriteError
+from planter_ros.sim.lockstep import LockStepFeeder
 from planter_ros.sim.runs import Run, five_bar_design_message, simulate_run
 
 __all__ = ['SAMPLES', 'main', 'record_sample']
@@ -29,15 +38,6 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
     simulated clock fed in lock-step (sim.lockstep). Returns the list of plant tables the
     monitor published (its live predictions), in order.
     """
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-
-    from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
-    from planter_ros.nodes.monitor_node import MonitorNode
-    from planter_ros.recording.errors import BagWriteError
-    from planter_ros.sim.lockstep import LockStepFeeder
-
     context = rclpy.Context()
     rclpy.init(args=['--ros-args', *PRIVATE_GRAPH_ROS_ARGS], context=context,
                domain_id=claim_private_domain())
@@ -66,8 +66,6 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
 
 def main(argv=None):
     """Regenerate bags/sample_<name>.mcap (refuses to overwrite: delete them first)."""
-    import argparse
-
     parser = argparse.ArgumentParser(description=main.__doc__, allow_abbrev=False)
     parser.add_argument('--out', default='bags', help='directory for the sample bags')
     args = parser.parse_args(argv)

@@ -195,7 +195,7 @@ def _null_logicals(dbf, columns, records):
 def prj_text():
     """WGS 84 (EPSG:4326) as the ESRI WKT a .prj holds."""
     from pyproj import CRS  # lazy: 80 ms, loaded only by a run that writes a Shapefile
-    from pyproj.enums import WktVersion
+    from pyproj.enums import WktVersion  # lazy: with pyproj, above
     return CRS.from_epsg(4326).to_wkt(WktVersion.WKT1_ESRI)
 
 

@@ -18,6 +18,7 @@ import sys
 import threading
 import time
 
+from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 from std_msgs.msg import UInt32
 
@@ -65,7 +66,7 @@ class GroundSpeedNode(Node):
 
     # ------------------------------------------------------------------ sources
     def _open_isobus(self):
-        import can
+        import can  # lazy: python-can (0.15 s) only for an ISOBUS speed source
         self.decoder = IsobusSpeedDecoder()
         if self._bus is None:
             self._bus = can.Bus(interface=self.config.isobus_interface,
@@ -109,7 +110,6 @@ class GroundSpeedNode(Node):
             self._offer(sample)
 
     def _offer(self, sample):
-        from geometry_msgs.msg import TwistStamped
         with self._lock:
             chosen = self.selector.offer(self.standstill.apply(sample))
             events = self.selector.events[self._reported_events:]

@@ -44,7 +44,7 @@ from planter_ros.host import realtime
 from planter_ros.command.client import CommandClient
 from planter_ros.command.engine import CommandEngine
 from planter_ros.command.settings import LAW_CLASSES, CommandSettings
-from planter_ros.config import ConfigError, spec_of
+from planter_ros.config import ConfigError, from_mapping, spec_of
 from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
@@ -55,6 +55,7 @@ from planter_ros.scene.files import SceneError
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.errors import DriveError
 from planter_ros.nodes import graph
+from planter_ros.plausibility import check_law
 from planter_ros.nodes.parameters import (ParameterGroup, _plain, declare, declare_rows,
                                           refuse_undeclared)
 from planter_ros.scene.machine_file import MachineFileSetting, open_machine
@@ -191,8 +192,6 @@ class SyncNode(Node):
         """The law's configuration from `values`; a limit the design in force would exceed at
         its ground speed or a tractor's acceleration is refused with the reason and the limit
         (planter_ros.plausibility, the scene loader's checks), unusual values warned about."""
-        from planter_ros.config import from_mapping
-        from planter_ros.plausibility import check_law
         built = tuple(from_mapping(cls, values) for cls in LAW_CLASSES)
         if self._design is not None:
             limits = self.machine.row_limits() if self.machine is not None else ()

@@ -3,24 +3,23 @@ machine), the tilt histogram with the upright limits, and the as-planted map."""
 
 import math
 
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 import numpy as np
+
+from planter_ros.output_files import atomic_output
 
 ROW_MARKERS = 'osD^v<>ph*'
 
 
 def plot_replay(result, path):
     """Four labelled panels (mm and degrees for people) in one PNG."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    from matplotlib.ticker import MaxNLocator
-
     p = result.plants
     s = result.summary
     rows = getattr(result, 'rows', None) or []
     named = len(rows) > 1 or bool(rows and rows[0].name)
     labels = {row.index: row.label for row in rows}
-    fig = plt.figure(figsize=(16, 10))
+    fig = Figure(figsize=(16, 10))
     grid = fig.add_gridspec(3, 2, width_ratios=(1.25, 1.0))
     axes = [fig.add_subplot(grid[i, 0]) for i in range(3)]
 
@@ -109,12 +108,10 @@ def plot_replay(result, path):
     fig.suptitle(f'replay of {result.path}')
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def write_plot(result, path):
     """plot_replay into the PNG `path` (atomically): the line for people."""
-    from planter_ros.output_files import atomic_output
     with atomic_output(path) as tmp:
         plot_replay(result, tmp)
     return f'plot written to {path}'
