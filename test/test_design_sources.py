@@ -1,6 +1,6 @@
 """Design-change authority, pure parts: who published an accepted design, what counts as a
 change by another node, and the demo's verdict that fails on it (and on every other reason)."""
-from planter_ros.demo.verdict import RowResult, SPACING_TOLERANCE, judge
+from planter_ros.demo.verdict import RowResult, RunOutcome, SPACING_TOLERANCE, judge
 from planter_ros import diagnostics
 from planter_ros.scene.design_sources import DesignSources, Endpoint, gid_text
 from planter_ros.sim.spacing import spacing_in_force, spacing_stats
@@ -82,7 +82,7 @@ def test_the_verdict_passes_a_good_run_and_names_every_reason_of_a_bad_one():
               {'label': 'right', 'faults': 1, 'last_fault': 'drive fault 0x8250 (EMCY)',
                'left_out': ''}],
         design={'changes': 1, 'last_change': '/x/design_node (publisher 01.02)'}),
-        bag_error='recording stopped: [Errno 28] No space left on device')
+        RunOutcome(bag_error='recording stopped: [Errno 28] No space left on device'))
     assert not bad.passed and bad.exit_code == 1
     line = bad.line()
     for reason in ('drive watchdog trip: node 2 RPDO deadline (0x1400:5) expired (EMCY 0x8250)',
@@ -97,9 +97,10 @@ def test_the_verdict_passes_a_good_run_and_names_every_reason_of_a_bad_one():
 
 
 def test_the_verdict_of_a_run_whose_drives_never_started_or_whose_monitor_saw_a_change():
-    failed = judge([], None, start_error='drive node 1: open bus: ...')
+    failed = judge([], None, RunOutcome(start_error='drive node 1: open bus: ...'))
     assert failed.reasons == ['drives not started: drive node 1: open bus: ...']
-    monitor_only = judge([RowResult('', 20, 0.01)], report(), monitor_design_changes='1x')
+    monitor_only = judge([RowResult('', 20, 0.01)], report(),
+                         RunOutcome(monitor_design_changes='1x'))
     assert monitor_only.reasons == ['design changed by another node during the run (1x)']
 
 

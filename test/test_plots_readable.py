@@ -9,7 +9,7 @@ import matplotlib
 import pytest
 
 matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 
 from cli_helpers import REPO  # noqa: E402
 
@@ -30,23 +30,29 @@ COUNTS = ('plants',)              # axes whose quantity is a count: no unit
 
 @pytest.fixture(scope='module')
 def figures(tmp_path_factory):
-    """{name: (figure, text printed)} of each command's --plot, kept open for inspection."""
+    """{name: (figure, text printed)} of each command's --plot: the figure it saved, kept for
+    inspection."""
     out = {}
-    keep = plt.close
-    plt.close = lambda *a, **k: None
+    saved = []
+    save = Figure.savefig
+
+    def save_and_keep(fig, *args, **kwargs):
+        saved.append(fig)
+        return save(fig, *args, **kwargs)
+
+    Figure.savefig = save_and_keep
     try:
         for name, args in COMMANDS.items():
-            keep('all')
+            saved.clear()
             path = tmp_path_factory.mktemp(name) / f'{name}.png'
             printed = io.StringIO()
             with contextlib.redirect_stdout(printed):
                 assert main([*args, '--plot', str(path)]) in (0, 1)
             assert path.stat().st_size > 10_000
-            out[name] = (plt.figure(plt.get_fignums()[-1]), printed.getvalue())
+            out[name] = (saved[-1], printed.getvalue())
     finally:
-        plt.close = keep
+        Figure.savefig = save
     yield out
-    keep('all')
 
 
 def panels(fig):

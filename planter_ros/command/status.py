@@ -80,9 +80,9 @@ class EngineStatus:
                 ('row travelled', f'{law.travelled(now):.4f} m'))
 
     def _drive_report(self, unit: RowUnit, now: float) -> diagnostics.Report:
-        report = sync_status.drive_report(unit.status, unit.running, self.state.shut_down,
-                                          unit.halt, unit.send_errors, unit.last_send_error,
-                                          unit.command, now)
+        drive = sync_status.DriveSide(unit.status, unit.running, unit.halt, unit.send_errors,
+                                      unit.last_send_error, unit.command)
+        report = sync_status.drive_report(drive, self.state.shut_down, now)
         return replace(report, values=report.values + self._recovery_values(unit))
 
     def reports(self, now: float,

@@ -83,7 +83,8 @@ def plan_row_cam(design: Any, rule: str, top_speed: float | None = None,
             f'{speed:.3g} m/s: {plan.figures.over_text()} even at constant speed, the cam\'s '
             'last fallback: allowed a lower top_ground_speed, a larger plant_spacing or a '
             'drive with more reserve')
-    return plan.profile
+    profile: CamProfile = plan.profile
+    return profile
 
 
 def anchored_track(profile: CamProfile, theta: float, s: float) -> CamTrack:
@@ -103,12 +104,13 @@ def anchored_track(profile: CamProfile, theta: float, s: float) -> CamTrack:
     return CamTrack(profile, origin=s - lo)
 
 
-def profile_to_data(profile: CamProfile, previous: CamProfile | None = None) -> dict:
+def profile_to_data(profile: CamProfile,
+                    previous: CamProfile | None = None) -> dict[str, Any]:
     """A planned profile as JSON-ready data (the shell plans, the command process runs it);
     with `previous`, the planned transition from it (if one was planned) travels along."""
 
     period = profile.period
-    data = {'mech': asdict(profile.mech), 'law': asdict(profile.law),
+    data: dict[str, Any] = {'mech': asdict(profile.mech), 'law': asdict(profile.law),
             'spacing': profile.spacing, 'speed': profile.speed, 'drive': asdict(profile.drive),
             'rule': profile.rule, 'blend': profile.blend,
             'breaks': period.breaks.tolist(), 'coeffs': period.coeffs.tolist(),
@@ -118,7 +120,7 @@ def profile_to_data(profile: CamProfile, previous: CamProfile | None = None) -> 
     return data
 
 
-def profile_from_data(data: dict) -> CamProfile:
+def profile_from_data(data: dict[str, Any]) -> CamProfile:
     """The profile `profile_to_data` gave (ValueError/TypeError/KeyError if it is not one);
     a transition that came with it is kept for `CamTrack.change` (cam.track)."""
     spec = CamSpec(CamMechanism(**data['mech']), float(data['spacing']), float(data['speed']),

@@ -79,7 +79,7 @@ class PeriodStats:
         self.gaps = 0
         self.max_gap = 0.0
         self.total = 0.0
-        self._last = None
+        self._last: float | None = None
 
     def event(self, now: float) -> None:
         """One frame sent at `now` (monotonic s)."""

@@ -60,7 +60,7 @@ from planter_ros.config import ConfigError, check, setting
 from planter_ros.sensing.ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits
 
 if TYPE_CHECKING:
-    from planter_ros.cam import CamProfile
+    from planter_ros.cam import CamProfile, CamTrack
 
 TWO_PI = 2.0 * math.pi
 # measured angle is extrapolated with the measured speed for at most this long (s)
@@ -121,6 +121,8 @@ class PlantingAngles:
 def planting_angles(design: Any) -> PlantingAngles | None:
     """Where a design's mechanism plants on its shaft (its planting model's phase, soil entry
     and exit: section stops and design changes), or None when it has no planting model."""
+    # lazy: `planter design` loads this module for the speed limits and not the prediction
+    # package (11 modules, 31 ms: test_skip_what_a_scene_does_not_need's list)
     from planter_ros.prediction import planting_model_from_design
     try:
         model = planting_model_from_design(design)
@@ -160,9 +162,9 @@ class PhaseLock:
                  limits: GroundSpeedLimits | None = None,
                  speed_filter: GroundSpeedFilter | None = None) -> None:
         self.config = config or PhaseLockConfig()
-        self.spacing = None                 # d (m), None until a design is known
+        self.spacing: float | None = None   # d (m), None until a design is known
         self.plants_per_revolution = 1
-        self.planting = None                # PlantingAngles, if the design gives them
+        self.planting: PlantingAngles | None = None  # if the design gives them
         self.filter = speed_filter or GroundSpeedFilter(limits or GroundSpeedLimits())
         self.section_on = True              # section control: planting (True) or off
         self.stop_angle: float | None = None    # where a row switched off comes to rest (rad)
@@ -170,19 +172,20 @@ class PhaseLock:
         self._starting = False              # switched on, not up to speed: no grid yet
         self.phase_slips = 0                # whole plant pitches given up (fault, stale gap)
         self._v = 0.0                       # last accepted forward speed (m/s)
-        self._t_sample = None               # time of the last accepted (or negative) sample
+        self._t_sample: float | None = None  # time of the last accepted (or negative) sample
         self._s = 0.0                       # travelled distance at _t_sample (m)
         # the trapezoid's correction still to take (m): (pending, the part taken over the
         # `window` s after _t_sample, window); row_speed
         self._catch = (0.0, 0.0, 0.0)
-        self._fb = None                     # (angle rad, speed rad/s, stamp s)
-        self._anchor = None                 # (θ at anchor, s at anchor)
+        self._fb: tuple[float, float, float] | None = None  # (angle rad, speed rad/s, stamp s)
+        self._anchor: tuple[float, float] | None = None  # (θ at anchor, s at anchor)
         self._cmd = 0.0
-        self._t_cmd = None
+        self._t_cmd: float | None = None
         self.last_error = 0.0               # phase error at the last command (rad)
-        self._pending = None                # (d, PlantingAngles, s at its planting instant)
+        # (d, PlantingAngles, s at its planting instant)
+        self._pending: tuple[float, PlantingAngles | None, float] | None = None
         self.cam: CamProfile | None = None  # in force (or next), None: constant
-        self._track = None                  # CamTrack of the grid, once anchored with a cam
+        self._track: CamTrack | None = None  # the grid's, once anchored with a cam
         self._cam_offset = 0.0              # whole pitches given up on the cam's grid (rad)
         self.cam_fallback = ''              # why a cam was asked for and is not run
 
@@ -222,7 +225,7 @@ class PhaseLock:
         if cam is not None and self._track is not None:
             # CamLimitError, CamInputError (one line): no change within the drive's limits;
             # the row keeps its design and cam (nothing of the change reaches the drive)
-            switch_at = self._track.change(cam, self._change_from(now, since))
+            switch_at = self._track.change(cam, self._change_from(self._track, now, since))
             self.cam = cam
             self._pending = (float(spacing), planting, switch_at)
             self._switch_design(now)
@@ -240,16 +243,16 @@ class PhaseLock:
                 or self._starting or self._anchor is None
                 or int(plants_per_revolution) != self.plants_per_revolution):
             return
-        self._track.transition(cam, self._change_from(now, since))
+        self._track.transition(cam, self._change_from(self._track, now, since))
 
-    def _change_from(self, now: float, since: float | None) -> float:
+    def _change_from(self, track: CamTrack, now: float, since: float | None) -> float:
         """The distance a cam change counts its next planting instant from: the row's
         distance when the design arrived, unless that plant's soil exit is behind already."""
         s_now = self.travelled(now)
         if since is None or not since < now:
             return s_now
         s_then = max(s_now - self._v * min(now - since, self.config.ground_speed_timeout), 0.0)
-        s_k, profile = self._track.next_plant(s_then)
+        s_k, profile = track.next_plant(s_then)
         if s_k + profile.law.half_length(profile.mech) <= s_now:
             return s_now
         return s_then
@@ -277,9 +280,9 @@ class PhaseLock:
             return self.travelled(now)
         pitch = TWO_PI / self.plants_per_revolution
         k = math.floor((theta - self.planting.phase) / pitch) + 1
-        theta0, s0 = self._anchor
+        theta0, s0, spacing = self._grid()
         return s0 + (self.planting.phase + k * pitch - theta0) * (
-            self.plants_per_revolution * self.spacing) / TWO_PI
+            self.plants_per_revolution * spacing) / TWO_PI
 
     def _switch_design(self, now: float) -> None:
         """Once the row has travelled to the pending design's planting instant s_k: the grid
@@ -289,8 +292,8 @@ class PhaseLock:
         spacing, planting, switch_at = self._pending
         if self.travelled(now) < switch_at:
             return
-        theta0, s0 = self._anchor
-        theta_k = theta0 + TWO_PI * (switch_at - s0) / (self.plants_per_revolution * self.spacing)
+        theta0, s0, old_spacing = self._grid()
+        theta_k = theta0 + TWO_PI * (switch_at - s0) / (self.plants_per_revolution * old_spacing)
         self._anchor = (theta_k, switch_at)
         self.spacing = spacing
         if planting is not None or self.planting is None:
@@ -308,7 +311,8 @@ class PhaseLock:
 
     def ground_speed(self, v: float, now: float) -> str | None:
         """Offer a ground-speed sample (m/s, forward > 0). Returns None or the rejection reason."""
-        used, reason = self.filter.check(v, now)
+        checked: tuple[float | None, str | None] = self.filter.check(v, now)
+        used, reason = checked
         if used is None:
             return reason
         # accepted, or a plausible negative sample read as 0 (not moving forward)
@@ -408,7 +412,8 @@ class PhaseLock:
         """The speed the distance runs at now (m/s): the newest sample's plus the pending
         trapezoid correction's rate (row_speed)."""
         _, usable, window = self._catch
-        if usable and window > 0.0 and now - self._t_sample < window:
+        if (usable and window > 0.0 and self._t_sample is not None
+                and now - self._t_sample < window):
             return self._v + usable / window
         return self._v
 
@@ -430,7 +435,7 @@ class PhaseLock:
             return 0.0
         v = self._speed(now)
         if self._track is not None:
-            return max(self._track.evaluate(self.travelled(now))[1], 0.0) * v
+            return max(float(self._track.evaluate(self.travelled(now))[1]), 0.0) * v
         return TWO_PI * v / (self.plants_per_revolution * self.spacing)
 
     def target_angle(self, now: float) -> float | None:
@@ -438,10 +443,16 @@ class PhaseLock:
         if self._anchor is None:
             return None
         if self._track is not None:
-            return self._track.evaluate(self.travelled(now))[0] + self._cam_offset
-        theta0, s0 = self._anchor
+            return float(self._track.evaluate(self.travelled(now))[0]) + self._cam_offset
+        theta0, s0, spacing = self._grid()
         return theta0 + TWO_PI * (self.travelled(now) - s0) / (
-            self.plants_per_revolution * self.spacing)
+            self.plants_per_revolution * spacing)
+
+    def _grid(self) -> tuple[float, float, float]:
+        """(θ at the anchor, s at the anchor, d) of the grid in force. Only asked once
+        anchored, and an anchor needs a design (_try_anchor)."""
+        assert self._anchor is not None and self.spacing is not None, 'no grid before anchor'
+        return self._anchor[0], self._anchor[1], self.spacing
 
     def cam_target(self, now: float) -> float | None:
         """θ(s) of the cam at `now` (rad) while the row tracks its cam (on its grid, section
@@ -462,9 +473,10 @@ class PhaseLock:
         """θ_target − θ_measured (rad); 0 until anchored."""
         self._switch_design(now)
         target = self.target_angle(now)
-        if target is None or self._fb is None:
+        measured = self.measured_angle(now)
+        if target is None or measured is None:
             return 0.0
-        return target - self.measured_angle(now)
+        return target - measured
 
     def state(self, now: float) -> str:
         if self.spacing is None:
@@ -513,10 +525,11 @@ class PhaseLock:
 
     def _braking(self, now: float) -> float:
         """Switched off: the speed that still stops at stop_angle (0 once at rest there)."""
-        if self.parked or self.stop_angle is None:
+        measured = self.measured_angle(now)     # known: stop_angle is set from it (switch)
+        if self.parked or self.stop_angle is None or measured is None:
             self.parked = True
             return 0.0
-        remaining = self.stop_angle - self.measured_angle(now)
+        remaining = self.stop_angle - measured
         if remaining <= PARK_TOLERANCE:
             self.parked = True
             return 0.0
@@ -528,12 +541,15 @@ class PhaseLock:
         self._t_cmd = now
 
     def _try_anchor(self, now: float) -> None:
+        measured = self.measured_angle(now)
         if (self._anchor is None and not self._starting and self.spacing is not None
-                and self._fb is not None):
-            self._anchor = (self.measured_angle(now), self.travelled(now))
+                and measured is not None):
+            self._anchor = (measured, self.travelled(now))
             if self.cam is not None:
+                # lazy: only a cam row needs the cam package (32 ms); `planter design`
+                # loads this module (test_skip_what_a_scene_does_not_need's list)
                 from .cam_law import anchored_track
-                self._track = anchored_track(self.cam, *self._anchor)
+                self._track = anchored_track(self.cam, measured, self._anchor[1])
                 self._cam_offset = 0.0
 
     def _wrapped_error(self, now: float) -> float:
@@ -542,7 +558,7 @@ class PhaseLock:
         pitch = TWO_PI / self.plants_per_revolution
         if abs(error) > pitch:
             slips = round(error / pitch)
-            theta0, s0 = self._anchor
+            theta0, s0, _ = self._grid()
             self._anchor = (theta0 - slips * pitch, s0)
             self._cam_offset -= slips * pitch
             self.phase_slips += abs(slips)

@@ -22,6 +22,7 @@ from typing import Any
 
 from . import sync_status
 from .machine_law import Machine
+from .phase_lock import PhaseLock
 from .sync_status import Halt
 
 __all__ = ['CSP_LEAD', 'RowStep', 'LoopStep', 'RowLoop', 'cam_csp_target', 'csp_setpoint']
@@ -41,7 +42,7 @@ def csp_setpoint(target: float, command: float, period: float, ahead: float = 0.
     return target + command * max(CSP_LEAD * period - ahead, 0.0)
 
 
-def cam_csp_target(law: Any, target: float, at: float, step: float) -> float | None:
+def cam_csp_target(law: PhaseLock, target: float, at: float, step: float) -> float | None:
     """A cam row's CSP target: the integrated `target` pulled onto θ(s) of the row's distance
     at the SYNC it applies at (`at`), by at most 1.5 times the law's correction bound over
     `step` s (so a cam row's targets are θ(s) itself while it tracks, and a row catching up

@@ -16,8 +16,11 @@ from planter_ros.diagnostics import (BUS, CONTROL_LOOP, DRIVE, ERROR, GROUND_SPE
                                      Report, worst)
 from planter_ros.drive.state_names import FAULT, OPERATION_ENABLED
 
+from .machine_law import Machine
+from .phase_lock import PhaseLock
+
 __all__ = ['SEND_ERROR_HOLD', 'RESTARTED', 'FAULTED', 'HEARTBEAT_LOST', 'NOT_ENABLED', 'Halt',
-           'NEVER_ENABLED', 'at_sync', 'has_feedback', 'halt_reason', 'drive_report',
+           'NEVER_ENABLED', 'DriveSide', 'at_sync', 'has_feedback', 'halt_reason', 'drive_report',
            'ground_report', 'phase_report', 'row_report', 'idle_row_report', 'bus_report',
            'LOOP_MARGIN', 'loop_report']
 
@@ -72,11 +75,26 @@ def halt_reason(status: Any, heartbeat_timeout: float) -> Halt | None:
     return None
 
 
-def drive_report(status: Any, enabled: bool, shut_down: bool, halt: Halt | None,
-                 send_errors: int, last_send_error: tuple[float, str] | None, command: float,
-                 now: float) -> Report:
-    """The drive's status. `last_send_error` = (monotonic time, text) or None."""
-    values = [('enabled', enabled), ('send errors', send_errors)]
+@dataclass(frozen=True)
+class DriveSide:
+    """What the loop knows of one row's drive at a moment: its last status snapshot (a
+    DriveStatus; None before the first), whether it runs (enabled at start-up, not shut down),
+    why the law is not driving it (None: it is), its CAN send errors (how many, and the last:
+    (monotonic s, text)) and the speed it was last commanded (rad/s)."""
+
+    status: Any
+    enabled: bool
+    halt: Halt | None
+    send_errors: int
+    last_send_error: tuple[float, str] | None
+    command: float
+
+
+def drive_report(drive: DriveSide, shut_down: bool, now: float) -> Report:
+    """The drive's status (`shut_down`: the loop shut the drives down)."""
+    status, halt, last_send_error = drive.status, drive.halt, drive.last_send_error
+    values: list[tuple[str, object]] = [('enabled', drive.enabled),
+                                        ('send errors', drive.send_errors)]
     if status is None:
         return Report(DRIVE, STALE if shut_down else ERROR,
                       halt.text if halt else 'not enabled', tuple(values))
@@ -85,7 +103,7 @@ def drive_report(status: Any, enabled: bool, shut_down: bool, halt: Halt | None,
               ('heartbeat age', f'{status.heartbeat_age:.3f} s'),
               ('position', f'{status.position:.4f} rad'),
               ('velocity', f'{status.velocity:.4f} rad/s'),
-              ('command', f'{command:.4f} rad/s')] + values
+              ('command', f'{drive.command:.4f} rad/s')] + values
     if last_send_error is not None and now - last_send_error[0] <= SEND_ERROR_HOLD:
         values.append(('last send error', last_send_error[1]))
         return Report(DRIVE, ERROR, f'CAN send error: {last_send_error[1]}', tuple(values))
@@ -96,7 +114,7 @@ def drive_report(status: Any, enabled: bool, shut_down: bool, halt: Halt | None,
     return Report(DRIVE, OK, 'operation enabled', tuple(values))
 
 
-def ground_report(law: Any, now: float, machine: Any = None,
+def ground_report(law: PhaseLock, now: float, machine: Machine | None = None,
                   stale_state: str | None = None) -> Report:
     """The ground-speed input: fresh, rejecting samples, or stale. `law` runs at the machine's
     reference point; `machine` (control.machine_law.Machine) adds the yaw rate; `stale_state` says
@@ -124,17 +142,18 @@ def ground_report(law: Any, now: float, machine: Any = None,
     return Report(GROUND_SPEED, OK, 'fresh', tuple(values))
 
 
-def phase_report(law: Any, now: float, command: float) -> Report:
+def phase_report(law: PhaseLock, now: float, command: float) -> Report:
     """The phase lock: waiting for a design, tracking, or slipping plants."""
     error = law.last_error
     metres = error * law.plants_per_revolution * law.spacing / (2 * math.pi) \
         if law.spacing else 0.0
-    values = (('mode', 'phase-locked' if law.config.phase_lock else 'speed-only'),
-              ('state', law.state(now)), ('phase error', f'{error:.4f} rad'),
-              ('phase error along row', f'{metres:.4f} m'),
-              ('phase slips', law.phase_slips),
-              ('command', f'{command:.4f} rad/s'),
-              (SECTION, SECTION_ON if law.section_on else SECTION_OFF))
+    values: tuple[tuple[str, object], ...] = (
+        ('mode', 'phase-locked' if law.config.phase_lock else 'speed-only'),
+        ('state', law.state(now)), ('phase error', f'{error:.4f} rad'),
+        ('phase error along row', f'{metres:.4f} m'),
+        ('phase slips', law.phase_slips),
+        ('command', f'{command:.4f} rad/s'),
+        (SECTION, SECTION_ON if law.section_on else SECTION_OFF))
     if law.config.speed_profile == 'cam':
         values += (('speed profile', law.speed_profile),)
         if law.cam_fallback and law.spacing is not None:
@@ -181,7 +200,7 @@ def loop_report(periods: Iterable[tuple[str, Any]], deadline: float) -> Report:
     """How the control loop keeps the drives' command deadline: per row (label, PeriodStats of
     its command frames; label '' without rows) the largest gap and p99.9. WARN once a gap ate
     half the deadline, ERROR once one reached it (the drive has quick-stopped)."""
-    values = []
+    values: list[tuple[str, object]] = []
     longest = 0.0
     p999 = 0.0
     for label, stats in periods:

@@ -15,6 +15,10 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
+from planter_ros.rows import rows_from_scene
+
 __all__ = ['FIRST_PLANT_LIMIT', 'POWER_UP', 'first_plant_errors', 'first_plant_lines',
            'first_plant_reasons', 'machine_rows', 'simulated_drives']
 
@@ -24,13 +28,14 @@ FIRST_PLANT_LIMIT = 0.005   # m: a commissioned machine's first plant lands this
 
 def machine_rows(scene: Any, machine: Any) -> list:
     """The rows the sync node runs: the scene's with the machine file's values over them."""
-    from planter_ros.rows import rows_from_scene
     return rows_from_scene({**scene.parameters('sync_node'), **machine.scene_parameters()})
 
 
 def simulated_drives(machine: Any, seed: int) -> dict[str, Any]:
     """SimulatedBus keyword arguments: each row's drive as the machine file and the seed say,
     recording its true bottom passes."""
+    # lazy: simdrive.mechanism loads python-can and canopen (79 ms in the demo's process,
+    # which has no bus): only a --machine demo asks for its drives
     from planter_ros.simdrive.mechanism import simulated_mechanism
     node_kwargs = {}
     for row in machine.rows.values():
@@ -52,7 +57,6 @@ def first_plant_errors(rows: list, replayed: Any, bottom_times: dict, profile: A
     """Per planting row: {'recorded': s of its first plant in the bag (replay), 'true': s of the
     mechanism's true bottom pass nearest it, 'error': recorded - true (m, along the row, both
     on the simulator's true distance)} or {'error': None, 'why': ...}."""
-    import numpy as np
     out: dict[str, dict] = {}
     plants = replayed.plants
     for row in rows:
@@ -74,7 +78,6 @@ def first_plant_errors(rows: list, replayed: Any, bottom_times: dict, profile: A
 
 def _along(profile: Any, t: float, lateral_offset: float) -> float:
     """The row's true travelled distance at `t` s of the field run."""
-    import numpy as np
     if hasattr(profile, 'row_distance'):
         return float(profile.row_distance(np.array([t]), lateral_offset)[0])
     return float(profile.distance(np.array([t]))[0])

@@ -4,6 +4,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from planter_ros.config import ConfigError, check, setting
+from planter_ros.output_files import check_directory, check_new_path
 
 __all__ = ['DEFAULT_SCENE', 'DemoOptions', 'check_bag_path']
 
@@ -41,7 +42,6 @@ def check_bag_path(bag: str | None) -> None:
     an existing path, an extension other than .mcap (a file) or none (a bag directory), a
     missing or read-only directory; without --bag, the default bags/ directory (or the current
     directory it would be made in) must be writable."""
-    from planter_ros.output_files import check_directory, check_new_path
     if bag is not None:
         check_new_path(bag, '--bag', ('.mcap', ''))
         return

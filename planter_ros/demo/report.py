@@ -7,15 +7,51 @@ measured speed, in the turns the compensation's effect, then the command path's 
 the sync process (sample counts, slips, send errors, watchdog trips, control-loop periods,
 design changes)."""
 
+from __future__ import annotations
+
+from dataclasses import dataclass
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
 
 from planter_ros.command.reports import RowSnapshot, Snapshot
+from planter_ros.sim.spacing import error_figures, spacing_in_force, spacing_stats
 
 from .sync_process import SyncReport
 from .verdict import RowResult
 
+if TYPE_CHECKING:
+    from planter_ros.design import Design
+    from planter_ros.rows import Row
+    from planter_ros.sim.field import FieldProfile
+    from planter_ros.sim.ros_field import Observer
+
 __all__ = ['command_path_lines', 'progress_line', 'row_summary']
+
+
+@dataclass(frozen=True)
+class FieldRun:
+    """What the demo's own figures are measured in: the design, the true field profile (speed
+    and turns), the observer that saw the mechanisms turn and the spacing changes it saw
+    ((t since start, d), spacing_changes)."""
+
+    design: Design
+    profile: FieldProfile
+    observer: Observer
+    changes: tuple[tuple[float, float], ...]
+
+
+@dataclass(frozen=True)
+class RowPlants:
+    """One planting row's plants at the true travelled distance: their times (s) and
+    positions (m), and the design spacing in force for each gap between them (m)."""
+
+    row: Row
+    times: npt.NDArray[np.float64]
+    positions: npt.NDArray[np.float64]
+    in_force: npt.NDArray[np.float64]
 
 
 def progress_line(t: float, profile: Any, status: Snapshot, plants: int, rows: list) -> str:
@@ -43,13 +79,11 @@ def row_summary(design: Any, rows: list, profile: Any, observer: Any,
                 report: SyncReport) -> tuple[str, list[RowResult]]:
     """The demo's own figures per planting row and the command path's report:
     (text, [RowResult] for the verdict). `rows`: every row of the scene."""
-    import numpy as np
-
-    from planter_ros.sim.spacing import error_figures, spacing_in_force, spacing_stats
     d = design.plant_spacing
     n = design.plants_per_revolution
     named = bool(rows[0].name)
     changes = spacing_changes(observer)
+    run = FieldRun(design, profile, observer, tuple(changes))
     lines = ['', 'summary']
     results = []
     for row in (row for row in rows if row.enabled):
@@ -87,8 +121,7 @@ def row_summary(design: Any, rows: list, profile: Any, observer: Any,
                 lines.append(f"{pad}{label + ' speed':<24} expected {expected:.3f} rad/s, "
                              f'commanded {np.mean(cmd):.3f}, measured {np.mean(meas):.3f} '
                              f'(rms measured - expected {rms_speed:.3f})')
-        lines += _curve_lines(design, profile, observer, row, times, positions, pad, in_force,
-                              changes)
+        lines += _curve_lines(run, RowPlants(row, times, positions, in_force), pad)
     lines += command_path_lines(report)
     return '\n'.join(lines), results
 
@@ -138,14 +171,15 @@ def command_path_lines(report: SyncReport) -> list[str]:
     return lines
 
 
-def _curve_lines(design, profile, observer, row, times, positions, pad, in_force, changes):
+def _curve_lines(run: FieldRun, plants: RowPlants, pad: str) -> list[str]:
     """Per turn: the row's mean spacing error and speed against 2πv_i/(n·d), next to the
     bias a machine without turn compensation shows there (−y·d/R)."""
-    import numpy as np
+    design, profile, observer, changes = run.design, run.profile, run.observer, run.changes
+    row, times, positions = plants.row, plants.times, plants.positions
     d = design.plant_spacing
     n = design.plants_per_revolution
     lines = []
-    gaps = np.diff(positions) - in_force
+    gaps = np.diff(positions) - plants.in_force
     for curve in profile.curves:
         a, b = curve.start + curve.ease, curve.end - curve.ease
         mine = gaps[(times[:-1] >= a) & (times[1:] <= b)]

@@ -29,6 +29,7 @@ from typing import Any, TextIO
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
@@ -37,16 +38,20 @@ from planter_ros.host import stop_signals
 from planter_ros.host.dds_domain import (
     PRIVATE_GRAPH_ROS_ARGS, NoFreeDomainError, claim_private_domain, keep_discovery_on_host)
 from planter_ros.command.reports import Snapshot
+from planter_ros.design import Design
 from planter_ros.geo import AntennaSettings
 from planter_ros.nodes.design_node import DesignNode
 from planter_ros.nodes.monitor_node import MonitorNode
+from planter_ros.prediction.acceptance import Acceptance
 from planter_ros.recording.errors import RecordingError
-from planter_ros.recording.replay import replay
+from planter_ros.recording.replay import ReplayResult, replay
 from planter_ros.recording.replay_text import format_summary
-from planter_ros.scene import SceneError, default_scene_path, open_scene
-from planter_ros.scene.machine_file import deployment_parameters, open_machine
+from planter_ros.rows import Row
+from planter_ros.scene import Scene, SceneError, default_scene_path, open_scene
+from planter_ros.scene.machine_file import Machine, deployment_parameters, open_machine
 from planter_ros.scene.schedule import spacing_schedule
 from planter_ros.sim.closed_loop import MotionSensor
+from planter_ros.sim.field import FieldProfile
 from planter_ros.sim.gnss import SimulatedGnss
 from planter_ros.sim.ros_field import GnssSource, GroundSpeedSource, Observer, SeedlingSensor
 
@@ -56,7 +61,7 @@ from .commissioned import (
 from .options import DemoOptions, check_bag_path
 from .report import command_path_lines, progress_line, row_summary
 from .sync_process import SyncProcess, SyncProcessError, SyncProcessSettings
-from .verdict import judge
+from .verdict import RowResult, RunOutcome, Verdict, judge
 
 __all__ = ['Demo', 'DemoResult', 'prepare']
 
@@ -86,29 +91,43 @@ def prepare(options: DemoOptions, **kwargs: Any) -> 'Demo':
     for warning in scene.warnings:        # unusual but possible values (planter_ros.plausibility)
         print(f'planter: warning: {warning}', file=sys.stderr)
     keep_discovery_on_host()
-    return Demo(scene, design, rows, options, antenna=antenna, machine=machine, **kwargs)
+    return Demo(DemoInputs(scene, design, tuple(rows), antenna, machine), options, **kwargs)
+
+
+@dataclass(frozen=True)
+class DemoInputs:
+    """What one demo runs, read and checked by `prepare`: the scene, its design, every row
+    of the machine (the scene's, or --machine's), the GNSS antenna on the machine and the
+    --machine file (None without one)."""
+
+    scene: Scene
+    design: Design
+    rows: tuple[Row, ...]
+    antenna: AntennaSettings
+    machine: Machine | None = None
 
 
 class Demo:
-    """One demo run. `out`: where the report goes (stdout); `install_signals`: take over
-    SIGINT/SIGTERM (the command line; a caller that runs demos itself, the bench, keeps its
-    own); `log_level`: the nodes' ROS log level; `antenna`: the GNSS antenna on the machine
-    (geo.AntennaSettings, the scene's)."""
+    """One demo run of `inputs` (DemoInputs). `out`: where the report goes (stdout);
+    `install_signals`: take over SIGINT/SIGTERM (the command line; a caller that runs demos
+    itself, the bench, keeps its own); `log_level`: the nodes' ROS log level; `stop`: a
+    stop_signals handler the caller installed."""
 
-    def __init__(self, scene, design, rows, options: DemoOptions, out: TextIO | None = None,
-                 install_signals: bool = True, log_level: str = 'info', antenna=None,
-                 machine=None, stop=None) -> None:
-        self.scene, self.design, self.rows, self.options = scene, design, rows, options
-        self.machine = machine            # scene.machine_file.Machine of --machine, or None
-        self._replayed = None             # the replay of the bag, once done
-        self.antenna = antenna or AntennaSettings()
-        self.planting = [row for row in rows if row.enabled]
+    def __init__(self, inputs: DemoInputs, options: DemoOptions, out: TextIO | None = None,
+                 install_signals: bool = True, log_level: str = 'info',
+                 stop: stop_signals.StopSignals | None = None) -> None:
+        self.scene, self.design, self.options = inputs.scene, inputs.design, options
+        self.rows = list(inputs.rows)
+        self.machine = inputs.machine     # scene.machine_file.Machine of --machine, or None
+        self._replayed: ReplayResult | None = None     # the replay of the bag, once done
+        self.antenna = inputs.antenna
+        self.planting = [row for row in self.rows if row.enabled]
         self.out = out or sys.stdout
         self.install_signals = install_signals
         self.stop = stop                  # a stop_signals handler installed by the caller
         self.log_level = log_level
         self.result: DemoResult | None = None
-        self.schedule = spacing_schedule(scene.parameters('design_node'), scene.path)
+        self.schedule = spacing_schedule(self.scene.parameters('design_node'), self.scene.path)
 
     def _print(self, text: str = '') -> None:
         print(text, file=self.out, flush=True)
@@ -148,7 +167,6 @@ class Demo:
 
     def stopped_before_start(self, stop) -> int:
         """A stop that came before the graph started: nothing ran, nothing to shut down."""
-        from .verdict import Verdict
         self._print(f'interrupted by {stop.description} before the graph started: nothing ran')
         self._print('\nsummary\n  no field run, no drive enabled, no bag')
         verdict = Verdict(['stopped before the graph started: no bag'], stop.description)
@@ -160,7 +178,7 @@ class Demo:
     def finish(self, run: '_Run') -> int:
         """Summaries, the replay of the bag, the verdict line; the exit code."""
         report = run.sync.report if run.sync is not None else None
-        rows = []
+        rows: list[RowResult] = []
         if run.observer is not None and run.observer.start is not None and report is not None:
             summary, rows = row_summary(self.design, self.rows, run.profile, run.observer,
                                         report)
@@ -172,13 +190,14 @@ class Demo:
                                       ['  the sync process gave no report'])))
         bag_error = run.bag_error()
         acceptance = None
-        if not bag_error:
-            replayed, bag_error, acceptance = self.replay_summary(run.monitor.recorder.path)
+        recorder = run.monitor.recorder if run.monitor is not None else None
+        if not bag_error and recorder is not None:      # bag_error() says why there is none
+            replayed, bag_error, acceptance = self.replay_summary(recorder.path)
             self._print(replayed)
         monitor_changes = ''
-        if (run.monitor is not None
-                and run.monitor.design_sources.changes > run.scheduled_changes):
-            sources = run.monitor.design_sources
+        sources = run.monitor.design_sources if run.monitor is not None else None
+        if (sources is not None and sources.last_change is not None
+                and sources.changes > run.scheduled_changes):
             monitor_changes = (f'{sources.changes}x, the latest from '
                                f'{sources.last_change.text}')
         first_plants = {}
@@ -188,9 +207,9 @@ class Demo:
                                               *run.field_start)
             self._print('\n'.join(first_plant_lines(first_plants)))
         field_run = run.observer is not None and run.observer.start is not None
-        verdict = judge(rows, report, run.start_error, bag_error, monitor_changes,
-                        acceptance if field_run else None,
-                        scheduled_changes=run.scheduled_changes, field_run=field_run)
+        outcome = RunOutcome(run.start_error, bag_error, monitor_changes, run.scheduled_changes,
+                             field_run)
+        verdict = judge(rows, report, outcome, acceptance if field_run else None)
         if first_plants:
             verdict.reasons += first_plant_reasons(first_plants)
         verdict.stopped_by, verdict.elapsed = run.stopped_by, run.elapsed
@@ -199,7 +218,7 @@ class Demo:
         self._print(verdict.line())
         return verdict.exit_code
 
-    def replay_summary(self, bag) -> tuple[str, str, dict | None]:
+    def replay_summary(self, bag) -> tuple[str, str, Acceptance | None]:
         """Re-read the finished bag offline, as `planter replay` would, and summarise it:
         (text, why it failed or '', the run judged by the crop's acceptance limits the bag
         recorded: replay's `acceptance`, None when the replay failed)."""
@@ -233,15 +252,21 @@ class _Run:
     START_TIMEOUT = 120.0     # s for the sync process to import, build and enable (loaded host)
     MATCH_TIMEOUT = 20.0      # s for the graph to discover itself before the field run
 
-    def __init__(self, demo, domain, stop):
+    def __init__(self, demo: Demo, domain: int, stop: stop_signals.StopSignals) -> None:
         self.demo, self.domain, self.stop_signal = demo, domain, stop
-        self.sync = self.context = self.executor = self.spinner = None
-        self.monitor = self.observer = self.source = None
-        self.nodes = []
-        self.profile = None
+        # made by start_and_drive, in this order (None: not made: stopped or failed before)
+        self.sync: SyncProcess | None = None
+        self.context: Context | None = None
+        self.executor: SingleThreadedExecutor | None = None
+        self.spinner: threading.Thread | None = None
+        self.design_node: DesignNode | None = None
+        self.observer: Observer | None = None
+        self.monitor: MonitorNode | None = None
+        self.source: GroundSpeedSource | None = None      # made by _start_field
+        self.nodes: list[Node] = []
+        self.profile: FieldProfile | None = None
         self.start_error = ''
         self.elapsed = 0.0
-        self.design_node = None
         self._next_switch = 0           # the spacing schedule's next switch
         self.field_start = (0.0, 0.0)   # (ROS time s, monotonic s) of the field run's t = 0
         self.scheduled_changes = 0      # design changes the schedule made (not foreign)
@@ -268,38 +293,38 @@ class _Run:
                                                design.top_ground_speed)
         ns = interfaces.NAMESPACE
         # the command path first: it takes longest to start (its own interpreter)
-        machine = ()
+        machine: tuple[tuple[str, str], ...] = ()
         if demo.machine is not None:
             machine = (('machine_file', str(demo.machine.path)),)
-        self.sync = SyncProcess(SyncProcessSettings(
+        self.sync = sync = SyncProcess(SyncProcessSettings(
             self.domain, channel, tuple(row.drive_node_id for row in demo.planting), ns,
             tuple(demo.scene.node_overrides('sync_node')) + machine + (
                 ('can_interface', 'virtual'), ('can_channel', channel),
                 ('phase_lock', options.phase_lock),
                 ('turn_compensation', options.turn_compensation)),
             demo.log_level, simulated_drives(demo.machine, options.seed) if machine else {}))
-        self.context = Context()
+        self.context = context = Context()
         rclpy.init(args=['--ros-args', '--log-level', demo.log_level, *PRIVATE_GRAPH_ROS_ARGS],
-                   context=self.context, domain_id=self.domain,
+                   context=context, domain_id=self.domain,
                    signal_handler_options=SignalHandlerOptions.NO)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        context = self.context
-        self.design_node = DesignNode(context=context, namespace=ns, parameter_overrides=[
-            _param(k, v) for k, v in demo.scene.node_overrides('design_node')])
-        self.nodes.append(self.design_node)
-        self.observer = Observer(context=context, namespace=ns)
-        self.nodes.append(self.observer)
+        self.executor = executor = SingleThreadedExecutor(context=context)
+        self.design_node = design_node = DesignNode(
+            context=context, namespace=ns, parameter_overrides=[
+                _param(k, v) for k, v in demo.scene.node_overrides('design_node')])
+        self.nodes.append(design_node)
+        self.observer = observer = Observer(context=context, namespace=ns)
+        self.nodes.append(observer)
         monitor = dict(demo.scene.node_overrides('monitor_node'))
         if demo.machine is not None:
             monitor.update(demo.machine.node_parameters()['monitor_node'])
         if options.bag:
             monitor['bag_path'] = options.bag
-        self.monitor = MonitorNode(context=context, namespace=ns, parameter_overrides=[
+        self.monitor = recording = MonitorNode(context=context, namespace=ns, parameter_overrides=[
             _param(k, v) for k, v in monitor.items()])
         self.nodes.append(self.monitor)          # per-plant predictions and the bag
         for node in self.nodes:
-            self.executor.add_node(node)
-        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
+            executor.add_node(node)
+        self.spinner = threading.Thread(target=executor.spin, daemon=True)
         self.spinner.start()
         turns = ', '.join(f'{"left" if c.radius > 0 else "right"} turn R = '
                           f'{abs(c.radius):g} m at {c.start:.1f}-{c.end:.1f} s'
@@ -311,9 +336,9 @@ class _Run:
                     f"{'phase-locked' if options.phase_lock else 'speed-only'}, turn "
                     f"compensation {'on' if options.turn_compensation else 'off'}, "
                     f'DDS domain {self.domain} (private), bag '
-                    f"{getattr(self.monitor.recorder, 'path', None) or 'none (not recording)'}")
+                    f"{getattr(recording.recorder, 'path', None) or 'none (not recording)'}")
         try:
-            built = self.sync.wait_for('built', self.START_TIMEOUT, self._stopped)
+            built = sync.wait_for('built', self.START_TIMEOUT, self._stopped)
             if built is None:
                 return self._interrupted()
             if demo.rows[0].name:
@@ -322,7 +347,7 @@ class _Run:
                     f'{"" if row.enabled else ", disabled"})' for row in demo.rows)
                     + f"; CAN bus load {100 * built.bus_load:.1f} % of "
                     f"{built.bitrate} bit/s")
-            ready = self.sync.wait_for('ready', self.START_TIMEOUT, self._stopped)
+            ready = sync.wait_for('ready', self.START_TIMEOUT, self._stopped)
             if ready is None:
                 return self._interrupted()
         except SyncProcessError as exc:
@@ -336,83 +361,86 @@ class _Run:
                        "drives in a process of their own" if ready.command_process else
                        f'CAN virtual:{channel}, drives in the sync process')
                     + '); field run starts')
-        self._start_field(profile)
-        return self._drive(profile)
+        self.source = source = self._start_field(profile, sync, observer, context, executor)
+        return self._drive(profile, sync, source, observer, design_node)
 
-    def _start_field(self, profile):
+    def _start_field(self, profile: FieldProfile, sync: SyncProcess, observer: Observer,
+                     context: Context, executor: SingleThreadedExecutor) -> GroundSpeedSource:
         """The simulated sensors, once the graph has found itself (the sync node and the
         monitor subscribe the ground speed, the sync node has the design): t = 0 then."""
 
         options, ns = self.demo.options, interfaces.NAMESPACE
-        self.source = GroundSpeedSource(profile, MotionSensor(seed=options.seed),
-                                        glitches=glitches(options.duration),
-                                        context=self.context, namespace=ns)
+        source = GroundSpeedSource(profile, MotionSensor(seed=options.seed),
+                                   glitches=glitches(options.duration),
+                                   context=context, namespace=ns)
         deadline = time.monotonic() + self.MATCH_TIMEOUT
         while time.monotonic() < deadline and not self._stopped():
-            self.sync.poll(0.05)
-            if (self.source._pub.get_subscription_count() >= 2
-                    and self.sync.status.spacing is not None):
+            sync.poll(0.05)
+            if (source._pub.get_subscription_count() >= 2
+                    and sync.status.spacing is not None):
                 break
-        self.source.restart()
-        self.field_start = (self.source.start.nanoseconds * 1e-9, time.monotonic())
+        source.restart()
+        self.field_start = (source.start.nanoseconds * 1e-9, time.monotonic())
         # the machine's GNSS receiver, on the same path and clock
         origin = {name: value for name, value in (
             ('origin_latitude', options.origin_latitude),
             ('origin_longitude', options.origin_longitude)) if value is not None}
         receiver = SimulatedGnss(**origin)
         antenna = self.demo.antenna.antenna_position
-        gnss = GnssSource(profile, receiver, self.source.start, antenna=antenna,
-                          seed=options.seed, context=self.context, namespace=ns)
+        gnss = GnssSource(profile, receiver, source.start, antenna=antenna,
+                          seed=options.seed, context=context, namespace=ns)
         self.demo._print(
             f'GNSS: simulated receiver at {receiver.rate:g} Hz from '
             f'{receiver.origin_latitude:.7f}, {receiver.origin_longitude:.7f} (WGS 84), noise '
             f'{receiver.noise * 1e3:.0f} mm per axis; antenna x = {antenna[0]:+.2f} m, '
             f'y = {antenna[1]:+.2f} m on the machine')
         sensed = [row for row in self.demo.planting if row.seedling_sensor]
-        nodes = [self.source, gnss]
+        nodes: list[Node] = [source, gnss]
         if sensed:
             nodes.append(SeedlingSensor(self.demo.design, sensed, options.empty_rate,
                                         options.double_rate, seed=options.seed,
-                                        context=self.context, namespace=ns))
+                                        context=context, namespace=ns))
         self.demo._print(
             f'seedling sensor: a cup sensor on {len(sensed)} of {len(self.demo.planting)} '
             f'row(s) on a simulated tray, '
             f'{options.empty_rate:.0%} empty cells, {options.double_rate:.0%} doubles (topic '
             'seedlings)' if sensed else 'seedling sensor: none (the scene declares no row '
             'with one): every planting instant unknown')
-        self.observer.start = self.source.start
+        observer.start = source.start
         for node in nodes:
             self.nodes.append(node)
-            self.executor.add_node(node)
+            executor.add_node(node)
+        return source
 
-    def _drive(self, profile):
+    def _drive(self, profile: FieldProfile, sync: SyncProcess, source: GroundSpeedSource,
+               observer: Observer, design_node: DesignNode) -> None:
         demo, duration = self.demo, self.demo.options.duration
         next_print = PROGRESS_PERIOD
         while True:
-            self.sync.poll()
-            t = self.source.elapsed()
+            sync.poll()
+            t = source.elapsed()
             self.elapsed = min(t, duration)
             if self._stopped():
                 return self._interrupted()
             if t >= duration:
                 self.completed = True
                 return None
-            self._switch_spacing(t)
+            self._switch_spacing(t, design_node)
             if t >= next_print:
-                demo._print(demo.progress(t, profile, self.sync.status, self.observer))
+                demo._print(demo.progress(t, profile, sync.status, observer))
                 next_print += PROGRESS_PERIOD
             time.sleep(0.05)
 
-    def _switch_spacing(self, t):
+    def _switch_spacing(self, t: float, design_node: DesignNode) -> None:
         """The scene's spacing schedule: at each switch's time, the design node's
         plant_spacing is set (it publishes the new design)."""
         schedule = self.demo.schedule
         while self._next_switch < len(schedule) and t >= schedule[self._next_switch][0]:
             at, spacing = schedule[self._next_switch]
             self._next_switch += 1
-            if spacing == self.design_node.design.plant_spacing:
+            if spacing == design_node.design.plant_spacing:
                 continue
-            result = self.design_node.set_parameters([_param('plant_spacing', spacing)])[0]
+            result = design_node.set_parameters([_param('plant_spacing', spacing)])[0]
             if result.successful:
                 self.scheduled_changes += 1
                 self.demo._print(f'{t:6.1f} s  spacing schedule: plant_spacing -> '

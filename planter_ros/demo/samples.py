@@ -3,16 +3,33 @@
 records the other samples). Refuses to overwrite: delete a bag first to make it anew.
 """
 
+import argparse
+from collections.abc import Callable
 from pathlib import Path
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+
+from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
+from planter_ros.nodes.monitor_node import MonitorNode
+from planter_ros.recording.errors import BagWriteError
+from planter_ros.sim.lockstep import LockStepFeeder
+from planter_ros.sim.runs import Run, RunOptions, five_bar_design_message, simulate_run
 
 __all__ = ['SAMPLES', 'main', 'record_sample']
 
-SAMPLES = {
-    # name: (design kwargs, simulate_run kwargs)
-    'pepper_stall': (dict(depth=0.06, spacing=0.3, hole_ratio=0.05, ground_speed=0.3),
-                     dict(duration=20.0, cruise=0.3, step=1.6, drive_lag=0.25, phase_gain=1.0,
-                          stall_at=7.0, stall_for=3.5, stall_level=0.1, seed=2)),
-}
+
+def _pepper_stall() -> Run:
+    """A pepper five-bar whose drive stalls at 7 s for 3.5 s (10 % of its speed)."""
+    design = five_bar_design_message(depth=0.06, spacing=0.3, hole_ratio=0.05, ground_speed=0.3)
+    return simulate_run(design, RunOptions(duration=20.0, cruise=0.3, step=1.6, drive_lag=0.25,
+                                           phase_gain=1.0, stall_at=7.0, stall_for=3.5,
+                                           stall_level=0.1, seed=2))
+
+
+# name: the simulated run its bag records
+SAMPLES: dict[str, Callable[[], Run]] = {'pepper_stall': _pepper_stall}
 
 
 def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
@@ -22,15 +39,6 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
     simulated clock fed in lock-step (sim.lockstep). Returns the list of plant tables the
     monitor published (its live predictions), in order.
     """
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-
-    from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
-    from planter_ros.nodes.monitor_node import MonitorNode
-    from planter_ros.recording.errors import BagWriteError
-    from planter_ros.sim.lockstep import LockStepFeeder
-
     context = rclpy.Context()
     rclpy.init(args=['--ros-args', *PRIVATE_GRAPH_ROS_ARGS], context=context,
                domain_id=claim_private_domain())
@@ -59,15 +67,12 @@ def record_sample(run, bag_path, monitor_parameters=None, timeout=60.0):
 
 def main(argv=None):
     """Regenerate bags/sample_<name>.mcap (refuses to overwrite: delete them first)."""
-    import argparse
-
-    from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
     parser = argparse.ArgumentParser(description=main.__doc__, allow_abbrev=False)
     parser.add_argument('--out', default='bags', help='directory for the sample bags')
     args = parser.parse_args(argv)
-    for name, (design_kw, run_kw) in SAMPLES.items():
+    for name, simulated in SAMPLES.items():
         path = Path(args.out) / f'sample_{name}.mcap'
-        run = simulate_run(five_bar_design_message(**design_kw), RunOptions(**run_kw))
+        run = simulated()
         tables = record_sample(run, path)
         print(f'{path}: {sum(len(t) for t in tables)} plants, {path.stat().st_size} bytes')
     return 0

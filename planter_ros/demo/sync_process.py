@@ -31,7 +31,7 @@ What the child says is typed (`SyncBuilt`, `SyncReady`, `SyncReport` with the co
 `command.reports.CommandReport` and the drives' `DrivesReport`): a report without the command
 path's figures says why (`command_missing`), never a KeyError at the end of a run."""
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 import gc
 import multiprocessing
 import threading
@@ -41,7 +41,14 @@ from typing import Any
 from planter_ros.command.reports import CommandReport, ReportError, Snapshot, from_data
 from planter_ros.drive.state_names import (FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
                                            QUICK_STOP_ACTIVE)
+from planter_ros.config import ConfigError
+from planter_ros.control.loop_timing import SyncLoopConfig
+from planter_ros.drive.errors import DriveError
 from planter_ros.errors import PlanterError
+from planter_ros.host import stop_signals
+from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS
+from planter_ros.host.processes import die_with_parent
+from planter_ros.simdrive.process import SimProcess, drives_report
 
 __all__ = ['DesignReport', 'DriveEnd', 'DrivesReport', 'STANDSTILL', 'SyncBuilt', 'SyncProcess',
            'SyncProcessError', 'SyncProcessSettings', 'SyncReady', 'SyncReport', 'child_main',
@@ -140,7 +147,6 @@ class SyncReport:
     def flat(self) -> dict[str, Any]:
         """The report as one plain mapping (the command path's figures, the drives' under
         drive_* keys), for tools that keep it as JSON (the bench)."""
-        from dataclasses import asdict
         out = asdict(self.command) if self.command is not None else {}
         out['watchdog_trips'] = self.drives.watchdog_trips
         out['bottom_times'] = self.drives.bottom_times
@@ -174,7 +180,6 @@ class SyncProcess:
         self._conn, child = context.Pipe()
         self.process = context.Process(target=child_main, args=(child, settings),
                                        name='planter-demo-sync')
-        from planter_ros.host import stop_signals
         with stop_signals.held_for_child():      # its own handler first, then a stop signal
             self.process.start()
         child.close()
@@ -251,29 +256,28 @@ class SyncProcess:
 
 def child_main(conn, settings):
     """The child process: the sync node on the simulated bus until asked to stop."""
-    from planter_ros.host import stop_signals
-    from planter_ros.host.processes import die_with_parent
     # a demo killed outright (SIGKILL): the broken pipe below is the clean way out (drives shut
     # down), but it is only read between status snapshots; the kernel's signal ends this
     # process PARENT_GONE_GRACE s after the demo however stuck it is
-    die_with_parent(multiprocessing.parent_process().pid, grace=PARENT_GONE_GRACE)
+    parent = multiprocessing.parent_process()
+    if parent is None or parent.pid is None:
+        raise RuntimeError('child_main is the sync process a SyncProcess starts: no parent')
+    die_with_parent(parent.pid, grace=PARENT_GONE_GRACE)
     # a stop signal here (or one its command process received) is passed on to the demo
     stop = stop_signals.install('planter demo: sync process')
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.exceptions import ParameterException
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-    from rclpy.signals import SignalHandlerOptions
+    # lazy: this spawned child imports rclpy, the sync node and python-can (0.4-0.6 s) only
+    # once die_with_parent and its stop handler are in place: until then a stop signal is held
+    # for it (stop_signals.held_for_child) and a demo killed meanwhile would not take it down
+    import rclpy  # lazy: (above)
+    from rclpy.context import Context  # lazy: (above)
+    from rclpy.exceptions import ParameterException  # lazy: (above)
+    from rclpy.executors import SingleThreadedExecutor  # lazy: (above)
+    from rclpy.parameter import Parameter  # lazy: (above)
+    from rclpy.signals import SignalHandlerOptions  # lazy: (above)
 
-    from planter_ros.config import ConfigError
-    from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS
-    from planter_ros.drive.errors import DriveError
-    from planter_ros.control.loop_timing import SyncLoopConfig
-    from planter_ros.simdrive.process import SimProcess
-    from planter_ros.simdrive.bus import SimulatedBus
-    from planter_ros.drive.socket_bus import INTERFACE, socket_pair
-    from planter_ros.nodes.sync_node import LibraryLog, SyncNode, start_error
+    from planter_ros.simdrive.bus import SimulatedBus  # lazy: python-can (above)
+    from planter_ros.drive.socket_bus import INTERFACE, socket_pair  # lazy: python-can (above)
+    from planter_ros.nodes.sync_node import LibraryLog, SyncNode, start_error  # lazy: (above)
 
     def send(*message):
         try:
@@ -283,6 +287,7 @@ def child_main(conn, settings):
             return False
 
     parameters = list(settings.parameters)
+    sims: SimProcess | SimulatedBus
     if settings.command_process:
         # drives | CAN socket pair | command process | channel | this shell (the sync node)
         ours, theirs = socket_pair()
@@ -352,11 +357,10 @@ def child_main(conn, settings):
         if sync is not None:
             sync.destroy_node()                    # every row: 0x60FF = 0, disable
         context.try_shutdown()
-        if settings.command_process:
+        if isinstance(sims, SimProcess):      # settings.command_process
             drive_report = sims.stop()
         else:                       # the drives in this process, measured the same way
             sims.stop()
-            from planter_ros.simdrive.process import drives_report
             drive_report = drives_report(sims)
         library_log.close()
     if sync is not None:

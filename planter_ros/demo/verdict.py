@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 
 from planter_ros.prediction.acceptance import acceptance_failures
 
-__all__ = ['EXIT_FAIL', 'EXIT_PASS', 'RowResult', 'SPACING_TOLERANCE', 'Verdict', 'judge']
+__all__ = ['EXIT_FAIL', 'EXIT_PASS', 'RowResult', 'RunOutcome', 'SPACING_TOLERANCE', 'Verdict',
+           'judge']
 
 # per-row spacing error RMS, as a fraction of d. The demo is the real node graph in real time
 # on whatever host runs it: DDS delivery and scheduling jitter put a loaded 2-core host's runs
@@ -35,6 +36,21 @@ class RowResult:
     label: str
     plants: int
     rms: float                    # spacing error RMS relative to d (fraction)
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What the demo itself saw of a run, beside the sync process's report: why the drives did
+    not start ('' = they did), why there is no usable bag ('' = there is one), the monitor's
+    account of design changes ('' = none), the design changes the scene's spacing schedule
+    made (not a fault), and whether the field run began (False: stopped before it; nothing
+    planted: the rows and the crop are not judged, the drives and the bag are)."""
+
+    start_error: str = ''
+    bag_error: str = ''
+    monitor_design_changes: str = ''
+    scheduled_changes: int = 0
+    field_run: bool = True
 
 
 @dataclass
@@ -62,17 +78,14 @@ class Verdict:
         return f'verdict: FAIL{stopped}: ' + '; '.join(self.reasons)
 
 
-def judge(rows, sync_report, start_error='', bag_error='', monitor_design_changes='',
-          acceptance=None, scheduled_changes=0, field_run=True):
+def judge(rows, sync_report, outcome=RunOutcome(), acceptance=None):
     """The verdict of a run. `rows`: RowResult per planting row (empty if the run never
     started); `sync_report`: the sync process's final report (sync_process.final_report, None if
-    it never came); `start_error`: why the drives did not start; `bag_error`: why there is no
-    usable bag; `monitor_design_changes`: the monitor's account of design changes, if any;
-    `acceptance`: the replay's judgement of the bag by the crop's limits
-    (prediction.judge_acceptance; None: no replay, `bag_error` says why);
-    `scheduled_changes`: design changes the scene's spacing schedule made (not a fault);
-    `field_run`: False when the run was stopped before its field run began (nothing planted:
-    the rows and the crop are not judged, the drives and the bag are)."""
+    it never came); `outcome`: what the demo saw of the run (RunOutcome); `acceptance`: the
+    replay's judgement of the bag by the crop's limits (prediction.judge_acceptance; None: no
+    replay, `outcome.bag_error` says why)."""
+    start_error, bag_error = outcome.start_error, outcome.bag_error
+    field_run = outcome.field_run
     reasons = []
     if start_error:
         reasons.append(f'drives not started: {start_error}')
@@ -90,12 +103,12 @@ def judge(rows, sync_report, start_error='', bag_error='', monitor_design_change
                 reasons.append(f'{name} spacing error RMS {100 * row.rms:.2f} % of d > '
                                f'{100 * SPACING_TOLERANCE:g} % (true distance)')
     sources = sync_report.design if sync_report is not None else None   # who set the design
-    if sources is not None and sources.changes > scheduled_changes:
+    if sources is not None and sources.changes > outcome.scheduled_changes:
         reasons.append(f'design changed by another node during the run ({sources.changes}x, '
                        f'the latest from {sources.last_change})')
-    elif monitor_design_changes:
+    elif outcome.monitor_design_changes:
         reasons.append(f'design changed by another node during the run '
-                       f'({monitor_design_changes})')
+                       f'({outcome.monitor_design_changes})')
     if bag_error:
         reasons.append(f'no bag: {bag_error}')
     if not start_error and field_run:

@@ -21,8 +21,9 @@ from __future__ import annotations
 import csv
 import io
 import json
+from collections.abc import Mapping
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from planter_ros.output_files import write_text_atomically
 from planter_ros.prediction import reason_name, status_name
@@ -30,6 +31,7 @@ from planter_ros.prediction import reason_name, status_name
 if TYPE_CHECKING:
     from pathlib import Path
 
+    from planter_ros.prediction import Plants
     from planter_ros.recording.replay import ReplayResult
 
 COORDINATE_DECIMALS = 9
@@ -54,10 +56,14 @@ def _flag(value: float) -> bool | None:
     return bool(value) if math.isfinite(value) else None
 
 
-def plant_records(result: ReplayResult) -> list[dict]:
+def plant_records(result: ReplayResult) -> list[dict[str, Any]]:
     """One dict per plant of a ReplayResult: the CSV columns, None for undefined values."""
-    p = result.plants
-    names = {row.index: row.name for row in result.rows}
+    return records_of_plants(result.plants, {row.index: row.name for row in result.rows})
+
+
+def records_of_plants(p: Plants, names: Mapping[int, str]) -> list[dict[str, Any]]:
+    """One dict per plant of a Plants table whose rows are named `names` {index: name}: the
+    CSV columns, None for undefined values."""
     out = []
     for i in range(len(p)):
         row = int(p.row[i])

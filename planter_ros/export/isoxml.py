@@ -56,6 +56,7 @@ year-month-day and metric units everywhere (ISO 11783-7's language command bytes
 written as ISOXML writes the 7 bytes: byte 7 first.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from decimal import Decimal
@@ -75,7 +76,7 @@ from planter_ros.output_files import (
     OutputError, atomic_directory, atomic_output, check_directory, check_output)
 
 from . import ExportError
-from .runs import utc_datetime
+from .runs import ExportRun, RowPlace, utc_datetime
 
 __all__ = ['LOCALIZATION', 'LOGGED', 'PROPERTIES', 'RANGES', 'TOTALS', 'check_path', 'drp',
            'row_widths', 'taskdata', 'write_isoxml']
@@ -268,7 +269,8 @@ def _device(iso, layout, number):
                 object_id=next(ids), ddi=ddi.to_bytes(2, 'big'),
                 property=PROPERTY_DEFAULT_SET, trigger_methods=trigger,
                 designator=DESIGNATORS[ddi],
-                device_value_presentation_object_id=shown.get(SHOWN_AS.get(ddi))))
+                device_value_presentation_object_id=(
+                    shown.get(SHOWN_AS[ddi]) if ddi in SHOWN_AS else None)))
             refs.append(iso.DeviceObjectReference(device_object_id=process_data[-1].object_id))
         elements.append(iso.DeviceElement(
             id=f'DET{layout.elements[row]}', object_id=k + 2, type=iso.DeviceElementType.Section,
@@ -296,20 +298,25 @@ def _version():
         return 'unknown'
 
 
-def _machine(run):
+# a run's machine: its rows (index, name) and their places ((index, RowPlace), by index)
+_Machine = tuple[tuple[tuple[int, str], ...], tuple[tuple[int, RowPlace], ...]]
+
+
+def _machine(run: ExportRun) -> _Machine:
     """What makes a run's machine one device: its rows and their places."""
     return tuple(run.rows), tuple(sorted(run.places.items()))
 
 
-def _layouts(runs):
+def _layouts(runs: Sequence[ExportRun]) -> dict[_Machine, _Layout]:
     """One _Layout per distinct machine of the runs, element ids numbered across them."""
-    layouts, next_element = {}, 1
+    layouts: dict[_Machine, _Layout] = {}
+    next_element = 1
     for run in runs:
         machine = _machine(run)
         if machine in layouts:
             continue
         rows = tuple(run.rows)
-        elements = {'device': next_element}
+        elements: dict[str | int, int] = {'device': next_element}
         for k, (row, _) in enumerate(rows):
             elements[row] = next_element + 1 + k
         next_element += 1 + len(rows)
@@ -385,13 +392,19 @@ def time_log(run, layout):
     for row, _ in layout.rows:
         values += [(row, ddi) for ddi in LOGGED]
     index = {v: i for i, v in enumerate(values)}
+    # ISO 11783-10's time log header: an attribute there but empty ('') says "each record in
+    # the binary file holds this value"; isoxml's models type these attributes as values only
     header = iso.Time(
-        start='', type=iso.TimeType.Effective,
-        positions=[iso.Position(north='', east='', status='')],
-        data_log_values=[iso.DataLogValue(process_data_ddi=ddi.to_bytes(2, 'big'),
-                                          process_data_value='',
-                                          device_element_id_ref=f'DET{layout.elements[row]}')
-                         for row, ddi in values])
+        start='',  # type: ignore[arg-type]  # '': in the binary file (above)
+        type=iso.TimeType.Effective,
+        positions=[iso.Position(
+            north='',  # type: ignore[arg-type]  # '': in the binary file (above)
+            east='',  # type: ignore[arg-type]  # '': in the binary file (above)
+            status='')],  # type: ignore[arg-type]  # '': in the binary file (above)
+        data_log_values=[iso.DataLogValue(
+            process_data_ddi=ddi.to_bytes(2, 'big'),
+            process_data_value='',  # type: ignore[arg-type]  # '': in the binary file (above)
+            device_element_id_ref=f'DET{layout.elements[row]}') for row, ddi in values])
     counts = {row: 0 for row, _ in layout.rows}
     records = _ordered(run)
     data = bytearray()

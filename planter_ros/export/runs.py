@@ -10,17 +10,29 @@ records gain later is carried by the exports without a change here: the Shapefil
 column (shapefile.py), the ISOXML time log counts a plant by its `status` (isoxml.py).
 """
 
+from __future__ import annotations
+
 from bisect import bisect_right
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 import math
 from pathlib import Path
-from types import SimpleNamespace
+from typing import TYPE_CHECKING, Any
 
-from .geojson_csv import plant_records
+import numpy as np
+import numpy.typing as npt
 
-__all__ = ['ExportRun', 'RowPlace', 'design_spacings', 'run_of_plants', 'run_of_replay',
-           'utc_text']
+from .geojson_csv import records_of_plants
+
+if TYPE_CHECKING:
+    from planter_ros.prediction import Plants
+    from planter_ros.recording.replay import ReplayResult
+
+__all__ = ['ExportRun', 'MachineRows', 'RowPlace', 'design_spacings', 'run_of_plants',
+           'run_of_replay', 'utc_text']
+
+Record = dict[str, Any]     # one plant: module doc
 
 
 @dataclass(frozen=True)
@@ -33,52 +45,65 @@ class RowPlace:
     enabled: bool = True
 
 
+@dataclass(frozen=True)
+class MachineRows:
+    """The machine a recording was made on, as the exports draw it: its rows (index, name)
+    in the scene's order and where each plants on it {index: RowPlace} (a row not listed: at
+    the reference point)."""
+
+    rows: tuple[tuple[int, str], ...]
+    places: Mapping[int, RowPlace] = field(default_factory=dict)
+
+
 @dataclass
 class ExportRun:
     """One recording's plants for the exports."""
 
     key: str                     # the recording as the files name it (its file name, or its
     # path relative to the analysed root)
-    records: list                # one dict per plant, in the recording's order (module doc)
-    rows: list                   # (index, name) of the machine's rows, in the scene's order
-    design_spacing: float = None  # m, the design's plant spacing (the last design's)
+    records: list[Record]        # one dict per plant, in the recording's order (module doc)
+    rows: list[tuple[int, str]]  # (index, name) of the machine's rows, in the scene's order
+    design_spacing: float | None = None  # m, the design's plant spacing (the last design's)
     # row index -> the row's ISO 7256-1 indices (prediction.quality: multiple_index,
     # miss_index, quality_of_feed_index, precision; None where undefined)
-    row_quality: dict = field(default_factory=dict)
+    row_quality: dict[int, dict[str, Any]] = field(default_factory=dict)
     # row index -> its RowPlace on the machine (a row not listed: at the reference point)
-    places: dict = field(default_factory=dict)
+    places: dict[int, RowPlace] = field(default_factory=dict)
 
     @property
-    def plants(self):
+    def plants(self) -> int:
         return len(self.records)
 
 
-def run_of_plants(key, plants, rows, design_spacing=None, row_quality=None, places=None,
-                  heading=None):
-    """An ExportRun of a Plants table (planter_ros.prediction) and the machine's rows
-    [(index, name)], their places {index: RowPlace} and the machine's heading at each plant
-    (rad, counter-clockwise from east; None or NaN: unknown)."""
-    view = SimpleNamespace(plants=plants,
-                           rows=[SimpleNamespace(index=int(i), name=str(n)) for i, n in rows])
-    records = plant_records(view)
-    headings = [None] * len(records) if heading is None else heading
+def run_of_plants(key: str, plants: Plants, machine: MachineRows,
+                  design_spacing: float | None = None,
+                  row_quality: Mapping[int, dict[str, Any]] | None = None,
+                  heading: npt.NDArray[np.float64] | None = None) -> ExportRun:
+    """An ExportRun of a Plants table (planter_ros.prediction) made on `machine` (its rows
+    and their places) and the machine's heading at each plant (rad, counter-clockwise from
+    east; None or NaN: unknown)."""
+    rows = [(int(i), str(n)) for i, n in machine.rows]
+    records = records_of_plants(plants, dict(rows))
+    headings: Sequence[float | None] | npt.NDArray[np.float64] = (
+        [None] * len(records) if heading is None else heading)
     for record, speed, turned in zip(records, plants.ground_speed, headings):
         record['ground_speed'] = _finite(speed)
         record['heading'] = _finite(turned)
     for record, d in zip(records, design_spacings(records, design_spacing)):
         record['design_spacing'] = d
-    return ExportRun(str(key), records, [(int(i), str(n)) for i, n in rows], design_spacing,
-                     dict(row_quality or {}), dict(places or {}))
+    return ExportRun(str(key), records, rows, design_spacing, dict(row_quality or {}),
+                     dict(machine.places))
 
 
-def _finite(value):
+def _finite(value: float | None) -> float | None:
     if value is None:
         return None
     value = float(value)
     return value if math.isfinite(value) else None
 
 
-def design_spacings(records, fallback=None):
+def design_spacings(records: Sequence[Record],
+                    fallback: float | None = None) -> list[float | None]:
     """The design spacing d in force at each record's instant (m): spacing − spacing_error
     where the record has both (what the model judged it by); else the d of the last record
     before it that has one, of any row (a design change is in force for every row from the
@@ -90,7 +115,7 @@ def design_spacings(records, fallback=None):
                    if r.get('spacing') is not None and r.get('spacing_error') is not None
                    and r.get('time') is not None)
     times = [t for t, _ in known]
-    out = []
+    out: list[float | None] = []
     for r in records:
         if r.get('spacing') is not None and r.get('spacing_error') is not None:
             out.append(r['spacing'] - r['spacing_error'])
@@ -101,25 +126,25 @@ def design_spacings(records, fallback=None):
     return out
 
 
-def run_of_replay(result, key=None):
+def run_of_replay(result: ReplayResult, key: str | None = None) -> ExportRun:
     """The ExportRun of a ReplayResult (`key`: default the bag's file name)."""
     quality = {row.index: summary.get('spacing_quality') or {}
                for row, summary in zip(result.rows, result.row_summaries)}
     places = {row.index: RowPlace(row.lateral_offset, row.longitudinal_offset, row.enabled)
               for row in result.rows}
     placement = getattr(result, 'placement', None)
-    return run_of_plants(key or Path(result.path).name, result.plants,
-                         [(row.index, row.name) for row in result.rows],
-                         result.summary.get('design_spacing'), quality, places,
+    machine = MachineRows(tuple((row.index, row.name) for row in result.rows), places)
+    return run_of_plants(key or Path(result.path).name, result.plants, machine,
+                         result.summary.get('design_spacing'), quality,
                          None if placement is None else placement.heading)
 
 
-def utc_datetime(seconds):
+def utc_datetime(seconds: float) -> datetime:
     """A time of the recording's clock (s since 1970-01-01 UTC) as an aware datetime."""
     return datetime.fromtimestamp(seconds, tz=timezone.utc)
 
 
-def utc_text(seconds):
+def utc_text(seconds: float | None) -> str | None:
     """ISO 8601 in UTC with milliseconds: '2026-11-24T10:15:00.123Z' (None for None)."""
     if seconds is None:
         return None

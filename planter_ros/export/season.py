@@ -13,6 +13,7 @@ one of them is missing, so they always hold what the tables hold.
 
 from pathlib import Path
 import time
+from typing import TypedDict
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from planter_ros.prediction import PLANT_FIELDS, Plants
 from planter_ros.recording.recovery import one_line
 
 from . import isoxml, shapefile
-from .runs import RowPlace, run_of_plants
+from .runs import MachineRows, RowPlace, run_of_plants
 
 __all__ = ['EXPORTS', 'ISOXML', 'SHAPEFILE', 'format_exports', 'season_exports', 'season_runs',
            'write_season_exports']
@@ -56,14 +57,41 @@ def season_runs(out):
         places = {r['index']: RowPlace(r.get('lateral_offset') or 0.0,
                                        r.get('longitudinal_offset') or 0.0,
                                        r.get('enabled', True) is not False) for r in rows}
-        runs.append(run_of_plants(row['bag'], Plants.from_table(columns[mine]),
-                                  [(r['index'], r['name']) for r in rows],
-                                  row.get('summary.design_spacing'), quality, places,
-                                  heading[mine]))
+        machine = MachineRows(tuple((r['index'], r['name']) for r in rows), places)
+        runs.append(run_of_plants(row['bag'], Plants.from_table(columns[mine]), machine,
+                                  row.get('summary.design_spacing'), quality, heading[mine]))
     return runs
 
 
-def write_season_exports(out, force=False):
+class Failed(TypedDict):
+    """An export not written: its file and why (one line)."""
+
+    file: str
+    reason: str
+
+
+class Skipped(TypedDict):
+    """A recording the ISOXML cannot hold, and why."""
+
+    bag: str
+    reason: str
+
+
+class SeasonExports(TypedDict, total=False):
+    """What `write_season_exports` wrote (a plain mapping: the command's JSON summary holds
+    it); `seconds` is added by `season_exports`."""
+
+    shapefile: str | None       # path, None: not written
+    isoxml: str | None
+    plants: int
+    placed: int
+    tasks: int
+    skipped: list[Skipped]
+    failed: list[Failed]
+    seconds: float
+
+
+def write_season_exports(out: str | Path, force: bool = False) -> SeasonExports | None:
     """Write as_planted.zip and TASKDATA.zip under `out` from its tables (unless both exist
     and not `force`), each on its own (one that fails never keeps the other from being
     written): {'shapefile', 'isoxml': paths (None: not written), 'plants', 'placed', 'tasks',
@@ -73,8 +101,8 @@ def write_season_exports(out, force=False):
     if not force and all((out / name).is_file() for name in EXPORTS):
         return None
     runs = season_runs(out)
-    result = {'shapefile': None, 'isoxml': None, 'plants': 0, 'placed': 0, 'tasks': 0,
-              'skipped': [], 'failed': []}
+    result: SeasonExports = {'shapefile': None, 'isoxml': None, 'plants': 0, 'placed': 0,
+                             'tasks': 0, 'skipped': [], 'failed': []}
     try:
         result['plants'], result['placed'] = shapefile.write_shapefile(out / SHAPEFILE, runs)
         result['shapefile'] = str(out / SHAPEFILE)
@@ -89,7 +117,7 @@ def write_season_exports(out, force=False):
     return result
 
 
-def season_exports(out, force):
+def season_exports(out: str | Path, force: bool) -> SeasonExports | None:
     """The season's Shapefile and ISOXML next to the tables (export.season), with the time
     it took: written when `force` (bags were analysed) or one is missing; None otherwise."""
     started = time.monotonic()
@@ -99,7 +127,7 @@ def season_exports(out, force):
     return exports
 
 
-def format_exports(exports):
+def format_exports(exports: SeasonExports) -> str:
     """The exports' line for people (what was written; the failures go to stderr)."""
     written = []
     if exports['shapefile']:

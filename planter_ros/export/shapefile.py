@@ -101,7 +101,7 @@ def attributes_of(records):
     [(Attribute, size)] with text widths fitted to the values (no records: today's
     columns)."""
     known = {a.key: a for a in ATTRIBUTES}
-    keys = {}
+    keys: dict[str, None] = {}       # in the order they first appear
     for record in records:
         for key in record:
             keys.setdefault(key, None)
@@ -195,7 +195,7 @@ def _null_logicals(dbf, columns, records):
 def prj_text():
     """WGS 84 (EPSG:4326) as the ESRI WKT a .prj holds."""
     from pyproj import CRS  # lazy: 80 ms, loaded only by a run that writes a Shapefile
-    from pyproj.enums import WktVersion
+    from pyproj.enums import WktVersion  # lazy: with pyproj, above
     return CRS.from_epsg(4326).to_wkt(WktVersion.WKT1_ESRI)
 
 
@@ -212,23 +212,24 @@ def _write_set(shp, shx, dbf, prj, cpg, runs):
                           f'{dbf_bytes / 2**30:.1f} GiB attribute table: a Shapefile holds at '
                           'most 2 GiB per file (export fewer bags at a time)')
     placed = 0
-    with open(shp, 'wb') as f_shp, open(shx, 'wb') as f_shx, open(dbf, 'wb') as f_dbf, \
-            shapefile.Writer(shp=f_shp, shx=f_shx, dbf=f_dbf, shapeType=shapefile.POINT,
-                             encoding=ENCODING, autoBalance=True) as writer:
+    with open(shp, 'wb') as f_shp, open(shx, 'wb') as f_shx, open(dbf, 'wb') as f_dbf:
         # (autoBalance: a write that fails between a point and its record still closes)
-        for attribute, size in columns:
-            if attribute.kind == 'L':
-                writer.field(attribute.name, 'L')
-            else:
-                writer.field(attribute.name, attribute.kind, size, attribute.decimals)
-        for record in records:
-            lon, lat = record.get('longitude'), record.get('latitude')
-            if lon is None or lat is None:
-                writer.null()
-            else:
-                writer.point(lon, lat)
-                placed += 1
-            writer.record(*[_cell(a, size, record.get(a.key)) for a, size in columns])
+        writer = shapefile.Writer(shp=f_shp, shx=f_shx, dbf=f_dbf, shapeType=shapefile.POINT,
+                                  encoding=ENCODING, autoBalance=True)
+        with writer:          # (its __enter__ is typed as its base class's: `as` loses Writer)
+            for attribute, size in columns:
+                if attribute.kind == 'L':
+                    writer.field(attribute.name, 'L')
+                else:
+                    writer.field(attribute.name, attribute.kind, size, attribute.decimals)
+            for record in records:
+                lon, lat = record.get('longitude'), record.get('latitude')
+                if lon is None or lat is None:
+                    writer.null()
+                else:
+                    writer.point(lon, lat)
+                    placed += 1
+                writer.record(*[_cell(a, size, record.get(a.key)) for a, size in columns])
     _null_logicals(dbf, columns, records)
     Path(prj).write_text(prj_text(), encoding='ascii')
     Path(cpg).write_text('UTF-8', encoding='ascii')
@@ -242,7 +243,8 @@ def write_shapefile(path, runs):
     if path.suffix.lower() == '.zip':
         with tempfile.TemporaryDirectory(dir=path.parent, prefix=f'.{path.name}.') as work:
             names = [Path(work) / f'{path.stem}{s}' for s in ('.shp',) + SIDECARS]
-            counts = _write_set(*names, runs)
+            shp, shx, dbf, prj, cpg = names
+            counts = _write_set(shp, shx, dbf, prj, cpg, runs)
             with atomic_output(path) as tmp:
                 with zipfile.ZipFile(tmp, 'w', zipfile.ZIP_DEFLATED) as archive:
                     for name in names:

@@ -11,6 +11,11 @@ from dataclasses import MISSING
 import importlib
 import sys
 
+from planter_ros.config import specs
+from planter_ros.scene.schema import ROS_PARAMETERS, node_specs
+from planter_ros.sensing.ground_speed_sources import GroundSpeedSourceConfig
+from planter_ros.shipped import package_version
+
 HELP = ('-h', '--help')
 VERSION = ('--version',)
 
@@ -63,11 +68,7 @@ def help_text(node):
 def parameter_specs(node):
     """{name: Spec} of every parameter `node` declares (ROS's own too; rows aside)."""
     if node == 'ground_speed_node':
-        from planter_ros.config import specs
-        from planter_ros.scene.schema import ROS_PARAMETERS
-        from planter_ros.sensing.ground_speed_sources import GroundSpeedSourceConfig
         return {**ROS_PARAMETERS, **{s.name: s for s in specs(GroundSpeedSourceConfig)}}
-    from planter_ros.scene.schema import node_specs
     return node_specs(node)
 
 
@@ -78,7 +79,6 @@ def answered(node, argv):
         print(help_text(node))
         return True
     if any(a in VERSION for a in own):
-        from planter_ros.shipped import package_version
         print(f'{node} (planter_ros) {package_version()}')
         return True
     return False

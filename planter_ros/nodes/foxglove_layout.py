@@ -16,10 +16,13 @@ test checks both against Foxglove's registry and config types (test/data/foxglov
 `python -m planter_ros.nodes.foxglove_layout SCENE OUT.json` writes the layout of a scene.
 """
 
+import argparse
 import json
 
 from planter_ros import interfaces
+from planter_ros.output_files import write_text_atomically
 from planter_ros.prediction import QUALITY_FIELDS
+from planter_ros.scene import open_scene
 
 from .markers import FRAME
 
@@ -120,10 +123,6 @@ def layout_text(labels):
 
 def main(argv=None):
     """Write the layout of a scene's planting rows."""
-    import argparse
-
-    from planter_ros.output_files import write_text_atomically
-    from planter_ros.scene import open_scene
     parser = argparse.ArgumentParser(description=main.__doc__, allow_abbrev=False)
     parser.add_argument('scene', help='scene parameter file')
     parser.add_argument('out', help='layout file to write (.json)')

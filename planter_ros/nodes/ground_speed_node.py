@@ -12,12 +12,15 @@ over at its next sample, and the switch is logged and shown in /diagnostics (sta
 sensing.ground_speed_sources.Standstill).
 """
 
+import functools
 import math
 import sys
 import threading
 import time
 
+from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
+from std_msgs.msg import UInt32
 
 from planter_ros import diagnostics, interfaces
 from planter_ros.nodes.parameters import ParameterGroup, refuse_undeclared
@@ -54,8 +57,8 @@ class GroundSpeedNode(Node):
             interfaces.IMU.subscribe(self, self._on_imu)
         self.pulses = None
         if 'pulses' in cfg.sources:
-            self.pulses = PulseSpeed(cfg.pulses_per_metre)
-            interfaces.WHEEL_PULSES.subscribe(self, self._on_pulses)
+            self.pulses = pulses = PulseSpeed(cfg.pulses_per_metre)
+            interfaces.WHEEL_PULSES.subscribe(self, functools.partial(self._on_pulses, pulses))
         self._bus, self._own_bus, self._notifier = bus, False, None
         if any(s.startswith('isobus') for s in cfg.sources) and (bus or cfg.isobus_channel):
             self._open_isobus()
@@ -63,7 +66,7 @@ class GroundSpeedNode(Node):
 
     # ------------------------------------------------------------------ sources
     def _open_isobus(self):
-        import can
+        import can  # lazy: python-can (0.15 s) only for an ISOBUS speed source
         self.decoder = IsobusSpeedDecoder()
         if self._bus is None:
             self._bus = can.Bus(interface=self.config.isobus_interface,
@@ -101,13 +104,12 @@ class GroundSpeedNode(Node):
         with self._lock:
             self.yaw_rate = 0.0 if math.isnan(rate) else rate
 
-    def _on_pulses(self, msg):
-        sample = self.pulses.update(self._now(), msg.data)
+    def _on_pulses(self, pulses: PulseSpeed, msg: UInt32) -> None:
+        sample = pulses.update(self._now(), msg.data)
         if sample is not None:
             self._offer(sample)
 
     def _offer(self, sample):
-        from geometry_msgs.msg import TwistStamped
         with self._lock:
             chosen = self.selector.offer(self.standstill.apply(sample))
             events = self.selector.events[self._reported_events:]

@@ -18,7 +18,12 @@ position are drawn.
 
 import math
 
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, Vector3Stamped
 import numpy as np
+from sensor_msgs.msg import NavSatFix, NavSatStatus
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
 
 FRAME = 'field'
 STEM_LENGTH = 0.2          # m drawn from the root ball: the seedling, for the eye only
@@ -66,11 +71,6 @@ def marker_array(plants, placement, model, labels, counts):
     sensing.plant_map.Placement): a stem per plant with a map position, the tip path of each
     row at its newest one. `labels`: row index -> name; `counts`: row index -> plants drawn so
     far (updated)."""
-    from builtin_interfaces.msg import Time
-    from geometry_msgs.msg import Point
-    from std_msgs.msg import ColorRGBA
-    from visualization_msgs.msg import Marker, MarkerArray
-
     def header(marker, t):
         sec = math.floor(t)
         marker.header.frame_id = FRAME
@@ -115,14 +115,12 @@ def marker_array(plants, placement, model, labels, counts):
 
 
 def _stamp(t):
-    from builtin_interfaces.msg import Time
     sec = math.floor(t)
     return Time(sec=int(sec), nanosec=min(int(round((t - sec) * 1e9)), 999_999_999))
 
 
 def plant_fixes(plants, placement, labels):
     """NavSatFix of each plant of a batch with a map position (interfaces.PLANT_FIXES)."""
-    from sensor_msgs.msg import NavSatFix, NavSatStatus
     out = []
     for i in np.flatnonzero(np.isfinite(placement.latitude)).tolist():
         fix = NavSatFix(latitude=float(placement.latitude[i]),
@@ -137,7 +135,6 @@ def plant_fixes(plants, placement, labels):
 
 def plant_rows(plants, labels):
     """Vector3Stamped of each plant of a batch, keyed by its row (interfaces.PLANT_ROWS)."""
-    from geometry_msgs.msg import Vector3Stamped
     out = []
     for i in range(len(plants)):
         msg = Vector3Stamped()

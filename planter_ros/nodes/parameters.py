@@ -26,6 +26,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from planter_ros import config
+from planter_ros.rows import RowLayout, RowSettings, rows_from_settings
+from planter_ros.scene.files import SceneError, read_parameter_file
+from planter_ros.scene.schema import check_node_file, closest
 
 _TYPES = {float: Parameter.Type.DOUBLE, int: Parameter.Type.INTEGER, bool: Parameter.Type.BOOL,
           str: Parameter.Type.STRING, list: Parameter.Type.DOUBLE_ARRAY}
@@ -136,7 +139,6 @@ def declare_rows(node, default_node_id=None):
     """The scene's rows from `node`'s parameters: `rows` (names) and each row's `<row>.<field>`
     (planter_ros.rows.RowSettings); one implicit row when the scene names none. Raises
     ConfigError (one line) for a bad name, a missing or out-of-range field, a node id twice."""
-    from planter_ros.rows import RowLayout, RowSettings, rows_from_settings
     layout = ParameterGroup(node, RowLayout).value
     sensor = next(spec for spec in config.specs(RowSettings) if spec.name == 'seedling_sensor')
     for name in layout.rows:      # a row's sensor defaults to the scene's seedling_sensor
@@ -169,8 +171,6 @@ def refuse_undeclared(node: Node, arguments: Sequence[str] | None = None) -> Non
     an in-process node's `parameter_overrides`) it does not declare. Call it once every
     parameter is declared; `arguments`: the process's arguments (the files are read from
     them)."""
-    from planter_ros.scene.files import SceneError, read_parameter_file
-    from planter_ros.scene.schema import check_node_file, closest
     declared = set(node._parameters)
     shared = set()
     for path in params_files(arguments):

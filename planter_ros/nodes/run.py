@@ -25,6 +25,7 @@ def run_node(name: str, make_node: Callable[[list[str]], Node], args: list[str] 
     keep_discovery_on_host()
     stop = stop_signals.install(name)      # SIGTERM stops like Ctrl-C: the node's clean-up runs
     rclpy.init(args=args)
+    caught: tuple[type[BaseException], ...] = (PlanterError, ParameterException, *errors)
     node = None
     try:
         node = make_node(sys.argv if args is None else args)
@@ -33,7 +34,7 @@ def run_node(name: str, make_node: Callable[[list[str]], Node], args: list[str] 
         stop_signals.spin(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (PlanterError, ParameterException, *errors) as exc:
+    except caught as exc:
         print(f'{name}: error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
     finally:

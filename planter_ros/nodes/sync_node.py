@@ -23,6 +23,7 @@ law's run-time limits are refused, with the reason and the limit, when the desig
 could not run within them (planter_ros.plausibility.check_law).
 """
 
+import functools
 import logging
 import sys
 import time
@@ -43,7 +44,7 @@ from planter_ros.host import realtime
 from planter_ros.command.client import CommandClient
 from planter_ros.command.engine import CommandEngine
 from planter_ros.command.settings import LAW_CLASSES, CommandSettings
-from planter_ros.config import ConfigError, spec_of
+from planter_ros.config import ConfigError, from_mapping, spec_of
 from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.control.machine_law import TurnConfig
 from planter_ros.control.phase_lock import PhaseLockConfig
@@ -54,6 +55,7 @@ from planter_ros.scene.files import SceneError
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.errors import DriveError
 from planter_ros.nodes import graph
+from planter_ros.plausibility import check_law
 from planter_ros.nodes.parameters import (ParameterGroup, _plain, declare, declare_rows,
                                           refuse_undeclared)
 from planter_ros.scene.machine_file import MachineFileSetting, open_machine
@@ -112,6 +114,8 @@ class SyncNode(Node):
         self.hold_reason = restart_hold_reason(self.loop)   # the rows wait for an operator
         self._in_process_held = False
         settings = CommandSettings(cfg, self.loop, self.rows, law.value, setups=setups)
+        # in process: the engine itself; else the client of the command process that runs it
+        self.engine: CommandEngine | CommandClient
         if self.in_process:
             self.engine = CommandEngine(settings, bus=bus, log=self._log)
         else:
@@ -136,11 +140,11 @@ class SyncNode(Node):
         for row in self.rows:
             self.create_service(interfaces.RESET_FAULT.srv_class(),
                                 interfaces.RESET_FAULT.for_row(row.name),
-                                lambda req, res, r=row: self._on_reset_fault(r, req, res),
+                                functools.partial(self._on_reset_fault, row),
                                 callback_group=group)
             self.create_service(interfaces.SECTION.srv_class(),
                                 interfaces.SECTION.for_row(row.name),
-                                lambda req, res, r=row: self._on_section(r, req, res),
+                                functools.partial(self._on_section, row),
                                 callback_group=group)
         self.create_service(interfaces.ENABLE_ROWS.srv_class(), interfaces.ENABLE_ROWS.name,
                             self._on_enable_rows, callback_group=group)
@@ -188,8 +192,6 @@ class SyncNode(Node):
         """The law's configuration from `values`; a limit the design in force would exceed at
         its ground speed or a tractor's acceleration is refused with the reason and the limit
         (planter_ros.plausibility, the scene loader's checks), unusual values warned about."""
-        from planter_ros.config import from_mapping
-        from planter_ros.plausibility import check_law
         built = tuple(from_mapping(cls, values) for cls in LAW_CLASSES)
         if self._design is not None:
             limits = self.machine.row_limits() if self.machine is not None else ()
@@ -254,7 +256,9 @@ class SyncNode(Node):
     @property
     def held(self):
         """The rows wait at zero for an operator's enable_rows."""
-        return self._in_process_held if self.in_process else self.engine.held
+        if isinstance(self.engine, CommandEngine):      # in process
+            return self._in_process_held
+        return self.engine.held
 
     def enable_drive(self):
         """BLOCKING: start the command path and enable every row's drive at once (start-up
@@ -266,31 +270,33 @@ class SyncNode(Node):
             self.get_logger().warning(f'{self.hold_reason}: the rows stay at zero until an '
                                       'operator enables them (service '
                                       f'{self.resolve_service_name(interfaces.ENABLE_ROWS.name)})')
-        if self.in_process:
-            if self.hold_reason:
-                self._in_process_held = True
-            elif not self._stop_asked():
-                self._enable_in_process()
-        else:
+        if not isinstance(self.engine, CommandEngine):  # the command process
             self.engine.enable(hold_reason=self.hold_reason)
+        elif self.hold_reason:
+            self._in_process_held = True
+        elif not self._stop_asked():
+            self._enable_in_process()
         self._ready = True
         held, self._held_logs = self._held_logs, []
         for level, text in held:
             self._log(level, text)
 
     def _enable_in_process(self):
-        self.engine.enable()
-        if self.engine.period != self.loop.control_period:
+        engine = self.engine
+        if not isinstance(engine, CommandEngine):
+            raise TypeError('_enable_in_process: the command path runs in a command process')
+        engine.enable()
+        if engine.period != self.loop.control_period:
             # CSP in this process: one step (SYNC + targets) per SYNC period
             self.destroy_timer(self._control_timer)
-            self._control_timer = self.create_timer(self.engine.period, self._on_control,
+            self._control_timer = self.create_timer(engine.period, self._on_control,
                                                     callback_group=self._group)
 
     def _on_enable_rows(self, _request, response):
         """An operator enables the rows held after an automatic restart."""
         if self._stop_asked():
             response.success, response.message = False, 'stopping: nothing is enabled any more'
-        elif not self.in_process:
+        elif not isinstance(self.engine, CommandEngine):    # the command process
             reply = self.engine.operator_enable()
             response.success, response.message = reply.ok, reply.message
         elif not self._in_process_held:
@@ -327,7 +333,7 @@ class SyncNode(Node):
 
     def _on_control(self):
         self.engine.step(time.monotonic())
-        if not self.in_process:
+        if not isinstance(self.engine, CommandEngine):      # the command process
             if self.engine.fb_count == self._last_fb:
                 return                      # nothing new from the command process
             self._last_fb = self.engine.fb_count

@@ -1,29 +1,31 @@
 """Error against run time (log-log) for the bench methods that trade one for the other."""
 
+from matplotlib.figure import Figure
+
 from planter_ros.bench.host import machine_line
+from planter_ros.bench.registry import Row
 
 ERROR_FLOOR = 1e-18   # an exact 0 error is drawn here (log axes), marked in the legend
 
 
 def plot_tradeoff(machine, rows, path):
     """One series per row.series (e.g. dense sampling at growing sample counts)."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
 
-    series = {}
+    # series name -> (run time per item s, error, row) of each row that has both
+    series: dict[str, list[tuple[float, float, Row]]] = {}
     for r in rows:
         if r.series and r.status == 'ok' and r.error is not None and r.per_item:
-            series.setdefault(r.series, []).append(r)
-    fig, ax = plt.subplots(figsize=(9, 6))
+            series.setdefault(r.series, []).append((r.per_item, r.error, r))
+    fig = Figure(figsize=(9, 6))
+    ax = fig.subplots()
     markers = 'osD^v<>ph*'
     for i, (name, members) in enumerate(sorted(series.items())):
-        members.sort(key=lambda r: r.per_item)
-        x = [r.per_item for r in members]
-        y = [max(r.error, ERROR_FLOOR) for r in members]
+        members.sort(key=lambda member: member[0])
+        x = [per_item for per_item, _, _ in members]
+        y = [max(error, ERROR_FLOOR) for _, error, _ in members]
         ax.plot(x, y, marker=markers[i % len(markers)], ls='-' if len(members) > 1 else '',
                 label=name)
-        for r, xi, yi in zip(members, x, y):
+        for (_, _, r), xi, yi in zip(members, x, y):
             if 'samples' in r.extra:
                 ax.annotate(f"{r.extra['samples']:,} samples", (xi, yi),
                             textcoords='offset points', xytext=(5, 5), fontsize=8)
@@ -39,5 +41,4 @@ def plot_tradeoff(machine, rows, path):
     fig.text(0.01, 0.01, machine_line(machine), fontsize=7, color='gray')
     fig.tight_layout(rect=(0, 0.03, 1, 1))
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

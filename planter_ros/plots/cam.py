@@ -5,7 +5,12 @@ cam's loads against the limits."""
 
 import math
 
+from matplotlib.figure import Figure
 import numpy as np
+
+from planter_ros.cam.errors import CamInputError
+from planter_ros.cam.mechanism import constant_law
+from planter_ros.cam.plan import constant_profile, plan_cam, rule_top_speeds
 
 GRID = 9                 # spacings planned between the smallest and the largest asked
 
@@ -23,13 +28,7 @@ def plot_cam(asked, cases, tops, path):
     cam.report.CamStudy) and results; `cases` and `tops` as in `planter cam --json`."""
     mech, drive, rule = asked.mech, asked.drive, asked.rule
     spacings, speeds = list(asked.spacings), list(asked.speeds)
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
 
-    from planter_ros.cam.errors import CamInputError
-    from planter_ros.cam.mechanism import constant_law
-    from planter_ros.cam.plan import constant_profile, plan_cam, rule_top_speeds
 
     mm = 1000.0
     top = max(speeds)
@@ -40,7 +39,8 @@ def plot_cam(asked, cases, tops, path):
                                   rule_top_speeds(mech, d, drive, top).items()} for d in grid]
     rule_name = rule.replace('_', '-')
 
-    fig, axes = plt.subplots(2, 3, figsize=(19, 11))
+    fig = Figure(figsize=(19, 11))
+    axes = fig.subplots(2, 3)
     fig.suptitle(f'Electronic cam on a geared five-bar designed for d = '
                  f'{mech.design_spacing * mm:.0f} mm (D = {mech.depth * mm:.0f} mm, '
                  f'l1 = {mech.l1 * mm:.1f} mm, l2 = {mech.l2 * mm:.1f} mm): constant sun-bar '
@@ -159,4 +159,3 @@ def plot_cam(asked, cases, tops, path):
         ax.title.set_fontsize(10)
     fig.tight_layout()
     fig.savefig(path, dpi=110, format='png')
-    plt.close(fig)

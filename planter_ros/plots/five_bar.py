@@ -2,6 +2,7 @@
 
 import math
 
+from matplotlib.figure import Figure
 import numpy as np
 
 from planter_ros.kinematics.five_bar import (
@@ -14,9 +15,6 @@ def plot_design(design, path, ground_speed=None):
 
     Without a ground speed the time axes use the paper's field test rate, 60 r/min.
     """
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
 
     mm = 1000.0
     if ground_speed is None:
@@ -24,10 +22,10 @@ def plot_design(design, path, ground_speed=None):
         ground_speed = design.spacing * omega / (2.0 * math.pi)
         speed_note = f'ω1 = 60 r/min ⇒ v = {ground_speed:.3g} m/s'
     else:
-        omega = sun_bar_speed(ground_speed, design.spacing)
+        omega = float(sun_bar_speed(ground_speed, design.spacing))
         speed_note = f'v = {ground_speed:.3g} m/s ⇒ ω1 = {omega:.3g} rad/s'
     theta = np.linspace(0.0, 2.0 * math.pi, 721)
-    fig = plt.figure(figsize=(15, 9))
+    fig = Figure(figsize=(15, 9))
     grid = fig.add_gridspec(2, 6)
     top = [fig.add_subplot(grid[0, 2 * i:2 * i + 2]) for i in range(3)]
     bottom = [fig.add_subplot(grid[1, 3 * i:3 * i + 3]) for i in range(2)]
@@ -84,7 +82,6 @@ def plot_design(design, path, ground_speed=None):
         a.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -92,7 +89,7 @@ def _hole_panel(ax, design, mm):
     """The first plant's hole, zoomed: the tip below the soil and the hole it cuts (entry to
     exit at the surface) against the hole the design asks for, k·D."""
     theta = np.linspace(0.5 * math.pi, 1.5 * math.pi, 4001)     # around the bottom (θ = π)
-    sx, sy = soil_trajectory(design.l1, design.l2, theta, design.advance)
+    sx, sy = map(np.asarray, soil_trajectory(design.l1, design.l2, theta, design.advance))
     below = sy <= design.depth
     x0 = float(np.interp(math.pi, theta, sx))
     target = design.hole_ratio * design.depth

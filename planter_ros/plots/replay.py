@@ -3,24 +3,23 @@ machine), the tilt histogram with the upright limits, and the as-planted map."""
 
 import math
 
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 import numpy as np
+
+from planter_ros.output_files import atomic_output
 
 ROW_MARKERS = 'osD^v<>ph*'
 
 
 def plot_replay(result, path):
     """Four labelled panels (mm and degrees for people) in one PNG."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    from matplotlib.ticker import MaxNLocator
-
     p = result.plants
     s = result.summary
     rows = getattr(result, 'rows', None) or []
     named = len(rows) > 1 or bool(rows and rows[0].name)
     labels = {row.index: row.label for row in rows}
-    fig = plt.figure(figsize=(16, 10))
+    fig = Figure(figsize=(16, 10))
     grid = fig.add_gridspec(3, 2, width_ratios=(1.25, 1.0))
     axes = [fig.add_subplot(grid[i, 0]) for i in range(3)]
 
@@ -71,9 +70,9 @@ def plot_replay(result, path):
     twin.axhline(1.0, color='tab:green', lw=0.5, ls=':')
     _headroom(ax, bottom=0.0)
     _headroom(twin)
-    labelled = [h for h in handles if not h.get_label().startswith('_')]
+    labelled = [h for h in handles if not str(h.get_label()).startswith('_')]
     if labelled:
-        ax.legend(labelled, [h.get_label() for h in labelled], fontsize='small',
+        ax.legend(labelled, [str(h.get_label()) for h in labelled], fontsize='small',
                   loc='upper center', ncol=len(labelled))
 
     ax = axes[2]
@@ -89,8 +88,8 @@ def plot_replay(result, path):
         width = max((hi - lo) / 30.0, span / 50.0)
         count = max(int(math.ceil((hi - lo) / width)), 1)
         mid = 0.5 * (lo + hi)
-        ax.hist(tilt, bins=np.linspace(mid - 0.5 * count * width, mid + 0.5 * count * width,
-                                       count + 1), color='tab:blue', alpha=0.8)
+        edges = np.linspace(mid - 0.5 * count * width, mid + 0.5 * count * width, count + 1)
+        ax.hist(tilt, bins=edges.tolist(), color='tab:blue', alpha=0.8)
     ax.set_xlim(-span, span)
     for sign in (-1, 1):
         ax.axvline(sign * limit, color='tab:red', ls='--', lw=1)
@@ -109,12 +108,10 @@ def plot_replay(result, path):
     fig.suptitle(f'replay of {result.path}')
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def write_plot(result, path):
     """plot_replay into the PNG `path` (atomically): the line for people."""
-    from planter_ros.output_files import atomic_output
     with atomic_output(path) as tmp:
         plot_replay(result, tmp)
     return f'plot written to {path}'
@@ -129,7 +126,7 @@ def _map_panel(fig, ax, result, labels, named):
     north = placement.north if placement is not None else np.full(len(p), np.nan)
     ok = np.isfinite(east) & np.isfinite(north)
     ax.set_title('as-planted map (colour: spacing error)')
-    if not ok.any():
+    if placement is None or not ok.any():
         ax.text(0.5, 0.5, 'no GNSS fixes in the bag:\nno plant has a map position',
                 ha='center', va='center', transform=ax.transAxes)
         ax.set_axis_off()

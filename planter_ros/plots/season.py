@@ -81,7 +81,7 @@ def _matplotlib_home():
 
 
 def _png(fig):
-    import matplotlib.pyplot as plt  # lazy: 350 ms, only with --plot
+    import matplotlib.pyplot as plt  # lazy: loaded in _matplotlib_home (its font cache)
     buffer = io.BytesIO()
     fig.savefig(buffer, format='png', dpi=90, bbox_inches='tight')
     plt.close(fig)
@@ -108,7 +108,7 @@ def _miss_or_multiple(ratio):
 def _maps(plants):
     """Two panels per recording (misses, multiples and gaps; tilt), the MAX_MAPS recordings
     with the most of them first: a recording is one place, a field's bags may be far apart."""
-    import matplotlib.pyplot as plt  # lazy: 350 ms, only with --plot
+    import matplotlib.pyplot as plt  # lazy: loaded in _matplotlib_home (its font cache)
     placed = plants[np.isfinite(plants['latitude_deg'].to_numpy(dtype=float))]
     if placed.empty:
         return '<p>No plant has a map position (no usable GNSS fix in the bags).</p>'
@@ -158,7 +158,7 @@ def _maps(plants):
 
 
 def _histograms(plants):
-    import matplotlib.pyplot as plt  # lazy: 350 ms, only with --plot
+    import matplotlib.pyplot as plt  # lazy: loaded in _matplotlib_home (its font cache)
     rows = sorted(plants['row_name'].unique())
     cols = min(len(rows), 4)
     lines = math.ceil(len(rows) / cols)
@@ -178,7 +178,7 @@ def _histograms(plants):
 
 
 def _trends(groups):
-    import matplotlib.pyplot as plt  # lazy: 350 ms, only with --plot
+    import matplotlib.pyplot as plt  # lazy: loaded in _matplotlib_home (its font cache)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4))
     keys = (('quality_of_feed_index', 'quality of feed [%]'),
             ('miss_index', 'miss index [%]'), ('uprightness_rate', 'upright [%]'))
@@ -214,7 +214,9 @@ img{max-width:100%;margin:1em 0}"""
 
 def write_season_report(path, groups, plants, bags):
     """The HTML page (module doc) at `path`, written atomically."""
-    import matplotlib  # lazy: only with --plot (pyplot 350 ms)
+    # lazy: matplotlib loads inside _matplotlib_home (season_report), so that its font cache
+    # goes to the scratch MPLCONFIGDIR and `planter analyze` leaves nothing in the home folder
+    import matplotlib
     matplotlib.use('Agg')
 
     parts = ['<!DOCTYPE html><html><head><meta charset="utf-8">',

@@ -2,6 +2,7 @@
 
 import math
 
+from matplotlib.figure import Figure
 import numpy as np
 
 from planter_ros.kinematics.three_arm.gear_train import ARMS
@@ -13,16 +14,14 @@ ARM_NAMES = ('I', 'II', 'III')
 
 def plot_design(mech, params, path):
     """Write a 2×2 PNG: gears at θ = 0, carrier-frame and frame trajectories, arm angles."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
 
     mm = 1000.0
     cfg = goal_settings(params)
     values = goal_values(mech, cfg)
     goals = {g.name: g for g in goals_from_values(values, cfg)}
     theta = np.linspace(0.0, 2.0 * math.pi, 721)
-    fig, axes = plt.subplots(2, 2, figsize=(13, 11))
+    fig = Figure(figsize=(13, 11))
+    axes = fig.subplots(2, 2)
 
     # (a) the three gear kinds in mesh at θ = 0 (arm I's intermediate and planet)
     ax = axes[0, 0]
@@ -109,7 +108,6 @@ def plot_design(mech, params, path):
                  + (f' (not met: {", ".join(failing)})' if failing else ''), fontsize=13)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def _finish(ax, xlabel, ylabel, equal=False):

@@ -70,6 +70,7 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
 
     from planter_ros import interfaces
     from planter_ros.simdrive.bus import SimulatedBus
+    from planter_ros.command.engine import CommandEngine
     from planter_ros.nodes.sync_node import SyncNode
     from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
     from planter_ros.design import to_json
@@ -113,11 +114,14 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
         ex = SingleThreadedExecutor(context=context)
         ex.add_node(sync)
         sync.enable_drive()
+        engine = sync.engine
+        if not isinstance(engine, CommandEngine):      # a virtual bus: in the node's process
+            raise TypeError('the sync latency bench runs the command path in process')
         threading.Thread(target=listen, args=(listener,), daemon=True).start()
         threading.Thread(target=ex.spin, daemon=True).start()
         deadline = time.monotonic() + timeout
         # discovery done and the latched design taken
-        while speed_pub.get_subscription_count() == 0 or sync.engine.law.spacing is None:
+        while speed_pub.get_subscription_count() == 0 or engine.law.spacing is None:
             if time.monotonic() > deadline:
                 raise TimeoutError(f'the sync node did not see the source within {timeout} s')
             time.sleep(0.01)
