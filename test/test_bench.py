@@ -3,10 +3,12 @@ errors come from the mpmath reference (exact methods at round-off, the paper's f
 its markdown page holds the quality targets and one table per row group."""
 import json
 import re
+import subprocess
+import sys
 
 import pytest
 
-from cli_helpers import run_planter
+from cli_helpers import REPO, run_planter
 from planter_ros.bench.registry import Row, Target
 from planter_ros.bench.report import QUALITY_TARGETS, format_markdown
 from planter_ros.bench.timing import Timing
@@ -98,6 +100,28 @@ def test_bench_table_names_the_machine_and_targets():
     assert out.stdout.startswith('planter bench · ') and 'numpy' in out.stdout
     assert '≤ 20 µs' in out.stdout and 'mpmath' in out.stdout
     assert 'bench: five-bar reverse design' in out.stderr      # progress goes to stderr
+
+
+def test_every_case_is_in_the_table_with_the_module_that_registers_it():
+    import importlib
+    from planter_ros.bench.registry import CASES, REGISTERED
+    for module in dict.fromkeys(CASES.values()):
+        importlib.import_module(module)
+    assert sorted(REGISTERED) == sorted(CASES)
+    assert all(REGISTERED[name].__module__ == module for name, module in CASES.items())
+
+
+def test_only_the_modules_of_the_cases_asked_for_are_imported():
+    code = ('import sys\n'
+            'from planter_ros.bench.registry import BenchContext, run_cases\n'
+            "rows = run_cases(BenchContext(quick=True, verbose=False), only='hole-width tol')\n"
+            "assert [r.status for r in rows] == ['ok'] * len(rows) and rows, rows\n"
+            "print(sorted(m for m in sys.modules if m.startswith('planter_ros.bench.cases.')\n"
+            "             or m.split('.')[0] in ('rclpy', 'distributed', 'canopen')))\n")
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         cwd=REPO, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "['planter_ros.bench.cases.five_bar']"
 
 
 def test_bench_rejects_bad_options_in_one_line():

@@ -31,6 +31,22 @@ import time
 from typing import Any, TypedDict
 import uuid
 
+from geometry_msgs.msg import TwistStamped
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import String
+
+from planter_ros import interfaces
+from planter_ros.control.loop_timing import SyncLoopConfig
+from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
+from planter_ros.design import to_json
+from planter_ros.drive.config import DriveConfig
+from planter_ros.host.dds_domain import claim_private_domain
+from planter_ros.sim.runs import five_bar_design_message
+
 from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
 
@@ -118,22 +134,6 @@ def stall_run(command_process: bool, joins: int, progress: Callable[[str], None]
               ) -> tuple[DriveFigures, int, float]:
     """One run of the layout; returns (figures, joins done, seconds)."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    import rclpy
-    from geometry_msgs.msg import TwistStamped
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-    from rclpy.signals import SignalHandlerOptions
-    from std_msgs.msg import String
-
-    from planter_ros import interfaces
-    from planter_ros.host.dds_domain import claim_private_domain
-    from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
-    from planter_ros.design import to_json
-    from planter_ros.drive.config import DriveConfig
-    from planter_ros.control.loop_timing import SyncLoopConfig
-    from planter_ros.sim.runs import five_bar_design_message
-
     domain = claim_private_domain()
     names = ['r1', 'r2', 'r3', 'r4']
     rows: dict[str, object] = {'rows': names}
@@ -232,8 +232,7 @@ def stall_run(command_process: bool, joins: int, progress: Callable[[str], None]
     return _drive_figures(report, stamps, period), done[0], time.perf_counter() - t0
 
 
-@bench_case('graph-join stall', requires=('rclpy', 'can', 'planter_ros.command.process',
-                                          'planter_ros.demo.sync_process'))
+@bench_case('graph-join stall')
 def graph_join_stall(ctx: BenchContext) -> Iterator[Row]:
     joins = ctx.n(400, 2 * JOINERS)          # --quick: the smoke run, two rounds of joiners
     results: dict[str, tuple[DriveFigures, int, float]] = {}

@@ -5,16 +5,21 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from mpmath import mp, mpf
 import numpy as np
+from scipy.optimize import brentq
 
+from planter_ros.kinematics.arrays import FloatArray, Floats
+from planter_ros.kinematics.five_bar import (chain_kinematics, design_five_bar, hole_geometry,
+                                             hole_ratio_limit, hole_sensitivity, hole_tolerance,
+                                             soil_trajectory)
+
+from ..reference import (DIGITS, chain_reference, design_reference, hole_reference, rel_error,
+                         soil_point_reference)
 from ..registry import BenchContext, Row, Target, bench_case
-
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.kinematics.arrays import FloatArray, Floats
-
-    from ..timing import Timing
+from ..timing import Timing
 
 DESIGN_TIME_TARGET = 20e-6     # quality target: a five-bar design <= 20 µs scalar
 DESIGN_RATE_TARGET = 1e6       # ... and >= 1e6 designs/s batched
@@ -28,7 +33,6 @@ WIDTH_ERROR_OF = 'max relative error of the swept hole width vs mpmath (same des
 def design_domain(rng: np.random.Generator, n: int
                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """n random agronomic scenes: D 20-100 mm, d 0.15-0.6 m, k up to half its feasible limit."""
-    from planter_ros.kinematics.five_bar import hole_ratio_limit
     depth = rng.uniform(0.02, 0.10, n)
     spacing = rng.uniform(0.15, 0.6, n)
     k = rng.uniform(0.01, 0.5, n) * np.asarray(hole_ratio_limit(depth, spacing))
@@ -39,8 +43,6 @@ def _design_errors(l1: Sequence[float] | FloatArray, l2: Sequence[float] | Float
                    depth: FloatArray, spacing: FloatArray,
                    k: FloatArray, refs: Sequence[tuple[Any, Any]]) -> tuple[float, float]:
     """(max hole error, max length error) of computed bars against the mpmath references."""
-    from mpmath import mp, mpf
-    from ..reference import DIGITS, hole_reference
     hole_err = 0.0
     len_err = 0.0
     for i, (r1, r2) in enumerate(refs):
@@ -55,9 +57,6 @@ def _design_errors(l1: Sequence[float] | FloatArray, l2: Sequence[float] | Float
 
 @bench_case('five-bar reverse design')
 def five_bar_design(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.five_bar import design_five_bar
-    from ..reference import design_reference
-
     rng = np.random.default_rng(ctx.seed)
     sizes = ctx.n((1, 1000, 1_000_000), (1, 10, 100))
     n_ref = ctx.n(1000, 10)
@@ -111,7 +110,6 @@ def hole_by_sampling(l1: float, l2: float, depth: float, advance: float, samples
     """The naive way: sample one sun-bar turn, keep the points below the soil surface, take the
     extent along the row. Error shrinks like 1/samples (the surface crossing is missed by up to
     one step)."""
-    from planter_ros.kinematics.five_bar import soil_trajectory
     theta = np.linspace(0.0, 2.0 * math.pi, samples)
     x, y = (np.asarray(v) for v in soil_trajectory(l1, l2, theta, advance))
     below = x[y <= depth]
@@ -121,7 +119,6 @@ def hole_by_sampling(l1: float, l2: float, depth: float, advance: float, samples
 def hole_by_root_finding(l1: float, l2: float, depth: float, advance: float) -> float:
     """The generic way: scipy brentq for the surface crossings y(θ) = D and the turning points
     dx/dθ = 0 between them, then the extent of x over those angles."""
-    from scipy.optimize import brentq
     total, a = l1 + l2, l2 - l1
     def y(th: float) -> float:
         return total * (1.0 + math.cos(th)) - depth
@@ -148,9 +145,6 @@ def _speed_ratios(a: float) -> list[float]:
 
 @bench_case('hole width')
 def hole_width(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.five_bar import design_five_bar, hole_geometry
-    from ..reference import hole_reference, rel_error
-
     design = design_five_bar(*TOMATO)
     l1, l2, depth = float(design.l1), float(design.l2), float(design.depth)   # one design
     advances = _speed_ratios(l2 - l1)
@@ -208,8 +202,6 @@ def hole_width(ctx: BenchContext) -> Iterator[Row]:
 
 @bench_case('hole-width tolerance')
 def hole_width_tolerance(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.five_bar import design_five_bar, hole_sensitivity, hole_tolerance
-
     design = design_five_bar(*TOMATO)
     s = hole_sensitivity(design.l1, design.l2, design.depth, design.advance)
     samples = ctx.n(100_000, 10_000)
@@ -234,9 +226,6 @@ def hole_width_tolerance(ctx: BenchContext) -> Iterator[Row]:
 
 @bench_case('trajectory evaluation')
 def trajectory(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.five_bar import chain_kinematics, design_five_bar, soil_trajectory
-    from ..reference import chain_reference, soil_point_reference
-
     design = design_five_bar(*TOMATO)
     l1, l2, adv = float(design.l1), float(design.l2), float(design.advance)   # one design
     total = l1 + l2

@@ -15,17 +15,17 @@ from collections.abc import Iterator
 import os
 from pathlib import Path
 import tempfile
-from typing import TYPE_CHECKING
 
+from mcap.reader import make_reader
 import numpy as np
 
 from planter_ros import interfaces
+from planter_ros.recording.errors import BagUnreadableError
+from planter_ros.recording.replay import ReplayResult, replay
+from planter_ros.sim.bags import write_input_bag
+from planter_ros.sim.runs import Run, five_bar_design_message, simulate_run
 
 from ..registry import BenchContext, Row, Target, bench_case
-
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.recording.replay import ReplayResult
-    from planter_ros.sim.runs import Run
 
 WHAT = 'replay (planter replay)'
 REAL_TIME_TARGET = 1000.0      # quality target: replay >= 1000x real time
@@ -37,8 +37,6 @@ ERROR_OF = ('max |replayed − live monitor prediction| over every field of ever
 def _replay_row(ctx: BenchContext, path: Path, label: str, result: ReplayResult,
                 bag_messages: int, error: float | None = None, target: bool = False,
                 note: str = '') -> Row:
-    from planter_ros.recording.replay import replay
-
     t = ctx.measure(lambda: replay(path))
     speed = result.duration / t.median
     targets = ([Target(f'≥ 1000× real time (run: {speed:.0f}×)', speed >= REAL_TIME_TARGET)]
@@ -60,10 +58,6 @@ def _replay_row(ctx: BenchContext, path: Path, label: str, result: ReplayResult,
 def _damaged_row(ctx: BenchContext, run: Run, tmp: Path, whole: ReplayResult) -> Row:
     """The generated run in chunks of 64 kB, the middle chunk's bytes zeroed: every other chunk
     is read."""
-    from mcap.reader import make_reader
-
-    from planter_ros.recording.replay import replay
-    from planter_ros.sim.bags import write_input_bag
     path, damaged = tmp / 'chunked.mcap', tmp / 'damaged.mcap'
     bag_messages = write_input_bag(run, path, chunk_size=64_000).message_count
     with open(path, 'rb') as f:
@@ -86,8 +80,6 @@ def _damaged_row(ctx: BenchContext, run: Run, tmp: Path, whole: ReplayResult) ->
 
 def _garbage_rows(ctx: BenchContext, tmp: Path) -> Iterator[Row]:
     """Files that start like MCAP and hold no valid record: refused after a bounded scan."""
-    from planter_ros.recording.errors import BagUnreadableError
-    from planter_ros.recording.replay import replay
     zeros, noise = tmp / 'zeros.mcap', tmp / 'noise.mcap'
     size = int(ctx.n(1 << 30, 64 << 20))
     with open(zeros, 'wb') as f:          # sparse: no disk space used
@@ -124,14 +116,9 @@ def _live_error(result: ReplayResult, path: Path) -> float:
     return float(np.max(np.abs(replayed[finite] - live[finite]), initial=0.0))
 
 
-@bench_case('replay',
-            requires=('rosbags', 'mcap', 'rclpy', 'planter_ros.recording.replay'))
+@bench_case('replay')
 def replay_throughput(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    from planter_ros.recording.replay import replay
-    from planter_ros.sim.bags import write_input_bag
-    from planter_ros.sim.runs import five_bar_design_message, simulate_run
-
     duration = ctx.n(600.0, 20.0)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / 'bench.mcap'
