@@ -4,6 +4,7 @@ root-finding vs dense sampling) and trajectory throughput, each against an mpmat
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 import math
 from typing import Any
 
@@ -16,8 +17,8 @@ from planter_ros.kinematics.five_bar import (chain_kinematics, design_five_bar, 
                                              hole_ratio_limit, hole_sensitivity, hole_tolerance,
                                              soil_trajectory)
 
-from ..reference import (DIGITS, chain_reference, design_reference, hole_reference, rel_error,
-                         soil_point_reference)
+from ..reference import (DIGITS, Chain, chain_reference, design_reference, hole_reference,
+                         rel_error, soil_point_reference)
 from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import Timing
 
@@ -39,10 +40,20 @@ def design_domain(rng: np.random.Generator, n: int
     return depth, spacing, k
 
 
+@dataclass(frozen=True)
+class DesignCheck:
+    """Computed bars against the mpmath references: the largest relative hole error, the
+    largest bar-length error (of l1 + l2), over `checked` designs."""
+
+    hole_error: float
+    length_error: float
+    checked: int
+
+
 def _design_errors(l1: Sequence[float] | FloatArray, l2: Sequence[float] | FloatArray,
                    depth: FloatArray, spacing: FloatArray,
-                   k: FloatArray, refs: Sequence[tuple[Any, Any]]) -> tuple[float, float]:
-    """(max hole error, max length error) of computed bars against the mpmath references."""
+                   k: FloatArray, refs: Sequence[tuple[Any, Any]]) -> DesignCheck:
+    """The errors of computed bars against the mpmath references `refs`."""
     hole_err = 0.0
     len_err = 0.0
     for i, (r1, r2) in enumerate(refs):
@@ -52,7 +63,7 @@ def _design_errors(l1: Sequence[float] | FloatArray, l2: Sequence[float] | Float
             hole_err = max(hole_err, float(abs(achieved - asked) / asked))
             len_err = max(len_err, float(max(abs(mpf(l1[i]) - r1), abs(mpf(l2[i]) - r2))
                                          / (r1 + r2)))
-    return hole_err, len_err
+    return DesignCheck(hole_err, len_err, len(refs))
 
 
 @bench_case('five-bar reverse design')
@@ -71,8 +82,7 @@ def five_bar_design(ctx: BenchContext) -> Iterator[Row]:
         designs = [design_five_bar(a, b, c, method) for a, b, c in args]
         l1 = [float(d.l1) for d in designs]          # scalar designs: floats
         l2 = [float(d.l2) for d in designs]
-        hole_err, len_err = _design_errors(l1, l2, depth, spacing, k, refs)
-        yield _design_row(method, 'scalar', 1, t, hole_err, len_err, n_ref)
+        yield _design_row(method, 'scalar', 1, t, _design_errors(l1, l2, depth, spacing, k, refs))
         for n in sizes:
             ctx.progress(f'  {method} batch of {n} ...')
             D, d, kk = depth[:n].copy(), spacing[:n].copy(), k[:n].copy()
@@ -80,28 +90,26 @@ def five_bar_design(ctx: BenchContext) -> Iterator[Row]:
                             repeats=5 if n >= 100_000 else None)
             out = design_five_bar(D, d, kk, method)
             m = min(n, n_ref)
-            hole_err, len_err = _design_errors(np.asarray(out.l1)[:m], np.asarray(out.l2)[:m],
-                                               depth, spacing, k,
-                                               refs[:m])
-            yield _design_row(method, 'batched', n, t, hole_err, len_err, m)
+            check = _design_errors(np.asarray(out.l1)[:m], np.asarray(out.l2)[:m], depth,
+                                   spacing, k, refs[:m])
+            yield _design_row(method, 'batched', n, t, check)
 
 
-def _design_row(method: str, how: str, n: int, t: Timing, hole_err: float, len_err: float,
-                checked: int) -> Row:
+def _design_row(method: str, how: str, n: int, t: Timing, check: DesignCheck) -> Row:
     targets: list[Target] = []
     if how == 'scalar':
         targets.append(Target('≤ 20 µs', t.median <= DESIGN_TIME_TARGET))
     elif n >= 1_000_000:
         targets.append(Target('≥ 1e6/s', n / t.median >= DESIGN_RATE_TARGET))
     if method == 'exact':
-        targets.append(Target('err ≤ 1e-9', hole_err <= ACCURACY_TARGET))
+        targets.append(Target('err ≤ 1e-9', check.hole_error <= ACCURACY_TARGET))
     name = {'exact': 'exact (ψ − sin ψ solved)', 'paper': 'paper (ψ³/6 ≈ ψ − sin ψ)'}[method]
-    return Row('five-bar reverse design', f'{name}, {how}', n, 'design', t, error=hole_err,
-               error_of=HOLE_ERROR_OF, targets=targets,
-               note=f'checked {checked} designs; bar lengths vs mpmath exact design: '
-                    f'{len_err:.1e} of l1+l2',
+    return Row('five-bar reverse design', f'{name}, {how}', n, 'design', t,
+               error=check.hole_error, error_of=HOLE_ERROR_OF, targets=targets,
+               note=f'checked {check.checked} designs; bar lengths vs mpmath exact design: '
+                    f'{check.length_error:.1e} of l1+l2',
                series=f'design, {method}' if how == 'scalar' else '',
-               extra={'length_error': len_err, 'checked': checked})
+               extra={'length_error': check.length_error, 'checked': check.checked})
 
 
 # --- hole width -----------------------------------------------------------------------------
@@ -253,7 +261,7 @@ def trajectory(ctx: BenchContext) -> Iterator[Row]:
     pos, vel, acc = chain_kinematics(alpha, omega, l1, l2)
     err = 0.0
     for i in rng.choice(n, min(n, n_ref), replace=False):
-        rp, rv, ra = chain_reference(alpha[i], omega, l1, l2, -2.0, 0.5 * math.pi, 0.0)
+        rp, rv, ra = chain_reference(alpha[i], omega, Chain(l1, l2))
         for got, ref, scale in ((pos, rp, total), (vel, rv, total * omega),
                                 (acc, ra, total * omega ** 2)):
             err = max(err, float(abs(np.asarray(got[0])[i] - ref[0]) / scale),

@@ -12,6 +12,7 @@ and hold its per-plant table, which replay must reproduce.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 import os
 from pathlib import Path
 import tempfile
@@ -34,9 +35,18 @@ ERROR_OF = ('max |replayed − live monitor prediction| over every field of ever
             'm, m/s, rad/s, rad), absolute; — for a generated bag (no live predictions in it)')
 
 
-def _replay_row(ctx: BenchContext, path: Path, label: str, result: ReplayResult,
-                bag_messages: int, error: float | None = None, target: bool = False,
-                note: str = '') -> Row:
+@dataclass(frozen=True)
+class ReplayedBag:
+    """A bag and what replay made of it: its path, the result, the messages it holds."""
+
+    path: Path
+    result: ReplayResult
+    messages: int
+
+
+def _replay_row(ctx: BenchContext, bag: ReplayedBag, label: str, error: float | None = None,
+                target: bool = False, note: str = '') -> Row:
+    path, result, bag_messages = bag.path, bag.result, bag.messages
     t = ctx.measure(lambda: replay(path))
     speed = result.duration / t.median
     targets = ([Target(f'≥ 1000× real time (run: {speed:.0f}×)', speed >= REAL_TIME_TARGET)]
@@ -72,10 +82,10 @@ def _damaged_row(ctx: BenchContext, run: Run, tmp: Path, whole: ReplayResult) ->
     damaged.write_bytes(bytes(data))
     result = replay(damaged)
     lost = (hit.message_end_time - hit.message_start_time) * 1e-9
-    return _replay_row(ctx, damaged, 'the same run, its middle chunk damaged', result,
-                       bag_messages, note=f'{len(chunks) - 1} of {len(chunks)} chunks read, '
-                       f'{lost:.2f} s lost; {result.summary["plants"]} of '
-                       f'{whole.summary["plants"]} plants')
+    return _replay_row(ctx, ReplayedBag(damaged, result, bag_messages),
+                       'the same run, its middle chunk damaged',
+                       note=f'{len(chunks) - 1} of {len(chunks)} chunks read, {lost:.2f} s lost; '
+                            f'{result.summary["plants"]} of {whole.summary["plants"]} plants')
 
 
 def _garbage_rows(ctx: BenchContext, tmp: Path) -> Iterator[Row]:
@@ -126,8 +136,8 @@ def replay_throughput(ctx: BenchContext) -> Iterator[Row]:
         run = simulate_run(five_bar_design_message(), duration=duration)
         rec = write_input_bag(run, path)
         result = replay(path)
-        yield _replay_row(ctx, path, f'generated {duration:.0f} s input bag', result,
-                          rec.message_count, target=True,
+        yield _replay_row(ctx, ReplayedBag(path, result, rec.message_count),
+                          f'generated {duration:.0f} s input bag', target=True,
                           note='tomato five-bar, speed step +25 %')
         yield _damaged_row(ctx, run, Path(tmp), result)
         yield from _garbage_rows(ctx, Path(tmp))
@@ -138,5 +148,6 @@ def replay_throughput(ctx: BenchContext) -> Iterator[Row]:
     for path in samples:
         name = path.name
         result = replay(path, with_recorded=True)
-        yield _replay_row(ctx, path, f'bags/{name} (live monitor recording)', result,
-                          result.messages['total_read'], error=_live_error(result, path))
+        yield _replay_row(ctx, ReplayedBag(path, result, result.messages['total_read']),
+                          f'bags/{name} (live monitor recording)',
+                          error=_live_error(result, path))
