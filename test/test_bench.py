@@ -3,10 +3,13 @@ errors come from the mpmath reference (exact methods at round-off, the paper's f
 its markdown page holds the quality targets and one table per row group."""
 import json
 import re
+import subprocess
+import sys
+import time
 
 import pytest
 
-from cli_helpers import run_planter
+from cli_helpers import REPO, run_planter
 from planter_ros.bench.registry import Row, Target
 from planter_ros.bench.report import QUALITY_TARGETS, format_markdown
 from planter_ros.bench.timing import Timing
@@ -53,6 +56,11 @@ def test_quick_bench_runs_and_reports_every_row_with_time_and_error(quick_run):
     assert sync and all(r['median_s'] <= r['p99_s'] and r['matched'] > 0 for r in sync)
     assert all(t['target'].startswith(('p99 ≤ 2 ms', '8 rows: p99 ≤ 2 ms'))
                for r in sync for t in r['targets'])
+    # the graph-join rows count the joiners killed stuck in their DDS shutdown
+    joins = [r for r in ok if r['what'].startswith('command path while DDS participants')]
+    assert len(joins) == 2 and all(r['joins'] >= 8 for r in joins)
+    assert all(isinstance(r['stuck_joiners_killed'], int) and 'stuck joiner(s) killed' in r['note']
+               for r in joins)
     machine = [r for r in sync if r['what'].startswith('sync loop, rows')]
     assert [r['rows'] for r in machine] == [1, 4, 8]
     curves = [r for r in ok if r['what'].startswith('closed loop, 4 rows')]
@@ -98,6 +106,62 @@ def test_bench_table_names_the_machine_and_targets():
     assert out.stdout.startswith('planter bench · ') and 'numpy' in out.stdout
     assert '≤ 20 µs' in out.stdout and 'mpmath' in out.stdout
     assert 'bench: five-bar reverse design' in out.stderr      # progress goes to stderr
+
+
+def test_every_case_is_in_the_table_with_the_module_that_registers_it():
+    import importlib
+    from planter_ros.bench.registry import CASES, REGISTERED
+    for module in dict.fromkeys(CASES.values()):
+        importlib.import_module(module)
+    assert sorted(REGISTERED) == sorted(CASES)
+    assert all(REGISTERED[name].__module__ == module for name, module in CASES.items())
+
+
+def test_only_the_modules_of_the_cases_asked_for_are_imported():
+    code = ('import sys\n'
+            'from planter_ros.bench.registry import BenchContext, run_cases\n'
+            "rows = run_cases(BenchContext(quick=True, verbose=False), only='hole-width tol')\n"
+            "assert [r.status for r in rows] == ['ok'] * len(rows) and rows, rows\n"
+            "print(sorted(m for m in sys.modules if m.startswith('planter_ros.bench.cases.')\n"
+            "             or m.split('.')[0] in ('rclpy', 'distributed', 'canopen')))\n")
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         cwd=REPO, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "['planter_ros.bench.cases.five_bar']"
+
+
+# a joiner of the graph-join case: one join per line printed; the first to start (it makes the
+# marker file) does one join, then hangs as a Fast DDS participant shutdown once did
+STUCK_JOINER = """
+import os, sys, time
+count, marker = int(sys.argv[1]), sys.argv[2]
+try:
+    os.close(os.open(marker, os.O_CREAT | os.O_EXCL))
+    stuck = True
+except FileExistsError:
+    stuck = False
+for k in range(count):
+    print('joined', flush=True)
+    if stuck:
+        time.sleep(3600)
+"""
+
+
+def test_a_stuck_joiner_is_killed_counted_and_its_joins_handed_on(tmp_path):
+    from planter_ros.bench.cases.command_path import Joiners
+    marker = tmp_path / 'stuck'
+    joiners = Joiners(lambda count: [sys.executable, '-c', STUCK_JOINER, str(count), str(marker)],
+                      joins=6, at_once=2, stuck=1.0)
+    try:
+        deadline = time.monotonic() + 60.0
+        while joiners.running() and time.monotonic() < deadline:
+            joiners.check()
+            time.sleep(0.02)
+        joiners.finish()
+    finally:
+        joiners.kill()
+    assert marker.exists()
+    assert (joiners.done, joiners.killed, len(joiners.procs)) == (6, 1, 3)
 
 
 def test_bench_rejects_bad_options_in_one_line():

@@ -218,7 +218,7 @@ def test_the_local_clusters_workers_and_the_optimisers_pool_are_tied_by_the_kern
     from planter_ros.optimize.three_arm import PopulationScorer
     from planter_ros.host.processes import parent_death_signal
     from planter_ros.scene import default_scene_path
-    from planter_ros.cli.design_three_arm import load_params
+    from planter_ros.cli.commands.design_three_arm import load_params
     with cluster(workers=1) as client:
         assert set(client.run(parent_death_signal).values()) == {signal.SIGKILL}
     base = load_params(default_scene_path('rice_three_arm.yaml'), '--base')

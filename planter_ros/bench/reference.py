@@ -6,6 +6,7 @@ working precision is raised by the digits the subtraction loses, so the referenc
 DIGITS correct digits. Inputs are taken as the exact binary floats they are.
 """
 
+from dataclasses import dataclass
 import math
 from typing import SupportsFloat
 
@@ -95,14 +96,25 @@ def soil_point_reference(l1: float, l2: float, theta: float, advance: float) -> 
                 (mpf(l1) + mpf(l2)) * (1 + mpmath.cos(th)))
 
 
-def chain_reference(alpha: float, omega1: float, l1: float, l2: float, gear_ratio: float,
-                    theta1: float, theta2: float) -> tuple[Pair, Pair, Pair]:
+@dataclass(frozen=True)
+class Chain:
+    """The paper's 2R chain (formula 3): bars l1, l2 (m), α2 = gear_ratio·α1 + θ2, the bars'
+    phases θ1, θ2 (rad)."""
+
+    l1: float
+    l2: float
+    gear_ratio: float = -2.0
+    theta1: float = 0.5 * math.pi
+    theta2: float = 0.0
+
+
+def chain_reference(alpha: float, omega1: float, chain: Chain) -> tuple[Pair, Pair, Pair]:
     """Position, velocity, acceleration of the paper's 2R chain (formula 3), as mpf tuples."""
     with mp.workdps(DIGITS + 10):
-        al, w1, b1, b2 = mpf(alpha), mpf(omega1), mpf(l1), mpf(l2)
-        a1 = al + mpf(theta1)
-        a12 = (1 + mpf(gear_ratio)) * al + mpf(theta1) + mpf(theta2)
-        w12 = (1 + mpf(gear_ratio)) * w1
+        al, w1, b1, b2 = mpf(alpha), mpf(omega1), mpf(chain.l1), mpf(chain.l2)
+        a1 = al + mpf(chain.theta1)
+        a12 = (1 + mpf(chain.gear_ratio)) * al + mpf(chain.theta1) + mpf(chain.theta2)
+        w12 = (1 + mpf(chain.gear_ratio)) * w1
         pos = (b2 * mpmath.cos(a12) + b1 * mpmath.cos(a1),
                b2 * mpmath.sin(a12) + b1 * mpmath.sin(a1))
         vel = (-b2 * w12 * mpmath.sin(a12) - b1 * w1 * mpmath.sin(a1),

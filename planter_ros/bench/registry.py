@@ -1,15 +1,16 @@
 """Bench cases: one function per group of rows, registered with `@bench_case`.
 
-A case is `fn(ctx) -> iterable of Row`. It imports what it measures inside the function, so a
-case whose module is not installed (another branch not merged yet) reports one honest
-"not available" row instead of failing the whole bench; a case that raises reports one
-"FAILED" row and makes `planter bench` exit non-zero.
+A case is `fn(ctx) -> iterable of Row`; its module imports what it measures at its top. CASES
+names every case and its module, in table order: the runner imports only the modules of the
+cases asked for (`--only`), so `planter bench --only hole` loads no rclpy. A case whose module
+cannot be imported (an extra not installed) reports one honest "not available" row instead of
+failing the whole bench; a case that raises reports one "FAILED" row and makes `planter bench`
+exit non-zero.
 
-Adding a row group is one function in a module listed in CASE_MODULES:
+Adding a row group is one function in a case module and its line in CASES:
 
-    @bench_case('three-arm cycle', requires=('planter_ros.kinematics.three_arm',))
+    @bench_case('three-arm cycle')
     def three_arm_cycle(ctx):
-        from planter_ros.kinematics.three_arm import ...
         t = ctx.measure(lambda: ...)
         yield Row('three-arm cycle', 'exact', 1, 'cycle', t, error=..., error_of='...')
 """
@@ -20,32 +21,43 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import TypeVar
 import importlib
-import importlib.util
 import sys
 import time
 import traceback
 
-from planter_ros.config import setting
+from planter_ros.config import ConfigError, setting
 
 from .timing import Timing, measure
 
 _T = TypeVar('_T')
 
-# modules whose import registers cases, in table order
-CASE_MODULES = (
-    'planter_ros.bench.cases.five_bar',
-    'planter_ros.bench.cases.three_arm',
-    'planter_ros.bench.cases.sync',
-    'planter_ros.bench.cases.control_loop',
-    'planter_ros.bench.cases.command_path',
-    'planter_ros.bench.cases.command_targets',
-    'planter_ros.bench.cases.replay',
-    'planter_ros.bench.cases.analyze',
-    'planter_ros.bench.cases.cdr',
-    'planter_ros.bench.cases.drive',
-    'planter_ros.bench.cases.footprint',
-    'planter_ros.bench.cases.cam',
-)
+_CASES = 'planter_ros.bench.cases.'
+# every case: its name -> the module whose import registers it, in table order
+CASES = {
+    'five-bar reverse design': _CASES + 'five_bar',
+    'hole width': _CASES + 'five_bar',
+    'hole-width tolerance': _CASES + 'five_bar',
+    'trajectory evaluation': _CASES + 'five_bar',
+    'gear-train closure': _CASES + 'three_arm',
+    'three-arm build and cycle': _CASES + 'three_arm',
+    'three-arm optimiser': _CASES + 'three_arm',
+    'sync loop latency': _CASES + 'sync',
+    'sync loop latency per row count': _CASES + 'sync',
+    'closed loop through curves': _CASES + 'sync',
+    'control loop under load': _CASES + 'control_loop',
+    'graph-join stall': _CASES + 'command_path',
+    'command-latency': _CASES + 'command_targets',
+    'demo-runs under load': _CASES + 'command_targets',
+    'replay': _CASES + 'replay',
+    'analyze': _CASES + 'analyze',
+    'losses': _CASES + 'analyze',
+    'CDR field decoding': _CASES + 'cdr',
+    'CAN drive': _CASES + 'drive',
+    'footprint of a minimal five-bar run': _CASES + 'footprint',
+    'cam evaluation': _CASES + 'cam',
+    'cam tip sweep vs brute force': _CASES + 'cam',
+    'cam, one mechanism designed for 0.15 m': _CASES + 'cam',
+}
 
 
 @dataclass(frozen=True)
@@ -105,21 +117,14 @@ class Row:
 CaseFunction = Callable[['BenchContext'], Iterable[Row]]
 
 
-@dataclass(frozen=True)
-class Case:
-    name: str
-    fn: CaseFunction
-    requires: tuple[str, ...]
+# the case functions registered so far (by the case modules imported): name -> fn
+REGISTERED: dict[str, CaseFunction] = {}
 
 
-CASES: list[Case] = []
-
-
-def bench_case(name: str, requires: Iterable[str] = ()
-               ) -> Callable[[CaseFunction], CaseFunction]:
-    """Register fn(ctx) as the case `name`; `requires` are modules it cannot run without."""
+def bench_case(name: str) -> Callable[[CaseFunction], CaseFunction]:
+    """Register fn(ctx) as the case `name` (named in CASES with this module)."""
     def register(fn: CaseFunction) -> CaseFunction:
-        CASES.append(Case(name, fn, tuple(requires)))
+        REGISTERED[name] = fn
         return fn
     return register
 
@@ -149,14 +154,16 @@ class BenchContext:
             print(f'bench: {text}', file=sys.stderr, flush=True)
 
 
-def load_cases() -> list[Case]:
-    for name in CASE_MODULES:
-        importlib.import_module(name)
-    return list(CASES)
+def load_case(name: str) -> CaseFunction:
+    """The function of case `name`, its module imported (ModuleNotFoundError: an extra of it
+    is not installed)."""
+    # lazy: the one late import of the bench: only the modules of the cases asked for (rclpy,
+    # Dask or canopen only for the cases that use them; `--only hole` takes 1 s, not 10)
+    importlib.import_module(CASES[name])
+    return REGISTERED[name]
 
 
 def _check_only(only: str, names: list[str]) -> None:
-    from planter_ros.config import ConfigError
     shown = repr(only) if len(only) <= 40 else repr(only[:37] + '...')
     if not only.strip():
         raise ConfigError(f'--only = {shown} is empty: allowed text a case name contains '
@@ -166,42 +173,32 @@ def _check_only(only: str, names: list[str]) -> None:
                           f'{len(names)} case names contains, e.g. "{names[0]}"')
 
 
-def _missing(modules: Iterable[str]) -> list[str]:
-    out = []
-    for name in modules:
-        try:
-            if importlib.util.find_spec(name) is None:
-                out.append(name)
-        except ModuleNotFoundError:
-            out.append(name)
-    return out
-
-
 def run_cases(ctx: BenchContext, only: str | None = None) -> list[Row]:
-    """Run every registered case (or those whose name contains `only`); returns the rows.
-    ConfigError (one line, before any case runs) for an `only` that is empty or blank, or
-    that no case's name contains."""
-    cases = load_cases()
+    """Run every case (or those whose name contains `only`); returns the rows. ConfigError
+    (one line, before any case runs) for an `only` that is empty or blank, or that no case's
+    name contains."""
+    names = list(CASES)
     if only is not None:
-        _check_only(only, [case.name for case in cases])
+        _check_only(only, names)
     rows: list[Row] = []
-    for case in cases:
-        if only and only.lower() not in case.name.lower():
+    for name in names:
+        if only and only.lower() not in name.lower():
             continue
-        missing = _missing(case.requires)
-        if missing:
-            rows.append(Row(case.name, '—', None, '', status='not available',
-                            note=f"not available: {', '.join(missing)} not on this branch"))
-            ctx.progress(f'{case.name}: not available ({", ".join(missing)})')
+        try:
+            fn = load_case(name)
+        except ModuleNotFoundError as exc:
+            rows.append(Row(name, '—', None, '', status='not available',
+                            note=f'not available: {exc.name} is not installed'))
+            ctx.progress(f'{name}: not available ({exc.name} is not installed)')
             continue
         t0 = time.perf_counter()
-        ctx.progress(f'{case.name} ...')
+        ctx.progress(f'{name} ...')
         try:
-            rows.extend(case.fn(ctx))
+            rows.extend(fn(ctx))
         except Exception as exc:   # one broken case must not hide the others' figures
-            rows.append(Row(case.name, '—', None, '', status='FAILED',
+            rows.append(Row(name, '—', None, '', status='FAILED',
                             note=f'FAILED: {type(exc).__name__}: {exc}'))
             if ctx.verbose:
                 traceback.print_exc(file=sys.stderr)
-        ctx.progress(f'{case.name} done in {time.perf_counter() - t0:.1f} s')
+        ctx.progress(f'{name} done in {time.perf_counter() - t0:.1f} s')
     return rows

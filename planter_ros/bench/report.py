@@ -222,8 +222,9 @@ METHOD_NOTES = (
     'timed per call over 2000 successive SYNC cycles of one row (10 ms at 0.3 m/s) and checked '
     'against scipy\'s PPoly of the same coefficients; the brute-force tip sweep samples θ(s) '
     'at 10⁶ points per revolution (an error of at most max|dx/ds|·d/10⁶ of its own).',
-    'A row group is one function `@bench_case(name, requires=(module,))` in a module listed in '
-    '`planter_ros/bench/registry.py` (`CASE_MODULES`); a case whose module is missing reports one '
+    'A row group is one function `@bench_case(name)` in a case module, named with its module in '
+    '`planter_ros/bench/registry.py` (`CASES`: only the modules of the cases asked for are '
+    'imported); a case whose module cannot be imported (an extra not installed) reports one '
     '"not available" row, a case that raises one FAILED row and a non-zero exit.',
 )
 

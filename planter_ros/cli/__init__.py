@@ -1,3 +1,4 @@
-"""The `planter` command line: one module per subcommand, heavy imports only inside run()."""
-__all__ = ['analyze', 'bench', 'cam', 'demo', 'design_five_bar', 'design_three_arm', 'main',
-           'optimize_three_arm', 'options', 'replay', 'simulate']
+"""The `planter` command line: per subcommand its options here, its work in `commands/`."""
+__all__ = ['analyze', 'bench', 'cam', 'commands', 'commission', 'demo', 'design_five_bar',
+           'design_three_arm', 'drive_check', 'main', 'optimize_three_arm', 'options', 'replay',
+           'simulate']

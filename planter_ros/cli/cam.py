@@ -5,10 +5,10 @@ against its limits; a table, JSON or a plot.
 Depth, spacings, speeds, hole ratio and nozzle width take the scene's ranges; the drive options
 are the fields of `cam.DriveLimits` with their own ranges."""
 
-import json
-
-from planter_ros.output_files import require_finite
+from planter_ros.cam.drive import DriveLimits
+from planter_ros.cli.main import BadInput
 from planter_ros.cli.options import output_file, shown, spec_option
+from planter_ros.config import specs
 from planter_ros.kinematics.design_inputs import DesignInputs
 
 MAX_SPACINGS = 20
@@ -22,7 +22,6 @@ def list_option(cls, name, option, most):
     one = spec_option(cls, name, option)
 
     def parse(text):
-        from planter_ros.cli.main import BadInput
         parts = text.split(',')
         if not 1 <= len(parts) <= most:
             raise BadInput(f'{option} = {shown(text)} has {len(parts)} values: allowed 1..{most} '
@@ -34,7 +33,6 @@ def list_option(cls, name, option, most):
 
 
 def _rule(text):
-    from planter_ros.cli.main import BadInput
     if text not in RULE_WORDS:
         raise BadInput(f'--rule = {shown(text)} is not a rule: allowed '
                        f'{" or ".join(RULE_WORDS)}')
@@ -42,9 +40,6 @@ def _rule(text):
 
 
 def add_arguments(parser):
-    from planter_ros.cam.drive import DriveLimits
-    from planter_ros.config import specs
-
     parser.add_argument('--depth', type=spec_option(DesignInputs, 'planting_depth', '--depth'),
                         required=True, metavar='M', help='planting depth D (m), e.g. 0.045')
     parser.add_argument('--design-spacing', required=True, metavar='M',
@@ -87,29 +82,3 @@ def add_arguments(parser):
     parser.add_argument('--plot', metavar='FILE.png', type=output_file('--plot', ('.png',)),
                         help='draw θ(s) and the tip in the soil for both profiles, sweep and '
                              'tilt against spacing, the feasibility map and the loads')
-
-
-def run(args):
-    from planter_ros.cam import CamMechanism, DriveLimits
-    from planter_ros.cam.report import CamStudy, format_table, study
-    from planter_ros.kinematics.five_bar import design_five_bar
-    from planter_ros.output_files import atomic_output
-
-    drive = DriveLimits(**{k[len('drive_'):]: v for k, v in vars(args).items()
-                           if k.startswith('drive_') and v is not None})   # checked together
-    design = design_five_bar(args.depth, args.design_spacing, args.hole_ratio)
-    mech = CamMechanism.from_design(design, args.nozzle_width)
-    asked = CamStudy(mech, drive, args.rule, tuple(args.spacing), tuple(args.speed),
-                     args.design_spacing, args.hole_ratio)
-    result = study(asked)
-    require_finite(result, 'cam')
-    if args.plot:
-        from planter_ros.plots.cam import plot_cam
-        with atomic_output(args.plot) as tmp:
-            plot_cam(asked, result['cases'], result['top_speeds'], tmp)
-        result['plot'] = args.plot
-    if args.json:
-        print(json.dumps(result, indent=2, allow_nan=False))
-    else:
-        print(format_table(result))
-    return 0

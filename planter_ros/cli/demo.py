@@ -4,9 +4,12 @@ starts; the verdict line gives 0 (PASS) or 1 (FAIL)."""
 
 import sys
 
+from planter_ros.cli.main import main
 from planter_ros.cli.options import spec_option
 from planter_ros.config import spec_of
 from planter_ros.demo.options import DemoOptions
+from planter_ros.sim.gnss import SimulatedGnss
+from planter_ros.sim.tray import add_tray_arguments
 
 
 def add_arguments(parser):
@@ -24,11 +27,9 @@ def add_arguments(parser):
                         "the machine's speed, not its own on the curves, for comparison")
     parser.add_argument('--seed', type=spec_option(DemoOptions, 'seed', '--seed'), default=0,
                         help='noise, tray and (--machine) wiring seed, 0..2^32-1 (default 0)')
-    from planter_ros.sim.tray import add_tray_arguments
     add_tray_arguments(parser, DemoOptions, (0.0, 0.0), spec_option)
     parser.add_argument('--machine', metavar='FILE', help='a commissioned machine file (its '
                         'rows, drives checked, homed, phased; the first plant measured)')
-    from planter_ros.sim.gnss import SimulatedGnss
     for name, word in (('origin_latitude', 'latitude'), ('origin_longitude', 'longitude')):
         spec = spec_of(SimulatedGnss, name)
         parser.add_argument(f'--origin-{word}', metavar='DEG', default=spec.default,
@@ -47,11 +48,5 @@ def options(args):
                        origin_longitude=args.origin_longitude, machine=args.machine)
 
 
-def run(args):
-    from planter_ros.demo.run import prepare
-    return prepare(options(args)).run()
-
-
 if __name__ == '__main__':
-    from planter_ros.cli.main import main
     sys.exit(main(['demo'] + sys.argv[1:]))

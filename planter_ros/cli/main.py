@@ -1,34 +1,56 @@
 """Entry point of `planter`: builds the sub-command tree and turns any of planter_ros's errors
 (`errors.PlanterError`: bad input, a setting, a bag or a drive refused) into exit code 2.
 
-Each sub-command's module has `add_arguments(parser)` and `run(args) -> int` and imports numpy,
-scipy, matplotlib or rclpy only inside run(): `planter --help` loads none of them."""
+A sub-command is two modules (COMMANDS): its options, `add_arguments(parser)`, light (argparse
+and the option checks), and its work, `run(args) -> int`, which imports what it uses at its
+top. `_load` is the one place that imports late: the options of the sub-command asked for only,
+its work only once the arguments parsed (`--help` never loads it): `planter --help` loads no
+sub-command, `planter replay --help` no numpy, mcap or rclpy."""
 
 import argparse
+from dataclasses import dataclass
 import importlib
 import sys
+from types import ModuleType
 
+from planter_ros.config import one_line
+from planter_ros.dependencies import check_command, error_line
 from planter_ros.errors import PlanterError
+from planter_ros.host import stop_signals
+from planter_ros.shipped import package_version
 
-# (command words) -> (module, one-line help)
+
+@dataclass(frozen=True)
+class Command:
+    """A sub-command: the module of its options, the module of its work, its help line."""
+
+    options: str
+    work: str
+    help: str
+
+
+def _cli(name: str, help_text: str) -> Command:
+    return Command(f'planter_ros.cli.{name}', f'planter_ros.cli.commands.{name}', help_text)
+
+
 COMMANDS = {
-    ('design', 'five-bar'): ('planter_ros.cli.design_five_bar',
-                             'reverse-design a geared five-bar from depth and spacing'),
-    ('bench',): ('planter_ros.cli.bench', 'run time next to error against an mpmath reference'),
-    ('design', 'three-arm'): ('planter_ros.cli.design_three_arm',
-                              'score a three-arm non-circular gear design against eight goals'),
-    ('optimize', 'three-arm'): ('planter_ros.cli.optimize_three_arm',
-                                'search a three-arm design meeting all eight goals'),
-    ('demo',): ('planter_ros.cli.demo', 'run the whole machine on a simulated CAN bus'),
-    ('replay',): ('planter_ros.cli.replay', 're-run the monitor\'s model on a recorded bag'),
-    ('analyze',): ('planter_ros.cli.analyze',
-                   'replay a season of bags on Dask into Parquet tables'),
-    ('simulate',): ('planter_ros.cli.simulate',
-                    'write a season of realistic simulated bags, fast'),
-    ('cam', 'five-bar'): ('planter_ros.cli.cam', 'electronic cam: every spacing planted upright'),
-    ('commission',): ('planter_ros.commission.command', 'home, polarity, phase: write the machine '
-                      'file'),
-    ('drive', 'check'): ('planter_ros.commission.drive_check', 'bring up drives: plan, SYNC, jog'),
+    ('design', 'five-bar'): _cli('design_five_bar',
+                                 'reverse-design a geared five-bar from depth and spacing'),
+    ('bench',): _cli('bench', 'run time next to error against an mpmath reference'),
+    ('design', 'three-arm'): _cli('design_three_arm', 'score a three-arm non-circular gear '
+                                  'design against eight goals'),
+    ('optimize', 'three-arm'): _cli('optimize_three_arm',
+                                    'search a three-arm design meeting all eight goals'),
+    ('demo',): _cli('demo', 'run the whole machine on a simulated CAN bus'),
+    ('replay',): _cli('replay', 're-run the monitor\'s model on a recorded bag'),
+    ('analyze',): _cli('analyze', 'replay a season of bags on Dask into Parquet tables'),
+    ('simulate',): _cli('simulate', 'write a season of realistic simulated bags, fast'),
+    ('cam', 'five-bar'): _cli('cam', 'electronic cam: every spacing planted upright'),
+    ('commission',): Command('planter_ros.cli.commission', 'planter_ros.commission.command',
+                             'home, polarity, phase: write the machine file'),
+    ('drive', 'check'): Command('planter_ros.cli.drive_check',
+                                'planter_ros.commission.drive_check',
+                                'bring up drives: plan, SYNC, jog'),
 }
 GROUPS = {'drive': 'check the CANopen drives of a machine file'}    # others: a mechanism's
 
@@ -69,37 +91,47 @@ def _selected(argv):
     return None
 
 
+def _load(name: str) -> ModuleType:
+    """A sub-command's module, imported when that sub-command is asked for (module doc)."""
+    # lazy: the one late import of the command line: only the sub-command asked for is loaded
+    # (its options for --help; its work, with numpy, mcap, rclpy or canopen, for a run):
+    # test_help_opens_nothing, test_skip_what_a_scene_does_not_need
+    return importlib.import_module(name)
+
+
+def _work(name: str):
+    """`args._run`: loads the sub-command's work module, then runs it."""
+    def run(args: argparse.Namespace) -> int:
+        return _load(name).run(args)
+    return run
+
+
 def build_parser(argv=()):
-    """The full command tree; only the selected sub-command's module is imported, so a run
-    never loads the code (and the imports) of the commands it does not use."""
-    from planter_ros.shipped import package_version
+    """The full command tree; only the selected sub-command's options module is imported, so a
+    run never loads the code (and the imports) of the commands it does not use."""
     selected = _selected(list(argv))
     parser = _Parser(prog='planter', description='Design and drive a transplanter planting unit.')
     parser.add_argument('--version', action='version', version=f'planter {package_version()}')
     top = parser.add_subparsers(dest='command', required=True, parser_class=_Parser)
     groups = {}
-    for words, (module_name, help_text) in COMMANDS.items():
+    for words, command in COMMANDS.items():
         if len(words) == 1:
-            sub = top.add_parser(words[0], help=help_text)
+            sub = top.add_parser(words[0], help=command.help)
         else:
             if words[0] not in groups:
                 g = top.add_parser(words[0], help=GROUPS.get(words[0], f'{words[0]} a mechanism'))
                 groups[words[0]] = g.add_subparsers(dest='mechanism', required=True)  # _Parser's
-            sub = groups[words[0]].add_parser(words[1], help=help_text)
+            sub = groups[words[0]].add_parser(words[1], help=command.help)
         if words == selected:
-            module = importlib.import_module(module_name)
-            module.add_arguments(sub)
-            sub.set_defaults(_run=module.run)
+            _load(command.options).add_arguments(sub)
+            sub.set_defaults(_run=_work(command.work))
     return parser
 
 
 def main(argv=None):
-    from planter_ros.config import one_line
-    from planter_ros.dependencies import check_command, error_line
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = _selected(argv)
     if selected == ('demo',):     # a stop signal from the very start is a clean stop (demo.run)
-        from planter_ros.host import stop_signals
         stop_signals.install('planter demo')
     try:
         args = build_parser(argv).parse_args(argv)

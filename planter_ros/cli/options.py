@@ -7,7 +7,9 @@ are parsed, before any work, raising `BadInput` (one line: option, value, what i
 
 import math
 
+from planter_ros.cli.main import BadInput
 from planter_ros.config import ConfigError, coerce, spec_of
+from planter_ros.output_files import OutputError, check_output
 
 
 def spec_option(cls, name, option):
@@ -15,8 +17,6 @@ def spec_option(cls, name, option):
     spec = spec_of(cls, name)
 
     def parse(text):
-        from planter_ros.cli.main import BadInput
-
         def bad(why='is out of range'):
             raise BadInput(f'{option} = {shown(text)} {why}: allowed {spec.allowed()}')
         value = text
@@ -47,8 +47,6 @@ def spec_option(cls, name, option):
 def output_file(option, suffixes):
     """argparse `type=` for an output file (checked, not created: see output_files)."""
     def parse(text):
-        from planter_ros.cli.main import BadInput
-        from planter_ros.output_files import OutputError, check_output
         try:
             return str(check_output(text, option, suffixes))
         except OutputError as exc:
@@ -60,8 +58,6 @@ def output_path(check, option):
     """argparse `type=` for an output a function checks: `check(text, option)` returns the
     path or raises OutputError (export.shapefile.check_path, export.isoxml.check_path)."""
     def parse(text):
-        from planter_ros.cli.main import BadInput
-        from planter_ros.output_files import OutputError
         try:
             return str(check(text, option))
         except OutputError as exc:
@@ -80,6 +76,8 @@ def shown(text, limit=40):
 def add_engine_arguments(parser):
     """--workers N | --scheduler ADDRESS: where `planter analyze` and `planter simulate` run
     (planter_ros.analysis.engine)."""
+    # lazy: analysis.engine (asyncio) only for analyze and simulate, the commands with an
+    # engine: a design loads no analysis (test_skip_what_a_scene_does_not_need)
     from planter_ros.analysis.engine import EngineSettings
     group = parser.add_mutually_exclusive_group()
     group.add_argument('--workers', metavar='N',
@@ -92,8 +90,8 @@ def add_engine_arguments(parser):
 
 
 def _scheduler(text):
+    # lazy: as add_engine_arguments
     from planter_ros.analysis.engine import EngineError, scheduler_address
-    from planter_ros.cli.main import BadInput
     try:
         return scheduler_address(text)
     except EngineError as exc:

@@ -3,11 +3,9 @@ plants from the monitor's model) written fast without DDS, on the same Dask engi
 analyze`; the same seed gives the same bytes. Details: doc/analysis.md (planter_ros.sim.season).
 """
 
-import json
-import sys
-
 from planter_ros.cli.options import add_engine_arguments, spec_option
 from planter_ros.sim.options import SeasonOptions
+from planter_ros.sim.tray import add_tray_arguments
 
 
 def add_arguments(parser):
@@ -29,34 +27,7 @@ def add_arguments(parser):
                         type=spec_option(SeasonOptions, 'seed', '--seed'),
                         help='seed of the season, 0..2^32-1 (default 0): the same seed gives '
                              'the same bags')
-    from planter_ros.sim.tray import add_tray_arguments
     add_tray_arguments(parser, SeasonOptions, (0.02, 0.01), spec_option)
     add_engine_arguments(parser)
     parser.add_argument('--json', action='store_true',
                         help='print every bag written and what happens in it as JSON (SI)')
-
-
-def run(args):
-    from planter_ros.analysis.simulate import (
-        SeasonRequest, check_path, check_tray, season_machine, simulate_season)
-    from planter_ros.sim.season import bag_name
-    from planter_ros.sim.tray import TrayShares
-    check_tray(args.empty_rate, args.double_rate)
-    scene, rows = season_machine(args.scene, args.rows)     # a bad scene: one line, exit 2
-    names = [bag_name(args.seed, k) for k in range(args.bags)]
-    path = check_path(args.path, names)
-    season = SeasonRequest(args.seed, args.duration, rows, scene,
-                           TrayShares(args.empty_rate, args.double_rate))
-    report, written, errors = simulate_season(path, names, season, args.workers, args.scheduler)
-    if args.json:
-        print(json.dumps({**report, 'runs': written}, indent=1, allow_nan=False))
-    else:
-        print(f'{len(written)} bags written to {path} ({rows} rows, {args.duration:g} s '
-              f'each, seed {args.seed}): {report["messages"]} messages, {report["plants"]} '
-              f'plants, {report["bytes"] / 1e6:.1f} MB')
-        print(f'{report["seconds"]:.1f} s on {report["workers"]} worker(s): '
-              f'{report["times_real_time"]:.0f}× real time')
-    for name, error in errors:
-        print(f'planter: error: {name} not written: {type(error).__name__}: {error}',
-              file=sys.stderr)
-    return 1 if errors else 0

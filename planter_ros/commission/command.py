@@ -1,68 +1,30 @@
-"""`planter commission`: its arguments and its run (the cli module only names it).
-
-Nothing heavy at import: `planter commission --help` opens no bus and reads no file."""
+"""`planter commission`: its run (the options: cli/commission.py)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 import sys
+import uuid
 
+import can
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.description = ('Commission the planting units: identify and check each drive '
-                          'against the machine file, set its polarity, home it, measure its '
-                          'phase offset, write the machine file and print a checklist '
-                          '(doc/deploy.md, Commissioning).')
-    parser.add_argument('--machine', required=True, metavar='FILE',
-                        help='the machine file; rewritten with the polarity and phase found')
-    parser.add_argument('--scene', metavar='FILE',
-                        help='a scene to check against the machine first (rows, limits)')
-    parser.add_argument('--row', action='append', metavar='NAME',
-                        help='commission only this row (repeatable); default: every row')
-    parser.add_argument('--simulated', action='store_true',
-                        help='against simulated drives on a virtual bus (random mechanical '
-                        'offset and polarity from --seed), as does a machine file whose '
-                        'can.interface is virtual')
-    parser.add_argument('--seed', type=_seed, default=0, metavar='N',
-                        help='--simulated: seed of the mechanisms\' offsets and wiring, '
-                        '0..2^32-1')
-    parser.add_argument('--output', metavar='FILE.yaml',
-                        help='write the machine file here instead of over --machine (checked '
-                        'before any motion: an existing directory, a .yaml or .yml name)')
+from planter_ros.output_files import OutputError, check_output
+from planter_ros.scene.files import SceneError
+from planter_ros.scene.machine_file import (CanBus, deployment_parameters, open_machine,
+                                            rows_asked, write_machine)
+from planter_ros.simdrive.drive import SimulatedDrive
+from planter_ros.simdrive.mechanism import simulated_mechanism
 
-
-SEED_MAX = 2 ** 32 - 1
-
-
-def _seed(text: str) -> int:
-    """argparse `type=` of --seed: 0..2^32-1, one line naming the value otherwise."""
-    try:
-        value = int(text, 10)
-    except ValueError:
-        value = None
-    if value is None or not 0 <= value <= SEED_MAX:
-        shown = text if len(text) <= 40 else text[:37] + '...'
-        raise argparse.ArgumentTypeError(f'--seed = {shown!r} is out of range: allowed '
-                                         f'integer 0..{SEED_MAX}')
-    return value
+from .procedure import (CommissionError, Observer, SimulatedObserver, checklist,
+                        commission_machine, updated_machine)
 
 
 def run(args: argparse.Namespace) -> int:
-    import dataclasses
-    import math
-    import uuid
-
-    from planter_ros.scene.files import SceneError
-    from planter_ros.scene.machine_file import CanBus, deployment_parameters, open_machine, \
-        rows_asked, write_machine
-
-    from .procedure import (CommissionError, Observer, SimulatedObserver, checklist,
-                            commission_machine, updated_machine)
-
     def fail(message: str) -> int:
         print(f'planter: error: commission: {message}', file=sys.stderr)
         return 2
 
-    from planter_ros.output_files import OutputError, check_output
     try:
         machine = open_machine(args.machine)
         if args.scene:
@@ -85,10 +47,6 @@ def run(args: argparse.Namespace) -> int:
     run_machine = machine
     try:
         if simulated:
-            import can
-
-            from planter_ros.simdrive.drive import SimulatedDrive
-            from planter_ros.simdrive.mechanism import simulated_mechanism
             channel = f'planter-commission-{uuid.uuid4().hex}'
             run_machine = dataclasses.replace(machine, can=CanBus(interface='virtual',
                                                                    channel='vcan0'))

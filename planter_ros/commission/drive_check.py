@@ -8,43 +8,34 @@ the bus its identity (1000h, 1018h, 6502h), the start-up by that plan with SYNC 
 start, a move of a few degrees (a position ramp in cyclic synchronous position, a slow jog in
 profile velocity) and the disable. Homing is left to `planter commission`. Exit 0 when every
 row passed, 2 when a row's drive cannot run its row (the plan refused it), 1 when a drive
-failed on the bus. Nothing heavy at import: `--help` opens no bus and reads no file."""
+failed on the bus. The options: cli/drive_check.py."""
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 import math
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import Any
+import uuid
 
-if TYPE_CHECKING:   # for the annotations only: nothing heavy at import (module doc)
-    import can
+import can
 
-    from planter_ros.simdrive.drive import SimulatedDrive
+from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
+from planter_ros.drive.dictionary import device_name, read_dictionary
+from planter_ros.drive.eds import default_eds_path
+from planter_ros.drive.errors import DictionaryError, DriveError
+from planter_ros.drive.plan import plan_for_file
+from planter_ros.drive.states import CYCLIC_SYNC_POSITION
+from planter_ros.scene.files import SceneError
+from planter_ros.scene.machine_file import open_machine, rows_asked
+from planter_ros.simdrive.drive import SimulatedDrive
 
-__all__ = ['add_arguments', 'run', 'check_row']
+__all__ = ['run', 'check_row']
 
-DEGREES = 5.0             # the move's size
 SPEED = 0.3               # rad/s at the mechanism
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.description = ('Bring up each row\'s drive: its EDS and the start-up plan made from '
-                          'it, its identity, enable with SYNC, a move of a few degrees, '
-                          'disable (doc/drive.md, "Bringing up a new drive").')
-    parser.add_argument('--machine', required=True, metavar='FILE', help='the machine file')
-    parser.add_argument('--row', action='append', metavar='NAME',
-                        help='check only this row (repeatable); default: every row')
-    parser.add_argument('--simulated', action='store_true',
-                        help='against simulated drives serving each row\'s EDS on a virtual '
-                        'bus, as does a machine file whose can.interface is virtual')
-    parser.add_argument('--degrees', type=float, default=DEGREES,
-                        help=f'the move, mechanism degrees (default {DEGREES:g}; 0: none)')
-
-
 def run(args: argparse.Namespace) -> int:
-    from planter_ros.scene.files import SceneError
-    from planter_ros.scene.machine_file import open_machine, rows_asked
-
     def fail(message: str) -> int:
         print(f'planter: error: drive check: {message}', file=sys.stderr)
         return 2
@@ -79,11 +70,6 @@ class _bus:
     def __enter__(self) -> Any:
         if not self.simulated:
             return None
-        import uuid
-
-        import can
-
-        from planter_ros.simdrive.drive import SimulatedDrive
         channel = f'planter-drive-check-{uuid.uuid4().hex}'
         for name in self.rows:
             row = self.machine.rows[name]
@@ -105,15 +91,6 @@ class _bus:
 
 def check_row(machine: Any, name: str, bus: Any, angle: float) -> int:
     """Check one row (module doc), printing as it goes; its exit code."""
-    from dataclasses import replace
-
-    from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
-    from planter_ros.drive.dictionary import device_name, read_dictionary
-    from planter_ros.drive.eds import default_eds_path
-    from planter_ros.drive.errors import DictionaryError, DriveError
-    from planter_ros.drive.plan import plan_for_file
-    from planter_ros.drive.states import CYCLIC_SYNC_POSITION
-
     row = machine.rows[name]
     setup = replace(machine.drive_setups()[name], homing_method=0)   # homing: commission's
     who = f'row {name}, drive node {row.node_id}'

@@ -27,8 +27,11 @@ import math
 from typing import Callable
 
 from planter_ros.drive import objects as od
+from planter_ros.drive.cia402 import CanopenBus, Cia402Drive, DriveConfig
 from planter_ros.drive.dictionary import entry
+from planter_ros.drive.eds import default_eds_path
 from planter_ros.drive.errors import DriveError
+from planter_ros.drive.plan import plan_for_file
 from planter_ros.drive.setup import (HOMING_SEARCH_SPEED, HOMING_ZERO_SPEED, DriveSetup,
                                      homing_timeout, missing_modes)
 from planter_ros.errors import PlanterError
@@ -210,7 +213,6 @@ def commission_machine(machine, rows: list[str], observer: Observer, bus=None,
                        drive_config: dict | None = None) -> list[RowFindings]:
     """Commission `rows` of `machine` one after the other on one bus (`bus`: an open
     python-can bus, else the machine's channel); each drive shut down after its row."""
-    from planter_ros.drive.cia402 import CanopenBus, Cia402Drive, DriveConfig
     findings = []
     shared = None
     try:
@@ -243,9 +245,6 @@ def commission_machine(machine, rows: list[str], observer: Observer, bus=None,
 def run_warnings(machine, name: str) -> tuple[str, ...]:
     """The warnings of row `name`'s start-up plan (drive.plan), made from its EDS for the
     mode it runs in (the machine file's check refused what the plan refuses)."""
-    from planter_ros.drive.config import DriveConfig
-    from planter_ros.drive.eds import default_eds_path
-    from planter_ros.drive.plan import plan_for_file
     row = machine.rows[name]
     setup = machine.drive_setups()[name]
     config = setup.device(DriveConfig(can_bitrate=machine.can.bitrate,

@@ -21,8 +21,8 @@ Pure: no ROS, no bus.
 """
 
 from collections.abc import Sequence
+from dataclasses import dataclass, fields
 import dataclasses
-from dataclasses import dataclass
 import math
 import os
 from pathlib import Path
@@ -33,9 +33,11 @@ from typing import Any
 import yaml
 
 from planter_ros.config import ConfigError, Spec, check, from_mapping, setting, specs
-from planter_ros.drive.setup import DriveSetup
-from planter_ros.plausibility import STANDARD_BITRATES, PlausibilityError, RowLimits
-from planter_ros.plausibility import check as check_plausibility
+from planter_ros.drive.config import DriveConfig
+from planter_ros.drive.plan import plan_for_file
+from planter_ros.drive.setup import HOMING_ALLOWED, DriveSetup, homing_method_ok
+from planter_ros.plausibility import (STANDARD_BITRATES, PlausibilityError, RowLimits,
+                                      check as check_plausibility)
 from planter_ros.rows import RowLayout
 from planter_ros.safe_yaml import YamlError, load_yaml
 
@@ -153,7 +155,6 @@ class MachineRow:
         if bad or not self.modes or len(set(self.modes)) != len(self.modes):
             raise ConfigError(f'modes = {self.modes} is out of range: allowed a list of '
                               f'{" and ".join(MODES)}, each once, at least one')
-        from planter_ros.drive.setup import HOMING_ALLOWED, homing_method_ok
         if not homing_method_ok(self.homing_method):
             raise ConfigError(f'homing_method = {self.homing_method} is out of range: allowed '
                               f'{HOMING_ALLOWED}')
@@ -327,9 +328,6 @@ def check_drive_plans(machine: Machine, params: dict[str, Any], where: str) -> l
     moves in one line naming the row, node, object, purpose and remedy (MachineFileError).
     A row without its own EDS uses config/planter_drive.eds, which serves every mode. Returns
     the plans' warnings, one line each, naming the row."""
-    from dataclasses import fields
-    from planter_ros.drive.config import DriveConfig
-    from planter_ros.drive.plan import plan_for_file
     names = {f.name for f in fields(DriveConfig)}
     settings = {key: value for key, value in params.items() if key in names}
     warnings = []

@@ -11,16 +11,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from planter_ros.config import ConfigError, from_mapping
+from planter_ros.config import ConfigError, as_dict, from_mapping
+from planter_ros.design import Design, design_for_scene
+from planter_ros.geo import AntennaSettings
+from planter_ros.plausibility import PlausibilityError, check
+from planter_ros.rows import Row, rows_from_scene
+from planter_ros.shipped import shipped_file
 
 from .files import ParameterFile, SceneError, read_parameter_file
 from .schema import check_scene, merged_parameters, node_parameters, shared_entry
 
-if TYPE_CHECKING:          # loaded when used: a scene's design may need the gear train
+if TYPE_CHECKING:          # loaded when used (acceptance)
     from planter_ros.prediction import AcceptanceLimits
-    from planter_ros.design import Design
-    from planter_ros.geo import AntennaSettings
-    from planter_ros.rows import Row
 
 __all__ = ['Scene', 'default_scene_path', 'load_scene', 'open_scene', 'scene_limits']
 
@@ -57,13 +59,11 @@ class Scene:
 
     def design(self) -> Design:
         """The scene's design (planter_ros.design); DesignError (one line) if it has none."""
-        from planter_ros.design import design_for_scene
         return design_for_scene(self.parameters('design_node'))
 
     def rows(self, default_node_id: int | None = None) -> list[Row]:
         """The machine's rows (planter_ros.rows.Row) as the sync node reads them; ConfigError
         naming the file for a bad row."""
-        from planter_ros.rows import rows_from_scene
         try:
             return rows_from_scene(self.parameters('sync_node'), default_node_id)
         except ConfigError as exc:
@@ -72,6 +72,8 @@ class Scene:
     def acceptance(self) -> 'AcceptanceLimits':
         """The crop's acceptance limits (prediction.AcceptanceLimits) as the monitor reads
         them; the defaults for what the scene does not set."""
+        # lazy: prediction/ is 9 modules the sync node, which reads scenes, never uses
+        # (as schema.node_classes)
         from planter_ros.prediction import AcceptanceLimits
         try:
             return from_mapping(AcceptanceLimits, self.parameters('monitor_node'))
@@ -80,7 +82,6 @@ class Scene:
 
     def antenna(self) -> AntennaSettings:
         """The GNSS antenna on the machine (geo.AntennaSettings) as the monitor reads it."""
-        from planter_ros.geo import AntennaSettings
         try:
             return from_mapping(AntennaSettings, self.parameters('monitor_node'))
         except ConfigError as exc:
@@ -95,7 +96,6 @@ def open_scene(path: str | Path) -> Scene:
         raise SceneError(f'scene file {pfile.path} has no ros__parameters under /** or a '
                          'planter node')
     check_scene(pfile)
-    from planter_ros.plausibility import PlausibilityError, check
     try:
         warnings = check({**merged_parameters(pfile, 'design_node'),
                           **merged_parameters(pfile, 'sync_node')},
@@ -108,7 +108,6 @@ def open_scene(path: str | Path) -> Scene:
 def scene_limits(path: str | Path) -> dict[str, Any]:
     """The crop's acceptance limits a scene file sets (the defaults for the rest), as a
     mapping (prediction.AcceptanceLimits' fields)."""
-    from planter_ros.config import as_dict
     return as_dict(open_scene(path).acceptance())
 
 
@@ -120,5 +119,4 @@ def load_scene(path: str | Path, node: str | None = None) -> dict[str, Any]:
 
 def default_scene_path(name: str = DEFAULT_SCENE) -> Path:
     """A shipped scene (config/<name>) of this clone or the installed package."""
-    from planter_ros.shipped import shipped_file
     return shipped_file(name)

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from planter_ros.scene.files import SceneError
+
 __all__ = ['spacing_schedule']
 
 
@@ -14,7 +16,6 @@ def spacing_schedule(params: dict[str, Any], path: Any, low: float = 0.05,
                      high: float = 2.0) -> list[tuple[float, float]]:
     """(t, d) switches of a scene's design parameters, checked: pairs, times increasing and
     ≥ 0, spacings within [low, high] m. SceneError (one line) otherwise."""
-    from planter_ros.scene import SceneError
     flat = list(params.get('spacing_schedule') or [])
     if len(flat) % 2:
         raise SceneError(f'scene {path}: spacing_schedule has {len(flat)} numbers: allowed '

@@ -3,12 +3,13 @@
 from pathlib import Path
 from typing import Any, Mapping
 
+import yaml
+
 __all__ = ['write_scene']
 
 
 def write_scene(path: str | Path, params: Mapping[str, Any], comment: str = '') -> None:
     """Write `params` under `/**: ros__parameters:`; floats keep full precision."""
-    import yaml
     data = {'/**': {'ros__parameters': {k: _plain(v) for k, v in params.items()}}}
     text = yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=100)
     head = ''.join(f'# {line}\n' for line in comment.splitlines()) if comment else ''

@@ -24,19 +24,29 @@ row times empty tasks through the same cluster: Dask's own cost per task.
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+import math
 import os
 from pathlib import Path
 import shutil
 import statistics
 import tempfile
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
+
+import pyarrow.dataset as ds
+import pyarrow.parquet as pq
+
+from planter_ros.analysis import losses, season as seasons
+from planter_ros.analysis.bags import find_bags, identity
+from planter_ros.analysis.engine import check_workers, cluster, completed
+from planter_ros.analysis.tables import load_pyarrow, plant_columns, plant_dicts
+from planter_ros.analysis.task import model_version, warm_up
+from planter_ros.recording.replay import replay
+from planter_ros.sim.season import BagSummary, bag_name, simulate_bag
+from planter_ros.sim.tray import TrayShares
 
 from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
-
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.sim.season import BagSummary
 
 WHAT = 'season analysis (planter analyze)'
 REAL_TIME_TARGET = 3000.0       # × real time per worker (per core)
@@ -53,13 +63,10 @@ def _noop(i: int) -> int:
 
 def _simulate(directory: Path, runs: int, duration: float) -> tuple[float, int]:
     """Simulate `runs` runs into `directory` on the local cluster: (seconds, workers)."""
-    from planter_ros.analysis.engine import check_workers, cluster, completed
-    from planter_ros.analysis.task import model_version, warm_up
-    from planter_ros.sim.season import bag_name, simulate_bag
     with cluster() as client:
         workers = check_workers(client, warm_up, model_version(), 'the local cluster')
         started = time.monotonic()
-        arguments = [(str(directory / bag_name(0, k)), 0, k, duration, ROWS, None, *TRAY)
+        arguments = [(str(directory / bag_name(0, k)), 0, k, duration, ROWS, TrayShares(*TRAY))
                      for k in range(runs)]
         for _, _, error in completed(client, simulate_bag, arguments):
             if error is not None:
@@ -74,11 +81,6 @@ def _analyse(bags: Sequence[str | Path], out: Path, workers: int
     (report, seconds to start the cluster and warm the workers up, CPU seconds during the
     analysis of this process (the client and the scheduler) and of the worker processes, load
     average before it)."""
-    from planter_ros.analysis import season as seasons
-    from planter_ros.analysis.bags import identity
-    from planter_ros.analysis.engine import check_workers, cluster
-    from planter_ros.analysis.tables import load_pyarrow
-    from planter_ros.analysis.task import model_version, warm_up
     version = model_version()
     started = time.monotonic()
     with cluster(workers=workers) as client:
@@ -108,7 +110,6 @@ def _analyse(bags: Sequence[str | Path], out: Path, workers: int
 
 def _task_overhead(count: int) -> float:
     """Seconds per empty task through a 2-worker local cluster (submit → result gathered)."""
-    from planter_ros.analysis.engine import cluster, completed
     with cluster(workers=2) as client:
         list(completed(client, _noop, [(i,) for i in range(50)]))       # warm
         started = time.monotonic()
@@ -118,12 +119,6 @@ def _task_overhead(count: int) -> float:
 
 def _replay_error(bag: str | Path, out: Path) -> float:
     """Max |Parquet − replay JSON| over the plants of `bag` (None-for-None must match)."""
-    import math
-
-    import pyarrow.dataset as ds
-
-    from planter_ros.analysis.tables import plant_dicts
-    from planter_ros.recording.replay import replay
     expected = replay(str(bag)).plants.rows()         # as replay --json gives them
     table = ds.dataset(out / 'plants').to_table(filter=ds.field('bag') == Path(bag).name)
     got = plant_dicts(table)
@@ -143,12 +138,9 @@ def _replay_error(bag: str | Path, out: Path) -> float:
     return worst
 
 
-@bench_case('analyze', requires=('distributed', 'pyarrow', 'planter_ros.analysis.season'))
+@bench_case('analyze')
 def season_analysis(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    import pyarrow.parquet as pq
-
-    from planter_ros.analysis.bags import find_bags
     count, runs = ctx.n(200, 8), ctx.n(20, 4)
     duration = ctx.n(60.0, 10.0)
     repeats = ctx.n(3, 1)
@@ -264,10 +256,6 @@ LOSS_TRAY = (0.05, 0.03)        # empty cells, doubles: enough of both in short 
 def _simulate_season(directory: Path, count: int, duration: float, rows: int,
                      tray: tuple[float, float]) -> dict[str, BagSummary]:
     """`count` distinct runs of `duration` s on the local cluster: {bag name: summary}."""
-    from planter_ros.analysis.engine import check_workers, cluster, completed
-    from planter_ros.analysis.task import model_version, warm_up
-    from planter_ros.sim.season import bag_name, simulate_bag
-    from planter_ros.sim.tray import TrayShares
     names = [bag_name(1, k) for k in range(count)]
     out: dict[str, BagSummary] = {}
     with cluster() as client:
@@ -281,20 +269,13 @@ def _simulate_season(directory: Path, count: int, duration: float, rows: int,
     return out
 
 
-@bench_case('losses', requires=('distributed', 'pyarrow', 'planter_ros.analysis.losses'))
+@bench_case('losses')
 def injected_losses(ctx: BenchContext) -> Iterator[Row]:
     """A season simulated with a tray of empty cells and doubles and the usual glitches (speed
     drop-outs among them), analysed by `planter analyze`'s code path; each bag's plants from
     the Parquet table against what its cup sensors read (analysis.losses): injected against
     counted, every difference by its place, and the ISO misses and multiples by their cause."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    import pyarrow.dataset as pads
-    import pyarrow.parquet as pq
-
-    from planter_ros.analysis import losses
-    from planter_ros.analysis.bags import find_bags
-    from planter_ros.analysis.tables import plant_columns
-    from planter_ros.recording.replay import replay
     count, duration = ctx.n(200, 6), ctx.n(15.0, 12.0)
     with tempfile.TemporaryDirectory() as name:
         tmp = Path(name)
@@ -309,14 +290,14 @@ def injected_losses(ctx: BenchContext) -> Iterator[Row]:
         ctx.progress(f'  analysing {count} bags ...')
         report, _, _, _, _ = _analyse(bags, tmp / 'out', 2)
         ctx.progress('  accounting ...')
-        plants = pads.dataset(tmp / 'out' / 'plants').to_table()
+        plants = ds.dataset(tmp / 'out' / 'plants').to_table()
         table = pq.read_table(tmp / 'out' / 'bags', columns=[
             'bag', 'summary.spacing_quality.miss_index',
             'summary.spacing_quality.multiple_index',
             'summary.spacing_quality.spacings']).to_pylist()
         total, misses, multiples, dropouts, sensor = losses.empty_account(), 0, 0, 0, True
         for entry in table:
-            mine = plants.filter(pads.field('bag') == entry['bag'])
+            mine = plants.filter(ds.field('bag') == entry['bag'])
             readings = replay(season_dir / entry['bag']).seedling_readings
             one = losses.account(readings, losses.Instants.of(
                 *plant_columns(mine, losses.INSTANT_COLUMNS)))

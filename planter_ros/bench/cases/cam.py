@@ -5,14 +5,15 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 import math
-from typing import TYPE_CHECKING, Any
+import time
+from typing import Any
 
 import numpy as np
 
-from ..registry import BenchContext, Row, Target, bench_case
+from planter_ros.cam import CamMechanism, CamTrack, constant_profile, plan_cam, sampled_tip_sweep
+from planter_ros.kinematics.five_bar import design_five_bar
 
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.cam import CamMechanism
+from ..registry import BenchContext, Row, Target, bench_case
 
 EVAL_TARGET = 20e-6          # cam evaluation ≤ 20 µs per row per SYNC cycle (scalar)
 SWEEP_TARGET = 1e-6          # planned tip sweep vs brute force ≤ 1e-6 m
@@ -30,15 +31,11 @@ HOLE_ERROR_OF = '|tip sweep − the design hole k·D| (m)'
 
 
 def _mechanism() -> CamMechanism:
-    from planter_ros.cam import CamMechanism
-    from planter_ros.kinematics.five_bar import design_five_bar
     return CamMechanism.from_design(design_five_bar(DEPTH, DESIGN_SPACING, HOLE_RATIO))
 
 
-@bench_case('cam evaluation', requires=('planter_ros.cam',))
+@bench_case('cam evaluation')
 def cam_evaluation(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.cam import CamTrack, plan_cam
-
     mech = _mechanism()
     profile = plan_cam(mech, 0.3, SPEED, top_speeds=False).profile
     other = plan_cam(mech, 0.5, SPEED, rule='zero_slip', top_speeds=False).profile
@@ -64,10 +61,8 @@ def cam_evaluation(ctx: BenchContext) -> Iterator[Row]:
                   extra={'errors': errs})
 
 
-@bench_case('cam tip sweep vs brute force', requires=('planter_ros.cam',))
+@bench_case('cam tip sweep vs brute force')
 def cam_sweep(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.cam import constant_profile, plan_cam, sampled_tip_sweep
-
     mech = _mechanism()
     samples = 1_000_000          # the target's resolution, quick run or not (< 1 s)
     cams, constants = [], []
@@ -98,12 +93,8 @@ def cam_sweep(ctx: BenchContext) -> Iterator[Row]:
               extra={'samples_per_revolution': samples})
 
 
-@bench_case('cam, one mechanism designed for 0.15 m', requires=('planter_ros.cam',))
+@bench_case('cam, one mechanism designed for 0.15 m')
 def cam_one_mechanism(ctx: BenchContext) -> Iterator[Row]:
-    import time
-
-    from planter_ros.cam import constant_profile, plan_cam
-
     mech = _mechanism()
     hole = mech.design_hole
     for d in SPACINGS:

@@ -16,20 +16,23 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 import os
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from geometry_msgs.msg import TwistStamped
 import numpy as np
 from numpy.typing import NDArray
+from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
+from sensor_msgs.msg import JointState
+
+from planter_ros.kinematics.arrays import FloatArray
+from planter_ros.recording.cdr import decode_joint_states, decode_twist
 
 from ..registry import BenchContext, Row, bench_case
 
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from rosbags.typesys.store import Typestore
-
-    from planter_ros.kinematics.arrays import FloatArray
-
-    # (stamps ns, then two float fields) of decoded messages
-    Fields = tuple[NDArray[np.int64], FloatArray, FloatArray]
+# (stamps ns, then two float fields) of decoded messages
+Fields = tuple[NDArray[np.int64], FloatArray, FloatArray]
 
 JOINT = 'sun_bar'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
@@ -47,10 +50,6 @@ def _messages(n: int, seed: int, typestore: Typestore
     """n rclpy-serialised JointStates (as serialize_message leaves them, and cut) and
     TwistStampeds (cut) with varying stamps and values; cut = to the size rosbags' serializer
     gives the same message (the wire size)."""
-    from geometry_msgs.msg import TwistStamped
-    from rclpy.serialization import serialize_message
-    from sensor_msgs.msg import JointState
-
     rng = np.random.default_rng(seed)
     pos, vel, lx, az = rng.normal(size=(4, n)) * np.array([[100.0], [10.0], [2.0], [0.5]])
     stamps = 1_795_325_092_000_000_000 + np.cumsum(rng.integers(9_000_000, 11_000_000, n))
@@ -132,16 +131,9 @@ def _error(got: Fields, ref: Fields, label: str) -> float:
                      for a, b in zip(got[1:], ref[1:])))
 
 
-@bench_case('CDR field decoding', requires=('rosbags', 'rclpy', 'planter_ros.recording.cdr'))
+@bench_case('CDR field decoding')
 def cdr_decoding(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    from geometry_msgs.msg import TwistStamped
-    from rclpy.serialization import deserialize_message
-    from rosbags.typesys import Stores, get_typestore
-    from sensor_msgs.msg import JointState
-
-    from planter_ros.recording.cdr import decode_joint_states, decode_twist
-
     ts = get_typestore(Stores.ROS2_JAZZY)
     n = ctx.n(100_000, 2_000)
     ctx.progress(f'  serialising {n} JointState and {n} TwistStamped messages with rclpy ...')

@@ -23,6 +23,7 @@ no joint_states hole over twice the feedback period (the SYNC period, 10 ms).
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 import os
 import subprocess
 import sys
@@ -30,6 +31,22 @@ import threading
 import time
 from typing import Any, TypedDict
 import uuid
+
+from geometry_msgs.msg import TwistStamped
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import String
+
+from planter_ros import interfaces
+from planter_ros.control.loop_timing import SyncLoopConfig
+from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
+from planter_ros.design import to_json
+from planter_ros.drive.config import DriveConfig
+from planter_ros.host.dds_domain import claim_private_domain
+from planter_ros.sim.runs import five_bar_design_message
 
 from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
@@ -114,26 +131,88 @@ def _silent(text: str) -> None:
     pass
 
 
+class Joiners:
+    """The processes joining the graph: `at_once` of them, each doing its share of `joins`
+    (each prints one line per join done). When no join is done for `stuck` s, the running ones
+    are stuck (in their DDS shutdown: JOIN_STUCK): each is killed, counted in `killed`, and a
+    new one does the joins it still owed."""
+
+    def __init__(self, argv: Callable[[int], list[str]], joins: int, at_once: int,
+                 stuck: float = JOIN_STUCK, progress: Callable[[str], None] = _silent) -> None:
+        self.argv, self.stuck, self.progress = argv, stuck, progress
+        self.done = 0           # joins done, by every joiner
+        self.killed = 0         # stuck joiners killed
+        self.procs: list[subprocess.Popen[str]] = []
+        self._owed: dict[int, int] = {}
+        self._joined: dict[int, int] = {}
+        self._counters: list[threading.Thread] = []
+        per = max(joins // at_once, 1)
+        for _ in range(at_once):
+            self._start(per)
+        self._last_done, self._last_progress = 0, time.monotonic()
+
+    def _start(self, count: int) -> None:
+        proc = subprocess.Popen(self.argv(count), stdout=subprocess.PIPE, text=True,
+                                stderr=subprocess.DEVNULL)
+        self._owed[proc.pid], self._joined[proc.pid] = count, 0
+
+        def counting() -> None:
+            for _ in proc.stdout or ():
+                self.done += 1
+                self._joined[proc.pid] += 1
+        self._counters.append(threading.Thread(target=counting, daemon=True))
+        self._counters[-1].start()
+        self.procs.append(proc)
+
+    def running(self) -> bool:
+        return any(p.poll() is None for p in self.procs)
+
+    def check(self) -> None:
+        """Kill the running joiners when none did a join for `stuck` s; hand their joins on."""
+        now = time.monotonic()
+        if self.done != self._last_done:
+            self._last_done, self._last_progress = self.done, now
+            return
+        if now - self._last_progress <= self.stuck:
+            return
+        for proc in [p for p in self.procs if p.poll() is None]:
+            proc.kill()
+            proc.wait()
+            self.killed += 1
+            left = self._owed[proc.pid] - self._joined[proc.pid]
+            self.progress(f'    a joiner made no progress for {self.stuck:g} s (stuck in its '
+                          f'DDS shutdown): killed, {left} of its joins handed on')
+            if left > 0:
+                self._start(left)
+        self._last_progress = time.monotonic()
+
+    def finish(self, timeout: float = 2.0) -> None:
+        """Wait for the counting of every line printed (after the joiners ended)."""
+        for thread in self._counters:
+            thread.join(timeout)
+
+    def kill(self) -> None:
+        for proc in self.procs:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait()
+
+
+@dataclass(frozen=True)
+class StallRun:
+    """One run of a layout: the drives' figures, the joins done, its seconds, and how many
+    stuck joiners were killed (their joins handed on)."""
+
+    figures: DriveFigures
+    joins: int
+    seconds: float
+    stuck_killed: int
+
+
 def stall_run(command_process: bool, joins: int, progress: Callable[[str], None] = _silent
-              ) -> tuple[DriveFigures, int, float]:
-    """One run of the layout; returns (figures, joins done, seconds)."""
+              ) -> StallRun:
+    """One run of the layout."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    import rclpy
-    from geometry_msgs.msg import TwistStamped
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-    from rclpy.signals import SignalHandlerOptions
-    from std_msgs.msg import String
-
-    from planter_ros import interfaces
-    from planter_ros.host.dds_domain import claim_private_domain
-    from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
-    from planter_ros.design import to_json
-    from planter_ros.drive.config import DriveConfig
-    from planter_ros.control.loop_timing import SyncLoopConfig
-    from planter_ros.sim.runs import five_bar_design_message
-
     domain = claim_private_domain()
     names = ['r1', 'r2', 'r3', 'r4']
     rows: dict[str, object] = {'rows': names}
@@ -162,86 +241,54 @@ def stall_run(command_process: bool, joins: int, progress: Callable[[str], None]
     # the feedback period: one sample per SYNC (CSP, after), per control step (before)
     period = DriveConfig().sync_period if command_process else SyncLoopConfig().control_period
     design_pub = interfaces.DESIGN.publisher(node)
-    joiners: list[subprocess.Popen[str]] = []
-    done = [0]
-    stop = threading.Event()
+    joiners: Joiners | None = None
     t0 = time.perf_counter()
     try:
         sync.wait_for('ready', 120.0)
         design_pub.publish(String(data=to_json(five_bar_design_message(spacing=0.2))))
-        per = max(joins // JOINERS, 1)
-        counters: list[threading.Thread] = []
-
-        def start_joiner(count: int) -> subprocess.Popen[str]:
-            proc = subprocess.Popen([sys.executable, '-c', JOINER, str(domain), str(count),
-                                     str(HOLD), str(os.getpid())], stdout=subprocess.PIPE,
-                                    text=True, stderr=subprocess.DEVNULL)
-            joined[proc.pid] = 0
-
-            def counting() -> None:
-                for _ in proc.stdout or ():
-                    done[0] += 1
-                    joined[proc.pid] += 1
-            counters.append(threading.Thread(target=counting, daemon=True))
-            counters[-1].start()
-            joiners.append(proc)
-            return proc
-        joined: dict[int, int] = {}
-        owed = {start_joiner(per).pid: per for _ in range(JOINERS)}
+        joiners = Joiners(lambda count: [sys.executable, '-c', JOINER, str(domain), str(count),
+                                         str(HOLD), str(os.getpid())], joins, JOINERS,
+                          progress=progress)
         recording.set()
         msg = TwistStamped()
         msg.twist.linear.x = 0.2
         next_pub = time.monotonic()
         last_note = 0
-        last_done, last_progress = 0, time.monotonic()
-        while any(p.poll() is None for p in joiners) and not stop.is_set():
-            if done[0] != last_done:
-                last_done, last_progress = done[0], time.monotonic()
-            elif time.monotonic() - last_progress > JOIN_STUCK:
-                # a joiner stuck in its DDS shutdown: killed, another does its remaining joins
-                for proc in [p for p in joiners if p.poll() is None]:
-                    proc.kill()
-                    proc.wait()
-                    left = owed[proc.pid] - joined[proc.pid]
-                    progress(f'    a joiner made no progress for {JOIN_STUCK:g} s (stuck in its '
-                             f'DDS shutdown): killed, {left} of its joins handed on')
-                    if left > 0:
-                        owed[start_joiner(left).pid] = left
-                last_progress = time.monotonic()
+        while joiners.running():
+            joiners.check()
             if time.monotonic() >= next_pub:
                 speed_pub.publish(msg)
                 next_pub += 1.0 / RATE
             sync.poll(0.0)
-            if done[0] - last_note >= 50:
-                last_note = done[0]
-                progress(f'    {"after" if command_process else "before"}: {done[0]} joins')
+            if joiners.done - last_note >= 50:
+                last_note = joiners.done
+                progress(f'    {"after" if command_process else "before"}: {joiners.done} joins')
             executor.spin_once(timeout_sec=0.005)
         recording.clear()
-        for thread in counters:
-            thread.join(2.0)
+        joiners.finish()
     finally:
-        for proc in joiners:
-            if proc.poll() is None:
-                proc.kill()
-            proc.wait()
+        if joiners is not None:
+            joiners.kill()
         final = sync.stop()
         report = final.flat() if final is not None else {}
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()
-    return _drive_figures(report, stamps, period), done[0], time.perf_counter() - t0
+    assert joiners is not None          # made in the try, which returned normally
+    return StallRun(_drive_figures(report, stamps, period), joiners.done,
+                    time.perf_counter() - t0, joiners.killed)
 
 
-@bench_case('graph-join stall', requires=('rclpy', 'can', 'planter_ros.command.process',
-                                          'planter_ros.demo.sync_process'))
+@bench_case('graph-join stall')
 def graph_join_stall(ctx: BenchContext) -> Iterator[Row]:
     joins = ctx.n(400, 2 * JOINERS)          # --quick: the smoke run, two rounds of joiners
-    results: dict[str, tuple[DriveFigures, int, float]] = {}
+    results: dict[str, StallRun] = {}
     for command_process in (False, True):
         name = 'after' if command_process else 'before'
         ctx.progress(f'  {name}: {joins} joins, {JOINERS} joiners at a time ...')
         results[name] = stall_run(command_process, joins, ctx.progress)
-    for name, (fig, done, seconds) in results.items():
+    for name, run in results.items():
+        fig, done, seconds = run.figures, run.joins, run.seconds
         ms = {'command_max': 1e3 * fig['command_max'], 'sync_max': 1e3 * fig['sync_max'],
               'heartbeat_max': 1e3 * fig['heartbeat_max']}
         targets = []
@@ -264,5 +311,7 @@ def graph_join_stall(ctx: BenchContext) -> Iterator[Row]:
                        f'{fig["watchdog_trips"]} watchdog trip(s); joint_states as recorded: '
                        f'{fig["joint_states"]} samples, largest hole '
                        f'{1e3 * fig["joint_hole_max"]:.1f} ms ({fig["joint_holes_over"]} over '
-                       'twice the feedback period)',
-                  extra={'joins': done, **fig})
+                       f'twice the feedback period); {run.stuck_killed} stuck joiner(s) killed '
+                       f'(no join for {JOIN_STUCK:g} s: a DDS participant shutdown that hangs), '
+                       'their joins handed on',
+                  extra={'joins': done, 'stuck_joiners_killed': run.stuck_killed, **fig})

@@ -25,21 +25,39 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
+import io
 import math
+import os
+from pathlib import Path
 import subprocess
 import sys
 import tempfile
 import time
-from typing import TYPE_CHECKING, Any, TypedDict
+from typing import Any, TypedDict
 import uuid
-from pathlib import Path
+
+from geometry_msgs.msg import TwistStamped
+import rclpy
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import String
+
+from planter_ros import interfaces
+from planter_ros.control.loop_timing import PeriodStats
+from planter_ros.demo.options import DemoOptions
+from planter_ros.demo.run import DemoResult, prepare
+from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
+from planter_ros.design import to_json
+from planter_ros.host.dds_domain import claim_private_domain
+from planter_ros.host.processes import preexec_die_with_parent
+from planter_ros.recording.replay import replay
+from planter_ros.scene import default_scene_path
+from planter_ros.sim.runs import five_bar_design_message
 
 from ..registry import BenchContext, Row, Target, bench_case
+from .sync import row_parameters
 from ..timing import Timing, from_samples
-
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.control.loop_timing import PeriodStats
-    from planter_ros.demo.run import DemoResult
 
 HOGS = 2
 RATE = 50.0                     # Hz, ground-speed samples of the latency case
@@ -74,7 +92,6 @@ def _load(before: float | None, after: float | None) -> str:
 def cpu_hogs(count: int = HOGS) -> Iterator[list[subprocess.Popen[bytes]]]:
     """`count` CPU-bound processes for the length of the block; they die with this process,
     also when it is killed with SIGKILL."""
-    from planter_ros.host.processes import preexec_die_with_parent
     hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'],
                              preexec_fn=preexec_die_with_parent()) for _ in range(count)]
     try:
@@ -88,7 +105,6 @@ def cpu_hogs(count: int = HOGS) -> Iterator[list[subprocess.Popen[bytes]]]:
 def latency_timing(histogram: dict[str, Any]) -> tuple[Timing, int, float]:
     """Timing (median = p50, p10–p90, p99) and (count, max) of a PeriodStats histogram of
     single latencies."""
-    from planter_ros.control.loop_timing import PeriodStats
     stats = PeriodStats.from_histogram(histogram)
     if not stats.gaps:
         raise RuntimeError('the command process timed no ground-speed sample')
@@ -103,23 +119,7 @@ def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
     """One run of the demo's command path with `rows` rows in profile velocity, fed RATE Hz
     ground-speed samples for `seconds` s (`hogs` CPU hogs beside it meanwhile; `parameters`:
     more (name, value) of the sync node); returns the command process's final report."""
-    import os
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    import rclpy
-    from geometry_msgs.msg import TwistStamped
-    from rclpy.context import Context
-    from rclpy.node import Node
-    from rclpy.signals import SignalHandlerOptions
-    from std_msgs.msg import String
-
-    from planter_ros import interfaces
-    from planter_ros.host.dds_domain import claim_private_domain
-    from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
-    from planter_ros.design import to_json
-    from planter_ros.sim.runs import five_bar_design_message
-
-    from .sync import row_parameters
-
     domain = claim_private_domain()
     channel = f'planter-bench-latency-{uuid.uuid4().hex[:8]}'
     sync = SyncProcess(SyncProcessSettings(
@@ -164,8 +164,7 @@ def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
     return report
 
 
-@bench_case('command-latency', requires=('rclpy', 'can', 'planter_ros.command.process',
-                                         'planter_ros.demo.sync_process'))
+@bench_case('command-latency')
 def command_latency(ctx: BenchContext) -> Iterator[Row]:
     seconds = ctx.n(20.0, 2.0)
     for hogs in (0, HOGS):
@@ -203,8 +202,6 @@ class RunFigures(TypedDict):
 def run_figures(result: DemoResult, bag: str) -> RunFigures:
     """One demo run's figures: verdict, trips, each row's spacing error RMS over d from the
     replay of its bag, the SYNC intervals (a PeriodStats) and the drives' largest SYNC gap."""
-    from planter_ros.control.loop_timing import PeriodStats
-    from planter_ros.recording.replay import replay
     report = result.report or {}
     rows: dict[str, float] = {}
     try:
@@ -235,11 +232,6 @@ def demo_runs(runs: int, duration: float, progress: Callable[[str], None] = _sil
               ) -> list[tuple[float, RunFigures, tuple[float | None, float | None]]]:
     """`runs` 4-row demo runs of `duration` s, HOGS CPU hogs beside each; per run (seconds,
     figures, load average before and after)."""
-    import io
-
-    from planter_ros.demo.options import DemoOptions
-    from planter_ros.demo.run import prepare
-    from planter_ros.scene import default_scene_path
     out: list[tuple[float, RunFigures, tuple[float | None, float | None]]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
@@ -282,10 +274,8 @@ def _sync_within(stats: PeriodStats, period: float) -> bool:
                                  and stats.quantile(0.99) <= period + SYNC_TOLERANCE)
 
 
-@bench_case('demo-runs under load', requires=('rclpy', 'can', 'planter_ros.command.process',
-                                              'planter_ros.demo.run'))
+@bench_case('demo-runs under load')
 def demo_runs_under_load(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.control.loop_timing import PeriodStats
     runs = ctx.runs or ctx.n(RUNS, 1)
     duration = ctx.n(30.0, 8.0)
     ctx.progress(f'  {runs} run(s) of {duration:g} s, {HOGS} CPU hogs beside each ...')

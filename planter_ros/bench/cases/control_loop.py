@@ -14,18 +14,19 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 import io
+from pathlib import Path
 import subprocess
 import sys
 import tempfile
-from pathlib import Path
 import time
-from typing import TYPE_CHECKING
+
+from planter_ros.control.loop_timing import PeriodStats
+from planter_ros.demo.options import DemoOptions
+from planter_ros.demo.run import DemoResult, prepare
+from planter_ros.host.processes import preexec_die_with_parent
 
 from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
-
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.demo.run import DemoResult
 
 WHAT = 'control loop under load: gap between command frames (demo, 2 CPU hogs beside it)'
 P999_TARGET = 0.05          # s
@@ -40,9 +41,6 @@ def loaded_runs(runs: int, duration: float, progress: Callable[[str], None] = _s
                 ) -> list[tuple[float, DemoResult]]:
     """`runs` demo runs of `duration` s, each beside HOGS CPU-bound processes; returns a list
     of (seconds the run took, DemoResult)."""
-    from planter_ros.demo.options import DemoOptions
-    from planter_ros.demo.run import prepare
-    from planter_ros.host.processes import preexec_die_with_parent
     results: list[tuple[float, DemoResult]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
@@ -72,11 +70,8 @@ def loaded_runs(runs: int, duration: float, progress: Callable[[str], None] = _s
     return results
 
 
-@bench_case('control loop under load',
-            requires=('rclpy', 'can', 'planter_ros.demo.sync_process',
-                      'planter_ros.control.loop_timing'))
+@bench_case('control loop under load')
 def control_loop_under_load(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.control.loop_timing import PeriodStats
     runs, duration = ctx.runs or ctx.n(10, 1), ctx.n(30.0, 8.0)
     ctx.progress(f'  {runs} demo run(s) of {duration:g} s, {HOGS} CPU hogs beside each ...')
     results = loaded_runs(runs, duration, ctx.progress)

@@ -11,15 +11,13 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 import logging
 import time
-from typing import TYPE_CHECKING
 import uuid
+
+from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
+from planter_ros.simdrive.drive import SimulatedDrive
 
 from ..registry import BenchContext, Row, bench_case
 from ..timing import from_samples
-
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.drive.cia402 import Cia402Drive
-    from planter_ros.simdrive.drive import SimulatedDrive
 
 WHAT = 'CAN drive (virtual bus, master and simulated drive in one process)'
 ERROR_OF = 'no error defined: timings only'
@@ -42,9 +40,6 @@ def _quiet(*names: str) -> Iterator[None]:
 @contextmanager
 def _drive_pair() -> Iterator[tuple[SimulatedDrive, Cia402Drive]]:
     """A simulated drive and our master on a fresh virtual channel; both stopped on exit."""
-    from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
-    from planter_ros.simdrive.drive import SimulatedDrive
-
     channel = f'planter-bench-drive-{uuid.uuid4().hex}'
     sim = SimulatedDrive(channel)
     sim.start()
@@ -127,7 +122,7 @@ ROWS = (
 )
 
 
-@bench_case('CAN drive', requires=('can', 'canopen', 'planter_ros.drive.cia402'))
+@bench_case('CAN drive')
 def can_drive(ctx: BenchContext) -> Iterator[Row]:
     samples = ctx.n(1000, 50)
     fresh = ctx.n(10, 2)

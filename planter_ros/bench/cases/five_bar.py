@@ -4,17 +4,23 @@ root-finding vs dense sampling) and trajectory throughput, each against an mpmat
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from mpmath import mp, mpf
 import numpy as np
+from scipy.optimize import brentq
 
+from planter_ros.kinematics.arrays import FloatArray, Floats
+from planter_ros.kinematics.five_bar import (
+    GearedChain, chain_kinematics, design_five_bar, hole_geometry, hole_ratio_limit,
+    hole_sensitivity, hole_tolerance, soil_trajectory)
+
+from ..reference import (DIGITS, Chain, chain_reference, design_reference, hole_reference,
+                         rel_error, soil_point_reference)
 from ..registry import BenchContext, Row, Target, bench_case
-
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.kinematics.arrays import FloatArray, Floats
-
-    from ..timing import Timing
+from ..timing import Timing
 
 DESIGN_TIME_TARGET = 20e-6     # quality target: a five-bar design <= 20 µs scalar
 DESIGN_RATE_TARGET = 1e6       # ... and >= 1e6 designs/s batched
@@ -28,19 +34,26 @@ WIDTH_ERROR_OF = 'max relative error of the swept hole width vs mpmath (same des
 def design_domain(rng: np.random.Generator, n: int
                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """n random agronomic scenes: D 20-100 mm, d 0.15-0.6 m, k up to half its feasible limit."""
-    from planter_ros.kinematics.five_bar import hole_ratio_limit
     depth = rng.uniform(0.02, 0.10, n)
     spacing = rng.uniform(0.15, 0.6, n)
     k = rng.uniform(0.01, 0.5, n) * np.asarray(hole_ratio_limit(depth, spacing))
     return depth, spacing, k
 
 
+@dataclass(frozen=True)
+class DesignCheck:
+    """Computed bars against the mpmath references: the largest relative hole error, the
+    largest bar-length error (of l1 + l2), over `checked` designs."""
+
+    hole_error: float
+    length_error: float
+    checked: int
+
+
 def _design_errors(l1: Sequence[float] | FloatArray, l2: Sequence[float] | FloatArray,
                    depth: FloatArray, spacing: FloatArray,
-                   k: FloatArray, refs: Sequence[tuple[Any, Any]]) -> tuple[float, float]:
-    """(max hole error, max length error) of computed bars against the mpmath references."""
-    from mpmath import mp, mpf
-    from ..reference import DIGITS, hole_reference
+                   k: FloatArray, refs: Sequence[tuple[Any, Any]]) -> DesignCheck:
+    """The errors of computed bars against the mpmath references `refs`."""
     hole_err = 0.0
     len_err = 0.0
     for i, (r1, r2) in enumerate(refs):
@@ -50,14 +63,11 @@ def _design_errors(l1: Sequence[float] | FloatArray, l2: Sequence[float] | Float
             hole_err = max(hole_err, float(abs(achieved - asked) / asked))
             len_err = max(len_err, float(max(abs(mpf(l1[i]) - r1), abs(mpf(l2[i]) - r2))
                                          / (r1 + r2)))
-    return hole_err, len_err
+    return DesignCheck(hole_err, len_err, len(refs))
 
 
 @bench_case('five-bar reverse design')
 def five_bar_design(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.five_bar import design_five_bar
-    from ..reference import design_reference
-
     rng = np.random.default_rng(ctx.seed)
     sizes = ctx.n((1, 1000, 1_000_000), (1, 10, 100))
     n_ref = ctx.n(1000, 10)
@@ -72,8 +82,7 @@ def five_bar_design(ctx: BenchContext) -> Iterator[Row]:
         designs = [design_five_bar(a, b, c, method) for a, b, c in args]
         l1 = [float(d.l1) for d in designs]          # scalar designs: floats
         l2 = [float(d.l2) for d in designs]
-        hole_err, len_err = _design_errors(l1, l2, depth, spacing, k, refs)
-        yield _design_row(method, 'scalar', 1, t, hole_err, len_err, n_ref)
+        yield _design_row(method, 'scalar', 1, t, _design_errors(l1, l2, depth, spacing, k, refs))
         for n in sizes:
             ctx.progress(f'  {method} batch of {n} ...')
             D, d, kk = depth[:n].copy(), spacing[:n].copy(), k[:n].copy()
@@ -81,28 +90,26 @@ def five_bar_design(ctx: BenchContext) -> Iterator[Row]:
                             repeats=5 if n >= 100_000 else None)
             out = design_five_bar(D, d, kk, method)
             m = min(n, n_ref)
-            hole_err, len_err = _design_errors(np.asarray(out.l1)[:m], np.asarray(out.l2)[:m],
-                                               depth, spacing, k,
-                                               refs[:m])
-            yield _design_row(method, 'batched', n, t, hole_err, len_err, m)
+            check = _design_errors(np.asarray(out.l1)[:m], np.asarray(out.l2)[:m], depth,
+                                   spacing, k, refs[:m])
+            yield _design_row(method, 'batched', n, t, check)
 
 
-def _design_row(method: str, how: str, n: int, t: Timing, hole_err: float, len_err: float,
-                checked: int) -> Row:
+def _design_row(method: str, how: str, n: int, t: Timing, check: DesignCheck) -> Row:
     targets: list[Target] = []
     if how == 'scalar':
         targets.append(Target('≤ 20 µs', t.median <= DESIGN_TIME_TARGET))
     elif n >= 1_000_000:
         targets.append(Target('≥ 1e6/s', n / t.median >= DESIGN_RATE_TARGET))
     if method == 'exact':
-        targets.append(Target('err ≤ 1e-9', hole_err <= ACCURACY_TARGET))
+        targets.append(Target('err ≤ 1e-9', check.hole_error <= ACCURACY_TARGET))
     name = {'exact': 'exact (ψ − sin ψ solved)', 'paper': 'paper (ψ³/6 ≈ ψ − sin ψ)'}[method]
-    return Row('five-bar reverse design', f'{name}, {how}', n, 'design', t, error=hole_err,
-               error_of=HOLE_ERROR_OF, targets=targets,
-               note=f'checked {checked} designs; bar lengths vs mpmath exact design: '
-                    f'{len_err:.1e} of l1+l2',
+    return Row('five-bar reverse design', f'{name}, {how}', n, 'design', t,
+               error=check.hole_error, error_of=HOLE_ERROR_OF, targets=targets,
+               note=f'checked {check.checked} designs; bar lengths vs mpmath exact design: '
+                    f'{check.length_error:.1e} of l1+l2',
                series=f'design, {method}' if how == 'scalar' else '',
-               extra={'length_error': len_err, 'checked': checked})
+               extra={'length_error': check.length_error, 'checked': check.checked})
 
 
 # --- hole width -----------------------------------------------------------------------------
@@ -111,7 +118,6 @@ def hole_by_sampling(l1: float, l2: float, depth: float, advance: float, samples
     """The naive way: sample one sun-bar turn, keep the points below the soil surface, take the
     extent along the row. Error shrinks like 1/samples (the surface crossing is missed by up to
     one step)."""
-    from planter_ros.kinematics.five_bar import soil_trajectory
     theta = np.linspace(0.0, 2.0 * math.pi, samples)
     x, y = (np.asarray(v) for v in soil_trajectory(l1, l2, theta, advance))
     below = x[y <= depth]
@@ -121,7 +127,6 @@ def hole_by_sampling(l1: float, l2: float, depth: float, advance: float, samples
 def hole_by_root_finding(l1: float, l2: float, depth: float, advance: float) -> float:
     """The generic way: scipy brentq for the surface crossings y(θ) = D and the turning points
     dx/dθ = 0 between them, then the extent of x over those angles."""
-    from scipy.optimize import brentq
     total, a = l1 + l2, l2 - l1
     def y(th: float) -> float:
         return total * (1.0 + math.cos(th)) - depth
@@ -148,9 +153,6 @@ def _speed_ratios(a: float) -> list[float]:
 
 @bench_case('hole width')
 def hole_width(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.five_bar import design_five_bar, hole_geometry
-    from ..reference import hole_reference, rel_error
-
     design = design_five_bar(*TOMATO)
     l1, l2, depth = float(design.l1), float(design.l2), float(design.depth)   # one design
     advances = _speed_ratios(l2 - l1)
@@ -208,8 +210,6 @@ def hole_width(ctx: BenchContext) -> Iterator[Row]:
 
 @bench_case('hole-width tolerance')
 def hole_width_tolerance(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.five_bar import design_five_bar, hole_sensitivity, hole_tolerance
-
     design = design_five_bar(*TOMATO)
     s = hole_sensitivity(design.l1, design.l2, design.depth, design.advance)
     samples = ctx.n(100_000, 10_000)
@@ -234,10 +234,6 @@ def hole_width_tolerance(ctx: BenchContext) -> Iterator[Row]:
 
 @bench_case('trajectory evaluation')
 def trajectory(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.five_bar import (
-        GearedChain, chain_kinematics, design_five_bar, soil_trajectory)
-    from ..reference import chain_reference, soil_point_reference
-
     design = design_five_bar(*TOMATO)
     l1, l2, adv = float(design.l1), float(design.l2), float(design.advance)   # one design
     total = l1 + l2
@@ -265,7 +261,7 @@ def trajectory(ctx: BenchContext) -> Iterator[Row]:
     pos, vel, acc = chain_kinematics(alpha, omega, GearedChain(l1, l2))
     err = 0.0
     for i in rng.choice(n, min(n, n_ref), replace=False):
-        rp, rv, ra = chain_reference(alpha[i], omega, l1, l2, -2.0, 0.5 * math.pi, 0.0)
+        rp, rv, ra = chain_reference(alpha[i], omega, Chain(l1, l2))
         for got, ref, scale in ((pos, rp, total), (vel, rv, total * omega),
                                 (acc, ra, total * omega ** 2)):
             err = max(err, float(abs(np.asarray(got[0])[i] - ref[0]) / scale),

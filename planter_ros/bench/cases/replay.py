@@ -12,20 +12,21 @@ and hold its per-plant table, which replay must reproduce.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 import os
 from pathlib import Path
 import tempfile
-from typing import TYPE_CHECKING
 
+from mcap.reader import make_reader
 import numpy as np
 
 from planter_ros import interfaces
+from planter_ros.recording.errors import BagUnreadableError
+from planter_ros.recording.replay import ReplayResult, replay
+from planter_ros.sim.bags import write_input_bag
+from planter_ros.sim.runs import Run, RunOptions, five_bar_design_message, simulate_run
 
 from ..registry import BenchContext, Row, Target, bench_case
-
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.recording.replay import ReplayResult
-    from planter_ros.sim.runs import Run
 
 WHAT = 'replay (planter replay)'
 REAL_TIME_TARGET = 1000.0      # quality target: replay >= 1000x real time
@@ -34,11 +35,18 @@ ERROR_OF = ('max |replayed − live monitor prediction| over every field of ever
             'm, m/s, rad/s, rad), absolute; — for a generated bag (no live predictions in it)')
 
 
-def _replay_row(ctx: BenchContext, path: Path, label: str, result: ReplayResult,
-                bag_messages: int, error: float | None = None, target: bool = False,
-                note: str = '') -> Row:
-    from planter_ros.recording.replay import replay
+@dataclass(frozen=True)
+class ReplayedBag:
+    """A bag and what replay made of it: its path, the result, the messages it holds."""
 
+    path: Path
+    result: ReplayResult
+    messages: int
+
+
+def _replay_row(ctx: BenchContext, bag: ReplayedBag, label: str, error: float | None = None,
+                target: bool = False, note: str = '') -> Row:
+    path, result, bag_messages = bag.path, bag.result, bag.messages
     t = ctx.measure(lambda: replay(path))
     speed = result.duration / t.median
     targets = ([Target(f'≥ 1000× real time (run: {speed:.0f}×)', speed >= REAL_TIME_TARGET)]
@@ -60,10 +68,6 @@ def _replay_row(ctx: BenchContext, path: Path, label: str, result: ReplayResult,
 def _damaged_row(ctx: BenchContext, run: Run, tmp: Path, whole: ReplayResult) -> Row:
     """The generated run in chunks of 64 kB, the middle chunk's bytes zeroed: every other chunk
     is read."""
-    from mcap.reader import make_reader
-
-    from planter_ros.recording.replay import replay
-    from planter_ros.sim.bags import write_input_bag
     path, damaged = tmp / 'chunked.mcap', tmp / 'damaged.mcap'
     bag_messages = write_input_bag(run, path, chunk_size=64_000).message_count
     with open(path, 'rb') as f:
@@ -78,16 +82,14 @@ def _damaged_row(ctx: BenchContext, run: Run, tmp: Path, whole: ReplayResult) ->
     damaged.write_bytes(bytes(data))
     result = replay(damaged)
     lost = (hit.message_end_time - hit.message_start_time) * 1e-9
-    return _replay_row(ctx, damaged, 'the same run, its middle chunk damaged', result,
-                       bag_messages, note=f'{len(chunks) - 1} of {len(chunks)} chunks read, '
-                       f'{lost:.2f} s lost; {result.summary["plants"]} of '
-                       f'{whole.summary["plants"]} plants')
+    return _replay_row(ctx, ReplayedBag(damaged, result, bag_messages),
+                       'the same run, its middle chunk damaged',
+                       note=f'{len(chunks) - 1} of {len(chunks)} chunks read, {lost:.2f} s lost; '
+                            f'{result.summary["plants"]} of {whole.summary["plants"]} plants')
 
 
 def _garbage_rows(ctx: BenchContext, tmp: Path) -> Iterator[Row]:
     """Files that start like MCAP and hold no valid record: refused after a bounded scan."""
-    from planter_ros.recording.errors import BagUnreadableError
-    from planter_ros.recording.replay import replay
     zeros, noise = tmp / 'zeros.mcap', tmp / 'noise.mcap'
     size = int(ctx.n(1 << 30, 64 << 20))
     with open(zeros, 'wb') as f:          # sparse: no disk space used
@@ -124,14 +126,9 @@ def _live_error(result: ReplayResult, path: Path) -> float:
     return float(np.max(np.abs(replayed[finite] - live[finite]), initial=0.0))
 
 
-@bench_case('replay',
-            requires=('rosbags', 'mcap', 'rclpy', 'planter_ros.recording.replay'))
+@bench_case('replay')
 def replay_throughput(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    from planter_ros.recording.replay import replay
-    from planter_ros.sim.bags import write_input_bag
-    from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
-
     duration = ctx.n(600.0, 20.0)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / 'bench.mcap'
@@ -139,8 +136,8 @@ def replay_throughput(ctx: BenchContext) -> Iterator[Row]:
         run = simulate_run(five_bar_design_message(), RunOptions(duration=duration))
         rec = write_input_bag(run, path)
         result = replay(path)
-        yield _replay_row(ctx, path, f'generated {duration:.0f} s input bag', result,
-                          rec.message_count, target=True,
+        yield _replay_row(ctx, ReplayedBag(path, result, rec.message_count),
+                          f'generated {duration:.0f} s input bag', target=True,
                           note='tomato five-bar, speed step +25 %')
         yield _damaged_row(ctx, run, Path(tmp), result)
         yield from _garbage_rows(ctx, Path(tmp))
@@ -151,5 +148,6 @@ def replay_throughput(ctx: BenchContext) -> Iterator[Row]:
     for path in samples:
         name = path.name
         result = replay(path, with_recorded=True)
-        yield _replay_row(ctx, path, f'bags/{name} (live monitor recording)', result,
-                          result.messages['total_read'], error=_live_error(result, path))
+        yield _replay_row(ctx, ReplayedBag(path, result, result.messages['total_read']),
+                          f'bags/{name} (live monitor recording)',
+                          error=_live_error(result, path))

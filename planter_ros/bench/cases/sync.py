@@ -23,6 +23,25 @@ import threading
 import time
 import uuid
 
+import can
+from geometry_msgs.msg import TwistStamped
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import String
+
+from planter_ros import interfaces
+from planter_ros.design import to_json
+from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
+from planter_ros.command.engine import CommandEngine
+from planter_ros.nodes.sync_node import SyncNode
+from planter_ros.sim.closed_loop import LoopTiming, RowCurveFigures, curve_comparison
+from planter_ros.sim.runs import five_bar_design_message
+from planter_ros.simdrive.bus import SimulatedBus
+
 from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
 
@@ -58,24 +77,6 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
     matched on every row; returns (latencies, samples sent). The node spins in rclpy's
     single-threaded executor, as sync_node's main does."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    import can
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-    from rclpy.parameter import Parameter
-    from rclpy.signals import SignalHandlerOptions
-    from geometry_msgs.msg import TwistStamped
-    from std_msgs.msg import String
-
-    from planter_ros import interfaces
-    from planter_ros.simdrive.bus import SimulatedBus
-    from planter_ros.command.engine import CommandEngine
-    from planter_ros.nodes.sync_node import SyncNode
-    from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
-    from planter_ros.design import to_json
-    from planter_ros.sim.runs import five_bar_design_message
-
     channel = f'planter-bench-sync-{uuid.uuid4().hex}'
     context = Context()
     rclpy.init(args=['--ros-args', *PRIVATE_GRAPH_ROS_ARGS], context=context,
@@ -191,7 +192,7 @@ def match_frames(sent: list[float], frames: list[tuple[float, int, bytes]]) -> l
     return lat
 
 
-@bench_case('sync loop latency', requires=('rclpy', 'can', 'planter_ros.nodes.sync_node'))
+@bench_case('sync loop latency')
 def sync_latency(ctx: BenchContext) -> Iterator[Row]:
     samples = ctx.n(1000, 50)
     ctx.progress(f'  {samples} samples at {RATE:g} Hz ...')
@@ -207,8 +208,7 @@ def sync_latency(ctx: BenchContext) -> Iterator[Row]:
               extra={'samples': sent, 'matched': len(lat), 'max_s': max(lat)})
 
 
-@bench_case('sync loop latency per row count',
-            requires=('rclpy', 'can', 'planter_ros.nodes.sync_node', 'planter_ros.rows'))
+@bench_case('sync loop latency per row count')
 def sync_latency_rows(ctx: BenchContext) -> Iterator[Row]:
     samples = ctx.n(1000, 50)
     for rows in ROW_COUNTS:
@@ -228,9 +228,8 @@ def sync_latency_rows(ctx: BenchContext) -> Iterator[Row]:
                          'max_s': max(lat)})
 
 
-@bench_case('closed loop through curves', requires=('planter_ros.control.machine_law',))
+@bench_case('closed loop through curves')
 def closed_loop_curves(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.sim.closed_loop import LoopTiming, RowCurveFigures, curve_comparison
     result: dict[str, list[RowCurveFigures]] = {}
     timing = LoopTiming(dt=ctx.n(0.001, 0.002))
     t = ctx.measure(lambda: result.update(curve_comparison(timing=timing)),

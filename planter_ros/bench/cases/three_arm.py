@@ -6,15 +6,19 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+import mpmath
 import numpy as np
 
-from ..registry import BenchContext, Row, Target, bench_case
+from planter_ros.kinematics.arrays import FloatArray
+from planter_ros.kinematics.three_arm import PitchCurve, ThreeArmMechanism, solve_centre_distance
+from planter_ros.optimize.three_arm import (INSTALL_BOUNDS, RADIUS_BOUNDS, PopulationScorer,
+                                            SearchOptions, optimize, score)
+from planter_ros.scene import default_scene_path, load_scene
 
-if TYPE_CHECKING:       # a case imports what it measures when it runs (registry's doc)
-    from planter_ros.kinematics.arrays import FloatArray
-    from planter_ros.kinematics.three_arm.pitch_curve import PitchCurve
+from ..registry import BenchContext, Row, Target, bench_case
+from ..timing import from_samples
 
 CLOSURE_TARGET = 1e-9          # quality target: gear-closure integral <= 1e-9 relative
 CYCLE_TARGET = 1e-3            # ... and a full three-arm cycle <= 1 ms
@@ -23,13 +27,11 @@ CLOSURE_ERROR_OF = ('|a − a_ref| / a_ref, centre distance vs mpmath (30 digits
 
 
 def _paper_scene() -> dict[str, Any]:
-    from planter_ros.scene import default_scene_path, load_scene
     return load_scene(default_scene_path('rice_three_arm.yaml'), 'design_node')
 
 
 def _mpmath_mean_ratio(curve: PitchCurve, a: float) -> Any:      # an mpmath mpf
     """(1/2π)∮ρ/(a−ρ)dθ by mpmath quadrature, piece by piece between the spline knots."""
-    import mpmath
     ends = [float(e) for e in curve.pieces]
     exact = mpmath.mpf(a)
     total = mpmath.fsum(
@@ -38,11 +40,8 @@ def _mpmath_mean_ratio(curve: PitchCurve, a: float) -> Any:      # an mpmath mpf
     return total / (2 * mpmath.pi)
 
 
-@bench_case('gear-train closure', requires=('planter_ros.kinematics.three_arm',))
+@bench_case('gear-train closure')
 def three_arm_closure(ctx: BenchContext) -> Iterator[Row]:
-    import mpmath
-    from planter_ros.kinematics.three_arm import PitchCurve, solve_centre_distance
-
     params = _paper_scene()
     curve = PitchCurve(params['control_radii'], params['control_angles'],
                        params.get('interpolant', 'periodic_cubic'))
@@ -69,10 +68,8 @@ def three_arm_closure(ctx: BenchContext) -> Iterator[Row]:
                       f'closure, {method}')
 
 
-@bench_case('three-arm build and cycle', requires=('planter_ros.kinematics.three_arm',))
+@bench_case('three-arm build and cycle')
 def three_arm_cycle(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.kinematics.three_arm import ThreeArmMechanism
-
     params = _paper_scene()
     t = ctx.measure(lambda: ThreeArmMechanism.from_parameters(params))
     yield Row('three-arm gear train', 'build (spline, closure, gear maps)', 1, 'build', t,
@@ -101,17 +98,13 @@ OPTIMISER_SEED = 1
 
 def _search_box(rng: np.random.Generator, count: int) -> FloatArray:
     """`count` random designs from the optimiser's search box (radii, then Φ0, β0, S, H1, γ0)."""
-    from planter_ros.optimize.three_arm import INSTALL_BOUNDS, RADIUS_BOUNDS
     radii = rng.uniform(*RADIUS_BOUNDS, (count, 12))
     install = [rng.uniform(lo, hi, count) for lo, hi in INSTALL_BOUNDS.values()]
     return np.column_stack([radii, *install])
 
 
-@bench_case('three-arm optimiser', requires=('planter_ros.optimize.three_arm',))
+@bench_case('three-arm optimiser')
 def three_arm_optimiser(ctx: BenchContext) -> Iterator[Row]:
-    from planter_ros.optimize.three_arm import PopulationScorer, SearchOptions, optimize, score
-    from ..timing import from_samples
-
     params = _paper_scene()
     rng = np.random.default_rng(ctx.seed + 3)
     population = ctx.n(256, 32)
