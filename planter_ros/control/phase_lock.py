@@ -59,6 +59,8 @@ from typing import TYPE_CHECKING, Any
 from planter_ros.config import ConfigError, check, setting
 from planter_ros.sensing.ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits
 
+from .odometer import Odometer
+
 if TYPE_CHECKING:
     from planter_ros.cam import CamProfile, CamTrack
 
@@ -171,12 +173,8 @@ class PhaseLock:
         self.parked = False                 # switched off and at rest at stop_angle
         self._starting = False              # switched on, not up to speed: no grid yet
         self.phase_slips = 0                # whole plant pitches given up (fault, stale gap)
-        self._v = 0.0                       # last accepted forward speed (m/s)
-        self._t_sample: float | None = None  # time of the last accepted (or negative) sample
-        self._s = 0.0                       # travelled distance at _t_sample (m)
-        # the trapezoid's correction still to take (m): (pending, the part taken over the
-        # `window` s after _t_sample, window); row_speed
-        self._catch = (0.0, 0.0, 0.0)
+        # the distance travelled, from the accepted (or negative) speed samples
+        self.odometer = Odometer(self.config.ground_speed_timeout)
         self._fb: tuple[float, float, float] | None = None  # (angle rad, speed rad/s, stamp s)
         self._anchor: tuple[float, float] | None = None  # (θ at anchor, s at anchor)
         self._cmd = 0.0
@@ -194,6 +192,7 @@ class PhaseLock:
         """New gains, limits and sample plausibility rule (a parameter update at run time)."""
         self.config = config
         self.filter.limits = limits
+        self.odometer.timeout = config.ground_speed_timeout
 
     def set_design(self, spacing: float, plants_per_revolution: int, now: float,
                    planting: PlantingAngles | None = None, cam: Any = None,
@@ -251,7 +250,7 @@ class PhaseLock:
         s_now = self.travelled(now)
         if since is None or not since < now:
             return s_now
-        s_then = max(s_now - self._v * min(now - since, self.config.ground_speed_timeout), 0.0)
+        s_then = max(s_now - self.odometer.speed * min(now - since, self.odometer.timeout), 0.0)
         s_k, profile = track.next_plant(s_then)
         if s_k + profile.law.half_length(profile.mech) <= s_now:
             return s_now
@@ -320,37 +319,9 @@ class PhaseLock:
         return reason
 
     def row_speed(self, v: float, now: float) -> None:
-        """Take a speed sample already judged plausible (m/s; ≤ 0 = not moving forward).
-
-        A sample is the speed at its instant, and the distance the monitor and replay place
-        plants at is the trapezoid of the samples. Holding each speed until the next sample
-        lags that by half a sample interval (25 ms at 20 Hz: every plant after a 0.1 m/s
-        speed change sat 2.5 mm further on, measured in the demo; doc/command.md). So the
-        distance runs at the newest speed plus the trapezoid's correction of the last interval
-        (½·(v_k − v_{k−1})·Δt), spread over the next interval of that length: continuous, no
-        lag (the second-order Adams-Bashforth step), and the correction's noise does not add
-        up (its sum telescopes). The distance never runs backwards: a correction the speed
-        cannot take (a stop) waits for the next sample. No correction across a stale gap."""
-        v = max(float(v), 0.0)
-        s = self.travelled(now)
-        catch = window = 0.0
-        if self._t_sample is not None:
-            span = now - self._t_sample
-            if 0.0 < span <= self.config.ground_speed_timeout:
-                catch = self._catch[0] - self._caught(span) + 0.5 * (v - self._v) * span
-                # over the interval just seen, or what was left of the last correction's
-                # window: a sample soon after a long gap does not squeeze the gap's correction
-                # into its own short interval
-                window = max(span, self._catch[2] - span)
-        self._s, self._v, self._t_sample = s, v, now
-        self._catch = (catch, max(catch, -v * window), window) if catch else (0.0, 0.0, 0.0)
-
-    def _caught(self, held: float) -> float:
-        """The part of the pending correction taken `held` s after the newest sample (m)."""
-        _, usable, window = self._catch
-        if not usable or window <= 0.0:
-            return 0.0
-        return usable * min(held / window, 1.0)
+        """Take a speed sample already judged plausible (m/s; ≤ 0 = not moving forward): the
+        distance runs on as the trapezoid of the samples (Odometer.sample)."""
+        self.odometer.sample(v, now)
 
     def switch(self, on: bool, now: float) -> None:
         """Section control: off = come to rest at `stop_angle` and plant nothing more; on = a
@@ -399,27 +370,15 @@ class PhaseLock:
 
     # ------------------------------------------------------------------ state
     def stale(self, now: float) -> bool:
-        return self._t_sample is None or now - self._t_sample > self.config.ground_speed_timeout
+        return self.odometer.stale(now)
 
     def travelled(self, now: float) -> float:
         """Travelled distance s (m): accepted speeds held for at most the stale timeout."""
-        if self._t_sample is None:
-            return self._s
-        held = min(max(now - self._t_sample, 0.0), self.config.ground_speed_timeout)
-        return self._s + self._v * held + self._caught(held)
-
-    def _speed(self, now: float) -> float:
-        """The speed the distance runs at now (m/s): the newest sample's plus the pending
-        trapezoid correction's rate (row_speed)."""
-        _, usable, window = self._catch
-        if (usable and window > 0.0 and self._t_sample is not None
-                and now - self._t_sample < window):
-            return self._v + usable / window
-        return self._v
+        return self.odometer.travelled(now)
 
     @property
     def ground_speed_value(self) -> float:
-        return self._v
+        return self.odometer.speed
 
     @property
     def anchored(self) -> bool:
@@ -433,7 +392,7 @@ class PhaseLock:
     def feed_forward(self, now: float) -> float:
         if self.spacing is None or self.stale(now):
             return 0.0
-        v = self._speed(now)
+        v = self.odometer.rate(now)
         if self._track is not None:
             return max(float(self._track.evaluate(self.travelled(now))[1]), 0.0) * v
         return TWO_PI * v / (self.plants_per_revolution * self.spacing)
@@ -483,7 +442,7 @@ class PhaseLock:
             return 'waiting for design'
         if not self.section_on:
             return 'section off (at rest)' if self.parked else 'section off (stopping)'
-        if self._t_sample is None:
+        if self.odometer.stamp is None:
             return 'waiting for ground speed'
         if self.stale(now):
             return 'halted (stale ground speed)' if self._cmd == 0.0 else \

@@ -433,7 +433,8 @@ def time_log(run, layout):
 
 def _task_time(iso, run, layout, counts):
     """The task's TIM: effective, first to last planting instant, each row's totals."""
-    from xsdata.models.datatype import XmlDateTime  # isoxml's own dependency, loaded with it
+    # lazy: xsdata comes with isoxml (50 ms), loaded only by a run that writes ISOXML
+    from xsdata.models.datatype import XmlDateTime
     times = [r['time'] for r in run.records]
     totals = []
     for row, _ in layout.rows:

@@ -201,7 +201,7 @@ def prj_text():
 
 def _write_set(shp, shx, dbf, prj, cpg, runs):
     """The set's five files at the given paths; returns (plants, placed)."""
-    import shapefile  # lazy (pyshp): 40 ms, loaded only by a run that writes a Shapefile
+    import shapefile  # lazy: pyshp, 40 ms,, loaded only by a run that writes a Shapefile
     records = [dict(record, bag=run.key, utc=utc_text(record.get('time')))
                for run in runs for record in run.records]
     columns = attributes_of(records)
