@@ -304,16 +304,15 @@ def bus_rows(count, params=None):
     the sync node would."""
     # lazy: only the checks a scene asks for load their layers (see the imports)
     from planter_ros.control.loop_timing import SyncLoopConfig
-    from planter_ros.drive.bus_load import bus_load, check_bus_load
+    from planter_ros.drive.bus_load import BusTiming, bus_load, check_bus_load
     from planter_ros.drive.config import DriveConfig
     from planter_ros.drive.errors import DriveConfigError
     params = params or {}
     drive = from_mapping(DriveConfig, params)
     loop = from_mapping(SyncLoopConfig, params)
-    periods = (loop.control_period, loop.ground_speed_rate, drive.feedback_period,
-               drive.drive_heartbeat_period, drive.heartbeat_period)
+    timing = BusTiming.of(drive, loop.control_period, loop.ground_speed_rate)
     try:
-        check_bus_load(bus_load(count, drive.can_bitrate, *periods), [], *periods)
+        check_bus_load(bus_load(count, drive.can_bitrate, timing), [], timing)
     except DriveConfigError as exc:
         return str(exc)
     return ''
@@ -400,15 +399,13 @@ def _acceleration(out, shaft, per_metre, d, tractor, limit, limit_name, where):
 
 def _bus(out, rows, drive, loop):
     # lazy: only the checks a scene asks for load their layers (see the imports)
-    from planter_ros.drive.bus_load import bus_load, check_bus_load
+    from planter_ros.drive.bus_load import BusTiming, bus_load, check_bus_load
     from planter_ros.drive.errors import DriveConfigError
     enabled = [row for row in rows if row.enabled]
-    load = bus_load(len(enabled), drive.can_bitrate, loop.control_period, loop.ground_speed_rate,
-                    drive.feedback_period, drive.drive_heartbeat_period, drive.heartbeat_period)
+    timing = BusTiming.of(drive, loop.control_period, loop.ground_speed_rate)
+    load = bus_load(len(enabled), drive.can_bitrate, timing)
     try:
-        check_bus_load(load, [row.label for row in enabled], loop.control_period,
-                       loop.ground_speed_rate, drive.feedback_period,
-                       drive.drive_heartbeat_period, drive.heartbeat_period)
+        check_bus_load(load, [row.label for row in enabled], timing)
     except DriveConfigError as exc:
         out.refused.append(str(exc))
 
