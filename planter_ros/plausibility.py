@@ -341,16 +341,16 @@ def bus_rows(count, params=None):
     node's: 500 kbit/s, ...), or '' when they fit: a command that builds rows checks them as
     the sync node would."""
     from planter_ros.control.loop_timing import SyncLoopConfig  # lazy: bus checks only
-    from planter_ros.drive.bus_load import bus_load, check_bus_load  # lazy: bus only (26 ms)
+    # lazy: only a bus check needs it (26 ms)
+    from planter_ros.drive.bus_load import BusTiming, bus_load, check_bus_load
     from planter_ros.drive.config import DriveConfig  # lazy: bus checks only (29 ms)
     from planter_ros.drive.errors import DriveConfigError  # lazy: bus checks only
     params = params or {}
     drive = from_mapping(DriveConfig, params)
     loop = from_mapping(SyncLoopConfig, params)
-    periods = (loop.control_period, loop.ground_speed_rate, drive.feedback_period,
-               drive.drive_heartbeat_period, drive.heartbeat_period)
+    timing = BusTiming.of(drive, loop.control_period, loop.ground_speed_rate)
     try:
-        check_bus_load(bus_load(count, drive.can_bitrate, *periods), [], *periods)
+        check_bus_load(bus_load(count, drive.can_bitrate, timing), [], timing)
     except DriveConfigError as exc:
         return str(exc)
     return ''
@@ -439,15 +439,14 @@ def _acceleration(out: Verdict, shaft: _Shaft, tractor: float, limit: _Limit) ->
 
 
 def _bus(out, rows, drive, loop):
-    from planter_ros.drive.bus_load import bus_load, check_bus_load  # lazy: bus only (26 ms)
+    # lazy: only a bus check needs it (26 ms)
+    from planter_ros.drive.bus_load import BusTiming, bus_load, check_bus_load
     from planter_ros.drive.errors import DriveConfigError  # lazy: bus checks only
     enabled = [row for row in rows if row.enabled]
-    load = bus_load(len(enabled), drive.can_bitrate, loop.control_period, loop.ground_speed_rate,
-                    drive.feedback_period, drive.drive_heartbeat_period, drive.heartbeat_period)
+    timing = BusTiming.of(drive, loop.control_period, loop.ground_speed_rate)
+    load = bus_load(len(enabled), drive.can_bitrate, timing)
     try:
-        check_bus_load(load, [row.label for row in enabled], loop.control_period,
-                       loop.ground_speed_rate, drive.feedback_period,
-                       drive.drive_heartbeat_period, drive.heartbeat_period)
+        check_bus_load(load, [row.label for row in enabled], timing)
     except DriveConfigError as exc:
         out.refused.append(str(exc))
 

@@ -1,15 +1,21 @@
 """CAN bus load: worst-case frame lengths, the load of a machine's configuration, and the refusal
 above 70 % (one line naming rows, periods and bit rate), also by the sync node at start-up."""
+from dataclasses import replace
+
 import pytest
 from rclpy.parameter import Parameter
 
-from planter_ros.drive.bus_load import LIMIT, bus_load, check_bus_load, frame_bits
+from planter_ros.drive.bus_load import LIMIT, BusTiming, bus_load, check_bus_load, frame_bits
 from planter_ros.drive.errors import DriveConfigError
 
 pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
-DEFAULTS = dict(control_period=0.02, ground_speed_rate=50.0, feedback_period=0.01,
-                drive_heartbeat_period=0.1, heartbeat_period=0.1)
+DEFAULTS = BusTiming(control_period=0.02, ground_speed_rate=50.0, feedback_period=0.01,
+                     drive_heartbeat_period=0.1, heartbeat_period=0.1)
+
+
+def csp_at(sync_period):
+    return replace(DEFAULTS, sync_period=sync_period)
 
 
 def test_worst_case_frame_lengths_of_can_2_0a():
@@ -23,7 +29,7 @@ def test_worst_case_frame_lengths_of_can_2_0a():
 
 
 def test_load_of_a_four_row_machine_counts_every_frame():
-    load = bus_load(4, 500_000, **DEFAULTS)
+    load = bus_load(4, 500_000, DEFAULTS)
     per_row = 100 * 115 + 100 * 95 + 100 * 135 + 10 * 65      # RPDO, TPDO1, TPDO2, heartbeat
     assert load.bits_per_second == pytest.approx(4 * per_row + 10 * 65)
     assert load.frames_per_second == pytest.approx(4 * 310 + 10)
@@ -32,12 +38,12 @@ def test_load_of_a_four_row_machine_counts_every_frame():
 
 
 def test_eight_rows_fit_500_kbit_and_are_refused_at_250_kbit():
-    check_bus_load(bus_load(8, 500_000, **DEFAULTS), [], **DEFAULTS)      # 56 %
-    load = bus_load(8, 250_000, **DEFAULTS)
+    check_bus_load(bus_load(8, 500_000, DEFAULTS), [], DEFAULTS)      # 56 %
+    load = bus_load(8, 250_000, DEFAULTS)
     assert load.load > LIMIT
     names = [f'row{i}' for i in range(8)]
     with pytest.raises(DriveConfigError) as info:
-        check_bus_load(load, names, **DEFAULTS)
+        check_bus_load(load, names, DEFAULTS)
     message = str(info.value)
     assert '\n' not in message
     for word in ('CAN bus load 112.7 % is out of range', 'allowed <= 70 %', 'row0, row1',
@@ -59,7 +65,7 @@ def test_the_sync_node_refuses_an_overloaded_bus_at_start_up(ros):
 
 
 def test_csp_counts_a_sync_and_per_row_an_rpdo_and_two_tpdos_every_period():
-    load = bus_load(8, 500_000, **DEFAULTS, sync_period=0.01, csp=True)
+    load = bus_load(8, 500_000, csp_at(0.01), csp=True)
     per_period = 55 + 8 * (115 + 95 + 135)                  # SYNC + per row RPDO, TPDO1, TPDO2
     heartbeats = (8 * 10 + 10) * 65                         # per second
     assert load.bits_per_second == pytest.approx(100 * per_period + heartbeats)
@@ -71,9 +77,9 @@ def test_csp_counts_a_sync_and_per_row_an_rpdo_and_two_tpdos_every_period():
 
 def test_a_csp_machine_over_the_limit_is_refused_naming_the_knobs_that_fix_it():
     names = [f'row{i}' for i in range(8)]
-    load = bus_load(8, 500_000, **DEFAULTS, sync_period=0.004, csp=True)
+    load = bus_load(8, 500_000, csp_at(0.004), csp=True)
     with pytest.raises(DriveConfigError) as info:
-        check_bus_load(load, names, **DEFAULTS)
+        check_bus_load(load, names, DEFAULTS)
     message = str(info.value)
     assert '\n' not in message
     for word in ('CAN bus load 141.9 % is out of range', 'cyclic synchronous position',
@@ -81,6 +87,6 @@ def test_a_csp_machine_over_the_limit_is_refused_naming_the_knobs_that_fix_it():
                  'raise can_bitrate', 'second bus'):
         assert word in message, word
     # the knobs do fix it: 1 Mbit/s at 4 ms is still over, 1 Mbit/s at 5 ms fits
-    assert bus_load(8, 1_000_000, **DEFAULTS, sync_period=0.004, csp=True).load > LIMIT
-    check_bus_load(bus_load(8, 1_000_000, **DEFAULTS, sync_period=0.005, csp=True), names,
-                   **DEFAULTS)
+    assert bus_load(8, 1_000_000, csp_at(0.004), csp=True).load > LIMIT
+    check_bus_load(bus_load(8, 1_000_000, csp_at(0.005), csp=True), names,
+                   DEFAULTS)

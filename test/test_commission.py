@@ -20,6 +20,7 @@ from planter_ros.commission.procedure import EDGE_SPEED
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
 from planter_ros.drive.errors import DriveRefusedError
 from planter_ros.simdrive.drive import SimulatedDrive
+from planter_ros.simdrive.spec import SimSpec
 from planter_ros.scene.machine_file import CanBus, open_machine, write_machine
 
 pytestmark = pytest.mark.realtime          # (test/conftest.py)
@@ -45,8 +46,8 @@ def rig():
             machine = dataclasses.replace(machine, rows=rows)
         row = machine.rows[ROW]
         kwargs.setdefault('supported_modes', (3, 8))
-        sim = SimulatedDrive(channel, node_id=row.node_id, counts_per_motor_rev=row.encoder_counts,
-                             gear_ratio=row.gear_ratio, **kwargs)
+        sim = SimulatedDrive(channel, node_id=row.node_id, spec=SimSpec(
+            counts_per_motor_rev=row.encoder_counts, gear_ratio=row.gear_ratio, **kwargs))
         sim.start()
         sims.append(sim)
         return machine, sim

@@ -20,6 +20,7 @@ from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
 from planter_ros.drive.errors import DriveRefusedError
 from planter_ros.simdrive.bus import SimulatedBus
 from planter_ros.simdrive.drive import SimulatedDrive
+from planter_ros.simdrive.spec import SimSpec
 from planter_ros.drive.states import (CYCLIC_SYNC_POSITION, EMCY_FOLLOWING_ERROR, FAULT,
                                       OPERATION_ENABLED, PROFILE_VELOCITY)
 from planter_ros.rows import Row
@@ -35,7 +36,7 @@ D = 0.2
 
 @pytest.fixture
 def csp_sim(channel):
-    sim = SimulatedDrive(channel, node_id=1, supported_modes=BOTH)
+    sim = SimulatedDrive(channel, node_id=1, spec=SimSpec(supported_modes=BOTH))
     sim.start()
     yield sim
     sim.stop()

@@ -8,6 +8,7 @@ from drive_helpers import RPDO1, SDO_RX, drain, rpdo_frames
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig, DriveError
 from planter_ros.simdrive.fault_bus import FaultBus
 from planter_ros.simdrive.drive import SimulatedDrive
+from planter_ros.simdrive.spec import SimSpec
 
 pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
@@ -182,7 +183,7 @@ def test_sync_flows_from_before_the_nmt_start_through_enabling_and_homing(channe
     """A strict CiA 301 drive acts on a synchronous RPDO only at a SYNC and sends its
     synchronous TPDO only after one: the master's start-up produces SYNC from before the NMT
     start until the drive is enabled and homed (before, it sent none: the enable timed out)."""
-    sim = SimulatedDrive(channel, supported_modes=(3, 8))
+    sim = SimulatedDrive(channel, spec=SimSpec(supported_modes=(3, 8)))
     sim.start()
     try:
         drive = make_drive(operation_mode='csp')

@@ -18,7 +18,8 @@ from planter_ros.config import ConfigError
 from planter_ros.drive import objects as od
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.errors import (NO_SUCH_OBJECT, BusError, DictionaryError, DriveError,
-                                      DriveRefusedError, DriveTimeoutError, sdo_error)
+                                      DriveRefusedError, DriveTimeoutError, SdoTransfer,
+                                      sdo_error)
 from planter_ros.drive.sdo import Sdo
 from planter_ros.errors import PlanterError
 
@@ -117,9 +118,10 @@ def test_each_keeps_the_builtin_base_its_callers_catch():
 
 
 def _mapped(exc, verb='reading'):
-    return sdo_error(exc, node=5, step='identify (SDO 0x1000 device type)', verb=verb,
-                     index=0x6502, subindex=0, name='supported drive modes',
-                     waited=' within 2 x 0.1 s', bus='virtual:ch')
+    return sdo_error(exc, SdoTransfer(node=5, step='identify (SDO 0x1000 device type)',
+                                      verb=verb, index=0x6502, subindex=0,
+                                      name='supported drive modes', waited=' within 2 x 0.1 s',
+                                      bus='virtual:ch'))
 
 
 def test_the_abort_codes_the_mapping_names_are_canopens_no_such_object_codes():

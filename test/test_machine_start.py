@@ -31,6 +31,7 @@ from planter_ros.drive.errors import DictionaryError, DriveRefusedError
 from planter_ros.drive.setup import DriveSetup
 from planter_ros.simdrive.drive import SimulatedDrive
 from planter_ros.simdrive.mechanism import simulated_mechanism
+from planter_ros.simdrive.spec import SimSpec
 from planter_ros.rows import Row
 from planter_ros.scene.machine_file import (CanBus, MachineFileError, open_machine, parse_machine,
                                        write_machine)
@@ -54,8 +55,8 @@ def bench():
 
     def make(node_id=1, **kwargs):
         kwargs.setdefault('supported_modes', (3, 8))
-        sim = SimulatedDrive(channel, node_id=node_id, counts_per_motor_rev=COUNTS,
-                             gear_ratio=GEAR, **kwargs)
+        sim = SimulatedDrive(channel, node_id=node_id, spec=SimSpec(
+            counts_per_motor_rev=COUNTS, gear_ratio=GEAR, **kwargs))
         sim.start()
         sims.append(sim)
         return sim

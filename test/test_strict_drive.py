@@ -30,6 +30,7 @@ from planter_ros.drive.states import OPERATION_ENABLED, SWITCH_ON_DISABLED
 from planter_ros.drive.words import SW_FOLLOWING_ERROR
 from planter_ros.simdrive.drive import SimulatedDrive
 from planter_ros.simdrive.node import StrictNode
+from planter_ros.simdrive.spec import SimSpec
 
 EDS = REPO / 'test' / 'eds'
 NODE = 5
@@ -101,7 +102,7 @@ def test_mapping_capacity_mappability_and_valid_pdos_are_enforced():
 def wire():
     """(simulated drive on the project's EDS, a canopen SDO client, a raw bus, the channel)."""
     channel = f'planter-test-{uuid.uuid4().hex}'
-    sim = SimulatedDrive(channel, node_id=NODE, supported_modes=(3, 8))
+    sim = SimulatedDrive(channel, node_id=NODE, spec=SimSpec(supported_modes=(3, 8)))
     sim.start()
     raw = can.Bus(interface='virtual', channel=channel)
     network = canopen.Network(can.Bus(interface='virtual', channel=channel))

@@ -16,6 +16,7 @@ from std_srvs.srv import Trigger
 
 from planter_ros import interfaces
 from planter_ros.simdrive.drive import SimulatedDrive
+from planter_ros.simdrive.spec import SimSpec
 from planter_ros.nodes.sync_node import SyncNode
 from ros_fixtures import unique_channel
 
@@ -41,7 +42,7 @@ class Rig:
     def __init__(self, ros, sim_kwargs=None, bus=None, channel=None, **params):
         self.ros = ros
         self.channel = channel or unique_channel('sync')
-        self.sim = SimulatedDrive(self.channel, node_id=1, **(sim_kwargs or {}))
+        self.sim = SimulatedDrive(self.channel, node_id=1, spec=SimSpec(**(sim_kwargs or {})))
         self.sim.start()
         overrides = [Parameter('can_interface', value='virtual'),
                      Parameter('can_channel', value=self.channel)]

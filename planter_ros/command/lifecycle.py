@@ -13,7 +13,7 @@ import logging
 from typing import Any
 
 from planter_ros.control.loop_timing import SyncLoopConfig
-from planter_ros.drive.bus_load import BusLoad, bus_load, check_bus_load
+from planter_ros.drive.bus_load import BusLoad, BusTiming, bus_load, check_bus_load
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.errors import DriveError
 from planter_ros.rows import Row
@@ -130,9 +130,11 @@ class Lifecycle:
 
 def machine_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: int, csp: bool) -> BusLoad:
     """The worst-case CAN bus load of `rows` drives in profile velocity or CSP."""
-    return bus_load(rows, cfg.can_bitrate, loop.control_period, loop.ground_speed_rate,
-                    cfg.feedback_period, cfg.drive_heartbeat_period, cfg.heartbeat_period,
-                    cfg.sync_period if csp else 0.0, csp)
+    return bus_load(rows, cfg.can_bitrate, _timing(cfg, loop), csp)
+
+
+def _timing(cfg: DriveConfig, loop: SyncLoopConfig) -> BusTiming:
+    return BusTiming.of(cfg, loop.control_period, loop.ground_speed_rate)
 
 
 def checked_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: Sequence[Row]) -> BusLoad:
@@ -143,7 +145,5 @@ def checked_bus_load(cfg: DriveConfig, loop: SyncLoopConfig, rows: Sequence[Row]
     if cfg.operation_mode != 'velocity':
         loads.append(machine_bus_load(cfg, loop, len(rows), True))
     worst = max(loads, key=lambda load: load.load)
-    check_bus_load(worst, [row.label for row in rows], loop.control_period,
-                   loop.ground_speed_rate, cfg.feedback_period, cfg.drive_heartbeat_period,
-                   cfg.heartbeat_period)
+    check_bus_load(worst, [row.label for row in rows], _timing(cfg, loop))
     return worst

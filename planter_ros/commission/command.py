@@ -15,6 +15,7 @@ from planter_ros.scene.machine_file import (CanBus, deployment_parameters, open_
                                             rows_asked, write_machine)
 from planter_ros.simdrive.drive import SimulatedDrive
 from planter_ros.simdrive.mechanism import simulated_mechanism
+from planter_ros.simdrive.spec import SimSpec
 
 from .procedure import (CommissionError, Observer, SimulatedObserver, checklist,
                         commission_machine, updated_machine)
@@ -54,11 +55,10 @@ def run(args: argparse.Namespace) -> int:
                 row = machine.rows[name]
                 modes = tuple({'pv': 3, 'csp': 8}[m] for m in row.modes)
                 offset, reversed_ = simulated_mechanism(args.seed, row.node_id)
-                sims[name] = SimulatedDrive(
-                    channel, node_id=row.node_id, counts_per_motor_rev=row.encoder_counts,
-                    gear_ratio=row.gear_ratio, supported_modes=modes,
-                    mechanical_offset=offset, motor_reversed=reversed_,
-                    eds_path=str(machine.eds_path(row)) if row.eds else None)
+                sims[name] = SimulatedDrive(channel, node_id=row.node_id, spec=SimSpec(
+                    counts_per_motor_rev=row.encoder_counts, gear_ratio=row.gear_ratio,
+                    supported_modes=modes, mechanical_offset=offset, motor_reversed=reversed_,
+                    eds_path=str(machine.eds_path(row)) if row.eds else None))
                 sims[name].start()
             bus = can.Bus(interface='virtual', channel=channel)
             observer = SimulatedObserver(sims)

@@ -29,6 +29,7 @@ from planter_ros.drive.states import CYCLIC_SYNC_POSITION
 from planter_ros.scene.files import SceneError
 from planter_ros.scene.machine_file import open_machine, rows_asked
 from planter_ros.simdrive.drive import SimulatedDrive
+from planter_ros.simdrive.spec import SimSpec
 
 __all__ = ['run', 'check_row']
 
@@ -73,10 +74,10 @@ class _bus:
         channel = f'planter-drive-check-{uuid.uuid4().hex}'
         for name in self.rows:
             row = self.machine.rows[name]
-            sim = SimulatedDrive(channel, node_id=row.node_id, supported_modes=None, identity=None,
-                                 counts_per_motor_rev=row.encoder_counts,
-                                 gear_ratio=row.gear_ratio,
-                                 eds_path=str(self.machine.eds_path(row)) if row.eds else None)
+            spec = SimSpec(supported_modes=None, identity=None,
+                           counts_per_motor_rev=row.encoder_counts, gear_ratio=row.gear_ratio,
+                           eds_path=str(self.machine.eds_path(row)) if row.eds else None)
+            sim = SimulatedDrive(channel, node_id=row.node_id, spec=spec)
             sim.start()
             self.sims.append(sim)
         self.bus = can.Bus(interface='virtual', channel=channel)

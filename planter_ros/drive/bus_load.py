@@ -14,16 +14,19 @@ once per ground-speed sample; TPDO1 (statusword + error code, 4 bytes) and TPDO2
 velocity, 8 bytes) every feedback period. In cyclic synchronous position (`csp`): per SYNC
 period one SYNC (0 bytes) for the bus, and per row the RPDO (controlword + target position,
 6 bytes) and both TPDOs. Either way the drive's heartbeat (1 byte) and the master's one.
+`BusTiming` holds what sets those rates: the periods of the drive settings and the loop's.
 Pure, no ROS, no bus.
 """
+from __future__ import annotations
 
 from dataclasses import dataclass
 
 from . import objects as od
+from .config import DriveConfig
 from .errors import DriveConfigError
 
 __all__ = ['LIMIT', 'RPDO_BYTES', 'TPDO_BYTES', 'HEARTBEAT_BYTES', 'SYNC_BYTES', 'frame_bits',
-           'BusLoad', 'bus_load', 'check_bus_load']
+           'BusLoad', 'BusTiming', 'bus_load', 'check_bus_load']
 
 LIMIT = 0.70                 # refused above this share of the bit rate
 
@@ -39,6 +42,28 @@ def frame_bits(data_bytes: int) -> int:
         raise ValueError(f'data_bytes = {data_bytes} is out of range: allowed 0..8')
     n = 8 * data_bytes
     return 47 + n + (34 + n - 1) // 4
+
+
+@dataclass(frozen=True)
+class BusTiming:
+    """What sets the frame rates of a configuration (s; `ground_speed_rate` in Hz): the loop's
+    control period and ground-speed samples, the drive's feedback and heartbeat periods, the
+    master's heartbeat period and, for drives in CSP, the SYNC period."""
+
+    control_period: float
+    ground_speed_rate: float
+    feedback_period: float
+    drive_heartbeat_period: float
+    heartbeat_period: float
+    sync_period: float = 0.0
+
+    @classmethod
+    def of(cls, drive: DriveConfig, control_period: float,
+           ground_speed_rate: float) -> BusTiming:
+        """The timing of drives set by `drive` under a loop of `control_period` and
+        `ground_speed_rate`."""
+        return cls(control_period, ground_speed_rate, drive.feedback_period,
+                   drive.drive_heartbeat_period, drive.heartbeat_period, drive.sync_period)
 
 
 @dataclass(frozen=True)
@@ -77,11 +102,10 @@ class BusLoad:
         return out
 
 
-def bus_load(rows: int, bitrate: int, control_period: float, ground_speed_rate: float,
-             feedback_period: float, drive_heartbeat_period: float, heartbeat_period: float,
-             sync_period: float = 0.0, csp: bool = False) -> BusLoad:
-    """Worst-case load of `rows` drives (periods in s, rate in Hz, bit rate in bit/s); `csp`:
-    the drives run cyclic synchronous position on a SYNC every `sync_period`."""
+def bus_load(rows: int, bitrate: int, timing: BusTiming, csp: bool = False) -> BusLoad:
+    """Worst-case load of `rows` drives (bit rate in bit/s); `csp`: the drives run cyclic
+    synchronous position on a SYNC every `timing.sync_period`."""
+    sync_period = timing.sync_period
     if csp and not sync_period > 0:
         raise ValueError('bus_load: csp needs sync_period > 0 s')
     items: list[tuple[str, float, float]] = []
@@ -96,22 +120,20 @@ def bus_load(rows: int, bitrate: int, control_period: float, ground_speed_rate: 
         for number, size in enumerate(TPDO_BYTES, 1):
             add(f'TPDO{number} (feedback)', rows / sync_period, size)
     else:
-        add('RPDO (command)', rows * (1.0 / control_period + ground_speed_rate), RPDO_BYTES)
+        add('RPDO (command)', rows * (1.0 / timing.control_period + timing.ground_speed_rate),
+            RPDO_BYTES)
         for number, size in enumerate(TPDO_BYTES, 1):
-            add(f'TPDO{number} (feedback)', rows / feedback_period, size)
-    add('drive heartbeats', rows / drive_heartbeat_period, HEARTBEAT_BYTES)
-    add('master heartbeat', 1.0 / heartbeat_period, HEARTBEAT_BYTES)
-    if sync_period and not csp:
-        add('SYNC', 1.0 / sync_period, SYNC_BYTES)
+            add(f'TPDO{number} (feedback)', rows / timing.feedback_period, size)
+    add('drive heartbeats', rows / timing.drive_heartbeat_period, HEARTBEAT_BYTES)
+    add('master heartbeat', 1.0 / timing.heartbeat_period, HEARTBEAT_BYTES)
     return BusLoad(rows, int(bitrate), sum(i[1] for i in items), sum(i[2] for i in items),
                    tuple(items), sync_period if csp else 0.0)
 
 
-def check_bus_load(load: BusLoad, row_names: list[str], control_period: float,
-                   ground_speed_rate: float, feedback_period: float,
-                   drive_heartbeat_period: float, heartbeat_period: float) -> None:
+def check_bus_load(load: BusLoad, row_names: list[str], timing: BusTiming) -> None:
     """Raise DriveConfigError (one line naming rows, periods, bit rate and the knobs that fix
     it: the bit rate, the period, the rows per bus) above LIMIT."""
+    t = timing
     if load.load <= LIMIT:
         return
     per_row = load.bits_per_second / max(load.rows, 1)
@@ -123,13 +145,14 @@ def check_bus_load(load: BusLoad, row_names: list[str], control_period: float,
             f'{100 * LIMIT:.0f} % ({names} at {load.bitrate} bit/s in cyclic synchronous '
             f'position: a SYNC and per row an RPDO and 2 TPDOs every sync_period = '
             f'{load.sync_period * 1e3:g} ms, {load.wire_per_period * 1e3:.2f} ms of wire per '
-            f'period; a heartbeat per drive every {drive_heartbeat_period * 1e3:g} ms: at most '
+            f'period; a heartbeat per drive every {t.drive_heartbeat_period * 1e3:g} ms: at most '
             f'{fits} rows fit on this bus; lengthen sync_period, raise can_bitrate, or put the '
             'other rows on a second bus)')
     raise DriveConfigError(
         f'CAN bus load {100 * load.load:.1f} % is out of range: allowed <= {100 * LIMIT:.0f} % '
         f'({names} at {load.bitrate} bit/s; per row an RPDO every control_period = '
-        f'{control_period * 1e3:g} ms and per ground-speed sample at {ground_speed_rate:g} Hz, '
-        f'2 TPDOs every feedback_period = {feedback_period * 1e3:g} ms, a heartbeat every '
-        f'{drive_heartbeat_period * 1e3:g} ms; master heartbeat {heartbeat_period * 1e3:g} ms: '
+        f'{t.control_period * 1e3:g} ms and per ground-speed sample at '
+        f'{t.ground_speed_rate:g} Hz, 2 TPDOs every feedback_period = '
+        f'{t.feedback_period * 1e3:g} ms, a heartbeat every {t.drive_heartbeat_period * 1e3:g} '
+        f'ms; master heartbeat {t.heartbeat_period * 1e3:g} ms: '
         f'at most {fits} rows fit, or lengthen the periods, or raise can_bitrate)')

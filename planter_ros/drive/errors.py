@@ -20,14 +20,15 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any
 
 from planter_ros.config import ConfigError
 from planter_ros.errors import PlanterError
 
 __all__ = ['NO_SUCH_OBJECT', 'BusError', 'DictionaryError', 'DriveConfigError', 'DriveError',
-           'DriveRefusedError', 'DriveTimeoutError', 'NotConnectedError', 'bus_error', 'can_calls',
-           'sdo_error']
+           'DriveRefusedError', 'DriveTimeoutError', 'NotConnectedError', 'SdoTransfer',
+           'bus_error', 'can_calls', 'sdo_error']
 
 # CiA 301 SDO abort codes of an entry the drive does not have: object, sub-index
 NO_SUCH_OBJECT = (0x06020000, 0x06090011)
@@ -94,27 +95,44 @@ def can_calls(what: str, node: int | None = None) -> Iterator[None]:
         raise bus_error(exc, what, node) from None
 
 
-def sdo_error(exc: BaseException, *, node: int, step: str, verb: str, index: int,
-              subindex: int = 0, name: str = '', waited: str = '', bus: str = '') -> DriveError:
+@dataclass(frozen=True)
+class SdoTransfer:
+    """One SDO transfer, as its failure names it: the drive's `node`, the `step` of the
+    master's work, `verb` 'reading' or 'writing', the object (`index`, `subindex`, `name`),
+    `waited` how long and how often the master asked (the text after "no SDO answer ..."),
+    `bus` the interface:channel a reader is asked to check."""
+
+    node: int
+    step: str
+    verb: str
+    index: int
+    subindex: int = 0
+    name: str = ''
+    waited: str = ''
+    bus: str = ''
+
+
+def sdo_error(exc: BaseException, transfer: SdoTransfer) -> DriveError:
     """The drive error an SDO transfer's exception `exc` means (module doc), one line:
-    `drive node <node>: <step>: ...`. `verb` is 'reading' or 'writing', `name` the object's
-    name, `waited` how long and how often it asked (the text after "no SDO answer ..."), `bus`
-    the interface:channel a reader is asked to check."""
-    # canopen costs 136 ms to import and this module is read by every user of a drive setting;
-    # an SDO exception to map means canopen is loaded already
+    `drive node <node>: <step>: ...`."""
+    # lazy: canopen costs 70-120 ms (python -X importtime) and this module is read by every
+    # user of a drive setting (replay and analyze: test_offline_imports); an SDO exception to
+    # map means canopen is loaded already
     from canopen.sdo import SdoAbortedError, SdoCommunicationError
-    head = f'drive node {node}: {step}: '
-    obj = f'0x{index:04X}' + (f':{subindex}' if subindex else '')
-    facts: dict[str, Any] = {'node': node, 'index': index, 'subindex': subindex}
+    t = transfer
+    head = f'drive node {t.node}: {t.step}: '
+    obj = f'0x{t.index:04X}' + (f':{t.subindex}' if t.subindex else '')
+    facts: dict[str, Any] = {'node': t.node, 'index': t.index, 'subindex': t.subindex}
     if isinstance(exc, SdoCommunicationError):
-        where = f'is the drive on {bus} as node {node}? ' if verb == 'reading' and bus else ''
-        return DriveTimeoutError(f'{head}no SDO answer {verb} 0x{index:04X}{waited} '
+        where = (f'is the drive on {t.bus} as node {t.node}? ' if t.verb == 'reading' and t.bus
+                 else '')
+        return DriveTimeoutError(f'{head}no SDO answer {t.verb} 0x{t.index:04X}{t.waited} '
                                  f'({where}{exc})', **facts)
     if isinstance(exc, SdoAbortedError):
         if exc.code in NO_SUCH_OBJECT:
-            return DictionaryError(f'{head}the drive has no {obj} {name} ({exc}) although its '
-                                   'EDS lists it: use the EDS of this drive and firmware',
+            return DictionaryError(f'{head}the drive has no {obj} {t.name} ({exc}) although '
+                                   'its EDS lists it: use the EDS of this drive and firmware',
                                    abort_code=exc.code, **facts)
-        return DriveRefusedError(f'{head}drive refused {verb} {obj} ({exc})',
+        return DriveRefusedError(f'{head}drive refused {t.verb} {obj} ({exc})',
                                  abort_code=exc.code, **facts)
     return bus_error(exc, f'{head}CAN send failed', **facts)

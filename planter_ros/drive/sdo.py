@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Literal, overload
 from canopen.sdo import SdoAbortedError
 
 from . import objects as od
-from .errors import DriveError, sdo_error
+from .errors import DriveError, SdoTransfer, sdo_error
 
 if TYPE_CHECKING:
     from canopen import RemoteNode
@@ -45,9 +45,9 @@ class Sdo:
 
     def _error(self, step: str, obj: od.Obj, verb: str, exc: Exception) -> DriveError:
         cfg = self.config
-        return sdo_error(exc, node=cfg.drive_node_id, step=step, verb=verb, index=obj.index,
-                         subindex=obj.subindex, name=obj.name, waited=self._wait_text(),
-                         bus=f'{cfg.can_interface}:{cfg.can_channel}')
+        return sdo_error(exc, SdoTransfer(cfg.drive_node_id, step, verb, obj.index, obj.subindex,
+                                          obj.name, self._wait_text(),
+                                          f'{cfg.can_interface}:{cfg.can_channel}'))
 
     @overload
     def read(self, step: str, obj: od.Obj, optional: Literal[False] = False) -> int: ...

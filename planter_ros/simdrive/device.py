@@ -19,7 +19,7 @@ from planter_ros.drive.words import (ERROR_REGISTER_COMMUNICATION, ERROR_REGISTE
 
 from .control import DeviceControl, Transition
 from .csp import CspSetpoint, wrap_i32
-from .homing import Homing
+from .homing import Homing, HomingOrder
 from .motor import Motor
 
 if TYPE_CHECKING:
@@ -182,9 +182,9 @@ class SimulatedDevice:
         done = self.control.apply(controlword)
         if done.homing_start:
             node = self.node
-            self.homing.start(int(node.value(0x6098, 0, 0)), node.value(0x6099, 1, 0),
-                              node.value(0x6099, 2, 0), node.value(0x607C, 0, 0),
-                              self.motor.position, self.sign(0x80), self.motor.velocity)
+            order = HomingOrder(int(node.value(0x6098, 0, 0)), node.value(0x6099, 1, 0),
+                                node.value(0x6099, 2, 0), node.value(0x607C, 0, 0))
+            self.homing.start(order, self.motor.position, self.sign(0x80), self.motor.velocity)
         elif done.homing_stop:
             self.homing.stop()
         if done.enabled:

@@ -63,13 +63,12 @@ class SimulatedDrive(DriveViews):
     """A CiA 402 drive on the bus (module doc). `bus_or_channel`: a python-can bus this drive
     uses (left open on stop()), or a channel name for a bus of `interface` that it opens and
     closes itself; `network`: a canopen Network shared with other simulated drives
-    (`SimulatedBus`, its owner connects and stops it); `spec` and `options` (SimSpec fields):
-    what the drive is built as."""
+    (`SimulatedBus`, its owner connects and stops it); `spec`: what the drive is built as."""
 
     def __init__(self, bus_or_channel: can.BusABC | str, node_id: int = 1,
                  spec: SimSpec | None = None, *, network: canopen.Network | None = None,
-                 interface: str = 'virtual', tick: float = 0.002, **options: Any) -> None:
-        self.spec = spec = (spec or SimSpec()).with_options(**options)
+                 interface: str = 'virtual', tick: float = 0.002) -> None:
+        self.spec = spec = spec if spec is not None else SimSpec()
         if not tick > 0:
             raise ValueError(f'tick = {tick!r} is out of range: allowed > 0')
         self._owns_bus = isinstance(bus_or_channel, str)

@@ -6,10 +6,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
-__all__ = ['HOMING_METHODS', 'Homing']
+__all__ = ['HOMING_METHODS', 'Homing', 'HomingOrder']
 
 HOMING_METHODS = (19, 33, 34, 35, 37)
+
+
+@dataclass(frozen=True)
+class HomingOrder:
+    """What the dictionary holds for a homing when it starts: the method (6098h), the speeds
+    (6099h:1 searching for the switch, :2 for zero; counts/s), the home offset (607Ch, counts)."""
+
+    method: int
+    fast: float
+    slow: float
+    offset: float
 
 
 class Homing:
@@ -30,9 +42,11 @@ class Homing:
         self.phase = None
         self.attained = self.error = False
 
-    def start(self, method: int, fast: float, slow: float, offset: float, position: float,
-              sign: float, velocity: float = 0.0) -> None:
-        """Controlword bit 4 rising in homing mode: method `method` from motor `position`."""
+    def start(self, order: HomingOrder, position: float, sign: float,
+              velocity: float = 0.0) -> None:
+        """Controlword bit 4 rising in homing mode: `order` from motor `position` (`sign`: the
+        position polarity, `velocity` the motor's now)."""
+        method, fast, slow, offset = order.method, order.fast, order.slow, order.offset
         self.attained = self.error = False
         self._offset, self._sign, self._slow = offset, sign, slow
         if method not in HOMING_METHODS or (method < 35 and (fast <= 0 or slow <= 0)):
