@@ -21,8 +21,6 @@ CLI_MODULES = FIVE_BAR_MODULES | {'planter_ros.cli', 'planter_ros.cli.main',
                                   'planter_ros.cli.design_five_bar', 'planter_ros.cli.options',
                                   'planter_ros.cli.commands',     # the command's work
                                   'planter_ros.cli.commands.design_five_bar',
-                                  # SIGINT/SIGTERM as a stop for demo: standard library only
-                                  'planter_ros.host', 'planter_ros.host.stop_signals',
                                   'planter_ros.kinematics.design_inputs',
                                   'planter_ros.kinematics.mechanisms',
                                   'planter_ros.output_files', 'planter_ros.design',

@@ -16,7 +16,6 @@ from types import ModuleType
 from planter_ros.config import one_line
 from planter_ros.dependencies import check_command, error_line
 from planter_ros.errors import PlanterError
-from planter_ros.host import stop_signals
 from planter_ros.shipped import package_version
 
 
@@ -132,6 +131,9 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     selected = _selected(argv)
     if selected == ('demo',):     # a stop signal from the very start is a clean stop (demo.run)
+        # lazy: only the demo installs them; host.stop_signals and signal cost every other
+        # command 1.2 ms (-X importtime)
+        from planter_ros.host import stop_signals
         stop_signals.install('planter demo')
     try:
         args = build_parser(argv).parse_args(argv)

@@ -473,7 +473,7 @@ def main(argv: list[str] | None = None) -> int:
     plausibility against the machine's limits. Exit 2 with one line for a bad file."""
     # lazy: only this command line uses them (the nodes that read a machine file load none)
     import argparse
-    import shlex
+    import shlex  # lazy: as argparse
     parser = argparse.ArgumentParser(prog='python -m planter_ros.scene.machine_file',
                                      description='check a machine file; print its ip commands')
     parser.add_argument('file')
