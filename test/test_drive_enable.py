@@ -87,7 +87,9 @@ def test_a_lost_nmt_start_is_repeated_until_the_drive_answers(sim, make_drive, c
 
 
 def test_no_drive_on_the_bus_names_the_first_step(make_drive):
-    drive = make_drive(step_timeout=0.1)
+    # nobody answers: each SDO attempt waits sdo_timeout (the default 1 s, twice, only adds
+    # waiting; the error names the first step whatever the timeout)
+    drive = make_drive(step_timeout=0.1, sdo_timeout=0.25)
     with pytest.raises(DriveError, match=r'identify \(SDO 0x1000.*no SDO answer') as err:
         drive.connect_and_enable()
     assert '\n' not in str(err.value)
