@@ -88,7 +88,9 @@ def test_a_lost_nmt_start_is_repeated_until_the_drive_answers(sim, make_drive, c
 
 
 def test_no_drive_on_the_bus_names_the_first_step(make_drive):
-    drive = make_drive(step_timeout=0.1)
+    # nobody answers: each SDO attempt waits sdo_timeout (the default 1 s, twice, only adds
+    # waiting; the error names the first step whatever the timeout)
+    drive = make_drive(step_timeout=0.1, sdo_timeout=0.25)
     with pytest.raises(DriveError, match=r'identify \(SDO 0x1000.*no SDO answer') as err:
         drive.connect_and_enable()
     assert '\n' not in str(err.value)
@@ -98,12 +100,15 @@ def test_mode_not_confirmed_by_0x6061_is_an_error(channel, make_drive):
     sim = SimulatedDrive(channel)              # it says it offers mode 3 (6502h bit 2) ...
     sim.device.control.supported = ()          # ... but 6060h = 3 leaves 6061h where it was
     sim.start()
+    drive = make_drive(step_timeout=0.1)
     try:
-        drive = make_drive(step_timeout=0.1)
         with pytest.raises(DriveError, match=r'0x6061 reads 0 after writing 3'):
             drive.connect_and_enable()
         assert sim.state == 'SWITCH ON DISABLED'           # never enabled
     finally:
+        # the master off the bus while its drive still answers (the fixture's shutdown after
+        # sim.stop() waited 2 s for a silent bus)
+        drive.shutdown()
         sim.stop()
 
 
@@ -185,8 +190,8 @@ def test_sync_flows_from_before_the_nmt_start_through_enabling_and_homing(channe
     start until the drive is enabled and homed (before, it sent none: the enable timed out)."""
     sim = SimulatedDrive(channel, spec=SimSpec(supported_modes=(3, 8)))
     sim.start()
+    drive = make_drive(operation_mode='csp')
     try:
-        drive = make_drive(operation_mode='csp')
         drive.connect_and_enable()
         frames = drain(spy)
         ids = [(m.arbitration_id, bytes(m.data)) for m in frames]
@@ -201,4 +206,5 @@ def test_sync_flows_from_before_the_nmt_start_through_enabling_and_homing(channe
         assert any(m.arbitration_id == 0x080 for m in drain(spy))
         assert drive.status().enabled and sim.mode_display == 8
     finally:
+        drive.shutdown()        # while the drive answers (after sim.stop(): 2.3 s of waiting)
         sim.stop()

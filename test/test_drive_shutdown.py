@@ -44,7 +44,8 @@ def test_shutdown_is_idempotent_and_ends_the_session(enabled, spy):
 
 
 def test_shutdown_without_a_drive_returns(make_drive):
-    drive = make_drive(step_timeout=0.05)
+    # nobody answers: a short sdo_timeout (the default 1 s, twice, only adds waiting)
+    drive = make_drive(step_timeout=0.05, sdo_timeout=0.25)
     with pytest.raises(DriveError):
         drive.connect_and_enable()
     drive.shutdown()                                # no drive, nothing to wait for

@@ -51,7 +51,8 @@ def test_no_drive_on_the_bus_is_one_line_without_library_noise():
     """A virtual bus nobody answers on: canopen logs an SDO abort; it must not reach stderr."""
     channel = f'nobody-{uuid.uuid4().hex[:8]}'
     out = start('-p', 'can_interface:=virtual', '-p', f'can_channel:={channel}',
-                '-p', 'step_timeout:=0.2', '-p', 'drive_node_id:=5')
+                '-p', 'step_timeout:=0.2', '-p', 'drive_node_id:=5',
+                '-p', 'sdo_timeout:=0.25')     # nobody answers: the default 1 s x 2 only waits
     assert out.returncode == 1
     assert out.stderr.count('\n') == 1, out.stderr
     line = out.stderr.strip()
