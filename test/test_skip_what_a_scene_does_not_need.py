@@ -30,7 +30,8 @@ CLI_MODULES = FIVE_BAR_MODULES | {'planter_ros.cli', 'planter_ros.cli.main',
                                   # plausibility of the speed against the sync law's limits
                                   'planter_ros.plausibility', 'planter_ros.control',
                                   'planter_ros.control.phase_lock', 'planter_ros.sensing',
-                                  'planter_ros.sensing.ground_speed_filter'}
+                                  'planter_ros.sensing.ground_speed_filter',
+                                  'planter_ros.control.odometer'}     # the phase lock's distance
 
 
 def modules_after(code):

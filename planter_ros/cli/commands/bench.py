@@ -8,7 +8,6 @@ from planter_ros.bench.registry import BenchContext, run_cases
 from planter_ros.bench.report import as_json, command_line, format_markdown, format_table
 from planter_ros.cli.main import BadInput
 from planter_ros.output_files import atomic_output, write_text_atomically
-from planter_ros.plots.bench import plot_tradeoff
 
 
 def run(args):
@@ -20,6 +19,9 @@ def run(args):
     if not rows:
         raise BadInput(f'--only = {args.only} matches no bench case')
     if args.plot:
+        # lazy: the plot's module only with --plot (matplotlib, an extra: dependencies; loaded
+        # without one it writes its font cache into the user's home: test_no_leftovers)
+        from planter_ros.plots.bench import plot_tradeoff
         with atomic_output(args.plot) as tmp:
             plot_tradeoff(machine, rows, tmp)
     if args.markdown:
