@@ -124,8 +124,8 @@ class _Limits:
     (a PhaseLockConfig), the ground speeds it accepts (GroundSpeedLimits), a machine file's
     row limits and the tractor's acceleration to follow."""
 
-    law: Any
-    ground: Any
+    law: PhaseLockConfig
+    ground: GroundSpeedLimits
     rows: Sequence[RowLimits] = ()
     tractor_acceleration: float = TRACTOR_ACCELERATION
 

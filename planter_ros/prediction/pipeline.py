@@ -193,7 +193,7 @@ class MonitorPipeline:
             out += self._predicted(on, predictor.add_joint(t, positions[i], velocity))
         return out
 
-    def fix(self, fix: GnssFix) -> list[Placed]:
+    def fix(self, fix: GnssFix[float]) -> list[Placed]:
         """A GNSS fix (sensor_msgs/NavSatFix's fields): it may place plants held."""
         return self._released(self._placer.add_fix(fix))
 

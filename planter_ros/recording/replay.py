@@ -444,7 +444,7 @@ def map_record(map_settings: MapSettings, antenna: AntennaSettings) -> dict[str,
                                           **config.as_dict(antenna)}.items()}
 
 
-def _fixes(topic: TopicMessages | None) -> GnssFix:
+def _fixes(topic: TopicMessages | None) -> GnssFix[FloatArray]:
     """The recorded fixes of `topic` in log order, arrays (none without it); t: the header
     stamp (the receive time if 0)."""
     if topic is None or not topic.raw:

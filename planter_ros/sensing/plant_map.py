@@ -36,9 +36,10 @@ from collections.abc import Mapping, Sequence
 from collections import deque
 from dataclasses import dataclass
 import math
-from typing import Any, Generic, NamedTuple, Protocol, TypeVar
+from typing import Generic, NamedTuple, Protocol, TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from planter_ros.config import check, setting
 from planter_ros.geo import LocalFrame, on_machine
@@ -70,17 +71,20 @@ class MapSettings:
         check(self)
 
 
-class GnssFix(NamedTuple):
-    """GNSS fixes as sensor_msgs/NavSatFix gives them: one fix (numbers) or a recording's in
-    arrival order (arrays)."""
+_V = TypeVar('_V')
 
-    t: Any                  # s, the stamp
-    status: Any             # NavSatStatus.status (STATUS_FIX and above: a position)
-    latitude: Any           # deg
-    longitude: Any          # deg
-    var_east: Any           # m², position_covariance[0]
-    var_north: Any          # m², position_covariance[4]
-    cov_type: Any           # position_covariance_type
+
+class GnssFix(NamedTuple, Generic[_V]):
+    """GNSS fixes as sensor_msgs/NavSatFix gives them: one fix (GnssFix[float]) or a
+    recording's in arrival order (GnssFix of arrays)."""
+
+    t: _V                   # s, the stamp
+    status: _V              # NavSatStatus.status (STATUS_FIX and above: a position)
+    latitude: _V            # deg
+    longitude: _V           # deg
+    var_east: _V            # m², position_covariance[0]
+    var_north: _V           # m², position_covariance[4]
+    cov_type: _V            # position_covariance_type
 
 
 class PlantBatch(Protocol):
@@ -102,9 +106,9 @@ class PlantSpots(NamedTuple):
     """Plants to place: each one's instant (s) and its row's lever arms from the machine's
     reference point (m; `forward` None: 0, on its line)."""
 
-    t: Any
-    lateral: Any
-    forward: Any = None
+    t: ArrayLike
+    lateral: ArrayLike
+    forward: ArrayLike | None = None
 
 
 def fix_sigma(fixes, max_sigma):
@@ -557,7 +561,7 @@ class PlantPlacer(Generic[_P]):
         self._take_fixes()
         return self._release()
 
-    def add_fix(self, fix: GnssFix) -> list[tuple[_P, Placement]]:
+    def add_fix(self, fix: GnssFix[float]) -> list[tuple[_P, Placement]]:
         """One GNSS fix (GnssFix of numbers)."""
         t = float(fix.t)
         if not (math.isfinite(t) and t > self._fix_seen):
