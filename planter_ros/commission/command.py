@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         if f.row in sims and f.phase_offset is not None:
             error = math.degrees(sims[f.row].mechanism_angle_at(f.phase_offset))
             print(f'simulated row {f.row}: mechanical offset '
-                  f'{math.degrees(sims[f.row].mechanical_offset):.2f} deg, wiring '
-                  f'{"reversed" if sims[f.row].motor_reversed else "normal"}; phase error '
+                  f'{math.degrees(sims[f.row].spec.mechanical_offset):.2f} deg, wiring '
+                  f'{"reversed" if sims[f.row].spec.motor_reversed else "normal"}; phase error '
                   f'{error:+.3f} deg')
     return 0

@@ -25,7 +25,7 @@ import math
 import struct
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import can
 import canopen
@@ -405,11 +405,4 @@ class SimulatedDrive(DriveViews):
             device.csp.since = None
             device.control.fault(EMCY_FOLLOWING_ERROR)
             self._send_emcy(EMCY_FOLLOWING_ERROR, error_register(ERROR_REGISTER_GENERIC))
-
-    def __getattr__(self, name: str) -> Any:
-        """Spec fields read as attributes (counts_per_motor_rev, gear_ratio, ...)."""
-        spec = self.__dict__.get('spec')
-        if spec is not None and name in spec.__dataclass_fields__:
-            return getattr(spec, name)
-        raise AttributeError(name)
 

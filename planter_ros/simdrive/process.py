@@ -52,7 +52,7 @@ def drives_report(sims: Any) -> dict[str, Any]:
             'sync': {str(d.node_id): d.sync_summary() for d in sims.drives},
             'heartbeat_gaps': {str(d.node_id): d.heartbeat_gaps.summary() for d in sims.drives},
             'bottom_times': {str(d.node_id): d.bottom_times for d in sims.drives
-                             if d.record_bottom},
+                             if d.spec.record_bottom},
             'faults': {str(d.node_id): {'power_cycles': d.power_cycles,
                                         'emcy_sent': d.emcy_sent} for d in sims.drives},
             'end': end_states(sims.drives)}
