@@ -85,40 +85,69 @@ class Spec:
         return f'{self.description} [{self.allowed()}]'
 
 
-@overload
-def setting(default: _T, description: str = '', *, unit: str = '',
-            range: tuple[float | None, float | None] | None = None,
-            choices: tuple[object, ...] = (), read_only: bool = False,
-            kind: type | None = None, item: type = float) -> _T: ...
+_Range = tuple[float | None, float | None] | None
 
 
 @overload
-def setting(*, description: str = '', unit: str = '',
-            range: tuple[float | None, float | None] | None = None,
-            choices: tuple[object, ...] = (), read_only: bool = False,
-            kind: type[_T], item: type = float) -> _T: ...
+def setting(default: _T, description: str = '', *, unit: str = '', range: _Range = None,
+            read_only: bool = False, kind: type | None = None) -> _T: ...
+
+
+@overload
+def setting(*, description: str = '', unit: str = '', range: _Range = None,
+            read_only: bool = False, kind: type[_T]) -> _T: ...
 
 
 def setting(default: object = MISSING, description: str = '', *, unit: str = '',
-            range: tuple[float | None, float | None] | None = None,
-            choices: tuple[object, ...] = (), read_only: bool = False,
-            kind: type | None = None, item: type = float) -> Any:
+            range: _Range = None, read_only: bool = False, kind: type | None = None) -> Any:
     """A dataclass field carrying its Spec (the one place a configuration value is defined).
 
     `range=(low, high)` is inclusive; either end may be None. `kind` defaults to the type of
-    `default` (a list default means a list of `item`: float, or str for a list of names).
+    `default` (a list default means a list of numbers). A text taking one of a few values is a
+    `choice`, a list of names a `name_list`.
     """
     if kind is None:
         if default is MISSING:
             raise TypeError('setting() without a default needs kind=')
         kind = type(default)
-    if kind not in KINDS:
-        raise TypeError(f'setting kind {kind!r} is not one of {KINDS}')
-    if item not in (float, str):
-        raise TypeError(f'setting item {item!r} is not float or str')
     low, high = range if range is not None else (None, None)
-    meta = {'spec': dict(kind=kind, description=description, unit=unit, low=low, high=high,
-                         choices=tuple(choices), read_only=read_only, item=item)}
+    return _field(default, _Declared(kind, description, unit=unit, low=low, high=high,
+                                     read_only=read_only))
+
+
+def choice(default: str, description: str, choices: tuple[str, ...], *,
+           read_only: bool = False) -> str:
+    """A text setting taking one of `choices` (a dataclass field carrying its Spec)."""
+    return _field(default, _Declared(str, description, choices=tuple(choices),
+                                     read_only=read_only))
+
+
+def name_list(default: list[str], description: str, *,
+              read_only: bool = False) -> list[str]:
+    """A list of names (a ROS string array; a dataclass field carrying its Spec)."""
+    return _field(default, _Declared(list, description, read_only=read_only, item=str))
+
+
+@dataclass(frozen=True)
+class _Declared:
+    """What a setting declares besides its name and default: the rest of its Spec."""
+
+    kind: type
+    description: str
+    unit: str = ''
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[object, ...] = ()
+    read_only: bool = False
+    item: type = float
+
+
+def _field(default: object, declared: _Declared) -> Any:
+    """The dataclass field of a setting: its default (a list: a fresh copy per instance) and
+    its declaration as the field's metadata (read back by `specs`)."""
+    if declared.kind not in KINDS:
+        raise TypeError(f'setting kind {declared.kind!r} is not one of {KINDS}')
+    meta = {'spec': dict(vars(declared))}
     if isinstance(default, list):
         return field(default_factory=lambda: list(default), metadata=meta)
     if default is MISSING:

@@ -20,7 +20,7 @@ import json
 import re
 
 from planter_ros import interfaces
-from planter_ros.config import ConfigError, check, from_mapping, setting
+from planter_ros.config import ConfigError, check, from_mapping, name_list, setting
 
 IMPLICIT = ''                      # the name of the one row of a scene without `rows`
 _NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
@@ -30,10 +30,10 @@ _NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
 class RowLayout:
     """Which rows the machine has (fixed at start-up)."""
 
-    rows: list[str] = setting([], 'names of the planting units (rows); each has a block of row '
-                         'settings <row>.lateral_offset, <row>.drive_node_id, <row>.enabled, '
-                         '<row>.seedling_sensor; empty = one implicit row', item=str,
-                         read_only=True)
+    rows: list[str] = name_list([], 'names of the planting units (rows); each has a block of '
+                                'row settings <row>.lateral_offset, <row>.drive_node_id, '
+                                '<row>.enabled, <row>.seedling_sensor; empty = one implicit '
+                                'row', read_only=True)
     seedling_sensor: bool = setting(True, 'the rows carry a seedling sensor (an optical cup or '
                                     'drop-tube sensor counting the seedlings of each cycle, '
                                     'topic seedlings): a scene without rows, its one row; with '

@@ -56,7 +56,7 @@ from dataclasses import dataclass
 import math
 from typing import TYPE_CHECKING, Any
 
-from planter_ros.config import ConfigError, check, setting
+from planter_ros.config import ConfigError, check, choice, setting
 from planter_ros.sensing.ground_speed_filter import GroundSpeedFilter, GroundSpeedLimits
 
 from .odometer import Odometer
@@ -98,13 +98,13 @@ class PhaseLockConfig:
                                           '= stale: ramp to 0, then halt (longer, the rows '
                                           'plant blind: 2 s at 1.5 m/s is 3 m)', unit='s',
                                           range=(0.05, 2.0))
-    speed_profile: str = setting('constant', "the sun bar's motion within each plant: constant "
-                                 '(2πv/(n·d)) or cam (θ(s) of the row\'s travelled distance, '
-                                 'five-bar only, CSP drives only; doc/cam.md)',
-                                 choices=('constant', 'cam'), read_only=True)
-    cam_rule: str = setting('design_speed', "the cam's in-soil law: design_speed (the "
-                            "mechanism's own zero-speed ratio) or zero_slip",
-                            choices=('design_speed', 'zero_slip'), read_only=True)
+    speed_profile: str = choice('constant', "the sun bar's motion within each plant: constant "
+                                '(2πv/(n·d)) or cam (θ(s) of the row\'s travelled distance, '
+                                'five-bar only, CSP drives only; doc/cam.md)',
+                                ('constant', 'cam'), read_only=True)
+    cam_rule: str = choice('design_speed', "the cam's in-soil law: design_speed (the "
+                           "mechanism's own zero-speed ratio) or zero_slip",
+                           ('design_speed', 'zero_slip'), read_only=True)
 
     def __post_init__(self) -> None:
         check(self, ControlConfigError)

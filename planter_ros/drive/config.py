@@ -13,7 +13,7 @@ as 16-bit milliseconds, hence the ranges.
 
 from dataclasses import dataclass, fields
 
-from planter_ros.config import check, setting
+from planter_ros.config import check, choice, setting
 
 from .errors import DriveConfigError
 
@@ -111,11 +111,10 @@ class DeviceConfig:
                                    unit='s', range=(0.1, 10.0), read_only=True)
     eds_path: str = setting('', "the drive's EDS file; empty = config/planter_drive.eds",
                             read_only=True)
-    operation_mode: str = setting('auto', "'csp': cyclic synchronous position (mode 8, "
-                                  "position targets on SYNC); 'velocity': profile velocity "
-                                  "(mode 3); 'auto': csp when the drive's 0x6502 offers it, "
-                                  'else velocity', choices=('auto', 'csp', 'velocity'),
-                                  read_only=True)
+    operation_mode: str = choice('auto', "'csp': cyclic synchronous position (mode 8, "
+                                 "position targets on SYNC); 'velocity': profile velocity "
+                                 "(mode 3); 'auto': csp when the drive's 0x6502 offers it, "
+                                 'else velocity', ('auto', 'csp', 'velocity'), read_only=True)
     following_error_window: float = setting(0.2, 'CSP: following error the drive tolerates '
                                             '(0x6065), mechanism angle', unit='rad',
                                             range=(0.001, 10.0), read_only=True)

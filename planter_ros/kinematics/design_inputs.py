@@ -10,7 +10,7 @@ models' job (`design.build.design_for_scene`). Light module: no numpy, no models
 from dataclasses import dataclass
 import math
 
-from planter_ros.config import check, setting
+from planter_ros.config import check, choice, setting
 
 from .errors import DesignError
 from .mechanisms import MECHANISMS, PITCH_CURVE_INTERPOLANTS
@@ -35,15 +35,15 @@ class DesignInputs:
     """Every design's inputs: the crop's agronomic needs and the mechanism (SI units)."""
 
     crop: str = setting('tomato', 'crop name, for people and recordings')
-    mechanism: str = setting('five_bar', 'planting mechanism: five_bar (1 plant per revolution) '
-                             'or three_arm (3 plants per revolution)', choices=MECHANISMS)
+    mechanism: str = choice('five_bar', 'planting mechanism: five_bar (1 plant per revolution) '
+                            'or three_arm (3 plants per revolution)', MECHANISMS)
     planting_depth: float = setting(0.045, 'planting depth D', unit='m', range=(0.001, 0.5))
     plant_spacing: float = setting(0.2, 'plant spacing d along the row', unit='m',
                                    range=(0.05, 2.0))
     hole_ratio: float = setting(0.05, 'five-bar: hole entry-exit distance over depth, '
                                 'k = t/D; feasible while k·D < d and l1 > 0', range=(1e-4, 2.0))
-    design_method: str = setting('exact', "five-bar reverse design: exact, or paper (the "
-                                 "paper's cube-root approximation)", choices=('exact', 'paper'))
+    design_method: str = choice('exact', "five-bar reverse design: exact, or paper (the "
+                                "paper's cube-root approximation)", ('exact', 'paper'))
     dyad_ratios: list[float] = setting([1.4, 1.5, 1.3], 'five-bar passive dyad l3, l4, l5 over '
                                 '(l1 + l2)', range=(0.01, 100.0))
     nominal_ground_speed: float = setting(0.2, 'nominal ground speed v: the reported mechanism '
@@ -94,10 +94,10 @@ class ThreeArmInputs:
                                    unit='m', range=(0.0, 0.5))
     planet_carrier_angle: float = setting(kind=float, description='planet-carrier angle γ0',
                                           unit='rad', range=(-2 * math.pi, 2 * math.pi))
-    interpolant: str = setting('periodic_cubic', 'pitch-curve reading of the control points: '
-                               'interpolating (periodic_cubic, trigonometric) or approximating '
-                               'B-spline with the points as control polygon (bspline_polar, '
-                               'bspline_cartesian)', choices=PITCH_CURVE_INTERPOLANTS)
+    interpolant: str = choice('periodic_cubic', 'pitch-curve reading of the control points: '
+                              'interpolating (periodic_cubic, trigonometric) or approximating '
+                              'B-spline with the points as control polygon (bspline_polar, '
+                              'bspline_cartesian)', PITCH_CURVE_INTERPOLANTS)
     picking_phase: float = setting(-1.0, 'carrier angle of arm I at picking, for the picking '
                                    'and angle-difference goals; negative: at the highest tip '
                                    'point', unit='rad', range=(-1.0, 2 * math.pi))

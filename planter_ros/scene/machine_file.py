@@ -32,7 +32,8 @@ from typing import Any
 
 import yaml
 
-from planter_ros.config import ConfigError, Spec, check, from_mapping, setting, specs
+from planter_ros.config import (
+    ConfigError, Spec, check, choice, from_mapping, name_list, setting, specs)
 from planter_ros.drive.config import DriveConfig
 from planter_ros.drive.plan import plan_for_file
 from planter_ros.drive.setup import HOMING_ALLOWED, DriveSetup, homing_method_ok
@@ -118,8 +119,8 @@ class MachineRow:
                                 'carrier) turn', range=(0.01, 1000.0))
     encoder_counts: int = setting(kind=int, description='encoder counts per motor turn (0x6064 '
                                   'units)', range=(1, 1 << 24))
-    polarity: str = setting('normal', 'motor turning direction for a forward mechanism turn: '
-                            'normal, or reversed (0x607E bits 6 and 7 set)', choices=POLARITIES)
+    polarity: str = choice('normal', 'motor turning direction for a forward mechanism turn: '
+                           'normal, or reversed (0x607E bits 6 and 7 set)', POLARITIES)
     homing_method: int = setting(0, 'CiA 402 homing method (0x6098): 0 none (the position at '
                                  'enable is zero), 1..14, 17..30, 33..35, 37 the standard '
                                  'methods (e.g. 33/34 the index pulse, 35/37 the current '
@@ -136,8 +137,8 @@ class MachineRow:
                                             range=(0.1, 1e7))
     max_torque: float = setting(kind=float, description="the drive's torque limit at the motor "
                                 '(0x6072 in N·m)', unit='N·m', range=(0.001, 1e4))
-    modes: list = setting(['pv'], 'CiA 402 modes the drive supports (0x6502): csp (cyclic '
-                          'synchronous position, 8), pv (profile velocity, 3)', item=str)
+    modes: list[str] = name_list(['pv'], 'CiA 402 modes the drive supports (0x6502): csp '
+                                 '(cyclic synchronous position, 8), pv (profile velocity, 3)')
     vendor_id: int = setting(-1, 'vendor-ID the drive must report (0x1018:1), checked before '
                              'enabling; -1: not checked (commissioning writes what it found)',
                              range=(-1, 0xFFFF_FFFF))

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 import math
 
-from planter_ros.config import ConfigError, check, setting
+from planter_ros.config import ConfigError, check, choice, name_list, setting
 from planter_ros.shipped import shipped_file
 
 __all__ = ['CourseYawRate', 'GroundSpeedSourceConfig', 'IsobusSpeedDecoder', 'PGNS',
@@ -71,10 +71,10 @@ MIN_PULSES_PER_METRE = 0.01         # one pulse per 100 m: no coarser sensor mea
 class GroundSpeedSourceConfig:
     """The ground-speed node's sources (its parameters; fixed while it runs)."""
 
-    sources: list = setting(['isobus_selected', 'isobus_ground', 'gnss'], 'ground-speed '
-                            'sources in order of preference: isobus_selected, isobus_ground, '
-                            'isobus_wheel, gnss, pulses; the first heard from within '
-                            'source_timeout is used', item=str, read_only=True)
+    sources: list[str] = name_list(['isobus_selected', 'isobus_ground', 'gnss'], 'ground-speed '
+                                   'sources in order of preference: isobus_selected, '
+                                   'isobus_ground, isobus_wheel, gnss, pulses; the first heard '
+                                   'from within source_timeout is used', read_only=True)
     source_timeout: float = setting(0.3, 'a source silent for longer hands over to the next '
                                     '(ISOBUS sends every 100 ms)', unit='s', range=(0.05, 5.0),
                                     read_only=True)
@@ -82,9 +82,9 @@ class GroundSpeedSourceConfig:
                                     "('virtual' in tests)", read_only=True)
     isobus_channel: str = setting('', "the tractor's ISOBUS CAN channel (e.g. can1, brought up "
                                   'at 250 kbit/s); empty: no ISOBUS', read_only=True)
-    yaw_rate_source: str = setting('gnss', 'yaw rate (twist.angular.z) from the GNSS course, an '
-                                   'IMU (imu/data) or none (0: straight)',
-                                   choices=('gnss', 'imu', 'none'), read_only=True)
+    yaw_rate_source: str = choice('gnss', 'yaw rate (twist.angular.z) from the GNSS course, an '
+                                  'IMU (imu/data) or none (0: straight)',
+                                  ('gnss', 'imu', 'none'), read_only=True)
     min_course_speed: float = setting(0.3, 'below this speed the GNSS course gives no yaw rate',
                                       unit='m/s', range=(0.01, 10.0), read_only=True)
     pulses_per_metre: float = setting(0.0, 'wheel or radar pulses per metre travelled '
