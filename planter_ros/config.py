@@ -14,7 +14,7 @@ Ranges are inclusive and in the field's SI unit. Pure Python: no ROS import.
 """
 
 from collections.abc import Callable, Mapping
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields, replace
 import math
 from typing import TYPE_CHECKING, Any, NoReturn, TypeVar, overload
 
@@ -111,43 +111,30 @@ def setting(default: object = MISSING, description: str = '', *, unit: str = '',
             raise TypeError('setting() without a default needs kind=')
         kind = type(default)
     low, high = range if range is not None else (None, None)
-    return _field(default, _Declared(kind, description, unit=unit, low=low, high=high,
-                                     read_only=read_only))
+    return _field(default, Spec('', kind, default, description, unit=unit, low=low, high=high,
+                                read_only=read_only))
 
 
 def choice(default: str, description: str, choices: tuple[str, ...], *,
            read_only: bool = False) -> str:
     """A text setting taking one of `choices` (a dataclass field carrying its Spec)."""
-    return _field(default, _Declared(str, description, choices=tuple(choices),
-                                     read_only=read_only))
+    return _field(default, Spec('', str, default, description, choices=tuple(choices),
+                                read_only=read_only))
 
 
 def name_list(default: list[str], description: str, *,
               read_only: bool = False) -> list[str]:
     """A list of names (a ROS string array; a dataclass field carrying its Spec)."""
-    return _field(default, _Declared(list, description, read_only=read_only, item=str))
+    return _field(default, Spec('', list, default, description, read_only=read_only, item=str))
 
 
-@dataclass(frozen=True)
-class _Declared:
-    """What a setting declares besides its name and default: the rest of its Spec."""
-
-    kind: type
-    description: str
-    unit: str = ''
-    low: float | None = None
-    high: float | None = None
-    choices: tuple[object, ...] = ()
-    read_only: bool = False
-    item: type = float
-
-
-def _field(default: object, declared: _Declared) -> Any:
+def _field(default: object, declared: Spec) -> Any:
     """The dataclass field of a setting: its default (a list: a fresh copy per instance) and
-    its declaration as the field's metadata (read back by `specs`)."""
+    its Spec as the field's metadata, named and given its default by `specs` (the field's name
+    is known only there)."""
     if declared.kind not in KINDS:
         raise TypeError(f'setting kind {declared.kind!r} is not one of {KINDS}')
-    meta = {'spec': dict(vars(declared))}
+    meta = {'spec': declared}
     if isinstance(default, list):
         return field(default_factory=lambda: list(default), metadata=meta)
     if default is MISSING:
@@ -165,7 +152,7 @@ def specs(cls: 'DataclassInstance | type[DataclassInstance]') -> list[Spec]:
         default = f.default
         if f.default_factory is not MISSING:
             default = f.default_factory()
-        out.append(Spec(name=f.name, default=default, **meta))
+        out.append(replace(meta, name=f.name, default=default))
     return out
 
 
