@@ -7,14 +7,19 @@ Real-time tests: a test that passes only when scheduled in real time (a live ROS
 a simulated drive and its master, a `planter demo` run, commissioning, signal and process-death
 timings) carries the marker `realtime`: `pytestmark = pytest.mark.realtime` at the top of its
 module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.mark.realtime)`
-on one case. That is the only list. With two processes (pytest.ini) every test so marked runs on
-one process, one after the other as in a serial run, first; the other process runs the rest
-meanwhile at a lower CPU priority (`BACKGROUND_NICE` above the priority the session started
-with), so it never starves them. No process of the suite ever runs above the priority the
-session was started with. A test that uses a live fixture (`LIVE_FIXTURES`: `ros`, `sim`,
-`channel`, `make_drive`, ...) or starts something live (`LIVE_NAMES`: a demo run, a node, a
-simulated bus, rclpy) without the marker fails, naming the marker: a new module cannot be
-forgotten.
+on one case. That is the only list. With three processes (pytest.ini) the tests so marked run
+on two of them, `REALTIME_LANES`, first, a module's at a time and one test after the other on each
+(as in a serial run); the third process runs the rest meanwhile, and the two join it once the
+real-time tests are done. Every test not so marked runs at a lower CPU priority
+(`BACKGROUND_NICE` above the priority the session started with), so it never starves them. Two
+real-time tests at once share the two cores: the product's own real-time processes (the demo's
+command process, the simulated drives) run SCHED_FIFO as they would on the machine (measured:
+the suite's real-time tests pass two at a time, and `planter bench`'s demo-runs case runs demos
+beside two CPU hogs). No process of the suite
+ever runs above the priority the session was started with. A test that uses a live fixture
+(`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
+(`LIVE_NAMES`: a demo run, a node, a simulated bus, rclpy) without the marker fails, naming
+the marker: a new module cannot be forgotten.
 
 A real-time test that fails while the host itself left every process unscheduled for more than
 host_stalls.STARVED s runs once more (host_stalls.py). Nothing hides it: the first run's failure
@@ -73,10 +78,10 @@ LIVE_NAMES = frozenset({'start_demo', 'SyncNode', 'MonitorNode', 'DesignNode',
                         'create_node', 'Context', 'SimulatedBus', 'SimulatedDrive',
                         'SimProcess'})
 REALTIME = 'realtime'
-BACKGROUND_NICE = 10       # the other tests' nice value, added to the session's while real-time
+REALTIME_LANES = 2         # processes that run real-time tests (two at once at most)
+BACKGROUND_NICE = 10       # the other tests' nice value, added to the session's
 START_NICE = os.getpriority(os.PRIO_PROCESS, 0)    # the priority this process started with
 
-_LAST_REALTIME = pytest.StashKey[str]()
 _UNMARKED = pytest.StashKey[str]()
 
 
@@ -136,40 +141,59 @@ def _realtime_ids_file(config):
     return _ids_file(config) / 'realtime-tests.json'
 
 
-def _realtime_done_file(config):
-    """There once the real-time tests are done."""
-    return _ids_file(config) / 'realtime-tests-done'
+def _number(node):
+    """gw3 -> 3: the processes in the order xdist numbers them."""
+    name = node.gateway.id
+    return (int(name[2:]) if name[2:].isdigit() else 0, name)
 
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
-    """Whole modules as units of work (their module fixtures made once), the tests marked
-    realtime together as one unit (xdist's own --dist loadgroup cannot group with this
-    pytest). The controller collects nothing itself: the workers write the realtime tests'
-    ids at collection (pytest_collection_modifyitems), before it schedules."""
+    """Whole modules as units of work (their module fixtures made once); a module's tests
+    marked realtime a unit of their own (xdist's own --dist loadgroup cannot group with this
+    pytest). The first REALTIME_LANES processes take the real-time units first, the unit
+    after the current one as it ends, then any other unit; the other processes never run a
+    real-time test. The controller collects nothing itself: the workers write the realtime
+    tests' ids at collection (pytest_collection_modifyitems), before it schedules."""
+    # lazy: a pytest hook of xdist's, called only when xdist runs the session
     from xdist.scheduler import LoadScopeScheduling
 
-    class RealtimeTogether(LoadScopeScheduling):
+    class RealtimeLanes(LoadScopeScheduling):
         _ids = None
 
         def _split_scope(self, nodeid):
             if self._ids is None:
                 self._ids = frozenset(json.loads(_realtime_ids_file(config).read_text()))
-            return REALTIME if nodeid in self._ids else _module(nodeid)
-    return RealtimeTogether(config, log)
+            module = _module(nodeid)
+            return f'{REALTIME} {module}' if nodeid in self._ids else module
+
+        def _assign_work_unit(self, node):
+            lanes = sorted(self.nodes, key=_number)[:REALTIME_LANES]
+            realtime = [scope for scope in self.workqueue if scope.startswith(REALTIME + ' ')]
+            others = [scope for scope in self.workqueue if scope not in realtime]
+            eligible = (realtime or others) if node in lanes else others
+            if not eligible:                         # only real-time units left, none for it
+                if not node.shutting_down:
+                    node.shutdown()
+                return
+            scope = eligible[0]
+            work_unit = self.workqueue.pop(scope)
+            self.assigned_work.setdefault(node, {})[scope] = work_unit
+            collection = self.registered_collections[node]
+            node.send_runtest_some([collection.index(nodeid)
+                                    for nodeid, done in work_unit.items() if not done])
+    return RealtimeLanes(config, log)
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """The real-time tests first (one process takes them as one unit, the unit it is given
-    first); then the modules with a test marked `slow`, so that both processes end together.
-    Orders kept otherwise. A test that needs the realtime marker and lacks it is noted (it
-    fails at its set-up)."""
+    """The real-time tests first (the real-time lanes take them first); then the modules with
+    a test marked `slow`, so that the processes end together. Orders kept otherwise. A test
+    that needs the realtime marker and lacks it is noted (it fails at its set-up)."""
     slow = {_module(item.nodeid) for item in items if item.get_closest_marker('slow')}
     items[:] = sorted(items, key=lambda item: (not _realtime(item),
                                                _module(item.nodeid) not in slow))
     realtime = [item.nodeid for item in items if _realtime(item)]
-    config.stash[_LAST_REALTIME] = realtime[-1] if realtime else None
     for item in items:
         if item.get_closest_marker('flaky'):
             item.stash[_UNMARKED] = ('flaky: a re-run that hides its first failure (pytest-'
@@ -190,10 +214,10 @@ def pytest_collection_modifyitems(config, items):
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
     """The CPU priority of this process for the test: the real-time tests at the priority the
-    session started with, the other tests BACKGROUND_NICE lower while real-time tests still
-    run elsewhere (so a second test process never starves their 10 ms loops and 0.2 s
-    watchdogs), else at the start's again. Never above the start's; without the right to
-    change it (not root), what can be set is set."""
+    session started with, the other tests BACKGROUND_NICE lower (so the processes running
+    the rest never starve the real-time tests' 10 ms loops and 0.2 s watchdogs). A real-time
+    lane runs its real-time tests first, so it is lowered only once they are done. Never above
+    the start's; without the right to change it (not root), what can be set is set."""
     refused = item.stash.get(_UNMARKED, '')
     if refused:
         pytest.fail(f'{item.nodeid} {refused}', pytrace=False)
@@ -204,12 +228,7 @@ def pytest_runtest_setup(item):
         # it, the ~300 000 objects of a session's real-time process cost 150-240 ms per full
         # collection, a stop of every thread the loops under test never see in the product.
         gc.freeze()
-    done = (item.config.stash.get(_LAST_REALTIME, None) is None
-            or _realtime_done_file(item.config).exists())
-    if _realtime(item) or done:
-        _set_nice(START_NICE)
-    else:
-        _set_nice(min(START_NICE + BACKGROUND_NICE, 19))
+    _set_nice(START_NICE if _realtime(item) else min(START_NICE + BACKGROUND_NICE, 19))
 
 
 def _set_nice(wanted):
@@ -225,8 +244,6 @@ def _set_nice(wanted):
 def pytest_runtest_teardown(item, nextitem):
     if _realtime(item):
         gc.unfreeze()                    # collectable again, between the tests
-    if item.nodeid == item.config.stash.get(_LAST_REALTIME, None):
-        _realtime_done_file(item.config).touch()
 
 
 @pytest.hookimpl(tryfirst=True)

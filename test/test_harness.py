@@ -13,8 +13,8 @@ its JUnit file:
   naming the marker; a test marked flaky fails, and --reruns is refused (pytest-rerunfailures
   comes with colcon);
 * a session started 5 below this one's priority runs nothing, not even the stall watcher,
-  above that; the
-  real-time tests of several modules run on one process, before the others there.
+  above that, and the tests not marked realtime 10 below it; the real-time tests of several
+  modules run on two processes (never more at once), before the others there.
 """
 import os
 from pathlib import Path
@@ -210,7 +210,7 @@ def note(kind):
 """
 
 
-def test_nothing_runs_above_the_sessions_priority_and_realtime_tests_run_together_first(
+def test_nothing_runs_above_the_sessions_priority_and_realtime_tests_run_on_two_lanes_first(
         tmp_path):
     realtime = PRIORITY + """
 pytestmark = pytest.mark.realtime
@@ -221,17 +221,21 @@ def test_realtime_1():
     w = host_stalls.watcher().pid
     with open(os.path.join(os.environ['RUNS'], 'watcher'), 'w') as f:
         f.write(str(os.getpriority(os.PRIO_PROCESS, w)))
-    time.sleep(0.5)
+    time.sleep(1.0)
+    note('end')
 
 
 def test_realtime_2():
     note('realtime')
-    time.sleep(0.5)
+    time.sleep(1.0)
+    note('end')
 """
     other = PRIORITY + """
 @pytest.mark.realtime
 def test_realtime_3():
     note('realtime')
+    time.sleep(1.0)
+    note('end')
 
 
 def test_other_1():
@@ -244,16 +248,25 @@ def test_other_2():
     # 5 below this process's priority (which may already be lowered: the suite runs this
     # test beside the real-time ones)
     start = min(os.getpriority(os.PRIO_PROCESS, 0) + 5, 19)
-    out, junit = pytest_run(tmp_path, None, '-n', '2', nice=5,
-                            modules={'test_a.py': realtime, 'test_b.py': other})
+    out, junit = pytest_run(tmp_path, None, '-n', '3', nice=5,
+                            modules={'test_a.py': realtime, 'test_b.py': other,
+                                     'test_c.py': realtime.replace('_realtime_', '_third_')})
     assert out.returncode == 0, out.stdout[-3000:]
     runs = [line.split() for line in (tmp_path / 'runs' / 'nice').read_text().splitlines()]
-    assert len(runs) == 5
+    assert len(runs) == 5 * 2 + 2, runs             # 5 real-time (start, end), 2 others
     assert all(int(nice) >= start for _, _, nice, _ in runs), runs
     assert all(int(nice) == start for kind, _, nice, _ in runs if kind == 'realtime'), runs
+    assert all(int(nice) == min(start + 10, 19) for kind, _, nice, _ in runs
+               if kind == 'other'), runs
     assert int((tmp_path / 'runs' / 'watcher').read_text()) >= start
-    assert len({worker for kind, worker, _, _ in runs if kind == 'realtime'}) == 1
-    realtime_worker = next(worker for kind, worker, _, _ in runs if kind == 'realtime')
-    there = [kind for kind, worker, _, _ in sorted(runs, key=lambda r: float(r[3]))
-             if worker == realtime_worker]
-    assert there == sorted(there, key=lambda kind: kind != 'realtime'), runs
+    # two processes (the first two) run the real-time tests, never more at once
+    assert {worker for kind, worker, _, _ in runs if kind == 'realtime'} == {'gw0', 'gw1'}
+    events = sorted((float(at), kind) for kind, _, _, at in runs if kind in ('realtime', 'end'))
+    running = [sum(+1 if kind == 'realtime' else -1 for _, kind in events[:k + 1])
+               for k in range(len(events))]
+    assert max(running) <= 2, events
+    # on a process that runs both, the real-time tests first
+    for lane in ('gw0', 'gw1'):
+        there = [kind for kind, worker, _, _ in sorted(runs, key=lambda r: float(r[3]))
+                 if worker == lane and kind != 'end']
+        assert there == sorted(there, key=lambda kind: kind != 'realtime'), runs
