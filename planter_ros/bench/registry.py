@@ -27,6 +27,7 @@ import traceback
 
 from planter_ros.config import ConfigError, setting
 
+from .hogs import HOGS, QUICK_HOGS
 from .timing import Timing, measure
 
 _T = TypeVar('_T')
@@ -142,6 +143,11 @@ class BenchContext:
     def n(self, full: _T, quick: _T) -> _T:
         """The size to use: `full` for a real run, `quick` for the CI smoke run."""
         return quick if self.quick else full
+
+    @property
+    def hogs(self) -> int:
+        """How many CPU hogs run beside a run under load (bench.hogs)."""
+        return self.n(HOGS, QUICK_HOGS)
 
     def measure(self, fn: Callable[[], object], repeats: int | None = None,
                 min_time: float | None = None) -> Timing:

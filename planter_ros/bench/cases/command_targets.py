@@ -1,36 +1,34 @@
 """The command path's targets (doc/command.md), measured on whole runs of the real processes.
 
 * command-latency: ground-speed sample → CAN frame, 8 rows, quiet and with two CPU-bound
-  processes beside it. The demo's command path (`demo.sync_process`: the sync node's shell, its
-  command process at its real-time priority, the simulated drives in a process of their own)
-  in profile velocity, where a sample sends its rows' frames at once (in CSP the next SYNC step
-  sends them, up to one SYNC period later), fed 50 Hz samples by this process over DDS. The
+  processes beside it (one in --quick). The demo's command path (`demo.sync_process`: the sync
+  node's shell, its command process at its real-time priority, the simulated drives in a
+  process of their own) in profile velocity, where a sample sends its rows' frames at once (in
+  CSP the next SYNC step sends them, up to one SYNC period later), fed 50 Hz samples by this
+  process over DDS. The
   figure is the command process's own: from the shell's receive time of a sample (the same
   monotonic clock in both processes), across the channel, to the last row's RPDO sent. DDS
   delivery to the shell comes on top and is not in it.
 * demo-runs under load: `planter demo` of the 4-row scene (CSP, SYNC 10 ms, the field run's
-  speed change, turns and stop), `--runs` times (default 10), two CPU hogs beside each run.
+  speed change, turns and stop), `--runs` times (default 10), two CPU hogs beside each run
+  (one in --quick).
   Per run: the verdict, the drives' watchdog trips, each row's spacing error RMS from the
   replay of the run's bag (the plants where the monitor places them: the distance integrated
   from the recorded ground speed; not the command process's own view), and the SYNC interval
   as the command process sent it (p1 and p99 of every interval, the largest) next to the
   largest SYNC gap the drives saw on their own clock.
 
-The hogs are `python -c "while True: pass"` processes that die with the bench, also when it is
-killed (planter_ros.host.processes). The host's load average is noted with each run: timings on a
+The hogs: bench.hogs. The host's load average is noted with each run: timings on a
 shared host say little without it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import contextmanager
 import io
 import math
 import os
 from pathlib import Path
-import subprocess
-import sys
 import tempfile
 import time
 from typing import Any, TypedDict
@@ -50,23 +48,22 @@ from planter_ros.demo.run import DemoResult, prepare
 from planter_ros.demo.sync_process import SyncProcess, SyncProcessSettings
 from planter_ros.design import to_json
 from planter_ros.host.dds_domain import claim_private_domain
-from planter_ros.host.processes import preexec_die_with_parent
 from planter_ros.recording.replay import replay
 from planter_ros.scene import default_scene_path
 from planter_ros.sim.runs import five_bar_design_message
 
+from ..hogs import cpu_hogs
 from ..registry import BenchContext, Row, Target, bench_case
 from .sync import row_parameters
 from ..timing import Timing, from_samples
 
-HOGS = 2
 RATE = 50.0                     # Hz, ground-speed samples of the latency case
 LATENCY_ROWS = 8
 LATENCY_TARGET = 1e-3           # s, p99
 SETTLE = 1.0                    # s between the design taking effect and the first sample
 WHAT_LATENCY = (f"command path, {LATENCY_ROWS} rows, profile velocity: ground-speed sample "
                 "(shell's receive) → last row's CAN frame sent")
-WHAT_RUNS = '4-row demo in CSP (SYNC 10 ms), two CPU hogs beside each run'
+WHAT_RUNS = '4-row demo in CSP (SYNC 10 ms), CPU hogs beside each run'
 SCENE = 'tomato_4row.yaml'
 RUNS = 10
 SPACING_TARGET = 0.005          # spacing error RMS per row, fraction of d
@@ -86,20 +83,6 @@ def _load(before: float | None, after: float | None) -> str:
     if before is None or after is None:
         return 'load average unknown'
     return f'load average {before:.1f}→{after:.1f}'
-
-
-@contextmanager
-def cpu_hogs(count: int = HOGS) -> Iterator[list[subprocess.Popen[bytes]]]:
-    """`count` CPU-bound processes for the length of the block; they die with this process,
-    also when it is killed with SIGKILL."""
-    hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'],
-                             preexec_fn=preexec_die_with_parent()) for _ in range(count)]
-    try:
-        yield hogs
-    finally:
-        for hog in hogs:
-            hog.kill()
-            hog.wait()
 
 
 def latency_timing(histogram: dict[str, Any]) -> tuple[Timing, int, float]:
@@ -167,7 +150,7 @@ def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
 @bench_case('command-latency')
 def command_latency(ctx: BenchContext) -> Iterator[Row]:
     seconds = ctx.n(20.0, 2.0)
-    for hogs in (0, HOGS):
+    for hogs in (0, ctx.hogs):
         ctx.progress(f'  {LATENCY_ROWS} rows, {seconds:g} s of {RATE:g} Hz samples, '
                      f'{hogs} CPU hogs beside it ...')
         before = load_average()
@@ -228,16 +211,17 @@ def _silent(text: str) -> None:
     pass
 
 
-def demo_runs(runs: int, duration: float, progress: Callable[[str], None] = _silent
+def demo_runs(runs: int, duration: float, hogs: int,
+              progress: Callable[[str], None] = _silent
               ) -> list[tuple[float, RunFigures, tuple[float | None, float | None]]]:
-    """`runs` 4-row demo runs of `duration` s, HOGS CPU hogs beside each; per run (seconds,
+    """`runs` 4-row demo runs of `duration` s, `hogs` CPU hogs beside each; per run (seconds,
     figures, load average before and after)."""
     out: list[tuple[float, RunFigures, tuple[float | None, float | None]]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
             bag = str(Path(tmp) / f'run{k}.mcap')
             before = load_average()
-            with cpu_hogs():
+            with cpu_hogs(hogs):
                 demo = prepare(DemoOptions(scene=str(default_scene_path(SCENE)),
                                            duration=duration, bag=bag),
                                out=io.StringIO(), install_signals=False, log_level='error')
@@ -278,8 +262,8 @@ def _sync_within(stats: PeriodStats, period: float) -> bool:
 def demo_runs_under_load(ctx: BenchContext) -> Iterator[Row]:
     runs = ctx.runs or ctx.n(RUNS, 1)
     duration = ctx.n(30.0, 8.0)
-    ctx.progress(f'  {runs} run(s) of {duration:g} s, {HOGS} CPU hogs beside each ...')
-    results = demo_runs(runs, duration, ctx.progress)
+    ctx.progress(f'  {runs} run(s) of {duration:g} s, {ctx.hogs} CPU hog(s) beside each ...')
+    results = demo_runs(runs, duration, ctx.hogs, ctx.progress)
     error_of = ("the run's worst row: spacing error RMS over d, replay of the run's bag")
     pooled = PeriodStats()
     for k, (seconds, fig, (before, after)) in enumerate(results):
@@ -295,7 +279,8 @@ def demo_runs_under_load(ctx: BenchContext) -> Iterator[Row]:
                        f"{fig['trips']} watchdog trip(s); spacing RMS of d: {rms}; "
                        f"{_sync_text(fig['sync'], fig['period'])}; the drives' largest SYNC "
                        f"gap {fig['drive_sync_max'] * 1e3:.1f} ms; {_load(before, after)}",
-                  extra={'run': k + 1, 'passed': fig['passed'], 'watchdog_trips': fig['trips'],
+                  extra={'run': k + 1, 'hogs': ctx.hogs, 'passed': fig['passed'],
+                         'watchdog_trips': fig['trips'],
                          'spacing_rms_of_d': fig['rows'],
                          'sync_p1_s': fig['sync'].quantile(0.01),
                          'sync_p99_s': fig['sync'].quantile(0.99),
@@ -314,9 +299,10 @@ def demo_runs_under_load(ctx: BenchContext) -> Iterator[Row]:
                        Target('spacing RMS ≤ 0.5 % of d per row', worst <= SPACING_TARGET),
                        Target('SYNC interval p99 within ±1 ms', _sync_within(pooled, period)
                               and all(_sync_within(f['sync'], period) for f in figures))],
-              note=f'{passed}/{runs} PASS, {trips} watchdog trip(s), worst row spacing RMS '
+              note=f'{ctx.hogs} CPU hog(s) beside each run; {passed}/{runs} PASS, {trips} '
+                   f'watchdog trip(s), worst row spacing RMS '
                    f'{100 * worst:.2f} % of d; pooled {_sync_text(pooled, period)}',
-              extra={'runs': runs, 'duration_s': duration, 'passed': passed,
+              extra={'runs': runs, 'hogs': ctx.hogs, 'duration_s': duration, 'passed': passed,
                      'watchdog_trips': trips, 'worst_spacing_rms_of_d': worst,
                      'sync_p1_s': pooled.quantile(0.01), 'sync_p99_s': pooled.quantile(0.99),
                      'sync_max_s': pooled.max_gap})

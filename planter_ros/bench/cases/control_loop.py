@@ -2,7 +2,7 @@
 loaded machine?
 
 Whole `planter demo` runs (the default scene: one five-bar row, 30 s; --quick: one 8 s run),
-each with two CPU-bound processes (`python -c "while True: pass"`) beside it for the whole run,
+each with two CPU-bound processes (bench.hogs; one in --quick) beside it for the whole run,
 on top of whatever else the host runs. Per run the sync process reports the time between
 consecutive command frames of each row (control.loop_timing, measured where the frame is
 sent) and the simulated drives' watchdog trips. The row's figures pool every frame of every
@@ -15,49 +15,38 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 import io
 from pathlib import Path
-import subprocess
-import sys
 import tempfile
 import time
 
 from planter_ros.control.loop_timing import PeriodStats
 from planter_ros.demo.options import DemoOptions
 from planter_ros.demo.run import DemoResult, prepare
-from planter_ros.host.processes import preexec_die_with_parent
 
+from ..hogs import cpu_hogs
 from ..registry import BenchContext, Row, Target, bench_case
 from ..timing import from_samples
 
-WHAT = 'control loop under load: gap between command frames (demo, 2 CPU hogs beside it)'
+WHAT = 'control loop under load: gap between command frames (demo, CPU hogs beside it)'
 P999_TARGET = 0.05          # s
-HOGS = 2
 
 
 def _silent(text: str) -> None:
     pass
 
 
-def loaded_runs(runs: int, duration: float, progress: Callable[[str], None] = _silent
-                ) -> list[tuple[float, DemoResult]]:
-    """`runs` demo runs of `duration` s, each beside HOGS CPU-bound processes; returns a list
-    of (seconds the run took, DemoResult)."""
+def loaded_runs(runs: int, duration: float, hogs: int,
+                progress: Callable[[str], None] = _silent) -> list[tuple[float, DemoResult]]:
+    """`runs` demo runs of `duration` s, each beside `hogs` CPU-bound processes; returns a
+    list of (seconds the run took, DemoResult)."""
     results: list[tuple[float, DemoResult]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
-            # the hogs die with the bench, also when it is killed (no orphan burning cores)
-            hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'],
-                                     preexec_fn=preexec_die_with_parent())
-                    for _ in range(HOGS)]
-            try:
+            with cpu_hogs(hogs):
                 demo = prepare(DemoOptions(duration=duration, bag=str(Path(tmp) / f'run{k}.mcap')),
                                out=io.StringIO(), install_signals=False, log_level='error')
                 t0 = time.perf_counter()
                 demo.run()
                 took = time.perf_counter() - t0
-            finally:
-                for hog in hogs:
-                    hog.kill()
-                    hog.wait()
             result = demo.result
             if result is None:               # run() returns with its result made
                 raise RuntimeError('the demo run gave no result')
@@ -73,8 +62,9 @@ def loaded_runs(runs: int, duration: float, progress: Callable[[str], None] = _s
 @bench_case('control loop under load')
 def control_loop_under_load(ctx: BenchContext) -> Iterator[Row]:
     runs, duration = ctx.runs or ctx.n(10, 1), ctx.n(30.0, 8.0)
-    ctx.progress(f'  {runs} demo run(s) of {duration:g} s, {HOGS} CPU hogs beside each ...')
-    results = loaded_runs(runs, duration, ctx.progress)
+    ctx.progress(f'  {runs} demo run(s) of {duration:g} s, {ctx.hogs} CPU hog(s) beside '
+                 'each ...')
+    results = loaded_runs(runs, duration, ctx.hogs, ctx.progress)
     pooled = PeriodStats()
     trips, failed, per_run = 0, [], []
     for _, result in results:
@@ -95,11 +85,13 @@ def control_loop_under_load(ctx: BenchContext) -> Iterator[Row]:
               error_of='no error defined: timings only',
               targets=[Target('0 watchdog trips', trips == 0),
                        Target('p99.9 gap ≤ 50 ms', p999 <= P999_TARGET)],
-              note=f'{runs} run(s) of {duration:g} s, {pooled.gaps} gaps: mean '
+              note=f'{runs} run(s) of {duration:g} s, {ctx.hogs} CPU hog(s) beside each, '
+                   f'{pooled.gaps} gaps: mean '
                    f'{pooled.mean * 1e3:.1f} ms, p99 {pooled.quantile(0.99) * 1e3:.1f} ms, '
                    f'p99.9 {p999 * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (deadline 200 ms); '
                    f'per run p99.9 {min(run_p999) * 1e3:.1f}–{max(run_p999) * 1e3:.1f} ms; '
                    f'{trips} watchdog trip(s); {runs - len(failed)}/{runs} verdicts PASS',
-              extra={'runs': runs, 'duration_s': duration, 'gaps': pooled.gaps,
+              extra={'runs': runs, 'hogs': ctx.hogs, 'duration_s': duration,
+                     'gaps': pooled.gaps,
                      'gap_p99_s': pooled.quantile(0.99), 'gap_p999_s': p999, 'gap_max_s': worst,
                      'watchdog_trips': trips, 'per_run': per_run, 'failed': failed})

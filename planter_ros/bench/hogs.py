@@ -1,0 +1,30 @@
+"""CPU hogs: the load beside the bench's runs under load (`python -c "while True: pass"`
+processes that die with the bench, also when it is killed: planter_ros.host.processes)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+import subprocess
+import sys
+
+from planter_ros.host.processes import preexec_die_with_parent
+
+__all__ = ['HOGS', 'QUICK_HOGS', 'cpu_hogs']
+
+HOGS = 2            # beside each run under load: as many as the 2-core reference machine has cores
+QUICK_HOGS = 1      # --quick (the smoke run): the path with a hog, the figures from a full run
+
+
+@contextmanager
+def cpu_hogs(count: int) -> Iterator[list[subprocess.Popen[bytes]]]:
+    """`count` CPU-bound processes for the length of the block; they die with this process,
+    also when it is killed with SIGKILL."""
+    hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'],
+                             preexec_fn=preexec_die_with_parent()) for _ in range(count)]
+    try:
+        yield hogs
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
