@@ -6,7 +6,6 @@ zero and every drive left disabled at standstill (the simulated drives' own acco
 finalised and readable by the offline replay, the summary and the verdict printed, exit 0 or 1
 as the verdict says, no traceback, and no process left behind. (The second signal's forced exit:
 test_stop_signals.py; a demo killed outright: test_demo.py.)"""
-import json
 import os
 from pathlib import Path
 import random
@@ -19,6 +18,8 @@ import time
 import pytest
 
 from cli_helpers import REPO
+
+from planter_ros.recording.replay import replay
 
 DURATION = 8          # s of field run (the shortest the demo takes)
 STOPS = 10            # stops of the process group at random moments
@@ -149,12 +150,8 @@ def stop_and_check(tmp_path, k, sig, phase, rng, target='group'):
                              'fault reaction active'), f'{where}: node {node} {state}\n{out}'
         assert abs(float(speed)) < 1.0, f'{where}: node {node} at {speed} rad/s\n{out}'
     assert 'not left disabled' not in out and 'restarting it' not in out, f'{where}\n{out}'
-    # the bag finalised and readable by the offline replay (in a process of its own)
-    replayed = subprocess.run([sys.executable, '-m', 'planter_ros.cli', 'replay', str(bag),
-                               '--json'], capture_output=True, text=True, timeout=60,
-                              env=dict(os.environ, PYTHONPATH=str(REPO)), cwd=cwd)
-    assert replayed.returncode == 0, f'{where}\n{replayed.stderr}\n{out}'
-    assert json.loads(replayed.stdout)['warnings'] == [], f'{where}\n{replayed.stdout}'
+    # the bag finalised and readable by the offline replay, without a warning
+    assert replay(bag).warnings == [], where
     # nothing left running
     deadline = time.monotonic() + 10
     while any(alive(pid) for pid in helpers) and time.monotonic() < deadline:

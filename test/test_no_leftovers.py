@@ -31,7 +31,6 @@ COMMANDS = {
                  'season/TASKDATA.zip', 'season/.planter-analyze.json'}),
     'simulate': (['simulate', 'sim', '--bags', '1', '--duration', '10', '--workers', '1'],
                  {'sim', 'sim/run_0_00000.mcap'}),
-    'demo': (['demo', '--duration', '8', '--bag', 'run.mcap'], {'run.mcap'}),
     'bench': (['bench', '--quick', '--only', 'five-bar reverse'], set()),
 }
 
@@ -51,9 +50,8 @@ def everything_in(folder):
     return {str(p.relative_to(folder)) for p in folder.rglob('*')}
 
 
-@pytest.mark.parametrize('name', [  # the demo's run is real-time (test/conftest.py)
-    pytest.param(name, marks=pytest.mark.realtime) if name == 'demo' else name
-    for name in sorted(COMMANDS)])
+# (the demo's: test_a_demo_without_bag_names_its_default_bag_in_its_first_line)
+@pytest.mark.parametrize('name', sorted(COMMANDS))
 def test_a_command_leaves_only_what_it_was_asked_to_write(tmp_path, name):
     args, asked = COMMANDS[name]
     cwd, home, tmp, env = places(tmp_path)
@@ -110,6 +108,7 @@ def test_a_second_analyze_on_a_directory_being_written_is_refused(tmp_path):
 @pytest.mark.slow
 @pytest.mark.realtime
 def test_a_demo_without_bag_names_its_default_bag_in_its_first_line(tmp_path):
+    """The demo writes its bag, the default one named in its first line, and nothing else."""
     cwd, home, tmp, env = places(tmp_path)
     out = subprocess.run([sys.executable, '-m', 'planter_ros.cli', 'demo', '--duration', '8'],
                          cwd=cwd, env=env, capture_output=True, text=True, timeout=600)

@@ -55,6 +55,7 @@ __all__ = ['DesignReport', 'DriveEnd', 'DrivesReport', 'STANDSTILL', 'SyncBuilt'
            'final_report', 'snapshot']
 
 STATUS_PERIOD = 0.25       # s between status snapshots sent to the demo
+DESIGN_WAIT_PERIOD = 0.02  # s between them until a design is in force
 PARENT_GONE_GRACE = 4      # s the child may take to shut its drives down once the demo is gone
 STANDSTILL = 1.0           # rad/s of a motor below which it stands still (a coasting remainder)
 # the CiA 402 states with the drive function (torque) on
@@ -340,9 +341,12 @@ def child_main(conn, settings):
                                     settings.command_process))
         while True:
             pass_on_stop()
-            if conn.poll(STATUS_PERIOD) and conn.recv() == 'stop':
+            status = snapshot(sync)
+            if not send('status', status):
                 break
-            if not send('status', snapshot(sync)):
+            # the demo starts its field run once the design is in force: until then, often
+            wait = STATUS_PERIOD if status.spacing is not None else DESIGN_WAIT_PERIOD
+            if conn.poll(wait) and conn.recv() == 'stop':
                 break
     except (EOFError, OSError):
         pass                                       # the demo is gone: stop the drives
