@@ -7,15 +7,15 @@ Real-time tests: a test that passes only when scheduled in real time (a live ROS
 a simulated drive and its master, a `planter demo` run, commissioning, signal and process-death
 timings) carries the marker `realtime`: `pytestmark = pytest.mark.realtime` at the top of its
 module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.mark.realtime)`
-on one case. That is the only list. With three processes (pytest.ini) the tests so marked run
-on two of them, `REALTIME_LANES`, first, a module's at a time and one test after the other on each
-(as in a serial run); the third process runs the rest meanwhile, and the two join it once the
-real-time tests are done. Every test not so marked runs at a lower CPU priority
-(`BACKGROUND_NICE` above the priority the session started with), so it never starves them. Two
-real-time tests at once share the two cores: the product's own real-time processes (the demo's
-command process, the simulated drives) run SCHED_FIFO as they would on the machine (measured:
-the suite's real-time tests pass two at a time, and `planter bench`'s demo-runs case runs demos
-beside two CPU hogs). No process of the suite
+on one case. That is the only list. With three processes (pytest.ini), two of them take the
+real-time tests first, a module's at a time, one test after the other on each (as in a serial
+run): the first those whose live part runs in the test process itself (nodes, simulated drives
+and their loops in threads without real-time priority: `live_where`), then the others; the
+second only the others (a demo run and the like, whose command process and simulated drives run
+SCHED_FIFO as on the machine) at `APART_NICE`. So two tests live in the test process never run
+at once. The third process runs the rest meanwhile, and the two join it once the real-time
+tests are done; every test not so marked runs at `BACKGROUND_NICE` (both added to the priority
+the session started with), so it never starves a real-time one. No process of the suite
 ever runs above the priority the session was started with. A test that uses a live fixture
 (`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
 (`LIVE_NAMES`: a demo run, a node, a simulated bus, rclpy) without the marker fails, naming
@@ -77,12 +77,20 @@ LIVE_FIXTURES = frozenset({'ros', 'sim', 'channel', 'spy', 'make_drive', 'enable
 LIVE_NAMES = frozenset({'start_demo', 'SyncNode', 'MonitorNode', 'DesignNode',
                         'create_node', 'Context', 'SimulatedBus', 'SimulatedDrive',
                         'SimProcess'})
+# of those, the names whose live part runs in the test's own process (the others start
+# processes of their own: a demo run, the simulated drives' process)
+# processes of their own: a demo run, the simulated drives' process); and a master's or the
+# command engine's loop run by the test itself
+LIVE_HERE_NAMES = LIVE_NAMES - {'start_demo', 'SimProcess'} | {'CommandEngine', 'run_engine',
+                                                                 'Cia402Drive'}
 REALTIME = 'realtime'
-REALTIME_LANES = 2         # processes that run real-time tests (two at once at most)
-BACKGROUND_NICE = 10       # the other tests' nice value, added to the session's
+HERE, APART = 'here', 'apart'     # a real-time test live in its own process, or in others
+APART_NICE = 5             # a real-time test live in processes of its own: its nice value,
+BACKGROUND_NICE = 10       # the other tests': added to the session's
 START_NICE = os.getpriority(os.PRIO_PROCESS, 0)    # the priority this process started with
 
 _UNMARKED = pytest.StashKey[str]()
+_WHERE = pytest.StashKey[str]()
 
 
 def _realtime(item):
@@ -106,21 +114,40 @@ def _names(code):
     return names, strings
 
 
+def _used_names(item):
+    """(The names, the string constants) the test function and its fixtures use, and the
+    functions and classes of the test's module they name (their methods), all the way down."""
+    functions = [getattr(item, 'function', None)] + [
+        definition.func for definitions in item._fixtureinfo.name2fixturedefs.values()
+        for definition in definitions]
+    module = getattr(item.module, '__dict__', {}) if hasattr(item, 'module') else {}
+    names, strings, seen = set(), set(), set()
+    while functions:
+        function = functions.pop()
+        code = getattr(function, '__code__', None)
+        if code is None or code in seen:
+            continue
+        seen.add(code)
+        more = _names(code)
+        names |= more[0]
+        strings |= more[1]
+        for name in more[0]:                 # the test module's own helpers it calls
+            found = module.get(name)
+            if getattr(found, '__module__', None) != getattr(item.module, '__name__', ''):
+                continue
+            if isinstance(found, type):
+                functions += [f for f in vars(found).values() if hasattr(f, '__code__')]
+            elif hasattr(found, '__code__'):
+                functions.append(found)
+    return names, strings
+
+
 def live_reason(item):
     """Why `item` needs the realtime marker ('' if nothing says so)."""
     fixtures = sorted(LIVE_FIXTURES.intersection(item.fixturenames))
     if fixtures:
         return f'it uses the live fixture {fixtures[0]!r}'
-    functions = [getattr(item, 'function', None)] + [
-        definition.func for definitions in item._fixtureinfo.name2fixturedefs.values()
-        for definition in definitions]
-    names, strings = set(), set()
-    for function in functions:
-        code = getattr(function, '__code__', None)
-        if code is not None:
-            more = _names(code)
-            names |= more[0]
-            strings |= more[1]
+    names, strings = _used_names(item)
     found = sorted(LIVE_NAMES & names)
     if found:
         return f'it uses {found[0]}'
@@ -128,6 +155,24 @@ def live_reason(item):
                                               or 'planter_ros.cli' in strings):
         return "it runs `planter demo --duration ...`"
     return ''
+
+
+def live_where(item):
+    """APART when a real-time test's live part runs in processes of its own (a demo run, the
+    simulated drives' process), whose command process and simulated drives run SCHED_FIFO as
+    on the machine; else HERE: its nodes, simulated drives or loops run in the test process
+    itself, in threads without real-time priority (and a test marked by hand, whose live part
+    nothing here names, counts as HERE, unless it says `pytest.mark.realtime(apart=True)`)."""
+    if item.get_closest_marker(REALTIME).kwargs.get('apart'):
+        return APART
+    if LIVE_FIXTURES.intersection(item.fixturenames):
+        return HERE
+    names, strings = _used_names(item)
+    if LIVE_HERE_NAMES & names:
+        return HERE
+    demo = {'demo', '--duration'} <= strings and (names & {'run_planter', 'DEMO'}
+                                                  or 'planter_ros.cli' in strings)
+    return APART if demo or names & (LIVE_NAMES - LIVE_HERE_NAMES) else HERE
 
 
 def _ids_file(config):
@@ -150,28 +195,38 @@ def _number(node):
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
     """Whole modules as units of work (their module fixtures made once); a module's tests
-    marked realtime a unit of their own (xdist's own --dist loadgroup cannot group with this
-    pytest). The first REALTIME_LANES processes take the real-time units first, the unit
-    after the current one as it ends, then any other unit; the other processes never run a
-    real-time test. The controller collects nothing itself: the workers write the realtime
-    tests' ids at collection (pytest_collection_modifyitems), before it schedules."""
+    marked realtime units of their own, those live HERE apart from those live APART (xdist's
+    own --dist loadgroup cannot group with this pytest). Two real-time lanes: the first
+    process takes the HERE units, one after the other, then APART ones; the second the APART
+    units; both then any other unit. So two tests live in the test process never run at once,
+    and a real-time test never waits behind a process of the suite at its own priority. The
+    other processes never run a real-time test. The controller collects nothing itself: the
+    workers write the realtime tests' ids at collection (pytest_collection_modifyitems),
+    before it schedules."""
     # lazy: a pytest hook of xdist's, called only when xdist runs the session
     from xdist.scheduler import LoadScopeScheduling
 
     class RealtimeLanes(LoadScopeScheduling):
-        _ids = None
+        _where = None
 
         def _split_scope(self, nodeid):
-            if self._ids is None:
-                self._ids = frozenset(json.loads(_realtime_ids_file(config).read_text()))
+            if self._where is None:
+                self._where = json.loads(_realtime_ids_file(config).read_text())
             module = _module(nodeid)
-            return f'{REALTIME} {module}' if nodeid in self._ids else module
+            where = self._where.get(nodeid)
+            return f'{REALTIME} {where} {module}' if where else module
 
         def _assign_work_unit(self, node):
-            lanes = sorted(self.nodes, key=_number)[:REALTIME_LANES]
-            realtime = [scope for scope in self.workqueue if scope.startswith(REALTIME + ' ')]
-            others = [scope for scope in self.workqueue if scope not in realtime]
-            eligible = (realtime or others) if node in lanes else others
+            lanes = sorted(self.nodes, key=_number)[:2]
+            here, apart, others = [], [], []
+            for scope in self.workqueue:
+                kind = scope.split(' ', 2)[:2]
+                (here if kind == [REALTIME, HERE] else apart if kind == [REALTIME, APART]
+                 else others).append(scope)
+            if node is lanes[0]:
+                eligible = here or apart or others
+            else:
+                eligible = (apart or others) if node in lanes else others
             if not eligible:                         # only real-time units left, none for it
                 if not node.shutting_down:
                     node.shutdown()
@@ -193,8 +248,10 @@ def pytest_collection_modifyitems(config, items):
     slow = {_module(item.nodeid) for item in items if item.get_closest_marker('slow')}
     items[:] = sorted(items, key=lambda item: (not _realtime(item),
                                                _module(item.nodeid) not in slow))
-    realtime = [item.nodeid for item in items if _realtime(item)]
+    realtime = {}
     for item in items:
+        if _realtime(item):
+            item.stash[_WHERE] = realtime[item.nodeid] = live_where(item)
         if item.get_closest_marker('flaky'):
             item.stash[_UNMARKED] = ('flaky: a re-run that hides its first failure (pytest-'
                                      'rerunfailures, installed with colcon) is not allowed here')
@@ -228,7 +285,12 @@ def pytest_runtest_setup(item):
         # it, the ~300 000 objects of a session's real-time process cost 150-240 ms per full
         # collection, a stop of every thread the loops under test never see in the product.
         gc.freeze()
-    _set_nice(START_NICE if _realtime(item) else min(START_NICE + BACKGROUND_NICE, 19))
+    if not _realtime(item):
+        _set_nice(min(START_NICE + BACKGROUND_NICE, 19))
+    elif item.stash.get(_WHERE, HERE) == APART:
+        _set_nice(min(START_NICE + APART_NICE, 19))
+    else:
+        _set_nice(START_NICE)
 
 
 def _set_nice(wanted):

@@ -13,8 +13,9 @@ its JUnit file:
   naming the marker; a test marked flaky fails, and --reruns is refused (pytest-rerunfailures
   comes with colcon);
 * a session started 5 below this one's priority runs nothing, not even the stall watcher,
-  above that, and the tests not marked realtime 10 below it; the real-time tests of several
-  modules run on two processes (never more at once), before the others there.
+  above that; the real-time tests live in the test process run on the first process, one at
+  a time, those live in processes of their own on the first two (5 below), both before the
+  others there; the tests not marked realtime run 10 below it.
 """
 import os
 from pathlib import Path
@@ -212,12 +213,12 @@ def note(kind):
 
 def test_nothing_runs_above_the_sessions_priority_and_realtime_tests_run_on_two_lanes_first(
         tmp_path):
-    realtime = PRIORITY + """
+    here = PRIORITY + """
 pytestmark = pytest.mark.realtime
 
 
-def test_realtime_1():
-    note('realtime')
+def test_here_1(channel):           # a live fixture: live in the test process
+    note('here')
     w = host_stalls.watcher().pid
     with open(os.path.join(os.environ['RUNS'], 'watcher'), 'w') as f:
         f.write(str(os.getpriority(os.PRIO_PROCESS, w)))
@@ -225,15 +226,34 @@ def test_realtime_1():
     note('end')
 
 
-def test_realtime_2():
-    note('realtime')
+def test_here_2(channel):
+    note('here')
     time.sleep(1.0)
+    note('end')
+"""
+    apart = PRIORITY + """
+pytestmark = pytest.mark.realtime
+
+
+def start_demo():                   # (the name of a demo run: live in processes of its own)
+    time.sleep(1.0)
+
+
+def test_apart_1():
+    note('apart')
+    start_demo()
+    note('end')
+
+
+def test_apart_2():
+    note('apart')
+    start_demo()
     note('end')
 """
     other = PRIORITY + """
 @pytest.mark.realtime
-def test_realtime_3():
-    note('realtime')
+def test_here_3(channel):
+    note('here')
     time.sleep(1.0)
     note('end')
 
@@ -249,24 +269,25 @@ def test_other_2():
     # test beside the real-time ones)
     start = min(os.getpriority(os.PRIO_PROCESS, 0) + 5, 19)
     out, junit = pytest_run(tmp_path, None, '-n', '3', nice=5,
-                            modules={'test_a.py': realtime, 'test_b.py': other,
-                                     'test_c.py': realtime.replace('_realtime_', '_third_')})
+                            modules={'test_a.py': here, 'test_b.py': other,
+                                     'test_c.py': apart, 'test_d.py': apart})
     assert out.returncode == 0, out.stdout[-3000:]
     runs = [line.split() for line in (tmp_path / 'runs' / 'nice').read_text().splitlines()]
-    assert len(runs) == 5 * 2 + 2, runs             # 5 real-time (start, end), 2 others
-    assert all(int(nice) >= start for _, _, nice, _ in runs), runs
-    assert all(int(nice) == start for kind, _, nice, _ in runs if kind == 'realtime'), runs
-    assert all(int(nice) == min(start + 10, 19) for kind, _, nice, _ in runs
-               if kind == 'other'), runs
+    assert len(runs) == 7 * 2 + 2, runs              # 7 real-time (start, end), 2 others
+    nice = {'here': start, 'apart': min(start + 5, 19), 'other': min(start + 10, 19)}
+    assert all(int(n) == nice[kind] for kind, _, n, _ in runs if kind != 'end'), runs
     assert int((tmp_path / 'runs' / 'watcher').read_text()) >= start
-    # two processes (the first two) run the real-time tests, never more at once
-    assert {worker for kind, worker, _, _ in runs if kind == 'realtime'} == {'gw0', 'gw1'}
-    events = sorted((float(at), kind) for kind, _, _, at in runs if kind in ('realtime', 'end'))
-    running = [sum(+1 if kind == 'realtime' else -1 for _, kind in events[:k + 1])
+    # the first process runs the tests live in the test process, one at a time; the first
+    # two run the others; the third none
+    assert {worker for kind, worker, _, _ in runs if kind == 'here'} == {'gw0'}
+    assert {worker for kind, worker, _, _ in runs if kind == 'apart'} <= {'gw0', 'gw1'}
+    assert 'gw1' in {worker for kind, worker, _, _ in runs if kind == 'apart'}
+    events = sorted((float(at), kind) for kind, _, _, at in runs if kind != 'other')
+    running = [sum(+1 if kind != 'end' else -1 for _, kind in events[:k + 1])
                for k in range(len(events))]
     assert max(running) <= 2, events
     # on a process that runs both, the real-time tests first
     for lane in ('gw0', 'gw1'):
         there = [kind for kind, worker, _, _ in sorted(runs, key=lambda r: float(r[3]))
                  if worker == lane and kind != 'end']
-        assert there == sorted(there, key=lambda kind: kind != 'realtime'), runs
+        assert there == sorted(there, key=lambda kind: kind == 'other'), runs
