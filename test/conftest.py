@@ -78,15 +78,14 @@ LIVE_NAMES = frozenset({'start_demo', 'SyncNode', 'MonitorNode', 'DesignNode',
                         'create_node', 'Context', 'SimulatedBus', 'SimulatedDrive',
                         'SimProcess'})
 # of those, the names whose live part runs in the test's own process (the others start
-# processes of their own: a demo run, the simulated drives' process)
 # processes of their own: a demo run, the simulated drives' process); and a master's or the
 # command engine's loop run by the test itself
 LIVE_HERE_NAMES = LIVE_NAMES - {'start_demo', 'SimProcess'} | {'CommandEngine', 'run_engine',
                                                                  'Cia402Drive'}
 REALTIME = 'realtime'
 HERE, APART = 'here', 'apart'     # a real-time test live in its own process, or in others
-APART_NICE = 5             # a real-time test live in processes of its own: its nice value,
-BACKGROUND_NICE = 10       # the other tests': added to the session's
+APART_NICE = 5             # nice of a real-time test live in processes of its own, and
+BACKGROUND_NICE = 10       # of the other tests: added to the session's
 START_NICE = os.getpriority(os.PRIO_PROCESS, 0)    # the priority this process started with
 
 _UNMARKED = pytest.StashKey[str]()
@@ -198,9 +197,8 @@ def pytest_xdist_make_scheduler(config, log):
     marked realtime units of their own, those live HERE apart from those live APART (xdist's
     own --dist loadgroup cannot group with this pytest). Two real-time lanes: the first
     process takes the HERE units, one after the other, then APART ones; the second the APART
-    units; both then any other unit. So two tests live in the test process never run at once,
-    and a real-time test never waits behind a process of the suite at its own priority. The
-    other processes never run a real-time test. The controller collects nothing itself: the
+    units; both then any other unit. So two tests live in the test process never run at once.
+    The other processes never run a real-time test. The controller collects nothing itself: the
     workers write the realtime tests' ids at collection (pytest_collection_modifyitems),
     before it schedules."""
     # lazy: a pytest hook of xdist's, called only when xdist runs the session
@@ -270,11 +268,12 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
-    """The CPU priority of this process for the test: the real-time tests at the priority the
-    session started with, the other tests BACKGROUND_NICE lower (so the processes running
-    the rest never starve the real-time tests' 10 ms loops and 0.2 s watchdogs). A real-time
-    lane runs its real-time tests first, so it is lowered only once they are done. Never above
-    the start's; without the right to change it (not root), what can be set is set."""
+    """The CPU priority of this process for the test: a real-time test live HERE at the
+    priority the session started with, one live APART APART_NICE lower (its own real-time
+    processes ask for SCHED_FIFO), the other tests BACKGROUND_NICE lower (so they never starve
+    the real-time tests' 10 ms loops and 0.2 s watchdogs). A lane runs HERE, then APART, then
+    other tests, so its priority only ever goes down. Never above the start's; without the
+    right to change it (not root), what can be set is set."""
     refused = item.stash.get(_UNMARKED, '')
     if refused:
         pytest.fail(f'{item.nodeid} {refused}', pytrace=False)
