@@ -9,13 +9,12 @@ timings) carries the marker `realtime`: `pytestmark = pytest.mark.realtime` at t
 module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.mark.realtime)`
 on one case. That is the only list. With three processes (pytest.ini), two of them take the
 real-time tests first, a module's at a time, one test after the other on each (as in a serial
-run): the first those whose live part runs in the test process itself (nodes, simulated drives
-and their loops in threads without real-time priority: `live_where`), then the others; the
-second only the others (a demo run and the like, whose command process and simulated drives run
-SCHED_FIFO as on the machine) at `APART_NICE`. So two tests live in the test process never run
-at once. The third process runs the rest meanwhile, and the two join it once the real-time
-tests are done; every test not so marked runs at `BACKGROUND_NICE` (both added to the priority
-the session started with), so it never starves a real-time one. No process of the suite
+run): first those whose live part runs in processes of their own (a demo run and the like,
+whose command process and simulated drives run SCHED_FIFO as on the machine), two at once; then
+those live in the test process itself (nodes, simulated drives and their loops in threads
+without real-time priority: `live_where`), on the first process alone. The third process runs
+the rest meanwhile at `BACKGROUND_NICE` above the priority the session started with, so it
+never starves them; the two join it once the real-time tests are done. No process of the suite
 ever runs above the priority the session was started with. A test that uses a live fixture
 (`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
 (`LIVE_NAMES`: a demo run, a node, a simulated bus, rclpy) without the marker fails, naming
@@ -29,6 +28,7 @@ marked `flaky` fails and `--reruns` is refused (pytest-rerunfailures comes with 
 test_harness.py tests all of this on small test files.
 """
 import gc
+import hashlib
 import json
 import os
 import sys
@@ -84,12 +84,11 @@ LIVE_HERE_NAMES = LIVE_NAMES - {'start_demo', 'SimProcess'} | {'CommandEngine', 
                                                                  'Cia402Drive'}
 REALTIME = 'realtime'
 HERE, APART = 'here', 'apart'     # a real-time test live in its own process, or in others
-APART_NICE = 5             # nice of a real-time test live in processes of its own, and
-BACKGROUND_NICE = 10       # of the other tests: added to the session's
+BACKGROUND_NICE = 10       # the other tests' nice value, added to the session's
 START_NICE = os.getpriority(os.PRIO_PROCESS, 0)    # the priority this process started with
 
 _UNMARKED = pytest.StashKey[str]()
-_WHERE = pytest.StashKey[str]()
+_KINDS = pytest.StashKey[dict]()
 
 
 def _realtime(item):
@@ -185,6 +184,53 @@ def _realtime_ids_file(config):
     return _ids_file(config) / 'realtime-tests.json'
 
 
+def _done_dir(config):
+    """One empty file per real-time test done, named by its kind and a hash of its id."""
+    return _ids_file(config) / 'realtime-tests-done'
+
+
+def _count_done(config, kind):
+    try:
+        return sum(1 for p in _done_dir(config).iterdir() if p.name.startswith(kind + '-'))
+    except FileNotFoundError:
+        return 0
+
+
+TURN_TIMEOUT = 1800.0       # s a test waits for its turn at most (a lost worker: go on)
+
+
+def _wait_for_turn(item):
+    """A HERE test waits until every APART test is done; on the second lane a test not marked
+    realtime waits until every real-time test is done: a HERE test runs beside the other tests
+    of one process only, at the background priority (as in a serial run of them)."""
+    where = _realtime_kinds(item.config)
+    if not where:
+        return
+    totals = {kind: sum(1 for k in where.values() if k == kind) for kind in (HERE, APART)}
+    lane = os.environ.get('PYTEST_XDIST_WORKER') == 'gw1'
+    if where.get(item.nodeid) == HERE:
+        waits = (APART,)
+    elif item.nodeid not in where and lane:
+        waits = (APART, HERE)
+    else:
+        return
+    deadline = time.monotonic() + TURN_TIMEOUT
+    while (any(_count_done(item.config, kind) < totals[kind] for kind in waits)
+           and time.monotonic() < deadline):
+        time.sleep(0.1)
+
+
+def _realtime_kinds(config):
+    """{nodeid: HERE or APART} of the session's real-time tests ({} outside xdist)."""
+    if not hasattr(config, 'workerinput'):
+        return {}
+    cached = config.stash.get(_KINDS, None)
+    if cached is None:
+        cached = json.loads(_realtime_ids_file(config).read_text())
+        config.stash[_KINDS] = cached
+    return cached
+
+
 def _number(node):
     """gw3 -> 3: the processes in the order xdist numbers them."""
     name = node.gateway.id
@@ -195,10 +241,12 @@ def _number(node):
 def pytest_xdist_make_scheduler(config, log):
     """Whole modules as units of work (their module fixtures made once); a module's tests
     marked realtime units of their own, those live HERE apart from those live APART (xdist's
-    own --dist loadgroup cannot group with this pytest). Two real-time lanes: the first
-    process takes the HERE units, one after the other, then APART ones; the second the APART
-    units; both then any other unit. So two tests live in the test process never run at once.
-    The other processes never run a real-time test. The controller collects nothing itself: the
+    own --dist loadgroup cannot group with this pytest). Two real-time lanes: both take the
+    APART units first (two demo runs at once: their real-time processes run SCHED_FIFO); then
+    the first takes the HERE units, one after the other; the second any other unit. A worker
+    waits at a test's set-up for what must end first (`_wait_for_turn`: xdist holds a worker's
+    last test until more work comes, so the scheduler itself cannot make a lane wait). The
+    other processes never run a real-time test. The controller collects nothing itself: the
     workers write the realtime tests' ids at collection (pytest_collection_modifyitems),
     before it schedules."""
     # lazy: a pytest hook of xdist's, called only when xdist runs the session
@@ -222,7 +270,7 @@ def pytest_xdist_make_scheduler(config, log):
                 (here if kind == [REALTIME, HERE] else apart if kind == [REALTIME, APART]
                  else others).append(scope)
             if node is lanes[0]:
-                eligible = here or apart or others
+                eligible = apart or here or others
             else:
                 eligible = (apart or others) if node in lanes else others
             if not eligible:                         # only real-time units left, none for it
@@ -249,7 +297,7 @@ def pytest_collection_modifyitems(config, items):
     realtime = {}
     for item in items:
         if _realtime(item):
-            item.stash[_WHERE] = realtime[item.nodeid] = live_where(item)
+            realtime[item.nodeid] = live_where(item)
         if item.get_closest_marker('flaky'):
             item.stash[_UNMARKED] = ('flaky: a re-run that hides its first failure (pytest-'
                                      'rerunfailures, installed with colcon) is not allowed here')
@@ -268,15 +316,15 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
-    """The CPU priority of this process for the test: a real-time test live HERE at the
-    priority the session started with, one live APART APART_NICE lower (its own real-time
-    processes ask for SCHED_FIFO), the other tests BACKGROUND_NICE lower (so they never starve
-    the real-time tests' 10 ms loops and 0.2 s watchdogs). A lane runs HERE, then APART, then
-    other tests, so its priority only ever goes down. Never above the start's; without the
-    right to change it (not root), what can be set is set."""
+    """The CPU priority of this process for the test: the real-time tests at the priority the
+    session started with, the other tests BACKGROUND_NICE lower (so they never starve the
+    real-time tests' 10 ms loops and 0.2 s watchdogs). A lane runs its real-time tests first,
+    so its priority only ever goes down. Never above the start's; without the right to change
+    it (not root), what can be set is set."""
     refused = item.stash.get(_UNMARKED, '')
     if refused:
         pytest.fail(f'{item.nodeid} {refused}', pytrace=False)
+    _wait_for_turn(item)
     if _realtime(item):
         # as the product's real-time processes do after start-up (command/process.py,
         # demo/sync_process.py): what the session made so far out of the collector's reach,
@@ -284,12 +332,7 @@ def pytest_runtest_setup(item):
         # it, the ~300 000 objects of a session's real-time process cost 150-240 ms per full
         # collection, a stop of every thread the loops under test never see in the product.
         gc.freeze()
-    if not _realtime(item):
-        _set_nice(min(START_NICE + BACKGROUND_NICE, 19))
-    elif item.stash.get(_WHERE, HERE) == APART:
-        _set_nice(min(START_NICE + APART_NICE, 19))
-    else:
-        _set_nice(START_NICE)
+    _set_nice(START_NICE if _realtime(item) else min(START_NICE + BACKGROUND_NICE, 19))
 
 
 def _set_nice(wanted):
@@ -305,6 +348,12 @@ def _set_nice(wanted):
 def pytest_runtest_teardown(item, nextitem):
     if _realtime(item):
         gc.unfreeze()                    # collectable again, between the tests
+        kind = _realtime_kinds(item.config).get(item.nodeid)
+        if kind:
+            done = _done_dir(item.config)
+            done.mkdir(exist_ok=True)
+            name = hashlib.sha256(item.nodeid.encode()).hexdigest()[:16]
+            (done / f'{kind}-{name}').touch()
 
 
 @pytest.hookimpl(tryfirst=True)

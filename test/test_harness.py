@@ -13,9 +13,9 @@ its JUnit file:
   naming the marker; a test marked flaky fails, and --reruns is refused (pytest-rerunfailures
   comes with colcon);
 * a session started 5 below this one's priority runs nothing, not even the stall watcher,
-  above that; the real-time tests live in the test process run on the first process, one at
-  a time, those live in processes of their own on the first two (5 below), both before the
-  others there; the tests not marked realtime run 10 below it.
+  above that, and the tests not marked realtime 10 below it; the real-time tests live in
+  processes of their own run first, on the first two processes, those live in the test process
+  then, on the first one alone; both before the others there.
 """
 import os
 from pathlib import Path
@@ -274,18 +274,27 @@ def test_other_2():
     assert out.returncode == 0, out.stdout[-3000:]
     runs = [line.split() for line in (tmp_path / 'runs' / 'nice').read_text().splitlines()]
     assert len(runs) == 7 * 2 + 2, runs              # 7 real-time (start, end), 2 others
-    nice = {'here': start, 'apart': min(start + 5, 19), 'other': min(start + 10, 19)}
+    nice = {'here': start, 'apart': start, 'other': min(start + 10, 19)}
     assert all(int(n) == nice[kind] for kind, _, n, _ in runs if kind != 'end'), runs
     assert int((tmp_path / 'runs' / 'watcher').read_text()) >= start
-    # the first process runs the tests live in the test process, one at a time; the first
-    # two run the others; the third none
+    # the first process runs the tests live in the test process, alone; the first two run the
+    # others, first; the third none
     assert {worker for kind, worker, _, _ in runs if kind == 'here'} == {'gw0'}
-    assert {worker for kind, worker, _, _ in runs if kind == 'apart'} <= {'gw0', 'gw1'}
-    assert 'gw1' in {worker for kind, worker, _, _ in runs if kind == 'apart'}
-    events = sorted((float(at), kind) for kind, _, _, at in runs if kind != 'other')
-    running = [sum(+1 if kind != 'end' else -1 for _, kind in events[:k + 1])
-               for k in range(len(events))]
-    assert max(running) <= 2, events
+    assert {worker for kind, worker, _, _ in runs if kind == 'apart'} == {'gw0', 'gw1'}
+    spans = {}
+    for kind, worker, _, at in sorted(runs, key=lambda r: float(r[3])):
+        if kind in ('here', 'apart'):
+            spans[worker] = (kind, float(at))
+        elif kind == 'end':
+            spans.setdefault('done', []).append((*spans.pop(worker), float(at)))
+    done = spans['done']
+    edges = sorted([(s0, +1) for _, s0, _ in done] + [(s1, -1) for _, _, s1 in done])
+    assert max(sum(step for _, step in edges[:k + 1]) for k in range(len(edges))) <= 2, done
+    for kind, start_at, end_at in done:          # a HERE test alone among the real-time ones
+        beside = [k for k, s0, s1 in done if s0 < end_at and s1 > start_at]
+        assert kind == 'apart' or beside == ['here'], done
+    assert max(s0 for k, s0, _ in done if k == 'apart') < min(s0 for k, s0, _ in done
+                                                            if k == 'here'), done
     # on a process that runs both, the real-time tests first
     for lane in ('gw0', 'gw1'):
         there = [kind for kind, worker, _, _ in sorted(runs, key=lambda r: float(r[3]))
