@@ -189,7 +189,11 @@ def test_a_stop_before_the_graph_starts_is_one_clean_verdict(tmp_path):
     try:
         time.sleep(0.6)                   # Python started, the demo still importing
         os.killpg(proc.pid, signal.SIGTERM)
+        stopped = time.monotonic()
         out, _ = proc.communicate(timeout=60)
+        # ~2 s; a wait on the sync process that never sees it gone spun for its whole 30 s
+        # stop timeout at 100 % CPU
+        took = time.monotonic() - stopped
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
@@ -199,3 +203,4 @@ def test_a_stop_before_the_graph_starts_is_one_clean_verdict(tmp_path):
     assert last.startswith('verdict: '), out
     assert proc.returncode == (0 if last.startswith('verdict: PASS') else 1), out
     assert 'summary' in out, out
+    assert took < 15.0, f'the demo took {took:.1f} s to end after SIGTERM'

@@ -189,6 +189,7 @@ class SyncProcess:
         self.report: SyncReport | None = None      # the final report
         self.error = None
         self.stop_requested = ''     # a stop that reached the child or its command process
+        self._closed = False         # the child's end of the pipe is closed (it ended)
 
     def _handle(self, kind, payload):
         if kind == 'status':
@@ -215,7 +216,13 @@ class SyncProcess:
                 self._handle(*self._conn.recv())
                 timeout = 0.0
         except (EOFError, OSError):
-            pass
+            self._closed = True
+
+    def _gone(self):
+        """The child has ended and everything it sent has been taken (`poll` reads up to the
+        closed end; a closed pipe polls as readable for ever, so `_conn.poll()` alone would
+        keep saying "more to read", and a stop would spin until its timeout)."""
+        return not self.process.is_alive() and (self._closed or not self._conn.poll())
 
     def wait_for(self, kind, timeout, stopped=lambda: False):
         """Wait until the child has said `kind` ('built', 'ready'); raises SyncProcessError
@@ -227,7 +234,7 @@ class SyncProcess:
                 raise SyncProcessError(self.error)
             if stopped():
                 return None
-            if not self.process.is_alive() and not self._conn.poll():
+            if self._gone():
                 raise SyncProcessError(f'the sync process ended (exit code '
                                        f'{self.process.exitcode}) before it was {kind}')
             if time.monotonic() > deadline:
@@ -244,7 +251,7 @@ class SyncProcess:
             pass
         deadline = time.monotonic() + timeout
         while self.report is None and time.monotonic() < deadline:
-            if not self.process.is_alive() and not self._conn.poll():
+            if self._gone():
                 break
             self.poll(0.1)
         self.process.join(max(0.0, deadline - time.monotonic()))
