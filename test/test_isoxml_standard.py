@@ -64,21 +64,20 @@ def exported(bags, tmp_path_factory):
     return out
 
 
-def schema(name, repaired):
-    """The standard's XSD `name` (test/data/iso11783_10); `repaired`: each xs:choice made
-    repeatable, the published schema's one defect (test/data/README.md)."""
-    import tempfile
-
+@pytest.fixture(scope='module')
+def schemas(tmp_path_factory):
+    """The standard's XSDs (test/data/iso11783_10): 'task' with each xs:choice made repeatable,
+    the published schema's one defect (test/data/README.md), in this session's temporary
+    directory; 'log' as published."""
     import xmlschema
     source = DATA / 'iso11783_10'
-    if not repaired:
-        return xmlschema.XMLSchema(str(source / name))
-    folder = Path(tempfile.mkdtemp(prefix='iso11783_10-'))
+    folder = tmp_path_factory.mktemp('iso11783_10')
     for file in source.glob('*.xsd'):
         (folder / file.name).write_text(re.sub(
             r'<xs:choice(?![^>]*maxOccurs)([^>]*)>', r'<xs:choice\1 maxOccurs="unbounded">',
             file.read_text()))
-    return xmlschema.XMLSchema(str(folder / name))
+    return {'task': xmlschema.XMLSchema(str(folder / 'ISO11783_TaskFile_V4-3.xsd')),
+            'log': xmlschema.XMLSchema(str(source / 'ISO11783_TimeLog_V4-3.xsd'))}
 
 
 # ------------------------------------------------------------------- the data dictionary
@@ -101,18 +100,17 @@ def test_every_ddi_written_is_the_data_dictionarys():
 # ------------------------------------------------------------------------- the schema
 
 @pytest.mark.parametrize('name', ['cam', 'rows'])
-def test_the_task_data_validates_against_the_iso_11783_10_schema(exported, name):
+def test_the_task_data_validates_against_the_iso_11783_10_schema(exported, schemas, name):
     _, directory = exported[name]
-    task = schema('ISO11783_TaskFile_V4-3.xsd', repaired=True)
+    task, log = schemas['task'], schemas['log']
     assert [e.reason for e in task.iter_errors(str(directory / 'TASKDATA.XML'))] == []
-    log = schema('ISO11783_TimeLog_V4-3.xsd', repaired=False)
     headers = sorted(directory.glob('TLG*.XML'))
     assert headers
     for header in headers:
         assert [e.reason for e in log.iter_errors(str(header))] == [], header.name
 
 
-def test_the_schema_check_finds_a_broken_file(exported, tmp_path):
+def test_the_schema_check_finds_a_broken_file(exported, schemas, tmp_path):
     """The validation itself: a device element of an unknown type and a task without its
     mandatory status are caught."""
     _, directory = exported['rows']
@@ -120,8 +118,7 @@ def test_the_schema_check_finds_a_broken_file(exported, tmp_path):
     broken = tmp_path / 'TASKDATA.XML'
     broken.write_text(text.replace('C="4" D="row_1"', 'C="9" D="row_1"', 1)
                       .replace(' G="4"', '', 1))
-    task = schema('ISO11783_TaskFile_V4-3.xsd', repaired=True)
-    reasons = [e.reason for e in task.iter_errors(str(broken))]
+    reasons = [e.reason for e in schemas['task'].iter_errors(str(broken))]
     assert len(reasons) >= 2, reasons
 
 
