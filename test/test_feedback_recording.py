@@ -101,7 +101,12 @@ def test_a_stalled_shell_publishes_every_sample_afterwards_with_its_own_stamp():
     def on_joint(msg):
         if recording.is_set():
             stamps.append(msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec)
-    interfaces.JOINT_STATES.subscribe(node, on_joint, qos=interfaces.JOINT_STATES.recording_qos())
+    # the recorder here is the test's instrument, not the product's: a queue deep enough for
+    # the whole run (its loop takes one sample per turn, and a loaded host may slow the loop
+    # below the 100 Hz the samples come at; the recorder's own depth, 100, would then drop
+    # the oldest and show a hole the shell never made)
+    interfaces.JOINT_STATES.subscribe(node, on_joint,
+                                      qos=interfaces.JOINT_STATES.recording_qos().deeper(2000))
     speed_pub = interfaces.GROUND_SPEED.publisher(node)
     design_pub = interfaces.DESIGN.publisher(node)
     executor = SingleThreadedExecutor(context=context)
