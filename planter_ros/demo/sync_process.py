@@ -219,10 +219,10 @@ class SyncProcess:
             self._closed = True
 
     def _gone(self):
-        """The child has ended and everything it sent has been taken (`poll` reads up to the
-        closed end; a closed pipe polls as readable for ever, so `_conn.poll()` alone would
-        keep saying "more to read", and a stop would spin until its timeout)."""
-        return not self.process.is_alive() and (self._closed or not self._conn.poll())
+        """Nothing more can come from the child: `poll` has read up to its closed end, or it
+        has ended with nothing left unread. (A closed pipe polls as readable for ever, so
+        `_conn.poll()` alone keeps saying "more to read": a stop spun until its timeout.)"""
+        return self._closed or (not self.process.is_alive() and not self._conn.poll())
 
     def wait_for(self, kind, timeout, stopped=lambda: False):
         """Wait until the child has said `kind` ('built', 'ready'); raises SyncProcessError
