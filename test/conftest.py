@@ -7,14 +7,18 @@ Real-time tests: a test that passes only when scheduled in real time (a live ROS
 a simulated drive and its master, a `planter demo` run, commissioning, signal and process-death
 timings) carries the marker `realtime`: `pytestmark = pytest.mark.realtime` at the top of its
 module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.mark.realtime)`
-on one case. That is the only list. With two processes (pytest.ini) every test so marked runs on
-one process, one after the other as in a serial run, first; the other process runs the rest
-meanwhile at a lower CPU priority (`BACKGROUND_NICE` above the priority the session started
-with), so it never starves them. No process of the suite ever runs above the priority the
-session was started with. A test that uses a live fixture (`LIVE_FIXTURES`: `ros`, `sim`,
-`channel`, `make_drive`, ...) or starts something live (`LIVE_NAMES`: a demo run, a node, a
-simulated bus, rclpy) without the marker fails, naming the marker: a new module cannot be
-forgotten.
+on one case. That is the only list. With three processes (pytest.ini), two of them take the
+real-time tests first, a module's at a time, one test after the other on each (as in a serial
+run): first those whose live part runs in processes of their own (a demo run and the like,
+whose command process and simulated drives run SCHED_FIFO as on the machine), two at once; then
+those live in the test process itself (nodes, simulated drives and their loops in threads
+without real-time priority: `live_where`), on the first process alone. The third process runs
+the rest meanwhile at `BACKGROUND_NICE` above the priority the session started with, so it
+never starves them; the two join it once the real-time tests are done. No process of the suite
+ever runs above the priority the session was started with. A test that uses a live fixture
+(`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
+(`LIVE_NAMES`: a demo run, a node, a simulated bus, rclpy) without the marker fails, naming
+the marker: a new module cannot be forgotten.
 
 A real-time test that fails while the host itself left every process unscheduled for more than
 host_stalls.STARVED s runs once more (host_stalls.py). Nothing hides it: the first run's failure
@@ -24,6 +28,7 @@ marked `flaky` fails and `--reruns` is refused (pytest-rerunfailures comes with 
 test_harness.py tests all of this on small test files.
 """
 import gc
+import hashlib
 import json
 import os
 import sys
@@ -72,12 +77,18 @@ LIVE_FIXTURES = frozenset({'ros', 'sim', 'channel', 'spy', 'make_drive', 'enable
 LIVE_NAMES = frozenset({'start_demo', 'SyncNode', 'MonitorNode', 'DesignNode',
                         'create_node', 'Context', 'SimulatedBus', 'SimulatedDrive',
                         'SimProcess'})
+# of those, the names whose live part runs in the test's own process (the others start
+# processes of their own: a demo run, the simulated drives' process); and a master's or the
+# command engine's loop run by the test itself
+LIVE_HERE_NAMES = LIVE_NAMES - {'start_demo', 'SimProcess'} | {'CommandEngine', 'run_engine',
+                                                                 'Cia402Drive'}
 REALTIME = 'realtime'
-BACKGROUND_NICE = 10       # the other tests' nice value, added to the session's while real-time
+HERE, APART = 'here', 'apart'     # a real-time test live in its own process, or in others
+BACKGROUND_NICE = 10       # the other tests' nice value, added to the session's
 START_NICE = os.getpriority(os.PRIO_PROCESS, 0)    # the priority this process started with
 
-_LAST_REALTIME = pytest.StashKey[str]()
 _UNMARKED = pytest.StashKey[str]()
+_KINDS = pytest.StashKey[dict]()
 
 
 def _realtime(item):
@@ -101,21 +112,40 @@ def _names(code):
     return names, strings
 
 
+def _used_names(item):
+    """(The names, the string constants) the test function and its fixtures use, and the
+    functions and classes of the test's module they name (their methods), all the way down."""
+    functions = [getattr(item, 'function', None)] + [
+        definition.func for definitions in item._fixtureinfo.name2fixturedefs.values()
+        for definition in definitions]
+    module = getattr(item.module, '__dict__', {}) if hasattr(item, 'module') else {}
+    names, strings, seen = set(), set(), set()
+    while functions:
+        function = functions.pop()
+        code = getattr(function, '__code__', None)
+        if code is None or code in seen:
+            continue
+        seen.add(code)
+        more = _names(code)
+        names |= more[0]
+        strings |= more[1]
+        for name in more[0]:                 # the test module's own helpers it calls
+            found = module.get(name)
+            if getattr(found, '__module__', None) != getattr(item.module, '__name__', ''):
+                continue
+            if isinstance(found, type):
+                functions += [f for f in vars(found).values() if hasattr(f, '__code__')]
+            elif hasattr(found, '__code__'):
+                functions.append(found)
+    return names, strings
+
+
 def live_reason(item):
     """Why `item` needs the realtime marker ('' if nothing says so)."""
     fixtures = sorted(LIVE_FIXTURES.intersection(item.fixturenames))
     if fixtures:
         return f'it uses the live fixture {fixtures[0]!r}'
-    functions = [getattr(item, 'function', None)] + [
-        definition.func for definitions in item._fixtureinfo.name2fixturedefs.values()
-        for definition in definitions]
-    names, strings = set(), set()
-    for function in functions:
-        code = getattr(function, '__code__', None)
-        if code is not None:
-            more = _names(code)
-            names |= more[0]
-            strings |= more[1]
+    names, strings = _used_names(item)
     found = sorted(LIVE_NAMES & names)
     if found:
         return f'it uses {found[0]}'
@@ -123,6 +153,24 @@ def live_reason(item):
                                               or 'planter_ros.cli' in strings):
         return "it runs `planter demo --duration ...`"
     return ''
+
+
+def live_where(item):
+    """APART when a real-time test's live part runs in processes of its own (a demo run, the
+    simulated drives' process), whose command process and simulated drives run SCHED_FIFO as
+    on the machine; else HERE: its nodes, simulated drives or loops run in the test process
+    itself, in threads without real-time priority (and a test marked by hand, whose live part
+    nothing here names, counts as HERE, unless it says `pytest.mark.realtime(apart=True)`)."""
+    if item.get_closest_marker(REALTIME).kwargs.get('apart'):
+        return APART
+    if LIVE_FIXTURES.intersection(item.fixturenames):
+        return HERE
+    names, strings = _used_names(item)
+    if LIVE_HERE_NAMES & names:
+        return HERE
+    demo = {'demo', '--duration'} <= strings and (names & {'run_planter', 'DEMO'}
+                                                  or 'planter_ros.cli' in strings)
+    return APART if demo or names & (LIVE_NAMES - LIVE_HERE_NAMES) else HERE
 
 
 def _ids_file(config):
@@ -136,41 +184,120 @@ def _realtime_ids_file(config):
     return _ids_file(config) / 'realtime-tests.json'
 
 
-def _realtime_done_file(config):
-    """There once the real-time tests are done."""
+def _done_dir(config):
+    """One empty file per real-time test done, named by its kind and a hash of its id."""
     return _ids_file(config) / 'realtime-tests-done'
+
+
+def _count_done(config, kind):
+    try:
+        return sum(1 for p in _done_dir(config).iterdir() if p.name.startswith(kind + '-'))
+    except FileNotFoundError:
+        return 0
+
+
+TURN_TIMEOUT = 1800.0       # s a test waits for its turn at most (a lost worker: go on)
+
+
+def _wait_for_turn(item):
+    """A HERE test waits until every APART test is done; on the second lane a test not marked
+    realtime waits until every real-time test is done: a HERE test runs beside the other tests
+    of one process only, at the background priority (as in a serial run of them)."""
+    where = _realtime_kinds(item.config)
+    if not where:
+        return
+    totals = {kind: sum(1 for k in where.values() if k == kind) for kind in (HERE, APART)}
+    lane = os.environ.get('PYTEST_XDIST_WORKER') == 'gw1'
+    if where.get(item.nodeid) == HERE:
+        waits = (APART,)
+    elif item.nodeid not in where and lane:
+        waits = (APART, HERE)
+    else:
+        return
+    deadline = time.monotonic() + TURN_TIMEOUT
+    while (any(_count_done(item.config, kind) < totals[kind] for kind in waits)
+           and time.monotonic() < deadline):
+        time.sleep(0.1)
+
+
+def _realtime_kinds(config):
+    """{nodeid: HERE or APART} of the session's real-time tests ({} outside xdist)."""
+    if not hasattr(config, 'workerinput'):
+        return {}
+    cached = config.stash.get(_KINDS, None)
+    if cached is None:
+        cached = json.loads(_realtime_ids_file(config).read_text())
+        config.stash[_KINDS] = cached
+    return cached
+
+
+def _number(node):
+    """gw3 -> 3: the processes in the order xdist numbers them."""
+    name = node.gateway.id
+    return (int(name[2:]) if name[2:].isdigit() else 0, name)
 
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
-    """Whole modules as units of work (their module fixtures made once), the tests marked
-    realtime together as one unit (xdist's own --dist loadgroup cannot group with this
-    pytest). The controller collects nothing itself: the workers write the realtime tests'
-    ids at collection (pytest_collection_modifyitems), before it schedules."""
+    """Whole modules as units of work (their module fixtures made once); a module's tests
+    marked realtime units of their own, those live HERE apart from those live APART (xdist's
+    own --dist loadgroup cannot group with this pytest). Two real-time lanes: both take the
+    APART units first (two demo runs at once: their real-time processes run SCHED_FIFO); then
+    the first takes the HERE units, one after the other; the second any other unit. A worker
+    waits at a test's set-up for what must end first (`_wait_for_turn`: xdist holds a worker's
+    last test until more work comes, so the scheduler itself cannot make a lane wait). The
+    other processes never run a real-time test. The controller collects nothing itself: the
+    workers write the realtime tests' ids at collection (pytest_collection_modifyitems),
+    before it schedules."""
+    # lazy: a pytest hook of xdist's, called only when xdist runs the session
     from xdist.scheduler import LoadScopeScheduling
 
-    class RealtimeTogether(LoadScopeScheduling):
-        _ids = None
+    class RealtimeLanes(LoadScopeScheduling):
+        _where = None
 
         def _split_scope(self, nodeid):
-            if self._ids is None:
-                self._ids = frozenset(json.loads(_realtime_ids_file(config).read_text()))
-            return REALTIME if nodeid in self._ids else _module(nodeid)
-    return RealtimeTogether(config, log)
+            if self._where is None:
+                self._where = json.loads(_realtime_ids_file(config).read_text())
+            module = _module(nodeid)
+            where = self._where.get(nodeid)
+            return f'{REALTIME} {where} {module}' if where else module
+
+        def _assign_work_unit(self, node):
+            lanes = sorted(self.nodes, key=_number)[:2]
+            here, apart, others = [], [], []
+            for scope in self.workqueue:
+                kind = scope.split(' ', 2)[:2]
+                (here if kind == [REALTIME, HERE] else apart if kind == [REALTIME, APART]
+                 else others).append(scope)
+            if node is lanes[0]:
+                eligible = apart or here or others
+            else:
+                eligible = (apart or others) if node in lanes else others
+            if not eligible:                         # only real-time units left, none for it
+                if not node.shutting_down:
+                    node.shutdown()
+                return
+            scope = eligible[0]
+            work_unit = self.workqueue.pop(scope)
+            self.assigned_work.setdefault(node, {})[scope] = work_unit
+            collection = self.registered_collections[node]
+            node.send_runtest_some([collection.index(nodeid)
+                                    for nodeid, done in work_unit.items() if not done])
+    return RealtimeLanes(config, log)
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """The real-time tests first (one process takes them as one unit, the unit it is given
-    first); then the modules with a test marked `slow`, so that both processes end together.
-    Orders kept otherwise. A test that needs the realtime marker and lacks it is noted (it
-    fails at its set-up)."""
+    """The real-time tests first (the real-time lanes take them first); then the modules with
+    a test marked `slow`, so that the processes end together. Orders kept otherwise. A test
+    that needs the realtime marker and lacks it is noted (it fails at its set-up)."""
     slow = {_module(item.nodeid) for item in items if item.get_closest_marker('slow')}
     items[:] = sorted(items, key=lambda item: (not _realtime(item),
                                                _module(item.nodeid) not in slow))
-    realtime = [item.nodeid for item in items if _realtime(item)]
-    config.stash[_LAST_REALTIME] = realtime[-1] if realtime else None
+    realtime = {}
     for item in items:
+        if _realtime(item):
+            realtime[item.nodeid] = live_where(item)
         if item.get_closest_marker('flaky'):
             item.stash[_UNMARKED] = ('flaky: a re-run that hides its first failure (pytest-'
                                      'rerunfailures, installed with colcon) is not allowed here')
@@ -190,13 +317,14 @@ def pytest_collection_modifyitems(config, items):
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
     """The CPU priority of this process for the test: the real-time tests at the priority the
-    session started with, the other tests BACKGROUND_NICE lower while real-time tests still
-    run elsewhere (so a second test process never starves their 10 ms loops and 0.2 s
-    watchdogs), else at the start's again. Never above the start's; without the right to
-    change it (not root), what can be set is set."""
+    session started with, the other tests BACKGROUND_NICE lower (so they never starve the
+    real-time tests' 10 ms loops and 0.2 s watchdogs). A lane runs its real-time tests first,
+    so its priority only ever goes down. Never above the start's; without the right to change
+    it (not root), what can be set is set."""
     refused = item.stash.get(_UNMARKED, '')
     if refused:
         pytest.fail(f'{item.nodeid} {refused}', pytrace=False)
+    _wait_for_turn(item)
     if _realtime(item):
         # as the product's real-time processes do after start-up (command/process.py,
         # demo/sync_process.py): what the session made so far out of the collector's reach,
@@ -204,12 +332,7 @@ def pytest_runtest_setup(item):
         # it, the ~300 000 objects of a session's real-time process cost 150-240 ms per full
         # collection, a stop of every thread the loops under test never see in the product.
         gc.freeze()
-    done = (item.config.stash.get(_LAST_REALTIME, None) is None
-            or _realtime_done_file(item.config).exists())
-    if _realtime(item) or done:
-        _set_nice(START_NICE)
-    else:
-        _set_nice(min(START_NICE + BACKGROUND_NICE, 19))
+    _set_nice(START_NICE if _realtime(item) else min(START_NICE + BACKGROUND_NICE, 19))
 
 
 def _set_nice(wanted):
@@ -225,8 +348,12 @@ def _set_nice(wanted):
 def pytest_runtest_teardown(item, nextitem):
     if _realtime(item):
         gc.unfreeze()                    # collectable again, between the tests
-    if item.nodeid == item.config.stash.get(_LAST_REALTIME, None):
-        _realtime_done_file(item.config).touch()
+        kind = _realtime_kinds(item.config).get(item.nodeid)
+        if kind:
+            done = _done_dir(item.config)
+            done.mkdir(exist_ok=True)
+            name = hashlib.sha256(item.nodeid.encode()).hexdigest()[:16]
+            (done / f'{kind}-{name}').touch()
 
 
 @pytest.hookimpl(tryfirst=True)

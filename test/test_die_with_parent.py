@@ -17,7 +17,7 @@ from cli_helpers import REPO
 
 from planter_ros.host.processes import supported
 
-pytestmark = [pytest.mark.realtime,          # (test/conftest.py)
+pytestmark = [pytest.mark.realtime(apart=True),         # (test/conftest.py)
               pytest.mark.skipif(not supported(), reason='needs Linux prctl(PR_SET_PDEATHSIG)')]
 
 GRACE = 5.0          # s the helpers may take to go

@@ -13,8 +13,9 @@ its JUnit file:
   naming the marker; a test marked flaky fails, and --reruns is refused (pytest-rerunfailures
   comes with colcon);
 * a session started 5 below this one's priority runs nothing, not even the stall watcher,
-  above that; the
-  real-time tests of several modules run on one process, before the others there.
+  above that, and the tests not marked realtime 10 below it; the real-time tests live in
+  processes of their own run first, on the first two processes, those live in the test process
+  then, on the first one alone; both before the others there.
 """
 import os
 from pathlib import Path
@@ -210,28 +211,51 @@ def note(kind):
 """
 
 
-def test_nothing_runs_above_the_sessions_priority_and_realtime_tests_run_together_first(
+def test_nothing_runs_above_the_sessions_priority_and_realtime_tests_run_on_two_lanes_first(
         tmp_path):
-    realtime = PRIORITY + """
+    here = PRIORITY + """
 pytestmark = pytest.mark.realtime
 
 
-def test_realtime_1():
-    note('realtime')
+def test_here_1(channel):           # a live fixture: live in the test process
+    note('here')
     w = host_stalls.watcher().pid
     with open(os.path.join(os.environ['RUNS'], 'watcher'), 'w') as f:
         f.write(str(os.getpriority(os.PRIO_PROCESS, w)))
-    time.sleep(0.5)
+    time.sleep(1.0)
+    note('end')
 
 
-def test_realtime_2():
-    note('realtime')
-    time.sleep(0.5)
+def test_here_2(channel):
+    note('here')
+    time.sleep(1.0)
+    note('end')
+"""
+    apart = PRIORITY + """
+pytestmark = pytest.mark.realtime
+
+
+def start_demo():                   # (the name of a demo run: live in processes of its own)
+    time.sleep(1.0)
+
+
+def test_apart_1():
+    note('apart')
+    start_demo()
+    note('end')
+
+
+def test_apart_2():
+    note('apart')
+    start_demo()
+    note('end')
 """
     other = PRIORITY + """
 @pytest.mark.realtime
-def test_realtime_3():
-    note('realtime')
+def test_here_3(channel):
+    note('here')
+    time.sleep(1.0)
+    note('end')
 
 
 def test_other_1():
@@ -244,16 +268,35 @@ def test_other_2():
     # 5 below this process's priority (which may already be lowered: the suite runs this
     # test beside the real-time ones)
     start = min(os.getpriority(os.PRIO_PROCESS, 0) + 5, 19)
-    out, junit = pytest_run(tmp_path, None, '-n', '2', nice=5,
-                            modules={'test_a.py': realtime, 'test_b.py': other})
+    out, junit = pytest_run(tmp_path, None, '-n', '3', nice=5,
+                            modules={'test_a.py': here, 'test_b.py': other,
+                                     'test_c.py': apart, 'test_d.py': apart})
     assert out.returncode == 0, out.stdout[-3000:]
     runs = [line.split() for line in (tmp_path / 'runs' / 'nice').read_text().splitlines()]
-    assert len(runs) == 5
-    assert all(int(nice) >= start for _, _, nice, _ in runs), runs
-    assert all(int(nice) == start for kind, _, nice, _ in runs if kind == 'realtime'), runs
+    assert len(runs) == 7 * 2 + 2, runs              # 7 real-time (start, end), 2 others
+    nice = {'here': start, 'apart': start, 'other': min(start + 10, 19)}
+    assert all(int(n) == nice[kind] for kind, _, n, _ in runs if kind != 'end'), runs
     assert int((tmp_path / 'runs' / 'watcher').read_text()) >= start
-    assert len({worker for kind, worker, _, _ in runs if kind == 'realtime'}) == 1
-    realtime_worker = next(worker for kind, worker, _, _ in runs if kind == 'realtime')
-    there = [kind for kind, worker, _, _ in sorted(runs, key=lambda r: float(r[3]))
-             if worker == realtime_worker]
-    assert there == sorted(there, key=lambda kind: kind != 'realtime'), runs
+    # the first process runs the tests live in the test process, alone; the first two run the
+    # others, first; the third none
+    assert {worker for kind, worker, _, _ in runs if kind == 'here'} == {'gw0'}
+    assert {worker for kind, worker, _, _ in runs if kind == 'apart'} == {'gw0', 'gw1'}
+    spans = {}
+    for kind, worker, _, at in sorted(runs, key=lambda r: float(r[3])):
+        if kind in ('here', 'apart'):
+            spans[worker] = (kind, float(at))
+        elif kind == 'end':
+            spans.setdefault('done', []).append((*spans.pop(worker), float(at)))
+    done = spans['done']
+    edges = sorted([(s0, +1) for _, s0, _ in done] + [(s1, -1) for _, _, s1 in done])
+    assert max(sum(step for _, step in edges[:k + 1]) for k in range(len(edges))) <= 2, done
+    for kind, start_at, end_at in done:          # a HERE test alone among the real-time ones
+        beside = [k for k, s0, s1 in done if s0 < end_at and s1 > start_at]
+        assert kind == 'apart' or beside == ['here'], done
+    assert max(s0 for k, s0, _ in done if k == 'apart') < min(s0 for k, s0, _ in done
+                                                            if k == 'here'), done
+    # on a process that runs both, the real-time tests first
+    for lane in ('gw0', 'gw1'):
+        there = [kind for kind, worker, _, _ in sorted(runs, key=lambda r: float(r[3]))
+                 if worker == lane and kind != 'end']
+        assert there == sorted(there, key=lambda kind: kind == 'other'), runs

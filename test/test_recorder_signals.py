@@ -16,7 +16,7 @@ from planter_ros import interfaces
 from planter_ros.recording.bag_reader import MAGIC, read_recording
 from planter_ros.recording.cdr import decode_ground_speed
 
-pytestmark = pytest.mark.realtime          # (test/conftest.py)
+pytestmark = pytest.mark.realtime(apart=True)   # processes of its own (test/conftest.py)
 
 REPO = Path(__file__).resolve().parents[1]
 RATE = 500.0          # messages per second written by the child

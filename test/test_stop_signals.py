@@ -11,7 +11,7 @@ import pytest
 
 from planter_ros.host import stop_signals
 
-pytestmark = pytest.mark.realtime          # (test/conftest.py)
+pytestmark = pytest.mark.realtime(apart=True)   # processes of its own (test/conftest.py)
 
 REPO = Path(__file__).resolve().parents[1]
 
