@@ -14,7 +14,7 @@ whose command process and simulated drives run SCHED_FIFO as on the machine), tw
 those live in the test process itself (nodes, simulated drives and their loops in threads
 without real-time priority: `live_where`), on the first process alone. The third process runs
 the rest meanwhile at `BACKGROUND_NICE` above the priority the session started with, so it
-never starves them; the two join it once the real-time tests are done. No process of the suite
+never starves them; each lane joins it once its real-time tests are done. No process of the suite
 ever runs above the priority the session was started with. A test that uses a live fixture
 (`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
 (`LIVE_NAMES`: a demo run, a node, a simulated bus, rclpy) without the marker fails, naming
@@ -200,23 +200,14 @@ TURN_TIMEOUT = 1800.0       # s a test waits for its turn at most (a lost worker
 
 
 def _wait_for_turn(item):
-    """A HERE test waits until every APART test is done; on the second lane a test not marked
-    realtime waits until every real-time test is done: a HERE test runs beside the other tests
-    of one process only, at the background priority (as in a serial run of them)."""
+    """A HERE test waits until every APART test is done: it runs beside no other real-time
+    test, only beside the other tests at the background priority (as in a serial run)."""
     where = _realtime_kinds(item.config)
-    if not where:
+    if where.get(item.nodeid) != HERE:
         return
-    totals = {kind: sum(1 for k in where.values() if k == kind) for kind in (HERE, APART)}
-    lane = os.environ.get('PYTEST_XDIST_WORKER') == 'gw1'
-    if where.get(item.nodeid) == HERE:
-        waits = (APART,)
-    elif item.nodeid not in where and lane:
-        waits = (APART, HERE)
-    else:
-        return
+    total = sum(1 for kind in where.values() if kind == APART)
     deadline = time.monotonic() + TURN_TIMEOUT
-    while (any(_count_done(item.config, kind) < totals[kind] for kind in waits)
-           and time.monotonic() < deadline):
+    while _count_done(item.config, APART) < total and time.monotonic() < deadline:
         time.sleep(0.1)
 
 
