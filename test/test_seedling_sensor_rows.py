@@ -13,7 +13,6 @@ from planter_ros.prediction.seedlings import (EMPTY, NO_READING, NO_SENSOR, PLAN
 from planter_ros.recording.replay import replay
 from test_seedlings import D, instants
 
-pytestmark = pytest.mark.realtime          # (test/conftest.py)
 
 ROW = PLANT_FIELDS.index('row')
 
@@ -83,6 +82,7 @@ def test_a_bad_seedling_sensor_setting_is_one_line(line, words, tmp_path, capsys
     assert not (tmp_path / 'x').exists()
 
 
+@pytest.mark.realtime          # (test/conftest.py)
 def test_the_monitor_node_takes_each_rows_declaration(ros, tmp_path):
     from rclpy.parameter import Parameter
 
@@ -140,6 +140,7 @@ def test_simulate_replay_and_analyze_honour_a_row_without_a_sensor(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.realtime
 def test_the_demo_gives_a_row_without_a_sensor_no_tray(tmp_path):
     """`planter demo` of a scene whose one row has no sensor: no cup sensor, and every
     instant the live monitor published and replay finds is unknown (no seedling sensor)."""
