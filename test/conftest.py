@@ -185,13 +185,14 @@ def _realtime_ids_file(config):
 
 
 def _done_dir(config):
-    """One empty file per real-time test done, named by its kind and a hash of its id."""
+    """One empty file per APART test done (what a HERE test waits for), named by a hash of
+    its id."""
     return _ids_file(config) / 'realtime-tests-done'
 
 
-def _count_done(config, kind):
+def _count_done(config):
     try:
-        return sum(1 for p in _done_dir(config).iterdir() if p.name.startswith(kind + '-'))
+        return sum(1 for _ in _done_dir(config).iterdir())
     except FileNotFoundError:
         return 0
 
@@ -207,7 +208,7 @@ def _wait_for_turn(item):
         return
     total = sum(1 for kind in where.values() if kind == APART)
     deadline = time.monotonic() + TURN_TIMEOUT
-    while _count_done(item.config, APART) < total and time.monotonic() < deadline:
+    while _count_done(item.config) < total and time.monotonic() < deadline:
         time.sleep(0.1)
 
 
@@ -339,12 +340,10 @@ def _set_nice(wanted):
 def pytest_runtest_teardown(item, nextitem):
     if _realtime(item):
         gc.unfreeze()                    # collectable again, between the tests
-        kind = _realtime_kinds(item.config).get(item.nodeid)
-        if kind:
+        if _realtime_kinds(item.config).get(item.nodeid) == APART:
             done = _done_dir(item.config)
             done.mkdir(exist_ok=True)
-            name = hashlib.sha256(item.nodeid.encode()).hexdigest()[:16]
-            (done / f'{kind}-{name}').touch()
+            (done / hashlib.sha256(item.nodeid.encode()).hexdigest()[:16]).touch()
 
 
 @pytest.hookimpl(tryfirst=True)
