@@ -95,8 +95,9 @@ def field_time(line):
 
 
 def stop_and_check(tmp_path, k, sig, phase, rng, target='group'):
-    """One run stopped by `sig` in `phase` ('start-up', 'run', 'stopping') sent to `target`
-    ('group', 'demo', 'sync process', 'command process'); the checks every stop must pass."""
+    """One run stopped by `sig` in `phase` ('start-up', 'sync node building', 'run',
+    'stopping') sent to `target` ('group', 'demo', 'sync process', 'command process'); the
+    checks every stop must pass."""
     cwd = tmp_path / f'run{k}'
     cwd.mkdir()
     bag = cwd / 'run.mcap'
@@ -109,6 +110,14 @@ def stop_and_check(tmp_path, k, sig, phase, rng, target='group'):
         helpers = descendants(proc.pid)
         if phase == 'start-up':
             time.sleep(rng.uniform(0.0, 1.0))          # drives being built, configured, enabled
+        elif phase == 'sync node building':            # its command process just started
+            deadline = time.monotonic() + 60
+            while not any(b'planter_ros.command\0' in cmdline(p)
+                          for p in descendants(proc.pid)):
+                assert time.monotonic() < deadline and proc.poll() is None, reader.text()
+                time.sleep(0.005)
+            time.sleep(rng.uniform(0.0, 0.5))          # the command process starting
+            helpers = descendants(proc.pid)
         elif phase == 'run':
             at = rng.uniform(0.3, DURATION - 1.0)
             reader.until(lambda line: line.startswith('drive enabled')
@@ -170,6 +179,14 @@ def test_ten_stops_of_the_process_group_at_random_moments_end_cleanly(tmp_path):
         out = stop_and_check(tmp_path, k, sig, phases[k], rng)
         if phases[k] != 'stopping':
             assert f'interrupted by {signal.Signals(sig).name}' in out, out
+
+
+def test_a_stop_as_the_simulated_drives_start_still_has_their_own_account(tmp_path):
+    """SIGTERM to the group the moment the sync process has started its drives, before its
+    sync node stands: the drives' own account of how they ended still reaches the summary
+    (the sync process sent no report at all when its start was cut short)."""
+    out = stop_and_check(tmp_path, 0, signal.SIGTERM, 'sync node building', random.Random(SEED))
+    assert 'interrupted by SIGTERM' in out, out
 
 
 @pytest.mark.parametrize('target', ['sync process', 'command process'])

@@ -374,8 +374,11 @@ def child_main(conn, settings):
             sims.stop()
             drive_report = drives_report(sims)
         library_log.close()
-    if sync is not None:
-        send('final', final_report(sync, drive_report))
+    # the drives' own account of how they ended, also when the start was cut short (by a stop
+    # or a start error) before the sync node stood: without it a stop at start-up left the
+    # demo nothing to show that every drive ended disabled
+    send('final', final_report(sync, drive_report) if sync is not None else
+         start_cut_report(drive_report))
     conn.close()
 
 
@@ -393,6 +396,17 @@ def _wait_for_stop(conn, timeout=30.0):
 def snapshot(sync) -> Snapshot:
     """What the progress lines show: each running row's command, measured speed and state."""
     return sync.engine.snapshot()
+
+
+def start_cut_report(drives: dict) -> SyncReport:
+    """The report of a sync process whose start was cut short before its sync node stood: no
+    command path, only what the simulated drives counted."""
+    missing = 'the start was cut short before the sync node stood'
+    try:
+        drives_report = DrivesReport.from_data(drives or {})
+    except ReportError as exc:
+        drives_report, missing = DrivesReport(), f'{missing}; the drives\' report: {exc}'
+    return SyncReport(None, drives_report, DesignReport(), missing)
 
 
 def final_report(sync, drives: dict) -> SyncReport:
