@@ -27,7 +27,7 @@ import traceback
 
 from planter_ros.config import ConfigError, setting
 
-from .hogs import HOGS, QUICK_HOGS
+from .hogs import HOGS, QUICK_HOG_NICENESS, QUICK_HOGS
 from .timing import Timing, measure
 
 _T = TypeVar('_T')
@@ -148,6 +148,11 @@ class BenchContext:
     def hogs(self) -> int:
         """How many CPU hogs run beside a run under load (bench.hogs)."""
         return self.n(HOGS, QUICK_HOGS)
+
+    @property
+    def hog_niceness(self) -> int:
+        """The niceness the CPU hogs add to the bench's (bench.hogs: 0, --quick the lowest)."""
+        return self.n(0, QUICK_HOG_NICENESS)
 
     def measure(self, fn: Callable[[], object], repeats: int | None = None,
                 min_time: float | None = None) -> Timing:

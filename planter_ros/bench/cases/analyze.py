@@ -24,6 +24,7 @@ row times empty tasks through the same cluster: Dask's own cost per task.
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from contextlib import ExitStack, contextmanager
 import math
 import os
 from pathlib import Path
@@ -61,9 +62,21 @@ def _noop(i: int) -> int:
     return i
 
 
-def _simulate(directory: Path, runs: int, duration: float) -> tuple[float, int]:
+@contextmanager
+def _cluster(workers: int | None, shared: Any) -> Iterator[Any]:   # a distributed.Client
+    """`shared` (--quick: the client of the case's one 2-worker cluster; the figures of a quick
+    run mean nothing, a cluster's start is seconds of CPU) or a local cluster of its own."""
+    if shared is not None:
+        yield shared
+        return
+    with cluster(workers=workers) as client:
+        yield client
+
+
+def _simulate(directory: Path, runs: int, duration: float, shared: Any = None
+              ) -> tuple[float, int]:
     """Simulate `runs` runs into `directory` on the local cluster: (seconds, workers)."""
-    with cluster() as client:
+    with _cluster(None, shared) as client:
         workers = check_workers(client, warm_up, model_version(), 'the local cluster')
         started = time.monotonic()
         arguments = [(str(directory / bag_name(0, k)), 0, k, duration, ROWS, TrayShares(*TRAY))
@@ -75,7 +88,7 @@ def _simulate(directory: Path, runs: int, duration: float) -> tuple[float, int]:
     return seconds, workers
 
 
-def _analyse(bags: Sequence[str | Path], out: Path, workers: int
+def _analyse(bags: Sequence[str | Path], out: Path, workers: int, shared: Any = None
              ) -> tuple[Any, float, float, float, float]:        # report: analysis.season's
     """One analysis of `bags` into fresh tables at `out` with `workers` local workers:
     (report, seconds to start the cluster and warm the workers up, CPU seconds during the
@@ -83,7 +96,7 @@ def _analyse(bags: Sequence[str | Path], out: Path, workers: int
     average before it)."""
     version = model_version()
     started = time.monotonic()
-    with cluster(workers=workers) as client:
+    with _cluster(workers, shared if workers == 2 else None) as client:
         check_workers(client, warm_up, version, 'the local cluster')
         startup = time.monotonic() - started
         root = seasons.analysed_root([Path(bags[0]).parent])
@@ -108,9 +121,9 @@ def _analyse(bags: Sequence[str | Path], out: Path, workers: int
     return report, startup, cpu, workers_cpu, load
 
 
-def _task_overhead(count: int) -> float:
+def _task_overhead(count: int, shared: Any = None) -> float:
     """Seconds per empty task through a 2-worker local cluster (submit → result gathered)."""
-    with cluster(workers=2) as client:
+    with _cluster(2, shared) as client:
         list(completed(client, _noop, [(i,) for i in range(50)]))       # warm
         started = time.monotonic()
         done = sum(1 for _ in completed(client, _noop, [(i,) for i in range(count)]))
@@ -141,6 +154,14 @@ def _replay_error(bag: str | Path, out: Path) -> float:
 @bench_case('analyze')
 def season_analysis(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    with ExitStack() as stack:
+        # --quick: one 2-worker cluster for the simulation, the 2-worker analysis and the
+        # empty tasks (a full run starts one for each, its start timed apart)
+        shared = stack.enter_context(cluster(workers=2)) if ctx.quick else None
+        yield from _season_rows(ctx, shared)
+
+
+def _season_rows(ctx: BenchContext, shared: Any) -> Iterator[Row]:
     count, runs = ctx.n(200, 8), ctx.n(20, 4)
     duration = ctx.n(60.0, 10.0)
     repeats = ctx.n(3, 1)
@@ -150,7 +171,7 @@ def season_analysis(ctx: BenchContext) -> Iterator[Row]:
         made.mkdir()
         season_dir.mkdir()
         ctx.progress(f'  simulating {runs} runs of {duration:.0f} s ...')
-        seconds, sim_workers = _simulate(made, runs, duration)
+        seconds, sim_workers = _simulate(made, runs, duration, shared)
         originals = sorted(made.glob('*.mcap'))
         per_worker = runs * duration / seconds / sim_workers
         yield Row(WHAT, f'planter simulate: {runs} runs of {duration:.0f} s, {ROWS} rows',
@@ -169,7 +190,8 @@ def season_analysis(ctx: BenchContext) -> Iterator[Row]:
             walls, startups, runs_of = [], [], []
             for rep in range(repeats):
                 out = tmp / f'out_{workers}_{rep}'
-                report, startup, client_cpu, workers_cpu, load = _analyse(bags, out, workers)
+                report, startup, client_cpu, workers_cpu, load = _analyse(bags, out, workers,
+                                                                          shared)
                 if report.analysed != count:
                     raise RuntimeError(f'{report.analysed} of {count} bags analysed: '
                                        f'{report.failures[:1] or report.not_done[:1]}')
@@ -242,7 +264,7 @@ def season_analysis(ctx: BenchContext) -> Iterator[Row]:
                              'scaling_efficiency_cpu': cpu_efficiency})
     tasks = ctx.n(2000, 200)
     ctx.progress(f'  {tasks} empty tasks ...')
-    per_task = _task_overhead(tasks)
+    per_task = _task_overhead(tasks, shared)
     yield Row(WHAT, f'Dask alone: {tasks} empty tasks, 2 local workers', 1, 'task',
               from_samples([per_task]),
               note=f'{1 / per_task:.0f} tasks/s: the scheduler and client cost of one bag',
@@ -254,11 +276,11 @@ LOSS_TRAY = (0.05, 0.03)        # empty cells, doubles: enough of both in short 
 
 
 def _simulate_season(directory: Path, count: int, duration: float, rows: int,
-                     tray: tuple[float, float]) -> dict[str, BagSummary]:
+                     tray: tuple[float, float], shared: Any = None) -> dict[str, BagSummary]:
     """`count` distinct runs of `duration` s on the local cluster: {bag name: summary}."""
     names = [bag_name(1, k) for k in range(count)]
     out: dict[str, BagSummary] = {}
-    with cluster() as client:
+    with _cluster(None, shared) as client:
         check_workers(client, warm_up, model_version(), 'the local cluster')
         arguments = [(str(directory / name), 1, k, duration, rows, TrayShares(*tray))
                      for k, name in enumerate(names)]
@@ -277,18 +299,21 @@ def injected_losses(ctx: BenchContext) -> Iterator[Row]:
     counted, every difference by its place, and the ISO misses and multiples by their cause."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     count, duration = ctx.n(200, 6), ctx.n(15.0, 12.0)
-    with tempfile.TemporaryDirectory() as name:
+    with ExitStack() as stack:
+        # --quick: one 2-worker cluster for the simulation and the analysis (as in 'analyze')
+        shared = stack.enter_context(cluster(workers=2)) if ctx.quick else None
+        name = stack.enter_context(tempfile.TemporaryDirectory())
         tmp = Path(name)
         season_dir = tmp / 'season'
         season_dir.mkdir()
         ctx.progress(f'  simulating {count} runs of {duration:.0f} s with a tray of '
                      f'{LOSS_TRAY[0]:.0%} empty cells, {LOSS_TRAY[1]:.0%} doubles ...')
         started = time.monotonic()
-        summaries = _simulate_season(season_dir, count, duration, ROWS, LOSS_TRAY)
+        summaries = _simulate_season(season_dir, count, duration, ROWS, LOSS_TRAY, shared)
         simulated = time.monotonic() - started
         bags = find_bags([season_dir])
         ctx.progress(f'  analysing {count} bags ...')
-        report, _, _, _, _ = _analyse(bags, tmp / 'out', 2)
+        report, _, _, _, _ = _analyse(bags, tmp / 'out', 2, shared)
         ctx.progress('  accounting ...')
         plants = ds.dataset(tmp / 'out' / 'plants').to_table()
         table = pq.read_table(tmp / 'out' / 'bags', columns=[

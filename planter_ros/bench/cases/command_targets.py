@@ -52,7 +52,7 @@ from planter_ros.recording.replay import replay
 from planter_ros.scene import default_scene_path
 from planter_ros.sim.runs import five_bar_design_message
 
-from ..hogs import cpu_hogs
+from ..hogs import QUICK_HOG_NICENESS, cpu_hogs
 from ..registry import BenchContext, Row, Target, bench_case
 from .sync import row_parameters
 from ..timing import Timing, from_samples
@@ -61,6 +61,7 @@ RATE = 50.0                     # Hz, ground-speed samples of the latency case
 LATENCY_ROWS = 8
 LATENCY_TARGET = 1e-3           # s, p99
 SETTLE = 1.0                    # s between the design taking effect and the first sample
+QUICK_SETTLE = 0.3              # --quick: the angles take tens of ms; the figures mean nothing
 WHAT_LATENCY = (f"command path, {LATENCY_ROWS} rows, profile velocity: ground-speed sample "
                 "(shell's receive) → last row's CAN frame sent")
 WHAT_RUNS = '4-row demo in CSP (SYNC 10 ms), CPU hogs beside each run'
@@ -97,11 +98,13 @@ def latency_timing(histogram: dict[str, Any]) -> tuple[Timing, int, float]:
 
 
 def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
-                timeout: float = 120.0, parameters: Sequence[tuple[str, object]] = ()
+                timeout: float = 120.0, parameters: Sequence[tuple[str, object]] = (),
+                quick: bool = False
                 ) -> dict[str, Any]:              # the command process's report (JSON)
     """One run of the demo's command path with `rows` rows in profile velocity, fed RATE Hz
     ground-speed samples for `seconds` s (`hogs` CPU hogs beside it meanwhile; `parameters`:
-    more (name, value) of the sync node); returns the command process's final report."""
+    more (name, value) of the sync node; `quick`: the smoke run's shorter settling and hogs at
+    the lowest priority, bench.hogs); returns the command process's final report."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     domain = claim_private_domain()
     channel = f'planter-bench-latency-{uuid.uuid4().hex[:8]}'
@@ -126,8 +129,8 @@ def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
         msg = TwistStamped()
         # the design's planting angles are worked out in a thread of the command process
         # (tens of ms, once): not what is measured here
-        time.sleep(SETTLE)
-        with cpu_hogs(hogs):
+        time.sleep(QUICK_SETTLE if quick else SETTLE)
+        with cpu_hogs(hogs, QUICK_HOG_NICENESS if quick else 0):
             start = next_pub = time.monotonic()
             k = 0
             while next_pub < start + seconds:
@@ -149,12 +152,13 @@ def latency_run(seconds: float, rows: int = LATENCY_ROWS, hogs: int = 0,
 
 @bench_case('command-latency')
 def command_latency(ctx: BenchContext) -> Iterator[Row]:
-    seconds = ctx.n(20.0, 2.0)
+    # --quick: 1.5 s at 50 Hz is 76 samples per run (the smoke test wants > 50)
+    seconds = ctx.n(20.0, 1.5)
     for hogs in (0, ctx.hogs):
         ctx.progress(f'  {LATENCY_ROWS} rows, {seconds:g} s of {RATE:g} Hz samples, '
                      f'{hogs} CPU hogs beside it ...')
         before = load_average()
-        report = latency_run(seconds, hogs=hogs)
+        report = latency_run(seconds, hogs=hogs, quick=ctx.quick)
         timing, count, worst = latency_timing(report['sample_to_frame_histogram'])
         trips = len(report.get('watchdog_trips', []))
         yield Row(WHAT_LATENCY, 'quiet' if not hogs else f'{hogs} CPU hogs beside it', 1,
@@ -212,16 +216,16 @@ def _silent(text: str) -> None:
 
 
 def demo_runs(runs: int, duration: float, hogs: int,
-              progress: Callable[[str], None] = _silent
+              progress: Callable[[str], None] = _silent, hog_niceness: int = 0
               ) -> list[tuple[float, RunFigures, tuple[float | None, float | None]]]:
-    """`runs` 4-row demo runs of `duration` s, `hogs` CPU hogs beside each; per run (seconds,
-    figures, load average before and after)."""
+    """`runs` 4-row demo runs of `duration` s, `hogs` CPU hogs (at `hog_niceness`) beside
+    each; per run (seconds, figures, load average before and after)."""
     out: list[tuple[float, RunFigures, tuple[float | None, float | None]]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
             bag = str(Path(tmp) / f'run{k}.mcap')
             before = load_average()
-            with cpu_hogs(hogs):
+            with cpu_hogs(hogs, hog_niceness):
                 demo = prepare(DemoOptions(scene=str(default_scene_path(SCENE)),
                                            duration=duration, bag=bag),
                                out=io.StringIO(), install_signals=False, log_level='error')
@@ -263,7 +267,7 @@ def demo_runs_under_load(ctx: BenchContext) -> Iterator[Row]:
     runs = ctx.runs or ctx.n(RUNS, 1)
     duration = ctx.n(30.0, 8.0)
     ctx.progress(f'  {runs} run(s) of {duration:g} s, {ctx.hogs} CPU hog(s) beside each ...')
-    results = demo_runs(runs, duration, ctx.hogs, ctx.progress)
+    results = demo_runs(runs, duration, ctx.hogs, ctx.progress, ctx.hog_niceness)
     error_of = ("the run's worst row: spacing error RMS over d, replay of the run's bag")
     pooled = PeriodStats()
     for k, (seconds, fig, (before, after)) in enumerate(results):

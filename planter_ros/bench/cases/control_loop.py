@@ -35,13 +35,14 @@ def _silent(text: str) -> None:
 
 
 def loaded_runs(runs: int, duration: float, hogs: int,
-                progress: Callable[[str], None] = _silent) -> list[tuple[float, DemoResult]]:
-    """`runs` demo runs of `duration` s, each beside `hogs` CPU-bound processes; returns a
-    list of (seconds the run took, DemoResult)."""
+                progress: Callable[[str], None] = _silent, hog_niceness: int = 0
+                ) -> list[tuple[float, DemoResult]]:
+    """`runs` demo runs of `duration` s, each beside `hogs` CPU-bound processes (at
+    `hog_niceness`); returns a list of (seconds the run took, DemoResult)."""
     results: list[tuple[float, DemoResult]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(runs):
-            with cpu_hogs(hogs):
+            with cpu_hogs(hogs, hog_niceness):
                 demo = prepare(DemoOptions(duration=duration, bag=str(Path(tmp) / f'run{k}.mcap')),
                                out=io.StringIO(), install_signals=False, log_level='error')
                 t0 = time.perf_counter()
@@ -64,7 +65,7 @@ def control_loop_under_load(ctx: BenchContext) -> Iterator[Row]:
     runs, duration = ctx.runs or ctx.n(10, 1), ctx.n(30.0, 8.0)
     ctx.progress(f'  {runs} demo run(s) of {duration:g} s, {ctx.hogs} CPU hog(s) beside '
                  'each ...')
-    results = loaded_runs(runs, duration, ctx.hogs, ctx.progress)
+    results = loaded_runs(runs, duration, ctx.hogs, ctx.progress, ctx.hog_niceness)
     pooled = PeriodStats()
     trips, failed, per_run = 0, [], []
     for _, result in results:

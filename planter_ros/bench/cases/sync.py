@@ -51,6 +51,9 @@ WHAT_CURVE = 'closed loop, 4 rows through 10 m turns: spacing error per row'
 P99_TARGET = 2e-3          # quality target: sync loop ground-speed-message -> CAN frame p99
 ROW_COUNTS = (1, 4, 8)
 RATE = 50.0                # Hz, ground-speed samples
+# --quick (the smoke run: does every row group come out, not its figures): 0.5 s of samples per
+# run after 0.1 s of warm-up; the discovery of the source, not the samples, is most of a run
+QUICK_SAMPLES, QUICK_WARMUP = 20, 5
 ERROR_OF = 'no error defined: timings only'
 
 
@@ -194,9 +197,9 @@ def match_frames(sent: list[float], frames: list[tuple[float, int, bytes]]) -> l
 
 @bench_case('sync loop latency')
 def sync_latency(ctx: BenchContext) -> Iterator[Row]:
-    samples = ctx.n(1000, 50)
+    samples = ctx.n(1000, QUICK_SAMPLES)
     ctx.progress(f'  {samples} samples at {RATE:g} Hz ...')
-    lat, sent, trips = sync_latencies(samples, RATE, warmup=ctx.n(50, 10))
+    lat, sent, trips = sync_latencies(samples, RATE, warmup=ctx.n(50, QUICK_WARMUP))
     if not lat:
         raise RuntimeError(f'no CAN frame matched any of {sent} ground-speed samples'
                            + tripped(trips))
@@ -210,10 +213,10 @@ def sync_latency(ctx: BenchContext) -> Iterator[Row]:
 
 @bench_case('sync loop latency per row count')
 def sync_latency_rows(ctx: BenchContext) -> Iterator[Row]:
-    samples = ctx.n(1000, 50)
+    samples = ctx.n(1000, QUICK_SAMPLES)
     for rows in ROW_COUNTS:
         ctx.progress(f'  {rows} row(s): {samples} samples at {RATE:g} Hz ...')
-        lat, sent, trips = sync_latencies(samples, RATE, warmup=ctx.n(50, 10), rows=rows)
+        lat, sent, trips = sync_latencies(samples, RATE, warmup=ctx.n(50, QUICK_WARMUP), rows=rows)
         if not lat:
             raise RuntimeError(f'{rows} rows: no sample matched a CAN frame on every row'
                                + tripped(trips))

@@ -30,12 +30,24 @@ def _paper_scene() -> dict[str, Any]:
     return load_scene(default_scene_path('rice_three_arm.yaml'), 'design_node')
 
 
-def _mpmath_mean_ratio(curve: PitchCurve, a: float) -> Any:      # an mpmath mpf
-    """(1/2π)∮ρ/(a−ρ)dθ by mpmath quadrature, piece by piece between the spline knots."""
+def _mpmath_mean_ratio(curve: PitchCurve, a: float, radii: dict[float, Any] | None = None
+                       ) -> Any:      # an mpmath mpf
+    """(1/2π)∮ρ/(a−ρ)dθ by mpmath quadrature, piece by piece between the spline knots.
+    `radii`: ρ at the nodes seen so far (θ → mpf), shared by the calls on one curve: the
+    root-finding calls this again and again at the same nodes, and ρ (a float spline value)
+    does not depend on a; the same values, each evaluated once."""
     ends = [float(e) for e in curve.pieces]
     exact = mpmath.mpf(a)
+    seen: dict[float, Any] = {} if radii is None else radii
+
+    def rho(t: Any) -> Any:
+        key = float(t)
+        r = seen.get(key)
+        if r is None:
+            r = seen[key] = mpmath.mpf(float(curve(key)))
+        return r
     total = mpmath.fsum(
-        mpmath.quad(lambda t: (lambda r: r / (exact - r))(mpmath.mpf(float(curve(float(t))))),
+        mpmath.quad(lambda t: (lambda r: r / (exact - r))(rho(t)),
                     [ends[i], ends[i + 1]]) for i in range(len(ends) - 1))
     return total / (2 * mpmath.pi)
 
@@ -46,8 +58,9 @@ def three_arm_closure(ctx: BenchContext) -> Iterator[Row]:
     curve = PitchCurve(params['control_radii'], params['control_angles'],
                        params.get('interpolant', 'periodic_cubic'))
     ctx.progress('  mpmath reference centre distance ...')
+    radii: dict[float, Any] = {}         # ρ at the quadrature nodes, for every call below
     with mpmath.workdps(30):
-        a_ref = mpmath.findroot(lambda a: _mpmath_mean_ratio(curve, a) - 1,
+        a_ref = mpmath.findroot(lambda a: _mpmath_mean_ratio(curve, a, radii) - 1,
                                 solve_centre_distance(curve).a)
         methods: list[tuple[str, dict[str, int]]] = [('gauss', {}), ('paper', {})]
         methods += [('trapezoid', {'samples': n}) for n in ctx.n((90, 360, 1024, 4096), (360,))]
@@ -55,7 +68,7 @@ def three_arm_closure(ctx: BenchContext) -> Iterator[Row]:
             t = ctx.measure(lambda: solve_centre_distance(curve, method, **kw))
             closure = solve_centre_distance(curve, method, **kw)
             err = float(abs(closure.a - a_ref) / a_ref)
-            residual = float(abs(_mpmath_mean_ratio(curve, closure.a) - 1))
+            residual = float(abs(_mpmath_mean_ratio(curve, closure.a, radii) - 1))
             label = {'gauss': 'Gauss–Legendre per spline piece (ours)',
                      'paper': "paper's 1° sum (eq. 2)"}.get(
                          method, f"trapezoid n={kw.get('samples')}")
