@@ -216,10 +216,19 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
     before = (out / 'bags' / 'bags.parquet').read_bytes()
     plants, table = plants_of(out)
 
+    report = out / 'report.html'
+    drawn = report.stat().st_mtime_ns
     _, again = analyze(season, '--out', out)
     assert again['skipped'] == 6 and again['analysed'] == again['failed'] == 0
     assert again['workers'] == 0                       # no cluster started for nothing
     assert (out / 'bags' / 'bags.parquet').read_bytes() == before
+    assert report.stat().st_mtime_ns == drawn          # the same tables: the report kept
+    # a report older than the tables (a run stopped between them): drawn again
+    older = (out / 'bags' / 'bags.parquet').stat().st_mtime_ns - 1_000_000_000
+    os.utime(report, ns=(older, older))
+    analyze(season, '--out', out)
+    assert report.stat().st_mtime_ns > drawn
+    drawn = report.stat().st_mtime_ns
 
     # touched, the same content: the same bag (its new time recorded, nothing redone)
     changed = season / 'day1' / 'b.mcap'
@@ -233,6 +242,7 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
     shutil.copyfile(tmp_path / 'other.mcap', changed)
     _, third = analyze(season, '--out', out, '--workers', 1)
     assert third['skipped'] == 5 and third['analysed'] == 1
+    assert report.stat().st_mtime_ns > drawn           # new tables: a new report
     rows = rows_of(out)
     assert len(rows) == 6 and rows['day1/b.mcap']['path'] == str(changed)
     now, _ = plants_of(out)

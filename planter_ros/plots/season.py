@@ -31,27 +31,42 @@ REPORT_FILE = 'report.html'
 MAX_MAPS = 8                    # recordings drawn as maps
 
 
-def season_report(out):
-    """Read the tables under `out`, write report.html there (atomically): (the table for
-    people, the report's path)."""
+def season_report(out, force=True):
+    """Read the tables under `out`, write report.html there (atomically) when `force` (the
+    tables changed), it is missing or older than a table: (the table for people, the report's
+    path). The report is drawn from the tables alone, so unchanged tables keep it (its figures
+    are most of a re-run's time: 2-3 s of matplotlib)."""
     plants, bags = read_season(out)
     groups = season_groups(plants, bags)
     path = Path(out) / REPORT_FILE
-    with _matplotlib_home():
-        write_season_report(path, groups, plants, bags)
+    if force or not _newer_than_the_tables(path, Path(out)):
+        with _matplotlib_home():
+            write_season_report(path, groups, plants, bags)
     return format_season_table(groups), path
 
 
+def _newer_than_the_tables(path, out):
+    """The report at `path` exists and was written after every table under `out` (a run that
+    stopped between its tables and its report leaves an older one: drawn again)."""
+    try:
+        made = path.stat().st_mtime_ns
+    except FileNotFoundError:
+        return False
+    tables = [out / seasons.BAGS_FILE, *(out / seasons.PLANTS_DIR).glob('*.parquet')]
+    return all(table.stat().st_mtime_ns <= made for table in tables if table.is_file())
+
+
 def season_outputs(out, force):
-    """The season's exports (export.season: written when `force` or one is missing) and its
-    report under `out`, each on its own and recorded as the command's (season.record_written):
+    """The season's exports (export.season) and its report under `out`, each written when
+    `force` (bags were analysed: the tables changed) or missing, each on its own and recorded
+    as the command's (season.record_written):
     (exports or None, the table for people, the report's path or None, [(path, reason)] of
     each output not written)."""
     exports = season_exports(out, force)
     seasons.record_written(out, seasons.EXPORTS)
     failed = [(item['file'], item['reason']) for item in (exports or {}).get('failed', [])]
     try:
-        table, path = season_report(out)
+        table, path = season_report(out, force)
     except Exception as exc:                 # the tables and exports are written
         text = str(exc).strip().splitlines()
         failed.append((str(Path(out) / REPORT_FILE),
