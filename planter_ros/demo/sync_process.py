@@ -401,12 +401,19 @@ def snapshot(sync) -> Snapshot:
 def start_cut_report(drives: dict) -> SyncReport:
     """The report of a sync process whose start was cut short before its sync node stood: no
     command path, only what the simulated drives counted."""
+    drives_report, unreadable = _drives_report(drives)
     missing = 'the start was cut short before the sync node stood'
+    return SyncReport(None, drives_report, DesignReport(),
+                      f'{missing}; {unreadable}' if unreadable else missing)
+
+
+def _drives_report(drives: dict) -> tuple[DrivesReport, str]:
+    """What the simulated drives counted, read from their data, and '' (or why it could not
+    be read: an empty report then)."""
     try:
-        drives_report = DrivesReport.from_data(drives or {})
+        return DrivesReport.from_data(drives or {}), ''
     except ReportError as exc:
-        drives_report, missing = DrivesReport(), f'{missing}; the drives\' report: {exc}'
-    return SyncReport(None, drives_report, DesignReport(), missing)
+        return DrivesReport(), f'the drives\' report: {exc}'
 
 
 def final_report(sync, drives: dict) -> SyncReport:
@@ -423,10 +430,8 @@ def final_report(sync, drives: dict) -> SyncReport:
         missing = ('the command process sent no report (it never enabled a drive)'
                    if exit_ is not None and not exit_.enabled else
                    'the command process sent no report')
-    try:
-        drives_report = DrivesReport.from_data(drives or {})
-    except ReportError as exc:
-        drives_report, missing = DrivesReport(), missing or f'the drives\' report: {exc}'
+    drives_report, unreadable_drives = _drives_report(drives)
+    missing = missing or unreadable_drives
     sources = sync.design_sources
     design = DesignReport(sources.first.text if sources.first else '', sources.changes,
                           sources.foreign_changes,
