@@ -159,8 +159,10 @@ def live_where(item):
     """APART when a real-time test's live part runs in processes of its own (a demo run, the
     simulated drives' process), whose command process and simulated drives run SCHED_FIFO as
     on the machine; else HERE: its nodes, simulated drives or loops run in the test process
-    itself, in threads without real-time priority (and a test marked by hand, whose live part
-    nothing here names, counts as HERE, unless it says `pytest.mark.realtime(apart=True)`)."""
+    itself (a command loop at the command process's priority while it runs,
+    drive_helpers.as_the_command_process; the rest without real-time priority). A test marked
+    by hand, whose live part nothing here names, counts as HERE, unless it says
+    `pytest.mark.realtime(apart=True)`."""
     if item.get_closest_marker(REALTIME).kwargs.get('apart'):
         return APART
     if LIVE_FIXTURES.intersection(item.fixturenames):

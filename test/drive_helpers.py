@@ -5,13 +5,19 @@ virtual channels are process-wide and an unclosed bus queues frames forever.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+import contextlib
+import os
 import struct
+import sys
 import time
 import uuid
 
 import can
 import pytest
 
+from planter_ros.command.process import SWITCH_INTERVAL
+from planter_ros.control.loop_timing import SyncLoopConfig
 from planter_ros.drive.cia402 import Cia402Drive, DriveConfig
 from planter_ros.simdrive.drive import SimulatedDrive
 
@@ -107,12 +113,55 @@ def wait_until(condition, timeout: float = 3.0, period: float = 0.005) -> bool:
     return condition()
 
 
+def _threads() -> list[int]:
+    try:
+        return [int(tid) for tid in os.listdir('/proc/self/task')]
+    except OSError:
+        return [0]
+
+
+def _schedule(policy: int, priority: int) -> None:
+    for tid in _threads():
+        with contextlib.suppress(ProcessLookupError):    # a thread that ended meanwhile
+            os.sched_setscheduler(tid, policy, os.sched_param(priority))
+
+
+@contextlib.contextmanager
+def as_the_command_process() -> Iterator[None]:
+    """This process's threads at the command process's SCHED_FIFO priority and interpreter
+    switch interval, as the product runs its loop (command/process.py), then back to SCHED_OTHER
+    and the interval before. A loop under test in the test process otherwise runs at an
+    ordinary priority beside the suite's other work: a stall of it beyond ~55 ms at 1 turn/s
+    leaves every CSP drive without targets, and a failed CI run tripped all five drives of
+    test_drive_profiles at once. All threads: the loop waits for the interpreter whenever a
+    bus reader holds it, and a reader at an ordinary priority would hold the loop back. Where
+    SCHED_FIFO is refused (no CAP_SYS_NICE) the loop runs as it is."""
+    interval = sys.getswitchinterval()
+    try:
+        _schedule(os.SCHED_FIFO, SyncLoopConfig().realtime_priority)
+        granted = True
+    except (OSError, AttributeError):
+        granted = False
+    sys.setswitchinterval(SWITCH_INTERVAL)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(interval)
+        if granted:
+            _schedule(os.SCHED_OTHER, 0)
+
+
 def run_engine(engine, seconds: float, v: float | None, w: float = 0.0,
                after_step=None) -> bool:
-    """The command process's loop in miniature: a ground-speed sample (v m/s, w rad/s) every
-    20 ms (none while `v` is None: the speed goes stale), a step every SYNC period;
-    `after_step(now)` after each step ends the loop early by returning True. Returns whether
-    it ended so."""
+    """The command process's loop in miniature, at its priority (`as_the_command_process`): a
+    ground-speed sample (v m/s, w rad/s) every 20 ms (none while `v` is None: the speed goes
+    stale), a step every SYNC period; `after_step(now)` after each step ends the loop early by
+    returning True. Returns whether it ended so."""
+    with as_the_command_process():
+        return _run_engine(engine, seconds, v, w, after_step)
+
+
+def _run_engine(engine, seconds, v, w, after_step) -> bool:
     end = time.monotonic() + seconds
     next_sample = 0.0
     next_tick = time.monotonic()

@@ -13,7 +13,9 @@ its JUnit file:
   naming the marker; a test marked flaky fails, and --reruns is refused (pytest-rerunfailures
   comes with colcon);
 * a session started 5 below this one's priority runs nothing, not even the stall watcher,
-  above that, and the tests not marked realtime 10 below it; the real-time tests live in
+  above that, and the tests not marked realtime 10 below it (a loop of the product under test
+  runs at the product's own SCHED_FIFO, as its command process does, and only while it runs:
+  drive_helpers.as_the_command_process); the real-time tests live in
   processes of their own run first, on the first two processes, those live in the test process
   then, on the first one alone; both before the others there.
 """
@@ -300,3 +302,19 @@ def test_other_2():
         there = [kind for kind, worker, _, _ in sorted(runs, key=lambda r: float(r[3]))
                  if worker == lane and kind != 'end']
         assert there == sorted(there, key=lambda kind: kind == 'other'), runs
+
+
+def test_a_loop_under_test_runs_at_the_command_process_priority_only_while_it_runs():
+    from drive_helpers import SWITCH_INTERVAL, SyncLoopConfig, as_the_command_process
+
+    def policies():
+        tids = os.listdir('/proc/self/task')
+        return {os.sched_getscheduler(int(tid)) for tid in tids}
+    interval = sys.getswitchinterval()
+    with as_the_command_process():
+        inside = policies(), sys.getswitchinterval()
+        fifo = os.sched_getparam(0).sched_priority
+    if os.SCHED_FIFO in inside[0]:            # granted (root or CAP_SYS_NICE)
+        assert inside[0] == {os.SCHED_FIFO} and fifo == SyncLoopConfig().realtime_priority
+    assert inside[1] == SWITCH_INTERVAL
+    assert policies() == {os.SCHED_OTHER} and sys.getswitchinterval() == interval
