@@ -217,17 +217,22 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
     plants, table = plants_of(out)
 
     report = out / 'report.html'
-    drawn = report.stat().st_mtime_ns
+    outputs = [report, out / 'as_planted.zip', out / 'TASKDATA.zip']
+    made = [path.stat().st_mtime_ns for path in outputs]
+    drawn = made[0]
     _, again = analyze(season, '--out', out)
     assert again['skipped'] == 6 and again['analysed'] == again['failed'] == 0
     assert again['workers'] == 0                       # no cluster started for nothing
     assert (out / 'bags' / 'bags.parquet').read_bytes() == before
-    assert report.stat().st_mtime_ns == drawn          # the same tables: the report kept
-    # a report older than the tables (a run stopped between them): drawn again
+    # the same tables: the report and the exports kept
+    assert [path.stat().st_mtime_ns for path in outputs] == made
+    # outputs older than the tables (a run stopped between them): written again
     older = (out / 'bags' / 'bags.parquet').stat().st_mtime_ns - 1_000_000_000
-    os.utime(report, ns=(older, older))
+    for path in (report, out / 'TASKDATA.zip'):
+        os.utime(path, ns=(older, older))
     analyze(season, '--out', out)
     assert report.stat().st_mtime_ns > drawn
+    assert (out / 'TASKDATA.zip').stat().st_mtime_ns > made[2]
     drawn = report.stat().st_mtime_ns
 
     # touched, the same content: the same bag (its new time recorded, nothing redone)

@@ -263,6 +263,19 @@ def _ours(out, name, record):
     return file.is_file() and record['written'].get(name) == _file_digest(file)
 
 
+def written_after_the_tables(path, out):
+    """The season output at `path` exists and was written after every table under `out`: a
+    run stopped between its tables and its outputs leaves older ones, which are then written
+    again; a re-run that changed no table keeps them."""
+    try:
+        made = Path(path).stat().st_mtime_ns
+    except FileNotFoundError:
+        return False
+    out = Path(out)
+    tables = [out / BAGS_FILE, *(out / PLANTS_DIR).glob('*.parquet')]
+    return all(table.stat().st_mtime_ns <= made for table in tables if table.is_file())
+
+
 def record_written(out, names):
     """Add the files `names` under `out` (written by this run, or an earlier version's that
     kept no record) to its OUTPUT_RECORD, with their digests."""

@@ -18,7 +18,8 @@ from typing import TypedDict
 import numpy as np
 
 from planter_ros.analysis.season import (
-    ANALYSED, BAGS_FILE, EXPORTS, ISOXML, PLANTS_DIR, SHAPEFILE, read_bags)
+    ANALYSED, BAGS_FILE, EXPORTS, ISOXML, PLANTS_DIR, SHAPEFILE, read_bags,
+    written_after_the_tables)
 from planter_ros.analysis.tables import HEADING, plant_columns
 from planter_ros.prediction import PLANT_FIELDS, Plants
 from planter_ros.recording.recovery import one_line
@@ -92,13 +93,13 @@ class SeasonExports(TypedDict, total=False):
 
 
 def write_season_exports(out: str | Path, force: bool = False) -> SeasonExports | None:
-    """Write as_planted.zip and TASKDATA.zip under `out` from its tables (unless both exist
-    and not `force`), each on its own (one that fails never keeps the other from being
-    written): {'shapefile', 'isoxml': paths (None: not written), 'plants', 'placed', 'tasks',
-    'skipped': [{bag, reason}] (bags the ISOXML cannot hold), 'failed': [{file, reason}]} or
-    None when nothing was to be written."""
+    """Write as_planted.zip and TASKDATA.zip under `out` from its tables (unless both exist,
+    were written after the tables and not `force`), each on its own (one that fails never
+    keeps the other from being written): {'shapefile', 'isoxml': paths (None: not written),
+    'plants', 'placed', 'tasks', 'skipped': [{bag, reason}] (bags the ISOXML cannot hold),
+    'failed': [{file, reason}]} or None when nothing was to be written."""
     out = Path(out)
-    if not force and all((out / name).is_file() for name in EXPORTS):
+    if not force and all(written_after_the_tables(out / name, out) for name in EXPORTS):
         return None
     runs = season_runs(out)
     result: SeasonExports = {'shapefile': None, 'isoxml': None, 'plants': 0, 'placed': 0,
@@ -119,7 +120,8 @@ def write_season_exports(out: str | Path, force: bool = False) -> SeasonExports 
 
 def season_exports(out: str | Path, force: bool) -> SeasonExports | None:
     """The season's Shapefile and ISOXML next to the tables (export.season), with the time
-    it took: written when `force` (bags were analysed) or one is missing; None otherwise."""
+    it took: written when `force` (bags were analysed) or one is missing or older than a
+    table (a run stopped before them); None otherwise."""
     started = time.monotonic()
     exports = write_season_exports(out, force)
     if exports is not None:

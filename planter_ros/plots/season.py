@@ -39,26 +39,16 @@ def season_report(out, force=True):
     plants, bags = read_season(out)
     groups = season_groups(plants, bags)
     path = Path(out) / REPORT_FILE
-    if force or not _newer_than_the_tables(path, Path(out)):
+    if force or not seasons.written_after_the_tables(path, out):
         with _matplotlib_home():
             write_season_report(path, groups, plants, bags)
     return format_season_table(groups), path
 
 
-def _newer_than_the_tables(path, out):
-    """The report at `path` exists and was written after every table under `out` (a run that
-    stopped between its tables and its report leaves an older one: drawn again)."""
-    try:
-        made = path.stat().st_mtime_ns
-    except FileNotFoundError:
-        return False
-    tables = [out / seasons.BAGS_FILE, *(out / seasons.PLANTS_DIR).glob('*.parquet')]
-    return all(table.stat().st_mtime_ns <= made for table in tables if table.is_file())
-
-
 def season_outputs(out, force):
     """The season's exports (export.season) and its report under `out`, each written when
-    `force` (bags were analysed: the tables changed) or missing, each on its own and recorded
+    `force` (bags were analysed: the tables changed) or missing or older than a table (a run
+    stopped before it: season.written_after_the_tables), each on its own and recorded
     as the command's (season.record_written):
     (exports or None, the table for people, the report's path or None, [(path, reason)] of
     each output not written)."""
