@@ -69,6 +69,8 @@ def test_commissioning_finds_a_random_offset_and_the_polarity(rig, tmp_path, see
     [found] = commission_machine(machine, [ROW], SimulatedObserver({ROW: sim}), bus=bus)
     assert found.polarity == ('reversed' if reversed_ else 'normal')
     assert found.homed
+    # the switch was found (no offset: the user would have to set it by eye)
+    assert found.phase_offset is not None, f'no switch edges found: {found.edges}'
     # the stored phase is where the simulated tip is lowest, to 0.5 degrees
     error = math.degrees(sim.mechanism_angle_at(found.phase_offset))
     assert abs(error) <= 0.5, error
@@ -226,6 +228,7 @@ def test_four_edges_cancel_the_switch_delay_and_hysteresis(rig, hysteresis, meth
                         home_switch_jitter=JITTER, seed=31)
     [found] = commission_machine(machine, [ROW], SimulatedObserver({ROW: sim}), bus=bus)
     assert found.homed == bool(method)
+    assert found.phase_offset is not None, f'no switch edges found: {found.edges}'
     true = sim.mechanism_angle_at            # master's rad -> true angle from the bottom
     error = true(found.phase_offset)
     lower_back, lower_fwd, upper_fwd, upper_back = found.edges

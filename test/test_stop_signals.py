@@ -138,3 +138,39 @@ def test_a_wait_that_fails_on_a_live_context_is_still_an_error():
             raise RuntimeError('a callback failed')
     with pytest.raises(RuntimeError, match='a callback failed'):
         stop_signals.spin(Broken(shut_down_after=0), stop_signals.StopSignals('test'), 0.0)
+
+
+def test_a_spin_thread_is_shut_down_only_after_its_last_wait():
+    """rclpy's executor.shutdown() destroys the guard condition a spinning thread may still be
+    making a handler with (a demo stopped at start-up printed that thread's traceback): a
+    SpinThread's executor is shut down only once no wait runs or can start."""
+    import threading
+    import time
+
+    class Recording(_Executor):
+        def __init__(self):
+            super().__init__(shut_down_after=10**9)
+            self.inside = threading.Event()
+            self.after_shutdown = []
+            self.down = False
+
+        def spin_once(self, timeout_sec):
+            self.inside.set()
+            if self.down:
+                self.after_shutdown.append('wait started')
+            time.sleep(0.002)                   # a callback running
+            if self.down:
+                self.after_shutdown.append('wait ended')
+            super().spin_once(timeout_sec)
+
+        def shutdown(self, timeout_sec):
+            self.down = True
+            return True
+    for _ in range(20):
+        executor = Recording()
+        spinner = stop_signals.SpinThread(executor, 'test-executor', period=0.001)
+        spinner.start()
+        assert executor.inside.wait(2.0)
+        spinner.stop()
+        assert executor.down and not spinner.thread.is_alive()
+        assert executor.after_shutdown == []

@@ -22,7 +22,6 @@ host reaches it, and the sync node with the simulated drives runs in a process o
 from dataclasses import dataclass
 import os
 import sys
-import threading
 import time
 from typing import Any, TextIO
 
@@ -258,7 +257,7 @@ class _Run:
         self.sync: SyncProcess | None = None
         self.context: Context | None = None
         self.executor: SingleThreadedExecutor | None = None
-        self.spinner: threading.Thread | None = None
+        self.spinner: stop_signals.SpinThread | None = None
         self.design_node: DesignNode | None = None
         self.observer: Observer | None = None
         self.monitor: MonitorNode | None = None
@@ -324,7 +323,7 @@ class _Run:
         self.nodes.append(self.monitor)          # per-plant predictions and the bag
         for node in self.nodes:
             executor.add_node(node)
-        self.spinner = threading.Thread(target=executor.spin, daemon=True)
+        self.spinner = stop_signals.SpinThread(executor, 'demo-executor')
         self.spinner.start()
         turns = ', '.join(f'{"left" if c.radius > 0 else "right"} turn R = '
                           f'{abs(c.radius):g} m at {c.start:.1f}-{c.end:.1f} s'
@@ -458,10 +457,10 @@ class _Run:
         finalises the bag."""
         if self.sync is not None:
             self.sync.stop()
-        if self.executor is not None:
-            self.executor.shutdown(timeout_sec=2.0)
         if self.spinner is not None:
-            self.spinner.join(timeout=2.0)
+            self.spinner.stop()             # spinning ended, then the executor shut down
+        elif self.executor is not None:
+            self.executor.shutdown(timeout_sec=2.0)
         for node in reversed(self.nodes):
             node.destroy_node()
         if self.context is not None:

@@ -34,7 +34,6 @@ path's figures says why (`command_missing`), never a KeyError at the end of a ru
 from dataclasses import asdict, dataclass, field
 import gc
 import multiprocessing
-import threading
 import time
 from typing import Any
 
@@ -320,6 +319,7 @@ def child_main(conn, settings):
     executor = SingleThreadedExecutor(context=context)
     library_log = LibraryLog()
     sync = None
+    spinner: stop_signals.SpinThread | None = None
     passed_on = False
 
     def pass_on_stop():
@@ -340,7 +340,7 @@ def child_main(conn, settings):
         # what the run allocates (the start-up objects alone take ~45 ms to scan, unloaded)
         gc.freeze()
         executor.add_node(sync)
-        spinner = threading.Thread(target=executor.spin, daemon=True, name='sync-executor')
+        spinner = stop_signals.SpinThread(executor, 'sync-executor')
         spinner.start()
         library_log.node = sync
         if stop.received is None:
@@ -364,7 +364,10 @@ def child_main(conn, settings):
             pass_on_stop()
             _wait_for_stop(conn)
     finally:
-        executor.shutdown(timeout_sec=2.0)
+        if spinner is not None:
+            spinner.stop()                         # spinning ended, then the executor shut down
+        else:
+            executor.shutdown(timeout_sec=2.0)
         if sync is not None:
             sync.destroy_node()                    # every row: 0x60FF = 0, disable
         context.try_shutdown()

@@ -36,6 +36,7 @@ from std_msgs.msg import String
 from planter_ros import interfaces
 from planter_ros.design import to_json
 from planter_ros.host.dds_domain import PRIVATE_GRAPH_ROS_ARGS, claim_private_domain
+from planter_ros.host.stop_signals import SpinThread
 from planter_ros.command.engine import CommandEngine
 from planter_ros.nodes.sync_node import SyncNode
 from planter_ros.sim.closed_loop import LoopTiming, RowCurveFigures, curve_comparison
@@ -90,6 +91,7 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
     sync: SyncNode | None = None
     source: Node | None = None
     ex: SingleThreadedExecutor | None = None
+    spinner: SpinThread | None = None
     listener: can.BusABC | None = None
     frames: list[tuple[float, int, bytes]] = []
     stop = threading.Event()
@@ -123,7 +125,8 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
         if not isinstance(engine, CommandEngine):      # a virtual bus: in the node's process
             raise TypeError('the sync latency bench runs the command path in process')
         threading.Thread(target=listen, args=(listener,), daemon=True).start()
-        threading.Thread(target=ex.spin, daemon=True).start()
+        spinner = SpinThread(ex, 'bench-sync-executor')
+        spinner.start()
         deadline = time.monotonic() + timeout
         # discovery done and the latched design taken
         while speed_pub.get_subscription_count() == 0 or engine.law.spacing is None:
@@ -143,7 +146,9 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
         trips = sims.watchdog_trips
     finally:
         stop.set()
-        if ex is not None:
+        if spinner is not None:
+            spinner.stop()                  # spinning ended, then the executor shut down
+        elif ex is not None:
             ex.shutdown(timeout_sec=2.0)
         for node in (sync, source):
             if node is not None:
