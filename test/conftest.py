@@ -10,16 +10,14 @@ module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.
 on one case. That is the only list. With four processes (pytest.ini), two of them take the
 real-time tests first, a module's at a time, one test after the other on each (as in a serial
 run): the first starts with those live in the test process itself (nodes, simulated drives and
-their loops; a command loop at the command process's SCHED_FIFO priority while it runs, the
-rest without real-time priority: `live_where`), the second with those whose
+their loops in threads without real-time priority: `live_where`), the second with those whose
 live part runs in processes of their own (a demo run and the like, whose command process and
 simulated drives run SCHED_FIFO as on the machine); each then takes what is left of the other
 kind. So at most two real-time tests run at once. The other processes run the rest meanwhile
 at `BACKGROUND_NICE` above the priority the session started with, so they never starve them;
 each lane joins them once no real-time test is left. The real-time tests sleep most of their
 time: the second background process uses the CPU they leave. No process of the suite ever
-runs above the priority the session was started with, but for that command loop under test,
-at the priority the product gives it. A test that uses a live fixture
+runs above the priority the session was started with. A test that uses a live fixture
 (`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
 (`LIVE_NAMES`: a demo run, a node, a simulated bus, rclpy) without the marker fails, naming the
 marker: a new module cannot be forgotten.
