@@ -7,20 +7,18 @@ Real-time tests: a test that passes only when scheduled in real time (a live ROS
 a simulated drive and its master, a `planter demo` run, commissioning, signal and process-death
 timings) carries the marker `realtime`: `pytestmark = pytest.mark.realtime` at the top of its
 module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.mark.realtime)`
-on one case. That is the only list. With four processes (pytest.ini), two of them take the
+on one case. That is the only list. With three processes (pytest.ini), two of them take the
 real-time tests first, a module's at a time, one test after the other on each (as in a serial
-run): the first starts with those live in the test process itself (nodes, simulated drives and
-their loops in threads without real-time priority: `live_where`), the second with those whose
-live part runs in processes of their own (a demo run and the like, whose command process and
-simulated drives run SCHED_FIFO as on the machine); each then takes what is left of the other
-kind. So at most two real-time tests run at once. The other processes run the rest meanwhile
-at `BACKGROUND_NICE` above the priority the session started with, so they never starve them;
-each lane joins them once no real-time test is left. The real-time tests sleep most of their
-time: the second background process uses the CPU they leave. No process of the suite ever
-runs above the priority the session was started with. A test that uses a live fixture
-(`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
-(`LIVE_NAMES`: a demo run, a node, a simulated bus, rclpy) without the marker fails, naming the
-marker: a new module cannot be forgotten.
+run): the first those live in the test process itself (nodes, simulated drives and their loops
+in threads without real-time priority: `live_where`), the second those whose live part runs in
+processes of their own (a demo run and the like, whose command process and simulated drives run
+SCHED_FIFO as on the machine). So at most two real-time tests run at once, and at most one of
+them live in a test process. The third process runs the rest meanwhile at `BACKGROUND_NICE`
+above the priority the session started with, so it never starves them; each lane joins it once
+its real-time tests are done. No process of the suite ever runs above the priority the session
+was started with. A test that uses a live fixture (`LIVE_FIXTURES`: `ros`, `sim`, `channel`,
+`make_drive`, ...) or starts something live (`LIVE_NAMES`: a demo run, a node, a simulated bus,
+rclpy) without the marker fails, naming the marker: a new module cannot be forgotten.
 
 A real-time test that fails while the host itself left every process unscheduled for more than
 host_stalls.STARVED s runs once more (host_stalls.py). Nothing hides it: the first run's failure
@@ -197,9 +195,9 @@ def pytest_xdist_make_scheduler(config, log):
     """Whole modules as units of work (their module fixtures made once); a module's tests
     marked realtime units of their own, those live HERE apart from those live APART (xdist's
     own --dist loadgroup cannot group with this pytest). Two real-time lanes: the first takes
-    the HERE units first, then APART ones if any are left; the second the APART units first,
-    then HERE ones if any are left (so the two end together); each then any other unit. The
-    other processes never run a real-time test. The controller collects
+    the HERE units first, one after the other, then APART ones if any are left; the second the
+    APART units (their real-time processes run SCHED_FIFO), never a HERE one; each then any
+    other unit. The other processes never run a real-time test. The controller collects
     nothing itself: the workers write the realtime tests' ids at collection
     (pytest_collection_modifyitems), before it schedules."""
     # lazy: a pytest hook of xdist's, called only when xdist runs the session
@@ -225,7 +223,7 @@ def pytest_xdist_make_scheduler(config, log):
             if node is lanes[0]:
                 eligible = here or apart or others
             else:
-                eligible = (apart or here or others) if node in lanes else others
+                eligible = (apart or others) if node in lanes else others
             if not eligible:                         # only real-time units left, none for it
                 if not node.shutting_down:
                     node.shutdown()
