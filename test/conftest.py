@@ -9,16 +9,16 @@ timings) carries the marker `realtime`: `pytestmark = pytest.mark.realtime` at t
 module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.mark.realtime)`
 on one case. That is the only list. With three processes (pytest.ini), two of them take the
 real-time tests first, a module's at a time, one test after the other on each (as in a serial
-run): the first those live in the test process itself (nodes, simulated drives and their loops
-in threads without real-time priority: `live_where`), the second those whose live part runs in
-processes of their own (a demo run and the like, whose command process and simulated drives run
-SCHED_FIFO as on the machine). So at most two real-time tests run at once, and at most one of
-them live in a test process. The third process runs the rest meanwhile at `BACKGROUND_NICE`
-above the priority the session started with, so it never starves them; each lane joins it once
-its real-time tests are done. No process of the suite ever runs above the priority the session
-was started with. A test that uses a live fixture (`LIVE_FIXTURES`: `ros`, `sim`, `channel`,
-`make_drive`, ...) or starts something live (`LIVE_NAMES`: a demo run, a node, a simulated bus,
-rclpy) without the marker fails, naming the marker: a new module cannot be forgotten.
+run): first those whose live part runs in processes of their own (a demo run and the like,
+whose command process and simulated drives run SCHED_FIFO as on the machine), two at once; then
+those live in the test process itself (nodes, simulated drives and their loops in threads
+without real-time priority: `live_where`), on the first process alone. The third process runs
+the rest meanwhile at `BACKGROUND_NICE` above the priority the session started with, so it
+never starves them; each lane joins it once its real-time tests are done. No process of the suite
+ever runs above the priority the session was started with. A test that uses a live fixture
+(`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
+(`LIVE_NAMES`: a demo run, a node, a simulated bus, rclpy) without the marker fails, naming
+the marker: a new module cannot be forgotten.
 
 A real-time test that fails while the host itself left every process unscheduled for more than
 host_stalls.STARVED s runs once more (host_stalls.py). Nothing hides it: the first run's failure
@@ -28,6 +28,7 @@ marked `flaky` fails and `--reruns` is refused (pytest-rerunfailures comes with 
 test_harness.py tests all of this on small test files.
 """
 import gc
+import hashlib
 import json
 import os
 import sys
@@ -87,6 +88,7 @@ BACKGROUND_NICE = 10       # the other tests' nice value, added to the session's
 START_NICE = os.getpriority(os.PRIO_PROCESS, 0)    # the priority this process started with
 
 _UNMARKED = pytest.StashKey[str]()
+_KINDS = pytest.StashKey[dict]()
 
 
 def _realtime(item):
@@ -184,6 +186,45 @@ def _realtime_ids_file(config):
     return _ids_file(config) / 'realtime-tests.json'
 
 
+def _done_dir(config):
+    """One empty file per APART test done (what a HERE test waits for), named by a hash of
+    its id."""
+    return _ids_file(config) / 'realtime-tests-done'
+
+
+def _count_done(config):
+    try:
+        return sum(1 for _ in _done_dir(config).iterdir())
+    except FileNotFoundError:
+        return 0
+
+
+TURN_TIMEOUT = 1800.0       # s a test waits for its turn at most (a lost worker: go on)
+
+
+def _wait_for_turn(item):
+    """A HERE test waits until every APART test is done: it runs beside no other real-time
+    test, only beside the other tests at the background priority (as in a serial run)."""
+    where = _realtime_kinds(item.config)
+    if where.get(item.nodeid) != HERE:
+        return
+    total = sum(1 for kind in where.values() if kind == APART)
+    deadline = time.monotonic() + TURN_TIMEOUT
+    while _count_done(item.config) < total and time.monotonic() < deadline:
+        time.sleep(0.1)
+
+
+def _realtime_kinds(config):
+    """{nodeid: HERE or APART} of the session's real-time tests ({} outside xdist)."""
+    if not hasattr(config, 'workerinput'):
+        return {}
+    cached = config.stash.get(_KINDS, None)
+    if cached is None:
+        cached = json.loads(_realtime_ids_file(config).read_text())
+        config.stash[_KINDS] = cached
+    return cached
+
+
 def _number(node):
     """gw3 -> 3: the processes in the order xdist numbers them."""
     name = node.gateway.id
@@ -194,12 +235,14 @@ def _number(node):
 def pytest_xdist_make_scheduler(config, log):
     """Whole modules as units of work (their module fixtures made once); a module's tests
     marked realtime units of their own, those live HERE apart from those live APART (xdist's
-    own --dist loadgroup cannot group with this pytest). Two real-time lanes: the first takes
-    the HERE units first, one after the other, then APART ones if any are left; the second the
-    APART units (their real-time processes run SCHED_FIFO), never a HERE one; each then any
-    other unit. The other processes never run a real-time test. The controller collects
-    nothing itself: the workers write the realtime tests' ids at collection
-    (pytest_collection_modifyitems), before it schedules."""
+    own --dist loadgroup cannot group with this pytest). Two real-time lanes: both take the
+    APART units first (two demo runs at once: their real-time processes run SCHED_FIFO); then
+    the first takes the HERE units, one after the other; the second any other unit. A worker
+    waits at a test's set-up for what must end first (`_wait_for_turn`: xdist holds a worker's
+    last test until more work comes, so the scheduler itself cannot make a lane wait). The
+    other processes never run a real-time test. The controller collects nothing itself: the
+    workers write the realtime tests' ids at collection (pytest_collection_modifyitems),
+    before it schedules."""
     # lazy: a pytest hook of xdist's, called only when xdist runs the session
     from xdist.scheduler import LoadScopeScheduling
 
@@ -221,7 +264,7 @@ def pytest_xdist_make_scheduler(config, log):
                 (here if kind == [REALTIME, HERE] else apart if kind == [REALTIME, APART]
                  else others).append(scope)
             if node is lanes[0]:
-                eligible = here or apart or others
+                eligible = apart or here or others
             else:
                 eligible = (apart or others) if node in lanes else others
             if not eligible:                         # only real-time units left, none for it
@@ -275,6 +318,7 @@ def pytest_runtest_setup(item):
     refused = item.stash.get(_UNMARKED, '')
     if refused:
         pytest.fail(f'{item.nodeid} {refused}', pytrace=False)
+    _wait_for_turn(item)
     if _realtime(item):
         # as the product's real-time processes do after start-up (command/process.py,
         # demo/sync_process.py): what the session made so far out of the collector's reach,
@@ -298,6 +342,10 @@ def _set_nice(wanted):
 def pytest_runtest_teardown(item, nextitem):
     if _realtime(item):
         gc.unfreeze()                    # collectable again, between the tests
+        if _realtime_kinds(item.config).get(item.nodeid) == APART:
+            done = _done_dir(item.config)
+            done.mkdir(exist_ok=True)
+            (done / hashlib.sha256(item.nodeid.encode()).hexdigest()[:16]).touch()
 
 
 @pytest.hookimpl(tryfirst=True)
