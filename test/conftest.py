@@ -11,11 +11,13 @@ on one case. That is the only list. With three processes (pytest.ini), two of th
 real-time tests first, a module's at a time, one test after the other on each (as in a serial
 run): first those whose live part runs in processes of their own (a demo run and the like,
 whose command process and simulated drives run SCHED_FIFO as on the machine), two at once; then
-those live in the test process itself (nodes, simulated drives and their loops in threads
-without real-time priority: `live_where`), on the first process alone. The third process runs
-the rest meanwhile at `BACKGROUND_NICE` above the priority the session started with, so it
-never starves them; each lane joins it once its real-time tests are done. No process of the suite
-ever runs above the priority the session was started with. A test that uses a live fixture
+those live in the test process itself (nodes, simulated drives and their loops; a command
+loop at the command process's SCHED_FIFO priority while it runs, the rest without real-time
+priority: `live_where`), on the first process alone. The third process runs the rest meanwhile
+at `BACKGROUND_NICE` above the priority the session started with, so it never starves them;
+each lane joins it once its real-time tests are done. No process of the suite ever runs above
+the priority the session was started with, but for that command loop under test, at the
+priority the product gives it. A test that uses a live fixture
 (`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
 (`LIVE_NAMES`: a demo run, a node, a simulated bus, rclpy) without the marker fails, naming
 the marker: a new module cannot be forgotten.

@@ -139,15 +139,14 @@ def as_the_command_process() -> Iterator[None]:
     interval = sys.getswitchinterval()
     try:
         _schedule(os.SCHED_FIFO, SyncLoopConfig().realtime_priority)
-        granted = True
     except (OSError, AttributeError):
-        granted = False
+        pass                               # refused (for some threads): as it is
     sys.setswitchinterval(SWITCH_INTERVAL)
     try:
         yield
     finally:
         sys.setswitchinterval(interval)
-        if granted:
+        with contextlib.suppress(OSError, AttributeError):
             _schedule(os.SCHED_OTHER, 0)
 
 

@@ -3,16 +3,12 @@ and status out; no ROS, no CAN."""
 from dataclasses import dataclass, replace
 import math
 
-from hypothesis import given, strategies as st
 import pytest
 
 from planter_ros.control import sync_status
 from planter_ros.control.machine_law import Machine
-from planter_ros.control.row_loop import CSP_LEAD, CatchUp, RowLoop, csp_setpoint, csp_step
+from planter_ros.control.row_loop import CSP_LEAD, RowLoop, csp_setpoint
 from planter_ros.drive.state_names import FAULT, OPERATION_ENABLED
-from planter_ros.simdrive.csp import CspSetpoint
-from planter_ros.simdrive.motor import Motor
-from planter_ros.simdrive.spec import SimSpec
 
 D = 0.2
 
@@ -173,72 +169,3 @@ def test_csp_feedback_is_stamped_at_the_sync_that_measured_it():
     assert sync_status.at_sync(arrived, syncs).stamp == 10.01
     assert sync_status.at_sync(Snap(stamp=9.99), syncs).stamp == 9.99      # none before it
     assert sync_status.at_sync(Snap(stamp=0.0), syncs).stamp == 0.0        # no feedback yet
-
-
-PERIOD, ACCELERATION = 0.01, 20.0        # SYNC period (s); the law's default limit (rad/s²)
-
-
-@given(st.floats(0.5, 12.0), st.lists(st.one_of(st.floats(0.005, 0.015),
-                                               st.floats(0.015, 0.3)), min_size=1, max_size=60))
-def test_a_late_step_is_made_up_within_the_acceleration_limit(rate, elapsed):
-    """Whatever the loop's timing (jitter, stalls up to 0.3 s), the catch-up's speed above the
-    command never exceeds the command and changes by at most the acceleration limit per SYNC
-    (to 0 at its end too); every second of motion is carried once, none lost, unless more than
-    CatchUp.LIMIT was owed at once."""
-    owed, carried, speed = CatchUp(), 0.0, 0.0
-    for gap in elapsed + [PERIOD] * 400:         # then on time until all is made up
-        step, owed = csp_step(gap, owed, rate, PERIOD, ACCELERATION)
-        carried += step
-        assert 0.0 <= owed.speed <= rate + 1e-12 and owed.behind <= CatchUp.LIMIT
-        assert abs(owed.speed - speed) <= ACCELERATION * PERIOD + 1e-9, (speed, owed)
-        speed = owed.speed
-    assert owed == CatchUp()
-    total = sum(elapsed) + 400 * PERIOD
-    if sum(max(gap - PERIOD, 0.0) for gap in elapsed) < CatchUp.LIMIT:
-        assert carried == pytest.approx(total, abs=1e-9)
-    else:
-        assert carried < total
-
-
-def test_at_rest_nothing_is_owed():
-    step, owed = csp_step(0.2, CatchUp(0.3, 2.0), 0.0, PERIOD, ACCELERATION)
-    assert step == pytest.approx(0.5) and owed == CatchUp()
-
-
-def stalled_drive(stall: float, rate: float = 2 * math.pi, gear: float = 20.0) -> float:
-    """The largest following error (rad of mechanism) of the simulated drive's CSP set point
-    and motor (simdrive: 60C2h interpolation, one extrapolated period, its speed loop within its
-    acceleration limit) when the master's loop, sending targets by `csp_step` at `rate` rad/s,
-    stops for `stall` s; inf when the drive faulted (0.2 rad for 50 ms, the defaults)."""
-    counts = gear * SimSpec().counts_per_motor_rev / (2 * math.pi)      # per mechanism rad
-    motor, csp = Motor(SimSpec()), CspSetpoint()
-    csp.period, csp.window, csp.timeout = PERIOD, 0.2 * counts, 0.05
-    motor.time, motor.velocity = 0.0, rate * counts
-    csp.hold(0.0)
-    csp.pending = round(csp_setpoint(0.0, rate, PERIOD) * counts)
-    fault, worst = [], 0.0
-
-    def law(dt, t, v):
-        fault.append(csp.follow(t, motor.position, v, dt))
-        return csp.feed_forward(t) + (csp.setpoint(t) - motor.position) / motor.time_constant, \
-            math.inf
-    target, sent, owed = 0.0, 0.0, CatchUp()
-    for k in range(1, 301):                       # 3 s, the stall at 1 s
-        now = k * PERIOD
-        motor.advance(now, law, lambda *_: None)
-        worst = max(worst, abs(csp.error) / counts)
-        if 1.0 <= now < 1.0 + stall:
-            continue                              # no SYNC, no target
-        csp.next_segment(now)
-        step, owed = csp_step(now - sent, owed, rate, PERIOD, ACCELERATION)
-        target, sent = target + rate * step, now
-        csp.pending = round(csp_setpoint(target, rate, PERIOD) * counts)
-    return math.inf if any(fault) else worst
-
-
-def test_a_60_ms_stall_of_the_loop_at_one_turn_per_second_does_not_trip_the_drive():
-    """The simulated drive holds its set point after one extrapolated period without SYNC:
-    the motor brakes, and the targets that follow must not ask for more than it can. Made up
-    in two periods' worth at once (the old rule), this stall tripped it (0.37 rad)."""
-    assert stalled_drive(0.0) < 0.06
-    assert stalled_drive(0.06) < 0.2

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 from planter_ros import interfaces
 from planter_ros.control import sync_status
 from planter_ros.control.loop_timing import PeriodStats
-from planter_ros.control.row_loop import CatchUp, RowStep, cam_csp_target, csp_setpoint, csp_step
+from planter_ros.control.row_loop import RowStep, cam_csp_target, csp_setpoint
 from planter_ros.control.sync_status import Halt
 from planter_ros.drive.errors import DriveError
 
@@ -117,13 +117,13 @@ class ControlStep:
         """The row's position for the next SYNC: advanced by its speed over the time since the
         last target (a late step is made up: the angle stays on the distance travelled)."""
         period = self.state.drive_config.sync_period
-        before = (unit.target, unit.target_time, unit.owed)
+        before = (unit.target, unit.target_time, unit.behind)
         try:
             self._next_target(unit, row, now, period)
         except DriveError:
             # not sent (a send error, bus-off): the drive still has the last target; the time
             # since is owed and made up over the next SYNCs, never in one jump
-            unit.target, unit.target_time, unit.owed = before
+            unit.target, unit.target_time, unit.behind = before
             raise
 
     def _next_target(self, unit: RowUnit, row: RowStep, now: float, period: float) -> None:
@@ -134,12 +134,13 @@ class ControlStep:
             status = unit.measured
             fresh = now - status.stamp <= 3.0 * period
             unit.target = status.position if row.halt is None and fresh else None
-            unit.owed = CatchUp()
+            unit.behind = 0.0
         else:
-            # the time since the last target; a late step is made up over the next SYNCs
-            # within the law's acceleration limit, never in one jump (row_loop.csp_step)
-            step, unit.owed = csp_step(now - unit.target_time, unit.owed, row.command, period,
-                                       unit.law.config.max_acceleration)
+            # time owed since the last target; at most two periods' worth per SYNC, so a late
+            # step is made up over the next SYNCs at up to twice the speed, never in one jump
+            owed = max(now - unit.target_time, 0.0) + unit.behind
+            step = min(owed, 2.0 * period)
+            unit.behind = min(owed - step, 0.5)
             unit.target += row.command * step
             on_cam = None if self.state.stopping else cam_csp_target(
                 unit.law, unit.target, now + period, step)

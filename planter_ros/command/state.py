@@ -18,7 +18,7 @@ from planter_ros.control import sync_status
 from planter_ros.control.loop_timing import PeriodStats
 from planter_ros.control.machine_law import Machine
 from planter_ros.control.phase_lock import PhaseLock
-from planter_ros.control.row_loop import CatchUp, RowLoop
+from planter_ros.control.row_loop import RowLoop
 from planter_ros.control.sync_status import Halt
 from planter_ros.drive.bus_load import BusLoad
 from planter_ros.drive.errors import DriveError
@@ -64,7 +64,7 @@ class RowUnit:
         self.last_fault = ''
         self.target: float | None = None    # CSP: position target of the next SYNC (rad)
         self.target_time = 0.0              # when it was computed (monotonic s)
-        self.owed = CatchUp()               # CSP: motion still to be made up (late steps)
+        self.behind = 0.0                   # s of motion still to be made up (late steps)
         self.recovery = RowRecovery()       # halts, the plants they cost, restarts, EMCYs
 
     @property

@@ -25,8 +25,7 @@ from .machine_law import Machine
 from .phase_lock import PhaseLock
 from .sync_status import Halt
 
-__all__ = ['CSP_LEAD', 'CatchUp', 'RowStep', 'LoopStep', 'RowLoop', 'cam_csp_target',
-           'csp_setpoint', 'csp_step']
+__all__ = ['CSP_LEAD', 'RowStep', 'LoopStep', 'RowLoop', 'cam_csp_target', 'csp_setpoint']
 
 # SYNC periods from a CSP step to when the drive's set point reaches the target it sends: the
 # target goes out right after SYNC k, the drive takes it at SYNC k+1 and interpolates to it
@@ -41,49 +40,6 @@ def csp_setpoint(target: float, command: float, period: float, ahead: float = 0.
     point trails the law by two periods (20 ms at 10 ms SYNC), which the phase correction
     only makes up at its own pace: 0.6-0.9 mm behind in every ramp of the demo's profile."""
     return target + command * max(CSP_LEAD * period - ahead, 0.0)
-
-
-@dataclass(frozen=True)
-class CatchUp:
-    """A CSP row's motion still owed after late steps: `behind` s of it at the row's command,
-    being made up at `speed` rad/s above the command (`csp_step`)."""
-
-    behind: float = 0.0
-    speed: float = 0.0
-
-    #: s of motion owed at most: a longer stall is not made up here (the phase lock, which
-    #: follows the distance travelled, takes the rest over at its own correction bound)
-    LIMIT = 0.5
-
-
-def csp_step(elapsed: float, owed: CatchUp, command: float, period: float,
-             max_acceleration: float) -> tuple[float, CatchUp]:
-    """How many seconds of the row's motion at `command` (rad/s) its next CSP target carries,
-    `elapsed` s after its last one, and what is left owed. Up to one period of `elapsed` goes
-    at once (a step early or on time carries all of it); the rest of it (a host that held the
-    loop back) is owed, and made up over the next SYNCs at a speed above the command that
-    rises and falls by at most `max_acceleration` (rad/s², the law's own limit) per second and
-    never exceeds the command itself (twice its speed). So a late step never asks the drives
-    for a jump in speed: made up in two periods' worth at once, it doubled the set point's
-    speed within one SYNC, and at 1 turn/s a 60 ms stall of the loop tripped the drives'
-    following error (0.2 rad for 50 ms, the default 6065h/6066h)."""
-    elapsed = max(elapsed, 0.0)
-    rate = abs(command)
-    if rate == 0.0:
-        return elapsed + owed.behind, CatchUp()     # at rest: no motion was missed
-    behind = owed.behind + max(elapsed - period, 0.0)
-    if behind == 0.0:
-        return elapsed, CatchUp()
-    extra = rate * behind                           # rad owed beyond this period's own
-    # the fastest speed u from which braking by b = max_acceleration·period per SYNC still
-    # ends within `extra`: T·(u + (u - b) + ... + (u - n·b)) <= extra, n = the steps down
-    brake = max_acceleration * period
-    n = math.floor((math.sqrt(1.0 + 8.0 * extra / (brake * period)) - 1.0) / 2.0)
-    stoppable = extra / (period * (n + 1)) + brake * n / 2.0
-    speed = min(owed.speed + brake, stoppable, rate)
-    made = min(speed * period, extra)
-    left = behind - made / rate if made < extra else 0.0
-    return min(elapsed, period) + made / rate, CatchUp(min(left, CatchUp.LIMIT), made / period)
 
 
 def cam_csp_target(law: PhaseLock, target: float, at: float, step: float) -> float | None:
