@@ -242,12 +242,11 @@ def pytest_xdist_make_scheduler(config, log):
     own --dist loadgroup cannot group with this pytest). Two real-time lanes: both take the
     APART units first (two demo runs at once: their real-time processes run SCHED_FIFO); then
     the HERE units (two at once, each in its own process, after every APART one); then any
-    other unit. A worker
-    waits at a test's set-up for what must end first (`_wait_for_turn`: xdist holds a worker's
-    last test until more work comes, so the scheduler itself cannot make a lane wait). The
-    other processes never run a real-time test. The controller collects nothing itself: the
-    workers write the realtime tests' ids at collection (pytest_collection_modifyitems),
-    before it schedules."""
+    other unit. A worker waits at a test's set-up for what must end first (`_wait_for_turn`:
+    xdist holds a worker's last test until more work comes, so the scheduler itself cannot
+    make a lane wait). The other processes never run a real-time test. The controller
+    collects nothing itself: the workers write the realtime tests' ids at collection
+    (pytest_collection_modifyitems), before it schedules."""
     # lazy: a pytest hook of xdist's, called only when xdist runs the session
     from xdist.scheduler import LoadScopeScheduling
 
