@@ -275,12 +275,15 @@ def test_three_arm_design_topic_carries_what_the_monitor_needs():
 
 
 def _live(model, settings, st, sv, jt, jp, jw):
-    """Feed the live predictor in arrival order (speed and joint samples interleaved)."""
+    """Feed the live predictor in arrival order (speed and joint samples interleaved), then
+    end it as the monitor ends a run (`finish`: a plant still waiting for a later sample, e.g.
+    one in a gap the last samples closed, is completed)."""
     live = PlantPredictor(model, settings)
     arrivals = sorted([(t, 0, i) for i, t in enumerate(st)]
                       + [(t, 1, i) for i, t in enumerate(jt)])
     return Plants.concatenate([live.add_speed(st[i], sv[i]) if kind == 0 else
-                               live.add_joint(jt[i], jp[i], jw[i]) for _, kind, i in arrivals])
+                               live.add_joint(jt[i], jp[i], jw[i]) for _, kind, i in arrivals]
+                              + [live.finish()])
 
 
 def test_a_gap_in_the_inputs_reports_every_instant_inside_it_flagged_and_restarts_the_spacing():
@@ -338,6 +341,7 @@ def test_a_gap_shorter_than_the_setting_is_interpolated_as_before():
 
 @settings(max_examples=40, deadline=None)
 @example(gaps=[], max_gap=0.09375)      # an exit just inside the gap, late joint feedback
+@example(gaps=[('joint', 18.0, 2.0)], max_gap=1.0)   # a plant in a gap the last samples close
 @given(gaps=st.lists(st.tuples(st.sampled_from(['speed', 'joint']), st.floats(0.5, 18.0),
                                st.floats(0.05, 2.0)), max_size=4),
        max_gap=st.floats(0.06, 1.0))
