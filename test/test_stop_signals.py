@@ -174,3 +174,15 @@ def test_a_spin_thread_is_shut_down_only_after_its_last_wait():
         spinner.stop()
         assert executor.down and not spinner.thread.is_alive()
         assert executor.after_shutdown == []
+
+
+def test_a_spin_thread_never_started_still_shuts_its_executor_down():
+    class Recording(_Executor):
+        down = False
+
+        def shutdown(self, timeout_sec):
+            self.down = True
+            return True
+    executor = Recording(shut_down_after=0)
+    stop_signals.SpinThread(executor, 'never-started').stop()   # a start cut short before it
+    assert executor.down and executor.waits == 0

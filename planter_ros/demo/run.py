@@ -256,8 +256,7 @@ class _Run:
         # made by start_and_drive, in this order (None: not made: stopped or failed before)
         self.sync: SyncProcess | None = None
         self.context: Context | None = None
-        self.executor: SingleThreadedExecutor | None = None
-        self.spinner: stop_signals.SpinThread | None = None
+        self.spinner: stop_signals.SpinThread | None = None     # the executor, spun
         self.design_node: DesignNode | None = None
         self.observer: Observer | None = None
         self.monitor: MonitorNode | None = None
@@ -306,7 +305,8 @@ class _Run:
         rclpy.init(args=['--ros-args', '--log-level', demo.log_level, *PRIVATE_GRAPH_ROS_ARGS],
                    context=context, domain_id=self.domain,
                    signal_handler_options=SignalHandlerOptions.NO)
-        self.executor = executor = SingleThreadedExecutor(context=context)
+        executor = SingleThreadedExecutor(context=context)
+        self.spinner = stop_signals.SpinThread(executor, 'demo-executor')
         self.design_node = design_node = DesignNode(
             context=context, namespace=ns, parameter_overrides=[
                 _param(k, v) for k, v in demo.scene.node_overrides('design_node')])
@@ -323,7 +323,6 @@ class _Run:
         self.nodes.append(self.monitor)          # per-plant predictions and the bag
         for node in self.nodes:
             executor.add_node(node)
-        self.spinner = stop_signals.SpinThread(executor, 'demo-executor')
         self.spinner.start()
         turns = ', '.join(f'{"left" if c.radius > 0 else "right"} turn R = '
                           f'{abs(c.radius):g} m at {c.start:.1f}-{c.end:.1f} s'
@@ -459,8 +458,6 @@ class _Run:
             self.sync.stop()
         if self.spinner is not None:
             self.spinner.stop()             # spinning ended, then the executor shut down
-        elif self.executor is not None:
-            self.executor.shutdown(timeout_sec=2.0)
         for node in reversed(self.nodes):
             node.destroy_node()
         if self.context is not None:

@@ -317,9 +317,9 @@ def child_main(conn, settings):
                context=context, domain_id=settings.domain,
                signal_handler_options=SignalHandlerOptions.NO)
     executor = SingleThreadedExecutor(context=context)
+    spinner = stop_signals.SpinThread(executor, 'sync-executor')
     library_log = LibraryLog()
     sync = None
-    spinner: stop_signals.SpinThread | None = None
     passed_on = False
 
     def pass_on_stop():
@@ -340,7 +340,6 @@ def child_main(conn, settings):
         # what the run allocates (the start-up objects alone take ~45 ms to scan, unloaded)
         gc.freeze()
         executor.add_node(sync)
-        spinner = stop_signals.SpinThread(executor, 'sync-executor')
         spinner.start()
         library_log.node = sync
         if stop.received is None:
@@ -364,10 +363,7 @@ def child_main(conn, settings):
             pass_on_stop()
             _wait_for_stop(conn)
     finally:
-        if spinner is not None:
-            spinner.stop()                         # spinning ended, then the executor shut down
-        else:
-            executor.shutdown(timeout_sec=2.0)
+        spinner.stop()                             # spinning ended, then the executor shut down
         if sync is not None:
             sync.destroy_node()                    # every row: 0x60FF = 0, disable
         context.try_shutdown()

@@ -155,7 +155,8 @@ class SpinThread:
 
     def stop(self, timeout: float = 2.0) -> None:
         """Stop spinning (within `timeout` s: a callback still running after it is left to
-        end on its own), then shut the executor down."""
+        end on its own), then shut the executor down (also one never spun: `start` not
+        called)."""
         self._stop.set()
         if self.thread.is_alive() and self.thread is not threading.current_thread():
             self.thread.join(timeout)

@@ -90,7 +90,6 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
     sims: SimulatedBus | None = None
     sync: SyncNode | None = None
     source: Node | None = None
-    ex: SingleThreadedExecutor | None = None
     spinner: SpinThread | None = None
     listener: can.BusABC | None = None
     frames: list[tuple[float, int, bytes]] = []
@@ -119,13 +118,13 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
                     frames.append((msg.timestamp, msg.arbitration_id, bytes(msg.data)))
 
         ex = SingleThreadedExecutor(context=context)
+        spinner = SpinThread(ex, 'bench-sync-executor')
         ex.add_node(sync)
         sync.enable_drive()
         engine = sync.engine
         if not isinstance(engine, CommandEngine):      # a virtual bus: in the node's process
             raise TypeError('the sync latency bench runs the command path in process')
         threading.Thread(target=listen, args=(listener,), daemon=True).start()
-        spinner = SpinThread(ex, 'bench-sync-executor')
         spinner.start()
         deadline = time.monotonic() + timeout
         # discovery done and the latched design taken
@@ -148,8 +147,6 @@ def sync_latencies(samples: int, rate: float = RATE, warmup: int = 50, timeout: 
         stop.set()
         if spinner is not None:
             spinner.stop()                  # spinning ended, then the executor shut down
-        elif ex is not None:
-            ex.shutdown(timeout_sec=2.0)
         for node in (sync, source):
             if node is not None:
                 node.destroy_node()
