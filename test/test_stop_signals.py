@@ -1,5 +1,6 @@
 """SIGTERM is Ctrl-C in every node main and the demo: the first stop signal asks for a clean
 stop, a second one forces the exit (a clean-up that hangs must not keep the process alive)."""
+import json
 import os
 from pathlib import Path
 import signal
@@ -186,3 +187,39 @@ def test_a_spin_thread_never_started_still_shuts_its_executor_down():
     executor = Recording(shut_down_after=0)
     stop_signals.SpinThread(executor, 'never-started').stop()   # a start cut short before it
     assert executor.down and executor.waits == 0
+
+
+MASK_CHILD = '''
+import signal
+
+
+def report(conn):
+    conn.send(sorted(int(s) for s in signal.pthread_sigmask(signal.SIG_BLOCK, [])))
+'''
+
+FIRST_SPAWN = '''
+import json, multiprocessing, sys
+sys.path.insert(0, sys.argv[1])
+import mask_child
+from planter_ros.host import stop_signals
+context = multiprocessing.get_context('spawn')
+ours, theirs = context.Pipe()
+process = context.Process(target=mask_child.report, args=(theirs,))
+stop_signals.start_held(process)
+print(json.dumps(ours.recv()))
+process.join()
+'''
+
+
+def test_the_first_spawned_child_starts_with_stop_signals_held(tmp_path):
+    """The demo's sync process is the first multiprocessing child of its process: started
+    `start_held`, it starts with SIGINT and SIGTERM blocked (until its own handler is in
+    place). With `held_for_child` alone the resource tracker multiprocessing starts on first use
+    unblocked them before the child was spawned: a stop 0-0.1 s into a demo's start killed the
+    sync process (exit code -15) and the demo had no drive's account of how it ended."""
+    (tmp_path / 'mask_child.py').write_text(MASK_CHILD)
+    out = subprocess.run([sys.executable, '-c', FIRST_SPAWN, str(tmp_path)], capture_output=True,
+                         text=True, env=child_env(), timeout=60)
+    assert out.returncode == 0, out.stderr
+    blocked = set(json.loads(out.stdout))
+    assert {int(signal.SIGINT), int(signal.SIGTERM)} <= blocked, blocked

@@ -180,8 +180,7 @@ class SyncProcess:
         self._conn, child = context.Pipe()
         self.process = context.Process(target=child_main, args=(child, settings),
                                        name='planter-demo-sync')
-        with stop_signals.held_for_child():      # its own handler first, then a stop signal
-            self.process.start()
+        stop_signals.start_held(self.process)    # its own handler first, then a stop signal
         child.close()
         self.info = {}               # what the child said at start: SyncBuilt, SyncReady
         self.status = Snapshot()     # the latest snapshot
