@@ -3,6 +3,7 @@ errors come from the mpmath reference (exact methods at round-off, the paper's f
 its markdown page holds the quality targets and one table per row group."""
 import json
 import re
+import shlex
 import subprocess
 import sys
 import time
@@ -15,26 +16,55 @@ from planter_ros.bench.report import QUALITY_TARGETS, format_markdown
 from planter_ros.bench.timing import Timing
 
 
-# the quick run is real-time work: its sync-loop rows run the sync node and simulated drives in
-# the bench's process (the drives' RPDO deadlines trip when it is starved: a suite run with it
-# among the background tests failed so), its demo rows SCHED_FIFO command processes
+# The quick run in two: the cases that run something live (the sync node and simulated drives in
+# the bench's own process, whose RPDO deadlines trip when it is starved: a suite run with them
+# among the background tests failed so; demo runs with SCHED_FIFO command processes; CAN
+# round trips) as a real-time test, the others (computation, offline runs) as background work.
 LIVE = pytest.mark.realtime(apart=True)
+LIVE_CASES = ('sync loop latency', 'sync loop latency per row count', 'control loop under load',
+              'graph-join stall', 'command-latency', 'demo-runs under load', 'CAN drive')
+
+
+def offline_cases():
+    from planter_ros.bench.registry import CASES
+    return [name for name in CASES if name not in LIVE_CASES]
+
+
+def quick_bench(*args):
+    out = run_planter('bench', '--quick', '--json', *args, timeout=300)
+    failed = re.findall(r'"note": "(FAILED: [^"]*)"', out.stdout)
+    assert out.returncode == 0, '\n'.join(failed) or out.stderr[-2000:]
+    return json.loads(out.stdout)
+
+
+def only(names):
+    return [word for name in names for word in ('--only', name)]
+
+
+@pytest.fixture(scope='module')
+def live_run():
+    """The quick run of the live cases."""
+    return quick_bench(*only(LIVE_CASES))
 
 
 @pytest.fixture(scope='module')
 def quick_run(tmp_path_factory):
-    """One quick bench run (JSON, plot and markdown page) shared by the tests that read it."""
+    """The quick run of the other cases (JSON, plot and markdown page), shared by the tests
+    that read it."""
     tmp = tmp_path_factory.mktemp('bench')
     plot, page = tmp / 'tradeoff.png', tmp / 'benchmarks.md'
-    out = run_planter('bench', '--quick', '--json', '--plot', plot, '--markdown', page,
-                      timeout=300)
-    failed = re.findall(r'"note": "(FAILED: [^"]*)"', out.stdout)
-    assert out.returncode == 0, '\n'.join(failed) or out.stderr[-2000:]
-    return json.loads(out.stdout), plot, page
+    return quick_bench('--plot', plot, '--markdown', page, *only(offline_cases())), plot, page
+
+
+def test_the_two_quick_runs_together_run_every_case_once():
+    from planter_ros.bench.registry import CASES
+    assert set(LIVE_CASES) <= set(CASES)
+    runs = [[name for name in CASES if any(text in name for text in texts)]
+            for texts in (LIVE_CASES, offline_cases())]
+    assert sorted(runs[0] + runs[1]) == sorted(CASES)
 
 
 @pytest.mark.slow
-@LIVE
 def test_quick_bench_runs_and_reports_every_row_with_time_and_error(quick_run):
     report, plot, _ = quick_run
     assert report['quick'] is True
@@ -58,7 +88,32 @@ def test_quick_bench_runs_and_reports_every_row_with_time_and_error(quick_run):
     footprint = [r for r in ok if r['method'].startswith('import five_bar')][0]
     assert footprint['heavy_modules'] == [] and footprint['peak_rss_bytes'] > 0
     assert plot.stat().st_size > 10_000
-    # the node-graph rows: latencies with their tail, replay speed and its error vs live
+    curves = [r for r in ok if r['what'].startswith('closed loop, 4 rows')]
+    assert len(curves) == 8                               # 4 rows, with and without
+    compensated = [r for r in curves if r['mode'] == 'compensated']
+    assert all(t['met'] for r in compensated for t in r['targets'])
+    assert all(r['error'] > 0.05 for r in curves              # the ±y/R bias of outer rows
+               if r['mode'] == 'uncompensated' and '0.75' in r['method'])
+    replay = [r for r in ok if r['what'].startswith('replay')]
+    generated = [r for r in replay if r['method'].startswith('generated')]
+    recorded = [r for r in replay if 'live monitor' in r['method']]
+    assert generated and generated[0]['error'] is None            # no live predictions in it
+    assert generated[0]['times_real_time'] > 0 and generated[0]['targets']
+    assert recorded and all(r['error'] < 1e-9 for r in recorded)  # replay reproduces the monitor
+
+
+@pytest.mark.slow
+@LIVE
+def test_quick_bench_live_rows_report_their_latencies_and_targets(live_run):
+    report = live_run
+    assert report['quick'] is True
+    rows = report['rows']
+    assert all(r['status'] in ('ok', 'not available') for r in rows)
+    ok = [r for r in rows if r['status'] == 'ok']
+    assert {r['what'].split(' ')[0] for r in ok} >= {'sync', 'command', 'control', 'CAN'}
+    for r in ok:
+        assert r['median_s'] > 0 and r['p10_s'] <= r['median_s'] <= r['p90_s']
+    # the node-graph rows: latencies with their tail
     sync = [r for r in ok if r['what'].startswith('sync loop')]
     assert sync and all(r['median_s'] <= r['p99_s'] and r['matched'] > 0 for r in sync)
     assert all(t['target'].startswith(('p99 ≤ 2 ms', '8 rows: p99 ≤ 2 ms'))
@@ -70,22 +125,10 @@ def test_quick_bench_runs_and_reports_every_row_with_time_and_error(quick_run):
                for r in joins)
     machine = [r for r in sync if r['what'].startswith('sync loop, rows')]
     assert [r['rows'] for r in machine] == [1, 4, 8]
-    curves = [r for r in ok if r['what'].startswith('closed loop, 4 rows')]
-    assert len(curves) == 8                               # 4 rows, with and without
-    compensated = [r for r in curves if r['mode'] == 'compensated']
-    assert all(t['met'] for r in compensated for t in r['targets'])
-    assert all(r['error'] > 0.05 for r in curves              # the ±y/R bias of outer rows
-               if r['mode'] == 'uncompensated' and '0.75' in r['method'])
     drive = [r for r in ok if r['what'].startswith('CAN drive')]
     assert {'SDO round trip (6041h upload)', 'RPDO latency, send_velocity() → drive decoded it'} \
         <= {r['method'] for r in drive}
     assert all(r['median_s'] <= r['p99_s'] and r['error'] is None for r in drive)
-    replay = [r for r in ok if r['what'].startswith('replay')]
-    generated = [r for r in replay if r['method'].startswith('generated')]
-    recorded = [r for r in replay if 'live monitor' in r['method']]
-    assert generated and generated[0]['error'] is None            # no live predictions in it
-    assert generated[0]['times_real_time'] > 0 and generated[0]['targets']
-    assert recorded and all(r['error'] < 1e-9 for r in recorded)  # replay reproduces the monitor
     # the control loop under load: a whole demo beside a CPU hog (two in a full run), its
     # command gaps pooled
     loop = [r for r in ok if r['what'].startswith('control loop under load')]
@@ -182,13 +225,14 @@ def test_bench_rejects_bad_options_in_one_line():
 
 
 @pytest.mark.slow
-@LIVE
 def test_markdown_page_has_the_targets_and_a_table_per_row_group(quick_run):
     report, _, page = quick_run
     assert report['markdown'] == str(page)
     text = page.read_text()
     assert text.startswith('# Benchmarks\n')
-    assert f'`planter bench --quick --markdown {page}`' in text       # how it was made
+    made = shlex.join(['planter', 'bench', '--quick', *only(offline_cases()), '--markdown',
+                       str(page)])
+    assert f'`{made}`' in text                                         # how it was made
     assert 'numpy' in text and 'mpmath' in text                        # the machine line
     targets = text.split('## Quality targets', 1)[1].split('## Results', 1)[0]
     for quantity, target, _, _ in QUALITY_TARGETS:

@@ -17,7 +17,7 @@ Adding a row group is one function in a case module and its line in CASES:
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import TypeVar
 import importlib
@@ -184,16 +184,17 @@ def _check_only(only: str, names: list[str]) -> None:
                           f'{len(names)} case names contains, e.g. "{names[0]}"')
 
 
-def run_cases(ctx: BenchContext, only: str | None = None) -> list[Row]:
-    """Run every case (or those whose name contains `only`); returns the rows. ConfigError
-    (one line, before any case runs) for an `only` that is empty or blank, or that no case's
-    name contains."""
+def run_cases(ctx: BenchContext, only: str | Sequence[str] | None = None) -> list[Row]:
+    """Run every case (or those whose name contains `only`, or any text of it); returns the
+    rows. ConfigError (one line, before any case runs) for a text that is empty or blank, or
+    that no case's name contains."""
     names = list(CASES)
-    if only is not None:
-        _check_only(only, names)
+    texts = [only] if isinstance(only, str) else list(only or ())
+    for text in texts:
+        _check_only(text, names)
     rows: list[Row] = []
     for name in names:
-        if only and only.lower() not in name.lower():
+        if texts and not any(text.lower() in name.lower() for text in texts):
             continue
         try:
             fn = load_case(name)

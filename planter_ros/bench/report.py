@@ -171,10 +171,12 @@ def format_table(machine: MachineInfo, rows: Sequence[Row]) -> str:
     return '\n'.join(lines)
 
 
-def command_line(quick: bool, only: str | None, runs: int | None, markdown: str) -> str:
+def command_line(quick: bool, only: Sequence[str] | None, runs: int | None,
+                 markdown: str) -> str:
     """The `planter bench` command that reproduces a run (for the page's header)."""
     words = ['planter', 'bench'] + ['--quick'] * bool(quick)
-    words += (['--only', only] if only else []) + (['--runs', str(runs)] if runs else [])
+    words += [word for text in only or () for word in ('--only', text)]
+    words += ['--runs', str(runs)] if runs else []
     return shlex.join(words + ['--markdown', str(markdown)])
 
 

@@ -14,8 +14,9 @@ def add_arguments(parser):
     parser.add_argument('--plot', metavar='FILE.png', type=output_file('--plot', ('.png',)),
                         help='draw error against run time (log-log) for the methods that '
                              'trade one for the other')
-    parser.add_argument('--only', metavar='TEXT',
-                        help='run only the cases whose name contains TEXT (e.g. "hole")')
+    parser.add_argument('--only', metavar='TEXT', action='append',
+                        help='run only the cases whose name contains TEXT (e.g. "hole"); '
+                             'repeated: those whose name contains any of them')
     parser.add_argument('--runs', metavar='N', type=spec_option(BenchContext, 'runs', '--runs'),
                         help='how many runs the cases made of whole demo runs make '
                              '(default: each case\'s own, 10)')

@@ -17,7 +17,7 @@ def run(args):
     rows = run_cases(ctx, only=args.only)
     seconds = time.monotonic() - started
     if not rows:
-        raise BadInput(f'--only = {args.only} matches no bench case')
+        raise BadInput(f'--only = {", ".join(args.only or [])} matches no bench case')
     if args.plot:
         # lazy: the plot's module only with --plot (matplotlib, an extra: dependencies; loaded
         # without one it writes its font cache into the user's home: test_no_leftovers)
