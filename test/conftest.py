@@ -7,16 +7,17 @@ Real-time tests: a test that passes only when scheduled in real time (a live ROS
 a simulated drive and its master, a `planter demo` run, commissioning, signal and process-death
 timings) carries the marker `realtime`: `pytestmark = pytest.mark.realtime` at the top of its
 module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.mark.realtime)`
-on one case. That is the only list. With three processes (pytest.ini), two of them take the
-real-time tests first, a module's at a time, one test after the other on each (as in a serial
-run): first those whose live part runs in processes of their own (a demo run and the like,
-whose command process and simulated drives run SCHED_FIFO as on the machine), two at once; then
-those live in the test process itself (nodes, simulated drives and their loops; a command
-loop at the command process's SCHED_FIFO priority while it runs, the rest without real-time
-priority: `live_where`), two at once too, never beside a demo-like one (beside those a node's
-in-process drive once missed its speed by 5 %). The third process runs the rest meanwhile
-at `BACKGROUND_NICE` above the priority the session started with, so it never starves them;
-each lane joins it once its real-time tests are done. No process of the suite ever runs above
+on one case. That is the only list. With four processes (pytest.ini), two of them take the
+real-time tests first, one test after the other on each (as in a serial run; a module's tests
+that share a fixture made once stay together): first those whose live part runs in processes
+of their own (a demo run and the like, whose command process and simulated drives run
+SCHED_FIFO as on the machine), two at once; then those live in the test process itself (nodes,
+simulated drives and their loops; a command loop at the command process's SCHED_FIFO priority
+while it runs, the rest without real-time priority: `live_where`), on the third process as
+well, up to three at once, never beside a demo-like one (beside those a node's in-process
+drive once missed its speed by 5 %). The other processes run the rest meanwhile at
+`BACKGROUND_NICE` above the priority the session started with, so they never starve them;
+each lane joins them once its real-time tests are done. No process of the suite ever runs above
 the priority the session was started with, but for that command loop under test, at the
 priority the product gives it. A test that uses a live fixture
 (`LIVE_FIXTURES`: `ros`, `sim`, `channel`, `make_drive`, ...) or starts something live
@@ -189,6 +190,20 @@ def _realtime_ids_file(config):
     return _ids_file(config) / 'realtime-tests.json'
 
 
+def _alone_ids_file(config):
+    """The real-time tests that are units of their own (`_alone`)."""
+    return _ids_file(config) / 'realtime-alone.json'
+
+
+def _alone(item):
+    """Whether a real-time test can run on another process than its module's other real-time
+    tests: it uses no fixture of its module made once for several tests."""
+    module = _module(item.nodeid)
+    return not any(definition.scope != 'function' and definition.baseid == module
+                   for definitions in item._fixtureinfo.name2fixturedefs.values()
+                   for definition in definitions)
+
+
 def _done_dir(config):
     """One empty file per APART test done (what a HERE test waits for), named by a hash of
     its id."""
@@ -207,7 +222,7 @@ TURN_TIMEOUT = 1800.0       # s a test waits for its turn at most (a lost worker
 
 def _wait_for_turn(item):
     """A HERE test waits until every APART test is done: it runs beside no demo-like test,
-    only beside at most one other HERE test (the other lane) and the other tests at the
+    only beside at most two other HERE tests (the other lanes) and the other tests at the
     background priority."""
     where = _realtime_kinds(item.config)
     if where.get(item.nodeid) != HERE:
@@ -238,15 +253,19 @@ def _number(node):
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
     """Whole modules as units of work (their module fixtures made once); a module's tests
-    marked realtime units of their own, those live HERE apart from those live APART (xdist's
-    own --dist loadgroup cannot group with this pytest). Two real-time lanes: both take the
-    APART units first (two demo runs at once: their real-time processes run SCHED_FIFO); then
-    the HERE units (two at once, each in its own process, after every APART one); then any
-    other unit. A worker waits at a test's set-up for what must end first (`_wait_for_turn`:
-    xdist holds a worker's last test until more work comes, so the scheduler itself cannot
-    make a lane wait). The other processes never run a real-time test. The controller
-    collects nothing itself: the workers write the realtime tests' ids at collection
-    (pytest_collection_modifyitems), before it schedules."""
+    marked realtime units of their own, each test alone unless it uses a fixture of its module
+    made once (`_alone`), those live HERE apart from those live APART (xdist's own --dist
+    loadgroup cannot group with this pytest). Two real-time lanes: both take the APART units
+    first (two demo runs at once: their real-time processes run SCHED_FIFO); then the HERE
+    units (each in its own process, after every APART one), which the third process (of four
+    or more) takes too once every APART unit is under way (before that it runs other units);
+    then any other unit. A worker waits at a test's set-up for what must end first
+    (`_wait_for_turn`: xdist holds a worker's last test until more work comes, so the
+    scheduler itself cannot make a lane wait). A process is given its next
+    unit only when the last test of the one before is running, so that no unit waits on a busy
+    process while another is idle. The other processes never run a real-time test. The
+    controller collects nothing itself: the workers write the realtime tests' ids at
+    collection (pytest_collection_modifyitems), before it schedules."""
     # lazy: a pytest hook of xdist's, called only when xdist runs the session
     from xdist.scheduler import LoadScopeScheduling
 
@@ -256,18 +275,40 @@ def pytest_xdist_make_scheduler(config, log):
         def _split_scope(self, nodeid):
             if self._where is None:
                 self._where = json.loads(_realtime_ids_file(config).read_text())
+                self._alone = set(json.loads(_alone_ids_file(config).read_text()))
             module = _module(nodeid)
             where = self._where.get(nodeid)
-            return f'{REALTIME} {where} {module}' if where else module
+            unit = nodeid if nodeid in self._alone else module
+            return f'{REALTIME} {where} {unit}' if where else module
+
+        def _reschedule(self, node):
+            """One unit at a time, the next given when the last test of the one before is
+            running (xdist holds a worker's last test until more work or the shutdown comes):
+            a unit queued on a busy process is one an idle process cannot take."""
+            if node.shutting_down:
+                return
+            if not self.workqueue:
+                node.shutdown()
+                return
+            if self._pending_of(self.assigned_work[node]) > 1:
+                return
+            self._assign_work_unit(node)
 
         def _assign_work_unit(self, node):
-            lanes = sorted(self.nodes, key=_number)[:2]
+            nodes = sorted(self.nodes, key=_number)
+            lanes = nodes[:2]
+            third = nodes[2] if len(nodes) > 3 else None       # a HERE lane, the rest after
             here, apart, others = [], [], []
             for scope in self.workqueue:
                 kind = scope.split(' ', 2)[:2]
                 (here if kind == [REALTIME, HERE] else apart if kind == [REALTIME, APART]
                  else others).append(scope)
-            eligible = (apart or here or others) if node in lanes else others
+            if node in lanes:
+                eligible = apart or here or others
+            elif node is third:         # HERE once every APART unit is under way
+                eligible = (here if here and not apart else others) or here
+            else:
+                eligible = others
             if not eligible:                         # only real-time units left, none for it
                 if not node.shutting_down:
                     node.shutdown()
@@ -283,12 +324,18 @@ def pytest_xdist_make_scheduler(config, log):
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """The real-time tests first (the real-time lanes take them first); then the modules with
-    a test marked `slow`, so that the processes end together. Orders kept otherwise. A test
-    that needs the realtime marker and lacks it is noted (it fails at its set-up)."""
+    """The real-time tests first (the real-time lanes take them first), those marked `slow`
+    first among them (most are units of their own: the longest first, so that the lanes end
+    together); then the modules with a test marked `slow`, for the same reason. Orders kept
+    otherwise. A test that needs the realtime marker and lacks it is noted (it fails at its
+    set-up)."""
     slow = {_module(item.nodeid) for item in items if item.get_closest_marker('slow')}
-    items[:] = sorted(items, key=lambda item: (not _realtime(item),
-                                               _module(item.nodeid) not in slow))
+
+    def order(item):
+        realtime = _realtime(item)
+        return (not realtime, realtime and item.get_closest_marker('slow') is None,
+                _module(item.nodeid) not in slow)
+    items[:] = sorted(items, key=order)
     realtime = {}
     for item in items:
         if _realtime(item):
@@ -303,10 +350,12 @@ def pytest_collection_modifyitems(config, items):
                     '`pytestmark = pytest.mark.realtime` to its module or ' \
                     '`@pytest.mark.realtime` to the test (test/conftest.py)'
     if hasattr(config, 'workerinput'):        # an xdist worker: tell the scheduler
-        path = _realtime_ids_file(config)
-        part = path.with_name(f'{path.name}.{os.getpid()}')
-        part.write_text(json.dumps(realtime))
-        os.replace(part, path)
+        alone = [item.nodeid for item in items if _realtime(item) and _alone(item)]
+        for path, content in ((_alone_ids_file(config), alone),
+                              (_realtime_ids_file(config), realtime)):   # the one read first last
+            part = path.with_name(f'{path.name}.{os.getpid()}')
+            part.write_text(json.dumps(content))
+            os.replace(part, path)
 
 
 @pytest.hookimpl(tryfirst=True)

@@ -213,7 +213,7 @@ def note(kind):
 """
 
 
-def test_nothing_runs_above_the_sessions_priority_and_realtime_tests_run_on_two_lanes_first(
+def test_nothing_runs_above_the_sessions_priority_and_realtime_tests_run_on_their_lanes_first(
         tmp_path):
     here = PRIORITY + """
 pytestmark = pytest.mark.realtime
@@ -270,7 +270,7 @@ def test_other_2():
     # 5 below this process's priority (which may already be lowered: the suite runs this
     # test beside the real-time ones)
     start = min(os.getpriority(os.PRIO_PROCESS, 0) + 5, 19)
-    out, junit = pytest_run(tmp_path, None, '-n', '3', nice=5,
+    out, junit = pytest_run(tmp_path, None, '-n', '4', nice=5,
                             modules={'test_a.py': here, 'test_b.py': other,
                                      'test_c.py': apart, 'test_d.py': apart})
     assert out.returncode == 0, out.stdout[-3000:]
@@ -279,8 +279,9 @@ def test_other_2():
     nice = {'here': start, 'apart': start, 'other': min(start + 10, 19)}
     assert all(int(n) == nice[kind] for kind, _, n, _ in runs if kind != 'end'), runs
     assert int((tmp_path / 'runs' / 'watcher').read_text()) >= start
-    # the first two processes run the real-time tests, both kinds; the third none
-    assert {worker for kind, worker, _, _ in runs if kind == 'here'} == {'gw0', 'gw1'}
+    # the first two processes run the demo-like tests, two at once; the third may take the
+    # tests live in the test process too, once those are done; the fourth none
+    assert {worker for kind, worker, _, _ in runs if kind == 'here'} <= {'gw0', 'gw1', 'gw2'}
     assert {worker for kind, worker, _, _ in runs if kind == 'apart'} == {'gw0', 'gw1'}
     spans = {}
     for kind, worker, _, at in sorted(runs, key=lambda r: float(r[3])):
@@ -290,7 +291,7 @@ def test_other_2():
             spans.setdefault('done', []).append((*spans.pop(worker), float(at)))
     done = spans['done']
     edges = sorted([(s0, +1) for _, s0, _ in done] + [(s1, -1) for _, _, s1 in done])
-    assert max(sum(step for _, step in edges[:k + 1]) for k in range(len(edges))) <= 2, done
+    assert max(sum(step for _, step in edges[:k + 1]) for k in range(len(edges))) <= 3, done
     for kind, start_at, end_at in done:          # a HERE test never beside an APART one
         beside = [k for k, s0, s1 in done if s0 < end_at and s1 > start_at]
         assert kind == 'apart' or 'apart' not in beside, done

@@ -247,6 +247,7 @@ def test_sync_node_takes_the_machine_file_and_checks_its_run_time_limits(ros, tm
         rig.close()
 
 
+@pytest.mark.slow
 def test_commissioned_then_a_demo_plants_its_first_plant_within_5_mm(tmp_path):
     """Issue 22's "done when": commissioning against the simulated drive (random offset,
     reversed wiring: seed 1), then a demo with the written machine file, its drives powered up
