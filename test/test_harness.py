@@ -17,13 +17,16 @@ its JUnit file:
   runs at the product's own SCHED_FIFO, as its command process does, and only while it runs:
   drive_helpers.as_the_command_process); the real-time tests live in
   processes of their own run first, on the first two processes, those live in the test process
-  then, on the same two, never beside one of the first kind; both before the others there.
+  then, on the same two and the third, never beside one of the first kind; on the first two
+  both before the others; the fourth process runs no real-time test.
 """
 import os
 from pathlib import Path
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+
+import pytest
 
 HERE = Path(__file__).resolve().parent
 INI = """[pytest]
@@ -213,6 +216,7 @@ def note(kind):
 """
 
 
+@pytest.mark.slow
 def test_nothing_runs_above_the_sessions_priority_and_realtime_tests_run_on_their_lanes_first(
         tmp_path):
     here = PRIORITY + """

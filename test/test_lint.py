@@ -5,6 +5,8 @@ import shutil
 import subprocess
 import sys
 
+import pytest
+
 from cli_helpers import REPO
 
 # mypy checks the whole package, every module (strict on the pure core: mypy.ini); a new
@@ -20,6 +22,7 @@ def test_ruff_finds_nothing():
     assert out.returncode == 0, out.stdout[-4000:] + out.stderr[-2000:]
 
 
+@pytest.mark.slow
 def test_mypy_finds_nothing_in_the_package():
     """mypy reads every module of the package and the libraries it imports (so their types are
     known) and reports the package's own (--follow-imports=silent). Its cache is the
