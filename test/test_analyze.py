@@ -208,13 +208,15 @@ def test_a_real_dask_scheduler_and_worker_give_the_same_tables(season, local, da
 
 
 @pytest.mark.slow
-def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, tmp_path):
+def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, local, tmp_path):
     season = _copy(season, tmp_path / 'season')        # its bags are changed here
     out = tmp_path / 'tables'
     _, first = analyze(season, '--out', out, '--workers', 1)
     assert first['analysed'] + first['failed'] == 6 and first['skipped'] == 0
     before = (out / 'bags' / 'bags.parquet').read_bytes()
     plants, table = plants_of(out)
+    # one worker in the command's process: the plants of two worker processes
+    assert plants == plants_of(local[0])[0]
 
     report = out / 'report.html'
     outputs = [report, out / 'as_planted.zip', out / 'TASKDATA.zip']
@@ -447,3 +449,17 @@ def test_a_heartbeat_cut_by_the_local_clusters_close_leaves_no_traceback(tmp_pat
                        timeout=120, env=env, cwd=tmp_path)
     assert r.returncode == 0 and r.stdout.strip() == 'closed', r.stderr[-3000:]
     assert 'Traceback' not in r.stderr and 'Stream is closed' not in r.stderr, r.stderr[-3000:]
+
+
+def test_one_worker_runs_in_the_commands_process_more_run_in_processes_of_their_own():
+    """`--workers 1` starts no worker process (the analysis in the command's own process); two
+    workers are processes of their own. (The same plants either way: the re-run test.)"""
+    from planter_ros.analysis.engine import cluster
+    with cluster(workers=1, in_process=True) as client:
+        assert list(client.run(os.getpid).values()) == [os.getpid()]
+    with cluster(workers=2) as client:
+        pids = set(client.run(os.getpid).values())
+    assert len(pids) == 2 and os.getpid() not in pids
+    with pytest.raises(ValueError):
+        with cluster(workers=2, in_process=True):
+            pass

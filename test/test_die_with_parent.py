@@ -219,7 +219,7 @@ def test_the_local_clusters_workers_and_the_optimisers_pool_are_tied_by_the_kern
     from planter_ros.host.processes import parent_death_signal
     from planter_ros.scene import default_scene_path
     from planter_ros.cli.commands.design_three_arm import load_params
-    with cluster(workers=1) as client:
+    with cluster(workers=2) as client:
         assert set(client.run(parent_death_signal).values()) == {signal.SIGKILL}
     base = load_params(default_scene_path('rice_three_arm.yaml'), '--base')
     with PopulationScorer(base, workers=2) as scorer:

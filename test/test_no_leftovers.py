@@ -72,10 +72,12 @@ def test_a_killed_analyze_leaves_no_lock_and_the_next_run_cleans_up(tmp_path):
     cwd, home, tmp, env = places(tmp_path)
     bags = cwd / 'bags'
     bags.mkdir()
-    for k in range(200):                 # work enough to be killed in the middle of it
+    for k in range(200):                 # (copies of one bag: one is analysed)
         os.link(REPO / 'bags' / 'sample_tomato.mcap', bags / f'b{k:03d}.mcap')
+    # two worker processes: their start (seconds) is the middle the kill lands in (one worker
+    # runs in the command's process: its scratch space lives a fraction of a second here)
     args = [sys.executable, '-m', 'planter_ros.cli', 'analyze', 'bags', '--out', 'season',
-            '--workers', '1']
+            '--workers', '2']
     proc = subprocess.Popen(args, cwd=cwd, env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     try:

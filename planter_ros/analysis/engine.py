@@ -4,8 +4,9 @@
 single-threaded worker process per usable core, or `workers`), scheduler and workers bound to
 127.0.0.1, no dashboard, each worker dying with this process and silent once it closes
 (worker_plugin: no shutdown race of distributed's on the user's terminal), its allocator
-keeping a bag's buffers (WORKER_MALLOC); or of an existing cluster (`scheduler` = its
-scheduler's address, `tcp://host:8786`).
+keeping a bag's buffers (WORKER_MALLOC); of one worker in this process (`in_process`: the
+commands' `--workers 1`, no process to start: a small season's run takes ~1.8 s of CPU less);
+or of an existing cluster (`scheduler` = its scheduler's address, `tcp://host:8786`).
 `check_workers` runs a warm-up on every worker (imports the code once, says
 which model version it runs) and refuses a cluster that cannot run ours. `completed` maps a
 function over argument tuples and yields the results as they complete, gathered in batches.
@@ -74,8 +75,12 @@ def usable_cores():
 
 
 @contextmanager
-def cluster(workers=None, scheduler=None):
-    """A distributed.Client (see the module doc); everything is closed on exit."""
+def cluster(workers=None, scheduler=None, in_process=False):
+    """A distributed.Client (see the module doc); everything is closed on exit. `in_process`
+    (with `workers` 1): the scheduler and the one single-threaded worker in this process
+    (in-memory comms: nothing listens but the scheduler's HTTP routes on 127.0.0.1)."""
+    if in_process and (scheduler or workers != 1):
+        raise ValueError('in_process is a local cluster of one worker (workers=1)')
     from distributed import Client, LocalCluster  # lazy: 350 ms, only when bags are analysed
     # the workers inherit the environment: any ROS they touched would stay on loopback
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -108,13 +113,15 @@ def cluster(workers=None, scheduler=None):
                 # (the scheduler serves its HTTP routes, health and metrics, whatever the
                 # dashboard: on a free loopback port, not on 8787, which another cluster may
                 # hold: Dask then warns "Port 8787 is already in use" on stderr)
+                # (the in-process cluster's comms are in memory (inproc://), no host or port)
+                where = ({'processes': False} if in_process else
+                         {'processes': True, 'host': '127.0.0.1', 'scheduler_port': 0,
+                          'plugins': {DieWithParent(), QuietClose()}})
                 local = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
-                                     processes=True, host='127.0.0.1', scheduler_port=0,
                                      dashboard_address=None, worker_dashboard_address=None,
                                      scheduler_kwargs={'dashboard_address': '127.0.0.1:0'},
-                                     silence_logs=logging.ERROR,
-                                     plugins={DieWithParent(), QuietClose()},
-                                     local_directory=scratch)
+                                     silence_logs=logging.ERROR, local_directory=scratch,
+                                     **where)
         except Exception as exc:             # no free port, no processes, ...
             shutil.rmtree(scratch, ignore_errors=True)
             raise EngineError(f'the local cluster did not start ({_first_line(exc)}): allowed '

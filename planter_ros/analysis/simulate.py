@@ -146,7 +146,8 @@ def simulate_season(path: Path, names: list[str], season: SeasonRequest,
     version = model_version()
     where = scheduler or 'the local cluster'
     written, errors = [], []
-    with cluster(workers_wanted, scheduler) as client:
+    # --workers 1: the one worker in this process (no worker process to start)
+    with cluster(workers_wanted, scheduler, in_process=workers_wanted == 1) as client:
         workers = check_workers(client, warm_up, version, where)
         path.mkdir(exist_ok=True)
         progress = Progress(len(names), what='bags', label='planter simulate')

@@ -34,7 +34,9 @@ def run(args):
         report = seasons.Report(out=str(out))
         if keys:
             where = args.scheduler or 'the local cluster'
-            with cluster(args.workers, args.scheduler) as client:    # EngineError: exit 2
+            # --workers 1: the one worker in this process (no worker process to start)
+            with cluster(args.workers, args.scheduler,               # EngineError: exit 2
+                         in_process=args.workers == 1) as client:
                 workers = check_workers(client, warm_up, version, where)
                 season.clear(keys)
                 progress = Progress(len(keys), label='planter analyze')
