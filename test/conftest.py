@@ -7,7 +7,7 @@ Real-time tests: a test that passes only when scheduled in real time (a live ROS
 a simulated drive and its master, a `planter demo` run, commissioning, signal and process-death
 timings) carries the marker `realtime`: `pytestmark = pytest.mark.realtime` at the top of its
 module, `@pytest.mark.realtime` on one test, or `pytest.param(..., marks=pytest.mark.realtime)`
-on one case. That is the only list. With four processes (pytest.ini), two of them take the
+on one case. That is the only list. With five processes (pytest.ini), two of them take the
 real-time tests first, one test after the other on each (as in a serial run; a module's tests
 that share a fixture made once stay together): first those whose live part runs in processes
 of their own (a demo run and the like, whose command process and simulated drives run
