@@ -187,12 +187,9 @@ def _ids_file(config):
 
 
 def _realtime_ids_file(config):
+    """{'kinds': {nodeid: HERE or APART}, 'alone': [the nodeids of `_alone` tests]} of the
+    session's real-time tests."""
     return _ids_file(config) / 'realtime-tests.json'
-
-
-def _alone_ids_file(config):
-    """The real-time tests that are units of their own (`_alone`)."""
-    return _ids_file(config) / 'realtime-alone.json'
 
 
 def _alone(item):
@@ -239,7 +236,7 @@ def _realtime_kinds(config):
         return {}
     cached = config.stash.get(_KINDS, None)
     if cached is None:
-        cached = json.loads(_realtime_ids_file(config).read_text())
+        cached = json.loads(_realtime_ids_file(config).read_text())['kinds']
         config.stash[_KINDS] = cached
     return cached
 
@@ -274,8 +271,8 @@ def pytest_xdist_make_scheduler(config, log):
 
         def _split_scope(self, nodeid):
             if self._where is None:
-                self._where = json.loads(_realtime_ids_file(config).read_text())
-                self._alone = set(json.loads(_alone_ids_file(config).read_text()))
+                written = json.loads(_realtime_ids_file(config).read_text())
+                self._where, self._alone = written['kinds'], set(written['alone'])
             module = _module(nodeid)
             where = self._where.get(nodeid)
             unit = nodeid if nodeid in self._alone else module
@@ -351,11 +348,10 @@ def pytest_collection_modifyitems(config, items):
                     '`@pytest.mark.realtime` to the test (test/conftest.py)'
     if hasattr(config, 'workerinput'):        # an xdist worker: tell the scheduler
         alone = [item.nodeid for item in items if _realtime(item) and _alone(item)]
-        for path, content in ((_alone_ids_file(config), alone),
-                              (_realtime_ids_file(config), realtime)):   # the one read first last
-            part = path.with_name(f'{path.name}.{os.getpid()}')
-            part.write_text(json.dumps(content))
-            os.replace(part, path)
+        path = _realtime_ids_file(config)
+        part = path.with_name(f'{path.name}.{os.getpid()}')
+        part.write_text(json.dumps({'kinds': realtime, 'alone': alone}))
+        os.replace(part, path)
 
 
 @pytest.hookimpl(tryfirst=True)
