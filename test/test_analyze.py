@@ -156,6 +156,17 @@ def _free_port():
         return s.getsockname()[1]
 
 
+def _scheduler_address(info, proc, deadline):
+    """The address in the scheduler file `info` once it is there in full: dask writes it in
+    place (a reader can see it created and still empty, as a loaded host showed)."""
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            return json.loads(info.read_text())['address']
+        except (FileNotFoundError, ValueError, KeyError):
+            time.sleep(0.1)
+    pytest.fail(f'dask scheduler wrote no address to {info} (exit code {proc.poll()})')
+
+
 @pytest.fixture
 def dask_cluster(tmp_path):
     """`dask scheduler` and `dask worker` as separate processes on 127.0.0.1; yields the
@@ -168,10 +179,7 @@ def dask_cluster(tmp_path):
          '--no-dashboard', '--scheduler-file', str(info)],
         env=env, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
-        deadline = time.monotonic() + 60
-        while not info.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        address = json.loads(info.read_text())['address']
+        address = _scheduler_address(info, procs[0], deadline=time.monotonic() + 60)
         procs.append(subprocess.Popen(
             [str(dask), 'worker', '--scheduler-file', str(info), '--host', '127.0.0.1',
              '--nworkers', '1', '--nthreads', '1', '--no-dashboard'],
