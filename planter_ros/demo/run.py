@@ -27,7 +27,7 @@ from typing import Any, TextIO
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
@@ -41,6 +41,7 @@ from planter_ros.design import Design
 from planter_ros.geo import AntennaSettings
 from planter_ros.nodes.design_node import DesignNode
 from planter_ros.nodes.monitor_node import MonitorNode
+from planter_ros.nodes.run import graph_executor
 from planter_ros.prediction.acceptance import Acceptance
 from planter_ros.recording.errors import RecordingError
 from planter_ros.recording.replay import ReplayResult, replay
@@ -305,7 +306,7 @@ class _Run:
         rclpy.init(args=['--ros-args', '--log-level', demo.log_level, *PRIVATE_GRAPH_ROS_ARGS],
                    context=context, domain_id=self.domain,
                    signal_handler_options=SignalHandlerOptions.NO)
-        executor = SingleThreadedExecutor(context=context)
+        executor = graph_executor(context)
         self.spinner = stop_signals.SpinThread(executor, 'demo-executor')
         self.design_node = design_node = DesignNode(
             context=context, namespace=ns, parameter_overrides=[
@@ -363,7 +364,7 @@ class _Run:
         return self._drive(profile, sync, source, observer, design_node)
 
     def _start_field(self, profile: FieldProfile, sync: SyncProcess, observer: Observer,
-                     context: Context, executor: SingleThreadedExecutor) -> GroundSpeedSource:
+                     context: Context, executor: Executor) -> GroundSpeedSource:
         """The simulated sensors, once the graph has found itself (the sync node and the
         monitor subscribe the ground speed, the sync node has the design): t = 0 then."""
 

@@ -277,12 +277,12 @@ def child_main(conn, settings):
     import rclpy  # lazy: (above)
     from rclpy.context import Context  # lazy: (above)
     from rclpy.exceptions import ParameterException  # lazy: (above)
-    from rclpy.executors import SingleThreadedExecutor  # lazy: (above)
     from rclpy.parameter import Parameter  # lazy: (above)
     from rclpy.signals import SignalHandlerOptions  # lazy: (above)
 
     from planter_ros.simdrive.bus import SimulatedBus  # lazy: python-can (above)
     from planter_ros.drive.socket_bus import INTERFACE, socket_pair  # lazy: python-can (above)
+    from planter_ros.nodes.run import graph_executor  # lazy: (above)
     from planter_ros.nodes.sync_node import LibraryLog, SyncNode, start_error  # lazy: (above)
 
     def send(*message):
@@ -315,7 +315,7 @@ def child_main(conn, settings):
     rclpy.init(args=['--ros-args', '--log-level', settings.log_level, *PRIVATE_GRAPH_ROS_ARGS],
                context=context, domain_id=settings.domain,
                signal_handler_options=SignalHandlerOptions.NO)
-    executor = SingleThreadedExecutor(context=context)
+    executor = graph_executor(context)
     spinner = stop_signals.SpinThread(executor, 'sync-executor')
     library_log = LibraryLog()
     sync = None
