@@ -4,6 +4,8 @@ reason (`# lazy: ...` on its line or the line before); few functions with many p
 concept with no name yet); no class owning so much state that it runs over 400 lines."""
 import ast
 
+import pytest
+
 from cli_helpers import REPO
 
 PACKAGE = REPO / 'planter_ros'
@@ -90,11 +92,15 @@ def _survey():
     return top, inside, unexplained, many, big
 
 
-SURVEY = _survey()
+@pytest.fixture(scope='module')
+def survey():
+    """The package read once for the tests below (in the process that runs them: every test
+    process collects this module, few run it)."""
+    return _survey()
 
 
-def test_imports_are_at_the_top_and_each_one_left_inside_says_why():
-    top, inside, unexplained, _, _ = SURVEY
+def test_imports_are_at_the_top_and_each_one_left_inside_says_why(survey):
+    top, inside, unexplained, _, _ = survey
     share = inside / (top + inside)
     assert share <= INSIDE_SHARE, f'{inside} of {top + inside} imports inside functions ' \
         f'({share:.1%} > {INSIDE_SHARE:.0%})'
@@ -102,14 +108,14 @@ def test_imports_are_at_the_top_and_each_one_left_inside_says_why():
         ', '.join(unexplained)
 
 
-def test_few_functions_take_seven_or_more_parameters():
-    many = SURVEY[3]
+def test_few_functions_take_seven_or_more_parameters(survey):
+    many = survey[3]
     assert len(many) <= AT_MOST_MANY, f'{len(many)} functions with >= {MANY_PARAMETERS} ' \
         f'parameters (at most {AT_MOST_MANY}): ' + '; '.join(many)
 
 
-def test_no_class_runs_over_400_lines():
-    assert not SURVEY[4], SURVEY[4]
+def test_no_class_runs_over_400_lines(survey):
+    assert not survey[4], survey[4]
 
 
 def test_the_survey_sees_what_it_counts(tmp_path):

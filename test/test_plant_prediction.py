@@ -1,4 +1,5 @@
 """Per-plant prediction model: sync behaviour, hole and tilt against λ, streaming = batch."""
+import functools
 import math
 
 from hypothesis import example, given, settings, strategies as st
@@ -339,6 +340,13 @@ def test_a_gap_shorter_than_the_setting_is_interpolated_as_before():
     assert np.isnan(strict.spacing).sum() >= 2 or len(strict) < len(plants)
 
 
+@functools.lru_cache(maxsize=1)
+def _gap_run():
+    """The run the gaps are cut into: made once, by the process that runs the test (not at
+    collection, which every test process does)."""
+    return simulate_run(five_bar_design_message(), RunOptions(duration=20.0, seed=5))
+
+
 @settings(max_examples=40, deadline=None)
 @example(gaps=[], max_gap=0.09375)      # an exit just inside the gap, late joint feedback
 @example(gaps=[('joint', 18.0, 2.0)], max_gap=1.0)   # a plant in a gap the last samples close
@@ -347,7 +355,7 @@ def test_a_gap_shorter_than_the_setting_is_interpolated_as_before():
        max_gap=st.floats(0.06, 1.0))
 @pytest.mark.slow
 def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
-    run = _GAP_RUN
+    run = _gap_run()
     model = planting_model_from_design(run.design)
     prediction = PredictionSettings(max_input_gap=max_gap)
     sk = np.ones(run.speed_t.size, dtype=bool)
@@ -369,9 +377,6 @@ def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
             inside |= (batch.time > lo) & (batch.time < hi)
     assert np.array_equal(batch.input_gap == 1, inside)
     assert np.all(np.isnan(batch.hole_width[inside]))
-
-
-_GAP_RUN = simulate_run(five_bar_design_message(), RunOptions(duration=20.0, seed=5))
 
 
 def test_a_new_design_scores_plants_from_the_next_planting_instant_live_and_batch_alike():

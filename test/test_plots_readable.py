@@ -5,15 +5,11 @@ the five-bar and replay figures, the goal ranges on the three-arm one)."""
 import contextlib
 import io
 
-import matplotlib
 import pytest
 
-matplotlib.use('Agg')
-from matplotlib.figure import Figure  # noqa: E402
+from cli_helpers import REPO
 
-from cli_helpers import REPO  # noqa: E402
-
-from planter_ros.cli.main import main  # noqa: E402
+from planter_ros.cli.main import main
 
 SAMPLE = str(REPO / 'bags' / 'sample_pepper_stall.mcap')
 COMMANDS = {
@@ -32,6 +28,10 @@ COUNTS = ('plants',)              # axes whose quantity is a count: no unit
 def figures(tmp_path_factory):
     """{name: (figure, text printed)} of each command's --plot: the figure it saved, kept for
     inspection."""
+    # matplotlib loaded here, not at collection, which every test process does (half a second)
+    import matplotlib
+    matplotlib.use('Agg')
+    from matplotlib.figure import Figure
     out = {}
     saved = []
     save = Figure.savefig
