@@ -18,8 +18,9 @@ Adding a row group is one function in a case module and its line in CASES:
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
+from contextlib import AbstractContextManager, ExitStack
 from dataclasses import dataclass, field
-from typing import TypeVar
+from typing import Any, TypeVar
 import importlib
 import sys
 import time
@@ -132,13 +133,31 @@ def bench_case(name: str) -> Callable[[CaseFunction], CaseFunction]:
 
 @dataclass
 class BenchContext:
-    """What a case needs from the runner: size choice, timing settings, progress."""
+    """What a case needs from the runner: size choice, timing settings, progress, and what
+    cases share in one run (`shared`)."""
 
     quick: bool = False
     verbose: bool = True
     seed: int = 20240601
     runs: int | None = setting(None, 'how many runs a case of whole runs makes (default: its '
                                "own, e.g. the issue's 10 demo runs)", kind=int, range=(1, 1000))
+
+    def __post_init__(self) -> None:
+        self._held = ExitStack()
+        self._shared: dict[str, Any] = {}
+
+    def shared(self, key: str, make: Callable[[], AbstractContextManager[Any]]) -> Any:
+        """What the context manager `make()` gives, made by the first case that asks for `key`
+        and kept for the others until the run ends (`close`): the quick run's one local Dask
+        cluster for the analysis cases, say."""
+        if key not in self._shared:
+            self._shared[key] = self._held.enter_context(make())
+        return self._shared[key]
+
+    def close(self) -> None:
+        """End what the cases shared (run_cases does, after the last case)."""
+        self._shared.clear()
+        self._held.close()
 
     def n(self, full: _T, quick: _T) -> _T:
         """The size to use: `full` for a real run, `quick` for the CI smoke run."""
@@ -193,24 +212,32 @@ def run_cases(ctx: BenchContext, only: str | Sequence[str] | None = None) -> lis
     for text in texts:
         _check_only(text, names)
     rows: list[Row] = []
-    for name in names:
-        if texts and not any(text.lower() in name.lower() for text in texts):
-            continue
-        try:
-            fn = load_case(name)
-        except ModuleNotFoundError as exc:
-            rows.append(Row(name, '—', None, '', status='not available',
-                            note=f'not available: {exc.name} is not installed'))
-            ctx.progress(f'{name}: not available ({exc.name} is not installed)')
-            continue
-        t0 = time.perf_counter()
-        ctx.progress(f'{name} ...')
-        try:
-            rows.extend(fn(ctx))
-        except Exception as exc:   # one broken case must not hide the others' figures
-            rows.append(Row(name, '—', None, '', status='FAILED',
-                            note=f'FAILED: {type(exc).__name__}: {exc}'))
-            if ctx.verbose:
-                traceback.print_exc(file=sys.stderr)
-        ctx.progress(f'{name} done in {time.perf_counter() - t0:.1f} s')
+    try:
+        for name in names:
+            if texts and not any(text.lower() in name.lower() for text in texts):
+                continue
+            rows.extend(_run_case(ctx, name))
+    finally:
+        ctx.close()
+    return rows
+
+
+def _run_case(ctx: BenchContext, name: str) -> list[Row]:
+    try:
+        fn = load_case(name)
+    except ModuleNotFoundError as exc:
+        ctx.progress(f'{name}: not available ({exc.name} is not installed)')
+        return [Row(name, '—', None, '', status='not available',
+                    note=f'not available: {exc.name} is not installed')]
+    t0 = time.perf_counter()
+    ctx.progress(f'{name} ...')
+    rows: list[Row] = []
+    try:
+        rows.extend(fn(ctx))
+    except Exception as exc:   # one broken case must not hide the others' figures
+        rows.append(Row(name, '—', None, '', status='FAILED',
+                        note=f'FAILED: {type(exc).__name__}: {exc}'))
+        if ctx.verbose:
+            traceback.print_exc(file=sys.stderr)
+    ctx.progress(f'{name} done in {time.perf_counter() - t0:.1f} s')
     return rows

@@ -151,14 +151,20 @@ def _replay_error(bag: str | Path, out: Path) -> float:
     return worst
 
 
+QUICK_CLUSTER = 'local Dask cluster, 2 workers'
+
+
+def _two_workers() -> Any:
+    return cluster(workers=2)
+
+
 @bench_case('analyze')
 def season_analysis(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    with ExitStack() as stack:
-        # --quick: one 2-worker cluster for the simulation, the 2-worker analysis and the
-        # empty tasks (a full run starts one for each, its start timed apart)
-        shared = stack.enter_context(cluster(workers=2)) if ctx.quick else None
-        yield from _season_rows(ctx, shared)
+    # --quick: one 2-worker cluster for the simulation, the 2-worker analysis and the empty
+    # tasks, and for the 'losses' case (a full run starts one for each, its start timed apart)
+    shared = ctx.shared(QUICK_CLUSTER, _two_workers) if ctx.quick else None
+    yield from _season_rows(ctx, shared)
 
 
 def _season_rows(ctx: BenchContext, shared: Any) -> Iterator[Row]:
@@ -300,8 +306,8 @@ def injected_losses(ctx: BenchContext) -> Iterator[Row]:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     count, duration = ctx.n(200, 6), ctx.n(15.0, 12.0)
     with ExitStack() as stack:
-        # --quick: one 2-worker cluster for the simulation and the analysis (as in 'analyze')
-        shared = stack.enter_context(cluster(workers=2)) if ctx.quick else None
+        # --quick: the 2-worker cluster of 'analyze' for the simulation and the analysis
+        shared = ctx.shared(QUICK_CLUSTER, _two_workers) if ctx.quick else None
         name = stack.enter_context(tempfile.TemporaryDirectory())
         tmp = Path(name)
         season_dir = tmp / 'season'
