@@ -48,6 +48,11 @@ class Machine:
             overrides += [Parameter(f'{name}.lateral_offset', value=y),
                           Parameter(f'{name}.drive_node_id', value=node),
                           Parameter(f'{name}.enabled', value=name not in disabled)]
+        # the rows, their faults and sections are tested here, in this test process (the
+        # in-process engine: no command process at real-time priority): a 200 ms deadline let a
+        # loaded host's stall of this process trip both drives while enabling (seen twice in
+        # full suite runs on a 2-core host); the deadline itself: test_drive_faults
+        params.setdefault('command_timeout', 1.0)
         overrides += [Parameter(k, value=v) for k, v in params.items()]
         self.sync = SyncNode(context=ros.context, parameter_overrides=overrides)
         self.sync.enable_drive()
