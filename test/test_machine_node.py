@@ -27,6 +27,11 @@ D = 0.2
 TOMATO = {'mechanism': 'five_bar', 'plants_per_revolution': 1, 'plant_spacing': D,
           'planting_depth': 0.045, 'l1': 0.0194, 'l2': 0.0512}
 ROWS = {'left': (0.75, 1), 'right': (-0.75, 2)}
+# the drives' RPDO deadline (s): rows, faults and sections are tested here, in this test process
+# (the in-process engine: no command process at real-time priority), and the default 200 ms let
+# a loaded host's stall of this process trip the drives while enabling (seen in three full suite
+# runs on a 2-core host); the deadline itself: test_drive_faults
+DEADLINE = 1.0
 
 
 class Machine:
@@ -48,11 +53,7 @@ class Machine:
             overrides += [Parameter(f'{name}.lateral_offset', value=y),
                           Parameter(f'{name}.drive_node_id', value=node),
                           Parameter(f'{name}.enabled', value=name not in disabled)]
-        # the rows, their faults and sections are tested here, in this test process (the
-        # in-process engine: no command process at real-time priority): a 200 ms deadline let a
-        # loaded host's stall of this process trip both drives while enabling (seen twice in
-        # full suite runs on a 2-core host); the deadline itself: test_drive_faults
-        params.setdefault('command_timeout', 1.0)
+        params.setdefault('command_timeout', DEADLINE)
         overrides += [Parameter(k, value=v) for k, v in params.items()]
         self.sync = SyncNode(context=ros.context, parameter_overrides=overrides)
         self.sync.enable_drive()
@@ -233,7 +234,8 @@ def test_a_disabled_row_gets_no_frame_on_the_bus(ros):
     try:
         overrides = [Parameter('can_interface', value='virtual'),
                      Parameter('can_channel', value=channel),
-                     Parameter('rows', value=['a', 'b'])]
+                     Parameter('rows', value=['a', 'b']),
+                     Parameter('command_timeout', value=DEADLINE)]
         for name, node, on in (('a', 1, True), ('b', 2, False)):
             overrides += [Parameter(f'{name}.lateral_offset', value=0.0 if on else 1.0),
                           Parameter(f'{name}.drive_node_id', value=node),
