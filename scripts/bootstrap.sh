@@ -25,30 +25,16 @@ pip_quiet() {
 }
 
 # uv installs the same pinned wheels in ~15 s where pip takes ~50 s (byte code compiled at
-# install, as pip does: where PYTHONDONTWRITEBYTECODE is set no process would cache it); it reads
-# pip's own configuration (indexes, find-links, constraints) from `pip config list`, and like
-# pip it takes each package's best match across all of them. Any failure falls back to pip.
+# install, as pip does: where PYTHONDONTWRITEBYTECODE is set no process would cache it), with
+# pip's own configuration (scripts/uv-pip-install). Any failure falls back to pip.
 install_with_uv() {
   pip_quiet install "uv==$UV_VERSION" 2>/dev/null || return 1       # (no uv: pip, below)
-  local args=(--python "$VENV/bin/python" --index-strategy unsafe-best-match) line key value item
-  while IFS= read -r line; do
-    key=${line%%=*}; key=${key##*.}; value=${line#*=}; value=${value#\'}; value=${value%\'}
-    for item in $value; do
-      case $key in
-        index-url) args+=(--index-url "$item") ;;
-        extra-index-url) args+=(--extra-index-url "$item") ;;
-        find-links) args+=(--find-links "$item") ;;
-        constraint) args+=(--constraint "$item") ;;
-        cert) export SSL_CERT_FILE="$item" ;;
-      esac
-    done
-  done < <("$VENV/bin/python" -m pip config list 2>/dev/null)
-  "$VENV/bin/uv" pip install --quiet --compile-bytecode "${args[@]}" -r requirements.txt &&
-    "$VENV/bin/uv" pip install --quiet "${args[@]}" --no-deps -e .
+  UV="$VENV/bin/uv" scripts/uv-pip-install "$VENV/bin/python" --compile-bytecode -r requirements.txt &&
+    UV="$VENV/bin/uv" scripts/uv-pip-install "$VENV/bin/python" --no-deps -e .
 }
 
 stamp="$VENV/.planter-stamp"
-want=$(cat requirements.txt setup.py setup.cfg package.xml scripts/bootstrap.sh | sha256sum | cut -d' ' -f1)
+want=$(cat requirements.txt setup.py setup.cfg package.xml scripts/bootstrap.sh scripts/uv-pip-install | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "bootstrap: installing requirements into $VENV" >&2
   if ! install_with_uv; then
