@@ -29,8 +29,11 @@ import xml.etree.ElementTree as ET
 import pytest
 
 HERE = Path(__file__).resolve().parent
+# the inner sessions load this directory's conftest and the plugins the suite names (pytest.ini)
 INI = """[pytest]
 addopts = -p conftest -p no:cacheprovider
+    --disable-plugin-autoload -p xdist.plugin -p xdist.looponfail -p _hypothesis_pytestplugin
+    -p pytest_rerunfailures
 markers =
     slow: slow
     realtime: real-time
