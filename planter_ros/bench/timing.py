@@ -71,7 +71,7 @@ def measure(fn: Callable[[], object], repeats: int = 7, min_time: float = 0.05,
     try:
         fn()                                   # warm-up (caches, lazy imports)
         loops = 1
-        while True:
+        while min_time > 0:                    # (min_time 0: one call per repeat, no probe)
             t = _run(fn, loops)
             if t >= min_time or loops >= max_loops:
                 break
