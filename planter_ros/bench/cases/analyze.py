@@ -63,13 +63,16 @@ def _noop(i: int) -> int:
 
 
 @contextmanager
-def _cluster(workers: int | None, shared: Any) -> Iterator[Any]:   # a distributed.Client
+def _cluster(workers: int | None, shared: Any, in_process: bool = False
+             ) -> Iterator[Any]:                                   # a distributed.Client
     """`shared` (--quick: the client of the case's one 2-worker cluster; the figures of a quick
-    run mean nothing, a cluster's start is seconds of CPU) or a local cluster of its own."""
+    run mean nothing, a cluster's start is seconds of CPU) or a local cluster of its own
+    (`in_process`: the scheduler and its one worker in this process, no worker process
+    started)."""
     if shared is not None:
         yield shared
         return
-    with cluster(workers=workers) as client:
+    with cluster(workers=workers, in_process=in_process) as client:
         yield client
 
 
@@ -96,7 +99,10 @@ def _analyse(bags: Sequence[str | Path], out: Path, workers: int, shared: Any = 
     average before it)."""
     version = model_version()
     started = time.monotonic()
-    with _cluster(workers, shared if workers == 2 else None) as client:
+    # --quick (`shared` given): the 1-worker analysis on an in-process cluster, not two more
+    # processes (a nanny and its worker) each loading Dask and the analysis (seconds of CPU)
+    in_process = shared is not None and workers == 1
+    with _cluster(workers, shared if workers == 2 else None, in_process) as client:
         check_workers(client, warm_up, version, 'the local cluster')
         startup = time.monotonic() - started
         root = seasons.analysed_root([Path(bags[0]).parent])
@@ -116,8 +122,9 @@ def _analyse(bags: Sequence[str | Path], out: Path, workers: int, shared: Any = 
             report = seasons.run(season, client, keys, {}, None)
             cpu = time.process_time() - cpu
             after = client.run(time.process_time)
-    # every CPU second of the worker processes (all their threads: the bags, Dask's comms)
-    workers_cpu = sum(after[w] - before[w] for w in before)
+    # every CPU second of the worker processes (all their threads: the bags, Dask's comms);
+    # an in-process worker's are this process's, already in `cpu`
+    workers_cpu = 0.0 if in_process else sum(after[w] - before[w] for w in before)
     return report, startup, cpu, workers_cpu, load
 
 
@@ -168,7 +175,7 @@ def season_analysis(ctx: BenchContext) -> Iterator[Row]:
 
 
 def _season_rows(ctx: BenchContext, shared: Any) -> Iterator[Row]:
-    count, runs = ctx.n(200, 8), ctx.n(20, 4)
+    count, runs = ctx.n(200, 8), ctx.n(20, 2)
     duration = ctx.n(60.0, 10.0)
     repeats = ctx.n(3, 1)
     with tempfile.TemporaryDirectory() as name:
@@ -251,7 +258,9 @@ def _season_rows(ctx: BenchContext, shared: Any) -> Iterator[Row]:
                            f'{size / best / 1e6:.0f} MB/s; cluster start + imports '
                            f'{statistics.median(startups):.1f} s (not in the time)'
                            + (f'; scaling efficiency {efficiency:.0%} wall clock, '
-                              f'{cpu_efficiency:.0%} by CPU time' if efficiency else ''),
+                              f'{cpu_efficiency:.0%} by CPU time' if efficiency else '')
+                           + ('; --quick: the worker in this process, its CPU under client '
+                              'and scheduler' if shared is not None and workers == 1 else ''),
                       extra={'workers': workers, 'bags': count, 'bag_seconds': bag_seconds,
                              'bytes': size, 'times_real_time': speed,
                              'times_real_time_per_worker': speed / workers,
@@ -304,7 +313,7 @@ def injected_losses(ctx: BenchContext) -> Iterator[Row]:
     the Parquet table against what its cup sensors read (analysis.losses): injected against
     counted, every difference by its place, and the ISO misses and multiples by their cause."""
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    count, duration = ctx.n(200, 6), ctx.n(15.0, 12.0)
+    count, duration = ctx.n(200, 4), ctx.n(15.0, 12.0)
     with ExitStack() as stack:
         # --quick: the 2-worker cluster of 'analyze' for the simulation and the analysis
         shared = ctx.shared(QUICK_CLUSTER, _two_workers) if ctx.quick else None
