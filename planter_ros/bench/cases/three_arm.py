@@ -60,8 +60,11 @@ def three_arm_closure(ctx: BenchContext) -> Iterator[Row]:
     ctx.progress('  mpmath reference centre distance ...')
     radii: dict[float, Any] = {}         # ρ at the quadrature nodes, for every call below
     with mpmath.workdps(30):
+        # the secant method from two starts 1e-9 apart at the float result (one start: its
+        # second point 1/4 away, two more 30-digit quadratures of the curve to come back)
+        start = solve_centre_distance(curve).a
         a_ref = mpmath.findroot(lambda a: _mpmath_mean_ratio(curve, a, radii) - 1,
-                                solve_centre_distance(curve).a)
+                                (start, start * (1 + 1e-9)))
         methods: list[tuple[str, dict[str, int]]] = [('gauss', {}), ('paper', {})]
         methods += [('trapezoid', {'samples': n}) for n in ctx.n((90, 360, 1024, 4096), (360,))]
         for method, kw in methods:
