@@ -10,6 +10,9 @@ constant speed), β maximised under the limits, and reports which limit binds an
 ground speed each rule (exact zero slip, the design-speed rule) holds at this spacing.
 """
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field, replace
 import math
 from typing import Any
@@ -29,8 +32,9 @@ from .mechanism import RULES, BarsAndDepth, CamMechanism, SoilLaw, constant_law,
 from .piecewise import Piecewise, State
 
 __all__ = ['CamSpec', 'CamProfile', 'CamPlan', 'plan_cam', 'constant_profile', 'build_profile',
-           'fallback_laws', 'rule_top_speed', 'rule_top_speeds', 'sampled_tip_sweep',
-           'BRUTE_FORCE_SAMPLES', 'BLEND_HEADROOM', 'BLEND_STEPS', 'SPEED_RANGE']
+           'shared_builds', 'fallback_laws', 'rule_top_speed', 'rule_top_speeds',
+           'sampled_tip_sweep', 'BRUTE_FORCE_SAMPLES', 'BLEND_HEADROOM', 'BLEND_STEPS',
+           'SPEED_RANGE']
 
 BLEND_STEPS = 14                 # bisection steps of β: resolution 2⁻¹⁴
 # a blend is planned to this share of its binding limit, not to the limit itself: a change
@@ -202,10 +206,40 @@ def _check_spacing_speed(spacing: float, speed: float) -> None:
             raise CamInputError(name, value, spec.allowed()) from None
 
 
+# the profiles built inside a `shared_builds` block: (spec, law, blend, pieces) -> profile
+_BUILT: ContextVar[dict[tuple[CamSpec, SoilLaw, float, int], CamProfile] | None] = \
+    ContextVar('cam_profiles_built', default=None)
+
+
+@contextmanager
+def shared_builds() -> Iterator[None]:
+    """Within the block (this thread), `build_profile` builds each profile once: the same spec,
+    law, blend and pieces give the same profile, so a second call returns the first one's.
+    For a command that plans the same profiles more than once (`planter cam`: the study, then
+    its plot's grid and feasibility map); not process-wide, so a timing of the planner
+    (`planter bench`) or a node planning at run time always plans afresh."""
+    token = _BUILT.set({})
+    try:
+        yield
+    finally:
+        _BUILT.reset(token)
+
+
 def build_profile(spec: CamSpec, law: SoilLaw, blend: float,
                   pieces: int = ARC_PIECES) -> CamProfile:
     """The profile of `law` (β = `blend` of the rule's) in the soil and an out-of-soil arc
-    planned for `spec` (module doc)."""
+    planned for `spec` (module doc); inside `shared_builds`, built once per arguments."""
+    built = _BUILT.get()
+    if built is None:
+        return _build_profile(spec, law, blend, pieces)
+    key = (spec, law, float(blend), int(pieces))
+    profile = built.get(key)
+    if profile is None:
+        profile = built[key] = _build_profile(spec, law, blend, pieces)
+    return profile
+
+
+def _build_profile(spec: CamSpec, law: SoilLaw, blend: float, pieces: int) -> CamProfile:
     mech, spacing, drive = spec.mech, spec.spacing, spec.drive
     half = law.half_length(mech)
     length = spacing - 2.0 * half
