@@ -27,6 +27,17 @@ def version(root, versions=lambda name: '1.0'):
     return model_code.closure_version([TASK], root, versions)
 
 
+@pytest.fixture(scope='module')
+def unedited(tmp_path_factory):
+    """The version of an unedited copy of the package: what each test's edited copy (another
+    directory: the version does not depend on where the sources are, or the tests that keep
+    it fail) is compared with, worked out once."""
+    root = tmp_path_factory.mktemp('unedited')
+    shutil.copytree(REPO / 'planter_ros', root / 'planter_ros',
+                    ignore=shutil.ignore_patterns('__pycache__'))
+    return version(root)
+
+
 def edit(root, relative, old, new):
     path = root / 'planter_ros' / relative
     text = path.read_text()
@@ -52,8 +63,8 @@ def test_the_shipped_version_is_the_closure_of_the_task():
         [TASK], Path(model_code.__file__).resolve().parents[2])
 
 
-def test_docstrings_comments_and_blank_lines_keep_the_version(package):
-    before = version(package)
+def test_docstrings_comments_and_blank_lines_keep_the_version(package, unedited):
+    before = unedited
     edit(package, 'prediction/model.py', '"""', '"""A reworded docstring. ')
     edit(package, 'recording/replay.py', '\nimport ', '\n# a new comment\n\n\nimport ')
     # a docstring of a function inside (not the module's)
@@ -64,8 +75,8 @@ def test_docstrings_comments_and_blank_lines_keep_the_version(package):
     assert version(package) == before
 
 
-def test_an_edit_in_a_package_replay_does_not_import_keeps_the_version(package):
-    before = version(package)
+def test_an_edit_in_a_package_replay_does_not_import_keeps_the_version(package, unedited):
+    before = unedited
     edit(package, 'drive/cia402.py', '\nimport ', '\nANSWER = 42\nimport ')
     edit(package, 'nodes/monitor_node.py', '\nimport ', '\nANSWER = 42\nimport ')
     assert version(package) == before
@@ -73,15 +84,15 @@ def test_an_edit_in_a_package_replay_does_not_import_keeps_the_version(package):
 
 @pytest.mark.parametrize('relative', ['prediction/model.py', 'recording/cdr.py',
                                       'kinematics/five_bar.py', 'analysis/tables.py'])
-def test_a_change_of_the_models_code_changes_the_version(package, relative):
-    before = version(package)
+def test_a_change_of_the_models_code_changes_the_version(package, relative, unedited):
+    before = unedited
     edit(package, relative, '\nimport ', '\nANSWER = 42\nimport ')
     assert version(package) != before
 
 
-def test_a_changed_constant_changes_the_version(package):
+def test_a_changed_constant_changes_the_version(package, unedited):
     """Not only a new statement: one number of the model changed."""
-    before = version(package)
+    before = unedited
     path = package / 'planter_ros' / 'prediction' / 'quality.py'
     text = path.read_text()
     assert 'MULTIPLE_LIMIT = 0.5 ' in text
@@ -89,8 +100,8 @@ def test_a_changed_constant_changes_the_version(package):
     assert version(package) != before
 
 
-def test_a_new_module_the_model_imports_counts(package):
-    before = version(package)
+def test_a_new_module_the_model_imports_counts(package, unedited):
+    before = unedited
     (package / 'planter_ros' / 'prediction' / 'extra.py').write_text('FACTOR = 2\n')
     assert version(package) == before           # not imported: not part of the model
     edit(package, 'prediction/model.py', '\nimport ', '\nfrom . import extra  # noqa\nimport ')
@@ -100,8 +111,8 @@ def test_a_new_module_the_model_imports_counts(package):
     assert version(package) != changed
 
 
-def test_a_library_version_changes_the_version(package):
-    before = version(package)
+def test_a_library_version_changes_the_version(package, unedited):
+    before = unedited
     assert version(package, lambda name: '2.0' if name == 'numpy' else '1.0') != before
     # canopen: the drives' library, which replay does not import
     assert 'canopen' not in model_code.import_closure([TASK], package)[1]
