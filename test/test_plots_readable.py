@@ -114,3 +114,66 @@ def test_the_targets_are_drawn(figures):
     assert 'goal ≥ 2.5 mm' in titles and 'goal ≥ 260 mm' in titles
     assert 'accuracy target' in legend_texts(figures['bench'][0])
     assert 'limit (100 %)' in legend_texts(figures['cam'][0])
+
+
+# ------------------------------------------------------------------------- the season report
+
+@pytest.fixture(scope='module')
+def season_figures(tmp_path_factory):
+    """The figures of `planter analyze`'s season report (plots.season) and their canvases, kept
+    as drawn: a season of a 4-row and a 1-row run (five rows: two lines of histograms)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    from planter_ros.plots import season
+    from planter_ros.sim.season import simulate_bag
+    root = tmp_path_factory.mktemp('season')
+    simulate_bag(root / 'a.mcap', 3, 0, 8.0, 4)
+    simulate_bag(root / 'b.mcap', 3, 1, 8.0, 1)
+    kept = []
+    png = season._png
+
+    def keep(fig):
+        kept.append((fig, fig.canvas))               # (closed, a figure loses its canvas)
+        return png(fig)
+    season._png = keep
+    try:
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(io.StringIO()):
+            assert main(['analyze', str(root), '--out', str(root / 'tables'),
+                         '--workers', '1']) == 0
+    finally:
+        season._png = png
+    assert (root / 'tables' / 'report.html').is_file()
+    return kept
+
+
+def test_the_season_reports_figures_keep_their_text_apart_and_inside(season_figures):
+    """Maps (one per run), the spacing histograms, the trends: every panel has a title, no two
+    labels or titles overlap (a title under the axis label of the panel above it neither),
+    every legend stays inside its panel, nothing (tick labels, colour bars) is cut off at the
+    figure's edge."""
+    titles = [ax.get_title() for fig, _ in season_figures for ax in panels(fig)]
+    assert sum('tilt' in t for t in titles) == 2 and sum('spacings' in t for t in titles) == 5
+    assert 'quality of feed [%]' in titles
+    for fig, canvas in season_figures:
+        renderer = canvas.get_renderer()              # as the report drew it (plots.season)
+        width, height = canvas.get_width_height()
+        texts = []
+        for ax in fig.axes:
+            if ax.axison:
+                box = ax.get_tightbbox(renderer)
+                assert (box.x0 >= 0 and box.x1 <= width and box.y0 >= 0
+                        and box.y1 <= height), f'{ax.get_title()!r} is cut off'
+        for ax in panels(fig):
+            assert ax.get_title().strip(), 'a panel without a title'
+            texts += [t for t in (ax.title, ax.xaxis.label, ax.yaxis.label) if t.get_text()]
+            legend = ax.get_legend()
+            if legend is not None:
+                box, frame = legend.get_window_extent(renderer), ax.get_window_extent(renderer)
+                assert (box.x0 >= frame.x0 - 1 and box.x1 <= frame.x1 + 1
+                        and box.y0 >= frame.y0 - 1 and box.y1 <= frame.y1 + 1), \
+                    f'the legend of {ax.get_title()!r} leaves its panel'
+        boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts]
+        for i, (a, box_a) in enumerate(boxes):
+            for b, box_b in boxes[i + 1:]:
+                assert not box_a.overlaps(box_b), f'{a!r} overlaps {b!r}'

@@ -35,7 +35,7 @@ def season_report(out, force=True):
     """Read the tables under `out`, write report.html there (atomically) when `force` (the
     tables changed), it is missing or older than a table: (the table for people, the report's
     path). The report is drawn from the tables alone, so unchanged tables keep it (its figures
-    are most of a re-run's time: 2-3 s of matplotlib)."""
+    are most of a re-run's time: 1-2 s of matplotlib)."""
     plants, bags = read_season(out)
     groups = season_groups(plants, bags)
     path = Path(out) / REPORT_FILE
@@ -85,13 +85,52 @@ def _matplotlib_home():
             os.environ.pop('MPLCONFIGDIR', None)
 
 
+DPI = 90                        # pixels per inch of the figures
+PAD = 0.1                       # inches of white around what a figure draws
+
+
 def _png(fig):
+    """The figure as an <img> of a PNG cropped to what it draws and PAD around it: what
+    savefig(bbox_inches='tight') gives, drawn once (tight draws it twice: to find the box, then
+    the picture). A figure drawn up to its edge (something reaches beyond it, which tight would
+    enlarge the canvas for) is saved with tight."""
+    import matplotlib.image
     import matplotlib.pyplot as plt  # lazy: loaded in _matplotlib_home (its font cache)
+    from matplotlib.colors import to_rgba
+    fig.set_dpi(DPI)
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    background = np.round(np.array(to_rgba(fig.get_facecolor())) * 255).astype(np.uint8)
+    ink = (rgba != background).any(axis=2)
+    rows, cols = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
     buffer = io.BytesIO()
-    fig.savefig(buffer, format='png', dpi=90, bbox_inches='tight')
+    if rows.size and 0 < rows[0] and rows[-1] < ink.shape[0] - 1 and \
+            0 < cols[0] and cols[-1] < ink.shape[1] - 1:
+        pad = round(PAD * DPI)
+        crop = rgba[max(rows[0] - pad, 0):rows[-1] + pad + 1,
+                    max(cols[0] - pad, 0):cols[-1] + pad + 1]
+        matplotlib.image.imsave(buffer, np.ascontiguousarray(crop), format='png', dpi=DPI)
+    else:
+        fig.savefig(buffer, format='png', dpi=DPI, bbox_inches='tight', pad_inches=PAD)
     plt.close(fig)
     return ('<img alt="figure" src="data:image/png;base64,'
             + base64.b64encode(buffer.getvalue()).decode('ascii') + '">')
+
+
+def _margins(fig, left, right, bottom, top, between=None):
+    """Place the panels of `fig` with margins in inches (left, right, bottom, top; `between`:
+    (width, height) between two panels), as the text around them needs: tick labels, axis
+    labels and titles have a size in points, whatever the figure's."""
+    width, height = fig.get_size_inches()
+    grid = fig.axes[0].get_subplotspec().get_gridspec()
+    lines, cols = grid.get_geometry()
+    space = {}
+    if between is not None:
+        w = (width - left - right - (cols - 1) * between[0]) / cols
+        h = (height - bottom - top - (lines - 1) * between[1]) / lines
+        space = dict(wspace=between[0] / w, hspace=between[1] / h)
+    fig.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
+                        top=1 - top / height, **space)
 
 
 def _pct(value):
@@ -171,7 +210,9 @@ def _histograms(plants):
     for ax, row in zip(axes.ravel(), rows):
         ratio = _kinematic(plants[plants['row_name'] == row])
         ratio = ratio[np.isfinite(ratio)]
-        ax.hist(np.clip(ratio, 0, 3.5), bins=np.linspace(0, 3.5, 71), color='tab:green')
+        # one filled outline: the 70 bars (they have no edges) as one patch, drawn alike
+        ax.hist(np.clip(ratio, 0, 3.5), bins=np.linspace(0, 3.5, 71), color='tab:green',
+                histtype='stepfilled')
         for limit in (MULTIPLE_LIMIT, MISS_LIMIT):
             ax.axvline(limit, color='red', lw=0.8, ls='--')
         ax.set_title(f'row {row}: {ratio.size} spacings')
@@ -179,6 +220,8 @@ def _histograms(plants):
         ax.set_ylabel('count')
     for ax in axes.ravel()[len(rows):]:
         ax.axis('off')
+    # room for a panel's title above it and the axis labels of the panel above
+    _margins(fig, left=0.7, right=0.2, bottom=0.6, top=0.4, between=(0.8, 0.9))
     return _png(fig)
 
 
@@ -197,6 +240,7 @@ def _trends(groups):
         ax.grid(alpha=0.3)
         ax.tick_params(axis='x', rotation=45)
     axes[0].legend(fontsize='small')
+    _margins(fig, left=0.7, right=0.2, bottom=1.0, top=0.4, between=(0.7, 0))  # (dates at 45°)
     return _png(fig)
 
 
