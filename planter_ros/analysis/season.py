@@ -40,6 +40,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 import fcntl
 import hashlib
+import itertools
 import json
 import os
 from pathlib import Path
@@ -72,6 +73,7 @@ OUTPUT_RECORD = '.planter-analyze.json'   # the files this command wrote here (c
 OWNED = (BAGS_DIR, PLANTS_DIR, LOCK_FILE, REPORT_FILE, LEGACY_BAGS_FILE, OUTPUT_RECORD) + EXPORTS
 FLUSH_SECONDS = 5.0          # s between two writes of the tables, at least
 FLUSH_BAGS = 2000            # bags completed that force a write
+_RUNS = itertools.count(1)   # Season objects of this process (their plants parts' names)
 # status of a bag row: replayed (with or without warnings), refused by replay, a model error
 ANALYSED = ('ok', 'warnings')
 STATUSES = ('ok', 'warnings', 'failed', 'error')
@@ -343,7 +345,9 @@ class Season:
         self.renamed = {}                    # bag_id -> its new name (plan)
         self.moved = False                   # a bag skipped was found elsewhere (plan)
         self.superseded = []                 # names of bags whose file was rewritten (plan)
-        self._run = time.strftime('%Y%m%dT%H%M%S') + f'-{os.getpid()}'
+        # (the process's count of runs too: two runs of one process within a second, the
+        # command called in-process, must not name a part alike and replace the other's)
+        self._run = time.strftime('%Y%m%dT%H%M%S') + f'-{os.getpid()}-{next(_RUNS)}'
         self._parts = 0
         for stale in self.plants_dir.glob('.*.tmp.parquet'):   # a killed run's temporary file
             stale.unlink()
