@@ -5,6 +5,8 @@ a row with its reason and the rest are analysed; a real `dask scheduler` and `da
 started as separate processes on 127.0.0.1, give the same tables as the local cluster; a re-run
 skips what is done (and redoes a changed bag without duplicating it); --out into a bad place
 is refused before any work."""
+import contextlib
+import io
 import json
 import os
 from pathlib import Path
@@ -53,6 +55,17 @@ def analyze(*args, timeout=300):
     r = run_planter('analyze', *args, '--json', timeout=timeout)
     assert r.returncode in (0, 1), r.stderr[-3000:]
     return r, json.loads(r.stdout)
+
+
+def analyze_here(*args):
+    """`planter analyze ARGS --json` called in this process (where the process boundary is not
+    what a test is about: no interpreter to start, the code and the model version loaded once):
+    (exit code, printed, the report)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(['analyze', *map(str, args), '--json'])
+    assert code in (0, 1), err.getvalue()[-3000:]
+    return code, err.getvalue(), json.loads(out.getvalue())
 
 
 @pytest.fixture(scope='module')
@@ -205,7 +218,8 @@ def test_a_real_dask_scheduler_and_worker_give_the_same_tables(season, local, da
         workers = client.scheduler_info()['workers']
         assert workers and all(w.startswith('tcp://127.0.0.1:') for w in workers)
     out = tmp_path / 'remote'
-    r, report = analyze(season, '--out', out, '--scheduler', dask_cluster)
+    # (the command in this process: the scheduler and the worker are processes of their own)
+    _, _, report = analyze_here(season, '--out', out, '--scheduler', dask_cluster)
     assert report['workers'] == 1 and report['analysed'] == 5 and report['failed'] == 1
     here, there = rows_of(local[0]), rows_of(out)
     assert here.keys() == there.keys()
@@ -219,7 +233,7 @@ def test_a_real_dask_scheduler_and_worker_give_the_same_tables(season, local, da
 def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, local, tmp_path):
     season = _copy(season, tmp_path / 'season')        # its bags are changed here
     out = tmp_path / 'tables'
-    _, first = analyze(season, '--out', out, '--workers', 1)
+    _, _, first = analyze_here(season, '--out', out, '--workers', 1)
     assert first['analysed'] + first['failed'] == 6 and first['skipped'] == 0
     before = (out / 'bags' / 'bags.parquet').read_bytes()
     plants, table = plants_of(out)
@@ -230,7 +244,7 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, local, tmp_
     outputs = [report, out / 'as_planted.zip', out / 'TASKDATA.zip']
     made = [path.stat().st_mtime_ns for path in outputs]
     drawn = made[0]
-    _, again = analyze(season, '--out', out)
+    _, _, again = analyze_here(season, '--out', out)
     assert again['skipped'] == 6 and again['analysed'] == again['failed'] == 0
     assert again['workers'] == 0                       # no cluster started for nothing
     assert (out / 'bags' / 'bags.parquet').read_bytes() == before
@@ -240,7 +254,7 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, local, tmp_
     older = (out / 'bags' / 'bags.parquet').stat().st_mtime_ns - 1_000_000_000
     for path in (report, out / 'TASKDATA.zip'):
         os.utime(path, ns=(older, older))
-    analyze(season, '--out', out)
+    analyze_here(season, '--out', out)
     assert report.stat().st_mtime_ns > drawn
     assert (out / 'TASKDATA.zip').stat().st_mtime_ns > made[2]
     drawn = report.stat().st_mtime_ns
@@ -249,13 +263,13 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, local, tmp_
     changed = season / 'day1' / 'b.mcap'
     stat = changed.stat()
     os.utime(changed, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000_000))
-    _, touched = analyze(season, '--out', out, '--workers', 1)
+    _, _, touched = analyze_here(season, '--out', out, '--workers', 1)
     assert touched['skipped'] == 6 and touched['analysed'] == 0
     assert rows_of(out)['day1/b.mcap']['file_mtime_ns'] == stat.st_mtime_ns + 1_000_000_000
     # rewritten with another recording: analysed again, in place of the old one
     simulate_bag(tmp_path / 'other.mcap', 5, 7, 16.0, 1)
     shutil.copyfile(tmp_path / 'other.mcap', changed)
-    _, third = analyze(season, '--out', out, '--workers', 1)
+    _, _, third = analyze_here(season, '--out', out, '--workers', 1)
     assert third['skipped'] == 5 and third['analysed'] == 1
     assert report.stat().st_mtime_ns > drawn           # new tables: a new report
     rows = rows_of(out)
@@ -266,14 +280,14 @@ def test_a_rerun_skips_what_is_done_and_redoes_a_changed_bag(season, local, tmp_
     assert now['day1/b.mcap'] != plants['day1/b.mcap']      # the new recording's, once
     plants = now
 
-    _, forced = analyze(season, '--out', out, '--workers', 1, '--force')
+    _, _, forced = analyze_here(season, '--out', out, '--workers', 1, '--force')
     assert forced['skipped'] == 0 and forced['analysed'] + forced['failed'] == 6
     assert plants_of(out)[0] == plants
     # every part file is claimed by a bag of the table
     claimed = {row['plants_file'] for row in rows_of(out).values()} - {None}
     assert {p.name for p in (out / 'plants').iterdir()} == claimed
 
-    _, window = analyze(season, '--out', out, '--workers', 1, '--window', 5)
+    _, _, window = analyze_here(season, '--out', out, '--workers', 1, '--window', 5)
     assert window['analysed'] + window['failed'] == 6        # other settings: done again
     assert all(row['settings.window'] == 5 for row in rows_of(out).values()
                if row['status'] != 'failed')
@@ -376,10 +390,10 @@ def test_tables_people_read_with_pandas_dask_and_duckdb(season, local, tmp_path)
         assert [n for n in numbers if n not in known] == []
     # moved: the same keys, nothing analysed again
     shutil.copytree(out, tmp_path / 'tables')
-    analyze(season, '--out', tmp_path / 'tables', '--workers', 1)     # up to date (other tests
-    moved = tmp_path / 'moved'                                          # touch the season)
+    analyze_here(season, '--out', tmp_path / 'tables', '--workers', 1)  # up to date (other
+    moved = tmp_path / 'moved'                                          # tests touch the season)
     shutil.copytree(season, moved, ignore=shutil.ignore_patterns('tables'))
-    _, again = analyze(moved, '--out', tmp_path / 'tables', '--workers', 1)
+    _, _, again = analyze_here(moved, '--out', tmp_path / 'tables', '--workers', 1)
     assert again['skipped'] == 6 and again['analysed'] == 0
 
 
@@ -393,9 +407,10 @@ def test_the_season_report_per_field_day_and_row_and_its_html(season, local, tmp
     out, _, report = local
     html_path = Path(report['report'])
     assert html_path == out / 'report.html' and html_path.is_file()
-    r = run_planter('analyze', season, '--out', out, timeout=300)   # nothing to do: printed
-    assert r.returncode == 0, r.stderr[-2000:]
-    lines = r.stdout.splitlines()
+    printed = io.StringIO()                                   # nothing to do: printed
+    with contextlib.redirect_stdout(printed):
+        assert main(['analyze', str(season), '--out', str(out)]) == 0
+    lines = printed.getvalue().splitlines()
     head = next(i for i, line in enumerate(lines) if line.split()[:2] == ['field', 'day'])
     end = lines.index(f'season report: {html_path}')
     table = lines[head + 1:end]

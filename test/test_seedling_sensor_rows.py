@@ -109,10 +109,17 @@ def test_simulate_replay_and_analyze_honour_a_row_without_a_sensor(tmp_path):
     scene = scene_with(tmp_path, [
         '    right_outer: {lateral_offset: -0.75, drive_node_id: 4, enabled: true, '
         'seedling_sensor: false}'])
+    import contextlib
+    import io
+
+    from planter_ros.cli.main import main
     out = tmp_path / 'season'
-    r = run_planter('simulate', out, '--bags', 1, '--duration', 20, '--seed', 2, '--scene',
-                    scene, '--empty-rate', 0.1, '--workers', 1, '--json', timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
+    # (both commands in this process: what they write is the question, not their process)
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        code = main(['simulate', str(out), '--bags', '1', '--duration', '20', '--seed', '2',
+                     '--scene', str(scene), '--empty-rate', '0.1', '--workers', '1', '--json'])
+    assert code == 0, err.getvalue()[-2000:]
     bag = out / 'run_2_00000.mcap'
     result = replay(bag, with_recorded=True)
     assert [row.seedling_sensor for row in result.rows] == [True, True, True, False]
@@ -130,8 +137,9 @@ def test_simulate_replay_and_analyze_honour_a_row_without_a_sensor(tmp_path):
         mine_order = np.lexsort((plants.index, plants.row))
         assert np.array_equal(plants.table()[mine_order, k], live[order, k])
     tables = tmp_path / 'tables'
-    analysed = run_planter('analyze', out, '--out', tables, '--workers', 1, timeout=300)
-    assert analysed.returncode == 0, analysed.stderr[-2000:]
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        code = main(['analyze', str(out), '--out', str(tables), '--workers', '1'])
+    assert code == 0, err.getvalue()[-2000:]
     table = pq.read_table(tables / 'plants').to_pandas()
     right = table[table['row_name'] == 'right_outer']
     assert len(right) == int(mine.sum()) and set(right['status']) == {'unknown'}
