@@ -35,10 +35,12 @@ def module_path(root: Path, module: str) -> tuple[Path | None, bool]:
     return None, False
 
 
-def imported_names(module: str, init: bool, tree: ast.AST) -> Iterable[str]:
+def imported_names(module: str, init: bool, tree: ast.AST, source: str | None = None
+                   ) -> Iterable[str]:
     """Every dotted name `module` imports anywhere in its body (`from a import b` gives `a` and
-    `a.b`: b may be a module or a name)."""
-    for node in ast.walk(tree):
+    `a.b`: b may be a module or a name). `source`, its text: where it does not name
+    import_module, its expressions are not searched for an import_module call."""
+    for node in statements(tree):
         if isinstance(node, ast.Import):
             yield from (alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -50,10 +52,33 @@ def imported_names(module: str, init: bool, tree: ast.AST) -> Iterable[str]:
                 name = node.module or ''
             yield name
             yield from (f'{name}.{alias.name}' for alias in node.names)
-        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
-              and node.func.attr == 'import_module' and node.args
-              and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str)):
+    if source is not None and 'import_module' not in source:
+        return
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                and node.func.attr == 'import_module' and node.args
+                and isinstance(node.args[0], ast.Constant)
+                and isinstance(node.args[0].value, str)):
             yield node.args[0].value
+
+
+# the fields of a node that hold statements (or the except handlers and match cases holding
+# them): an import statement and a docstring are found there; expressions hold none
+_BLOCKS = ('body', 'orelse', 'finalbody', 'handlers', 'cases')
+
+
+def statements(tree: ast.AST) -> Iterable[ast.AST]:
+    """`tree` and every statement in it, at any depth (in classes, functions, compound
+    statements, except handlers and match cases, which are yielded too), not its expressions:
+    a walk of a tenth of the nodes."""
+    todo = [tree]
+    while todo:
+        node = todo.pop()
+        yield node
+        for name in _BLOCKS:
+            block = getattr(node, name, None)
+            if isinstance(block, list):
+                todo.extend(block)
 
 
 def import_closure(roots: Iterable[str], root: Path) -> tuple[dict[str, ast.Module], set[str]]:
@@ -70,10 +95,11 @@ def import_closure(roots: Iterable[str], root: Path) -> tuple[dict[str, ast.Modu
         path, init = module_path(root, module)
         if path is None:
             continue
-        trees[module] = tree = ast.parse(path.read_text(encoding='utf-8'), str(path))
+        source = path.read_text(encoding='utf-8')
+        trees[module] = tree = ast.parse(source, str(path))
         parts = module.split('.')
         todo.extend('.'.join(parts[:i]) for i in range(1, len(parts)))   # its packages run first
-        for name in imported_names(module, init, tree):
+        for name in imported_names(module, init, tree, source):
             if name.split('.')[0] == PACKAGE:
                 todo.append(name)
             elif name:
@@ -84,7 +110,7 @@ def import_closure(roots: Iterable[str], root: Path) -> tuple[dict[str, ast.Modu
 def without_docstrings(tree: ast.Module) -> ast.Module:
     """`tree` with every statement that is a string constant alone removed (the docstrings of
     the module, its classes and functions, and strings used as comments): they run as nothing."""
-    for node in ast.walk(tree):
+    for node in statements(tree):
         if isinstance(node, _WITH_BODY):
             node.body = [statement for statement in node.body
                          if not (isinstance(statement, ast.Expr)
