@@ -119,8 +119,12 @@ def base_venv(tmp_path_factory):
 
 
 def env():
+    """The base venv's processes: no PYTHONPATH; byte code written where PYTHONDONTWRITEBYTECODE
+    would keep every process compiling all it imports again (the venv is installed without it,
+    as `pip install --no-compile` would)."""
     out = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     out.pop('PYTHONPATH', None)
+    out.pop('PYTHONDONTWRITEBYTECODE', None)
     return out
 
 
