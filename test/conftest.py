@@ -333,10 +333,7 @@ def pytest_collection_modifyitems(config, items):
         return (not realtime, realtime and item.get_closest_marker('slow') is None,
                 _module(item.nodeid) not in slow)
     items[:] = sorted(items, key=order)
-    realtime = {}
     for item in items:
-        if _realtime(item):
-            realtime[item.nodeid] = live_where(item)
         if item.get_closest_marker('flaky'):
             item.stash[_UNMARKED] = ('flaky: a re-run that hides its first failure (pytest-'
                                      'rerunfailures, installed with colcon) is not allowed here')
@@ -346,12 +343,22 @@ def pytest_collection_modifyitems(config, items):
                 item.stash[_UNMARKED] = f'must be marked realtime ({reason}): add ' \
                     '`pytestmark = pytest.mark.realtime` to its module or ' \
                     '`@pytest.mark.realtime` to the test (test/conftest.py)'
-    if hasattr(config, 'workerinput'):        # an xdist worker: tell the scheduler
-        alone = [item.nodeid for item in items if _realtime(item) and _alone(item)]
-        path = _realtime_ids_file(config)
-        part = path.with_name(f'{path.name}.{os.getpid()}')
-        part.write_text(json.dumps({'kinds': realtime, 'alone': alone}))
-        os.replace(part, path)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_finish(session):
+    """(An xdist worker, before it reports its collection to the scheduler:) the real-time
+    tests that will run, after any deselection (`-k`, `-m`): a test that waits for the APART
+    ones to end waits for those only."""
+    config = session.config
+    if not hasattr(config, 'workerinput'):
+        return
+    realtime = {item.nodeid: live_where(item) for item in session.items if _realtime(item)}
+    alone = [item.nodeid for item in session.items if _realtime(item) and _alone(item)]
+    path = _realtime_ids_file(config)
+    part = path.with_name(f'{path.name}.{os.getpid()}')
+    part.write_text(json.dumps({'kinds': realtime, 'alone': alone}))
+    os.replace(part, path)
 
 
 @pytest.hookimpl(tryfirst=True)
