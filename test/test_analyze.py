@@ -20,7 +20,7 @@ import time
 import pyarrow.parquet as pq
 import pytest
 
-from cli_helpers import REPO, run_planter
+from cli_helpers import REPO, planter_here, run_planter
 from planter_ros.analysis.tables import plant_dicts, unflatten, units
 from planter_ros.cli.main import main
 from planter_ros.sim.season import draw_plan, simulate_bag, simulate_plan, write_monitor_bag
@@ -61,11 +61,9 @@ def analyze_here(*args):
     """`planter analyze ARGS --json` called in this process (where the process boundary is not
     what a test is about: no interpreter to start, the code and the model version loaded once):
     (exit code, printed, the report)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(['analyze', *map(str, args), '--json'])
-    assert code in (0, 1), err.getvalue()[-3000:]
-    return code, err.getvalue(), json.loads(out.getvalue())
+    done = planter_here('analyze', *args, '--json')
+    assert done.returncode in (0, 1), done.stderr[-3000:]
+    return done.returncode, done.stderr, json.loads(done.stdout)
 
 
 @pytest.fixture(scope='module')

@@ -1,20 +1,16 @@
 """`planter bench` as CI runs it: the quick smoke run works, its JSON is complete and its
 errors come from the mpmath reference (exact methods at round-off, the paper's formula not);
 its markdown page holds the quality targets and one table per row group."""
-import contextlib
-import io
 import json
 import re
 import shlex
 import subprocess
 import sys
 import time
-from types import SimpleNamespace
 
 import pytest
 
-from cli_helpers import REPO, run_planter
-from planter_ros.cli.main import main
+from cli_helpers import REPO, planter_here, run_planter
 from planter_ros.bench.registry import Row, Target
 from planter_ros.bench.report import QUALITY_TARGETS, format_markdown
 from planter_ros.bench.timing import Timing
@@ -39,19 +35,6 @@ def quick_bench(*args):
     failed = re.findall(r'"note": "(FAILED: [^"]*)"', out.stdout)
     assert out.returncode == 0, '\n'.join(failed) or out.stderr[-2000:]
     return json.loads(out.stdout)
-
-
-def planter(*args):
-    """The command line in this process (exit code, what it prints), as run_planter gives
-    them: for the small runs and refusals, whose output, not a process, is what is checked
-    (the quick runs keep theirs: the bench's own process is part of its figures)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main([str(a) for a in args])
-        except SystemExit as exc:               # argparse's refusals
-            code = exc.code
-    return SimpleNamespace(returncode=code, stdout=out.getvalue(), stderr=err.getvalue())
 
 
 def only(names):
@@ -171,7 +154,7 @@ def test_quick_bench_live_rows_report_their_latencies_and_targets(live_run):
 
 
 def test_bench_table_names_the_machine_and_targets():
-    out = planter('bench', '--quick', '--only', 'reverse design')
+    out = planter_here('bench', '--quick', '--only', 'reverse design')
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.startswith('planter bench · ') and 'numpy' in out.stdout
     assert '≤ 20 µs' in out.stdout and 'mpmath' in out.stdout
@@ -235,9 +218,9 @@ def test_a_stuck_joiner_is_killed_counted_and_its_joins_handed_on(tmp_path):
 
 
 def test_bench_rejects_bad_options_in_one_line():
-    out = planter('bench', '--only', 'no-such-case')
+    out = planter_here('bench', '--only', 'no-such-case')
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
-    out = planter('bench', '--plot', 'x.jpg')
+    out = planter_here('bench', '--plot', 'x.jpg')
     assert out.returncode == 2 and 'png' in out.stderr
 
 
@@ -282,7 +265,7 @@ def test_markdown_target_status_counts_missed_rows():
 
 def test_markdown_into_a_missing_directory_is_refused_before_any_work(tmp_path):
     page = tmp_path / 'no-such-dir' / 'benchmarks.md'
-    out = planter('bench', '--markdown', page)
+    out = planter_here('bench', '--markdown', page)
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
     assert 'does not exist' in out.stderr and 'bench:' not in out.stderr   # no case started
     assert not page.parent.exists()

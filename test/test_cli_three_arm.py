@@ -1,35 +1,18 @@
 """`planter design three-arm` and `planter optimize three-arm` as a user runs them."""
-import contextlib
-import io
 import json
 import math
 import subprocess
 import sys
-from types import SimpleNamespace
 
 import pytest
 
-from cli_helpers import REPO, run_planter
-from planter_ros.cli.main import main
+from cli_helpers import REPO, planter_here, run_planter
 
 SCENE = REPO / 'config' / 'rice_three_arm.yaml'
 
 
-def planter(*args):
-    """The command line in this process (what it prints and its exit code, as run_planter
-    gives them): the commands' output, not the process boundary, is what these tests check
-    (the import check, the scene on stdout and the two-worker runs keep a process)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main([str(a) for a in args])
-        except SystemExit as exc:               # argparse's refusals
-            code = exc.code
-    return SimpleNamespace(returncode=code, stdout=out.getvalue(), stderr=err.getvalue())
-
-
 def test_design_json_has_goals_centre_distance_and_residual():
-    out = planter('design', 'three-arm', '--params', SCENE, '--json')
+    out = planter_here('design', 'three-arm', '--params', SCENE, '--json')
     assert out.returncode == 0, out.stderr
     r = json.loads(out.stdout)
     assert len(r['goals']) == 8
@@ -46,14 +29,14 @@ def test_design_json_has_goals_centre_distance_and_residual():
 
 
 def test_design_table_headlines_both_counts_and_table_1(tmp_path):
-    out = planter('design', 'three-arm', '--params', SCENE)
+    out = planter_here('design', 'three-arm', '--params', SCENE)
     assert out.returncode == 0, out.stderr
     assert '5 of 8: 3 of 5 the paper fixes, 2 of 3 on assumptions' in out.stdout
     assert "against the paper's Table 1" in out.stdout and 'zero-slip spacing' in out.stdout
     phased = tmp_path / 'phased.yaml'
     phased.write_text(SCENE.read_text().replace(
         '    arm_width:', '    picking_phase: 0.3490658503988659\n    arm_width:'))
-    out = planter('design', 'three-arm', '--params', phased, '--json')
+    out = planter_here('design', 'three-arm', '--params', phased, '--json')
     goals = {g['name']: g for g in json.loads(out.stdout)['goals']}
     assert goals['picking_angle']['value'] == pytest.approx(math.radians(30.95), abs=1e-3)
 
@@ -63,42 +46,42 @@ def test_each_pitch_curve_reading_from_a_scene(tmp_path):
         scene = tmp_path / f'{name}.yaml'
         scene.write_text(SCENE.read_text().replace('interpolant: periodic_cubic',
                                                    f'interpolant: {name}'))
-        out = planter('design', 'three-arm', '--params', scene, '--json')
+        out = planter_here('design', 'three-arm', '--params', scene, '--json')
         assert out.returncode == 0, out.stderr
         assert json.loads(out.stdout)['interpolant'] == name
     bad = tmp_path / 'bezier.yaml'
     bad.write_text(SCENE.read_text().replace('interpolant: periodic_cubic', 'interpolant: bezier'))
-    out = planter('design', 'three-arm', '--params', bad)
+    out = planter_here('design', 'three-arm', '--params', bad)
     assert out.returncode == 2 and 'bspline_cartesian' in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1
 
 
 def test_design_table_and_plot(tmp_path):
     png = tmp_path / 'rice.png'
-    out = planter('design', 'three-arm', '--params', SCENE, '--plot', png)
+    out = planter_here('design', 'three-arm', '--params', SCENE, '--plot', png)
     assert out.returncode == 0, out.stderr
     assert 'picking_angle' in out.stdout and 'deg' in out.stdout and 'goals passed' in out.stdout
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
 def test_bad_scene_is_one_line_exit_2(tmp_path):
-    out = planter('design', 'three-arm', '--params', REPO / 'config' / 'tomato_five_bar.yaml')
+    out = planter_here('design', 'three-arm', '--params', REPO / 'config' / 'tomato_five_bar.yaml')
     assert out.returncode == 2 and 'three_arm' in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1
     bad = tmp_path / 'bad.yaml'
     bad.write_text(SCENE.read_text().replace('arm_length: 0.145', 'arm_length: -0.1'))
-    out = planter('design', 'three-arm', '--params', bad)
+    out = planter_here('design', 'three-arm', '--params', bad)
     assert out.returncode == 2 and 'arm_length' in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1
 
 
 def test_optimize_writes_a_params_file_design_reads(tmp_path):
     target = tmp_path / 'opt.yaml'
-    out = planter('optimize', 'three-arm', '--seed', 2, '--max-time', 2, '--workers', 1,
-                  '--out', target)
+    out = planter_here('optimize', 'three-arm', '--seed', 2, '--max-time', 2, '--workers', 1,
+                       '--out', target)
     assert out.returncode == 0, out.stderr
     assert 'best so far' in out.stderr
-    again = planter('design', 'three-arm', '--params', target, '--json')
+    again = planter_here('design', 'three-arm', '--params', target, '--json')
     assert again.returncode == 0, again.stderr
     assert len(json.loads(again.stdout)['goals']) == 8
 
@@ -113,7 +96,7 @@ def test_optimize_without_out_prints_the_scene_on_stdout_and_writes_nothing(tmp_
     assert out.stdout.startswith('# written by `planter optimize three-arm --seed 2`')
     assert 'goals passed' in out.stderr and 'search:' in out.stderr
     (tmp_path / 'rice.yaml').write_text(out.stdout)
-    again = planter('design', 'three-arm', '--params', tmp_path / 'rice.yaml', '--json')
+    again = planter_here('design', 'three-arm', '--params', tmp_path / 'rice.yaml', '--json')
     assert again.returncode == 0, again.stderr
     assert len(json.loads(again.stdout)['goals']) == 8
 
@@ -136,7 +119,7 @@ def test_optimize_two_workers_give_the_one_worker_result(tmp_path):
     (['--max-time', 'nan'], '--max-time'),
 ])
 def test_optimize_bad_options_are_one_line_exit_2(args, needle):
-    out = planter('optimize', 'three-arm', *args)
+    out = planter_here('optimize', 'three-arm', *args)
     assert out.returncode == 2 and needle in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1
 
@@ -145,7 +128,7 @@ def test_optimize_refuses_a_curve_it_cannot_batch(tmp_path):
     base = tmp_path / 'cartesian.yaml'
     base.write_text(SCENE.read_text().replace('interpolant: periodic_cubic',
                                               'interpolant: bspline_cartesian'))
-    out = planter('optimize', 'three-arm', '--base', base, '--out', tmp_path / 'x.yaml')
+    out = planter_here('optimize', 'three-arm', '--base', base, '--out', tmp_path / 'x.yaml')
     assert out.returncode == 2 and 'bspline_cartesian' in out.stderr
     assert 'periodic_cubic' in out.stderr and len(out.stderr.strip().splitlines()) == 1
 

@@ -6,8 +6,6 @@ its content, not the path it was found at (analysis.season). The tables hold nul
 has no value (DuckDB) and every number of every table names its unit, nested ones too.
 
 The season has empty cups, doubles, unknown tilts and input gaps, and a cam-schedule run."""
-import contextlib
-import io
 import json
 import os
 from pathlib import Path
@@ -19,9 +17,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from cli_helpers import REPO
+from cli_helpers import REPO, planter_here
 from planter_ros.analysis.tables import units
-from planter_ros.cli.main import main
 from planter_ros.recording.replay import replay
 
 
@@ -55,13 +52,10 @@ def analyze(*paths, out):
     """`planter analyze PATHS --out OUT --workers 1 --json`, called in this process (how the
     season is found is the question here, not the process: the code and the model version are
     loaded once for all the runs): its report."""
-    printed, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(err):
-        code = main(['analyze', *map(str, paths), '--out', str(out), '--workers', '1',
-                     '--json'])
-    assert code == 0, err.getvalue()[-3000:]
-    assert 'Traceback' not in err.getvalue()
-    return json.loads(printed.getvalue())
+    done = planter_here('analyze', *paths, '--out', out, '--workers', 1, '--json')
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert 'Traceback' not in done.stderr
+    return json.loads(done.stdout)
 
 
 def check_once(out, plants, names):

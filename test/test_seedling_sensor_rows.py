@@ -6,7 +6,7 @@ unknown instants (`no seedling sensor`) whatever its joint reads, a row declared
 import numpy as np
 import pytest
 
-from cli_helpers import REPO, run_planter
+from cli_helpers import REPO, planter_here, run_planter
 from planter_ros.prediction import PLANT_FIELDS, SeedlingAccount
 from planter_ros.prediction.seedlings import (EMPTY, NO_READING, NO_SENSOR, PLANTED, SENSED,
                                               UNKNOWN)
@@ -109,17 +109,11 @@ def test_simulate_replay_and_analyze_honour_a_row_without_a_sensor(tmp_path):
     scene = scene_with(tmp_path, [
         '    right_outer: {lateral_offset: -0.75, drive_node_id: 4, enabled: true, '
         'seedling_sensor: false}'])
-    import contextlib
-    import io
-
-    from planter_ros.cli.main import main
     out = tmp_path / 'season'
     # (both commands in this process: what they write is the question, not their process)
-    err = io.StringIO()
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        code = main(['simulate', str(out), '--bags', '1', '--duration', '20', '--seed', '2',
-                     '--scene', str(scene), '--empty-rate', '0.1', '--workers', '1', '--json'])
-    assert code == 0, err.getvalue()[-2000:]
+    done = planter_here('simulate', out, '--bags', 1, '--duration', 20, '--seed', 2,
+                        '--scene', scene, '--empty-rate', 0.1, '--workers', 1, '--json')
+    assert done.returncode == 0, done.stderr[-2000:]
     bag = out / 'run_2_00000.mcap'
     result = replay(bag, with_recorded=True)
     assert [row.seedling_sensor for row in result.rows] == [True, True, True, False]
@@ -137,9 +131,8 @@ def test_simulate_replay_and_analyze_honour_a_row_without_a_sensor(tmp_path):
         mine_order = np.lexsort((plants.index, plants.row))
         assert np.array_equal(plants.table()[mine_order, k], live[order, k])
     tables = tmp_path / 'tables'
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        code = main(['analyze', str(out), '--out', str(tables), '--workers', '1'])
-    assert code == 0, err.getvalue()[-2000:]
+    done = planter_here('analyze', out, '--out', tables, '--workers', 1)
+    assert done.returncode == 0, done.stderr[-2000:]
     table = pq.read_table(tables / 'plants').to_pandas()
     right = table[table['row_name'] == 'right_outer']
     assert len(right) == int(mine.sum()) and set(right['status']) == {'unknown'}

@@ -2,17 +2,13 @@
 replay reproduces the plants they carry (glitches, a stall, stops, a curve included), the
 channels and metadata are a live monitor's, the same seed gives the same bytes, bad input is one
 line and exit 2."""
-import contextlib
-import io
 import json
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from cli_helpers import run_planter
+from cli_helpers import planter_here, run_planter
 from planter_ros import interfaces
-from planter_ros.cli.main import main
 from planter_ros.prediction import PLANT_FIELDS
 from planter_ros.recording.replay import replay
 from planter_ros.sim.field import Curve, Stop
@@ -32,16 +28,6 @@ def eventful_plan(rows, duration=24.0):
                    glitches=(Glitch('spike', 4.02, factor=3.0), Glitch('nan', 8.51),
                              Glitch('dropout', 14.0, length=0.9)),
                    stall=Stall(rows - 1, 9.0, 1.5, 0.1), drive_lag=0.06)
-
-
-def planter(*args):
-    """The command line in this process (exit code, what it prints), as run_planter gives
-    them, without a process's start and imports: for the runs where the bags and the report,
-    not a fresh process, are what is checked."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main([str(a) for a in args])
-    return SimpleNamespace(returncode=code, stdout=out.getvalue(), stderr=err.getvalue())
 
 
 def by_row_and_index(table):
@@ -139,8 +125,8 @@ def test_a_season_is_drawn_from_its_seed(tmp_path):
 
 def test_simulate_command(tmp_path):
     out = tmp_path / 'season'
-    r = planter('simulate', out, '--bags', 2, '--duration', 10, '--rows', 2, '--seed', 9,
-                '--workers', 1, '--json')
+    r = planter_here('simulate', out, '--bags', 2, '--duration', 10, '--rows', 2, '--seed', 9,
+                     '--workers', 1, '--json')
     assert r.returncode == 0, r.stderr[-2000:]
     report = json.loads(r.stdout)
     assert report['bags'] == 2 and report['workers'] == 1 and report['failed'] == 0
@@ -150,7 +136,7 @@ def test_simulate_command(tmp_path):
     for run in report['runs']:
         result = replay(run['bag'])
         assert len(result.plants) == run['plants'] > 0 and len(result.rows) == 2
-    again = planter('simulate', out, '--bags', 2, '--seed', 9)
+    again = planter_here('simulate', out, '--bags', 2, '--seed', 9)
     assert again.returncode == 2 and again.stderr.count('\n') == 1
     assert 'already holds run_9_00000.mcap and 1 more' in again.stderr
 
@@ -189,7 +175,7 @@ def test_simulate_any_scene_twice_the_same_bytes_every_message_decoded_by_two_re
                                                                         'five_bar')):
         outs = []
         # the same seed, the same bytes: a fresh process, then this one (imports, caches warm)
-        for k, run in enumerate((run_planter, planter)):
+        for k, run in enumerate((run_planter, planter_here)):
             out = tmp_path / f'{scene}_{k}'
             r = run('simulate', out, '--bags', 1, '--duration', 12, '--seed', 5, '--scene',
                     REPO / 'config' / f'{scene}.yaml', '--workers', 1, '--json',

@@ -3,17 +3,13 @@ cam the sync node plans (control.cam_law.plan_row_cam) on CSP drives, so the bag
 within each revolution is the cam's θ(s), and `planter replay` and `planter analyze` of them
 find the plants at the designed spacing with the cam's hole and tilt; the same seed gives the
 same bytes. Every figure is checked against the cam core's own plan, not a number typed in."""
-import contextlib
-import io
 import json
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from cli_helpers import REPO, run_planter
-from planter_ros.cli.main import main
+from cli_helpers import REPO, planter_here, run_planter
 
 SPACING = 0.3          # m: twice what the mechanism is built for (0.15 m), where the cam matters
 
@@ -32,16 +28,6 @@ def cam_scene(tmp_path, spacing=SPACING, profile='cam'):
     path = tmp_path / f'{profile}_{spacing}.yaml'
     path.write_text('\n'.join(lines) + '\n')
     return path
-
-
-def planter(*args):
-    """The command line in this process (exit code, what it prints), as run_planter gives
-    them: the bags and reports are what these tests check, and the plan the test made first
-    (the control's plan cache) and the imports are not paid again."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main([str(a) for a in args])
-    return SimpleNamespace(returncode=code, stdout=out.getvalue(), stderr=err.getvalue())
 
 
 def planned_cam(scene):
@@ -112,7 +98,7 @@ def test_simulated_cam_bags_follow_the_plan_and_plant_what_it_promises(tmp_path)
     bags = []
     # the same seed, the same bytes: a fresh process (as a user runs it), then this one (its
     # imports and plan cache warm)
-    for k, run in enumerate((run_planter, planter)):
+    for k, run in enumerate((run_planter, planter_here)):
         out = tmp_path / f'season_{k}'
         r = run('simulate', out, '--bags', 1, '--duration', 30, '--seed', 3, '--scene', scene,
                 '--workers', 1, '--json', **({'timeout': 300} if run is run_planter else {}))
@@ -132,7 +118,7 @@ def test_simulated_cam_bags_follow_the_plan_and_plant_what_it_promises(tmp_path)
     assert np.median(np.abs(constant)) > 10 * np.median(np.abs(cam))
 
     # replay: every cruising plant at d, with the cam's hole and tilt, upright as it promises
-    replayed = planter('replay', bag, '--json')
+    replayed = planter_here('replay', bag, '--json')
     assert replayed.returncode == 0, replayed.stderr
     report = json.loads(replayed.stdout)
     plants = [p for p in report['plants'] if p['spacing'] is not None and p['input_gap'] == 0
@@ -152,7 +138,7 @@ def test_simulated_cam_bags_follow_the_plan_and_plant_what_it_promises(tmp_path)
     # analyze: the same plants in its table (with units in the column names)
     import pyarrow.parquet as pq
     out = tmp_path / 'tables'
-    analysed = planter('analyze', bag.parent, '--out', out, '--workers', 1)
+    analysed = planter_here('analyze', bag.parent, '--out', out, '--workers', 1)
     assert analysed.returncode == 0, analysed.stderr[-2000:]
     table = pq.read_table(out / 'plants').to_pandas()
     cruising = table[(table['ground_speed_m_s'] > 0.5 * profile.speed)
@@ -193,8 +179,8 @@ def test_simulate_runs_the_scenes_spacing_schedule_on_the_cam(tmp_path):
     plans = {d: plan_row_cam(dataclasses.replace(design, plant_spacing=d), 'design_speed')
              for d in SPACINGS}
     out = tmp_path / 'season'
-    r = planter('simulate', out, '--bags', 1, '--duration', 32, '--seed', 3, '--scene', scene,
-                '--workers', 1, '--json')
+    r = planter_here('simulate', out, '--bags', 1, '--duration', 32, '--seed', 3, '--scene', scene,
+                     '--workers', 1, '--json')
     assert r.returncode == 0, r.stderr[-2000:]
     events = json.loads(r.stdout)['runs'][0]['events']
     assert events['spacing_changes'] == [{'start': t, 'spacing': d} for t, d in
