@@ -7,7 +7,7 @@ import io
 
 import pytest
 
-from cli_helpers import REPO
+from cli_helpers import REPO, planter_here
 
 from planter_ros.cli.main import main
 
@@ -84,22 +84,29 @@ def test_no_labels_overlap_and_legends_stay_inside(figures, name):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     canvas = FigureCanvasAgg(fig)
     canvas.draw()
-    renderer = canvas.get_renderer()
     texts = [t for t in [fig._suptitle] if t is not None and t.get_text()]
     for ax in panels(fig):
         texts += [t for t in (ax.title, ax._left_title, ax._right_title, ax.xaxis.label,
                               ax.yaxis.label) if t.get_text()]
+    text_apart_and_legends_inside(name, fig, canvas, texts)
+
+
+def text_apart_and_legends_inside(name, fig, canvas, texts):
+    """Every panel's legend inside its panel; no two of `texts` overlap, none cut off at the
+    figure's left or right edge (`canvas`: the figure's, drawn)."""
+    renderer = canvas.get_renderer()
+    for ax in panels(fig):
         legend = ax.get_legend()
         if legend is not None:
             box, frame = legend.get_window_extent(renderer), ax.get_window_extent(renderer)
             assert (box.x0 >= frame.x0 - 1 and box.x1 <= frame.x1 + 1
                     and box.y0 >= frame.y0 - 1 and box.y1 <= frame.y1 + 1), \
                 f'{name}: the legend of {ax.get_title()!r} leaves its panel'
+    width, _ = canvas.get_width_height()
     boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts]
     for i, (a, box_a) in enumerate(boxes):
         for b, box_b in boxes[i + 1:]:
             assert not box_a.overlaps(box_b), f'{name}: {a!r} overlaps {b!r}'
-        width, _ = canvas.get_width_height()
         assert box_a.x0 >= -1 and box_a.x1 <= width + 1, f'{name}: {a!r} is cut off'
 
 
@@ -137,10 +144,8 @@ def season_figures(tmp_path_factory):
         return png(fig)
     season._png = keep
     try:
-        printed = io.StringIO()
-        with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(io.StringIO()):
-            assert main(['analyze', str(root), '--out', str(root / 'tables'),
-                         '--workers', '1']) == 0
+        done = planter_here('analyze', root, '--out', root / 'tables', '--workers', 1)
+        assert done.returncode == 0, done.stderr[-2000:]
     finally:
         season._png = png
     assert (root / 'tables' / 'report.html').is_file()
@@ -167,13 +172,4 @@ def test_the_season_reports_figures_keep_their_text_apart_and_inside(season_figu
         for ax in panels(fig):
             assert ax.get_title().strip(), 'a panel without a title'
             texts += [t for t in (ax.title, ax.xaxis.label, ax.yaxis.label) if t.get_text()]
-            legend = ax.get_legend()
-            if legend is not None:
-                box, frame = legend.get_window_extent(renderer), ax.get_window_extent(renderer)
-                assert (box.x0 >= frame.x0 - 1 and box.x1 <= frame.x1 + 1
-                        and box.y0 >= frame.y0 - 1 and box.y1 <= frame.y1 + 1), \
-                    f'the legend of {ax.get_title()!r} leaves its panel'
-        boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts]
-        for i, (a, box_a) in enumerate(boxes):
-            for b, box_b in boxes[i + 1:]:
-                assert not box_a.overlaps(box_b), f'{a!r} overlaps {b!r}'
+        text_apart_and_legends_inside('season report', fig, canvas, texts)
