@@ -20,7 +20,10 @@ Pure: no ROS, no CAN import.
 """
 from __future__ import annotations
 
-from dataclasses import MISSING, asdict, dataclass, field, fields
+from collections.abc import Callable
+import copy
+from dataclasses import MISSING, dataclass, field, fields
+import functools
 import typing
 from typing import Any, TypeVar
 
@@ -46,42 +49,79 @@ def from_data(cls: type[T], data: Any) -> T:
     if not isinstance(data, dict):
         raise ReportError(f'{cls.__name__}: expected a mapping, got {type(data).__name__}')
     values = {}
-    for name, required, hint in _fields(cls):
+    for name, required, convert in _fields(cls):
         if name not in data:
             if required:
                 raise ReportError(f'{cls.__name__}: no {name!r}')
             continue
-        values[name] = _convert(hint, data[name])
+        values[name] = data[name] if convert is None else convert(data[name])
     return cls(**values)
 
 
-_FIELDS: dict[type, tuple[tuple[str, bool, Any], ...]] = {}
+_FIELDS: dict[type, tuple[tuple[str, bool, Callable[[Any], Any] | None], ...]] = {}
 
 
-def _fields(cls: type) -> tuple[tuple[str, bool, Any], ...]:
-    """(name, required, type) of each field (type hints resolved once per class: the shell
-    reads a snapshot every control period)."""
+def _fields(cls: type) -> tuple[tuple[str, bool, Callable[[Any], Any] | None], ...]:
+    """(name, required, conversion: None for a value taken as it is) of each field (type hints
+    resolved and the conversion chosen once per class: the shell reads a snapshot every
+    control period)."""
     known = _FIELDS.get(cls)
     if known is None:
         hints = typing.get_type_hints(cls)
         known = _FIELDS[cls] = tuple(
-            (f.name, f.default is MISSING and f.default_factory is MISSING, hints[f.name])
+            (f.name, f.default is MISSING and f.default_factory is MISSING,
+             _converter(hints[f.name]))
             for f in fields(cls))
     return known
 
 
-def _convert(hint: Any, value: Any) -> Any:
+def _converter(hint: Any) -> Callable[[Any], Any] | None:
+    """How a field of type `hint` is built from plain data (None: the value as it is)."""
     origin = typing.get_origin(hint)
     args = typing.get_args(hint)
     if isinstance(hint, type) and hasattr(hint, '__dataclass_fields__'):
-        return from_data(hint, value)
+        return functools.partial(from_data, hint)
     if origin in (list, tuple) and args and hasattr(args[0], '__dataclass_fields__'):
-        if not isinstance(value, (list, tuple)):
-            raise ReportError(f'{args[0].__name__}: expected a list, got {type(value).__name__}')
-        return origin(from_data(args[0], item) for item in value)
-    if origin is tuple and isinstance(value, list):     # JSON has lists only
-        return tuple(value)
-    return value
+        return functools.partial(_items, origin, args[0])
+    if origin is tuple:
+        return _tuple
+    return None
+
+
+def _items(container: type, item: type, value: Any) -> Any:
+    if not isinstance(value, (list, tuple)):
+        raise ReportError(f'{item.__name__}: expected a list, got {type(value).__name__}')
+    return container(from_data(item, element) for element in value)
+
+
+def _tuple(value: Any) -> Any:
+    return tuple(value) if isinstance(value, list) else value     # JSON has lists only
+
+
+# values to_data() takes as they are (dataclasses.asdict deep-copies them: the same object)
+_ATOMIC = frozenset({str, int, float, bool, type(None)})
+_NAMES: dict[type, tuple[str, ...]] = {}
+
+
+def _plain(value: Any) -> Any:
+    """dataclasses.asdict's result for `value` without its per-value deep copy of atoms:
+    dataclasses as dicts of their fields, lists, tuples (named ones too) and dicts rebuilt,
+    any other value deep-copied."""
+    kind = type(value)
+    if kind in _ATOMIC:
+        return value
+    if hasattr(kind, '__dataclass_fields__'):
+        names = _NAMES.get(kind)
+        if names is None:
+            names = _NAMES[kind] = tuple(f.name for f in fields(value))
+        return {name: _plain(getattr(value, name)) for name in names}
+    if isinstance(value, tuple) and hasattr(value, '_fields'):
+        return kind(*[_plain(v) for v in value])
+    if isinstance(value, (list, tuple)):
+        return kind(_plain(v) for v in value)
+    if isinstance(value, dict):
+        return kind((_plain(k), _plain(v)) for k, v in value.items())
+    return copy.deepcopy(value)
 
 
 class _Data:
@@ -89,7 +129,7 @@ class _Data:
 
     def to_data(self) -> dict[str, Any]:
         """Plain data for the channel (JSON)."""
-        return asdict(self)         # type: ignore[call-overload]
+        return _plain(self)
 
     @classmethod
     def from_data(cls: type[T], data: Any) -> T:
