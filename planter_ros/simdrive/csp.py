@@ -86,10 +86,23 @@ class CspSetpoint:
         moving = now - self.start < period * self.reach()
         return (self.to - self.start_from) / period if moving else 0.0
 
-    def follow(self, now: float, position: float, velocity: float, dt: float) -> bool:
-        """The following error at `now` with the motor at `position`; True when it stayed
-        beyond the window for the time-out (a fault: `last_fault` says what)."""
-        setpoint = self.setpoint(now)
+    def guide(self, now: float) -> tuple[float, float]:
+        """(`setpoint(now)`, `feed_forward(now)`) in one pass: the servo asks both at every
+        sub-step."""
+        period = self.period or 0.01
+        reach = 1.0 + max(self.EXTRAPOLATE_PERIODS - self.extrapolated, 0)
+        start_from, to, elapsed = self.start_from, self.to, now - self.start
+        share = min(max(elapsed / period, 0.0), reach)
+        return (start_from + (to - start_from) * share,
+                (to - start_from) / period if elapsed < period * reach else 0.0)
+
+    def follow(self, now: float, position: float, velocity: float, dt: float,
+               setpoint: float | None = None) -> bool:
+        """The following error at `now` with the motor at `position` (`setpoint`: the set point
+        at `now`, when the caller has it); True when it stayed beyond the window for the
+        time-out (a fault: `last_fault` says what)."""
+        if setpoint is None:
+            setpoint = self.setpoint(now)
         self.error = setpoint - position
         if abs(self.error) <= self.window:
             self.since = None

@@ -209,10 +209,10 @@ class SimulatedDevice:
             state, mode = control.state, control.mode
             if state == OPERATION_ENABLED and mode == CYCLIC_SYNC_POSITION:
                 # position loop on the interpolated set point, its speed as feed-forward
-                setpoint = csp.setpoint(t)
-                if csp.follow(t, motor.position, v, dt):
+                setpoint, feed_forward = csp.guide(t)
+                if csp.follow(t, motor.position, v, dt, setpoint):
                     fault[0] = True
-                return (csp.feed_forward(t) + (setpoint - motor.position)
+                return (feed_forward + (setpoint - motor.position)
                         / motor.time_constant, math.inf)
             if state == OPERATION_ENABLED and mode in (PROFILE_VELOCITY, objs.HOMING):
                 target = (self.sign(0x40) * self.target if mode == PROFILE_VELOCITY

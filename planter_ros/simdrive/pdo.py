@@ -41,6 +41,9 @@ class PdoTiming:
     def __init__(self, node: StrictNode, act: Callable[[Entries], None]) -> None:
         self.node = node
         self.rpdos, self.tpdos = pdo_maps(node.rpdo), pdo_maps(node.tpdo)
+        # (number, map) of each TPDO, taken once: canopen makes a node's maps with the node
+        # (reading the dictionary refills them), and they are walked at every step
+        self._tpdo_items = tuple(self.tpdos.items())
         self.act = act
         self.operational = False
         self._buffered: dict[int, Entries] = {}      # synchronous RPDOs waiting for SYNC
@@ -110,7 +113,7 @@ class PdoTiming:
         if not self.operational:
             return
         self._syncs += 1
-        for number, pdo_map in self.tpdos.items():
+        for number, pdo_map in self._tpdo_items:
             trans = pdo_map.trans_type
             if not pdo_map.enabled or not synchronous(trans):
                 continue
@@ -127,15 +130,18 @@ class PdoTiming:
         if not self.operational:
             return
         changed = statusword != self._sent_statusword
-        for number, pdo_map in self.tpdos.items():
+        for number, pdo_map in self._tpdo_items:
             if not pdo_map.enabled or pdo_map.trans_type not in (254, 255):
                 continue
             timer, inhibit = self._timing.get(number, (0.0, 0.0))
             last = self._last_sent.get(number, -math.inf)
             if now - last < inhibit:
                 continue
+            expired = timer > 0 and now - last >= timer
+            if not (changed or expired):        # most steps: nothing due
+                continue
             carries = any(var.index == od.STATUSWORD.index for var in pdo_map)
-            if (carries and changed) or (timer > 0 and now - last >= timer):
+            if (carries and changed) or expired:
                 self._send(number, pdo_map, now, self._sample(pdo_map))
                 if carries:
                     self._sent_statusword = statusword
