@@ -197,3 +197,27 @@ def test_qos_yaml_round_trips_through_rosbags():
     q = parse_qos(qos_yaml(QoSProfile(depth=7, reliability=ReliabilityPolicy.BEST_EFFORT)))
     assert q[0].depth == 7 and q[0].reliability.name == 'BEST_EFFORT'
     assert math.isfinite(q[0].deadline.sec)
+
+
+def test_topics_sharing_a_qos_profile_each_have_it_written_out_in_the_metadata(tmp_path):
+    """The profiles' YAML is made once per distinct profile list: topics that share one still
+    each have their own, written out (no YAML alias), and a different profile its own."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from planter_ros.recording.recorder import qos_yaml
+    shared = QoSProfile(depth=3)
+    other = QoSProfile(depth=3, reliability=ReliabilityPolicy.BEST_EFFORT)
+    assert qos_yaml(shared) == qos_yaml(QoSProfile(depth=3)) != qos_yaml(other)
+    rec = Recorder(tmp_path / 'b.mcap')
+    for name, qos in (('/a', shared), ('/b', QoSProfile(depth=3)), ('/c', other)):
+        rec.add_topic(name, 'std_msgs/msg/String', qos)
+    rec.close()
+    from mcap.reader import make_reader
+    with open(tmp_path / 'b.mcap', 'rb') as f:
+        meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    text = meta['rosbag2']['serialized_metadata']
+    assert '&id' not in text and '*id' not in text
+    topics = {t['topic_metadata']['name']: t['topic_metadata']['offered_qos_profiles']
+              for t in yaml.safe_load(text)['topics_with_message_count']}
+    assert topics['/a'] == topics['/b'] == yaml.safe_load(qos_yaml(shared))
+    assert topics['/c'] == yaml.safe_load(qos_yaml(other))
+    assert topics['/c'][0]['reliability'] == 'best_effort'

@@ -23,6 +23,7 @@ caller publishes itself are serialised (`write_message`, rclpy.serialization).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+import copy
 from dataclasses import dataclass, field
 from enum import Enum
 import json
@@ -161,7 +162,27 @@ def qos_yaml(qos: Qos | QoSProfile | dict[str, object] | None) -> str:
         profiles = [qos]
     else:
         profiles = [_qos_dict(qos)]
-    return yaml.safe_dump(profiles, default_flow_style=False, sort_keys=False)
+    key = repr(profiles)      # plain values (what safe_dump takes): equal reprs, equal YAML
+    text = _QOS_YAML.get(key)
+    if text is None:
+        text = _QOS_YAML[key] = yaml.safe_dump(profiles, default_flow_style=False,
+                                               sort_keys=False)
+    return text
+
+
+# qos_yaml's texts and their profiles read back, per distinct profile list (PyYAML is pure
+# Python: a bag's 15 topics have 4 profiles, and a season writes hundreds of bags)
+_QOS_YAML: dict[str, str] = {}
+_QOS_PROFILES: dict[str, list[object]] = {}
+
+
+def _qos_profiles(text: str) -> list[object]:
+    """`yaml.safe_load(text) or []` of an offered_qos_profiles text, a copy of its own each
+    time (an object met twice would be written as a YAML alias)."""
+    profiles = _QOS_PROFILES.get(text)
+    if profiles is None:
+        profiles = _QOS_PROFILES[text] = yaml.safe_load(text) or []
+    return copy.deepcopy(profiles)
 
 
 def _qos_dict(qos: QoSProfile) -> dict[str, object]:
@@ -380,7 +401,7 @@ class Recorder:
             'topics_with_message_count': [{
                 'topic_metadata': {
                     'name': t.name, 'type': t.type_name, 'serialization_format': 'cdr',
-                    'offered_qos_profiles': yaml.safe_load(t.qos) or [],
+                    'offered_qos_profiles': _qos_profiles(t.qos),
                     'type_description_hash': t.hash,
                 },
                 'message_count': t.count,
