@@ -85,6 +85,9 @@ class MonitorNode(Node):
 
         self.recorder = None
         self.record_error = ''
+        # topic name -> its name in the graph (the node's namespace and remappings, fixed
+        # when the node was made): resolved once, not per recorded message
+        self._resolved = {}
         self.samples_taken = 0
         self._design_text = None
         self.design_sources = DesignSources()
@@ -160,7 +163,9 @@ class MonitorNode(Node):
         if self.recorder is None or self.recorder.closed:
             return
         try:
-            name = self.resolve_topic_name(topic.name)
+            name = self._resolved.get(topic.name)
+            if name is None:
+                name = self._resolved[topic.name] = self.resolve_topic_name(topic.name)
             if message is not None:
                 self.recorder.write_message(name, message, log_ns, publish_ns)
             else:
