@@ -11,7 +11,7 @@ from planter_ros.kinematics.errors import DesignError
 from planter_ros.kinematics.five_bar import design_five_bar
 from planter_ros.kinematics.planting import FiveBarPlanting, PathPlanting
 from planter_ros.prediction import (
-    PlantPredictor, Plants, PredictionSettings, RowInputs, plant_values,
+    PLANT_FIELDS, PlantPredictor, Plants, PredictionSettings, RowInputs, plant_values,
     planting_model_from_design, predict_plants)
 from planter_ros.sim.runs import RunOptions, five_bar_design_message, simulate_run
 
@@ -462,3 +462,14 @@ def test_a_section_switched_off_ends_the_spacing_sequence_live_and_in_replay():
                    live.add_joint(inputs[2][i], inputs[3][i], inputs[4][i]))
     np.testing.assert_allclose(Plants.concatenate(out).table(), plants.table(), rtol=0,
                                atol=1e-12, equal_nan=True)
+
+
+def test_no_plants_is_what_an_empty_table_gives_each_field_an_array_of_its_own():
+    empty, from_table = Plants.empty(), Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
+    assert len(empty) == 0 and empty.table().shape == (0, len(PLANT_FIELDS))
+    for f in PLANT_FIELDS:
+        mine, theirs = getattr(empty, f), getattr(from_table, f)
+        assert (mine.dtype, mine.shape, mine.flags.writeable) == \
+            (theirs.dtype, theirs.shape, theirs.flags.writeable)
+    assert len({id(getattr(empty, f)) for f in PLANT_FIELDS}) == len(PLANT_FIELDS)
+    assert Plants.empty().index is not empty.index

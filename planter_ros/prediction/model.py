@@ -65,7 +65,7 @@ from planter_ros.sensing.ground_speed_filter import (
     GroundSpeedFilter, GroundSpeedLimits, filter_ground_speed)
 
 from .motion import Motion, arc_figures
-from .plants import PLANT_FIELDS, Plants
+from .plants import Plants
 from .seedlings import INPUT_GAP, NO_SENSOR, UNKNOWN
 
 __all__ = ['planting_model_from_design', 'prediction_notes', 'PredictionSettings',
@@ -296,7 +296,7 @@ def predict_rows(rows: Sequence[RowInputs], model: Planting,
              if (one := _instants(inputs, models, change_times, settings, speed_filter))
              is not None]
     if not found:
-        return Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
+        return Plants.empty()
     parts = [one for _, one in found]
     arcs = (_measured_arcs([(one.motion, one.which, one.theta_k) for one in parts], models,
                            settings.max_input_gap)
@@ -723,7 +723,7 @@ class PlantPredictor:
                               self.settings.max_input_gap)[0]
 
     def _nothing(self) -> Plants:
-        return Plants.from_table(np.zeros((0, len(PLANT_FIELDS))))
+        return Plants.empty()
 
 
 def _bisect_right(a: Sequence[float], x: float) -> int:

@@ -92,10 +92,17 @@ class Plants:
                       for f in PLANT_FIELDS})
 
     @classmethod
+    def empty(cls) -> 'Plants':
+        """No plants: every field an empty float array of its own (as `from_table` of an
+        empty table gives, without building one; the monitor's predictor answers most
+        samples with it)."""
+        return cls(**{f: np.empty(0) for f in PLANT_FIELDS})
+
+    @classmethod
     def concatenate(cls, parts: Iterable['Plants']) -> 'Plants':
         parts = list(parts)
         if not parts:
-            return cls.from_table(np.zeros((0, len(PLANT_FIELDS))))
+            return cls.empty()
         return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
                       for f in fields(cls)})
 
