@@ -426,7 +426,8 @@ def encode_message(msg: RosMessage) -> bytes:
     past its last field (a JointState: rosbags refuses it with "CDR message size mismatch"), so
     two recordings of the same messages differ. This encoder walks the message's own field
     types (`get_fields_and_field_types`): primitives, strings, nested messages, fixed arrays and
-    (bounded) sequences of any of them; wide strings are refused (ValueError)."""
+    (bounded) sequences of any of them; wide strings are refused (ValueError). The walk of a
+    message class's types is made once (`_message_encoder`), not per message."""
     out = bytearray(_ENCAPSULATION)
     _encode_fields(out, msg)
     return bytes(out)
@@ -438,9 +439,29 @@ def _pad(out: bytearray, size: int) -> None:
         out.extend(b'\x00' * (size - extra))
 
 
+_Encoder = Callable[[bytearray, Any], None]
+
+# message class -> the encoder of its fields, in order
+_MESSAGE_ENCODERS: dict[type, _Encoder] = {}
+
+
 def _encode_fields(out: bytearray, msg: RosMessage) -> None:
-    for name, kind in msg.get_fields_and_field_types().items():
-        _encode_value(out, kind, getattr(msg, name))
+    encoder = _MESSAGE_ENCODERS.get(type(msg))
+    if encoder is None:
+        encoder = _MESSAGE_ENCODERS[type(msg)] = _message_encoder(msg)
+    encoder(out, msg)
+
+
+def _message_encoder(msg: RosMessage) -> _Encoder:
+    """The encoder of every field of `msg`'s class (the generated classes' field types are
+    the class's own, the same for every message of it)."""
+    fields = tuple((name, _value_encoder(kind))
+                   for name, kind in msg.get_fields_and_field_types().items())
+
+    def encode(out: bytearray, value: Any) -> None:
+        for name, encode_field in fields:
+            encode_field(out, getattr(value, name))
+    return encode
 
 
 def _element(kind: str) -> tuple[str, int | None]:
@@ -452,42 +473,67 @@ def _element(kind: str) -> tuple[str, int | None]:
     return base, int(count.rstrip(']'))
 
 
-def _encode_value(out: bytearray, kind: str, value: Any) -> None:
-    # a field's value as the message holds it: the generated message classes declare no types
+def _value_encoder(kind: str) -> _Encoder:
+    """The encoder of a field of type `kind`, chosen once: a field's value as the message
+    holds it (the generated message classes declare no types)."""
     if kind.startswith('sequence<') or kind.endswith(']'):
-        element, count = _element(kind)
-        items = list(value) if not isinstance(value, (bytes, bytearray)) else list(value)
+        return _array_encoder(kind)
+    primitive = _PRIMITIVES.get(kind)
+    if primitive is not None:
+        fmt, size = primitive
+        packer = struct.Struct('<' + fmt).pack
+
+        def encode_primitive(out: bytearray, value: Any) -> None:
+            _pad(out, size)
+            if fmt == 'B' and not isinstance(value, int):
+                value = ord(value) if isinstance(value, (str, bytes)) else int(value)
+            out.extend(packer(value))
+        return encode_primitive
+    if kind == 'string' or kind.startswith('string<'):
+        return _encode_string
+    if kind.startswith('wstring'):
+        def refuse(out: bytearray, value: Any) -> None:
+            raise ValueError(f'CDR encoding of {kind} is not supported: allowed primitives, '
+                             'strings, messages, arrays and sequences of them')
+        return refuse
+    return _encode_fields
+
+
+def _encode_string(out: bytearray, value: Any) -> None:
+    data = value.encode('utf-8') + b'\x00'
+    _pad(out, 4)
+    out.extend(_U32(len(data)))
+    out.extend(data)
+
+
+_U32 = struct.Struct('<I').pack
+
+
+def _array_encoder(kind: str) -> _Encoder:
+    element, count = _element(kind)
+    primitive = _PRIMITIVES.get(element)
+
+    def items_of(out: bytearray, value: Any) -> list[Any]:
+        items = list(value)
         if count is None:
             _pad(out, 4)
-            out.extend(struct.pack('<I', len(items)))
-        if not items:
-            return
-        primitive = _PRIMITIVES.get(element)
-        if primitive is not None:
-            fmt, size = primitive
+            out.extend(_U32(len(items)))
+        return items
+    if primitive is not None:
+        fmt, size = primitive
+
+        def encode_primitives(out: bytearray, value: Any) -> None:
+            items = items_of(out, value)
+            if not items:
+                return
             _pad(out, size)
             if fmt == 'B':
                 items = [v if isinstance(v, int) else ord(v) for v in items]
             out.extend(struct.pack(f'<{len(items)}{fmt}', *items))
-            return
-        for item in items:
-            _encode_value(out, element, item)
-        return
-    primitive = _PRIMITIVES.get(kind)
-    if primitive is not None:
-        fmt, size = primitive
-        _pad(out, size)
-        if fmt == 'B' and not isinstance(value, int):
-            value = ord(value) if isinstance(value, (str, bytes)) else int(value)
-        out.extend(struct.pack('<' + fmt, value))
-        return
-    if kind == 'string' or kind.startswith('string<'):
-        data = value.encode('utf-8') + b'\x00'
-        _pad(out, 4)
-        out.extend(struct.pack('<I', len(data)))
-        out.extend(data)
-        return
-    if kind.startswith('wstring'):
-        raise ValueError(f'CDR encoding of {kind} is not supported: allowed primitives, '
-                         'strings, messages, arrays and sequences of them')
-    _encode_fields(out, value)
+        return encode_primitives
+    encode_element = _value_encoder(element)
+
+    def encode_elements(out: bytearray, value: Any) -> None:
+        for item in items_of(out, value):
+            encode_element(out, item)
+    return encode_elements
