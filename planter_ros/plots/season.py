@@ -94,8 +94,9 @@ def _png(fig):
     savefig(bbox_inches='tight') gives, drawn once (tight draws it twice: to find the box, then
     the picture). A figure drawn up to its edge (something reaches beyond it, which tight would
     enlarge the canvas for) is saved with tight."""
+    # lazy: loaded in _matplotlib_home (its font cache)
     import matplotlib.image
-    import matplotlib.pyplot as plt  # lazy: loaded in _matplotlib_home (its font cache)
+    import matplotlib.pyplot as plt
     from matplotlib.colors import to_rgba
     fig.set_dpi(DPI)
     fig.canvas.draw()
