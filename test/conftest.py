@@ -31,6 +31,7 @@ and when more than one test of a session needed it, the session fails. No other 
 marked `flaky` fails and `--reruns` is refused (pytest-rerunfailures comes with colcon).
 test_harness.py tests all of this on small test files.
 """
+from fnmatch import fnmatch
 import gc
 import hashlib
 import json
@@ -474,14 +475,20 @@ def _cache_rewritten_tests(config):
     except (ImportError, KeyError):
         return
     here = Path(__file__).parent
-    for path in sorted([here / 'conftest.py', *here.glob('test_*.py')]):
+    patterns = config.getini('python_files')       # the modules pytest collects (and rewrites)
+    modules = [path for path in here.glob('*.py')
+               if path.name == 'conftest.py' or any(fnmatch(path.name, p) for p in patterns)]
+    for path in sorted(modules):
         cache = get_cache_dir(path)
         pyc = cache / (path.name[:-3] + PYC_TAIL)
-        if _read_pyc(path, pyc, state.trace) is not None:
-            continue
-        cache.mkdir(exist_ok=True)
-        source_hash, code = _rewrite_test(path, config)
-        _write_pyc(state, code, source_hash, pyc)
+        try:
+            if _read_pyc(path, pyc, state.trace) is not None:
+                continue
+            cache.mkdir(exist_ok=True)
+            source_hash, code = _rewrite_test(path, config)
+            _write_pyc(state, code, source_hash, pyc)
+        except (TypeError, AttributeError, ValueError):   # pytest's internals changed
+            return
 
 
 def pytest_runtest_logreport(report):
