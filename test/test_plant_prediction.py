@@ -350,6 +350,7 @@ def _gap_run():
 @settings(max_examples=40, deadline=None)
 @example(gaps=[], max_gap=0.09375)      # an exit just inside the gap, late joint feedback
 @example(gaps=[('joint', 18.0, 2.0)], max_gap=1.0)   # a plant in a gap the last samples close
+@example(gaps=[('joint', 16.25, 1.3046875)], max_gap=1.0)  # a plant at the gap's closing sample
 @given(gaps=st.lists(st.tuples(st.sampled_from(['speed', 'joint']), st.floats(0.5, 18.0),
                                st.floats(0.05, 2.0)), max_size=4),
        max_gap=st.floats(0.06, 1.0))
@@ -369,12 +370,14 @@ def test_live_and_replay_agree_on_any_gaps(gaps, max_gap):
     batch = predict_plants(RowInputs(*inputs), model, prediction)
     np.testing.assert_allclose(_live(model, prediction, *inputs).table(), batch.table(),
                                rtol=0, atol=1e-12, equal_nan=True)
-    # a plant inside a gap longer than the setting is flagged and has no figures, none other
+    # a plant inside a gap longer than the setting is flagged and has no figures, none other;
+    # inside: on the segment the gap's two samples span, its closing sample included (an
+    # instant there is found between them, its time interpolated across the gap)
     inside = np.zeros(len(batch), dtype=bool)
     for t in (inputs[0], inputs[2]):
         k = np.nonzero(np.diff(t) > max_gap)[0]
         for lo, hi in zip(t[k], t[k + 1]):
-            inside |= (batch.time > lo) & (batch.time < hi)
+            inside |= (batch.time > lo) & (batch.time <= hi)
     assert np.array_equal(batch.input_gap == 1, inside)
     assert np.all(np.isnan(batch.hole_width[inside]))
 
